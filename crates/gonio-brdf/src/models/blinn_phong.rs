@@ -1,0 +1,101 @@
+use std::f64::consts::PI;
+
+use gonio_core::{Channels, Dir};
+
+use super::{Diffuse, ParamError, check, non_negative};
+use crate::Brdf;
+use crate::proposal::{HalfDensity, Proposal, Weighted};
+
+/// Normalised Blinn-Phong: `f_r = ρs C(n) cosⁿθh` with the half vector `h`, plus an
+/// optional `[diffuse]` term.
+///
+/// The normalisation is exact, not the usual `(n+8)/(8π)` approximation: at normal
+/// incidence `θo = 2θh`, and `∫ cosⁿθh cos θo dωo = 8π (n + 2^{−n/2}) / ((n+2)(n+4))`,
+/// so `C(n) = (n+2)(n+4) / (8π (n + 2^{−n/2}))` makes `ρs` the albedo of the specular
+/// term at normal incidence. `n = 0` gives Lambert (`C = 1/π`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlinnPhong {
+    channels: Channels,
+    rho_s: Vec<f64>,
+    n: Vec<f64>,
+    diffuse: Option<Diffuse>,
+    coef: Vec<f64>,
+}
+
+/// `C(n)` of [`BlinnPhong`].
+pub(crate) fn blinn_phong_normalization(n: f64) -> f64 {
+    (n + 2.0) * (n + 4.0) / (8.0 * PI * (n + (-0.5 * n).exp2()))
+}
+
+impl BlinnPhong {
+    /// `rho_s` ≥ 0 and `n` ≥ 0 per channel.
+    pub fn new(channels: Channels, rho_s: Vec<f64>, n: Vec<f64>) -> Result<Self, ParamError> {
+        check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
+        check("n", &n, &channels, "must be ≥ 0", non_negative)?;
+        let coef = rho_s
+            .iter()
+            .zip(&n)
+            .map(|(r, n)| r * blinn_phong_normalization(*n))
+            .collect();
+        Ok(BlinnPhong {
+            channels,
+            rho_s,
+            n,
+            diffuse: None,
+            coef,
+        })
+    }
+
+    /// Adds a diffuse term.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
+        self.diffuse = Some(d);
+        self
+    }
+
+    /// Specular albedo at normal incidence per channel.
+    pub fn rho_s(&self) -> &[f64] {
+        &self.rho_s
+    }
+    /// Exponent per channel.
+    pub fn n(&self) -> &[f64] {
+        &self.n
+    }
+    /// The diffuse term, if any.
+    pub fn diffuse(&self) -> Option<&Diffuse> {
+        self.diffuse.as_ref()
+    }
+}
+
+impl Brdf for BlinnPhong {
+    fn channels(&self) -> &Channels {
+        &self.channels
+    }
+
+    fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
+        out.fill(0.0);
+        if !(wi.is_above() && wo.is_above()) {
+            return;
+        }
+        let s = wi.vec() + wo.vec();
+        let hz = s.z / s.norm();
+        for ((o, c), n) in out.iter_mut().zip(&self.coef).zip(&self.n) {
+            *o = c * hz.powf(*n);
+        }
+        if let Some(d) = &self.diffuse {
+            d.add_eval(wi, wo, out);
+        }
+    }
+
+    fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {
+        for (r, n) in self.rho_s.iter().zip(&self.n) {
+            Weighted::push_merged(
+                out,
+                *r,
+                Proposal::HalfVector(HalfDensity::CosinePower { n: *n }),
+            );
+        }
+        if let Some(d) = &self.diffuse {
+            d.push_proposals(wi, out);
+        }
+    }
+}

@@ -1,0 +1,98 @@
+//! The analytic models. Each stores one parameter value per channel.
+
+mod blinn_phong;
+mod cook_torrance;
+mod diffuse;
+mod lafortune;
+mod oren_nayar;
+mod phong;
+mod ward;
+
+pub use crate::microfacet::Distribution;
+pub use blinn_phong::BlinnPhong;
+pub use cook_torrance::CookTorrance;
+pub use diffuse::Diffuse;
+pub use lafortune::{Lafortune, LafortuneLobe, Sym3};
+pub use oren_nayar::{OrenNayar, OrenNayarVariant};
+pub use phong::{Mirror, Phong, PhongNormalization};
+pub use ward::Ward;
+
+use gonio_core::Channels;
+use std::f64::consts::TAU;
+
+/// A model parameter that is out of range or has the wrong number of channel values.
+/// `field` names it as a model file does (`rho`, `lobes[2].cz`, `diffuse.n`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ParamError {
+    /// The parameter's path in a model file.
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl ParamError {
+    pub(crate) fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        ParamError {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The same error with `prefix.` in front of the field (for nested tables).
+    pub fn within(mut self, prefix: &str) -> Self {
+        self.field = format!("{prefix}.{}", self.field);
+        self
+    }
+}
+
+/// Checks that `values` has one entry per channel and that each satisfies `ok`, whose
+/// failure is described by `what` (e.g. "must be ≥ 0").
+pub(crate) fn check(
+    field: &str,
+    values: &[f64],
+    channels: &Channels,
+    what: &str,
+    ok: impl Fn(f64) -> bool,
+) -> Result<(), ParamError> {
+    if values.len() != channels.len() {
+        return Err(ParamError::new(
+            field,
+            format!(
+                "expected {} values (one per channel {}), got {}",
+                channels.len(),
+                channels,
+                values.len()
+            ),
+        ));
+    }
+    for (i, v) in values.iter().enumerate() {
+        if !v.is_finite() || !ok(*v) {
+            return Err(ParamError::new(
+                field,
+                format!("{v} for channel {} {what}", channels.name(i)),
+            ));
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn non_negative(v: f64) -> bool {
+    v >= 0.0
+}
+
+pub(crate) fn positive(v: f64) -> bool {
+    v > 0.0
+}
+
+pub(crate) fn unit_interval(v: f64) -> bool {
+    (0.0..=1.0).contains(&v)
+}
+
+/// A sampling weight for a cosine lobe of scale `scale` and exponent `n` whose axis has
+/// z component `axis_z`: its power over the sphere, `scale · 2π/(n+1)`, discounted for
+/// how far the axis leans towards the horizon. Only a mixture weight: any positive
+/// value keeps sampling correct.
+pub(crate) fn lobe_weight(scale: f64, n: f64, axis_z: f64) -> f64 {
+    scale * TAU / (n + 1.0) * (0.1 + 0.9 * axis_z.max(0.0))
+}
