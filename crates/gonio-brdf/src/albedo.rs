@@ -48,7 +48,7 @@ pub fn integrate<B: Brdf + ?Sized>(brdf: &B, wi: Dir, tol: Tolerance) -> VecEsti
     let mut props: Vec<Weighted> = Vec::new();
     brdf.proposals(wi, &mut props);
     let w_total: f64 = props.iter().map(|p| p.weight).sum();
-    if !(w_total > 0.0) {
+    if w_total.is_nan() || w_total <= 0.0 {
         return total;
     }
     let pieces = props.len() * 2;
@@ -61,7 +61,7 @@ pub fn integrate<B: Brdf + ?Sized>(brdf: &B, wi: Dir, tol: Tolerance) -> VecEsti
     // (w_k/W) f cos θo / p at `wo`, times the Jacobian `jac` of the cut-out map.
     let mut term = |k: usize, wo: Dir, jac: f64, out: &mut [f64]| {
         out.fill(0.0);
-        if !(wo.z > 0.0) || !(jac > 0.0) {
+        if wo.z <= 0.0 || jac.is_nan() || jac <= 0.0 {
             return;
         }
         let p: f64 = props

@@ -234,7 +234,7 @@ pub fn chi_square_sf(x: f64, dof: usize) -> f64 {
 
 /// `ln Γ(dof/2)`, exactly by `Γ(a+1) = a Γ(a)` from `Γ(1) = 1` or `Γ(1/2) = √π`.
 fn ln_gamma_half_integer(dof: usize) -> f64 {
-    let (mut a, mut acc) = if dof % 2 == 0 {
+    let (mut a, mut acc) = if dof.is_multiple_of(2) {
         (1.0, 0.0)
     } else {
         (0.5, 0.5 * std::f64::consts::PI.ln())

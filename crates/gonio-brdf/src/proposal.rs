@@ -122,7 +122,7 @@ impl Weighted {
     /// Appends `proposal` with `weight` to `out`, merging it into an identical one
     /// already there (models with per-channel parameters often repeat themselves).
     pub fn push_merged(out: &mut Vec<Weighted>, weight: f64, proposal: Proposal) {
-        if !(weight > 0.0) || !weight.is_finite() {
+        if !weight.is_finite() || weight <= 0.0 {
             return;
         }
         if let Some(w) = out.iter_mut().find(|w| w.proposal == proposal) {
@@ -265,7 +265,7 @@ fn cosine_power_about(axis: Dir, n: f64, u: [f64; 2]) -> Dir {
 /// Returns the direction and the mixture density there.
 pub fn mixture_sample(props: &[Weighted], wi: Dir, uc: f64, u: [f64; 2]) -> Option<(Dir, f64)> {
     let total: f64 = props.iter().map(|p| p.weight).sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return None;
     }
     let mut target = uc * total;
@@ -284,7 +284,7 @@ pub fn mixture_sample(props: &[Weighted], wi: Dir, uc: f64, u: [f64; 2]) -> Opti
 /// The density (1/sr) of the weighted mixture at `wo`.
 pub fn mixture_pdf(props: &[Weighted], wi: Dir, wo: Dir) -> f64 {
     let total: f64 = props.iter().map(|p| p.weight).sum();
-    if !(total > 0.0) || !wo.is_above() {
+    if total.is_nan() || total <= 0.0 || !wo.is_above() {
         return 0.0;
     }
     props

@@ -72,7 +72,7 @@ fn erf_series(x: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// Reference values from mpmath at 30 digits.
+    /// Reference values from mpmath at 30 digits, kept as printed.
     #[test]
     fn matches_high_precision_values() {
         let cases = [

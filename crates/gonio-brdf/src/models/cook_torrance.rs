@@ -100,7 +100,7 @@ impl Brdf for CookTorrance {
         let schlick = (1.0 - cos_d).max(0.0).powi(5);
         let denom = 4.0 * (wi.z * wo.z);
         let mut last: Option<(f64, f64, f64)> = None;
-        for c in 0..out.len() {
+        for (c, o) in out.iter_mut().enumerate() {
             let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
             // Channels usually share the roughness: reuse D·G2.
             let dg = match last {
@@ -113,7 +113,7 @@ impl Brdf for CookTorrance {
                 }
             };
             let f = self.f0[c] + (1.0 - self.f0[c]) * schlick;
-            out[c] = self.rho_s[c] * f * dg / denom;
+            *o = self.rho_s[c] * f * dg / denom;
         }
         if let Some(d) = &self.diffuse {
             d.add_eval(wi, wo, out);

@@ -107,12 +107,12 @@ impl Brdf for OrenNayar {
         };
         let (sin_a, tan_b) = (alpha.sin(), beta.tan());
         let b2 = FRAC_2_PI * beta;
-        for c in 0..out.len() {
+        for (c, o) in out.iter_mut().enumerate() {
             let s2 = self.sigma[c] * self.sigma[c];
             let rho = self.rho[c];
             let c1 = 1.0 - 0.5 * s2 / (s2 + 0.33);
             let b = 0.45 * s2 / (s2 + 0.09);
-            out[c] = match self.variant {
+            *o = match self.variant {
                 OrenNayarVariant::Qualitative => {
                     rho * FRAC_1_PI * (c1 + b * cos_dphi.max(0.0) * sin_a * tan_b)
                 }

@@ -85,10 +85,10 @@ impl Brdf for Ward {
         let h = wi.vec() + wo.vec();
         let root = (wi.z * wo.z).sqrt();
         let (tx, ty) = (h.x / h.z, h.y / h.z);
-        for c in 0..out.len() {
+        for (c, o) in out.iter_mut().enumerate() {
             let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
             let e = (tx / ax).powi(2) + (ty / ay).powi(2);
-            out[c] = self.rho_s[c] * (-e).exp() / (4.0 * PI * ax * ay * root);
+            *o = self.rho_s[c] * (-e).exp() / (4.0 * PI * ax * ay * root);
         }
         if let Some(d) = &self.diffuse {
             d.add_eval(wi, wo, out);

@@ -1,0 +1,136 @@
+//! `gonio model eval` and `gonio model albedo`.
+
+use std::io::Write;
+use std::path::Path;
+
+use gonio_brdf::{Brdf, Model};
+use gonio_core::dirfile::{self, PairDeg};
+use gonio_core::{Dir, SphericalDeg};
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::output;
+
+/// Parses one `--theta-i` value: degrees in [0, 90].
+pub fn parse_theta(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number of degrees"))?;
+    if (0.0..=90.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside [0, 90] degrees"))
+    }
+}
+
+fn read_pairs(path: &Path) -> CliResult<Vec<PairDeg>> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    dirfile::read_pairs(&text).map_err(|e| {
+        let field = e
+            .column
+            .as_ref()
+            .map(|c| format!("field `{c}`: "))
+            .unwrap_or_default();
+        CliError::Input(format!(
+            "{}:{}: {field}{}",
+            path.display(),
+            e.line,
+            e.message
+        ))
+    })
+}
+
+/// `gonio model eval MODEL DIRS [--out FILE] [--json]`.
+pub fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool) -> CliResult<()> {
+    let model = Model::load(model_path)?;
+    let pairs = read_pairs(dirs_path)?;
+    let ch = model.channels().clone();
+    let mut values = vec![0.0; ch.len()];
+    if json {
+        let rows: Vec<_> = pairs
+            .iter()
+            .map(|p| {
+                let d = p.to_dirs();
+                model.eval(d.wi, d.wo, &mut values);
+                json!({
+                    "theta_i": p.incident.theta_deg, "phi_i": p.incident.phi_deg,
+                    "theta_o": p.outgoing.theta_deg, "phi_o": p.outgoing.phi_deg,
+                    "values": values,
+                })
+            })
+            .collect();
+        return output::json(&json!({
+            "model": model_path.display().to_string(),
+            "kind": model.kind().name(),
+            "channels": ch.names(),
+            "unit": "1/sr",
+            "rows": rows,
+        }));
+    }
+    let mut w = output::open(out)?;
+    output::finish((|| {
+        writeln!(w, "{}", dirfile::eval_header(&ch))?;
+        for p in &pairs {
+            let d = p.to_dirs();
+            model.eval(d.wi, d.wo, &mut values);
+            writeln!(w, "{}", dirfile::eval_row(p, &values))?;
+        }
+        w.flush()
+    })())
+}
+
+/// `gonio model albedo MODEL [--theta-i LIST] [--phi-i DEG] [--json]`.
+pub fn albedo(model_path: &Path, thetas: &[f64], phi_i: f64, json: bool) -> CliResult<()> {
+    if !phi_i.is_finite() {
+        return Err(CliError::Input(format!(
+            "--phi-i: {phi_i} is not a finite angle"
+        )));
+    }
+    let model = Model::load(model_path)?;
+    let ch = model.channels().clone();
+    let rows: Vec<(f64, Vec<f64>)> = thetas
+        .iter()
+        .map(|t| {
+            let mut a = vec![0.0; ch.len()];
+            model.albedo(Dir::from(SphericalDeg::new(*t, phi_i)), &mut a);
+            (*t, a)
+        })
+        .collect();
+    if json {
+        let rows: Vec<_> = rows
+            .iter()
+            .map(|(t, a)| json!({"theta_i": t, "values": a}))
+            .collect();
+        return output::json(&json!({
+            "model": model_path.display().to_string(),
+            "kind": model.kind().name(),
+            "channels": ch.names(),
+            "phi_i": phi_i,
+            "albedo": rows,
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "# directional albedo of {} ({}), phi_i = {phi_i} deg",
+            model_path.display(),
+            model.kind().name()
+        )?;
+        write!(w, "{:>8}", "theta_i")?;
+        for n in ch.names() {
+            write!(w, " {n:>12}")?;
+        }
+        writeln!(w)?;
+        for (t, a) in &rows {
+            write!(w, "{t:>8}")?;
+            for v in a {
+                write!(w, " {v:>12.8}")?;
+            }
+            writeln!(w)?;
+        }
+        w.flush()
+    })())
+}
