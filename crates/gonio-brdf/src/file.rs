@@ -341,6 +341,16 @@ fn roughness(
             "alpha",
             "give either `alpha` (isotropic) or both `alpha_x` and `alpha_y`, not both forms",
         )),
+        (None, Some(x), None) => Err(ctx.invalid(
+            x.span(),
+            "alpha_y",
+            "`alpha_x` needs `alpha_y` (or give one isotropic `alpha`)",
+        )),
+        (None, None, Some(y)) => Err(ctx.invalid(
+            y.span(),
+            "alpha_x",
+            "`alpha_y` needs `alpha_x` (or give one isotropic `alpha`)",
+        )),
         _ => Err(ctx.invalid(
             whole,
             "alpha",

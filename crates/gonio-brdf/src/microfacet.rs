@@ -6,7 +6,7 @@
 
 use std::f64::consts::{PI, TAU};
 
-use gonio_core::special::erfc;
+use gonio_core::special::erfcx;
 use gonio_core::{Dir, Vec3};
 
 /// The normal distribution function of a microfacet model.
@@ -61,12 +61,13 @@ impl Distribution {
         let s = num / (v.z * v.z);
         match self {
             Distribution::Beckmann => {
+                // Λ = (erf(a) − 1)/2 + e^{−a²}/(2a√π) = e^{−a²}/2 · (1/(a√π) − erfcx(a)).
                 let a = 1.0 / s.sqrt();
                 if a > 26.0 {
-                    // Both terms are below 1e-296: Λ underflows.
+                    // e^{−a²} < 1e-293: Λ underflows.
                     return 0.0;
                 }
-                0.5 * (-erfc(a) + (-a * a).exp() / (a * PI.sqrt()))
+                0.5 * (-a * a).exp() * (1.0 / (a * PI.sqrt()) - erfcx(a))
             }
             // (√(1+s) − 1)/2 without cancellation for small s.
             Distribution::Ggx => 0.5 * s / ((1.0 + s).sqrt() + 1.0),

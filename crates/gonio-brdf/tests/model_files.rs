@@ -5,7 +5,7 @@ mod common;
 
 use std::path::Path;
 
-use gonio_brdf::{Brdf, Model, ModelErrorKind};
+use gonio_brdf::{Model, ModelErrorKind};
 
 #[test]
 fn every_kind_round_trips_exactly() {
@@ -129,6 +129,10 @@ alpha_x = [0.1]
 alpha_y = [0.2]
 "#);
     assert_eq!(e.field.as_deref(), Some("alpha"));
+    assert_eq!(e.line, Some(4));
+
+    let e = err("kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.1]\nalpha_x = [0.1]\n");
+    assert_eq!(e.field.as_deref(), Some("alpha_y"));
     assert_eq!(e.line, Some(4));
 
     let e = err(r#"kind = "lafortune"

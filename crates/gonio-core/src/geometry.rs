@@ -59,7 +59,7 @@ impl Dir {
     /// sin θ, computed from x and y so that it stays accurate near the normal.
     #[inline]
     pub fn sin_theta(self) -> f64 {
-        self.0.x.hypot(self.0.y)
+        (self.0.x * self.0.x + self.0.y * self.0.y).sqrt()
     }
 
     /// θ in radians, in [0, π]; accurate near both the normal and the horizon.
