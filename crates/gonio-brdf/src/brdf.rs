@@ -27,8 +27,9 @@ pub trait Brdf: Send + Sync {
     /// The channels every value has one entry for.
     fn channels(&self) -> &Channels;
 
-    /// `f_r(wi, wo)` in 1/sr for every channel, written to `out[..channels().len()]`.
-    /// Excludes any delta (mirror) term, which [`mirror`](Brdf::mirror) reports.
+    /// `f_r(wi, wo)` in 1/sr for every channel, written to `out`, which must have
+    /// exactly `channels().len()` entries. Excludes any delta (mirror) term, which
+    /// [`mirror`](Brdf::mirror) reports.
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]);
 
     /// The weighted mixture of densities that sampling and numerical integration use

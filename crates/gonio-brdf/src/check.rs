@@ -59,7 +59,9 @@ pub struct ChiSquareResult {
     pub delta: usize,
     /// Calls that returned no sample.
     pub failed: usize,
-    /// Samples whose reported pdf differed from [`Brdf::pdf`] by more than 1e-6 relative.
+    /// Samples whose reported pdf differed from [`Brdf::pdf`] by more than 1e-6 relative
+    /// (can only happen for a model that overrides [`Brdf::sample`] or [`Brdf::pdf`]:
+    /// the default implementations share one mixture).
     pub pdf_mismatches: usize,
 }
 

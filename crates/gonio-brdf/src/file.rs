@@ -281,11 +281,12 @@ struct LafortuneFile {
     mirror: Option<S<MirrorFile>>,
 }
 
+/// The `[diffuse]` table, with its span for errors about the term as a whole.
 fn diffuse(
     ctx: &Ctx,
     ch: &Channels,
     d: &Option<S<DiffuseFile>>,
-) -> Result<Option<Diffuse>, ModelError> {
+) -> Result<Option<(Diffuse, Span)>, ModelError> {
     let Some(d) = d else { return Ok(None) };
     let spans = [
         sp("diffuse.rho", &d.get_ref().rho),
@@ -300,19 +301,20 @@ fn diffuse(
         None => Diffuse::lambert(ch.clone(), rho),
         Some(n) => Diffuse::minnaert(ch.clone(), rho, n.get_ref().clone()),
     };
-    made.map(Some)
+    made.map(|m| Some((m, d.span())))
         .map_err(|e| ctx.param(e.within("diffuse"), &spans, d.span()))
 }
 
+/// The `[mirror]` table, with its span for errors about the term as a whole.
 fn mirror(
     ctx: &Ctx,
     ch: &Channels,
     m: &Option<S<MirrorFile>>,
-) -> Result<Option<Mirror>, ModelError> {
+) -> Result<Option<(Mirror, Span)>, ModelError> {
     let Some(m) = m else { return Ok(None) };
     let spans = [sp("mirror.rm", &m.get_ref().rm)];
     Mirror::new(ch, m.get_ref().rm.get_ref().clone())
-        .map(Some)
+        .map(|r| Some((r, m.span())))
         .map_err(|e| ctx.param(e.within("mirror"), &spans, m.span()))
 }
 
@@ -487,11 +489,11 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
                 f.shading.unwrap_or(false),
             )
             .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some(d) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d);
+            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
+                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
             }
-            if let Some(r) = mirror(&ctx, &ch, &f.mirror)? {
-                m = m.with_mirror(r);
+            if let Some((r, span)) = mirror(&ctx, &ch, &f.mirror)? {
+                m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
             }
             Model::Phong(m)
         }
@@ -502,8 +504,8 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
             let mut m =
                 BlinnPhong::new(ch.clone(), f.rho_s.get_ref().clone(), f.n.get_ref().clone())
                     .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some(d) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d);
+            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
+                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
             }
             Model::BlinnPhong(m)
         }
@@ -515,8 +517,8 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
             spans.push(sp("rho_s", &f.rho_s));
             let mut m = Ward::new(ch.clone(), f.rho_s.get_ref().clone(), ax, ay)
                 .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some(d) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d);
+            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
+                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
             }
             Model::Ward(m)
         }
@@ -545,8 +547,8 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
             };
             let mut m = CookTorrance::new(ch.clone(), dist, f.f0.get_ref().clone(), ax, ay, rho_s)
                 .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some(d) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d);
+            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
+                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
             }
             Model::CookTorrance(m)
         }
@@ -578,12 +580,13 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
                 .enumerate()
                 .map(|(i, l)| lobe(&ctx, &ch, i, l))
                 .collect::<Result<Vec<_>, _>>()?;
-            let mut m = Lafortune::new(ch.clone(), lobes);
-            if let Some(d) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d);
+            let mut m =
+                Lafortune::new(ch.clone(), lobes).map_err(|e| ctx.param(e, &[], all.clone()))?;
+            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
+                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
             }
-            if let Some(r) = mirror(&ctx, &ch, &f.mirror)? {
-                m = m.with_mirror(r);
+            if let Some((r, span)) = mirror(&ctx, &ch, &f.mirror)? {
+                m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
             }
             Model::Lafortune(m)
         }

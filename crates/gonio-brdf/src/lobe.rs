@@ -23,8 +23,9 @@ pub fn sphere_integral(n: f64) -> f64 {
 /// directions at angle α is the closed form `ring(x) = ring_projected_measure(x, a_z)`,
 /// so `I = ∫₀¹ xⁿ ring(x) dx`. Rings with `x > k = √(1 − a_z²)` lie wholly on one side
 /// of the horizon, where `ring(x) = 2π x a_z` (or 0), which integrates in closed form
-/// to `2π a_z (1 − k^{n+2})/(n+2)`. The rings the horizon cuts, `x < k`, carry a
-/// square-root cusp at `x = k`; the substitution `x = k sin ψ` removes it, leaving a
+/// to `2π a_z (1 − k^{n+2})/(n+2)`. The rings the horizon cuts, `x < k`, make the
+/// integrand singular at `x = k` (like `(k − x)^{3/2}`); the substitution `x = k sin ψ`
+/// removes that, leaving a
 /// smooth integrand on [0, π/2] for adaptive Gauss–Kronrod. Relative accuracy ~1e-12
 /// for any `n ≥ 0`, in a few dozen evaluations.
 pub fn hemisphere_albedo(n: f64, axis_z: f64) -> f64 {
@@ -108,7 +109,9 @@ mod tests {
     }
 
     /// `∫₀¹ xⁿ ring(x) dx` by mpmath's tanh-sinh quadrature at 30 digits, split at the
-    /// horizon break (`tests/reference/lobe_albedo.py`).
+    /// horizon break (`tests/reference/lobe_albedo.py`). It uses the same closed form for
+    /// the ring, so it checks the quadrature and the substitutions; the ring formula
+    /// itself is checked against brute force above and the closed forms below.
     #[test]
     fn matches_high_precision_reference() {
         let cases = [

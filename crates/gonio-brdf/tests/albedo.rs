@@ -35,7 +35,7 @@ fn single() -> Channels {
 fn cosine_as_lafortune(rho_s: f64, n: f64) -> Lafortune {
     let c = (rho_s * (n + 2.0) / (2.0 * PI)).powf(1.0 / n);
     let lobe = LafortuneLobe::diagonal(&single(), &[-c], &[-c], &[c], &[n]).expect("valid");
-    Lafortune::new(single(), vec![lobe])
+    Lafortune::new(single(), vec![lobe]).expect("one channel")
 }
 
 #[test]
@@ -92,12 +92,12 @@ fn lobe_albedo_agrees_with_cubature_up_to_exponent_1000() {
             let cx = c.powf(1.0 / n);
             let lobe = LafortuneLobe::diagonal(&single(), &[-cx], &[-cx], &[ratio * cx], &[n])
                 .expect("valid");
-            let m = Lafortune::new(single(), vec![lobe]);
+            let m = Lafortune::new(single(), vec![lobe]).expect("one channel");
             for t in THETAS {
                 let exact = albedo1(&m, t);
                 let cub = numeric1(&m, t);
                 assert!(
-                    (exact - cub).abs() < 1e-7 * exact.max(1.0),
+                    (exact - cub).abs() < 5e-9 * exact.max(1.0),
                     "n={n} Cz/Cx={ratio} θ={t}: exact {exact} vs cubature {cub}"
                 );
             }
@@ -114,8 +114,6 @@ fn table1_albedo_matches_reference_quadrature() {
         let got = albedo1(&m, t);
         assert!((got - want).abs() < 2e-12, "θ={t}: {got} vs {want}");
     }
-    // The diffuse term alone is ρ = 0.13π.
-    assert!((albedo1(&m, 0.0) - 0.13 * PI - 0.0024039395679).abs() < 1e-9);
 }
 
 /// Eq. 7 with `C_s = (n+1)/(2π)`: the mirror reflects `R_m (ρs − ρs(u))`. At normal
@@ -131,7 +129,8 @@ fn mirror_term_takes_the_power_the_lobe_loses() {
         false,
     )
     .expect("valid")
-    .with_mirror(Mirror::new(&single(), vec![rm]).expect("valid"));
+    .with_mirror(Mirror::new(&single(), vec![rm]).expect("valid"))
+    .expect("one channel");
     let mut mir = [0.0];
     assert!(m.mirror(deg(0.0, 0.0), &mut mir));
     assert!((mir[0] - rm * rho_s / (n + 2.0)).abs() < 1e-15);
@@ -177,7 +176,7 @@ fn off_specular_lobe_albedo_falls_only_late() {
     let c = (0.2 * 22.0 / (2.0 * PI)).powf(1.0 / 20.0);
     let lobe =
         LafortuneLobe::diagonal(&single(), &[-c], &[-c], &[0.95 * c], &[20.0]).expect("valid");
-    let m = Lafortune::new(single(), vec![lobe]);
+    let m = Lafortune::new(single(), vec![lobe]).expect("one channel");
     let a0 = albedo1(&m, 0.0);
     let r = |t: f64| albedo1(&m, t) / a0;
     let rc = |t: f64| albedo1(&classic, t) / albedo1(&classic, 0.0);
@@ -229,11 +228,19 @@ fn cook_torrance_conserves_energy() {
     }
 }
 
-/// Every model in the zoo: the trait's albedo agrees with the generic cubature (which
-/// for most is the same code; for the lobe models it is an independent check), and no
-/// model except Ward's and the shading variant creates energy for these parameters.
+/// The models whose albedo has its own closed or semi-analytic form (Lambert,
+/// Minnaert, the cosine lobes, Lafortune lobes, and their mirror terms) agree with the
+/// generic cubature, which shares none of that code; and no model except Ward's and
+/// the shading variant creates energy for these parameters.
 #[test]
 fn zoo_albedos_are_consistent() {
+    let closed_form = [
+        "lambert",
+        "minnaert",
+        "phong",
+        "phong-mirror",
+        "phong-shading",
+    ];
     for (name, m) in zoo() {
         let k = m.channels().len();
         let mut a = vec![0.0; k];
@@ -241,15 +248,54 @@ fn zoo_albedos_are_consistent() {
         for t in [0.0, 40.0, 80.0] {
             let wi = deg(t, 20.0);
             m.albedo(wi, &mut a);
-            let e = integrate(&m, wi, DEFAULT_TOLERANCE);
-            let has = m.mirror(wi, &mut mirror);
-            for c in 0..k {
-                let cub = e.values[c] + if has { mirror[c] } else { 0.0 };
-                assert!((a[c] - cub).abs() < 1e-7, "{name} θ={t}: {} vs {cub}", a[c]);
-                if !name.starts_with("ward") && name != "phong-shading" {
-                    assert!(a[c] <= 1.0, "{name} θ={t}: albedo {}", a[c]);
+            if closed_form.contains(&name) || name.starts_with("lafortune") {
+                let e = integrate(&m, wi, DEFAULT_TOLERANCE);
+                let has = m.mirror(wi, &mut mirror);
+                for c in 0..k {
+                    let cub = e.values[c] + if has { mirror[c] } else { 0.0 };
+                    assert!((a[c] - cub).abs() < 1e-8, "{name} θ={t}: {} vs {cub}", a[c]);
                 }
+            }
+            if !name.starts_with("ward") && name != "phong-shading" {
+                assert!(a.iter().all(|v| *v <= 1.0), "{name} θ={t}: albedo {a:?}");
             }
         }
     }
+}
+
+/// With F0 = 0 the Fresnel factor vanishes only for facets facing the light head-on;
+/// at normal incidence the model still reflects, samples and integrates.
+#[test]
+fn cook_torrance_with_zero_f0_still_reflects_at_normal_incidence() {
+    let m = CookTorrance::new(
+        single(),
+        Distribution::Ggx,
+        vec![0.0],
+        vec![0.5],
+        vec![0.5],
+        vec![1.0],
+    )
+    .expect("valid");
+    let wi = deg(0.0, 0.0);
+    let a = numeric1(&m, 0.0);
+    assert!(a > 1e-5, "albedo {a}");
+    assert!(m.sample(wi, 0.5, [0.3, 0.7]).is_some());
+    // Brute force in (θo, φo) agrees.
+    let brute = gonio_core::quad::integrate_2d(
+        |t, p, out| {
+            let wo = gonio_core::Dir::from_angles(t, p);
+            let mut f = [0.0];
+            m.eval(wi, wo, &mut f);
+            out[0] = f[0] * wo.z * t.sin();
+        },
+        [0.0, 0.5 * PI],
+        [0.0, 2.0 * PI],
+        1,
+        gonio_core::quad::Tolerance::new(1e-12, 1e-10),
+    );
+    assert!(
+        (a - brute.values[0]).abs() < 1e-8,
+        "{a} vs {}",
+        brute.values[0]
+    );
 }

@@ -131,6 +131,22 @@ alpha_y = [0.2]
     assert_eq!(e.field.as_deref(), Some("alpha"));
     assert_eq!(e.line, Some(4));
 
+    let e = err("kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.1]\nalpha = [1e-5]\n");
+    assert_eq!(e.field.as_deref(), Some("alpha_x"));
+    assert!(e.message.contains("must be ≥ 1e-4"), "{e}");
+
+    let e = err(r#"kind = "lafortune"
+channels = ["value"]
+[[lobes]]
+m = [[[-0.8, 0.0, 0.1], [0.0, -0.8, 0.0], [0.1, 0.0, 0.9]]]
+n = [10]
+[mirror]
+rm = [0.5]
+"#);
+    assert_eq!(e.field.as_deref(), Some("mirror"));
+    assert_eq!(e.line, Some(6));
+    assert!(e.message.contains("lobes[0]"), "{e}");
+
     let e = err("kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.1]\nalpha_x = [0.1]\n");
     assert_eq!(e.field.as_deref(), Some("alpha_y"));
     assert_eq!(e.line, Some(4));

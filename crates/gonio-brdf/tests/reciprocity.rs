@@ -85,3 +85,32 @@ fn zero_below_the_horizon() {
         }
     }
 }
+
+/// The Eq. 7 mirror term `g(u) δ(u_m − v)` is reciprocal when `g(u) = g(u_m)`.
+#[test]
+fn mirror_terms_are_reciprocal() {
+    let mut r = rng(3);
+    let mut seen = 0;
+    for (name, m) in zoo() {
+        let k = m.channels().len();
+        let (mut a, mut b) = (vec![0.0; k], vec![0.0; k]);
+        if !m.mirror(common::deg(30.0, 0.0), &mut a) {
+            continue;
+        }
+        seen += 1;
+        for _ in 0..2000 {
+            let u = random_dir(&mut r);
+            m.mirror(u, &mut a);
+            m.mirror(u.mirror(), &mut b);
+            for c in 0..k {
+                assert!(
+                    (a[c] - b[c]).abs() <= 1e-12 * a[c].max(1e-300),
+                    "{name}: g(u) = {} but g(u_m) = {}",
+                    a[c],
+                    b[c]
+                );
+            }
+        }
+    }
+    assert_eq!(seen, 2, "the zoo has two models with a mirror term");
+}

@@ -136,10 +136,11 @@ per_model! {
     oren_nayar_q => "oren-nayar-q",
     lafortune_table1 => "lafortune-table1",
     lafortune_aniso_matrix => "lafortune-aniso-matrix",
+    lafortune_tilted => "lafortune-tilted",
 }
 
 /// Every model in the zoo has a sampling test above.
 #[test]
 fn every_model_is_covered() {
-    assert_eq!(zoo().len(), 15);
+    assert_eq!(zoo().len(), 16);
 }

@@ -68,7 +68,8 @@ pub fn run(json: bool) -> CliResult<()> {
         .lobes()
         .iter()
         .map(|l| Lafortune::new(ch.clone(), vec![l.clone()]))
-        .collect();
+        .collect::<Result<_, _>>()
+        .map_err(|e| CliError::Runtime(format!("embedded demo model: {e}")))?;
     let rows: Vec<AlbedoRow> = ALBEDO_THETAS
         .iter()
         .map(|t| {

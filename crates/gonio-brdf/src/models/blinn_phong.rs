@@ -46,10 +46,11 @@ impl BlinnPhong {
         })
     }
 
-    /// Adds a diffuse term.
-    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
+    /// Adds a diffuse term, which must have the model's channels.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Result<Self, ParamError> {
+        super::same_channels("diffuse", &self.channels, d.channels())?;
         self.diffuse = Some(d);
-        self
+        Ok(self)
     }
 
     /// Specular albedo at normal incidence per channel.

@@ -1,6 +1,6 @@
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, non_negative, positive, unit_interval};
+use super::{Diffuse, ParamError, check, non_negative, roughness, unit_interval};
 use crate::Brdf;
 use crate::microfacet::Distribution;
 use crate::proposal::{HalfDensity, Proposal, Weighted};
@@ -23,7 +23,7 @@ pub struct CookTorrance {
 }
 
 impl CookTorrance {
-    /// `f0` in [0, 1], `alpha_x`, `alpha_y` > 0 and `rho_s` ≥ 0 per channel.
+    /// `f0` in [0, 1], `alpha_x`, `alpha_y` ≥ 1e-4 and `rho_s` ≥ 0 per channel.
     pub fn new(
         channels: Channels,
         dist: Distribution,
@@ -33,8 +33,8 @@ impl CookTorrance {
         rho_s: Vec<f64>,
     ) -> Result<Self, ParamError> {
         check("f0", &f0, &channels, "must be in [0, 1]", unit_interval)?;
-        check("alpha_x", &alpha_x, &channels, "must be > 0", positive)?;
-        check("alpha_y", &alpha_y, &channels, "must be > 0", positive)?;
+        check("alpha_x", &alpha_x, &channels, "must be ≥ 1e-4", roughness)?;
+        check("alpha_y", &alpha_y, &channels, "must be ≥ 1e-4", roughness)?;
         check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
         Ok(CookTorrance {
             channels,
@@ -47,10 +47,11 @@ impl CookTorrance {
         })
     }
 
-    /// Adds a diffuse term.
-    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
+    /// Adds a diffuse term, which must have the model's channels.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Result<Self, ParamError> {
+        super::same_channels("diffuse", &self.channels, d.channels())?;
         self.diffuse = Some(d);
-        self
+        Ok(self)
     }
 
     /// The microfacet distribution.
@@ -124,9 +125,11 @@ impl Brdf for CookTorrance {
         let schlick = (1.0 - wi.z).powi(5);
         for c in 0..self.f0.len() {
             let f = self.f0[c] + (1.0 - self.f0[c]) * schlick;
+            // F ≥ F0 can be 0 at the normal while the term is not (F grows off the
+            // normal): the weight keeps a floor so the proposal is never dropped.
             Weighted::push_merged(
                 out,
-                self.rho_s[c] * f,
+                self.rho_s[c] * f.max(1e-3),
                 Proposal::HalfVector(HalfDensity::Microfacet {
                     dist: self.dist,
                     alpha_x: self.alpha_x[c],

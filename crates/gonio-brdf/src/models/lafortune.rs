@@ -192,26 +192,54 @@ pub struct Lafortune {
 }
 
 impl Lafortune {
-    /// A sum of `lobes` (any number, including none).
-    pub fn new(channels: Channels, lobes: Vec<LafortuneLobe>) -> Self {
-        Lafortune {
+    /// A sum of `lobes` (any number, including none), each with the model's channels.
+    pub fn new(channels: Channels, lobes: Vec<LafortuneLobe>) -> Result<Self, ParamError> {
+        for (i, l) in lobes.iter().enumerate() {
+            if l.n.len() != channels.len() {
+                return Err(ParamError::new(
+                    format!("lobes[{i}]"),
+                    format!(
+                        "has {} channels but the model has {} ({channels})",
+                        l.n.len(),
+                        channels.len()
+                    ),
+                ));
+            }
+        }
+        Ok(Lafortune {
             channels,
             lobes,
             diffuse: None,
             mirror: None,
-        }
+        })
     }
 
-    /// Adds a diffuse term.
-    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
+    /// Adds a diffuse term, which must have the model's channels.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Result<Self, ParamError> {
+        super::same_channels("diffuse", &self.channels, d.channels())?;
         self.diffuse = Some(d);
-        self
+        Ok(self)
     }
 
-    /// Adds the Eq. 7 mirror term.
-    pub fn with_mirror(mut self, m: Mirror) -> Self {
+    /// Adds the Eq. 7 mirror term. Refused when a lobe's matrix couples z with x or y
+    /// (`xz` or `yz` ≠ 0): mirroring `u` then changes `|M u|`, and the mirror term
+    /// would not be reciprocal.
+    pub fn with_mirror(mut self, m: Mirror) -> Result<Self, ParamError> {
+        m.check_channels(&self.channels)?;
+        if let Some(i) = self
+            .lobes
+            .iter()
+            .position(|l| l.m.iter().any(|m| m.xz != 0.0 || m.yz != 0.0))
+        {
+            return Err(ParamError::new(
+                "mirror",
+                format!(
+                    "the Eq. 7 mirror term is reciprocal only for lobes whose matrix has no xz or yz terms, and lobes[{i}] has them"
+                ),
+            ));
+        }
         self.mirror = Some(m);
-        self
+        Ok(self)
     }
 
     /// The lobes.

@@ -77,12 +77,32 @@ pub(crate) fn check(
     Ok(())
 }
 
-pub(crate) fn non_negative(v: f64) -> bool {
-    v >= 0.0
+/// Checks that an added term has the model's channels.
+pub(crate) fn same_channels(
+    field: &str,
+    ours: &Channels,
+    theirs: &Channels,
+) -> Result<(), ParamError> {
+    if ours == theirs {
+        Ok(())
+    } else {
+        Err(ParamError::new(
+            field,
+            format!("has channels {theirs} but the model has {ours}"),
+        ))
+    }
 }
 
-pub(crate) fn positive(v: f64) -> bool {
-    v > 0.0
+/// The smallest roughness accepted: below it `π αx αy` and `tan²θ/α²` leave the range
+/// of `f64` in places that matter, and no real surface is that smooth.
+pub(crate) const MIN_ALPHA: f64 = 1e-4;
+
+pub(crate) fn roughness(v: f64) -> bool {
+    v >= MIN_ALPHA
+}
+
+pub(crate) fn non_negative(v: f64) -> bool {
+    v >= 0.0
 }
 
 pub(crate) fn unit_interval(v: f64) -> bool {

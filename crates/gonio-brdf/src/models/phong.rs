@@ -13,8 +13,10 @@ use crate::proposal::{Proposal, Weighted};
 /// foreshortening: the lobe's integral over the whole sphere (without the cosine)
 /// minus its albedo. For a cosine lobe normalised with `C_s = (n+1)/(2π)` that is
 /// exactly Eq. 7's `ρs − ρs(u)`; for generalized lobes it is the same quantity for the
-/// scaled lobe of Eq. 5, and it stays reciprocal because both terms depend only on
-/// `|M u|` and the lobe's tilt, which mirroring `u` preserves.
+/// scaled lobe of Eq. 5. It is reciprocal when both terms are the same for `u` and its
+/// mirror `u_m`, i.e. when `|M u|` and the tilt of `M u` are: true for every diagonal
+/// (Eq. 4) lobe and any lobe whose `M` does not couple z with x or y
+/// ([`Lafortune::with_mirror`](crate::Lafortune::with_mirror) refuses the others).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mirror {
     rm: Vec<f64>,
@@ -30,6 +32,11 @@ impl Mirror {
     /// `R_m` per channel.
     pub fn rm(&self) -> &[f64] {
         &self.rm
+    }
+
+    pub(crate) fn check_channels(&self, channels: &Channels) -> Result<(), ParamError> {
+        check("rm", &self.rm, channels, "must be in [0, 1]", unit_interval)
+            .map_err(|e| e.within("mirror"))
     }
 
     /// Channel `c`'s mirror reflectance for a lobe with sphere power `full` and albedo
@@ -113,17 +120,18 @@ impl Phong {
         })
     }
 
-    /// Adds a diffuse term (its channels must match).
-    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
-        debug_assert_eq!(d.channels(), &self.channels);
+    /// Adds a diffuse term, which must have the model's channels.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Result<Self, ParamError> {
+        super::same_channels("diffuse", &self.channels, d.channels())?;
         self.diffuse = Some(d);
-        self
+        Ok(self)
     }
 
-    /// Adds the Eq. 7 mirror term.
-    pub fn with_mirror(mut self, m: Mirror) -> Self {
+    /// Adds the Eq. 7 mirror term, which must have one `rm` per channel.
+    pub fn with_mirror(mut self, m: Mirror) -> Result<Self, ParamError> {
+        m.check_channels(&self.channels)?;
         self.mirror = Some(m);
-        self
+        Ok(self)
     }
 
     /// Lobe scale per channel.

@@ -2,7 +2,7 @@ use std::f64::consts::PI;
 
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, non_negative, positive};
+use super::{Diffuse, ParamError, check, non_negative, roughness};
 use crate::Brdf;
 use crate::microfacet::Distribution;
 use crate::proposal::{HalfDensity, Proposal, Weighted};
@@ -24,7 +24,7 @@ pub struct Ward {
 }
 
 impl Ward {
-    /// `rho_s` ≥ 0, `alpha_x`, `alpha_y` > 0 per channel.
+    /// `rho_s` ≥ 0, `alpha_x`, `alpha_y` ≥ 1e-4 per channel.
     pub fn new(
         channels: Channels,
         rho_s: Vec<f64>,
@@ -32,8 +32,8 @@ impl Ward {
         alpha_y: Vec<f64>,
     ) -> Result<Self, ParamError> {
         check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
-        check("alpha_x", &alpha_x, &channels, "must be > 0", positive)?;
-        check("alpha_y", &alpha_y, &channels, "must be > 0", positive)?;
+        check("alpha_x", &alpha_x, &channels, "must be ≥ 1e-4", roughness)?;
+        check("alpha_y", &alpha_y, &channels, "must be ≥ 1e-4", roughness)?;
         Ok(Ward {
             channels,
             rho_s,
@@ -43,10 +43,11 @@ impl Ward {
         })
     }
 
-    /// Adds the diffuse term `ρd/π` (or a Minnaert one).
-    pub fn with_diffuse(mut self, d: Diffuse) -> Self {
+    /// Adds a diffuse term, which must have the model's channels.
+    pub fn with_diffuse(mut self, d: Diffuse) -> Result<Self, ParamError> {
+        super::same_channels("diffuse", &self.channels, d.channels())?;
         self.diffuse = Some(d);
-        self
+        Ok(self)
     }
 
     /// Specular scale per channel.
