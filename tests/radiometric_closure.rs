@@ -101,8 +101,9 @@ fn finite_aperture_reduction() {
     let naive = brdf_from_flux_ratio(flux, 1.0, omega, wo.z);
     assert!((naive / rho_pi - (1.0 + a.cos()) / 2.0).abs() < 1e-10);
 
-    // The blue paint at its forward off-specular peak: the aperture average differs
-    // from the centre value at second order in a, and shrinks as a² with the aperture.
+    // The blue paint near its forward off-specular peak (lobe III, n = 63.8): the
+    // aperture average falls below the centre value (a 2.3% bias at this aperture),
+    // at second order in a, so it shrinks four-fold when the aperture halves.
     let paint = load("blue-paint-550nm.toml");
     let (wi, wo) = (
         Dir::from(SphericalDeg::new(65.0, 0.0)),
@@ -115,6 +116,6 @@ fn finite_aperture_reduction() {
         avg / centre[0] - 1.0
     };
     let (d1, d2) = (dev(a), dev(0.5 * a));
-    assert!(d1.abs() > 1e-5 && d1.abs() < 1e-2, "{d1}");
+    assert!(d1 < -1e-3 && d1 > -0.05, "{d1}");
     assert!((d1 / d2 - 4.0).abs() < 0.1, "second order: {d1} vs {d2}");
 }
