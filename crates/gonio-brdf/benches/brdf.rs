@@ -142,6 +142,23 @@ fn eval(c: &mut Criterion) {
             })
         });
     }
+    // The floor for a 3-lobe RGB Lafortune model: its 9 `powf` calls alone, on the same
+    // pairs (the lobe dot products, clamped positive, raised to the lobes' exponents).
+    let ns = [
+        21.820103, 18.597755, 7.472717, 2.774989, 2.58128, 2.58, 66.899274, 63.767356, 63.8,
+    ];
+    g.bench_function("floor-9-powf", |b| {
+        b.iter(|| {
+            let mut acc = 0.0;
+            for (wi, wo) in &ps {
+                let d = wi.dot(**wo).abs().max(1e-3);
+                for n in &ns {
+                    acc += d.powf(*n);
+                }
+            }
+            black_box(acc)
+        })
+    });
     g.finish();
 }
 

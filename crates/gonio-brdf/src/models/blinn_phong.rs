@@ -73,18 +73,13 @@ impl Brdf for BlinnPhong {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        let s = wi.vec() + wo.vec();
-        let hz = s.z / s.norm();
-        for ((o, c), n) in out.iter_mut().zip(&self.coef).zip(&self.n) {
-            *o = c * hz.powf(*n);
-        }
-        if let Some(d) = &self.diffuse {
-            d.add_eval(wi, wo, out);
-        }
+        super::eval_layered(wi, wo, out, self.diffuse.as_ref(), |out| {
+            let s = wi.vec() + wo.vec();
+            let hz = s.z / s.norm();
+            for ((o, c), n) in out.iter_mut().zip(&self.coef).zip(&self.n) {
+                *o = c * hz.powf(*n);
+            }
+        });
     }
 
     fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {

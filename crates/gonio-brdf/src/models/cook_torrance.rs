@@ -90,35 +90,31 @@ impl Brdf for CookTorrance {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        let s = wi.vec() + wo.vec();
-        let h = s / s.norm();
-        // wi·h = wo·h; their mean keeps the expression bitwise symmetric.
-        let cos_d = 0.5 * (wi.dot(h) + wo.dot(h));
-        let schlick = (1.0 - cos_d).max(0.0).powi(5);
-        let denom = 4.0 * (wi.z * wo.z);
-        let mut last: Option<(f64, f64, f64)> = None;
-        for (c, o) in out.iter_mut().enumerate() {
-            let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
-            // Channels usually share the roughness: reuse D·G2.
-            let dg = match last {
-                Some((lx, ly, v)) if lx == ax && ly == ay => v,
-                _ => {
-                    let l = self.dist.lambda(wi.vec(), ax, ay) + self.dist.lambda(wo.vec(), ax, ay);
-                    let v = self.dist.d(h, ax, ay) / (1.0 + l);
-                    last = Some((ax, ay, v));
-                    v
-                }
-            };
-            let f = self.f0[c] + (1.0 - self.f0[c]) * schlick;
-            *o = self.rho_s[c] * f * dg / denom;
-        }
-        if let Some(d) = &self.diffuse {
-            d.add_eval(wi, wo, out);
-        }
+        super::eval_layered(wi, wo, out, self.diffuse.as_ref(), |out| {
+            let s = wi.vec() + wo.vec();
+            let h = s / s.norm();
+            // wi·h = wo·h; their mean keeps the expression bitwise symmetric.
+            let cos_d = 0.5 * (wi.dot(h) + wo.dot(h));
+            let schlick = (1.0 - cos_d).max(0.0).powi(5);
+            let denom = 4.0 * (wi.z * wo.z);
+            let mut last: Option<(f64, f64, f64)> = None;
+            for (c, o) in out.iter_mut().enumerate() {
+                let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
+                // Channels usually share the roughness: reuse D·G2.
+                let dg = match last {
+                    Some((lx, ly, v)) if lx == ax && ly == ay => v,
+                    _ => {
+                        let l =
+                            self.dist.lambda(wi.vec(), ax, ay) + self.dist.lambda(wo.vec(), ax, ay);
+                        let v = self.dist.d(h, ax, ay) / (1.0 + l);
+                        last = Some((ax, ay, v));
+                        v
+                    }
+                };
+                let f = self.f0[c] + (1.0 - self.f0[c]) * schlick;
+                *o = self.rho_s[c] * f * dg / denom;
+            }
+        });
     }
 
     fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {

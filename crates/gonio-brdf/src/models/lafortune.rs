@@ -278,22 +278,17 @@ impl Brdf for Lafortune {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        let (u, v) = (wi.vec(), wo.vec());
-        for lobe in &self.lobes {
-            for (c, o) in out.iter_mut().enumerate() {
-                let d = lobe.m[c].bilinear(u, v);
-                if d > 0.0 {
-                    *o += d.powf(lobe.n[c]);
+        super::eval_layered(wi, wo, out, self.diffuse.as_ref(), |out| {
+            let (u, v) = (wi.vec(), wo.vec());
+            for lobe in &self.lobes {
+                for (c, o) in out.iter_mut().enumerate() {
+                    let d = lobe.m[c].bilinear(u, v);
+                    if d > 0.0 {
+                        *o += d.powf(lobe.n[c]);
+                    }
                 }
             }
-        }
-        if let Some(d) = &self.diffuse {
-            d.add_eval(wi, wo, out);
-        }
+        });
     }
 
     fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {

@@ -17,7 +17,7 @@ pub use oren_nayar::{OrenNayar, OrenNayarVariant};
 pub use phong::{Mirror, Phong, PhongNormalization};
 pub use ward::Ward;
 
-use gonio_core::Channels;
+use gonio_core::{Channels, Dir};
 use std::f64::consts::TAU;
 
 /// A model parameter that is out of range or has the wrong number of channel values.
@@ -75,6 +75,26 @@ pub(crate) fn check(
         }
     }
     Ok(())
+}
+
+/// The frame of every model's `eval`: `out` is zero outside the open hemisphere;
+/// inside, `specular` writes the model's own term and the optional diffuse term adds.
+#[inline]
+pub(crate) fn eval_layered(
+    wi: Dir,
+    wo: Dir,
+    out: &mut [f64],
+    diffuse: Option<&Diffuse>,
+    specular: impl FnOnce(&mut [f64]),
+) {
+    out.fill(0.0);
+    if !(wi.is_above() && wo.is_above()) {
+        return;
+    }
+    specular(out);
+    if let Some(d) = diffuse {
+        d.add_eval(wi, wo, out);
+    }
 }
 
 /// Checks that an added term has the model's channels.

@@ -92,49 +92,47 @@ impl Brdf for OrenNayar {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        let (ti, to) = (wi.theta(), wo.theta());
-        let (alpha, beta) = (ti.max(to), ti.min(to));
-        let ss = wi.sin_theta() * wo.sin_theta();
-        // At the normal the azimuth is undefined, and every term it multiplies is 0.
-        let cos_dphi = if ss > 0.0 {
-            ((wi.x * wo.x + wi.y * wo.y) / ss).clamp(-1.0, 1.0)
-        } else {
-            0.0
-        };
-        let (sin_a, tan_b) = (alpha.sin(), beta.tan());
-        let b2 = FRAC_2_PI * beta;
-        for (c, o) in out.iter_mut().enumerate() {
-            let s2 = self.sigma[c] * self.sigma[c];
-            let rho = self.rho[c];
-            let c1 = 1.0 - 0.5 * s2 / (s2 + 0.33);
-            let b = 0.45 * s2 / (s2 + 0.09);
-            *o = match self.variant {
-                OrenNayarVariant::Qualitative => {
-                    rho * FRAC_1_PI * (c1 + b * cos_dphi.max(0.0) * sin_a * tan_b)
-                }
-                OrenNayarVariant::Full => {
-                    let c2 = if cos_dphi >= 0.0 {
-                        b * sin_a
-                    } else {
-                        b * (sin_a - b2 * b2 * b2)
-                    };
-                    let k = 4.0 * alpha * beta * FRAC_1_PI * FRAC_1_PI;
-                    let c3 = 0.125 * s2 / (s2 + 0.09) * k * k;
-                    let l1 = rho
-                        * FRAC_1_PI
-                        * (c1
-                            + cos_dphi * c2 * tan_b
-                            + (1.0 - cos_dphi.abs()) * c3 * (0.5 * (alpha + beta)).tan());
-                    let l2 = 0.17 * rho * rho * FRAC_1_PI * s2 / (s2 + 0.13)
-                        * (1.0 - cos_dphi * b2 * b2);
-                    l1 + l2
-                }
+        super::eval_layered(wi, wo, out, None, |out| {
+            let (ti, to) = (wi.theta(), wo.theta());
+            let (alpha, beta) = (ti.max(to), ti.min(to));
+            let ss = wi.sin_theta() * wo.sin_theta();
+            // At the normal the azimuth is undefined, and every term it multiplies is 0.
+            let cos_dphi = if ss > 0.0 {
+                ((wi.x * wo.x + wi.y * wo.y) / ss).clamp(-1.0, 1.0)
+            } else {
+                0.0
             };
-        }
+            let (sin_a, tan_b) = (alpha.sin(), beta.tan());
+            let b2 = FRAC_2_PI * beta;
+            for (c, o) in out.iter_mut().enumerate() {
+                let s2 = self.sigma[c] * self.sigma[c];
+                let rho = self.rho[c];
+                let c1 = 1.0 - 0.5 * s2 / (s2 + 0.33);
+                let b = 0.45 * s2 / (s2 + 0.09);
+                *o = match self.variant {
+                    OrenNayarVariant::Qualitative => {
+                        rho * FRAC_1_PI * (c1 + b * cos_dphi.max(0.0) * sin_a * tan_b)
+                    }
+                    OrenNayarVariant::Full => {
+                        let c2 = if cos_dphi >= 0.0 {
+                            b * sin_a
+                        } else {
+                            b * (sin_a - b2 * b2 * b2)
+                        };
+                        let k = 4.0 * alpha * beta * FRAC_1_PI * FRAC_1_PI;
+                        let c3 = 0.125 * s2 / (s2 + 0.09) * k * k;
+                        let l1 = rho
+                            * FRAC_1_PI
+                            * (c1
+                                + cos_dphi * c2 * tan_b
+                                + (1.0 - cos_dphi.abs()) * c3 * (0.5 * (alpha + beta)).tan());
+                        let l2 = 0.17 * rho * rho * FRAC_1_PI * s2 / (s2 + 0.13)
+                            * (1.0 - cos_dphi * b2 * b2);
+                        l1 + l2
+                    }
+                };
+            }
+        });
     }
 
     fn proposals(&self, _wi: Dir, out: &mut Vec<Weighted>) {

@@ -180,21 +180,16 @@ impl Brdf for Phong {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        // u_m · v, written symmetrically in u and v.
-        let d = wi.z * wo.z - wi.x * wo.x - wi.y * wo.y;
-        if d > 0.0 {
-            let k = self.shading_factor(wi);
-            for ((o, c), n) in out.iter_mut().zip(&self.coef).zip(&self.n) {
-                *o = c * d.powf(*n) * k;
+        super::eval_layered(wi, wo, out, self.diffuse.as_ref(), |out| {
+            // u_m · v, written symmetrically in u and v.
+            let d = wi.z * wo.z - wi.x * wo.x - wi.y * wo.y;
+            if d > 0.0 {
+                let k = self.shading_factor(wi);
+                for ((o, c), n) in out.iter_mut().zip(&self.coef).zip(&self.n) {
+                    *o = c * d.powf(*n) * k;
+                }
             }
-        }
-        if let Some(dif) = &self.diffuse {
-            dif.add_eval(wi, wo, out);
-        }
+        });
     }
 
     fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {

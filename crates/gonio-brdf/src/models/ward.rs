@@ -78,22 +78,17 @@ impl Brdf for Ward {
     }
 
     fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        out.fill(0.0);
-        if !(wi.is_above() && wo.is_above()) {
-            return;
-        }
-        // tan²θh cos²φh = hx²/hz²: the unnormalised half vector will do.
-        let h = wi.vec() + wo.vec();
-        let root = (wi.z * wo.z).sqrt();
-        let (tx, ty) = (h.x / h.z, h.y / h.z);
-        for (c, o) in out.iter_mut().enumerate() {
-            let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
-            let e = (tx / ax).powi(2) + (ty / ay).powi(2);
-            *o = self.rho_s[c] * (-e).exp() / (4.0 * PI * ax * ay * root);
-        }
-        if let Some(d) = &self.diffuse {
-            d.add_eval(wi, wo, out);
-        }
+        super::eval_layered(wi, wo, out, self.diffuse.as_ref(), |out| {
+            // tan²θh cos²φh = hx²/hz²: the unnormalised half vector will do.
+            let h = wi.vec() + wo.vec();
+            let root = (wi.z * wo.z).sqrt();
+            let (tx, ty) = (h.x / h.z, h.y / h.z);
+            for (c, o) in out.iter_mut().enumerate() {
+                let (ax, ay) = (self.alpha_x[c], self.alpha_y[c]);
+                let e = (tx / ax).powi(2) + (ty / ay).powi(2);
+                *o = self.rho_s[c] * (-e).exp() / (4.0 * PI * ax * ay * root);
+            }
+        });
     }
 
     fn proposals(&self, wi: Dir, out: &mut Vec<Weighted>) {
