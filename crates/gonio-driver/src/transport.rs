@@ -1,0 +1,205 @@
+//! Moving bytes and lines to and from an instrument.
+
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+
+use gonio_proto::{FrameError, LineFramer};
+
+/// Why a transport operation failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TransportError {
+    /// No complete line arrived in time.
+    #[error("no reply within {0:?}")]
+    Timeout(Duration),
+    /// A NUL byte arrived (an SMC100 that lost power sends one).
+    #[error("NUL byte received (instrument power loss?)")]
+    Nul,
+    /// A line longer than the protocol allows, without a terminator.
+    #[error("reply line too long (garbage on the line?)")]
+    LineTooLong,
+    /// The port is gone (unplugged adapter, closed pseudo-terminal) or cannot be opened.
+    #[error("port {port} unavailable: {reason}")]
+    Disconnected {
+        /// The port path.
+        port: String,
+        /// What the OS said.
+        reason: String,
+    },
+    /// A scripted test transport saw something other than its script.
+    #[error("script: {0}")]
+    Script(String),
+}
+
+impl From<FrameError> for TransportError {
+    fn from(e: FrameError) -> Self {
+        match e {
+            FrameError::Nul => TransportError::Nul,
+            FrameError::TooLong(_) => TransportError::LineTooLong,
+        }
+    }
+}
+
+/// A byte link to an instrument, framed into lines.
+///
+/// Implemented by [`SerialTransport`] (a real port or pseudo-terminal) and by
+/// [`ScriptedTransport`](crate::ScriptedTransport) (tests).
+pub trait Transport: Send {
+    /// Sends `bytes` (one command line, terminator included).
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError>;
+    /// The next line the instrument sends, terminator removed, waiting at most
+    /// `timeout`.
+    fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError>;
+    /// Discards everything received and not yet read (stale replies after a timeout).
+    fn clear_input(&mut self) -> Result<(), TransportError>;
+    /// Opens the port again after it vanished.
+    fn reconnect(&mut self) -> Result<(), TransportError>;
+    /// The port's name, for error messages.
+    fn name(&self) -> String;
+}
+
+/// Software (Xon/Xoff) or hardware (RTS/CTS) flow control.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FlowControl {
+    /// None.
+    None,
+    /// Xon/Xoff (the SMC100's).
+    Software,
+    /// RTS/CTS (the SR830 can use it).
+    Hardware,
+}
+
+/// How to open a serial port: 8 data bits, no parity, 1 stop bit, and these.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SerialSettings {
+    /// Port path (`/dev/ttyUSB0`, `/dev/pts/3`).
+    pub path: String,
+    /// Baud rate.
+    pub baud: u32,
+    /// Flow control.
+    pub flow: FlowControl,
+    /// The byte that ends a received line.
+    pub terminator: u8,
+    /// The longest line accepted.
+    pub max_line: usize,
+}
+
+/// A serial port (or pseudo-terminal) at a path, with line framing.
+pub struct SerialTransport {
+    settings: SerialSettings,
+    port: Option<Box<dyn serialport::SerialPort>>,
+    framer: LineFramer,
+}
+
+impl std::fmt::Debug for SerialTransport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SerialTransport")
+            .field("settings", &self.settings)
+            .field("open", &self.port.is_some())
+            .finish()
+    }
+}
+
+/// How long one `read` call may block: short, so deadlines are kept to a few ms.
+const POLL: Duration = Duration::from_millis(5);
+
+impl SerialTransport {
+    /// Opens the port.
+    pub fn open(settings: SerialSettings) -> Result<Self, TransportError> {
+        let framer = LineFramer::new(settings.terminator, settings.max_line);
+        let mut t = SerialTransport {
+            settings,
+            port: None,
+            framer,
+        };
+        t.reconnect()?;
+        Ok(t)
+    }
+
+    fn disconnected(&mut self, e: impl std::fmt::Display) -> TransportError {
+        self.port = None;
+        TransportError::Disconnected {
+            port: self.settings.path.clone(),
+            reason: e.to_string(),
+        }
+    }
+
+    fn port(&mut self) -> Result<&mut Box<dyn serialport::SerialPort>, TransportError> {
+        let path = self.settings.path.clone();
+        self.port.as_mut().ok_or(TransportError::Disconnected {
+            port: path,
+            reason: "port closed after an earlier failure".into(),
+        })
+    }
+}
+
+impl Transport for SerialTransport {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        let r = {
+            let port = self.port()?;
+            port.write_all(bytes).and_then(|_| port.flush())
+        };
+        r.map_err(|e| self.disconnected(e))
+    }
+
+    fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError> {
+        let deadline = Instant::now() + timeout;
+        let mut buf = [0u8; 256];
+        loop {
+            if let Some(line) = self.framer.next_line() {
+                return line.map_err(TransportError::from);
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(TransportError::Timeout(timeout));
+            }
+            let wait = (deadline - now).min(POLL);
+            let r = {
+                let port = self.port()?;
+                port.set_timeout(wait).and_then(|_| match port.read(&mut buf) {
+                    Ok(n) => Ok(n),
+                    Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(0),
+                    Err(e) => Err(e.into()),
+                })
+            };
+            match r {
+                Ok(n) => self.framer.push(&buf[..n]),
+                Err(e) => return Err(self.disconnected(e)),
+            }
+        }
+    }
+
+    fn clear_input(&mut self) -> Result<(), TransportError> {
+        self.framer.clear();
+        let r = self.port()?.clear(serialport::ClearBuffer::Input);
+        r.map_err(|e| self.disconnected(e))
+    }
+
+    fn reconnect(&mut self) -> Result<(), TransportError> {
+        self.port = None;
+        self.framer.clear();
+        let s = &self.settings;
+        let flow = match s.flow {
+            FlowControl::None => serialport::FlowControl::None,
+            FlowControl::Software => serialport::FlowControl::Software,
+            FlowControl::Hardware => serialport::FlowControl::Hardware,
+        };
+        let port = serialport::new(&s.path, s.baud)
+            .data_bits(serialport::DataBits::Eight)
+            .parity(serialport::Parity::None)
+            .stop_bits(serialport::StopBits::One)
+            .flow_control(flow)
+            .timeout(POLL)
+            .open()
+            .map_err(|e| TransportError::Disconnected {
+                port: s.path.clone(),
+                reason: e.to_string(),
+            })?;
+        self.port = Some(port);
+        Ok(())
+    }
+
+    fn name(&self) -> String {
+        self.settings.path.clone()
+    }
+}

@@ -1,0 +1,147 @@
+//! Cutting a serial byte stream into lines.
+
+use std::collections::VecDeque;
+
+/// Why a chunk of the stream is not a valid line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum FrameError {
+    /// A NUL byte arrived: what an SMC100 emits when it loses power, and never part of
+    /// a valid line of either protocol. The bytes up to the next terminator are dropped.
+    #[error("NUL byte on the line (instrument power loss or line noise)")]
+    Nul,
+    /// More than the maximum line length arrived without a terminator; the bytes are
+    /// dropped up to the next terminator.
+    #[error("line longer than {0} bytes without a terminator")]
+    TooLong(usize),
+}
+
+/// Splits a byte stream into lines ending in a terminator byte.
+///
+/// Sans-IO: feed it whatever the transport read with [`push`](Self::push), then take
+/// complete lines with [`next_line`](Self::next_line). The terminator is removed, and
+/// so is a carriage return right before it (the SMC100 ends lines with CR LF; the
+/// SR830 with CR alone, which is then the terminator itself).
+#[derive(Debug, Clone)]
+pub struct LineFramer {
+    terminator: u8,
+    max_len: usize,
+    partial: Vec<u8>,
+    /// Inside a line that has already produced an error: drop until the terminator.
+    discarding: bool,
+    ready: VecDeque<Result<Vec<u8>, FrameError>>,
+}
+
+impl LineFramer {
+    /// A framer for lines ending in `terminator`, refusing lines over `max_len` bytes.
+    pub fn new(terminator: u8, max_len: usize) -> Self {
+        LineFramer {
+            terminator,
+            max_len,
+            partial: Vec::new(),
+            discarding: false,
+            ready: VecDeque::new(),
+        }
+    }
+
+    /// Adds received bytes.
+    pub fn push(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if b == self.terminator {
+                if self.discarding {
+                    self.discarding = false;
+                } else {
+                    let mut line = std::mem::take(&mut self.partial);
+                    if self.terminator != b'\r' && line.last() == Some(&b'\r') {
+                        line.pop();
+                    }
+                    self.ready.push_back(Ok(line));
+                }
+                self.partial.clear();
+                continue;
+            }
+            if self.discarding {
+                continue;
+            }
+            if b == 0 {
+                self.ready.push_back(Err(FrameError::Nul));
+                self.partial.clear();
+                self.discarding = true;
+            } else if self.partial.len() >= self.max_len {
+                self.ready.push_back(Err(FrameError::TooLong(self.max_len)));
+                self.partial.clear();
+                self.discarding = true;
+            } else {
+                self.partial.push(b);
+            }
+        }
+    }
+
+    /// The next complete line (without its terminator), or an error for a bad one.
+    pub fn next_line(&mut self) -> Option<Result<Vec<u8>, FrameError>> {
+        self.ready.pop_front()
+    }
+
+    /// True when bytes of an unfinished line are buffered.
+    pub fn has_partial(&self) -> bool {
+        !self.partial.is_empty() || self.discarding
+    }
+
+    /// Forgets everything buffered (after a timeout, before a new exchange).
+    pub fn clear(&mut self) {
+        self.partial.clear();
+        self.discarding = false;
+        self.ready.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn crlf_lines_split_across_chunks() {
+        let mut f = LineFramer::new(b'\n', 64);
+        f.push(b"1TP1");
+        assert!(f.next_line().is_none());
+        f.push(b"2.5\r\n1TS00");
+        assert_eq!(f.next_line(), Some(Ok(b"1TP12.5".to_vec())));
+        assert!(f.next_line().is_none());
+        f.push(b"0033\r\n");
+        assert_eq!(f.next_line(), Some(Ok(b"1TS000033".to_vec())));
+    }
+
+    #[test]
+    fn cr_terminated_replies() {
+        let mut f = LineFramer::new(b'\r', 64);
+        f.push(b"26\r8\r1\r");
+        let lines: Vec<_> = std::iter::from_fn(|| f.next_line()).collect();
+        assert_eq!(lines, vec![Ok(b"26".to_vec()), Ok(b"8".to_vec()), Ok(b"1".to_vec())]);
+    }
+
+    #[test]
+    fn nul_and_overlong_lines_are_errors_and_resynchronise() {
+        let mut f = LineFramer::new(b'\n', 8);
+        f.push(b"1T\0P12\r\n1TE@\r\n");
+        assert_eq!(f.next_line(), Some(Err(FrameError::Nul)));
+        assert_eq!(f.next_line(), Some(Ok(b"1TE@".to_vec())));
+        f.push(b"0123456789ABCDEF\r\nok\r\n");
+        assert_eq!(f.next_line(), Some(Err(FrameError::TooLong(8))));
+        assert_eq!(f.next_line(), Some(Ok(b"ok".to_vec())));
+        assert!(!f.has_partial());
+    }
+
+    proptest! {
+        #[test]
+        fn never_panics_and_never_exceeds_max_len(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let mut f = LineFramer::new(b'\n', 32);
+            f.push(&bytes);
+            while let Some(l) = f.next_line() {
+                if let Ok(l) = l {
+                    prop_assert!(l.len() <= 32);
+                    prop_assert!(!l.contains(&b'\n') && !l.contains(&0));
+                }
+            }
+        }
+    }
+}

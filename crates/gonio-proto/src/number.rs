@@ -1,0 +1,95 @@
+//! Numbers as the instruments write and read them.
+
+/// Formats `v` in the shortest decimal form that reads back to the same `f64`, without
+/// an exponent (both instruments accept plain decimals; exponents are accepted on input
+/// but not needed on output for the ranges a goniometer uses).
+pub(crate) fn format(v: f64, out: &mut Vec<u8>) {
+    use std::io::Write;
+    // Display prints no exponent and is the shortest representation that round-trips.
+    let _ = write!(out, "{v}");
+}
+
+/// Parses a number as the manuals allow it: optional sign, digits with an optional
+/// decimal point (`.5` included), optional exponent (`1.5e-3`, `-4.17234e-007`).
+/// Refuses `inf`, `nan`, hex, and anything else Rust's parser would accept beyond that.
+pub(crate) fn parse(s: &[u8]) -> Option<f64> {
+    let (mut i, n) = (0, s.len());
+    if i < n && (s[i] == b'+' || s[i] == b'-') {
+        i += 1;
+    }
+    let int_start = i;
+    while i < n && s[i].is_ascii_digit() {
+        i += 1;
+    }
+    let mut digits = i - int_start;
+    if i < n && s[i] == b'.' {
+        i += 1;
+        let frac_start = i;
+        while i < n && s[i].is_ascii_digit() {
+            i += 1;
+        }
+        digits += i - frac_start;
+    }
+    if digits == 0 {
+        return None;
+    }
+    if i < n && (s[i] == b'e' || s[i] == b'E') {
+        i += 1;
+        if i < n && (s[i] == b'+' || s[i] == b'-') {
+            i += 1;
+        }
+        let exp_start = i;
+        while i < n && s[i].is_ascii_digit() {
+            i += 1;
+        }
+        if i == exp_start {
+            return None;
+        }
+    }
+    if i != n {
+        return None;
+    }
+    let text = std::str::from_utf8(s).ok()?;
+    let v: f64 = text.parse().ok()?;
+    v.is_finite().then_some(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn manual_number_forms() {
+        for (s, v) in [
+            ("5", 5.0),
+            ("5.0", 5.0),
+            (".5E1", 5.0),
+            ("-1.01026", -1.01026),
+            ("1000.00", 1000.0),
+            ("-4.17234e-007", -4.17234e-7),
+            ("-1.234567e-009", -1.234567e-9),
+            ("+2", 2.0),
+            ("7.5e-6", 7.5e-6),
+        ] {
+            assert_eq!(parse(s.as_bytes()), Some(v), "{s}");
+        }
+        for s in ["", "-", ".", "e5", "1e", "inf", "NaN", "0x10", "1.2.3", "1 2", "1e999"] {
+            assert_eq!(parse(s.as_bytes()), None, "{s:?}");
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn format_parse_round_trip(v in -1e12..1e12f64) {
+            let mut out = Vec::new();
+            format(v, &mut out);
+            prop_assert_eq!(parse(&out), Some(v));
+        }
+
+        #[test]
+        fn parse_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
+            let _ = parse(&bytes);
+        }
+    }
+}
