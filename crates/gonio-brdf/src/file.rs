@@ -99,11 +99,8 @@ impl Ctx<'_> {
     ) -> ModelError {
         let (line, column) = match span {
             Some(s) => {
-                let start = s.start.min(self.text.len());
-                let before = &self.text[..start];
-                let line = before.matches('\n').count() + 1;
-                let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-                (Some(line), Some(col))
+                let (l, c) = gonio_core::text::line_col(self.text, s.start);
+                (Some(l), Some(c))
             }
             None => (None, None),
         };

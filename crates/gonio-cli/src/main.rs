@@ -6,6 +6,7 @@
 
 mod demo;
 mod error;
+mod instrument_cmd;
 mod model_cmd;
 mod output;
 
@@ -36,6 +37,28 @@ enum Command {
     Model {
         #[command(subcommand)]
         command: ModelCommand,
+    },
+    /// Check an instrument config, and optionally talk to the instrument.
+    Instrument {
+        #[command(subcommand)]
+        command: InstrumentCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum InstrumentCommand {
+    /// Validate an instrument config (ports, axes, limits, detector settings); with
+    /// `--connect`, open the ports, identify every controller and set the lock-in up.
+    /// Nothing moves.
+    Check {
+        /// The instrument config (TOML).
+        config: PathBuf,
+        /// Open the ports and identify the instruments.
+        #[arg(long)]
+        connect: bool,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -89,6 +112,13 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 phi_i,
                 json,
             } => model_cmd::albedo(&model, &theta_i, phi_i, json),
+        },
+        Command::Instrument { command } => match command {
+            InstrumentCommand::Check {
+                config,
+                connect,
+                json,
+            } => instrument_cmd::check(&config, connect, json),
         },
     }
 }

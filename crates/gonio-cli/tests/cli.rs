@@ -207,3 +207,44 @@ fn bad_arguments_exit_2() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("/no/such/dir/out.csv"));
 }
+
+#[test]
+fn instrument_check_validates_configs() {
+    let o = gonio(&[
+        "instrument",
+        "check",
+        &config("instrument-example.toml"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(v["motion"]["axes"].as_array().expect("axes").len(), 4);
+    assert_eq!(v["detector"]["sensitivity_v"].as_f64(), Some(0.01));
+
+    let d = scratch("badinstr");
+    let bad = d.join("rig.toml");
+    std::fs::write(
+        &bad,
+        "[motion]\nport = \"/dev/ttyUSB0\"\n[[motion.axes]]\nname = \"a\"\naddress = 1\nmin = 5.0\nmax = 1.0\n[detector]\nport = \"/dev/ttyUSB1\"\n",
+    )
+    .expect("write");
+    let o = gonio(&["instrument", "check", &bad.display().to_string()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains(&format!(
+            "{}:7:7: field `motion.axes[0].max`: must be finite and greater than `min`",
+            bad.display()
+        )),
+        "{}",
+        stderr(&o)
+    );
+    // A valid config whose ports are absent is a runtime failure, not bad input.
+    let o = gonio(&[
+        "instrument",
+        "check",
+        &config("instrument-example.toml"),
+        "--connect",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("/dev/gonio-motion"), "{}", stderr(&o));
+}

@@ -37,3 +37,31 @@ pub use channels::{ChannelError, Channels, Spectrum};
 pub use frame::Frame;
 pub use geometry::{Dir, DirPair, HalfDiff, Spherical, SphericalDeg, half_vector, sin_cos_deg};
 pub use vec3::Vec3;
+
+/// Positions in text, for error messages that name a line and column.
+pub mod text {
+    /// The 1-based line and column (in characters) of byte `offset` in `text`.
+    pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+        let mut end = offset.min(text.len());
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        let before = &text[..end];
+        let line = before.matches('\n').count() + 1;
+        let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+        (line, col)
+    }
+
+    #[cfg(test)]
+    mod tests {
+        #[test]
+        fn lines_and_columns() {
+            let t = "a = 1\nbé = 2\n";
+            assert_eq!(super::line_col(t, 0), (1, 1));
+            assert_eq!(super::line_col(t, 6), (2, 1));
+            // 'é' is two bytes: the '=' at byte 10 is the 4th character of line 2.
+            assert_eq!(super::line_col(t, 10), (2, 4));
+            assert_eq!(super::line_col(t, 999), (3, 1));
+        }
+    }
+}

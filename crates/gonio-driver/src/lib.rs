@@ -13,11 +13,15 @@
 //!   config file.
 
 pub mod clock;
+pub mod config;
+mod goniometer;
 pub mod script;
 pub mod smc100;
 pub mod sr830;
 mod transport;
 
 pub use clock::{Clock, ManualClock, SystemClock};
+pub use config::{ConfigFileError, InstrumentConfig};
+pub use goniometer::{Goniometer, GoniometerError, StartupReport};
 pub use script::ScriptedTransport;
 pub use transport::{FlowControl, SerialSettings, SerialTransport, Transport, TransportError};

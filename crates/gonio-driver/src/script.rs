@@ -19,7 +19,10 @@ use crate::transport::{Transport, TransportError};
 enum Step {
     /// The driver sends these bytes; the instrument then answers `reply` (raw bytes,
     /// any number of lines, possibly broken) or stays silent (`None`).
-    Exchange { send: Vec<u8>, reply: Option<Vec<u8>> },
+    Exchange {
+        send: Vec<u8>,
+        reply: Option<Vec<u8>>,
+    },
     /// The port disappears: every operation fails until `failed_reconnects`
     /// reconnection attempts have failed and the next one succeeds.
     Vanish { failed_reconnects: usize },

@@ -19,8 +19,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use gonio_proto::smc100::{
-    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply,
-    ReplyBody, Status,
+    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody, Status,
 };
 
 use crate::clock::Clock;
@@ -123,7 +122,9 @@ pub enum AxisError {
         reason: String,
     },
     /// A target outside the axis' limits; nothing was sent.
-    #[error("target {target} {units} is outside the limits [{min}, {max}] {units}; nothing was sent")]
+    #[error(
+        "target {target} {units} is outside the limits [{min}, {max}] {units}; nothing was sent"
+    )]
     OutOfLimits {
         /// The refused target.
         target: f64,
@@ -168,7 +169,9 @@ pub enum AxisError {
         operation: &'static str,
     },
     /// A move or home search did not finish in time; the stage was stopped.
-    #[error("{operation} did not finish within {waited:?} (target {target}, at {position:?}); stopped")]
+    #[error(
+        "{operation} did not finish within {waited:?} (target {target}, at {position:?}); stopped"
+    )]
     Timeout {
         /// `move` or `home`.
         operation: &'static str,
@@ -376,10 +379,12 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
                 Err(e) => last = Some(e),
             }
         }
-        Err(AxisError::Transport(last.unwrap_or(TransportError::Disconnected {
-            port: self.transport.name(),
-            reason: "no reconnection attempt allowed".into(),
-        })))
+        Err(AxisError::Transport(last.unwrap_or(
+            TransportError::Disconnected {
+                port: self.transport.name(),
+                reason: "no reconnection attempt allowed".into(),
+            },
+        )))
     }
 
     /// Reads lines until one answers `frame`, discarding stale replies to earlier
@@ -430,9 +435,11 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
             self.send_frame(&frame)?;
             match self.read_reply(&frame) {
                 Ok(b) => return Ok(b),
-                Err(e @ (AxisError::Transport(TransportError::Timeout(_))
-                | AxisError::Transport(TransportError::LineTooLong)
-                | AxisError::Protocol { .. })) => {
+                Err(
+                    e @ (AxisError::Transport(TransportError::Timeout(_))
+                    | AxisError::Transport(TransportError::LineTooLong)
+                    | AxisError::Protocol { .. }),
+                ) => {
                     let _ = self.transport.clear_input();
                     last = Some(e);
                 }
@@ -476,9 +483,11 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
                         reason: "not an error letter".into(),
                     });
                 }
-                Err(e @ (AxisError::Transport(TransportError::Timeout(_))
-                | AxisError::Transport(TransportError::LineTooLong)
-                | AxisError::Protocol { .. })) => last = Some(e),
+                Err(
+                    e @ (AxisError::Transport(TransportError::Timeout(_))
+                    | AxisError::Transport(TransportError::LineTooLong)
+                    | AxisError::Protocol { .. }),
+                ) => last = Some(e),
                 Err(e) => return Err(e),
             }
         }
@@ -609,7 +618,8 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
             let s = self.status_of(i).map_err(|e| self.fail(i, e))?;
             let st = s.state;
             if st.is_not_referenced() {
-                self.command(i, Command::Home).map_err(|e| self.fail(i, e))?;
+                self.command(i, Command::Home)
+                    .map_err(|e| self.fail(i, e))?;
                 searching.push(i);
             } else if st.is_homing() {
                 searching.push(i);
@@ -752,7 +762,11 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         Ok(self.wait_moves(&[(i, target)], allow)?[0])
     }
 
-    fn wait_moves(&mut self, moves: &[(usize, f64)], allow: Duration) -> Result<Vec<f64>, MotionError> {
+    fn wait_moves(
+        &mut self,
+        moves: &[(usize, f64)],
+        allow: Duration,
+    ) -> Result<Vec<f64>, MotionError> {
         let start = self.clock.now();
         let mut moving: Vec<usize> = (0..moves.len()).collect();
         while !moving.is_empty() {
@@ -849,10 +863,7 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
                 Err(e) => return Err(self.at(i, e)),
             }
             if self.clock.now().saturating_sub(start) > boot {
-                return Err(self.at(
-                    i,
-                    AxisError::Transport(TransportError::Timeout(boot)),
-                ));
+                return Err(self.at(i, AxisError::Transport(TransportError::Timeout(boot))));
             }
         }
         self.home(&[name])

@@ -156,11 +156,12 @@ impl Transport for SerialTransport {
             let wait = (deadline - now).min(POLL);
             let r = {
                 let port = self.port()?;
-                port.set_timeout(wait).and_then(|_| match port.read(&mut buf) {
-                    Ok(n) => Ok(n),
-                    Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(0),
-                    Err(e) => Err(e.into()),
-                })
+                port.set_timeout(wait)
+                    .and_then(|_| match port.read(&mut buf) {
+                        Ok(n) => Ok(n),
+                        Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(0),
+                        Err(e) => Err(e.into()),
+                    })
             };
             match r {
                 Ok(n) => self.framer.push(&buf[..n]),

@@ -40,10 +40,10 @@ fn responder(
                         if line == b"QUIT" {
                             return;
                         }
-                        if let Some(r) = reply(&line) {
-                            if master.write_all(&r).is_err() {
-                                return;
-                            }
+                        if let Some(r) = reply(&line)
+                            && master.write_all(&r).is_err()
+                        {
+                            return;
                         }
                     }
                 }
@@ -68,7 +68,10 @@ fn lines_cross_a_pseudo_terminal() {
     );
     let mut t = SerialTransport::open(settings(&path)).expect("opens the pty slave");
     t.send(b"1TP\r\n").expect("sent");
-    assert_eq!(t.receive_line(Duration::from_secs(2)).expect("reply"), b"1TP12.5");
+    assert_eq!(
+        t.receive_line(Duration::from_secs(2)).expect("reply"),
+        b"1TP12.5"
+    );
     // Silence is a timeout, not a hang.
     t.send(b"1XX\r\n").expect("sent");
     assert_eq!(
@@ -89,8 +92,8 @@ fn answer_tp(l: &[u8]) -> Option<Vec<u8>> {
 /// pseudo-terminal behind the same symlink, as udev gives a stable name).
 #[test]
 fn port_vanishes_and_returns_at_the_same_path() {
-    use gonio_driver::smc100::{AxisConfig, ChainPolicy, Smc100Chain};
     use gonio_driver::SystemClock;
+    use gonio_driver::smc100::{AxisConfig, ChainPolicy, Smc100Chain};
 
     let dir = std::env::temp_dir().join(format!("gonio-pty-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

@@ -4,9 +4,9 @@
 
 use std::time::Duration;
 
+use gonio_driver::script::ScriptHandle;
 use gonio_driver::smc100::{AxisConfig, AxisError, ChainPolicy, MotionError, Smc100Chain};
 use gonio_driver::{Clock, ManualClock, ScriptedTransport, TransportError};
-use gonio_driver::script::ScriptHandle;
 use gonio_proto::smc100::{ControllerState, ErrorCode};
 
 fn axis(name: &str, address: u8) -> AxisConfig {
@@ -50,11 +50,17 @@ fn axis_err(e: MotionError) -> AxisError {
 #[test]
 fn startup_identifies_each_controller() {
     let (mut c, h, _) = chain(vec![axis("source", 1)]);
-    h.exchange("1VE\r\n", "1VE SMC_CC - Controller-driver version  3. 1. 2\r\n")
-        .exchange("1ID?\r\n", "1IDURS100CC\r\n")
-        .exchange("1TS\r\n", "1TS00000A\r\n");
+    h.exchange(
+        "1VE\r\n",
+        "1VE SMC_CC - Controller-driver version  3. 1. 2\r\n",
+    )
+    .exchange("1ID?\r\n", "1IDURS100CC\r\n")
+    .exchange("1TS\r\n", "1TS00000A\r\n");
     let info = c.identify().expect("answers");
-    assert_eq!(info[0].version, "SMC_CC - Controller-driver version  3. 1. 2");
+    assert_eq!(
+        info[0].version,
+        "SMC_CC - Controller-driver version  3. 1. 2"
+    );
     assert_eq!(info[0].stage, "URS100CC");
     assert_eq!(info[0].state, ControllerState::NotReferencedFromReset);
     finish(c, &h);
@@ -123,10 +129,15 @@ fn soft_limits_refuse_before_sending() {
             units: "deg".into()
         }
     );
-    let e = c.move_to(&[("source", f64::NAN)]).expect_err("not a number");
+    let e = c
+        .move_to(&[("source", f64::NAN)])
+        .expect_err("not a number");
     assert!(matches!(axis_err(e), AxisError::OutOfLimits { .. }));
     assert!(h.sent().is_empty(), "bytes went out: {:?}", h.sent());
-    assert!(matches!(c.move_to(&[("nope", 1.0)]), Err(MotionError::UnknownAxis(_))));
+    assert!(matches!(
+        c.move_to(&[("nope", 1.0)]),
+        Err(MotionError::UnknownAxis(_))
+    ));
     finish(c, &h);
 }
 
@@ -156,7 +167,10 @@ fn refused_command_is_a_typed_error_and_stops() {
 #[test]
 fn no_reply_times_out_after_retries() {
     let (mut c, h, clock) = chain(vec![axis("source", 1)]);
-    h.send("1TP\r\n").send("1TP\r\n").send("1TP\r\n").send("ST\r\n");
+    h.send("1TP\r\n")
+        .send("1TP\r\n")
+        .send("1TP\r\n")
+        .send("ST\r\n");
     let e = c.move_to(&[("source", 10.0)]).expect_err("silent");
     assert_eq!(
         axis_err(e),
@@ -178,7 +192,8 @@ fn garbage_and_truncated_replies_are_retried() {
     let e = c.position("source").expect_err("never a clean reply");
     assert!(matches!(axis_err(e), AxisError::Protocol { .. }));
 
-    h.exchange("1TP\r\n", "#garbage\r\n").exchange("1TP\r\n", "1TP-3.25\r\n");
+    h.exchange("1TP\r\n", "#garbage\r\n")
+        .exchange("1TP\r\n", "1TP-3.25\r\n");
     assert_eq!(c.position("source").expect("second try"), -3.25);
     finish(c, &h);
 }
@@ -424,11 +439,16 @@ fn chain_configuration_is_validated() {
     bad.min = 10.0;
     bad.max = -10.0;
     let (t, _) = ScriptedTransport::new(b'\n', 128, clock.clone());
-    let e = Smc100Chain::new(t, clock.clone(), vec![bad], ChainPolicy::default())
-        .expect_err("limits");
+    let e =
+        Smc100Chain::new(t, clock.clone(), vec![bad], ChainPolicy::default()).expect_err("limits");
     assert!(e.to_string().contains("min < max"), "{e}");
     let (t, _) = ScriptedTransport::new(b'\n', 128, clock.clone());
-    let e = Smc100Chain::new(t, clock, vec![axis("a", 1), axis("b", 1)], ChainPolicy::default())
-        .expect_err("shared address");
+    let e = Smc100Chain::new(
+        t,
+        clock,
+        vec![axis("a", 1), axis("b", 1)],
+        ChainPolicy::default(),
+    )
+    .expect_err("shared address");
     assert!(e.to_string().contains("address 1"), "{e}");
 }

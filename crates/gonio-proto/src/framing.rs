@@ -116,7 +116,10 @@ mod tests {
         let mut f = LineFramer::new(b'\r', 64);
         f.push(b"26\r8\r1\r");
         let lines: Vec<_> = std::iter::from_fn(|| f.next_line()).collect();
-        assert_eq!(lines, vec![Ok(b"26".to_vec()), Ok(b"8".to_vec()), Ok(b"1".to_vec())]);
+        assert_eq!(
+            lines,
+            vec![Ok(b"26".to_vec()), Ok(b"8".to_vec()), Ok(b"1".to_vec())]
+        );
     }
 
     #[test]

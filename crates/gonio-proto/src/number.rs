@@ -74,7 +74,9 @@ mod tests {
         ] {
             assert_eq!(parse(s.as_bytes()), Some(v), "{s}");
         }
-        for s in ["", "-", ".", "e5", "1e", "inf", "NaN", "0x10", "1.2.3", "1 2", "1e999"] {
+        for s in [
+            "", "-", ".", "e5", "1e", "inf", "NaN", "0x10", "1.2.3", "1 2", "1e999",
+        ] {
             assert_eq!(parse(s.as_bytes()), None, "{s:?}");
         }
     }

@@ -273,9 +273,7 @@ impl Frame {
             return Err(CommandError::BadAddress);
         } else {
             // Two ASCII digits at most: always a valid number.
-            let a = s[..digits]
-                .iter()
-                .fold(0u8, |acc, d| acc * 10 + (d - b'0'));
+            let a = s[..digits].iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'));
             Some(a)
         };
         let code = s.get(digits..digits + 2).ok_or(CommandError::Unknown)?;
@@ -310,8 +308,8 @@ impl Frame {
                 (Some(Param::Velocity), false) => Command::SetVelocity(value()?),
                 (Some(Param::Acceleration), false) => Command::SetAcceleration(value()?),
                 (Some(Param::Enabled), false) => match value()? {
-                    v if v == 0.0 => Command::Enable(false),
-                    v if v == 1.0 => Command::Enable(true),
+                    0.0 => Command::Enable(false),
+                    1.0 => Command::Enable(true),
                     _ => return Err(CommandError::BadParameter),
                 },
                 // Setting the stage name needs CONFIGURATION; not part of this codec.
@@ -376,25 +374,81 @@ pub enum ErrorCode {
 impl ErrorCode {
     const TABLE: [(u8, ErrorCode, &'static str); 20] = [
         (b'@', ErrorCode::None, "no error"),
-        (b'A', ErrorCode::UnknownCommand, "unknown message code or floating point controller address"),
-        (b'B', ErrorCode::BadAddress, "controller address not correct"),
-        (b'C', ErrorCode::BadParameter, "parameter missing or out of range"),
+        (
+            b'A',
+            ErrorCode::UnknownCommand,
+            "unknown message code or floating point controller address",
+        ),
+        (
+            b'B',
+            ErrorCode::BadAddress,
+            "controller address not correct",
+        ),
+        (
+            b'C',
+            ErrorCode::BadParameter,
+            "parameter missing or out of range",
+        ),
         (b'D', ErrorCode::NotAllowed, "command not allowed"),
-        (b'E', ErrorCode::HomeStarted, "home sequence already started"),
+        (
+            b'E',
+            ErrorCode::HomeStarted,
+            "home sequence already started",
+        ),
         (b'F', ErrorCode::UnknownStage, "ESP stage name unknown"),
         (b'G', ErrorCode::OutOfLimits, "displacement out of limits"),
-        (b'H', ErrorCode::NotReferenced, "command not allowed in NOT REFERENCED state"),
-        (b'I', ErrorCode::InConfiguration, "command not allowed in CONFIGURATION state"),
-        (b'J', ErrorCode::InDisable, "command not allowed in DISABLE state"),
-        (b'K', ErrorCode::InReady, "command not allowed in READY state"),
-        (b'L', ErrorCode::InHoming, "command not allowed in HOMING state"),
-        (b'M', ErrorCode::InMoving, "command not allowed in MOVING state"),
-        (b'N', ErrorCode::PositionOutOfLimit, "current position out of software limit"),
-        (b'S', ErrorCode::CommunicationTimeout, "communication time-out"),
+        (
+            b'H',
+            ErrorCode::NotReferenced,
+            "command not allowed in NOT REFERENCED state",
+        ),
+        (
+            b'I',
+            ErrorCode::InConfiguration,
+            "command not allowed in CONFIGURATION state",
+        ),
+        (
+            b'J',
+            ErrorCode::InDisable,
+            "command not allowed in DISABLE state",
+        ),
+        (
+            b'K',
+            ErrorCode::InReady,
+            "command not allowed in READY state",
+        ),
+        (
+            b'L',
+            ErrorCode::InHoming,
+            "command not allowed in HOMING state",
+        ),
+        (
+            b'M',
+            ErrorCode::InMoving,
+            "command not allowed in MOVING state",
+        ),
+        (
+            b'N',
+            ErrorCode::PositionOutOfLimit,
+            "current position out of software limit",
+        ),
+        (
+            b'S',
+            ErrorCode::CommunicationTimeout,
+            "communication time-out",
+        ),
         (b'U', ErrorCode::Eeprom, "error during EEPROM access"),
         (b'V', ErrorCode::Execution, "error during command execution"),
-        (b'W', ErrorCode::NotForPp, "command not allowed for PP version"),
-        (b'X', ErrorCode::NotForCc, "command not allowed for CC version"),
+        (
+            b'W',
+            ErrorCode::NotForPp,
+            "command not allowed for PP version",
+        ),
+        (
+            b'X',
+            ErrorCode::NotForCc,
+            "command not allowed for CC version",
+        ),
     ];
 
     /// The letter `TE` reports.
@@ -526,7 +580,10 @@ impl ControllerState {
 
     /// HOMING.
     pub fn is_homing(self) -> bool {
-        matches!(self, ControllerState::HomingRemote | ControllerState::HomingKeypad)
+        matches!(
+            self,
+            ControllerState::HomingRemote | ControllerState::HomingKeypad
+        )
     }
 
     /// MOVING.
@@ -684,9 +741,8 @@ impl Reply {
             | ReplyBody::Setpoint(v)
             | ReplyBody::MotionTime(v)
             | ReplyBody::Value(_, v) => number::format(*v, out),
-            ReplyBody::Status(s) => {
-                out.extend_from_slice(format!("{:04X}{:02X}", s.errors.0, s.state.code()).as_bytes())
-            }
+            ReplyBody::Status(s) => out
+                .extend_from_slice(format!("{:04X}{:02X}", s.errors.0, s.state.code()).as_bytes()),
             ReplyBody::Error(e) => out.push(e.letter() as u8),
             ReplyBody::Version(t) | ReplyBody::StageId(t) => out.extend_from_slice(t.as_bytes()),
         }
@@ -713,7 +769,9 @@ impl Reply {
         let address = line[..digits]
             .iter()
             .fold(0u8, |acc, d| acc * 10 + (d - b'0'));
-        let code = line.get(digits..digits + 2).ok_or(ReplyError::UnknownCode)?;
+        let code = line
+            .get(digits..digits + 2)
+            .ok_or(ReplyError::UnknownCode)?;
         let rest = &line[digits + 2..];
         let num = || number::parse(trim(rest)).ok_or(ReplyError::BadValue);
         let text = || {

@@ -48,7 +48,10 @@ fn commands_encode_byte_for_byte() {
         // And the controller's parser reads it back.
         assert_eq!(
             Frame::parse(&want[..want.len() - 2]),
-            Ok(Frame { address: a, command: c })
+            Ok(Frame {
+                address: a,
+                command: c
+            })
         );
     }
 }
@@ -68,7 +71,11 @@ fn manual_replies_parse() {
     ok("1TP0", 1, ReplyBody::Position(0.0));
     ok("1TH0", 1, ReplyBody::Setpoint(0.0));
     ok("1AC500", 1, ReplyBody::Value(Param::Acceleration, 500.0));
-    ok("1AC320.000000", 1, ReplyBody::Value(Param::Acceleration, 320.0));
+    ok(
+        "1AC320.000000",
+        1,
+        ReplyBody::Value(Param::Acceleration, 320.0),
+    );
     ok("1VA80.000000", 1, ReplyBody::Value(Param::Velocity, 80.0));
     ok("1TE@", 1, ReplyBody::Error(ErrorCode::None));
     ok("2TEH", 2, ReplyBody::Error(ErrorCode::NotReferenced));
@@ -129,10 +136,27 @@ fn positioner_error_bits() {
 #[test]
 fn every_state_code() {
     let classes: [(u8, &str); 21] = [
-        (0x0A, "NR"), (0x0B, "NR"), (0x0C, "NR"), (0x0D, "NR"), (0x0E, "NR"), (0x0F, "NR"),
-        (0x10, "NR"), (0x11, "NR"), (0x14, "CF"), (0x1E, "HOM"), (0x1F, "HOM"), (0x28, "MOV"),
-        (0x32, "RDY"), (0x33, "RDY"), (0x34, "RDY"), (0x35, "RDY"), (0x3C, "DIS"),
-        (0x3D, "DIS"), (0x3E, "DIS"), (0x46, "JOG"), (0x47, "JOG"),
+        (0x0A, "NR"),
+        (0x0B, "NR"),
+        (0x0C, "NR"),
+        (0x0D, "NR"),
+        (0x0E, "NR"),
+        (0x0F, "NR"),
+        (0x10, "NR"),
+        (0x11, "NR"),
+        (0x14, "CF"),
+        (0x1E, "HOM"),
+        (0x1F, "HOM"),
+        (0x28, "MOV"),
+        (0x32, "RDY"),
+        (0x33, "RDY"),
+        (0x34, "RDY"),
+        (0x35, "RDY"),
+        (0x3C, "DIS"),
+        (0x3D, "DIS"),
+        (0x3E, "DIS"),
+        (0x46, "JOG"),
+        (0x47, "JOG"),
     ];
     for (code, class) in classes {
         let s = ControllerState::from_code(code).expect("defined");
@@ -150,7 +174,10 @@ fn every_state_code() {
         assert_eq!(classes, vec![class], "{code:02X}");
         let line = format!("7TS0000{code:02X}");
         let r = Reply::parse(line.as_bytes()).expect("parses");
-        assert_eq!(String::from_utf8(r.to_bytes()).expect("ascii"), format!("{line}\r\n"));
+        assert_eq!(
+            String::from_utf8(r.to_bytes()).expect("ascii"),
+            format!("{line}\r\n")
+        );
     }
     assert_eq!(
         Reply::parse(b"1TS000029"),
@@ -181,16 +208,37 @@ fn controller_side_parsing() {
         Frame::parse(b"2P A1.43 6"),
         Ok(Frame::addressed(2, Command::MoveAbsolute(1.436)))
     );
-    assert_eq!(Frame::parse(b"1ts?"), Ok(Frame::addressed(1, Command::TellStatus)));
-    assert_eq!(Frame::parse(b"1TP?"), Ok(Frame::addressed(1, Command::TellPosition)));
-    assert_eq!(Frame::parse(b"1pa-5.25xyz"), Ok(Frame::addressed(1, Command::MoveAbsolute(-5.25))));
+    assert_eq!(
+        Frame::parse(b"1ts?"),
+        Ok(Frame::addressed(1, Command::TellStatus))
+    );
+    assert_eq!(
+        Frame::parse(b"1TP?"),
+        Ok(Frame::addressed(1, Command::TellPosition))
+    );
+    assert_eq!(
+        Frame::parse(b"1pa-5.25xyz"),
+        Ok(Frame::addressed(1, Command::MoveAbsolute(-5.25)))
+    );
     assert_eq!(Frame::parse(b"0ST"), Ok(Frame::broadcast(Command::Stop)));
-    assert_eq!(Frame::parse(b"MM0"), Ok(Frame::broadcast(Command::Enable(false))));
-    assert_eq!(Frame::parse(b"1.5TS").map_err(|e| e.error_code()), Err(ErrorCode::UnknownCommand));
-    assert_eq!(Frame::parse(b"32TS").map_err(|e| e.error_code()), Err(ErrorCode::BadAddress));
+    assert_eq!(
+        Frame::parse(b"MM0"),
+        Ok(Frame::broadcast(Command::Enable(false)))
+    );
+    assert_eq!(
+        Frame::parse(b"1.5TS").map_err(|e| e.error_code()),
+        Err(ErrorCode::UnknownCommand)
+    );
+    assert_eq!(
+        Frame::parse(b"32TS").map_err(|e| e.error_code()),
+        Err(ErrorCode::BadAddress)
+    );
     assert_eq!(Frame::parse(b"TS"), Err(CommandError::BadAddress));
     assert_eq!(Frame::parse(b"0TP"), Err(CommandError::BadAddress));
-    assert_eq!(Frame::parse(b"1PA").map_err(|e| e.error_code()), Err(ErrorCode::BadParameter));
+    assert_eq!(
+        Frame::parse(b"1PA").map_err(|e| e.error_code()),
+        Err(ErrorCode::BadParameter)
+    );
     assert_eq!(Frame::parse(b"1MM2"), Err(CommandError::BadParameter));
     assert_eq!(Frame::parse(b"1XX"), Err(CommandError::Unknown));
     assert_eq!(Frame::parse(b""), Err(CommandError::Unknown));

@@ -1,0 +1,86 @@
+//! `gonio instrument check`.
+
+use std::io::Write;
+use std::path::Path;
+
+use gonio_driver::{Goniometer, InstrumentConfig};
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::output;
+
+/// `gonio instrument check CONFIG [--connect] [--json]`.
+pub fn check(path: &Path, connect: bool, json: bool) -> CliResult<()> {
+    let cfg = InstrumentConfig::load(path).map_err(|e| CliError::Input(e.to_string()))?;
+    let axes: Vec<_> = cfg
+        .motion
+        .axes
+        .iter()
+        .map(|a| {
+            json!({
+                "name": a.name, "address": a.address, "units": a.units,
+                "min": a.min, "max": a.max, "velocity": a.velocity,
+                "acceleration": a.acceleration, "tolerance": a.tolerance,
+            })
+        })
+        .collect();
+    let lockin = &cfg.detector.lockin;
+    let mut report = json!({
+        "config": path.display().to_string(),
+        "name": cfg.name,
+        "motion": {"port": cfg.motion.port, "baud": cfg.motion.baud, "axes": axes},
+        "detector": {
+            "port": cfg.detector.port, "baud": cfg.detector.baud,
+            "sensitivity_v": lockin.sensitivity.volts(),
+            "time_constant_s": lockin.time_constant.seconds(),
+            "slope_db": lockin.slope.db_per_octave(),
+            "samples": lockin.samples,
+        },
+    });
+    if connect {
+        let mut g = Goniometer::open(&cfg).map_err(|e| CliError::Runtime(e.to_string()))?;
+        let start = g.start().map_err(|e| CliError::Runtime(e.to_string()))?;
+        report["connected"] = json!({
+            "controllers": start.axes.iter().map(|(n, i)| json!({
+                "axis": n, "version": i.version, "stage": i.stage,
+                "state": format!("{:02X}", i.state.code()),
+            })).collect::<Vec<_>>(),
+            "detector": start.detector,
+        });
+    }
+    if json {
+        return output::json(&report);
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(w, "{}: valid", path.display())?;
+        writeln!(
+            w,
+            "motion: {} at {} baud, {} axes",
+            cfg.motion.port,
+            cfg.motion.baud,
+            cfg.motion.axes.len()
+        )?;
+        for a in &cfg.motion.axes {
+            writeln!(
+                w,
+                "  {:<12} address {:>2}  limits [{}, {}] {}",
+                a.name, a.address, a.min, a.max, a.units
+            )?;
+        }
+        writeln!(
+            w,
+            "detector: {} at {} baud; {} V full scale, {} s, {} dB/oct, {} samples",
+            cfg.detector.port,
+            cfg.detector.baud,
+            lockin.sensitivity.volts(),
+            lockin.time_constant.seconds(),
+            lockin.slope.db_per_octave(),
+            lockin.samples
+        )?;
+        if let Some(c) = report.get("connected") {
+            writeln!(w, "connected: {c}")?;
+        }
+        w.flush()
+    })())
+}

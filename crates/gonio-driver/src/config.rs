@@ -1,0 +1,326 @@
+//! The instrument config file: which ports, which axes with which limits, which
+//! detector settings. Read strictly (unknown keys are errors) and validated whole
+//! before any port is opened; errors name the file, line and field.
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Deserialize;
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+use crate::smc100::{AxisConfig, ChainPolicy};
+use crate::sr830::Sr830Config;
+use crate::transport::{FlowControl, SerialSettings};
+
+/// A goniometer: its motion chain and its detector.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstrumentConfig {
+    /// A name for reports and run files.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The SMC100 chain.
+    pub motion: MotionConfig,
+    /// The SR830 detector.
+    pub detector: DetectorConfig,
+}
+
+/// The serial line of the SMC100 chain and its axes.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionConfig {
+    /// Port path (`/dev/ttyUSB0`, a udev name, or a pseudo-terminal).
+    pub port: String,
+    /// Baud rate: the SMC100's is fixed at 57600.
+    #[serde(default = "default_motion_baud")]
+    pub baud: u32,
+    /// Flow control: the SMC100 uses Xon/Xoff (`software`).
+    #[serde(default = "default_motion_flow")]
+    pub flow: FlowControl,
+    /// Reply timeout per command, ms.
+    #[serde(default = "default_reply_timeout_ms")]
+    pub reply_timeout_ms: u64,
+    /// Status polling interval while stages move, ms.
+    #[serde(default = "default_poll_ms")]
+    pub poll_interval_ms: u64,
+    /// Re-sends of an idempotent command after a lost reply.
+    #[serde(default = "default_retries")]
+    pub retries: usize,
+    /// Attempts to reopen a vanished port.
+    #[serde(default = "default_reconnects")]
+    pub reconnect_attempts: usize,
+    /// Pause between reconnection attempts, ms.
+    #[serde(default = "default_reconnect_delay_ms")]
+    pub reconnect_delay_ms: u64,
+    /// The stages.
+    pub axes: Vec<AxisConfig>,
+}
+
+fn default_motion_baud() -> u32 {
+    57_600
+}
+fn default_motion_flow() -> FlowControl {
+    FlowControl::Software
+}
+fn default_reply_timeout_ms() -> u64 {
+    100
+}
+fn default_poll_ms() -> u64 {
+    50
+}
+fn default_retries() -> usize {
+    2
+}
+fn default_reconnects() -> usize {
+    5
+}
+fn default_reconnect_delay_ms() -> u64 {
+    500
+}
+
+/// The serial line of the SR830 and its settings.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorConfig {
+    /// Port path.
+    pub port: String,
+    /// Baud rate, as set on the SR830's front panel (default 9600).
+    #[serde(default = "default_detector_baud")]
+    pub baud: u32,
+    /// Flow control (`none`, or `hardware` for CTS/DTR).
+    #[serde(default = "default_detector_flow")]
+    pub flow: FlowControl,
+    /// Lock-in settings (`[detector.lockin]`).
+    #[serde(default)]
+    pub lockin: Sr830Config,
+}
+
+fn default_detector_baud() -> u32 {
+    9_600
+}
+fn default_detector_flow() -> FlowControl {
+    FlowControl::None
+}
+
+impl MotionConfig {
+    /// The chain's timing and retry policy.
+    pub fn policy(&self) -> ChainPolicy {
+        ChainPolicy {
+            reply_timeout: Duration::from_millis(self.reply_timeout_ms),
+            poll_interval: Duration::from_millis(self.poll_interval_ms),
+            retries: self.retries,
+            reconnect_attempts: self.reconnect_attempts,
+            reconnect_delay: Duration::from_millis(self.reconnect_delay_ms),
+            ..ChainPolicy::default()
+        }
+    }
+
+    /// How to open the port.
+    pub fn serial(&self) -> SerialSettings {
+        SerialSettings {
+            path: self.port.clone(),
+            baud: self.baud,
+            flow: self.flow,
+            terminator: b'\n',
+            max_line: gonio_proto::smc100::MAX_LINE,
+        }
+    }
+}
+
+impl DetectorConfig {
+    /// How to open the port.
+    pub fn serial(&self) -> SerialSettings {
+        SerialSettings {
+            path: self.port.clone(),
+            baud: self.baud,
+            flow: self.flow,
+            terminator: gonio_proto::sr830::REPLY_TERMINATOR,
+            max_line: gonio_proto::sr830::MAX_LINE,
+        }
+    }
+}
+
+/// An instrument config that could not be used, with where and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConfigFileError {
+    /// The file, when known.
+    pub path: Option<PathBuf>,
+    /// 1-based line, when the fault has a place.
+    pub line: Option<usize>,
+    /// 1-based column, when the fault has a place.
+    pub column: Option<usize>,
+    /// The field at fault (`motion.axes[1].max`), when there is one.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for ConfigFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.path {
+            Some(p) => write!(f, "{}", p.display())?,
+            None => f.write_str("<instrument config>")?,
+        }
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+            if let Some(c) = self.column {
+                write!(f, ":{c}")?;
+            }
+        }
+        f.write_str(": ")?;
+        if let Some(field) = &self.field {
+            write!(f, "field `{field}`: ")?;
+        }
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for ConfigFileError {}
+
+/// The byte range of the value at `path` (`motion.axes[1].max`) in a TOML document.
+fn locate(text: &str, path: &str) -> Option<Range<usize>> {
+    let doc: Spanned<DeTable> = DeTable::parse(text).ok()?;
+    let mut span = doc.span();
+    let mut table: Option<&DeTable> = Some(doc.get_ref());
+    let mut value: Option<&Spanned<DeValue>> = None;
+    for part in path.split('.') {
+        let (key, index) = match part.find('[') {
+            Some(b) => (
+                &part[..b],
+                part[b + 1..part.len() - 1].parse::<usize>().ok(),
+            ),
+            None => (part, None),
+        };
+        let t = match value {
+            Some(v) => match v.get_ref() {
+                DeValue::Table(t) => t,
+                _ => return Some(span),
+            },
+            None => table?,
+        };
+        let Some((_, v)) = t.iter().find(|(k, _)| k.get_ref().as_ref() == key) else {
+            return Some(span);
+        };
+        span = v.span();
+        value = Some(v);
+        table = None;
+        if let (Some(i), DeValue::Array(a)) = (index, v.get_ref())
+            && let Some(item) = a.get(i)
+        {
+            span = item.span();
+            value = Some(item);
+        }
+    }
+    Some(span)
+}
+
+impl InstrumentConfig {
+    /// Parses and validates a config's text; `path` only labels errors.
+    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Self, ConfigFileError> {
+        let at = |span: Option<Range<usize>>, field: Option<String>, message: String| {
+            let (line, column) = match span {
+                Some(s) => {
+                    let (l, c) = gonio_core::text::line_col(text, s.start);
+                    (Some(l), Some(c))
+                }
+                None => (None, None),
+            };
+            ConfigFileError {
+                path: path.map(Path::to_path_buf),
+                line,
+                column,
+                field,
+                message,
+            }
+        };
+        let cfg: InstrumentConfig =
+            toml::from_str(text).map_err(|e| at(e.span(), None, e.message().trim().to_string()))?;
+        cfg.validate()
+            .map_err(|(field, message)| at(locate(text, &field), Some(field), message))?;
+        Ok(cfg)
+    }
+
+    /// Reads and validates a config file.
+    pub fn load(path: &Path) -> Result<Self, ConfigFileError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigFileError {
+            path: Some(path.to_path_buf()),
+            line: None,
+            column: None,
+            field: None,
+            message: e.to_string(),
+        })?;
+        Self::from_toml(&text, Some(path))
+    }
+
+    /// Checks every value a driver will rely on; the first bad one is named by its path.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let err = |f: String, m: &str| Err((f, m.to_string()));
+        let m = &self.motion;
+        if m.port.trim().is_empty() {
+            return err("motion.port".into(), "must name a port");
+        }
+        if m.baud == 0 {
+            return err("motion.baud".into(), "must be positive");
+        }
+        if m.reply_timeout_ms == 0 || m.poll_interval_ms == 0 {
+            let f = if m.reply_timeout_ms == 0 {
+                "reply_timeout_ms"
+            } else {
+                "poll_interval_ms"
+            };
+            return err(format!("motion.{f}"), "must be positive");
+        }
+        if m.axes.is_empty() {
+            return err("motion.axes".into(), "at least one axis is needed");
+        }
+        for (i, a) in m.axes.iter().enumerate() {
+            let f = |k: &str| format!("motion.axes[{i}].{k}");
+            if a.name.trim().is_empty() {
+                return err(f("name"), "must not be empty");
+            }
+            if !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address) {
+                return err(f("address"), "must be in 1..=31");
+            }
+            if !a.min.is_finite() {
+                return err(f("min"), "must be finite");
+            }
+            if !(a.max.is_finite() && a.max > a.min) {
+                return err(f("max"), "must be finite and greater than `min`");
+            }
+            if a.velocity.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return err(f("velocity"), "must be positive");
+            }
+            if a.acceleration.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return err(f("acceleration"), "must be positive");
+            }
+            if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
+                return err(f("tolerance"), "must be positive");
+            }
+            if !(a.home_timeout_s.is_finite() && a.home_timeout_s > 0.0) {
+                return err(f("home_timeout_s"), "must be positive");
+            }
+            if let Some(j) = m.axes[..i].iter().position(|b| b.name == a.name) {
+                return Err((f("name"), format!("repeats the name of motion.axes[{j}]")));
+            }
+            if let Some(j) = m.axes[..i].iter().position(|b| b.address == a.address) {
+                return Err((
+                    f("address"),
+                    format!("repeats the address of motion.axes[{j}]"),
+                ));
+            }
+        }
+        let d = &self.detector;
+        if d.port.trim().is_empty() {
+            return err("detector.port".into(), "must name a port");
+        }
+        if d.baud == 0 {
+            return err("detector.baud".into(), "must be positive");
+        }
+        d.lockin
+            .validate()
+            .map_err(|e| (format!("detector.lockin.{}", e.field), e.reason))
+    }
+}
