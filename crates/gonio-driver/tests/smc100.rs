@@ -452,3 +452,29 @@ fn chain_configuration_is_validated() {
     .expect_err("shared address");
     assert!(e.to_string().contains("address 1"), "{e}");
 }
+
+/// Recovery after a controller reset: `RS`, silence while it boots (status queries
+/// time out), NOT REFERENCED from reset, then a home search and the working settings.
+#[test]
+fn reset_and_home_recovers_a_controller() {
+    let (mut c, h, clock) = chain(vec![axis("source", 1)]);
+    h.send("1RS\r\n")
+        // Booting: three silent TS attempts (one query with two retries).
+        .send("1TS\r\n")
+        .send("1TS\r\n")
+        .send("1TS\r\n")
+        .exchange("1TS\r\n", "1TS00000A\r\n")
+        // home(): state, OR, TE, polls, settings.
+        .exchange("1TS\r\n", "1TS00000A\r\n")
+        .send("1OR\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .exchange("1TS\r\n", "1TS000032\r\n")
+        .send("1VA10\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .send("1AC40\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n");
+    c.reset_and_home("source").expect("recovers");
+    // 500 ms, three 100 ms timeouts, 500 ms, then one 50 ms poll.
+    assert_eq!(clock.now(), Duration::from_millis(1350));
+    finish(c, &h);
+}
