@@ -61,21 +61,15 @@ impl ModelError {
 
 impl fmt::Display for ModelError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match &self.path {
-            Some(p) => write!(f, "{}", p.display())?,
-            None => f.write_str("<model>")?,
-        }
-        if let Some(l) = self.line {
-            write!(f, ":{l}")?;
-            if let Some(c) = self.column {
-                write!(f, ":{c}")?;
-            }
-        }
-        f.write_str(": ")?;
-        if let Some(field) = &self.field {
-            write!(f, "field `{field}`: ")?;
-        }
-        f.write_str(&self.message)
+        gonio_core::text::write_located(
+            f,
+            self.path.as_deref(),
+            "<model>",
+            self.line,
+            self.column,
+            self.field.as_deref(),
+            &self.message,
+        )
     }
 }
 

@@ -40,6 +40,38 @@ pub use vec3::Vec3;
 
 /// Positions in text, for error messages that name a line and column.
 pub mod text {
+    use std::fmt;
+    use std::path::Path;
+
+    /// Writes the one-line form every Gonio input error takes:
+    /// `FILE:LINE:COL: field `NAME`: MESSAGE`, leaving out the parts that are unknown
+    /// (`unnamed` stands in for a missing file name).
+    pub fn write_located(
+        f: &mut fmt::Formatter<'_>,
+        path: Option<&Path>,
+        unnamed: &str,
+        line: Option<usize>,
+        column: Option<usize>,
+        field: Option<&str>,
+        message: &str,
+    ) -> fmt::Result {
+        match path {
+            Some(p) => write!(f, "{}", p.display())?,
+            None => f.write_str(unnamed)?,
+        }
+        if let Some(l) = line {
+            write!(f, ":{l}")?;
+            if let Some(c) = column {
+                write!(f, ":{c}")?;
+            }
+        }
+        f.write_str(": ")?;
+        if let Some(field) = field {
+            write!(f, "field `{field}`: ")?;
+        }
+        f.write_str(message)
+    }
+
     /// The 1-based line and column (in characters) of byte `offset` in `text`.
     pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
         let mut end = offset.min(text.len());

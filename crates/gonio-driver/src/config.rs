@@ -160,21 +160,15 @@ pub struct ConfigFileError {
 
 impl fmt::Display for ConfigFileError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match &self.path {
-            Some(p) => write!(f, "{}", p.display())?,
-            None => f.write_str("<instrument config>")?,
-        }
-        if let Some(l) = self.line {
-            write!(f, ":{l}")?;
-            if let Some(c) = self.column {
-                write!(f, ":{c}")?;
-            }
-        }
-        f.write_str(": ")?;
-        if let Some(field) = &self.field {
-            write!(f, "field `{field}`: ")?;
-        }
-        f.write_str(&self.message)
+        gonio_core::text::write_located(
+            f,
+            self.path.as_deref(),
+            "<instrument config>",
+            self.line,
+            self.column,
+            self.field.as_deref(),
+            &self.message,
+        )
     }
 }
 
