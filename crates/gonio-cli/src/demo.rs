@@ -198,12 +198,13 @@ pub fn run(json: bool) -> CliResult<()> {
         writeln!(w)?;
         writeln!(
             w,
-            "Gonio today: the BRDF model library (gonio model eval | albedo). Instrument"
+            "Gonio today: the BRDF model library (gonio model eval | albedo) and the SMC100 /"
         )?;
         writeln!(
             w,
-            "drivers, the simulated goniometer, acquisition, processing and fitting come next."
+            "SR830 drivers (gonio instrument check). The simulated goniometer, acquisition,"
         )?;
+        writeln!(w, "processing and fitting come next.")?;
         w.flush()
     })())
 }
