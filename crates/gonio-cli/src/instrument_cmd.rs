@@ -9,8 +9,29 @@ use serde_json::json;
 use crate::error::{CliError, CliResult};
 use crate::output;
 
-/// `gonio instrument check CONFIG [--connect] [--json]`.
-pub fn check(path: &Path, connect: bool, json: bool) -> CliResult<()> {
+/// The simulator config for ports named `"sim"`: the file given, or the default.
+pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
+    match path {
+        Some(p) => gonio_sim::SimConfig::load(p).map_err(|e| CliError::Input(e.to_string())),
+        None => gonio_sim::SimConfig::default_config()
+            .map_err(|e| CliError::Runtime(format!("embedded simulator config: {e}"))),
+    }
+}
+
+/// Ports named `"sim"` mean the in-process simulator; both lines must be simulated.
+pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
+    match (cfg.motion.port == "sim", cfg.detector.port == "sim") {
+        (true, true) => Ok(true),
+        (false, false) => Ok(false),
+        _ => Err(CliError::Input(format!(
+            "{}: field `motion.port`/`detector.port`: either both ports are \"sim\" or neither",
+            path.display()
+        ))),
+    }
+}
+
+/// `gonio instrument check CONFIG [--connect] [--sim SIM] [--json]`.
+pub fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResult<()> {
     let cfg = InstrumentConfig::load(path).map_err(|e| CliError::Input(e.to_string()))?;
     let axes: Vec<_> = cfg
         .motion
@@ -38,8 +59,19 @@ pub fn check(path: &Path, connect: bool, json: bool) -> CliResult<()> {
         },
     });
     if connect {
-        let mut g = Goniometer::open(&cfg).map_err(|e| CliError::Runtime(e.to_string()))?;
-        let start = g.start().map_err(|e| CliError::Runtime(e.to_string()))?;
+        let start = if is_simulated(&cfg, path)? {
+            let scfg = sim_config(sim)?;
+            let (mut g, _) = gonio_sim::connect(&cfg, &scfg).map_err(|e| match e {
+                gonio_sim::SimError::Mismatch(m) => {
+                    CliError::Input(format!("{}: {m}", path.display()))
+                }
+                other => CliError::Runtime(other.to_string()),
+            })?;
+            g.start().map_err(|e| CliError::Runtime(e.to_string()))?
+        } else {
+            let mut g = Goniometer::open(&cfg).map_err(|e| CliError::Runtime(e.to_string()))?;
+            g.start().map_err(|e| CliError::Runtime(e.to_string()))?
+        };
         report["connected"] = json!({
             "controllers": start.axes.iter().map(|(n, i)| json!({
                 "axis": n, "version": i.version, "stage": i.stage,

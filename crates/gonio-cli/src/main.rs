@@ -43,6 +43,19 @@ enum Command {
         #[command(subcommand)]
         command: InstrumentCommand,
     },
+    /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
+    /// their paths, then serves until standard input closes.
+    Sim {
+        /// Simulator config (TOML); the embedded default when absent.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Override the config's seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Wall seconds per physical second (> 0; default 1, real time).
+        #[arg(long)]
+        time_scale: Option<f64>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -56,6 +69,9 @@ enum InstrumentCommand {
         /// Open the ports and identify the instruments.
         #[arg(long)]
         connect: bool,
+        /// Simulator config for ports named "sim" (the embedded default otherwise).
+        #[arg(long)]
+        sim: Option<PathBuf>,
         /// Print one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -117,9 +133,26 @@ fn run(cli: Cli) -> Result<(), CliError> {
             InstrumentCommand::Check {
                 config,
                 connect,
+                sim,
                 json,
-            } => instrument_cmd::check(&config, connect, json),
+            } => instrument_cmd::check(&config, connect, sim.as_deref(), json),
         },
+        Command::Sim {
+            config,
+            seed,
+            time_scale,
+        } => gonio_sim::cli::serve(
+            gonio_sim::cli::ServeArgs {
+                config,
+                seed,
+                time_scale,
+            },
+            &mut std::io::stdin().lock(),
+        )
+        .map_err(|e| match e.exit_code() {
+            2 => CliError::Input(e.to_string()),
+            _ => CliError::Runtime(e.to_string()),
+        }),
     }
 }
 

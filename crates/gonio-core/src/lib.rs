@@ -13,6 +13,7 @@
 //! - [`quad`] is adaptive Gauss–Kronrod quadrature in one and two dimensions.
 //! - [`special`] has the error function the microfacet models need.
 //! - [`dirfile`] reads and writes the directions CSV of `CONVENTIONS.md`.
+//! - [`kinematics`] maps a goniometer's stage positions to direction pairs and back.
 //!
 //! ```
 //! use gonio_core::{Dir, SphericalDeg};
@@ -28,6 +29,7 @@ mod channels;
 pub mod dirfile;
 mod frame;
 mod geometry;
+pub mod kinematics;
 pub mod quad;
 pub mod radiometry;
 pub mod special;

@@ -51,6 +51,7 @@ const MAX_RESTARTS: usize = 2;
 /// timeout_ms = 1000
 /// reconnect_attempts = 3
 /// reconnect_delay_ms = 1000
+/// retries = 2
 /// ```
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -80,11 +81,15 @@ pub struct Sr830Config {
     pub reconnect_attempts: u32,
     /// Wait before each reconnection attempt, ms (0..=60000).
     pub reconnect_delay_ms: u64,
+    /// Re-asks of a read-only query whose answer was lost or garbled (0..=10); the
+    /// status bytes, which reading clears, are never re-asked.
+    pub retries: u32,
 }
 
 impl Default for Sr830Config {
     /// The `*RST` filter settings (1 V, 100 ms, 12 dB/oct; manual p. 4-4), 10 samples,
-    /// autorange on at 0.1 of full scale, 1 s reply timeout, 3 reconnections 1 s apart.
+    /// autorange on at 0.1 of full scale, 1 s reply timeout, 3 reconnections 1 s apart,
+    /// 2 re-asks of a lost read.
     fn default() -> Self {
         Sr830Config {
             sensitivity: Sensitivity::default(),
@@ -96,6 +101,7 @@ impl Default for Sr830Config {
             timeout_ms: 1000,
             reconnect_attempts: 3,
             reconnect_delay_ms: 1000,
+            retries: 2,
         }
     }
 }
@@ -137,6 +143,9 @@ impl Sr830Config {
                 "reconnect_attempts",
                 format!("{} is not in 0..=100", self.reconnect_attempts),
             );
+        }
+        if self.retries > 10 {
+            return bad("retries", format!("{} is not in 0..=10", self.retries));
         }
         if self.reconnect_delay_ms > 60_000 {
             return bad(
@@ -359,6 +368,29 @@ enum Fault {
     Other(Sr830Error),
 }
 
+/// Queries that read without side effects, so that asking again is harmless.
+fn rereadable(c: &Command) -> bool {
+    c.expects_reply()
+        && !matches!(
+            c,
+            Command::LiaStatus(_) | Command::ErrorStatus(_) | Command::EventStatus(_)
+        )
+}
+
+/// Faults a second attempt may not have: a lost, late, garbled or truncated reply.
+fn is_transient(e: &Sr830Error) -> bool {
+    matches!(
+        e,
+        Sr830Error::Protocol { .. }
+            | Sr830Error::Transport {
+                source: TransportError::Timeout(_)
+                    | TransportError::LineTooLong
+                    | TransportError::Nul,
+                ..
+            }
+    )
+}
+
 /// The SR830 on a transport, waiting on a clock.
 #[derive(Debug)]
 pub struct Sr830<T: Transport, C: Clock> {
@@ -425,14 +457,16 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         let mut restarts = 0;
         loop {
             let Some(mut reading) = self.read_once()? else {
-                // The port was lost and reopened: samples taken before may predate an
-                // instrument restart, and a lost `LIAS?` reply may have cleared flags.
+                // The port was lost and reopened (samples taken before may predate an
+                // instrument restart), or the flags' answer was lost: read again.
                 restarts += 1;
                 if restarts > MAX_RESTARTS {
                     return Err(Sr830Error::Interrupted { restarts });
                 }
                 continue;
             };
+            // Only consecutive failures count towards giving up.
+            restarts = 0;
             reading.autorange_steps = steps;
             if !self.config.autorange {
                 return Ok(reading);
@@ -466,7 +500,16 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
     fn read_once(&mut self) -> Result<Option<Reading>, Sr830Error> {
         let start = self.reconnects;
         self.wait_settled();
-        self.lia_status()?;
+        // This read only clears latched bits; its value is not used, so a lost answer
+        // may be asked again.
+        let mut left = self.config.retries;
+        loop {
+            match self.lia_status() {
+                Ok(_) => break,
+                Err(e) if left > 0 && is_transient(&e) => left -= 1,
+                Err(e) => return Err(e),
+            }
+        }
         let n = self.config.samples;
         let spacing = secs(self.time_constant.seconds());
         let (mut xs, mut ys, mut rs) = (Vec::new(), Vec::new(), Vec::new());
@@ -482,7 +525,13 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
             ys.push(y);
             rs.push(x.hypot(y));
         }
-        let status = self.lia_status()?;
+        // The answer that carries the flags: if it is lost, so are they (reading
+        // cleared them), and the cycle starts again.
+        let status = match self.lia_status() {
+            Ok(s) => s,
+            Err(e) if self.config.retries > 0 && is_transient(&e) => return Ok(None),
+            Err(e) => return Err(e),
+        };
         if self.reconnects != start {
             return Ok(None);
         }
@@ -555,6 +604,14 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
     pub fn execute(&mut self, command: &Command) -> Result<Option<Reply>, Sr830Error> {
         let bytes = command.to_bytes();
         let mut budget = self.config.reconnect_attempts;
+        // A lost or garbled answer to a query that only reads is asked again; the
+        // status bytes are not (reading them clears them: a second read could report
+        // a latched overload as gone).
+        let mut retries = if rereadable(command) {
+            self.config.retries
+        } else {
+            0
+        };
         let reply = loop {
             match self.attempt(command, &bytes) {
                 Ok(r) => break r,
@@ -562,6 +619,10 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
                 Err(Fault::Other(e)) => {
                     // A late or partial reply must not be read as the next one's.
                     let _ = self.transport.clear_input();
+                    if retries > 0 && is_transient(&e) {
+                        retries -= 1;
+                        continue;
+                    }
                     return Err(e);
                 }
             }

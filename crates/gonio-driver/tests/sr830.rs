@@ -35,6 +35,7 @@ fn config() -> Sr830Config {
         timeout_ms: 500,
         reconnect_attempts: 3,
         reconnect_delay_ms: 200,
+        retries: 0,
     }
 }
 
@@ -595,4 +596,45 @@ fn validation_names_the_field() {
         other => panic!("{:?}", other.map(|_| ())),
     }
     h.finish().unwrap();
+}
+
+/// With `retries`, a lost or garbled answer to a read-only query is asked again, and
+/// the reading is the same as without the fault; a lost `LIAS?` is never re-asked
+/// (reading it clears the latched flags).
+#[test]
+fn read_only_queries_are_retried_status_bytes_are_not() {
+    let cfg = Sr830Config {
+        retries: 2,
+        ..config()
+    };
+    let (mut d, h, _) = ready(cfg.clone());
+    h.exchange("LIAS?\n", "0\r")
+        .exchange("SNAP? 1,2\n", "0.00#3,0.004\r")
+        .send("SNAP? 1,2\n")
+        .exchange("SNAP? 1,2\n", "0.003,0.004\r");
+    for s in &FOUR[1..] {
+        h.exchange("SNAP? 1,2\n", format!("{s}\r"));
+    }
+    h.exchange("LIAS?\n", "0\r");
+    let r = d.read().unwrap();
+    assert_four(&r);
+    h.finish().unwrap();
+
+    // The flags' answer is lost: the cycle starts again, and the flag it then reports
+    // is not lost.
+    let (mut d, h, _) = ready(cfg);
+    script_cycle_without_flags(&h, &FOUR);
+    h.send("LIAS?\n");
+    script_cycle(&h, &FOUR, 8);
+    let r = d.read().unwrap();
+    assert!(r.flags.unlock && !r.is_valid());
+    h.finish().unwrap();
+}
+
+/// A read cycle whose final `LIAS?` is left to the caller.
+fn script_cycle_without_flags(h: &ScriptHandle, samples: &[&str]) {
+    h.exchange("LIAS?\n", "0\r");
+    for s in samples {
+        h.exchange("SNAP? 1,2\n", format!("{s}\r"));
+    }
 }

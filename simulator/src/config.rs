@@ -1,0 +1,298 @@
+//! The simulator's config file: the instrument's mechanics, optics, sample, lock-in
+//! physics and faults. Strict TOML (unknown keys are errors); errors name the file,
+//! line and field.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use gonio_brdf::{Brdf, Model};
+use gonio_core::kinematics::Layout;
+use serde::Deserialize;
+
+use crate::controller::ControllerConfig;
+use crate::faults::FaultConfig;
+use crate::lockin::LockInConfig;
+use crate::optics::OpticsConfig;
+
+/// The embedded default: the blue paint of Lafortune et al. 1997 on a coplanar-arm
+/// goniometer (`config/sim-example.toml`).
+pub const DEFAULT_SIM: &str = include_str!("../../config/sim-example.toml");
+
+/// The embedded default sample.
+const BLUE_PAINT: &str = include_str!("../../config/models/blue-paint-550nm.toml");
+
+/// How the stages are arranged and which controller drives which role.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KinematicsConfig {
+    /// The layout.
+    pub layout: Layout,
+    /// Controller address of each of the layout's four roles.
+    pub addresses: BTreeMap<String, u8>,
+}
+
+/// The sample on the stage.
+#[derive(Clone, Debug, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct SampleConfig {
+    /// A model file (relative to the config file's directory).
+    pub model: Option<PathBuf>,
+    /// The channel the detector sees (a name like `G` or `550nm`); the first if absent.
+    pub channel: Option<String>,
+}
+
+/// Serial line timing, for the physical time of each exchange.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkConfig {
+    /// Baud rate of the SMC100 line.
+    pub motion_baud: u32,
+    /// Baud rate of the SR830 line.
+    pub detector_baud: u32,
+    /// The SMC100's time to answer a query, s (10–16 ms in the manual).
+    pub motion_latency_s: f64,
+    /// The SR830's time to answer a query, s.
+    pub detector_latency_s: f64,
+}
+
+impl Default for LinkConfig {
+    fn default() -> Self {
+        LinkConfig {
+            motion_baud: 57_600,
+            detector_baud: 9_600,
+            motion_latency_s: 0.010,
+            detector_latency_s: 0.005,
+        }
+    }
+}
+
+/// A simulated goniometer.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// Seed of every random draw (noise, faults): one seed, the same bytes.
+    #[serde(default)]
+    pub seed: u64,
+    /// Wall seconds per physical second: 0 = as fast as possible (in-process), 1 = real time.
+    #[serde(default)]
+    pub time_scale: f64,
+    /// Mechanics.
+    pub kinematics: KinematicsConfig,
+    /// Controller settings by address; addresses not listed get the defaults.
+    #[serde(default)]
+    pub controllers: Vec<ControllerConfig>,
+    /// Optics.
+    #[serde(default)]
+    pub optics: OpticsConfig,
+    /// Sample.
+    #[serde(default)]
+    pub sample: SampleConfig,
+    /// Lock-in physics.
+    #[serde(default)]
+    pub lockin: LockInConfig,
+    /// Faults.
+    #[serde(default)]
+    pub faults: FaultConfig,
+    /// Serial timing.
+    #[serde(default)]
+    pub link: LinkConfig,
+    /// Where the file was read from (to resolve relative paths).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+}
+
+/// A sim config that could not be used.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{location}: {}{message}", field.as_ref().map(|f| format!("field `{f}`: ")).unwrap_or_default())]
+pub struct SimConfigError {
+    /// `file:line:col`, or the file alone.
+    pub location: String,
+    /// The field at fault.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl SimConfig {
+    /// The embedded default (`config/sim-example.toml`).
+    pub fn default_config() -> Result<SimConfig, SimConfigError> {
+        Self::from_toml(DEFAULT_SIM, None)
+    }
+
+    /// Parses a config's text; `path` labels errors and anchors relative paths.
+    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<SimConfig, SimConfigError> {
+        let name = path.map_or("<sim config>".to_string(), |p| p.display().to_string());
+        let mut cfg: SimConfig = toml::from_str(text).map_err(|e| {
+            let loc = match e.span() {
+                Some(s) => {
+                    let (l, c) = gonio_core::text::line_col(text, s.start);
+                    format!("{name}:{l}:{c}")
+                }
+                None => name.clone(),
+            };
+            SimConfigError {
+                location: loc,
+                field: None,
+                message: e.message().trim().to_string(),
+            }
+        })?;
+        cfg.base_dir = path.and_then(|p| p.parent().map(Path::to_path_buf));
+        cfg.validate().map_err(|(field, message)| SimConfigError {
+            location: name,
+            field: Some(field),
+            message,
+        })?;
+        Ok(cfg)
+    }
+
+    /// Reads a config file.
+    pub fn load(path: &Path) -> Result<SimConfig, SimConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SimConfigError {
+            location: path.display().to_string(),
+            field: None,
+            message: e.to_string(),
+        })?;
+        Self::from_toml(&text, Some(path))
+    }
+
+    /// The controller address of each role, in the layout's order.
+    pub fn role_addresses(&self) -> Result<[u8; 4], (String, String)> {
+        let roles = self.kinematics.layout.roles();
+        let mut out = [0u8; 4];
+        for (i, r) in roles.iter().enumerate() {
+            out[i] = *self.kinematics.addresses.get(*r).ok_or_else(|| {
+                (
+                    format!("kinematics.addresses.{r}"),
+                    format!(
+                        "missing: the {:?} layout needs {}",
+                        self.kinematics.layout,
+                        roles.join(", ")
+                    ),
+                )
+            })?;
+        }
+        Ok(out)
+    }
+
+    fn validate(&self) -> Result<(), (String, String)> {
+        let roles = self.kinematics.layout.roles();
+        for k in self.kinematics.addresses.keys() {
+            if !roles.contains(&k.as_str()) {
+                return Err((
+                    format!("kinematics.addresses.{k}"),
+                    format!("not a role of this layout ({})", roles.join(", ")),
+                ));
+            }
+        }
+        let addrs = self.role_addresses()?;
+        for (i, a) in addrs.iter().enumerate() {
+            if !(1..=31).contains(a) {
+                return Err((
+                    format!("kinematics.addresses.{}", roles[i]),
+                    "must be in 1..=31".into(),
+                ));
+            }
+            if addrs[..i].contains(a) {
+                return Err((
+                    format!("kinematics.addresses.{}", roles[i]),
+                    "repeats an address".into(),
+                ));
+            }
+        }
+        for (i, c) in self.controllers.iter().enumerate() {
+            if !addrs.contains(&c.address) {
+                return Err((
+                    format!("controllers[{i}].address"),
+                    format!(
+                        "{} is not one of the kinematics addresses {addrs:?}",
+                        c.address
+                    ),
+                ));
+            }
+            if !(c.velocity > 0.0
+                && c.acceleration > 0.0
+                && c.home_velocity > 0.0
+                && c.counts_per_unit > 0.0)
+            {
+                return Err((
+                    format!("controllers[{i}]"),
+                    "velocities, accelerations and counts_per_unit must be positive".into(),
+                ));
+            }
+        }
+        let o = &self.optics;
+        for (f, v) in [
+            ("optics.source_power_w", o.source_power_w),
+            ("optics.beam_diameter_m", o.beam_diameter_m),
+            ("optics.detector_radius_m", o.detector_radius_m),
+            ("optics.detector_distance_m", o.detector_distance_m),
+            ("optics.responsivity_v_per_w", o.responsivity_v_per_w),
+            ("optics.sample_length_m", o.sample_length_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((f.into(), "must be positive".into()));
+            }
+        }
+        self.lockin
+            .validate()
+            .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
+        if !(self.time_scale.is_finite() && self.time_scale >= 0.0) {
+            return Err(("time_scale".into(), "must be ≥ 0".into()));
+        }
+        for (f, p) in [
+            ("faults.drop_reply", self.faults.drop_reply),
+            ("faults.corrupt_reply", self.faults.corrupt_reply),
+        ] {
+            if !(0.0..=1.0).contains(&p) {
+                return Err((f.into(), "a probability must be in [0, 1]".into()));
+            }
+        }
+        Ok(())
+    }
+
+    /// The controller configuration of `address` (the listed one, or the defaults).
+    pub fn controller(&self, address: u8) -> ControllerConfig {
+        self.controllers
+            .iter()
+            .find(|c| c.address == address)
+            .cloned()
+            .unwrap_or(ControllerConfig {
+                address,
+                ..ControllerConfig::default()
+            })
+    }
+
+    /// Loads the sample and finds the measured channel.
+    pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
+        let model = match &self.sample.model {
+            Some(p) => {
+                let path = match &self.base_dir {
+                    Some(b) if p.is_relative() => b.join(p),
+                    _ => p.clone(),
+                };
+                Model::load(&path).map_err(|e| SimConfigError {
+                    location: path.display().to_string(),
+                    field: Some("sample.model".into()),
+                    message: e.to_string(),
+                })?
+            }
+            None => Model::from_toml(BLUE_PAINT, None).map_err(|e| SimConfigError {
+                location: "<embedded blue paint>".into(),
+                field: None,
+                message: e.to_string(),
+            })?,
+        };
+        let channel = match &self.sample.channel {
+            None => 0,
+            Some(name) => model
+                .channels()
+                .index_of(name)
+                .ok_or_else(|| SimConfigError {
+                    location: "<sim config>".into(),
+                    field: Some("sample.channel".into()),
+                    message: format!("the sample has channels {}, not {name:?}", model.channels()),
+                })?,
+        };
+        Ok((Box::new(model), channel))
+    }
+}

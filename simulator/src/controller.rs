@@ -1,0 +1,614 @@
+//! One simulated SMC100 controller with its rotation stage, as the manual describes it:
+//! boots NOT REFERENCED, homes, refuses what its state does not allow with the manual's
+//! error letter, moves along a trapezoidal velocity profile, quantises positions to
+//! motor steps, reports positions that change during motion, stops with its
+//! deceleration.
+//!
+//! The stage has a *mechanical* angle (what the optics see) and the controller a
+//! *counter* (what `TP` reports). At power-up the counter reads 0 wherever the stage
+//! is; a home search drives the stage to its home switch and sets the counter to the
+//! home position. So positions mean something only after homing, as on real hardware.
+
+use gonio_proto::smc100::{
+    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody, Status,
+};
+
+/// How one simulated controller and stage behave.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerConfig {
+    /// Address on the chain.
+    pub address: u8,
+    /// Stage name (`ID?`).
+    pub stage: String,
+    /// Firmware text (`VE`).
+    pub version: String,
+    /// Velocity at power-up, units/s.
+    pub velocity: f64,
+    /// Acceleration at power-up, units/s².
+    pub acceleration: f64,
+    /// Largest velocity `VA` accepts.
+    pub max_velocity: f64,
+    /// Largest acceleration `AC` accepts.
+    pub max_acceleration: f64,
+    /// Home search velocity, units/s.
+    pub home_velocity: f64,
+    /// Counter value set at the end of a home search.
+    pub home_position: f64,
+    /// Mechanical angle of the home switch.
+    pub home_switch: f64,
+    /// Longest a home search may take before it fails, s.
+    pub home_timeout_s: f64,
+    /// Software limits at power-up (`SL`, `SR`), counter units.
+    pub negative_limit: f64,
+    /// See `negative_limit`.
+    pub positive_limit: f64,
+    /// Motor steps (or encoder counts) per unit: positions are multiples of 1/this.
+    pub counts_per_unit: f64,
+    /// Mechanical angle of the stage when the simulation starts.
+    pub start_position: f64,
+    /// Time to boot after power-up or `RS`, during which the controller is silent, s.
+    pub boot_time_s: f64,
+    /// How long a stalled stage lags its set-point before the controller disables
+    /// (following error), s.
+    pub following_error_s: f64,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        ControllerConfig {
+            address: 1,
+            stage: "URS100PP".into(),
+            version: "SMC_PP - Controller-driver version  3. 1. 2".into(),
+            velocity: 20.0,
+            acceleration: 80.0,
+            max_velocity: 40.0,
+            max_acceleration: 160.0,
+            home_velocity: 10.0,
+            home_position: 0.0,
+            home_switch: 0.0,
+            home_timeout_s: 60.0,
+            negative_limit: -170.0,
+            positive_limit: 170.0,
+            // A URS100 with a 1/100 micro-stepped 1.8° motor and 1:... gearing resolves
+            // about 0.0005°: 2000 counts a degree.
+            counts_per_unit: 2000.0,
+            start_position: 0.0,
+            boot_time_s: 3.0,
+            following_error_s: 0.5,
+        }
+    }
+}
+
+/// A point-to-point move with a trapezoidal (or triangular) velocity profile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Profile {
+    /// Start position (counter units).
+    pub from: f64,
+    /// End position.
+    pub to: f64,
+    /// Start time, s.
+    pub t0: f64,
+    /// Peak velocity reached.
+    pub v: f64,
+    /// Acceleration.
+    pub a: f64,
+    /// Duration of the acceleration (and of the deceleration) phase.
+    pub t_acc: f64,
+    /// Total duration.
+    pub duration: f64,
+}
+
+impl Profile {
+    /// A move from `from` to `to` starting at `t0` with velocity `v` and acceleration `a`.
+    pub fn new(from: f64, to: f64, t0: f64, v: f64, a: f64) -> Self {
+        let d = (to - from).abs();
+        let (vp, t_acc, duration) = if d >= v * v / a {
+            // Trapezoid: accelerate to v, cruise, decelerate.
+            (v, v / a, 2.0 * v / a + (d - v * v / a) / v)
+        } else {
+            // Triangle: never reaches v.
+            let t = (d / a).sqrt();
+            (a * t, t, 2.0 * t)
+        };
+        Profile {
+            from,
+            to,
+            t0,
+            v: vp,
+            a,
+            t_acc,
+            duration,
+        }
+    }
+
+    /// The duration of a move of length `distance` (what `PT` answers).
+    pub fn duration_for(distance: f64, v: f64, a: f64) -> f64 {
+        Profile::new(0.0, distance.abs(), 0.0, v, a).duration
+    }
+
+    /// Position at time `t`.
+    pub fn position(&self, t: f64) -> f64 {
+        let s = (t - self.t0).clamp(0.0, self.duration);
+        let dir = (self.to - self.from).signum();
+        let travelled = if s <= self.t_acc {
+            0.5 * self.a * s * s
+        } else if s <= self.duration - self.t_acc {
+            0.5 * self.a * self.t_acc * self.t_acc + self.v * (s - self.t_acc)
+        } else {
+            let r = self.duration - s;
+            (self.to - self.from).abs() - 0.5 * self.a * r * r
+        };
+        self.from + dir * travelled
+    }
+
+    /// Speed at time `t`.
+    pub fn speed(&self, t: f64) -> f64 {
+        let s = (t - self.t0).clamp(0.0, self.duration);
+        if s <= self.t_acc {
+            self.a * s
+        } else if s <= self.duration - self.t_acc {
+            self.v
+        } else {
+            self.a * (self.duration - s)
+        }
+    }
+
+    /// When the move ends.
+    pub fn end(&self) -> f64 {
+        self.t0 + self.duration
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Activity {
+    Idle,
+    Moving(Profile),
+    Homing(Profile),
+}
+
+/// One simulated controller and stage.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    cfg: ControllerConfig,
+    state: ControllerState,
+    /// Counter − mechanical angle is fixed while the stage is referenced.
+    offset: f64,
+    /// Mechanical angle when idle (during motion the profile gives it).
+    at_rest: f64,
+    activity: Activity,
+    target: f64,
+    last_relative: f64,
+    velocity: f64,
+    acceleration: f64,
+    sl: f64,
+    sr: f64,
+    last_error: ErrorCode,
+    latched: u16,
+    /// Silent (booting) until this time.
+    booting_until: f64,
+    /// Fault: the stage sticks at this mechanical angle.
+    stall_at: Option<f64>,
+}
+
+impl Controller {
+    /// A controller at power-up: NOT REFERENCED, counter 0, silent while it boots.
+    pub fn new(cfg: ControllerConfig) -> Self {
+        let at_rest = cfg.start_position;
+        let mut c = Controller {
+            state: ControllerState::NotReferencedFromReset,
+            offset: 0.0,
+            at_rest,
+            activity: Activity::Idle,
+            target: 0.0,
+            last_relative: 0.0,
+            velocity: cfg.velocity,
+            acceleration: cfg.acceleration,
+            sl: cfg.negative_limit,
+            sr: cfg.positive_limit,
+            last_error: ErrorCode::None,
+            latched: 0,
+            booting_until: 0.0,
+            stall_at: None,
+            cfg,
+        };
+        c.boot(0.0, 0.0);
+        c
+    }
+
+    fn boot(&mut self, now: f64, boot_time: f64) {
+        let m = self.mechanical(now);
+        self.activity = Activity::Idle;
+        self.at_rest = m;
+        self.state = ControllerState::NotReferencedFromReset;
+        // An unreferenced counter starts at 0 wherever the stage stands.
+        self.offset = -m;
+        self.target = 0.0;
+        self.velocity = self.cfg.velocity;
+        self.acceleration = self.cfg.acceleration;
+        self.sl = self.cfg.negative_limit;
+        self.sr = self.cfg.positive_limit;
+        self.last_error = ErrorCode::None;
+        self.latched = 0;
+        self.booting_until = now + boot_time;
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.cfg
+    }
+
+    /// The controller's address.
+    pub fn address(&self) -> u8 {
+        self.cfg.address
+    }
+
+    /// The state at `now` (after finishing motions that ended).
+    pub fn state(&mut self, now: f64) -> ControllerState {
+        self.update(now);
+        self.state
+    }
+
+    /// True while booting: the controller does not answer.
+    pub fn is_booting(&self, now: f64) -> bool {
+        now < self.booting_until
+    }
+
+    /// The mechanical angle at `now`: what the optics see.
+    pub fn mechanical(&self, now: f64) -> f64 {
+        let raw = match self.activity {
+            Activity::Idle => self.at_rest,
+            Activity::Moving(p) | Activity::Homing(p) => p.position(now) - self.offset,
+        };
+        match (self.stall_at, self.activity) {
+            (Some(s), Activity::Moving(p)) => {
+                let (start, end) = (p.from - self.offset, raw);
+                if (start - s) * (end - s) <= 0.0 {
+                    s
+                } else {
+                    raw
+                }
+            }
+            _ => raw,
+        }
+    }
+
+    /// When the current motion ends, if one is under way.
+    pub fn motion_end(&self) -> Option<f64> {
+        match self.activity {
+            Activity::Idle => None,
+            Activity::Moving(p) | Activity::Homing(p) => Some(p.end()),
+        }
+    }
+
+    /// Stores an error letter for `TE` (a line the controller could not parse).
+    pub fn set_error(&mut self, code: ErrorCode) {
+        self.last_error = code;
+    }
+
+    /// Fault: from now on the stage sticks when it reaches `angle` (mechanical).
+    pub fn stall_at(&mut self, angle: Option<f64>) {
+        self.stall_at = angle;
+    }
+
+    /// Fault: power loss and recovery; the controller reboots (silent for its boot
+    /// time) and comes back NOT REFERENCED from reset.
+    pub fn power_cycle(&mut self, now: f64) {
+        let b = self.cfg.boot_time_s;
+        self.boot(now, b);
+    }
+
+    fn quantise(&self, v: f64) -> f64 {
+        (v * self.cfg.counts_per_unit).round() / self.cfg.counts_per_unit
+    }
+
+    fn counter(&self, now: f64) -> f64 {
+        self.quantise(self.mechanical(now) + self.offset)
+    }
+
+    /// Finishes motions that ended by `now`; detects a stalled stage.
+    pub fn update(&mut self, now: f64) {
+        match self.activity {
+            Activity::Moving(p) => {
+                if let Some(s) = self.stall_at {
+                    let start = p.from - self.offset;
+                    let planned = p.position(now) - self.offset;
+                    if (start - s) * (planned - s) < 0.0 {
+                        // The set-point ran past the stuck stage: a following error after
+                        // the configured lag disables the motor.
+                        let passed = p.t0 + crossing_time(&p, s + self.offset);
+                        if now >= passed + self.cfg.following_error_s {
+                            self.activity = Activity::Idle;
+                            self.at_rest = s;
+                            self.state = ControllerState::DisableFromMoving;
+                            self.latched |= PositionerErrors::FOLLOWING_ERROR;
+                        }
+                        return;
+                    }
+                }
+                if now >= p.end() {
+                    self.activity = Activity::Idle;
+                    self.at_rest = p.to - self.offset;
+                    self.state = ControllerState::ReadyFromMoving;
+                }
+            }
+            Activity::Homing(p) => {
+                if now >= p.end() {
+                    self.activity = Activity::Idle;
+                    self.at_rest = p.to - self.offset;
+                    if p.duration > self.cfg.home_timeout_s {
+                        self.state = ControllerState::NotReferencedFromHoming;
+                        self.latched |= PositionerErrors::HOMING_TIMEOUT;
+                    } else {
+                        // Referenced: the counter now reads the home position here.
+                        self.offset = self.cfg.home_position - self.at_rest;
+                        self.target = self.cfg.home_position;
+                        self.state = ControllerState::ReadyFromHoming;
+                    }
+                } else if now - p.t0 > self.cfg.home_timeout_s {
+                    // The search gives up where it is.
+                    self.at_rest = p.position(now) - self.offset;
+                    self.activity = Activity::Idle;
+                    self.state = ControllerState::NotReferencedFromHoming;
+                    self.latched |= PositionerErrors::HOMING_TIMEOUT;
+                }
+            }
+            Activity::Idle => {}
+        }
+    }
+
+    /// The error letter for a command refused in the current state.
+    fn refused(&self) -> ErrorCode {
+        let s = self.state;
+        if s.is_not_referenced() {
+            ErrorCode::NotReferenced
+        } else if s.is_configuration() {
+            ErrorCode::InConfiguration
+        } else if s.is_disabled() {
+            ErrorCode::InDisable
+        } else if s.is_homing() {
+            ErrorCode::InHoming
+        } else if s.is_moving() {
+            ErrorCode::InMoving
+        } else if s.is_ready() {
+            ErrorCode::InReady
+        } else {
+            ErrorCode::NotAllowed
+        }
+    }
+
+    fn start_move(&mut self, now: f64, to: f64) {
+        let from = self.counter(now);
+        let to = self.quantise(to);
+        self.target = to;
+        let p = Profile::new(from, to, now, self.velocity, self.acceleration);
+        self.activity = Activity::Moving(p);
+        self.state = ControllerState::Moving;
+    }
+
+    /// Executes a command addressed to this controller at `now` (the caller filters by
+    /// address and checks [`is_booting`](Self::is_booting)); returns the reply, if the
+    /// command has one. Refused commands store their error letter for `TE`.
+    pub fn handle(&mut self, now: f64, command: &Command) -> Option<Reply> {
+        self.update(now);
+        let a = self.cfg.address;
+        let reply = |body| Some(Reply { address: a, body });
+        let s = self.state;
+        match command {
+            Command::TellPosition => return reply(ReplyBody::Position(self.counter(now))),
+            Command::TellSetpoint => {
+                let sp = match self.activity {
+                    Activity::Moving(p) | Activity::Homing(p) => self.quantise(p.position(now)),
+                    Activity::Idle => self.target,
+                };
+                return reply(ReplyBody::Setpoint(sp));
+            }
+            Command::TellStatus => {
+                let errors = PositionerErrors(self.latched);
+                self.latched = 0;
+                return reply(ReplyBody::Status(Status { errors, state: s }));
+            }
+            Command::TellError => {
+                let e = std::mem::replace(&mut self.last_error, ErrorCode::None);
+                return reply(ReplyBody::Error(e));
+            }
+            Command::Version => return reply(ReplyBody::Version(self.cfg.version.clone())),
+            Command::Query(p) => {
+                let v = match p {
+                    Param::StageId => return reply(ReplyBody::StageId(self.cfg.stage.clone())),
+                    Param::Acceleration => self.acceleration,
+                    Param::Velocity => self.velocity,
+                    Param::NegativeLimit => self.sl,
+                    Param::PositiveLimit => self.sr,
+                    Param::AbsoluteTarget => self.target,
+                    Param::RelativeTarget => self.last_relative,
+                    Param::Enabled => {
+                        if s.is_disabled() {
+                            0.0
+                        } else {
+                            1.0
+                        }
+                    }
+                };
+                return reply(ReplyBody::Value(*p, v));
+            }
+            Command::MotionTime(d) => {
+                if !(s.is_ready() || s.is_disabled() || s.is_moving() || s.is_homing()) {
+                    self.last_error = self.refused();
+                    return None;
+                }
+                if !(*d > 1e-6 && *d < 1e12) {
+                    self.last_error = ErrorCode::BadParameter;
+                    return None;
+                }
+                return reply(ReplyBody::MotionTime(Profile::duration_for(
+                    *d,
+                    self.velocity,
+                    self.acceleration,
+                )));
+            }
+            _ => {}
+        }
+        // Set and action commands: no reply; errors go to TE.
+        self.last_error = self.execute(now, command).err().unwrap_or(ErrorCode::None);
+        None
+    }
+
+    fn execute(&mut self, now: f64, command: &Command) -> Result<(), ErrorCode> {
+        let s = self.state;
+        match command {
+            Command::Home => {
+                if s.is_homing() {
+                    return Err(ErrorCode::HomeStarted);
+                }
+                if !s.is_not_referenced() {
+                    return Err(self.refused());
+                }
+                let from = self.counter(now);
+                // Drive to the switch at the home velocity, counted in the current counter.
+                let to = self.cfg.home_switch + self.offset;
+                let p = Profile::new(from, to, now, self.cfg.home_velocity, self.acceleration);
+                self.activity = Activity::Homing(p);
+                self.state = ControllerState::HomingRemote;
+                Ok(())
+            }
+            Command::MoveAbsolute(t) => {
+                if !s.is_ready() {
+                    return Err(self.refused());
+                }
+                if *t < self.sl || *t > self.sr {
+                    return Err(ErrorCode::OutOfLimits);
+                }
+                self.start_move(now, *t);
+                Ok(())
+            }
+            Command::MoveRelative(d) => {
+                if !s.is_ready() {
+                    return Err(self.refused());
+                }
+                let t = self.target + d;
+                if t < self.sl || t > self.sr {
+                    return Err(ErrorCode::OutOfLimits);
+                }
+                self.last_relative = *d;
+                self.start_move(now, t);
+                Ok(())
+            }
+            Command::Stop => {
+                match self.activity {
+                    Activity::Moving(p) => {
+                        // Decelerate with AC from the current speed: the second half of a
+                        // symmetric profile that peaks at that speed right now.
+                        let x = p.position(now);
+                        let v = p.speed(now);
+                        if v <= 0.0 {
+                            self.at_rest = x - self.offset;
+                            self.activity = Activity::Idle;
+                            self.state = ControllerState::ReadyFromMoving;
+                            self.target = self.quantise(x);
+                            return Ok(());
+                        }
+                        let a = self.acceleration;
+                        let half = v * v / (2.0 * a);
+                        let dir = (p.to - p.from).signum();
+                        let q = Profile::new(x - dir * half, x + dir * half, now - v / a, v, a);
+                        self.target = self.quantise(q.to);
+                        self.activity = Activity::Moving(q);
+                        Ok(())
+                    }
+                    Activity::Homing(p) => {
+                        self.at_rest = p.position(now) - self.offset;
+                        self.activity = Activity::Idle;
+                        self.state = ControllerState::NotReferencedFromHoming;
+                        Ok(())
+                    }
+                    Activity::Idle if s.is_ready() || s.is_disabled() => Ok(()),
+                    Activity::Idle => Err(self.refused()),
+                }
+            }
+            Command::Reset => {
+                if s.is_moving() || s.is_homing() || s.is_configuration() {
+                    return Err(self.refused());
+                }
+                let b = self.cfg.boot_time_s;
+                self.boot(now, b);
+                Ok(())
+            }
+            Command::Enable(on) => match (on, s.is_ready(), s.is_disabled()) {
+                (false, true, _) => {
+                    self.state = ControllerState::DisableFromReady;
+                    Ok(())
+                }
+                (true, _, true) => {
+                    self.target = self.counter(now);
+                    self.state = ControllerState::ReadyFromDisable;
+                    Ok(())
+                }
+                (false, _, true) | (true, true, _) => Ok(()),
+                _ => Err(self.refused()),
+            },
+            Command::SetVelocity(v) | Command::SetAcceleration(v) => {
+                let vel = matches!(command, Command::SetVelocity(_));
+                if !(s.is_ready() || s.is_disabled()) {
+                    return Err(self.refused());
+                }
+                let max = if vel {
+                    self.cfg.max_velocity
+                } else {
+                    self.cfg.max_acceleration
+                };
+                if !(*v > 1e-6 && *v <= max) {
+                    return Err(ErrorCode::BadParameter);
+                }
+                if vel {
+                    self.velocity = *v;
+                } else {
+                    self.acceleration = *v;
+                }
+                Ok(())
+            }
+            Command::SetNegativeLimit(v) | Command::SetPositiveLimit(v) => {
+                if !(s.is_ready() || s.is_disabled()) {
+                    return Err(self.refused());
+                }
+                let neg = matches!(command, Command::SetNegativeLimit(_));
+                // A working limit must bracket the set-point.
+                let ok = if neg {
+                    *v <= self.target
+                } else {
+                    *v >= self.target
+                };
+                if !ok {
+                    return Err(ErrorCode::BadParameter);
+                }
+                if neg {
+                    self.sl = *v;
+                } else {
+                    self.sr = *v;
+                }
+                Ok(())
+            }
+            _ => Err(ErrorCode::UnknownCommand),
+        }
+    }
+}
+
+/// Time from a profile's start until its position passes `x` (which it does).
+fn crossing_time(p: &Profile, x: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, p.duration);
+    let dir = (p.to - p.from).signum();
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if dir * (p.position(p.t0 + mid) - x) < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// Frames addressed to a controller: `true` when `frame` is for `address` (or for all).
+pub fn addressed_to(frame: &Frame, address: u8) -> bool {
+    frame.address.is_none_or(|a| a == address)
+}

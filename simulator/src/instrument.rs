@@ -1,0 +1,336 @@
+//! The simulated instrument: the SMC100 chain, the SR830, the optics between them,
+//! the kinematics that turn stage angles into directions, faults, and the wire.
+//!
+//! Bytes in, bytes out: [`SimInstrument::motion_bytes`] and
+//! [`SimInstrument::lockin_bytes`] take what a driver wrote and return what the
+//! instruments answer, at the simulated time read from the shared [`SimClock`]. Every
+//! transport (in memory, pseudo-terminal) is a thin layer around these two calls.
+
+use gonio_core::DirPair;
+use gonio_core::kinematics::Layout;
+use gonio_proto::LineFramer;
+use gonio_proto::smc100::{Frame, MAX_LINE};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::clock::SimClock;
+use crate::config::{SimConfig, SimConfigError};
+use crate::controller::{Controller, addressed_to};
+use crate::faults::{FaultConfig, Port};
+use crate::lockin::LockIn;
+use crate::optics::Optics;
+
+/// Counters of what the simulator did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SimStats {
+    /// Command lines received on the motion line.
+    pub motion_lines: u64,
+    /// Command lines received on the detector line.
+    pub detector_lines: u64,
+    /// Reply lines dropped by the `drop_reply` fault.
+    pub dropped: u64,
+    /// Reply lines corrupted by the `corrupt_reply` fault.
+    pub corrupted: u64,
+    /// Power losses that fired.
+    pub power_losses: u64,
+}
+
+/// The whole simulated goniometer.
+pub struct SimInstrument {
+    clock: SimClock,
+    layout: Layout,
+    controllers: Vec<Controller>,
+    /// Index into `controllers` of each kinematic role.
+    roles: [usize; 4],
+    lockin: LockIn,
+    optics: Optics,
+    faults: FaultConfig,
+    fired_power_losses: Vec<bool>,
+    rng: ChaCha8Rng,
+    motion_framer: LineFramer,
+    lockin_framer: LineFramer,
+    last_sync: f64,
+    link: crate::config::LinkConfig,
+    stats: SimStats,
+}
+
+impl std::fmt::Debug for SimInstrument {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimInstrument")
+            .field("layout", &self.layout)
+            .field("now_s", &self.clock.seconds())
+            .field("stats", &self.stats)
+            .finish()
+    }
+}
+
+impl SimInstrument {
+    /// Builds the instrument a config describes, on `clock`.
+    pub fn new(cfg: &SimConfig, clock: SimClock) -> Result<Self, SimConfigError> {
+        let addrs = cfg
+            .role_addresses()
+            .map_err(|(field, message)| SimConfigError {
+                location: "<sim config>".into(),
+                field: Some(field),
+                message,
+            })?;
+        let mut sorted = addrs;
+        sorted.sort_unstable();
+        let controllers: Vec<Controller> = sorted
+            .iter()
+            .map(|a| Controller::new(cfg.controller(*a)))
+            .collect();
+        let roles = addrs.map(|a| sorted.iter().position(|b| *b == a).unwrap_or(0));
+        let (sample, channel) = cfg.load_sample()?;
+        // Separate streams, so that faults drawn on the wire do not shift the noise.
+        let lockin = LockIn::new(cfg.lockin.clone(), cfg.seed);
+        Ok(SimInstrument {
+            clock,
+            layout: cfg.kinematics.layout,
+            controllers,
+            roles,
+            lockin,
+            optics: Optics::new(cfg.optics.clone(), sample, channel),
+            fired_power_losses: vec![false; cfg.faults.power_loss.len()],
+            faults: cfg.faults.clone(),
+            rng: ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_fa17),
+            motion_framer: LineFramer::new(b'\n', MAX_LINE),
+            lockin_framer: LineFramer::new(b'\n', gonio_proto::sr830::MAX_LINE),
+            last_sync: 0.0,
+            link: cfg.link.clone(),
+            stats: SimStats::default(),
+        })
+    }
+
+    /// The shared clock.
+    pub fn clock(&self) -> &SimClock {
+        &self.clock
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &SimStats {
+        &self.stats
+    }
+
+    /// The optics.
+    pub fn optics(&self) -> &Optics {
+        &self.optics
+    }
+
+    /// The lock-in.
+    pub fn lockin_mut(&mut self) -> &mut LockIn {
+        &mut self.lockin
+    }
+
+    /// The faults in force; change them to inject faults while a test runs.
+    pub fn faults_mut(&mut self) -> &mut FaultConfig {
+        &mut self.faults
+    }
+
+    /// The faults in force.
+    pub fn faults(&self) -> &FaultConfig {
+        &self.faults
+    }
+
+    /// The serial timing.
+    pub fn link(&self) -> &crate::config::LinkConfig {
+        &self.link
+    }
+
+    /// The controller at `address`.
+    pub fn controller_mut(&mut self, address: u8) -> Option<&mut Controller> {
+        self.controllers.iter_mut().find(|c| c.address() == address)
+    }
+
+    /// The stages' mechanical angles at `t`, in the layout's role order.
+    pub fn stage_angles(&self, t: f64) -> [f64; 4] {
+        self.roles.map(|i| self.controllers[i].mechanical(t))
+    }
+
+    /// The directions the stages point at `t`.
+    pub fn directions(&self, t: f64) -> DirPair {
+        self.layout.forward(self.stage_angles(t))
+    }
+
+    /// The detector signal at `t`, V.
+    pub fn signal(&self, t: f64) -> f64 {
+        self.optics.signal(t, self.directions(t))
+    }
+
+    /// Brings the lock-in's input up to `now`: the signal at the end of every motion
+    /// that finished since the last event, then the signal now. The input is
+    /// piecewise constant between events; during a move the driver's status polls
+    /// are the events, which samples the changing signal at the polling rate.
+    fn sync(&mut self, now: f64) {
+        if now < self.last_sync {
+            return;
+        }
+        let mut ends: Vec<f64> = self
+            .controllers
+            .iter()
+            .filter_map(Controller::motion_end)
+            .filter(|t| *t > self.last_sync && *t <= now)
+            .collect();
+        ends.sort_by(f64::total_cmp);
+        for t in ends {
+            let v = self.signal(t);
+            self.lockin.set_input(t, v);
+        }
+        let over = self.faults.overload.iter().any(|w| w.contains(now));
+        self.lockin.force_overload(over);
+        let unlocked = self.faults.unlock.iter().any(|w| w.contains(now));
+        self.lockin.set_unlocked(unlocked);
+        let v = self.signal(now);
+        self.lockin.set_input(now, v);
+        self.last_sync = now;
+    }
+
+    /// Power losses due by `now`: each sends a NUL on the line and reboots its
+    /// controller.
+    fn fire_power_losses(&mut self, now: f64, out: &mut Vec<u8>) {
+        // Faults injected through `faults_mut` since the last event.
+        self.fired_power_losses
+            .resize(self.faults.power_loss.len(), false);
+        for k in 0..self.faults.power_loss.len() {
+            let pl = self.faults.power_loss[k];
+            if !self.fired_power_losses[k] && now >= pl.at_s {
+                self.fired_power_losses[k] = true;
+                if let Some(c) = self
+                    .controllers
+                    .iter_mut()
+                    .find(|c| c.address() == pl.address)
+                {
+                    c.power_cycle(pl.at_s);
+                    out.extend_from_slice(b"\0\r\n");
+                    self.stats.power_losses += 1;
+                }
+            }
+        }
+        for s in &self.faults.stall {
+            if let Some(c) = self
+                .controllers
+                .iter_mut()
+                .find(|c| c.address() == s.address)
+            {
+                c.stall_at(Some(s.at));
+            }
+        }
+    }
+
+    /// Applies the reply faults to one reply line (terminator included).
+    fn deliver(&mut self, command: &[u8], line: Vec<u8>, out: &mut Vec<u8>) {
+        let cmd = String::from_utf8_lossy(command);
+        if self
+            .faults
+            .silent
+            .iter()
+            .any(|s| s.eq_ignore_ascii_case(cmd.trim()))
+        {
+            self.stats.dropped += 1;
+            return;
+        }
+        if self.faults.drop_reply > 0.0 && self.rng.random::<f64>() < self.faults.drop_reply {
+            self.stats.dropped += 1;
+            return;
+        }
+        let mut line = line;
+        if self.faults.corrupt_reply > 0.0
+            && self.rng.random::<f64>() < self.faults.corrupt_reply
+            && line.len() > 2
+        {
+            // A byte lost to a framing error or line noise arrives as some non-ASCII
+            // value (a UART's typical garbage), replacing one character.
+            let k = self.rng.random_range(0..line.len() - 2);
+            line[k] = self.rng.random_range(0x80..=0xFF);
+            self.stats.corrupted += 1;
+        }
+        out.extend_from_slice(&line);
+    }
+
+    /// Bytes the driver wrote on the motion line; returns the controllers' answers.
+    pub fn motion_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        let mut out = Vec::new();
+        self.fire_power_losses(now, &mut out);
+        self.sync(now);
+        self.motion_framer.push(bytes);
+        while let Some(line) = self.motion_framer.next_line() {
+            let Ok(line) = line else { continue };
+            self.stats.motion_lines += 1;
+            match Frame::parse(&line) {
+                Ok(frame) => {
+                    let mut replies = Vec::new();
+                    for c in self.controllers.iter_mut() {
+                        if addressed_to(&frame, c.address())
+                            && !c.is_booting(now)
+                            && let Some(r) = c.handle(now, &frame.command)
+                        {
+                            replies.push(r.to_bytes());
+                        }
+                    }
+                    for r in replies {
+                        self.deliver(&line, r, &mut out);
+                    }
+                }
+                Err(e) => {
+                    // The addressed controller (if any answers to that address) stores
+                    // the error letter for TE, as the manual's per-command lists say.
+                    let digits: String = line
+                        .iter()
+                        .take_while(|b| b.is_ascii_digit())
+                        .map(|b| *b as char)
+                        .collect();
+                    if let Ok(a) = digits.parse::<u8>()
+                        && let Some(c) = self.controller_mut(a)
+                    {
+                        c.set_error(e.error_code());
+                    }
+                }
+            }
+        }
+        // Moves change the light: keep the lock-in's input current.
+        self.sync(now);
+        out
+    }
+
+    /// Bytes the driver wrote on the detector line; returns the lock-in's answers.
+    pub fn lockin_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        self.sync(now);
+        // The SR830 ends a command at CR or LF.
+        let unified: Vec<u8> = bytes
+            .iter()
+            .map(|b| if *b == b'\r' { b'\n' } else { *b })
+            .collect();
+        self.lockin_framer.push(&unified);
+        let mut out = Vec::new();
+        while let Some(line) = self.lockin_framer.next_line() {
+            let Ok(line) = line else { continue };
+            if line.is_empty() {
+                continue;
+            }
+            self.stats.detector_lines += 1;
+            let mut reply = Vec::new();
+            self.lockin.handle_line(now, &line, &mut reply);
+            // One reply line per answered query, each ending in CR.
+            for part in reply.split_inclusive(|b| *b == b'\r') {
+                self.deliver(&line, part.to_vec(), &mut out);
+            }
+        }
+        out
+    }
+
+    /// True when `port` is closed at the current time.
+    pub fn port_closed(&self, port: Port) -> bool {
+        self.faults.port_closed(port, self.clock.seconds())
+    }
+
+    /// The physical time a line of `bytes` takes on `port`'s wire (10 bits a byte).
+    pub fn wire_time(&self, port: Port, bytes: usize) -> f64 {
+        let baud = match port {
+            Port::Motion => self.link.motion_baud,
+            Port::Detector => self.link.detector_baud,
+        };
+        bytes as f64 * 10.0 / f64::from(baud.max(1))
+    }
+}

@@ -1,0 +1,687 @@
+//! The simulated SR830 DSP lock-in amplifier, device side: command lines in, the exact
+//! reply bytes a real SR830 sends on RS-232 out (facts: manual Rev. 2.5, ch. 5, as
+//! summarised in `instruments.md` §2; wire format: [`gonio_proto::sr830`]).
+//!
+//! # Protocol
+//! - Lines are parsed with [`parse_line`]: `;`-separated commands, case and spaces
+//!   ignored. Only queries reply, each with its own `\r`-terminated line; set commands
+//!   reply nothing. An illegal command sets CMD (bit 5) of `*ESR?`, an out-of-range or
+//!   unexecutable one sets EXE (bit 4), silently ([`gonio_proto::sr830::CommandError::event_status`]). An
+//!   illegal query answers nothing (the manual leaves it open; see `instruments.md`).
+//!   A line that, with its terminator, overflows the 256-character input buffer is
+//!   discarded and sets INP.
+//! - Power-up is the `*RST` state (p. 4-4) with replies going to **GPIB**: every command
+//!   runs, but no reply reaches RS-232 until `OUTX 0`. `*ESR?` carries PON (bit 7)
+//!   after power-up until read or `*CLS`ed, as on the instrument.
+//! - Float replies are rounded to 6 significant digits, the resolution of every value the
+//!   manual prints (`0.951359`, `-1.01026`, `1000.00`, `-4.17234e-007`), then written by
+//!   [`Reply::encode`] (so `1000.00` is sent as `1000`, which every parser reads the same).
+//!
+//! # Physics
+//! - The detector signal (volts, amplitude of the chopped signal) becomes the lock-in
+//!   magnitude `chop_gain × volts`, at phase `phase_deg`: X = R cos φ, Y = R sin φ.
+//! - Each of X and Y passes through 4 cascaded first-order RC stages of time constant T;
+//!   the output is stage N = 1..4 for 6/12/18/24 dB/oct. The cascade is advanced exactly
+//!   for the piecewise-constant input ([`advance_cascade`]). `SENS` leaves it alone; `OFLT`
+//!   changes T from then on. Its ENBW is the manual's 1/(4T), 1/(8T), 3/(32T), 5/(64T).
+//!   A step leaves 0.67 %, 0.73 %, 0.62 % after 5, 7, 9 T (6, 12, 18 dB/oct), but 1.03 %
+//!   after 10 T at 24 dB/oct (99 % at 10.05 T): the manual's settling table rounds.
+//! - Noise: an Ornstein–Uhlenbeck process per channel with correlation time T and
+//!   standard deviation density·√ENBW, density = √(amplifier² + shot²·R_signal), advanced
+//!   exactly with normals from a `ChaCha8Rng` seeded at construction: the same seed and
+//!   the same calls give the same bytes.
+//! - Status (`LIAS?`), latched at every event instant (each [`LockIn::set_input`], each
+//!   command): INPUT (bit 0) while the detector amplitude exceeds `input_overload_v` or
+//!   the fault is forced; OUTPUT (bit 2) while |X|, |Y| or R (noise included) exceeds
+//!   1.09 × full scale; UNLOCK (bit 3) while the unlock fault is on; RANGE (bit 4) and
+//!   TC (bit 5) when the reference frequency crosses 200 Hz. Reading clears what it reads.
+//!
+//! # Choices where the manual is silent (or that are not modelled)
+//! - During an output overload the manual does not say what the outputs read
+//!   (UNCONFIRMED): here X, Y and R each **clip** at ±1.09 × full scale.
+//! - FILTER overload (bit 1), RESERVE overload, the dynamic reserve, the minimum time
+//!   constant for a slope and reserve, the harmonic, and the output-queue overflow (QRY)
+//!   are not modelled.
+//! - While the reference is unlocked the signal is not demodulated: the filters see zero
+//!   input (the outputs decay to noise), and the status bit latches.
+//! - An input overload does not change the readings: only the status bit shows it.
+//! - `AGAN` is instantaneous: it picks the most sensitive range with R ≤ 0.9 × full scale,
+//!   which puts R between 36 % and 90 % of full scale (1-2-5 steps are at most 2.5×);
+//!   it does nothing when T > 1 s (manual, AGAN).
+//! - `OFLT` above 30 s while the detection frequency is above 200 Hz is refused with EXE
+//!   (manual: "cannot be set"). `FREQ` is refused with EXE on the external reference,
+//!   where `FREQ?` reads [`LockInConfig::chopper_hz`].
+//! - Time never runs backwards: a `now_s` before the last one is taken as the last one.
+
+use gonio_proto::sr830::{
+    BitIndex, Command, EventStatus, FilterSlope, Identity, Interface, LiaStatus, MAX_LINE, Output,
+    ReferenceSource, Reply, Sensitivity, SnapParam, TimeConstant, parse_line,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+/// An output overloads above this multiple of full scale (manual, OUTPUT OVLD).
+pub const OVERLOAD_FACTOR: f64 = 1.09;
+
+/// RC stages in the time-constant filter (24 dB/oct uses all of them).
+pub const STAGES: usize = 4;
+
+/// Significant digits of a float reply.
+pub const REPLY_DIGITS: usize = 6;
+
+/// `AGAN` picks the most sensitive range whose full scale times this is at least R.
+pub const AUTO_GAIN_TARGET: f64 = 0.9;
+
+/// `AGAN` does nothing when the time constant is over this, seconds (manual, AGAN).
+pub const AUTO_GAIN_MAX_TC_S: f64 = 1.0;
+
+/// The detection frequency splitting the low and high ranges, Hz (LIAS bit 4). The
+/// manual's hysteresis (199.21 / 203.12 Hz) is not modelled.
+pub const RANGE_SPLIT_HZ: f64 = 200.0;
+
+/// Longest time constant allowed above [`RANGE_SPLIT_HZ`], seconds.
+pub const MAX_TC_HIGH_RANGE_S: f64 = 30.0;
+
+/// The `*RST` internal oscillator frequency, Hz (p. 4-4).
+const RESET_FREQUENCY_HZ: f64 = 1000.0;
+
+/// The `*RST` sine output amplitude, V rms (p. 4-4).
+const RESET_AMPLITUDE_V: f64 = 1.0;
+
+/// Physics and noise of the simulated lock-in and its detector front end.
+///
+/// In a TOML file every field is optional and unknown fields are refused:
+///
+/// ```toml
+/// chop_gain = 0.45
+/// phase_deg = 0.0
+/// amplifier_noise = 20e-9
+/// shot_noise = 2e-6
+/// input_overload_v = 1.4
+/// chopper_hz = 1000.0
+/// serial = "s/n00111"
+/// firmware = "ver1.07"
+/// ```
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LockInConfig {
+    /// Lock-in R (V rms) per volt of detector signal. A chopped signal is a square wave
+    /// from 0 to V (V peak-to-peak); its fundamental has peak amplitude 2V/π, and the
+    /// lock-in reads the rms value of the fundamental: √2·V/π = 0.4502·V. Default 0.45.
+    pub chop_gain: f64,
+    /// Signal phase relative to the reference, degrees: X = R cos φ, Y = R sin φ.
+    pub phase_deg: f64,
+    /// Signal-independent noise density at the output, V/√Hz. Default 20 nV/√Hz.
+    pub amplifier_noise: f64,
+    /// Shot noise, V/√Hz per √V of signal R: density `shot_noise·√R`. Default 2e-6.
+    pub shot_noise: f64,
+    /// Detector amplitude above which INPUT overload latches, volts. Default 1.4, the
+    /// input limit (1.4 V peak).
+    pub input_overload_v: f64,
+    /// The chopper's frequency, Hz: what `FREQ?` and `SNAP? 9` read on the external
+    /// reference (`FMOD 0`). Default 1000.
+    pub chopper_hz: f64,
+    /// Serial number field of `*IDN?`. Default `s/n00111`.
+    pub serial: String,
+    /// Firmware field of `*IDN?`. Default `ver1.07`.
+    pub firmware: String,
+}
+
+impl Default for LockInConfig {
+    fn default() -> Self {
+        LockInConfig {
+            chop_gain: 0.45,
+            phase_deg: 0.0,
+            amplifier_noise: 20e-9,
+            shot_noise: 2e-6,
+            input_overload_v: 1.4,
+            chopper_hz: 1000.0,
+            serial: "s/n00111".to_string(),
+            firmware: "ver1.07".to_string(),
+        }
+    }
+}
+
+/// A [`LockInConfig`] value that cannot describe an instrument.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("lock-in config {field}: {reason}")]
+pub struct LockInConfigError {
+    /// The field, as written in a config file.
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl LockInConfig {
+    /// Checks that every number is finite and in range, and that the `*IDN?` fields are
+    /// printable ASCII without commas.
+    pub fn validate(&self) -> Result<(), LockInConfigError> {
+        let bad = |field, reason: &str| {
+            Err(LockInConfigError {
+                field,
+                reason: reason.to_string(),
+            })
+        };
+        let positive = [
+            ("chop_gain", self.chop_gain),
+            ("input_overload_v", self.input_overload_v),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(field, "must be finite and positive");
+            }
+        }
+        if !(0.001..=102_000.0).contains(&self.chopper_hz) {
+            return bad("chopper_hz", "must be in 0.001..=102000 Hz");
+        }
+        let non_negative = [
+            ("amplifier_noise", self.amplifier_noise),
+            ("shot_noise", self.shot_noise),
+        ];
+        for (field, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(field, "must be finite and not negative");
+            }
+        }
+        if !self.phase_deg.is_finite() {
+            return bad("phase_deg", "must be finite");
+        }
+        for (field, v) in [("serial", &self.serial), ("firmware", &self.firmware)] {
+            if v.is_empty() || !v.bytes().all(|b| b.is_ascii_graphic() && b != b',') {
+                return bad(field, "must be non-empty printable ASCII without commas");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Advances a cascade of first-order RC stages (`stages[0]` fed by `u`, each next stage
+/// fed by the previous one, all with time constant `tc`) exactly over `dt` for a constant
+/// input `u`.
+///
+/// With zₖ = yₖ − u, the cascade is ż₁ = −z₁/T, żₖ = (zₖ₋₁ − zₖ)/T, whose solution is
+/// zₖ(t) = e^(−a) Σ_{j=0}^{k−1} zₖ₋ⱼ(0)·a^j/j! with a = t/T (induction on k: the j-th term
+/// is stage k−j's free decay passed through j more stages). Stages are updated from the
+/// last down, so each uses the old values of the stages before it. Nothing changes for
+/// `dt ≤ 0` (or NaN); beyond 700 time constants every stage equals `u`.
+pub fn advance_cascade(stages: &mut [f64], u: f64, dt: f64, tc: f64) {
+    if dt.is_nan() || dt <= 0.0 {
+        return;
+    }
+    let a = dt / tc;
+    if a.is_nan() || a > 700.0 {
+        stages.fill(u);
+        return;
+    }
+    let e = (-a).exp();
+    for k in (0..stages.len()).rev() {
+        let mut sum = 0.0;
+        let mut term = 1.0; // a^j / j!
+        for j in 0..=k {
+            sum += (stages[k - j] - u) * term;
+            term *= a / (j + 1) as f64;
+        }
+        stages[k] = u + e * sum;
+    }
+}
+
+/// Rounds `v` to [`REPLY_DIGITS`] significant digits (a negative zero becomes zero;
+/// a non-finite value, which only a config failing [`LockInConfig::validate`] can
+/// produce, becomes zero rather than a reply no parser reads).
+fn round_reply(v: f64) -> f64 {
+    if !v.is_finite() {
+        return 0.0;
+    }
+    let text = format!("{:.*e}", REPLY_DIGITS - 1, v);
+    let r = text.parse::<f64>().unwrap_or(v);
+    if r == 0.0 { 0.0 } else { r }
+}
+
+/// The internal oscillator frequency as the instrument stores it: 5 significant digits
+/// or 0.0001 Hz, whichever is coarser (manual, FREQ).
+fn round_frequency(f: f64) -> f64 {
+    let step = 10f64.powi(f.log10().floor() as i32 - 4).max(1e-4);
+    (f / step).round() * step
+}
+
+/// The sine output amplitude as stored: a multiple of 2 mV (manual, SLVL).
+fn round_amplitude(x: f64) -> f64 {
+    (x / 0.002).round() * 0.002
+}
+
+/// The outputs at one instant, volts (θ in degrees), clipped as the instrument reads them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Outputs {
+    x: f64,
+    y: f64,
+    r: f64,
+    theta: f64,
+}
+
+/// The simulated SR830. Time is virtual: every call says when it happens (`now_s`,
+/// seconds), and the filters and noise are advanced exactly to it.
+#[derive(Clone, Debug)]
+pub struct LockIn {
+    config: LockInConfig,
+    rng: ChaCha8Rng,
+    /// The time the state below describes, seconds.
+    now: f64,
+    /// Detector signal amplitude, volts.
+    input_v: f64,
+    /// Filter stages of X and Y (noise-free), volts.
+    x_stages: [f64; STAGES],
+    y_stages: [f64; STAGES],
+    /// Output noise of X and Y, volts.
+    noise: [f64; 2],
+    sensitivity: Sensitivity,
+    time_constant: TimeConstant,
+    slope: FilterSlope,
+    interface: Interface,
+    reference: ReferenceSource,
+    /// Internal oscillator frequency, Hz.
+    frequency: f64,
+    /// Sine output amplitude, V rms.
+    amplitude: f64,
+    lias: u8,
+    esr: u8,
+    unlocked: bool,
+    forced_overload: bool,
+}
+
+impl LockIn {
+    /// A lock-in just powered up: the `*RST` state (1 V, 100 ms, 12 dB/oct, internal
+    /// reference at 1 kHz), replies to GPIB (silent on RS-232 until `OUTX 0`), no
+    /// signal, PON set in `*ESR?`, the noise drawn from its stationary distribution.
+    pub fn new(config: LockInConfig, seed: u64) -> Self {
+        let mut lockin = LockIn {
+            config,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            now: 0.0,
+            input_v: 0.0,
+            x_stages: [0.0; STAGES],
+            y_stages: [0.0; STAGES],
+            noise: [0.0; 2],
+            sensitivity: Sensitivity::default(),
+            time_constant: TimeConstant::default(),
+            slope: FilterSlope::default(),
+            interface: Interface::Gpib,
+            reference: ReferenceSource::Internal,
+            frequency: RESET_FREQUENCY_HZ,
+            amplitude: RESET_AMPLITUDE_V,
+            lias: 0,
+            esr: EventStatus::PON,
+            unlocked: false,
+            forced_overload: false,
+        };
+        let sigma = lockin.noise_sigma();
+        for k in 0..2 {
+            let xi: f64 = lockin.rng.sample(StandardNormal);
+            lockin.noise[k] = sigma * xi;
+        }
+        lockin
+    }
+
+    /// The detector signal (volts, amplitude of the chopped signal before `chop_gain`)
+    /// from virtual time `now_s` on, until the next call. Advances the filters to `now_s`
+    /// first.
+    pub fn set_input(&mut self, now_s: f64, volts: f64) {
+        self.advance(now_s);
+        self.latch();
+        self.input_v = if volts.is_finite() { volts } else { 0.0 };
+        self.latch();
+    }
+
+    /// One received command line (terminator removed), at virtual time `now_s`: executes
+    /// it like the instrument (several `;`-separated commands, errors setting ESR CMD/EXE
+    /// bits silently, no reply to set commands) and appends reply bytes (each terminated
+    /// by CR) to `out` — none while replies go to GPIB (`OUTX 1`).
+    pub fn handle_line(&mut self, now_s: f64, line: &[u8], out: &mut Vec<u8>) {
+        self.advance(now_s);
+        self.latch();
+        // The buffer holds 256 characters, terminator included.
+        if line.len() >= MAX_LINE {
+            self.esr |= EventStatus::INP;
+            return;
+        }
+        for parsed in parse_line(line) {
+            self.latch();
+            let reply = match parsed {
+                Ok(command) => self.execute(&command),
+                Err(e) => Err(e.event_status().0),
+            };
+            match reply {
+                Ok(Some(reply)) if self.interface == Interface::Rs232 => reply.encode(out),
+                Ok(_) => {}
+                Err(bits) => self.esr |= bits,
+            }
+        }
+        self.latch();
+    }
+
+    /// Fault: reference unlock. LIAS bit 3 latches at once and at every event while on;
+    /// the signal is not demodulated meanwhile. There is no time argument: the change
+    /// applies from the last event (call [`set_input`](Self::set_input) first to make
+    /// that now).
+    pub fn set_unlocked(&mut self, on: bool) {
+        self.unlocked = on;
+        self.latch();
+    }
+
+    /// Fault: input overload (LIAS bit 0) regardless of the signal: latches at once and
+    /// at every event while on. The readings are not changed.
+    pub fn force_overload(&mut self, on: bool) {
+        self.forced_overload = on;
+        self.latch();
+    }
+
+    /// The sensitivity (full scale).
+    pub fn sensitivity(&self) -> Sensitivity {
+        self.sensitivity
+    }
+
+    /// The time constant.
+    pub fn time_constant(&self) -> TimeConstant {
+        self.time_constant
+    }
+
+    /// The filter slope.
+    pub fn slope(&self) -> FilterSlope {
+        self.slope
+    }
+
+    /// The interface replies go to.
+    pub fn interface(&self) -> Interface {
+        self.interface
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &LockInConfig {
+        &self.config
+    }
+
+    /// The filtered (noise-free, unclipped) R at `now_s`, for tests.
+    pub fn settled_r(&mut self, now_s: f64) -> f64 {
+        self.advance(now_s);
+        let n = self.order() - 1;
+        self.x_stages[n].hypot(self.y_stages[n])
+    }
+
+    /// Number of active RC stages, 1..=4.
+    fn order(&self) -> usize {
+        usize::from(self.slope.index()) + 1
+    }
+
+    /// The detection (reference) frequency, Hz.
+    fn detection_hz(&self) -> f64 {
+        match self.reference {
+            ReferenceSource::Internal => self.frequency,
+            ReferenceSource::External => self.config.chopper_hz,
+        }
+    }
+
+    /// The demodulated signal the filters see: (X, Y) volts.
+    fn filter_input(&self) -> (f64, f64) {
+        if self.unlocked {
+            return (0.0, 0.0);
+        }
+        let r = self.signal_r();
+        let (s, c) = self.config.phase_deg.to_radians().sin_cos();
+        (r * c, r * s)
+    }
+
+    /// The signal's lock-in magnitude, volts.
+    fn signal_r(&self) -> f64 {
+        self.config.chop_gain * self.input_v.abs()
+    }
+
+    /// The stationary standard deviation of each noise channel, volts.
+    fn noise_sigma(&self) -> f64 {
+        let c = &self.config;
+        let density = (c.amplifier_noise.powi(2) + c.shot_noise.powi(2) * self.signal_r()).sqrt();
+        density * self.slope.enbw_hz(self.time_constant).sqrt()
+    }
+
+    /// Moves filters and noise from the last event to `now_s` (constant input meanwhile).
+    fn advance(&mut self, now_s: f64) {
+        let dt = now_s - self.now;
+        if dt.is_nan() || dt <= 0.0 {
+            return;
+        }
+        let tc = self.time_constant.seconds();
+        let (ux, uy) = self.filter_input();
+        advance_cascade(&mut self.x_stages, ux, dt, tc);
+        advance_cascade(&mut self.y_stages, uy, dt, tc);
+        // Ornstein–Uhlenbeck, exact: n' = n·e^(−Δt/T) + σ·√(1 − e^(−2Δt/T))·ξ.
+        let decay = (-dt / tc).exp();
+        let spread = self.noise_sigma() * (-(-2.0 * dt / tc).exp_m1()).sqrt();
+        for k in 0..2 {
+            let xi: f64 = self.rng.sample(StandardNormal);
+            self.noise[k] = self.noise[k] * decay + spread * xi;
+        }
+        self.now = now_s;
+    }
+
+    /// The outputs now, noise included, before clipping: (X, Y).
+    fn raw_xy(&self) -> (f64, f64) {
+        let n = self.order() - 1;
+        (
+            self.x_stages[n] + self.noise[0],
+            self.y_stages[n] + self.noise[1],
+        )
+    }
+
+    /// The outputs as read: each of X, Y, R clipped at ±1.09 × full scale.
+    fn outputs(&self) -> Outputs {
+        let (x, y) = self.raw_xy();
+        let limit = OVERLOAD_FACTOR * self.sensitivity.volts();
+        Outputs {
+            x: x.clamp(-limit, limit),
+            y: y.clamp(-limit, limit),
+            r: x.hypot(y).min(limit),
+            theta: y.atan2(x).to_degrees(),
+        }
+    }
+
+    /// Latches the status bits whose condition holds now.
+    fn latch(&mut self) {
+        if self.forced_overload || self.input_v.abs() > self.config.input_overload_v {
+            self.lias |= LiaStatus::INPUT_OVERLOAD;
+        }
+        let (x, y) = self.raw_xy();
+        let limit = OVERLOAD_FACTOR * self.sensitivity.volts();
+        if x.abs() > limit || y.abs() > limit || x.hypot(y) > limit {
+            self.lias |= LiaStatus::OUTPUT_OVERLOAD;
+        }
+        if self.unlocked {
+            self.lias |= LiaStatus::UNLOCK;
+        }
+    }
+
+    /// Changes the reference source or frequency; crossing 200 Hz latches RANGE, and
+    /// entering the high range with T > 30 s shortens T to 30 s and latches TC.
+    fn set_reference(&mut self, source: ReferenceSource, frequency: f64) {
+        let was_high = self.detection_hz() > RANGE_SPLIT_HZ;
+        self.reference = source;
+        self.frequency = frequency;
+        let high = self.detection_hz() > RANGE_SPLIT_HZ;
+        if high != was_high {
+            self.lias |= LiaStatus::RANGE;
+        }
+        if high && self.time_constant.seconds() > MAX_TC_HIGH_RANGE_S {
+            self.time_constant = TimeConstant::all()
+                .filter(|t| t.seconds() <= MAX_TC_HIGH_RANGE_S)
+                .last()
+                .unwrap_or_default();
+            self.lias |= LiaStatus::TIME_CONSTANT_CHANGED;
+        }
+    }
+
+    /// Runs one parsed command: its reply, or the `*ESR?` bits it sets.
+    fn execute(&mut self, command: &Command) -> Result<Option<Reply>, u8> {
+        let exe = EventStatus::EXE;
+        let reply = match command {
+            Command::SetInterface(i) => {
+                self.interface = *i;
+                None
+            }
+            Command::QueryInterface => Some(Reply::Interface(self.interface)),
+            Command::SetReferenceSource(s) => {
+                self.set_reference(*s, self.frequency);
+                None
+            }
+            Command::QueryReferenceSource => Some(Reply::ReferenceSource(self.reference)),
+            Command::SetFrequency(f) => {
+                if self.reference != ReferenceSource::Internal {
+                    return Err(exe);
+                }
+                self.set_reference(self.reference, round_frequency(*f));
+                None
+            }
+            Command::QueryFrequency => Some(Reply::Frequency(round_reply(self.detection_hz()))),
+            Command::SetAmplitude(x) => {
+                self.amplitude = round_amplitude(*x);
+                None
+            }
+            Command::QueryAmplitude => Some(Reply::Amplitude(round_reply(self.amplitude))),
+            Command::SetSensitivity(s) => {
+                self.sensitivity = *s;
+                None
+            }
+            Command::QuerySensitivity => Some(Reply::Sensitivity(self.sensitivity)),
+            Command::SetTimeConstant(t) => {
+                if t.seconds() > MAX_TC_HIGH_RANGE_S && self.detection_hz() > RANGE_SPLIT_HZ {
+                    return Err(exe);
+                }
+                self.time_constant = *t;
+                None
+            }
+            Command::QueryTimeConstant => Some(Reply::TimeConstant(self.time_constant)),
+            Command::SetSlope(s) => {
+                self.slope = *s;
+                None
+            }
+            Command::QuerySlope => Some(Reply::Slope(self.slope)),
+            Command::AutoGain => {
+                if self.time_constant.seconds() <= AUTO_GAIN_MAX_TC_S {
+                    let (x, y) = self.raw_xy();
+                    let r = x.hypot(y);
+                    self.sensitivity = Sensitivity::all()
+                        .find(|s| r <= AUTO_GAIN_TARGET * s.volts())
+                        .unwrap_or(Sensitivity::LEAST);
+                }
+                None
+            }
+            Command::ReadOutput(o) => {
+                let v = self.outputs();
+                let value = match o {
+                    Output::X => v.x,
+                    Output::Y => v.y,
+                    Output::R => v.r,
+                    Output::Theta => v.theta,
+                };
+                Some(Reply::Output(round_reply(value)))
+            }
+            Command::Snap(params) => {
+                let v = self.outputs();
+                let values = params
+                    .as_slice()
+                    .iter()
+                    .map(|p| match p {
+                        SnapParam::X | SnapParam::Ch1Display => v.x,
+                        SnapParam::Y | SnapParam::Ch2Display => v.y,
+                        SnapParam::R => v.r,
+                        SnapParam::Theta => v.theta,
+                        SnapParam::AuxIn1
+                        | SnapParam::AuxIn2
+                        | SnapParam::AuxIn3
+                        | SnapParam::AuxIn4 => 0.0,
+                        SnapParam::Frequency => self.detection_hz(),
+                    })
+                    .map(round_reply)
+                    .collect();
+                Some(Reply::Snap(values))
+            }
+            Command::LiaStatus(bit) => Some(read_clear(&mut self.lias, *bit, |b| {
+                Reply::LiaStatus(LiaStatus(b))
+            })),
+            Command::ErrorStatus(bit) => Some(match bit {
+                Some(_) => Reply::Bit(false),
+                None => Reply::ErrorStatus(Default::default()),
+            }),
+            Command::EventStatus(bit) => Some(read_clear(&mut self.esr, *bit, |b| {
+                Reply::EventStatus(EventStatus(b))
+            })),
+            Command::Identify => Some(Reply::Identity(Identity {
+                manufacturer: "Stanford_Research_Systems".to_string(),
+                model: "SR830".to_string(),
+                serial: self.config.serial.clone(),
+                firmware: self.config.firmware.clone(),
+            })),
+            Command::Reset => {
+                // Communication settings and status bytes are kept (p. 4-4, *RST).
+                self.sensitivity = Sensitivity::default();
+                self.time_constant = TimeConstant::default();
+                self.slope = FilterSlope::default();
+                self.reference = ReferenceSource::Internal;
+                self.frequency = RESET_FREQUENCY_HZ;
+                self.amplitude = RESET_AMPLITUDE_V;
+                None
+            }
+            Command::Clear => {
+                self.lias = 0;
+                self.esr = 0;
+                None
+            }
+        };
+        Ok(reply)
+    }
+}
+
+/// Reads a status byte and clears what was read: the whole byte (replied as `whole`
+/// makes it), or only bit `bit`.
+fn read_clear(byte: &mut u8, bit: Option<BitIndex>, whole: fn(u8) -> Reply) -> Reply {
+    match bit {
+        None => whole(std::mem::take(byte)),
+        Some(b) => {
+            let mask = 1u8 << b.get();
+            let set = *byte & mask != 0;
+            *byte &= !mask;
+            Reply::Bit(set)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn replies_round_to_six_significant_digits() {
+        assert_eq!(round_reply(0.009000000000000001), 0.009);
+        assert_eq!(round_reply(0.95135912), 0.951359);
+        assert_eq!(round_reply(-4.172344e-7), -4.17234e-7);
+        assert_eq!(round_reply(-0.0), 0.0);
+        assert!(round_reply(-0.0).is_sign_positive());
+        assert_eq!(round_reply(29.999999999999996), 30.0);
+    }
+
+    #[test]
+    fn frequency_and_amplitude_round_as_the_manual_says() {
+        assert_eq!(round_reply(round_frequency(1234.567)), 1234.6);
+        assert_eq!(round_reply(round_frequency(0.0012345)), 0.0012);
+        assert_eq!(round_reply(round_frequency(137.5)), 137.5);
+        assert_eq!(round_reply(round_amplitude(0.5011)), 0.502);
+    }
+
+    #[test]
+    fn a_long_step_settles_exactly() {
+        let mut s = [0.3, -0.2, 0.7, 0.1];
+        advance_cascade(&mut s, 0.25, 1e6, 1.0);
+        assert_eq!(s, [0.25; 4]);
+        let before = s;
+        advance_cascade(&mut s, 9.0, -1.0, 1.0);
+        advance_cascade(&mut s, 9.0, f64::NAN, 1.0);
+        assert_eq!(s, before);
+    }
+}

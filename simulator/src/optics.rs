@@ -1,0 +1,250 @@
+//! The light path: source, sample, detector.
+//!
+//! The detector signal is `V = R_v · P_s · f_r(wi, wo) · cos θo · Ω` (DeYoung Eq. A.15
+//! read backwards: the flux a detector of solid angle Ω collects from a sample lit by
+//! the flux `P_s`), with `R_v` the detector's responsivity (photodiode and
+//! transimpedance amplifier, V/W). Optionally `f_r cos θo` is averaged over the
+//! detector's aperture and over the beam's divergence, which is what smooths a
+//! measured specular peak. Two geometric effects of a real instrument are modelled:
+//! the detector arm blocking the source beam when the arms come too close, and the
+//! beam's footprint overfilling the sample at grazing incidence.
+
+use gonio_brdf::Brdf;
+use gonio_core::radiometry::Aperture;
+use gonio_core::{Dir, DirPair, Frame, Vec3};
+
+/// The optical set-up.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OpticsConfig {
+    /// Source power reaching the sample position, W.
+    pub source_power_w: f64,
+    /// Beam diameter at the sample (top-hat), m.
+    pub beam_diameter_m: f64,
+    /// Beam divergence, half-angle, degrees (0: collimated).
+    pub beam_divergence_deg: f64,
+    /// Detector aperture radius, m.
+    pub detector_radius_m: f64,
+    /// Sample-to-aperture distance, m.
+    pub detector_distance_m: f64,
+    /// Detector responsivity × transimpedance gain, V/W.
+    pub responsivity_v_per_w: f64,
+    /// Closest the source and detector may come, as seen from the sample, before the
+    /// detector arm blocks the beam, degrees.
+    pub min_arm_separation_deg: f64,
+    /// Sample length along the plane of incidence, m (for overfilling).
+    pub sample_length_m: f64,
+    /// Average `f_r cos θo` over the aperture and the divergence (slower, smoother).
+    pub integrate_aperture: bool,
+    /// Relative source drift per hour (linear).
+    pub drift_per_hour: f64,
+    /// Relative amplitude of a slow periodic drift.
+    pub drift_amplitude: f64,
+    /// Period of that drift, s.
+    pub drift_period_s: f64,
+}
+
+impl Default for OpticsConfig {
+    fn default() -> Self {
+        OpticsConfig {
+            source_power_w: 1e-3,
+            beam_diameter_m: 0.005,
+            beam_divergence_deg: 0.0,
+            detector_radius_m: 0.005,
+            detector_distance_m: 0.3,
+            responsivity_v_per_w: 1e4,
+            min_arm_separation_deg: 8.0,
+            sample_length_m: 0.05,
+            integrate_aperture: false,
+            drift_per_hour: 0.0,
+            drift_amplitude: 0.0,
+            drift_period_s: 600.0,
+        }
+    }
+}
+
+/// Why no light reaches the detector, or only part of it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Geometry {
+    /// A normal measurement.
+    Clear,
+    /// The source or the detector is at or below the sample's horizon.
+    BelowHorizon,
+    /// The detector arm is in the beam.
+    Shadowed,
+    /// The beam's footprint is longer than the sample: part of it misses.
+    Overfilled,
+}
+
+/// The optics with a sample in place.
+pub struct Optics {
+    cfg: OpticsConfig,
+    sample: Box<dyn Brdf>,
+    channel: usize,
+    omega: f64,
+    /// Gauss–Legendre-on-a-disc points (unit disc) with weights summing to 1.
+    disc: Vec<(f64, f64, f64)>,
+}
+
+impl std::fmt::Debug for Optics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Optics")
+            .field("cfg", &self.cfg)
+            .field("channel", &self.channel)
+            .field("omega_sr", &self.omega)
+            .finish()
+    }
+}
+
+impl Optics {
+    /// The optics with `sample`, measuring its channel `channel`.
+    pub fn new(cfg: OpticsConfig, sample: Box<dyn Brdf>, channel: usize) -> Self {
+        let omega = Aperture {
+            radius_m: cfg.detector_radius_m,
+            distance_m: cfg.detector_distance_m,
+        }
+        .solid_angle_sr();
+        Optics {
+            cfg,
+            sample,
+            channel,
+            omega,
+            disc: disc_rule(),
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &OpticsConfig {
+        &self.cfg
+    }
+
+    /// The detector's solid angle, sr.
+    pub fn solid_angle_sr(&self) -> f64 {
+        self.omega
+    }
+
+    /// The sample.
+    pub fn sample(&self) -> &dyn Brdf {
+        self.sample.as_ref()
+    }
+
+    /// The measured channel.
+    pub fn channel(&self) -> usize {
+        self.channel
+    }
+
+    /// Source power at physical time `t` (drift included), W.
+    pub fn source_power(&self, t: f64) -> f64 {
+        let c = &self.cfg;
+        let periodic = if c.drift_period_s > 0.0 {
+            c.drift_amplitude * (std::f64::consts::TAU * t / c.drift_period_s).sin()
+        } else {
+            0.0
+        };
+        c.source_power_w * (1.0 + c.drift_per_hour * t / 3600.0 + periodic)
+    }
+
+    /// What limits the light for this pair of directions.
+    pub fn geometry(&self, pair: DirPair) -> Geometry {
+        if !(pair.wi.is_above() && pair.wo.is_above()) {
+            return Geometry::BelowHorizon;
+        }
+        if gonio_core::kinematics::arm_separation_deg(pair) < self.cfg.min_arm_separation_deg {
+            return Geometry::Shadowed;
+        }
+        if self.overfill_fraction(pair.wi) < 1.0 {
+            return Geometry::Overfilled;
+        }
+        Geometry::Clear
+    }
+
+    /// The fraction of the beam that lands on the sample: its footprint is the beam
+    /// diameter over cos θi along the plane of incidence.
+    pub fn overfill_fraction(&self, wi: Dir) -> f64 {
+        if wi.z <= 0.0 {
+            return 0.0;
+        }
+        (self.cfg.sample_length_m * wi.z / self.cfg.beam_diameter_m).min(1.0)
+    }
+
+    fn fr_cos(&self, wi: Dir, wo: Dir, buf: &mut [f64]) -> f64 {
+        if !(wi.is_above() && wo.is_above()) {
+            return 0.0;
+        }
+        self.sample.eval(wi, wo, buf);
+        buf[self.channel] * wo.z
+    }
+
+    /// The detector signal, V, at physical time `t` for directions `pair`.
+    pub fn signal(&self, t: f64, pair: DirPair) -> f64 {
+        match self.geometry(pair) {
+            Geometry::BelowHorizon | Geometry::Shadowed => return 0.0,
+            Geometry::Clear | Geometry::Overfilled => {}
+        }
+        let mut buf = vec![0.0; self.sample.channels().len()];
+        let frc = if self.cfg.integrate_aperture {
+            let a = self
+                .cfg
+                .detector_radius_m
+                .atan2(self.cfg.detector_distance_m);
+            let b = self.cfg.beam_divergence_deg.to_radians();
+            let fo = Frame::from_normal(pair.wo);
+            let fi = Frame::from_normal(pair.wi);
+            let mut acc = 0.0;
+            for &(x, y, w) in &self.disc {
+                let wo = cone_dir(&fo, a, x, y);
+                if b > 0.0 {
+                    for &(u, v, w2) in &self.disc {
+                        let wi = cone_dir(&fi, b, u, v);
+                        acc += w * w2 * self.fr_cos(wi, wo, &mut buf);
+                    }
+                } else {
+                    acc += w * self.fr_cos(pair.wi, wo, &mut buf);
+                }
+            }
+            acc
+        } else {
+            self.fr_cos(pair.wi, pair.wo, &mut buf)
+        };
+        let p_sample = self.source_power(t) * self.overfill_fraction(pair.wi);
+        self.cfg.responsivity_v_per_w * p_sample * frc * self.omega
+    }
+}
+
+/// A direction in the cone of half-angle `a` about the frame's normal, at the point
+/// (x, y) of the unit disc (equal areas of the disc are equal solid angles for small
+/// cones).
+fn cone_dir(f: &Frame, a: f64, x: f64, y: f64) -> Dir {
+    let s = a.sin();
+    let (lx, ly) = (x * s, y * s);
+    let lz = (1.0 - lx * lx - ly * ly).max(0.0).sqrt();
+    f.dir_to_parent(Dir::new(Vec3::new(lx, ly, lz)).unwrap_or(Dir::Z))
+}
+
+/// A product rule on the unit disc: 4 radial Gauss–Legendre nodes (in r², so rings of
+/// equal area) × 8 azimuths; weights sum to 1.
+fn disc_rule() -> Vec<(f64, f64, f64)> {
+    // Gauss–Legendre on [0, 1] with 4 nodes.
+    let x: [f64; 4] = [
+        0.069_431_844_202_973_71,
+        0.330_009_478_207_571_9,
+        0.669_990_521_792_428_1,
+        0.930_568_155_797_026_3,
+    ];
+    let w = [
+        0.173_927_422_568_726_93,
+        0.326_072_577_431_273_07,
+        0.326_072_577_431_273_07,
+        0.173_927_422_568_726_93,
+    ];
+    let n_phi = 8;
+    let mut out = Vec::with_capacity(4 * n_phi);
+    for (u, wu) in x.iter().zip(w) {
+        let r = u.sqrt();
+        for k in 0..n_phi {
+            let phi = std::f64::consts::TAU * (k as f64 + 0.5) / n_phi as f64;
+            out.push((r * phi.cos(), r * phi.sin(), wu / n_phi as f64));
+        }
+    }
+    out
+}

@@ -1,0 +1,136 @@
+//! The simulator behind pseudo-terminals: what a driver in another process (or the
+//! real `SerialTransport` in this one) talks to.
+//!
+//! Each line gets a pty pair; a thread moves bytes between the master side and the
+//! simulator. The ptys are reached through symlinks in a private directory, so a port
+//! that closes (an outage fault) can come back at the same path, as a re-plugged USB
+//! adapter does with a udev name. The slave handles stay open, so a driver can close
+//! and reopen the port without the pty going away.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use serialport::{SerialPort, TTYPort};
+
+use crate::faults::Port;
+use crate::transport::{SharedSim, lock};
+
+/// A running pty server; dropping it stops the threads and removes the symlinks.
+#[derive(Debug)]
+pub struct PtySim {
+    /// Path of the SMC100 line (a symlink to the pty slave).
+    pub motion: PathBuf,
+    /// Path of the SR830 line.
+    pub detector: PathBuf,
+    dir: PathBuf,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+fn new_pair(link: &Path) -> std::io::Result<(TTYPort, TTYPort)> {
+    let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
+    let target = slave
+        .name()
+        .ok_or_else(|| std::io::Error::other("pty slave has no name"))?;
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link)?;
+    master
+        .set_timeout(Duration::from_millis(5))
+        .map_err(std::io::Error::other)?;
+    Ok((master, slave))
+}
+
+fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
+    let mut pair = new_pair(&link).ok();
+    let mut buf = [0u8; 512];
+    while !stop.load(Ordering::Relaxed) {
+        let closed = lock(&sim).port_closed(port);
+        match (&mut pair, closed) {
+            (Some(_), true) => {
+                // The adapter is pulled: the pty and its path disappear.
+                pair = None;
+                let _ = std::fs::remove_file(&link);
+            }
+            (None, false) => pair = new_pair(&link).ok(),
+            (None, true) => std::thread::sleep(Duration::from_millis(5)),
+            (Some((master, _slave)), false) => match master.read(&mut buf) {
+                Ok(0) => {}
+                Ok(n) => {
+                    let reply = {
+                        let mut s = lock(&sim);
+                        let r = match port {
+                            Port::Motion => s.motion_bytes(&buf[..n]),
+                            Port::Detector => s.lockin_bytes(&buf[..n]),
+                        };
+                        // Account the physical time of the exchange on a driven clock.
+                        let (lat, t) = match port {
+                            Port::Motion => {
+                                (s.link().motion_latency_s, s.wire_time(port, n + r.len()))
+                            }
+                            Port::Detector => {
+                                (s.link().detector_latency_s, s.wire_time(port, n + r.len()))
+                            }
+                        };
+                        let extra = if r.is_empty() { t } else { t + lat };
+                        s.clock().advance(Duration::from_secs_f64(extra));
+                        r
+                    };
+                    if !reply.is_empty() && master.write_all(&reply).is_err() {
+                        pair = None;
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(_) => std::thread::sleep(Duration::from_millis(5)),
+            },
+        }
+    }
+    let _ = std::fs::remove_file(&link);
+}
+
+impl PtySim {
+    /// Starts serving `sim` on two new pseudo-terminals.
+    pub fn spawn(sim: SharedSim) -> std::io::Result<PtySim> {
+        static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = COUNT.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("gonio-sim-{}-{n}", std::process::id()));
+        std::fs::create_dir_all(&dir)?;
+        let (motion, detector) = (dir.join("motion"), dir.join("detector"));
+        let stop = Arc::new(AtomicBool::new(false));
+        let mut threads = Vec::new();
+        for (port, link) in [
+            (Port::Motion, motion.clone()),
+            (Port::Detector, detector.clone()),
+        ] {
+            let (s, st) = (sim.clone(), stop.clone());
+            threads.push(std::thread::spawn(move || serve(s, port, link, st)));
+        }
+        // The first pairs exist once both links do.
+        for _ in 0..400 {
+            if motion.exists() && detector.exists() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Ok(PtySim {
+            motion,
+            detector,
+            dir,
+            stop,
+            threads,
+        })
+    }
+}
+
+impl Drop for PtySim {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}

@@ -1,0 +1,153 @@
+//! An in-memory [`Transport`] into the simulator: the driver's bytes go straight to
+//! [`SimInstrument`], on simulated time. Each exchange costs the physical time the
+//! bytes take on the wire at the configured baud rate plus the instrument's reply
+//! latency, so the simulated run's duration is that of the lab's.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use gonio_driver::{Clock, Transport, TransportError};
+use gonio_proto::LineFramer;
+
+use crate::clock::SimClock;
+use crate::faults::Port;
+use crate::instrument::SimInstrument;
+
+/// A shared handle on the simulated instrument (tests inject faults through it).
+pub type SharedSim = Arc<Mutex<SimInstrument>>;
+
+/// Locks the simulator; a panic elsewhere cannot leave it unusable.
+pub fn lock(sim: &SharedSim) -> MutexGuard<'_, SimInstrument> {
+    sim.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// One of the simulator's two serial lines, in memory.
+pub struct SimTransport {
+    sim: SharedSim,
+    port: Port,
+    clock: SimClock,
+    framer: LineFramer,
+    /// Reply lines not yet arrived: (arrival time, bytes).
+    in_flight: VecDeque<(f64, Vec<u8>)>,
+    open: bool,
+}
+
+impl std::fmt::Debug for SimTransport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimTransport")
+            .field("port", &self.port)
+            .finish()
+    }
+}
+
+impl SimTransport {
+    /// The `port` line of `sim`.
+    pub fn new(sim: SharedSim, port: Port) -> Self {
+        let clock = lock(&sim).clock().clone();
+        let (term, max) = match port {
+            Port::Motion => (b'\n', gonio_proto::smc100::MAX_LINE),
+            Port::Detector => (b'\r', gonio_proto::sr830::MAX_LINE),
+        };
+        SimTransport {
+            sim,
+            port,
+            clock,
+            framer: LineFramer::new(term, max),
+            in_flight: VecDeque::new(),
+            open: true,
+        }
+    }
+
+    fn gone(&self) -> TransportError {
+        TransportError::Disconnected {
+            port: self.name(),
+            reason: "simulated outage".into(),
+        }
+    }
+}
+
+impl Transport for SimTransport {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        let sim = lock(&self.sim);
+        if !self.open || sim.port_closed(self.port) {
+            self.open = false;
+            return Err(self.gone());
+        }
+        let out_time = sim.wire_time(self.port, bytes.len());
+        drop(sim);
+        self.clock.advance(Duration::from_secs_f64(out_time));
+        let mut sim = lock(&self.sim);
+        let reply = match self.port {
+            Port::Motion => sim.motion_bytes(bytes),
+            Port::Detector => sim.lockin_bytes(bytes),
+        };
+        if reply.is_empty() {
+            return Ok(());
+        }
+        let latency = match self.port {
+            Port::Motion => sim.link().motion_latency_s,
+            Port::Detector => sim.link().detector_latency_s,
+        };
+        let arrive = self.clock.seconds()
+            + latency
+            + sim.faults().reply_delay_s
+            + sim.wire_time(self.port, reply.len());
+        self.in_flight.push_back((arrive, reply));
+        Ok(())
+    }
+
+    fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError> {
+        if !self.open {
+            return Err(self.gone());
+        }
+        let deadline = self.clock.seconds() + timeout.as_secs_f64();
+        loop {
+            if let Some(line) = self.framer.next_line() {
+                return line.map_err(TransportError::from);
+            }
+            match self.in_flight.front() {
+                Some((t, _)) if *t <= deadline => {
+                    let (t, bytes) = self.in_flight.pop_front().unwrap_or_default();
+                    let now = self.clock.seconds();
+                    if t > now {
+                        self.clock.sleep(Duration::from_secs_f64(t - now));
+                    }
+                    self.framer.push(&bytes);
+                }
+                _ => {
+                    let now = self.clock.seconds();
+                    if deadline > now {
+                        self.clock.sleep(Duration::from_secs_f64(deadline - now));
+                    }
+                    return Err(TransportError::Timeout(timeout));
+                }
+            }
+        }
+    }
+
+    fn clear_input(&mut self) -> Result<(), TransportError> {
+        // What has arrived is discarded; what is still on its way is not.
+        let now = self.clock.seconds();
+        self.in_flight.retain(|(t, _)| *t > now);
+        self.framer.clear();
+        Ok(())
+    }
+
+    fn reconnect(&mut self) -> Result<(), TransportError> {
+        self.framer.clear();
+        self.in_flight.clear();
+        if lock(&self.sim).port_closed(self.port) {
+            return Err(self.gone());
+        }
+        self.open = true;
+        Ok(())
+    }
+
+    fn name(&self) -> String {
+        match self.port {
+            Port::Motion => "sim:motion".into(),
+            Port::Detector => "sim:detector".into(),
+        }
+    }
+}
