@@ -111,8 +111,17 @@ pub fn run(json: bool) -> CliResult<()> {
             }
         }
     }
+    let measured = simulated_cut()?;
     if json {
         return output::json(&json!({
+            "simulated_measurement": {
+                "theta_i": SIM_THETA_I,
+                "points": measured.points.iter().map(|p| json!({
+                    "theta_o": p.theta_o, "model": p.model, "measured": p.measured,
+                    "sigma": p.sigma,
+                })).collect::<Vec<_>>(),
+                "physical_seconds": measured.physical_s,
+            },
             "model": "Lafortune et al. 1997, Table 1: blue paint",
             "channels": ch.names(),
             "albedo": rows.iter().map(|r| json!({
@@ -198,13 +207,117 @@ pub fn run(json: bool) -> CliResult<()> {
         writeln!(w)?;
         writeln!(
             w,
-            "Gonio today: the BRDF model library (gonio model eval | albedo) and the SMC100 /"
+            "Measured on the simulated goniometer: the real SMC100 and SR830 drivers against"
         )?;
         writeln!(
             w,
-            "SR830 drivers (gonio instrument check). The simulated goniometer, acquisition,"
+            "gonio-sim (coplanar arms, this paint, seed 1), theta_i = {SIM_THETA_I}, in the plane"
         )?;
-        writeln!(w, "processing and fitting come next.")?;
+        writeln!(
+            w,
+            "{:>7} {:>11} {:>11} {:>10} {:>7}",
+            "theta_o", "model", "measured", "sigma", "dev/s"
+        )?;
+        for p in &measured.points {
+            writeln!(
+                w,
+                "{:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2}",
+                p.theta_o,
+                p.model,
+                p.measured,
+                p.sigma,
+                (p.measured - p.model) / p.sigma
+            )?;
+        }
+        writeln!(
+            w,
+            "{} points: {:.1} s of instrument time (homing, moves, settling, sampling)",
+            measured.points.len(),
+            measured.physical_s
+        )?;
+        writeln!(w)?;
+        writeln!(
+            w,
+            "Gonio today: BRDF models (gonio model eval | albedo), the SMC100 / SR830 drivers"
+        )?;
+        writeln!(
+            w,
+            "(gonio instrument check) and the simulated goniometer (gonio sim). Acquisition"
+        )?;
+        writeln!(w, "plans and run files, processing and fitting come next.")?;
         w.flush()
     })())
 }
+
+/// Incidence angle of the simulated measurement.
+const SIM_THETA_I: f64 = 35.0;
+
+struct SimPoint {
+    theta_o: f64,
+    model: f64,
+    measured: f64,
+    sigma: f64,
+}
+
+struct SimCut {
+    points: Vec<SimPoint>,
+    physical_s: f64,
+}
+
+/// Measures the paint's in-plane BRDF at θi = 35° on the simulated goniometer, through
+/// the real drivers, and turns each reading back into a BRDF with the simulator's
+/// known optics (`R = g · R_v · P · f_r · cos θo · Ω`).
+fn simulated_cut() -> CliResult<SimCut> {
+    use gonio_core::DirPair;
+    use gonio_core::kinematics::Layout;
+
+    let runtime =
+        |e: &dyn std::fmt::Display| CliError::Runtime(format!("simulated measurement: {e}"));
+    let icfg =
+        gonio_driver::InstrumentConfig::from_toml(INSTRUMENT_SIM, None).map_err(|e| runtime(&e))?;
+    let scfg = gonio_sim::SimConfig::default_config().map_err(|e| runtime(&e))?;
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).map_err(|e| runtime(&e))?;
+    g.start().map_err(|e| runtime(&e))?;
+    g.home().map_err(|e| runtime(&e))?;
+    let omega = gonio_sim::lock(&sim).optics().solid_angle_sr();
+    let scale = scfg.lockin.chop_gain
+        * scfg.optics.responsivity_v_per_w
+        * scfg.optics.source_power_w
+        * omega;
+    let wi = deg(SIM_THETA_I, 0.0);
+    let mut points = Vec::new();
+    let mut hint = [0.0; 4];
+    // θo < 0 on the source's side; −35° would put the detector in the beam.
+    for to in [-70.0, -50.0, -20.0, 0.0, 20.0, 35.0, 50.0, 70.0] {
+        let wo = in_plane(to);
+        let pair = DirPair::new(wi, wo);
+        let a = Layout::CoplanarArms
+            .inverse(pair, Some(hint))
+            .map_err(|e| runtime(&e))?;
+        hint = a;
+        let targets = [
+            ("source", a[0]),
+            ("detector", a[1]),
+            ("sample_rot", a[2]),
+            ("sample_tilt", a[3]),
+        ];
+        let (_, r) = g.measure_at(&targets).map_err(|e| runtime(&e))?;
+        let cos_o = wo.z;
+        let mut f = [0.0];
+        gonio_sim::lock(&sim).optics().sample().eval(wi, wo, &mut f);
+        // Neighbouring samples, one time constant apart, correlate (e^-1): the mean's
+        // variance is about 2.2 σ²/n.
+        let sigma = r.r_std * (2.2 / r.n as f64).sqrt() / (scale * cos_o);
+        points.push(SimPoint {
+            theta_o: to,
+            model: f[0],
+            measured: r.r_mean / (scale * cos_o),
+            sigma,
+        });
+    }
+    let physical_s = gonio_sim::lock(&sim).clock().seconds();
+    Ok(SimCut { points, physical_s })
+}
+
+/// The simulator's instrument config, embedded.
+const INSTRUMENT_SIM: &str = include_str!("../../../config/instrument-sim.toml");

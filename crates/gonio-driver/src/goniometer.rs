@@ -103,12 +103,14 @@ impl<M: Transport, D: Transport, C: Clock> Goniometer<M, D, C> {
         Ok(self.motion.home_all()?)
     }
 
-    /// Moves the named axes (concurrently) and takes a detector reading there.
+    /// Moves the named axes (concurrently) and takes a detector reading there, after
+    /// the lock-in's filters have settled on the new signal.
     pub fn measure_at(
         &mut self,
         targets: &[(&str, f64)],
     ) -> Result<(Vec<f64>, Reading), GoniometerError> {
         let positions = self.motion.move_to(targets)?;
+        self.detector.input_changed();
         let reading = self.detector.read()?;
         Ok((positions, reading))
     }

@@ -36,6 +36,7 @@ fn config() -> Sr830Config {
         reconnect_attempts: 3,
         reconnect_delay_ms: 200,
         retries: 0,
+        settle_residual: 0.01,
     }
 }
 
@@ -637,4 +638,44 @@ fn script_cycle_without_flags(h: &ScriptHandle, samples: &[&str]) {
     for s in samples {
         h.exchange("SNAP? 1,2\n", format!("{s}\r"));
     }
+}
+
+/// After the light changes (a move), the next reading waits a full settling time even
+/// though no setting changed: 24 dB/oct at 100 ms is 1 s.
+#[test]
+fn a_changed_input_waits_for_settling() {
+    let (mut d, h, clock) = ready(config());
+    script_cycle(&h, &FOUR, 0);
+    d.read().unwrap();
+    let before = clock.now();
+    d.input_changed();
+    script_cycle(&h, &FOUR, 0);
+    d.read().unwrap();
+    // The settling second, then three sample spacings of 100 ms.
+    assert_eq!(clock.now() - before, Duration::from_millis(1300));
+    h.finish().unwrap();
+}
+
+/// A tighter settling target waits longer: 1e-4 of the step at 24 dB/oct is the root
+/// of e^-a (1 + a + a²/2 + a³/6) = 1e-4, 15.9 time constants.
+#[test]
+fn settle_residual_sets_the_wait() {
+    let d = rig(Sr830Config {
+        settle_residual: 1e-4,
+        ..config()
+    })
+    .0;
+    let t = d.settle_time().as_secs_f64();
+    assert!((t - 1.5914).abs() < 1e-3, "{t}");
+    let a = t / 0.1;
+    let resid = (-a).exp() * (1.0 + a + a * a / 2.0 + a * a * a / 6.0);
+    assert!((resid - 1e-4).abs() < 1e-9, "{resid}");
+    assert!(
+        Sr830Config {
+            settle_residual: 0.0,
+            ..config()
+        }
+        .validate()
+        .is_err()
+    );
 }

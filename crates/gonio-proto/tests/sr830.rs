@@ -757,3 +757,23 @@ proptest! {
         let _ = Reply::parse(&q, &reply);
     }
 }
+
+/// The exact settling of the N-stage cascade against the manual's rounded table
+/// (p. 3-21): to 1 % it takes ln 100 = 4.61 T at 6 dB/oct (manual: 5), 6.64 (7),
+/// 8.41 (9) and 10.05 T (10) — the table rounds up, except at 24 dB/oct.
+#[test]
+fn exact_settling_against_the_manual_table() {
+    use gonio_proto::sr830::FilterSlope;
+    let want = [
+        (FilterSlope::Db6, 4.6052),
+        (FilterSlope::Db12, 6.6384),
+        (FilterSlope::Db18, 8.4059),
+        (FilterSlope::Db24, 10.0451),
+    ];
+    for (s, a) in want {
+        let got = s.settle_factor_for(0.01);
+        assert!((got - a).abs() < 1e-3, "{s:?}: {got}");
+        assert!((s.settle_factor() - got).abs() < 0.7);
+    }
+    assert!((FilterSlope::Db6.settle_factor_for(1e-4) - 1e4f64.ln()).abs() < 1e-9);
+}
