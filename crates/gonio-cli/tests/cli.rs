@@ -248,3 +248,31 @@ fn instrument_check_validates_configs() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("/dev/gonio-motion"), "{}", stderr(&o));
 }
+
+#[test]
+fn sim_announces_its_ptys_and_stops_when_stdin_closes() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gonio"))
+        .args(["sim", "--seed", "3"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("gonio sim starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("one line");
+    let v: serde_json::Value = serde_json::from_str(&line).expect("JSON");
+    for k in ["motion", "detector"] {
+        let p = v[k].as_str().expect("a path");
+        assert!(Path::new(p).exists(), "{p}");
+    }
+    assert_eq!(v["seed"], 3);
+    drop(child.stdin.take());
+    assert!(child.wait().expect("exits").success());
+
+    let o = gonio(&["sim", "--time-scale", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--time-scale"), "{}", stderr(&o));
+}
