@@ -7,14 +7,17 @@ use std::sync::{Arc, Mutex};
 
 use crate::{PtySim, SimClock, SimConfig, SimConfigError, SimInstrument};
 
-/// Options of the serve command.
-#[derive(Clone, Debug, Default)]
+/// Options of the serve command (`gonio-sim` and `gonio sim` share them).
+#[derive(Clone, Debug, Default, clap::Args)]
 pub struct ServeArgs {
-    /// Config file; the embedded default when `None`.
+    /// Simulator config (TOML); the embedded default when absent.
+    #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Seed override.
+    /// Override the config's seed.
+    #[arg(long)]
     pub seed: Option<u64>,
-    /// Time scale override (> 0).
+    /// Wall seconds per physical second (> 0; default 1, real time).
+    #[arg(long)]
     pub time_scale: Option<f64>,
 }
 

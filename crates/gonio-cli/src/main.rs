@@ -45,17 +45,7 @@ enum Command {
     },
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until standard input closes.
-    Sim {
-        /// Simulator config (TOML); the embedded default when absent.
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Override the config's seed.
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Wall seconds per physical second (> 0; default 1, real time).
-        #[arg(long)]
-        time_scale: Option<f64>,
-    },
+    Sim(gonio_sim::cli::ServeArgs),
 }
 
 #[derive(Subcommand)]
@@ -137,22 +127,14 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 json,
             } => instrument_cmd::check(&config, connect, sim.as_deref(), json),
         },
-        Command::Sim {
-            config,
-            seed,
-            time_scale,
-        } => gonio_sim::cli::serve(
-            gonio_sim::cli::ServeArgs {
-                config,
-                seed,
-                time_scale,
-            },
-            &mut std::io::stdin().lock(),
-        )
-        .map_err(|e| match e.exit_code() {
-            2 => CliError::Input(e.to_string()),
-            _ => CliError::Runtime(e.to_string()),
-        }),
+        Command::Sim(args) => {
+            gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
+                match e.exit_code() {
+                    2 => CliError::Input(e.to_string()),
+                    _ => CliError::Runtime(e.to_string()),
+                }
+            })
+        }
     }
 }
 
