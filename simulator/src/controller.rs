@@ -124,7 +124,7 @@ impl Profile {
 
     /// The duration of a move of length `distance` (what `PT` answers).
     pub fn duration_for(distance: f64, v: f64, a: f64) -> f64 {
-        Profile::new(0.0, distance.abs(), 0.0, v, a).duration
+        gonio_core::motion::trapezoid_time(distance, v, a)
     }
 
     /// Position at time `t`.

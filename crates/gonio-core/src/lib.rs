@@ -99,3 +99,40 @@ pub mod text {
         }
     }
 }
+
+/// Point-to-point motion of a stage.
+pub mod motion {
+    /// Duration (s) of a move of `distance` (any sign) for a stage that accelerates at
+    /// `acceleration` up to `velocity`, cruises, and decelerates to rest: a trapezoidal
+    /// velocity profile, or a triangular one when the move is too short to reach
+    /// `velocity` — the profile an SMC100 executes and answers `PT` with.
+    pub fn trapezoid_time(distance: f64, velocity: f64, acceleration: f64) -> f64 {
+        let d = distance.abs();
+        if d == 0.0 {
+            return 0.0;
+        }
+        let ramp = velocity * velocity / acceleration;
+        if d >= ramp {
+            2.0 * velocity / acceleration + (d - ramp) / velocity
+        } else {
+            2.0 * (d / acceleration).sqrt()
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::trapezoid_time;
+
+        #[test]
+        fn trapezoid_and_triangle() {
+            // 20 °/s, 80 °/s²: ramps of 0.25 s and 2.5°; 10° takes 0.75 s.
+            assert!((trapezoid_time(10.0, 20.0, 80.0) - 0.75).abs() < 1e-15);
+            assert!((trapezoid_time(-10.0, 20.0, 80.0) - 0.75).abs() < 1e-15);
+            // 1°: a triangle, 2·√(1/80) s.
+            assert!((trapezoid_time(1.0, 20.0, 80.0) - 2.0 * (1.0f64 / 80.0).sqrt()).abs() < 1e-15);
+            // Continuous where the two meet (5° = v²/a).
+            assert!((trapezoid_time(5.0, 20.0, 80.0) - 0.5).abs() < 1e-15);
+            assert_eq!(trapezoid_time(0.0, 20.0, 80.0), 0.0);
+        }
+    }
+}

@@ -26,6 +26,63 @@ pub struct InstrumentConfig {
     pub motion: MotionConfig,
     /// The SR830 detector.
     pub detector: DetectorConfig,
+    /// How the stages map to directions (needed to acquire).
+    #[serde(default)]
+    pub kinematics: Option<KinematicsConfig>,
+    /// The optical geometry (needed to plan and to reduce readings).
+    #[serde(default)]
+    pub geometry: GeometryConfig,
+}
+
+/// Which layout the stages form and which axis plays each role.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KinematicsConfig {
+    /// The layout (`spherical` or `coplanar-arms`, see `gonio_core::kinematics`).
+    pub layout: gonio_core::kinematics::Layout,
+    /// Axis name of each role (`source = "arm1"`); a role not listed is played by the
+    /// axis of the same name.
+    #[serde(default)]
+    pub axes: std::collections::BTreeMap<String, String>,
+}
+
+impl KinematicsConfig {
+    /// The axis name of each of the layout's four roles, in role order.
+    pub fn role_axes(&self) -> [String; 4] {
+        self.layout
+            .roles()
+            .map(|r| self.axes.get(r).cloned().unwrap_or_else(|| r.to_string()))
+    }
+}
+
+/// The geometry of the light path: what limits which configurations can be measured,
+/// and what turns detector signals into BRDF values.
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeometryConfig {
+    /// Closest the source and detector may come, as seen from the sample, before the
+    /// detector arm blocks the beam, degrees.
+    pub min_arm_separation_deg: f64,
+    /// Beam diameter at the sample, m.
+    pub beam_diameter_m: f64,
+    /// Sample length along the plane of incidence, m.
+    pub sample_length_m: f64,
+    /// Detector aperture radius, m.
+    pub detector_radius_m: f64,
+    /// Sample-to-aperture distance, m.
+    pub detector_distance_m: f64,
+}
+
+impl Default for GeometryConfig {
+    fn default() -> Self {
+        GeometryConfig {
+            min_arm_separation_deg: 8.0,
+            beam_diameter_m: 0.005,
+            sample_length_m: 0.05,
+            detector_radius_m: 0.005,
+            detector_distance_m: 0.3,
+        }
+    }
 }
 
 /// The serial line of the SMC100 chain and its axes.
@@ -305,6 +362,38 @@ impl InstrumentConfig {
                     format!("repeats the address of motion.axes[{j}]"),
                 ));
             }
+        }
+        if let Some(k) = &self.kinematics {
+            for role in k.axes.keys() {
+                if !k.layout.roles().contains(&role.as_str()) {
+                    return Err((
+                        format!("kinematics.axes.{role}"),
+                        format!("not a role of this layout ({})", k.layout.roles().join(", ")),
+                    ));
+                }
+            }
+            for (role, axis) in k.layout.roles().iter().zip(k.role_axes()) {
+                if !m.axes.iter().any(|a| a.name == axis) {
+                    return Err((
+                        format!("kinematics.axes.{role}"),
+                        format!("no axis named {axis:?} in motion.axes"),
+                    ));
+                }
+            }
+        }
+        let g = &self.geometry;
+        for (f, v) in [
+            ("beam_diameter_m", g.beam_diameter_m),
+            ("sample_length_m", g.sample_length_m),
+            ("detector_radius_m", g.detector_radius_m),
+            ("detector_distance_m", g.detector_distance_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return err(format!("geometry.{f}"), "must be positive");
+            }
+        }
+        if !(g.min_arm_separation_deg.is_finite() && (0.0..180.0).contains(&g.min_arm_separation_deg)) {
+            return err("geometry.min_arm_separation_deg".into(), "must be in [0, 180)");
         }
         let d = &self.detector;
         if d.port.trim().is_empty() {
