@@ -267,6 +267,7 @@ pub struct Smc100Chain<T: Transport, C: Clock> {
     policy: ChainPolicy,
     abort: AbortFlag,
     buf: Vec<u8>,
+    retried: u64,
 }
 
 impl<T: Transport, C: Clock> std::fmt::Debug for Smc100Chain<T, C> {
@@ -323,12 +324,19 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
             policy,
             abort: AbortFlag::new(),
             buf: Vec::with_capacity(32),
+            retried: 0,
         })
     }
 
     /// The flag that aborts waits; clone it to raise it from elsewhere.
     pub fn abort_flag(&self) -> AbortFlag {
         self.abort.clone()
+    }
+
+    /// Exchanges sent again after a lost, late or garbled reply since the chain was
+    /// built: what a run log reports as retries.
+    pub fn retried(&self) -> u64 {
+        self.retried
     }
 
     /// The axes, in configuration order.
@@ -431,7 +439,10 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         let frame = Frame::addressed(self.axes[i].address, command);
         let attempts = if retry { self.policy.retries + 1 } else { 1 };
         let mut last = None;
-        for _ in 0..attempts {
+        for attempt in 0..attempts {
+            if attempt > 0 {
+                self.retried += 1;
+            }
             self.send_frame(&frame)?;
             match self.read_reply(&frame) {
                 Ok(b) => return Ok(b),
@@ -460,6 +471,9 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         };
         let mut last = None;
         for attempt in 0..attempts {
+            if attempt > 0 {
+                self.retried += 1;
+            }
             self.send_frame(&frame)?;
             match self.query(i, Command::TellError, false) {
                 Ok(ReplyBody::Error(ErrorCode::None)) => return Ok(()),

@@ -415,6 +415,7 @@ pub struct Sr830<T: Transport, C: Clock> {
     /// Clock time from which readings are trustworthy.
     settled_at: Duration,
     reconnects: usize,
+    retried: u64,
     identity: Option<Identity>,
 }
 
@@ -433,6 +434,7 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
             config,
             settled_at,
             reconnects: 0,
+            retried: 0,
             identity: None,
         })
     }
@@ -518,7 +520,10 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         loop {
             match self.lia_status() {
                 Ok(_) => break,
-                Err(e) if left > 0 && is_transient(&e) => left -= 1,
+                Err(e) if left > 0 && is_transient(&e) => {
+                    left -= 1;
+                    self.retried += 1;
+                }
                 Err(e) => return Err(e),
             }
         }
@@ -541,7 +546,10 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         // cleared them), and the cycle starts again.
         let status = match self.lia_status() {
             Ok(s) => s,
-            Err(e) if self.config.retries > 0 && is_transient(&e) => return Ok(None),
+            Err(e) if self.config.retries > 0 && is_transient(&e) => {
+                self.retried += 1;
+                return Ok(None);
+            }
             Err(e) => return Err(e),
         };
         if self.reconnects != start {
@@ -633,6 +641,7 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
                     let _ = self.transport.clear_input();
                     if retries > 0 && is_transient(&e) {
                         retries -= 1;
+                        self.retried += 1;
                         continue;
                     }
                     return Err(e);
@@ -796,6 +805,12 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
     /// How many times the port was reopened.
     pub fn reconnects(&self) -> usize {
         self.reconnects
+    }
+
+    /// Queries asked again (or read cycles restarted) after a lost, late or garbled
+    /// reply: what a run log reports as retries.
+    pub fn retried(&self) -> u64 {
+        self.retried
     }
 
     /// Hands back the transport and the clock.

@@ -177,6 +177,7 @@ fn no_reply_times_out_after_retries() {
         AxisError::Transport(TransportError::Timeout(Duration::from_millis(100)))
     );
     assert_eq!(clock.now(), Duration::from_millis(300));
+    assert_eq!(c.retried(), 2);
     finish(c, &h);
 }
 
@@ -195,6 +196,7 @@ fn garbage_and_truncated_replies_are_retried() {
     h.exchange("1TP\r\n", "#garbage\r\n")
         .exchange("1TP\r\n", "1TP-3.25\r\n");
     assert_eq!(c.position("source").expect("second try"), -3.25);
+    assert_eq!(c.retried(), 3);
     finish(c, &h);
 }
 

@@ -619,6 +619,7 @@ fn read_only_queries_are_retried_status_bytes_are_not() {
     h.exchange("LIAS?\n", "0\r");
     let r = d.read().unwrap();
     assert_four(&r);
+    assert_eq!(d.retried(), 2);
     h.finish().unwrap();
 
     // The flags' answer is lost: the cycle starts again, and the flag it then reports
@@ -629,6 +630,7 @@ fn read_only_queries_are_retried_status_bytes_are_not() {
     script_cycle(&h, &FOUR, 8);
     let r = d.read().unwrap();
     assert!(r.flags.unlock && !r.is_valid());
+    assert_eq!(d.retried(), 1);
     h.finish().unwrap();
 }
 
