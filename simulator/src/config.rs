@@ -96,22 +96,16 @@ pub struct SimConfig {
     /// Serial timing.
     #[serde(default)]
     pub link: LinkConfig,
-    /// Where the file was read from (to resolve relative paths).
+    /// The file it was read from (names it in errors; anchors relative paths).
     #[serde(skip)]
-    pub base_dir: Option<PathBuf>,
+    pub source: Option<PathBuf>,
 }
 
-/// A sim config that could not be used.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("{location}: {}{message}", field.as_ref().map(|f| format!("field `{f}`: ")).unwrap_or_default())]
-pub struct SimConfigError {
-    /// `file:line:col`, or the file alone.
-    pub location: String,
-    /// The field at fault.
-    pub field: Option<String>,
-    /// What is wrong.
-    pub message: String,
-}
+/// A sim config that could not be used, with where and why.
+pub type SimConfigError = gonio_core::tomlfile::FileError;
+
+/// The kind of file, for errors about unnamed text.
+const KIND: &str = "sim config";
 
 impl SimConfig {
     /// The embedded default (`config/sim-example.toml`).
@@ -121,37 +115,15 @@ impl SimConfig {
 
     /// Parses a config's text; `path` labels errors and anchors relative paths.
     pub fn from_toml(text: &str, path: Option<&Path>) -> Result<SimConfig, SimConfigError> {
-        let name = path.map_or("<sim config>".to_string(), |p| p.display().to_string());
-        let mut cfg: SimConfig = toml::from_str(text).map_err(|e| {
-            let loc = match e.span() {
-                Some(s) => {
-                    let (l, c) = gonio_core::text::line_col(text, s.start);
-                    format!("{name}:{l}:{c}")
-                }
-                None => name.clone(),
-            };
-            SimConfigError {
-                location: loc,
-                field: None,
-                message: e.message().trim().to_string(),
-            }
-        })?;
-        cfg.base_dir = path.and_then(|p| p.parent().map(Path::to_path_buf));
-        cfg.validate().map_err(|(field, message)| SimConfigError {
-            location: name,
-            field: Some(field),
-            message,
-        })?;
+        let mut cfg: SimConfig = gonio_core::tomlfile::parse(KIND, text, path, Self::validate)?;
+        cfg.source = path.map(Path::to_path_buf);
         Ok(cfg)
     }
 
     /// Reads a config file.
     pub fn load(path: &Path) -> Result<SimConfig, SimConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SimConfigError {
-            location: path.display().to_string(),
-            field: None,
-            message: e.to_string(),
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SimConfigError::whole(KIND, Some(path), e.to_string()))?;
         Self::from_toml(&text, Some(path))
     }
 
@@ -266,21 +238,17 @@ impl SimConfig {
     pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
         let model = match &self.sample.model {
             Some(p) => {
-                let path = match &self.base_dir {
+                let path = match self.source.as_deref().and_then(Path::parent) {
                     Some(b) if p.is_relative() => b.join(p),
                     _ => p.clone(),
                 };
                 Model::load(&path).map_err(|e| SimConfigError {
-                    location: path.display().to_string(),
                     field: Some("sample.model".into()),
-                    message: e.to_string(),
+                    ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
                 })?
             }
-            None => Model::from_toml(BLUE_PAINT, None).map_err(|e| SimConfigError {
-                location: "<embedded blue paint>".into(),
-                field: None,
-                message: e.to_string(),
-            })?,
+            None => Model::from_toml(BLUE_PAINT, None)
+                .map_err(|e| SimConfigError::whole("embedded blue paint", None, e.to_string()))?,
         };
         let channel = match &self.sample.channel {
             None => 0,
@@ -288,9 +256,12 @@ impl SimConfig {
                 .channels()
                 .index_of(name)
                 .ok_or_else(|| SimConfigError {
-                    location: "<sim config>".into(),
                     field: Some("sample.channel".into()),
-                    message: format!("the sample has channels {}, not {name:?}", model.channels()),
+                    ..SimConfigError::whole(
+                        KIND,
+                        self.source.as_deref(),
+                        format!("the sample has channels {}, not {name:?}", model.channels()),
+                    )
                 })?,
         };
         Ok((Box::new(model), channel))

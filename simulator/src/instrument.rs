@@ -70,9 +70,8 @@ impl SimInstrument {
         let addrs = cfg
             .role_addresses()
             .map_err(|(field, message)| SimConfigError {
-                location: "<sim config>".into(),
                 field: Some(field),
-                message,
+                ..SimConfigError::whole("sim config", None, message)
             })?;
         let mut sorted = addrs;
         sorted.sort_unstable();

@@ -23,7 +23,8 @@
 //! assert!((back.theta_deg - 30.0).abs() < 1e-12 && (back.phi_deg - 180.0).abs() < 1e-12);
 //! ```
 //!
-//! This crate has no I/O beyond parsing text it is handed, and no randomness.
+//! This crate has no I/O beyond reading the input files it is asked to parse, and no
+//! randomness.
 
 mod channels;
 pub mod dirfile;
@@ -33,6 +34,7 @@ pub mod kinematics;
 pub mod quad;
 pub mod radiometry;
 pub mod special;
+pub mod tomlfile;
 mod vec3;
 
 pub use channels::{ChannelError, Channels, Spectrum};

@@ -2,14 +2,10 @@
 //! detector settings. Read strictly (unknown keys are errors) and validated whole
 //! before any port is opened; errors name the file, line and field.
 
-use std::fmt;
-use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use serde::Deserialize;
-use toml::Spanned;
-use toml::de::{DeTable, DeValue};
 
 use crate::smc100::{AxisConfig, ChainPolicy};
 use crate::sr830::Sr830Config;
@@ -201,109 +197,26 @@ impl DetectorConfig {
 }
 
 /// An instrument config that could not be used, with where and why.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ConfigFileError {
-    /// The file, when known.
-    pub path: Option<PathBuf>,
-    /// 1-based line, when the fault has a place.
-    pub line: Option<usize>,
-    /// 1-based column, when the fault has a place.
-    pub column: Option<usize>,
-    /// The field at fault (`motion.axes[1].max`), when there is one.
-    pub field: Option<String>,
-    /// What is wrong.
-    pub message: String,
-}
+pub type ConfigFileError = gonio_core::tomlfile::FileError;
 
-impl fmt::Display for ConfigFileError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        gonio_core::text::write_located(
-            f,
-            self.path.as_deref(),
-            "<instrument config>",
-            self.line,
-            self.column,
-            self.field.as_deref(),
-            &self.message,
-        )
-    }
-}
-
-impl std::error::Error for ConfigFileError {}
-
-/// The byte range of the value at `path` (`motion.axes[1].max`) in a TOML document.
-fn locate(text: &str, path: &str) -> Option<Range<usize>> {
-    let doc: Spanned<DeTable> = DeTable::parse(text).ok()?;
-    let mut span = doc.span();
-    let mut table: Option<&DeTable> = Some(doc.get_ref());
-    let mut value: Option<&Spanned<DeValue>> = None;
-    for part in path.split('.') {
-        let (key, index) = match part.find('[') {
-            Some(b) => (
-                &part[..b],
-                part[b + 1..part.len() - 1].parse::<usize>().ok(),
-            ),
-            None => (part, None),
-        };
-        let t = match value {
-            Some(v) => match v.get_ref() {
-                DeValue::Table(t) => t,
-                _ => return Some(span),
-            },
-            None => table?,
-        };
-        let Some((_, v)) = t.iter().find(|(k, _)| k.get_ref().as_ref() == key) else {
-            return Some(span);
-        };
-        span = v.span();
-        value = Some(v);
-        table = None;
-        if let (Some(i), DeValue::Array(a)) = (index, v.get_ref())
-            && let Some(item) = a.get(i)
-        {
-            span = item.span();
-            value = Some(item);
-        }
-    }
-    Some(span)
-}
+/// The kind of file, for errors about unnamed text.
+const KIND: &str = "instrument config";
 
 impl InstrumentConfig {
     /// Parses and validates a config's text; `path` only labels errors.
     pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Self, ConfigFileError> {
-        let at = |span: Option<Range<usize>>, field: Option<String>, message: String| {
-            let (line, column) = match span {
-                Some(s) => {
-                    let (l, c) = gonio_core::text::line_col(text, s.start);
-                    (Some(l), Some(c))
-                }
-                None => (None, None),
-            };
-            ConfigFileError {
-                path: path.map(Path::to_path_buf),
-                line,
-                column,
-                field,
-                message,
-            }
-        };
-        let cfg: InstrumentConfig =
-            toml::from_str(text).map_err(|e| at(e.span(), None, e.message().trim().to_string()))?;
-        cfg.validate()
-            .map_err(|(field, message)| at(locate(text, &field), Some(field), message))?;
-        Ok(cfg)
+        gonio_core::tomlfile::parse(KIND, text, path, Self::validate)
     }
 
     /// Reads and validates a config file.
     pub fn load(path: &Path) -> Result<Self, ConfigFileError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigFileError {
-            path: Some(path.to_path_buf()),
-            line: None,
-            column: None,
-            field: None,
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, Some(path))
+        Ok(Self::load_with_text(path)?.0)
+    }
+
+    /// Reads and validates a config file; also returns its text, which run files keep
+    /// verbatim.
+    pub fn load_with_text(path: &Path) -> Result<(Self, String), ConfigFileError> {
+        gonio_core::tomlfile::load(KIND, path, Self::validate)
     }
 
     /// Checks every value a driver will rely on; the first bad one is named by its path.
@@ -368,7 +281,10 @@ impl InstrumentConfig {
                 if !k.layout.roles().contains(&role.as_str()) {
                     return Err((
                         format!("kinematics.axes.{role}"),
-                        format!("not a role of this layout ({})", k.layout.roles().join(", ")),
+                        format!(
+                            "not a role of this layout ({})",
+                            k.layout.roles().join(", ")
+                        ),
                     ));
                 }
             }
@@ -392,8 +308,13 @@ impl InstrumentConfig {
                 return err(format!("geometry.{f}"), "must be positive");
             }
         }
-        if !(g.min_arm_separation_deg.is_finite() && (0.0..180.0).contains(&g.min_arm_separation_deg)) {
-            return err("geometry.min_arm_separation_deg".into(), "must be in [0, 180)");
+        if !(g.min_arm_separation_deg.is_finite()
+            && (0.0..180.0).contains(&g.min_arm_separation_deg))
+        {
+            return err(
+                "geometry.min_arm_separation_deg".into(),
+                "must be in [0, 180)",
+            );
         }
         let d = &self.detector;
         if d.port.trim().is_empty() {

@@ -1,0 +1,214 @@
+//! Strict TOML input files (instrument configs, plans, simulator configs): parse,
+//! validate whole, and report the first fault as `FILE:LINE:COL: field `NAME`: why`.
+//!
+//! Validation functions name a fault by its dotted field path (`motion.axes[1].max`);
+//! [`span_of`] turns that path back into the place in the text, so that every input
+//! error points at the line to fix.
+
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+/// An input file that could not be used, with where and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileError {
+    /// What kind of file (`instrument config`, `plan`), for an unnamed text.
+    pub kind: &'static str,
+    /// The file, when known.
+    pub path: Option<PathBuf>,
+    /// 1-based line, when the fault has a place.
+    pub line: Option<usize>,
+    /// 1-based column, when the fault has a place.
+    pub column: Option<usize>,
+    /// The field at fault (`motion.axes[1].max`), when there is one.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl FileError {
+    /// A fault with the file as a whole (unreadable, missing).
+    pub fn whole(kind: &'static str, path: Option<&Path>, message: impl Into<String>) -> Self {
+        FileError {
+            kind,
+            path: path.map(Path::to_path_buf),
+            line: None,
+            column: None,
+            field: None,
+            message: message.into(),
+        }
+    }
+
+    /// A fault at `field` of `text`, located by [`span_of`].
+    pub fn at_field(
+        kind: &'static str,
+        path: Option<&Path>,
+        text: &str,
+        field: String,
+        message: impl Into<String>,
+    ) -> Self {
+        let mut e = Self::whole(kind, path, message);
+        if let Some(s) = span_of(text, &field) {
+            let (l, c) = crate::text::line_col(text, s.start);
+            e.line = Some(l);
+            e.column = Some(c);
+        }
+        e.field = Some(field);
+        e
+    }
+}
+
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let unnamed = format!("<{}>", self.kind);
+        crate::text::write_located(
+            f,
+            self.path.as_deref(),
+            &unnamed,
+            self.line,
+            self.column,
+            self.field.as_deref(),
+            &self.message,
+        )
+    }
+}
+
+impl std::error::Error for FileError {}
+
+/// Parses `text` as a `T` (unknown keys are errors when `T` denies them), then runs
+/// `validate`, whose `Err((field, message))` is located in the text. `path` only
+/// labels errors.
+pub fn parse<T: DeserializeOwned>(
+    kind: &'static str,
+    text: &str,
+    path: Option<&Path>,
+    validate: impl FnOnce(&T) -> Result<(), (String, String)>,
+) -> Result<T, FileError> {
+    let value: T = toml::from_str(text).map_err(|e| {
+        let mut err = FileError::whole(kind, path, e.message().trim());
+        if let Some(s) = e.span() {
+            let (l, c) = crate::text::line_col(text, s.start);
+            err.line = Some(l);
+            err.column = Some(c);
+        }
+        err
+    })?;
+    validate(&value)
+        .map_err(|(field, message)| FileError::at_field(kind, path, text, field, message))?;
+    Ok(value)
+}
+
+/// Reads the file at `path` and [`parse`]s it; also returns the text (run files keep
+/// configs verbatim).
+pub fn load<T: DeserializeOwned>(
+    kind: &'static str,
+    path: &Path,
+    validate: impl FnOnce(&T) -> Result<(), (String, String)>,
+) -> Result<(T, String), FileError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| FileError::whole(kind, Some(path), e.to_string()))?;
+    let value = parse(kind, &text, Some(path), validate)?;
+    Ok((value, text))
+}
+
+/// The byte range of the value at a dotted `path` (`motion.axes[1].max`) in a TOML
+/// document: the deepest part of the path that exists (the whole document if none
+/// does), `None` if the text is not TOML.
+pub fn span_of(text: &str, path: &str) -> Option<Range<usize>> {
+    let doc: Spanned<DeTable> = DeTable::parse(text).ok()?;
+    let mut span = doc.span();
+    let mut table: Option<&DeTable> = Some(doc.get_ref());
+    let mut value: Option<&Spanned<DeValue>> = None;
+    for part in path.split('.') {
+        let (key, index) = match part.find('[') {
+            Some(b) => (
+                &part[..b],
+                part[b + 1..part.len().saturating_sub(1).max(b + 1)]
+                    .parse::<usize>()
+                    .ok(),
+            ),
+            None => (part, None),
+        };
+        let t = match value {
+            Some(v) => match v.get_ref() {
+                DeValue::Table(t) => t,
+                _ => return Some(span),
+            },
+            None => table?,
+        };
+        let Some((_, v)) = t.iter().find(|(k, _)| k.get_ref().as_ref() == key) else {
+            return Some(span);
+        };
+        span = v.span();
+        value = Some(v);
+        table = None;
+        if let (Some(i), DeValue::Array(a)) = (index, v.get_ref())
+            && let Some(item) = a.get(i)
+        {
+            span = item.span();
+            value = Some(item);
+        }
+    }
+    Some(span)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Doc {
+        a: f64,
+        #[serde(default)]
+        items: Vec<Item>,
+    }
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Item {
+        x: f64,
+    }
+
+    const TEXT: &str = "a = 1.0\n\n[[items]]\nx = 2.0\n\n[[items]]\nx = -3.0\n";
+
+    #[test]
+    fn validation_faults_point_at_the_field() {
+        let e = parse::<Doc>("plan", TEXT, Some(Path::new("p.toml")), |d| {
+            if d.a != 1.0 {
+                return Err(("a".into(), "misread".into()));
+            }
+            match d.items.iter().position(|i| i.x < 0.0) {
+                Some(k) => Err((format!("items[{k}].x"), "must not be negative".into())),
+                None => Ok(()),
+            }
+        })
+        .expect_err("x < 0");
+        assert_eq!(
+            e.to_string(),
+            "p.toml:7:5: field `items[1].x`: must not be negative"
+        );
+    }
+
+    #[test]
+    fn syntax_and_unknown_keys_are_located() {
+        let e = parse::<Doc>("plan", "a = 1.0\nb = 2\n", None, |_| Ok(())).expect_err("b");
+        assert_eq!((e.line, e.column), (Some(2), Some(1)));
+        assert!(
+            e.to_string().starts_with("<plan>:2:1: unknown field `b`"),
+            "{e}"
+        );
+        let e = parse::<Doc>("plan", "a = \n", None, |_| Ok(())).expect_err("syntax");
+        assert_eq!(e.line, Some(1));
+    }
+
+    #[test]
+    fn missing_parts_of_a_path_fall_back_to_the_deepest_found() {
+        let s = span_of(TEXT, "items[1].y").expect("toml");
+        assert_eq!(crate::text::line_col(TEXT, s.start).0, 6);
+        assert!(span_of("= nonsense", "a").is_none());
+    }
+}
