@@ -18,7 +18,16 @@ use crate::config::{SimConfig, SimConfigError};
 use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
 use crate::lockin::LockIn;
-use crate::optics::Optics;
+use crate::optics::{LightPath, Optics};
+use gonio_brdf::Brdf;
+
+/// SplitMix64's finaliser: a bijective mix of a 64-bit word.
+fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
 
 /// Counters of what the simulator did.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -52,6 +61,7 @@ pub struct SimInstrument {
     last_sync: f64,
     link: crate::config::LinkConfig,
     stats: SimStats,
+    seed: u64,
 }
 
 impl std::fmt::Debug for SimInstrument {
@@ -98,6 +108,7 @@ impl SimInstrument {
             last_sync: 0.0,
             link: cfg.link.clone(),
             stats: SimStats::default(),
+            seed: cfg.seed,
         })
     }
 
@@ -114,6 +125,34 @@ impl SimInstrument {
     /// The optics.
     pub fn optics(&self) -> &Optics {
         &self.optics
+    }
+
+    /// Sets what is in the light path from now on (a calibration's set-up).
+    pub fn set_light_path(&mut self, path: LightPath) {
+        let now = self.clock.seconds();
+        self.sync(now);
+        self.optics.set_light_path(path);
+        self.sync(now);
+    }
+
+    /// Mounts another sample (a reference standard) from now on; returns the one
+    /// taken off and its channel.
+    pub fn swap_sample(&mut self, sample: Box<dyn Brdf>, channel: usize) -> (Box<dyn Brdf>, usize) {
+        let now = self.clock.seconds();
+        self.sync(now);
+        let old = self.optics.swap_sample(sample, channel);
+        self.sync(now);
+        old
+    }
+
+    /// The stages are at the point identified by `key`: restart the lock-in's filters
+    /// and noise (see [`LockIn::restart`]) from a seed that depends only on the
+    /// config's seed and `key`, so the point reads the same however the run got there.
+    pub fn begin_point(&mut self, key: u64) {
+        let now = self.clock.seconds();
+        self.sync(now);
+        self.lockin
+            .restart(now, splitmix64(self.seed ^ splitmix64(key)));
     }
 
     /// The lock-in.

@@ -29,6 +29,7 @@ pub use clock::SimClock;
 pub use config::{SimConfig, SimConfigError};
 pub use faults::{FaultConfig, Port};
 pub use instrument::{SimInstrument, SimStats};
+pub use optics::LightPath;
 pub use pty::PtySim;
 pub use transport::{SharedSim, SimTransport, lock};
 

@@ -359,6 +359,28 @@ impl LockIn {
         self.latch();
     }
 
+    /// Starts a measurement afresh at `now_s`: the filters as if settled on the
+    /// present input, the noise redrawn from its stationary law with a generator
+    /// seeded by `seed`.
+    ///
+    /// An idealisation for reproducibility: a real lock-in keeps a residue of its
+    /// history (the driver waits until it is below `settle_residual`); here a reading
+    /// depends only on where it is taken and on `seed`, so a run resumed after a kill
+    /// reads exactly what the uninterrupted run read.
+    pub fn restart(&mut self, now_s: f64, seed: u64) {
+        self.advance(now_s);
+        let (ux, uy) = self.filter_input();
+        self.x_stages = [ux; STAGES];
+        self.y_stages = [uy; STAGES];
+        self.rng = ChaCha8Rng::seed_from_u64(seed);
+        let sigma = self.noise_sigma();
+        for k in 0..2 {
+            let xi: f64 = self.rng.sample(StandardNormal);
+            self.noise[k] = sigma * xi;
+        }
+        self.latch();
+    }
+
     /// Fault: reference unlock. LIAS bit 3 latches at once and at every event while on;
     /// the signal is not demodulated meanwhile. There is no time argument: the change
     /// applies from the last event (call [`set_input`](Self::set_input) first to make

@@ -42,6 +42,9 @@ pub struct OpticsConfig {
     pub drift_amplitude: f64,
     /// Period of that drift, s.
     pub drift_period_s: f64,
+    /// Electrical pickup at the chopper frequency, V: present with the source dark,
+    /// what a dark reading measures and the reduction subtracts.
+    pub pickup_v: f64,
 }
 
 impl Default for OpticsConfig {
@@ -59,6 +62,7 @@ impl Default for OpticsConfig {
             drift_per_hour: 0.0,
             drift_amplitude: 0.0,
             drift_period_s: 600.0,
+            pickup_v: 0.0,
         }
     }
 }
@@ -76,11 +80,28 @@ pub enum Geometry {
     Overfilled,
 }
 
+/// What is in the light path: the state a bench (an operator, or the simulator's
+/// automation) sets for calibrations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightPath {
+    /// Source on, sample mounted: a BRDF measurement.
+    Sample,
+    /// Source blocked: only pickup and noise reach the detector.
+    Dark,
+    /// Sample removed, the beam through a neutral density filter of this
+    /// transmittance straight into the detector (when the detector faces the source).
+    Incident {
+        /// Filter transmittance, in (0, 1].
+        transmittance: f64,
+    },
+}
+
 /// The optics with a sample in place.
 pub struct Optics {
     cfg: OpticsConfig,
     sample: Box<dyn Brdf>,
     channel: usize,
+    path: LightPath,
     omega: f64,
     /// Gauss–Legendre-on-a-disc points (unit disc) with weights summing to 1.
     disc: Vec<(f64, f64, f64)>,
@@ -108,6 +129,7 @@ impl Optics {
             cfg,
             sample,
             channel,
+            path: LightPath::Sample,
             omega,
             disc: disc_rule(),
         }
@@ -131,6 +153,42 @@ impl Optics {
     /// The measured channel.
     pub fn channel(&self) -> usize {
         self.channel
+    }
+
+    /// Mounts another sample (a reference standard) measured in its channel
+    /// `channel`; returns the one taken off and its channel.
+    pub fn swap_sample(&mut self, sample: Box<dyn Brdf>, channel: usize) -> (Box<dyn Brdf>, usize) {
+        let old = std::mem::replace(&mut self.sample, sample);
+        let old_channel = std::mem::replace(&mut self.channel, channel);
+        (old, old_channel)
+    }
+
+    /// What is in the light path.
+    pub fn light_path(&self) -> LightPath {
+        self.path
+    }
+
+    /// Sets what is in the light path.
+    pub fn set_light_path(&mut self, path: LightPath) {
+        self.path = path;
+    }
+
+    /// The direct beam on the detector with the sample removed, V: all of it (through
+    /// the filter) when the detector's axis is within its aperture's half-angle of the
+    /// beam's axis, scaled by the aperture's share of a wider beam.
+    fn direct_beam(&self, t: f64, pair: DirPair, transmittance: f64) -> f64 {
+        let half_angle = self
+            .cfg
+            .detector_radius_m
+            .atan2(self.cfg.detector_distance_m);
+        // The beam leaves the source along −wi: the detector must sit opposite it.
+        if std::f64::consts::PI - pair.wo.angle_to(pair.wi) > half_angle {
+            return 0.0;
+        }
+        let share = (2.0 * self.cfg.detector_radius_m / self.cfg.beam_diameter_m)
+            .powi(2)
+            .min(1.0);
+        self.cfg.responsivity_v_per_w * self.source_power(t) * transmittance * share
     }
 
     /// Source power at physical time `t` (drift included), W.
@@ -175,8 +233,19 @@ impl Optics {
         buf[self.channel] * wo.z
     }
 
-    /// The detector signal, V, at physical time `t` for directions `pair`.
+    /// The detector signal, V, at physical time `t` for directions `pair`, in the
+    /// current light path (pickup included).
     pub fn signal(&self, t: f64, pair: DirPair) -> f64 {
+        self.cfg.pickup_v
+            + match self.path {
+                LightPath::Sample => self.reflected(t, pair),
+                LightPath::Dark => 0.0,
+                LightPath::Incident { transmittance } => self.direct_beam(t, pair, transmittance),
+            }
+    }
+
+    /// The light the sample reflects into the detector, V.
+    fn reflected(&self, t: f64, pair: DirPair) -> f64 {
         match self.geometry(pair) {
             Geometry::BelowHorizon | Geometry::Shadowed => return 0.0,
             Geometry::Clear | Geometry::Overfilled => {}

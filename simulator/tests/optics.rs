@@ -4,7 +4,7 @@
 use gonio_brdf::{Brdf, Model};
 use gonio_core::radiometry::Aperture;
 use gonio_core::{Dir, DirPair, SphericalDeg};
-use gonio_sim::optics::{Geometry, Optics, OpticsConfig};
+use gonio_sim::optics::{Geometry, LightPath, Optics, OpticsConfig};
 
 fn deg(t: f64, p: f64) -> Dir {
     Dir::from(SphericalDeg::new(t, p))
@@ -139,4 +139,53 @@ fn source_drifts() {
     assert!((o.source_power(3600.0) - 1.01e-3).abs() < 1e-15);
     // A quarter period in: the periodic term at its peak.
     assert!((o.source_power(150.0) - 1e-3 * (1.0 + 0.01 * 150.0 / 3600.0 + 0.002)).abs() < 1e-15);
+}
+
+/// The light paths of the calibrations: dark leaves only pickup; the incident beam
+/// through its filter reaches the detector only when it faces the source, and then
+/// all of it (the 10 mm aperture takes the whole 5 mm beam).
+#[test]
+fn calibration_light_paths() {
+    let cfg = OpticsConfig {
+        pickup_v: 2e-6,
+        ..OpticsConfig::default()
+    };
+    let mut o = Optics::new(cfg, lambert(), 0);
+    let pair = DirPair::new(deg(30.0, 0.0), deg(45.0, 180.0));
+    let sample = o.signal(0.0, pair);
+    assert!(sample > 1e-4, "pickup and reflection: {sample}");
+    o.set_light_path(LightPath::Dark);
+    assert_eq!(o.signal(0.0, pair), 2e-6);
+    o.set_light_path(LightPath::Incident {
+        transmittance: 1e-3,
+    });
+    // Sample removed: reflection is gone, the beam misses this detector position.
+    assert_eq!(o.signal(0.0, pair), 2e-6);
+    // Detector opposite the source (wo = −wi, below the sample plane).
+    let wi = deg(60.0, 0.0);
+    let opposite = Dir::new(-wi.vec()).expect("unit");
+    let direct = o.signal(0.0, DirPair::new(wi, opposite));
+    assert!(
+        (direct - (2e-6 + 1e4 * 1e-3 * 1e-3)).abs() < 1e-15,
+        "{direct}"
+    );
+    // 1° off the beam's axis is outside the 0.95° half-angle of the aperture.
+    let off = Dir::from(SphericalDeg::new(121.0, 180.0));
+    assert_eq!(o.signal(0.0, DirPair::new(wi, off)), 2e-6);
+    o.set_light_path(LightPath::Sample);
+    assert_eq!(o.signal(0.0, pair), sample);
+}
+
+/// A reference standard swapped in is measured, and the sample comes back.
+#[test]
+fn swapping_the_sample() {
+    let mut o = Optics::new(OpticsConfig::default(), glossy(), 0);
+    let pair = DirPair::new(deg(30.0, 0.0), deg(30.0, 180.0));
+    let glossy_v = o.signal(0.0, pair);
+    let (old, ch) = o.swap_sample(lambert(), 0);
+    let omega = o.solid_angle_sr();
+    let want = 1e4 * 1e-3 * (0.8 / std::f64::consts::PI) * 30f64.to_radians().cos() * omega;
+    assert!((o.signal(0.0, pair) - want).abs() < 1e-15);
+    o.swap_sample(old, ch);
+    assert_eq!(o.signal(0.0, pair), glossy_v);
 }
