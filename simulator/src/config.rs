@@ -99,6 +99,10 @@ pub struct SimConfig {
     /// The file it was read from (names it in errors; anchors relative paths).
     #[serde(skip)]
     pub source: Option<PathBuf>,
+    /// The sample model's text, when it comes from elsewhere than `sample.model`
+    /// (a run file, which keeps it verbatim).
+    #[serde(skip)]
+    pub sample_text: Option<String>,
 }
 
 /// A sim config that could not be used, with where and why.
@@ -234,22 +238,39 @@ impl SimConfig {
             })
     }
 
-    /// Loads the sample and finds the measured channel.
-    pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
-        let model = match &self.sample.model {
+    /// The sample's model file, as text: [`sample_text`](Self::sample_text) when
+    /// set, else the file `sample.model` names, else the embedded blue paint.
+    pub fn sample_model_text(&self) -> Result<String, SimConfigError> {
+        if let Some(t) = &self.sample_text {
+            return Ok(t.clone());
+        }
+        match &self.sample.model {
             Some(p) => {
                 let path = match self.source.as_deref().and_then(Path::parent) {
                     Some(b) if p.is_relative() => b.join(p),
                     _ => p.clone(),
                 };
-                Model::load(&path).map_err(|e| SimConfigError {
+                std::fs::read_to_string(&path).map_err(|e| SimConfigError {
                     field: Some("sample.model".into()),
-                    ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
-                })?
+                    ..SimConfigError::whole(
+                        KIND,
+                        self.source.as_deref(),
+                        format!("{}: {e}", path.display()),
+                    )
+                })
             }
-            None => Model::from_toml(BLUE_PAINT, None)
-                .map_err(|e| SimConfigError::whole("embedded blue paint", None, e.to_string()))?,
-        };
+            None => Ok(BLUE_PAINT.to_string()),
+        }
+    }
+
+    /// Loads the sample and finds the measured channel.
+    pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
+        let text = self.sample_model_text()?;
+        let model =
+            Model::from_toml(&text, self.sample.model.as_deref()).map_err(|e| SimConfigError {
+                field: Some("sample.model".into()),
+                ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
+            })?;
         let channel = match &self.sample.channel {
             None => 0,
             Some(name) => model

@@ -135,6 +135,16 @@ impl SimInstrument {
         self.sync(now);
     }
 
+    /// Measures the band `name` of the sample from now on (a filter wheel); false
+    /// when the sample has no such channel.
+    pub fn select_channel(&mut self, name: &str) -> bool {
+        let now = self.clock.seconds();
+        self.sync(now);
+        let ok = self.optics.select_channel(name);
+        self.sync(now);
+        ok
+    }
+
     /// Mounts another sample (a reference standard) from now on; returns the one
     /// taken off and its channel.
     pub fn swap_sample(&mut self, sample: Box<dyn Brdf>, channel: usize) -> (Box<dyn Brdf>, usize) {

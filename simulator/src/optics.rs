@@ -163,6 +163,18 @@ impl Optics {
         (old, old_channel)
     }
 
+    /// Measures the sample's channel named `name` from now on; false (and no change)
+    /// when the sample has no such channel.
+    pub fn select_channel(&mut self, name: &str) -> bool {
+        match self.sample.channels().index_of(name) {
+            Some(i) => {
+                self.channel = i;
+                true
+            }
+            None => false,
+        }
+    }
+
     /// What is in the light path.
     pub fn light_path(&self) -> LightPath {
         self.path

@@ -91,6 +91,27 @@ pub struct Sr830Config {
     pub settle_residual: f64,
 }
 
+impl Sr830Config {
+    /// Seconds for the filters at `slope` and `tc` to settle within
+    /// `settle_residual` of a step: the manual's rounded table at its own 1 %, the
+    /// exact cascade otherwise.
+    pub fn settle_seconds(&self, slope: FilterSlope, tc: TimeConstant) -> f64 {
+        let factor = if self.settle_residual == 0.01 {
+            slope.settle_factor()
+        } else {
+            slope.settle_factor_for(self.settle_residual)
+        };
+        factor * tc.seconds()
+    }
+
+    /// Seconds one settled reading takes after a move, serial traffic aside: the
+    /// settling wait and `samples` snapshots one time constant apart.
+    pub fn reading_seconds(&self) -> f64 {
+        self.settle_seconds(self.slope, self.time_constant)
+            + (self.samples.saturating_sub(1)) as f64 * self.time_constant.seconds()
+    }
+}
+
 impl Default for Sr830Config {
     /// The `*RST` filter settings (1 V, 100 ms, 12 dB/oct; manual p. 4-4), 10 samples,
     /// autorange on at 0.1 of full scale, 1 s reply timeout, 3 reconnections 1 s apart,
@@ -744,15 +765,10 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         })
     }
 
-    /// Settling time to 99 % at the current time constant and slope.
+    /// Settling time at the current time constant and slope, to the config's
+    /// `settle_residual`.
     pub fn settle_time(&self) -> Duration {
-        // The manual's rounded table at its own 1 %, the exact cascade otherwise.
-        let factor = if self.config.settle_residual == 0.01 {
-            self.slope.settle_factor()
-        } else {
-            self.slope.settle_factor_for(self.config.settle_residual)
-        };
-        secs(factor * self.time_constant.seconds())
+        secs(self.config.settle_seconds(self.slope, self.time_constant))
     }
 
     /// The light on the detector changed (a stage moved, a shutter opened): the next

@@ -1,0 +1,181 @@
+//! The bench: what changes in the light path between kinds of readings (blocking
+//! the source, removing the sample, mounting a standard, changing the band). On a
+//! real instrument an operator does it when asked; on the simulator it is automatic.
+
+use std::io::{BufRead, Write};
+
+use crate::schedule::StepKind;
+
+/// What the light path must be for a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Setup {
+    /// The sample in the beam (sample and drift-reference steps).
+    Sample,
+    /// The source blocked.
+    Dark,
+    /// The sample removed, the detector in the beam behind a filter of this
+    /// transmittance.
+    Incident {
+        /// Filter transmittance.
+        transmittance: f64,
+    },
+    /// The reference standard in place of the sample.
+    Standard,
+}
+
+impl Setup {
+    /// The set-up a kind of step needs.
+    pub fn for_kind(kind: StepKind, transmittance: f64) -> Setup {
+        match kind {
+            StepKind::Sample | StepKind::Reference => Setup::Sample,
+            StepKind::Dark => Setup::Dark,
+            StepKind::Incident => Setup::Incident { transmittance },
+            StepKind::Standard => Setup::Standard,
+        }
+    }
+
+    /// What the operator is asked to do.
+    pub fn instruction(self) -> String {
+        match self {
+            Setup::Sample => "mount the sample, unblock the source".into(),
+            Setup::Dark => "block the source beam (shutter closed)".into(),
+            Setup::Incident { transmittance } => format!(
+                "remove the sample and put the neutral density filter of transmittance \
+                 {transmittance} in the beam"
+            ),
+            Setup::Standard => "mount the reference standard in place of the sample".into(),
+        }
+    }
+}
+
+/// Why the bench could not be set up.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BenchError {
+    /// No operator answered (no terminal, end of input).
+    #[error("no operator to {0}")]
+    NoOperator(String),
+    /// The operator declined.
+    #[error("the operator declined to {0}")]
+    Declined(String),
+    /// The bench cannot select this band.
+    #[error("channel {0:?} is not available on this bench")]
+    UnknownChannel(String),
+}
+
+/// Changes the light path between kinds of readings.
+pub trait Bench: Send {
+    /// Puts the light path in `setup` (before the first step that needs it).
+    fn set_up(&mut self, setup: Setup) -> Result<(), BenchError>;
+
+    /// Selects the band `channel` (before the first step in it).
+    fn select_channel(&mut self, channel: &str) -> Result<(), BenchError>;
+
+    /// The stages are at step `step_id` and the detector is about to read: the hook
+    /// where a simulator makes the reading reproducible. Nothing on real hardware.
+    fn at_step(&mut self, step_id: i64) {
+        let _ = step_id;
+    }
+}
+
+/// An operator at a terminal: each change is asked for on `prompt` and confirmed by
+/// a line on `answers` (empty or `y` goes on; `n` or `q` declines; end of input means
+/// nobody is there).
+pub struct OperatorBench<R: BufRead + Send, W: Write + Send> {
+    answers: R,
+    prompt: W,
+}
+
+impl<R: BufRead + Send, W: Write + Send> OperatorBench<R, W> {
+    /// An operator reading from `answers`, asked on `prompt`.
+    pub fn new(answers: R, prompt: W) -> Self {
+        OperatorBench { answers, prompt }
+    }
+
+    fn ask(&mut self, what: String) -> Result<(), BenchError> {
+        let _ = write!(self.prompt, "gonio: {what}, then press Enter (n to stop): ");
+        let _ = self.prompt.flush();
+        let mut line = String::new();
+        match self.answers.read_line(&mut line) {
+            Ok(0) | Err(_) => Err(BenchError::NoOperator(what)),
+            Ok(_) => match line.trim() {
+                "" | "y" | "Y" | "yes" => Ok(()),
+                _ => Err(BenchError::Declined(what)),
+            },
+        }
+    }
+}
+
+impl<R: BufRead + Send, W: Write + Send> Bench for OperatorBench<R, W> {
+    fn set_up(&mut self, setup: Setup) -> Result<(), BenchError> {
+        self.ask(setup.instruction())
+    }
+
+    fn select_channel(&mut self, channel: &str) -> Result<(), BenchError> {
+        self.ask(format!("select the band {channel:?}"))
+    }
+}
+
+#[cfg(feature = "sim")]
+pub use sim::SimBench;
+
+#[cfg(feature = "sim")]
+mod sim {
+    use gonio_brdf::Brdf;
+    use gonio_sim::{LightPath, SharedSim, lock};
+
+    use super::{Bench, BenchError, Setup};
+
+    /// The simulator's bench: shutter, sample holder, filter and band under program
+    /// control.
+    pub struct SimBench {
+        sim: SharedSim,
+        /// The standard while the sample is off, or the sample while the standard is on.
+        other: Option<(Box<dyn Brdf>, usize)>,
+        standard_on: bool,
+    }
+
+    impl SimBench {
+        /// A bench for `sim`, with the reference standard `standard` (a model and its
+        /// channel) when the plan has one.
+        pub fn new(sim: SharedSim, standard: Option<(Box<dyn Brdf>, usize)>) -> Self {
+            SimBench {
+                sim,
+                other: standard,
+                standard_on: false,
+            }
+        }
+    }
+
+    impl Bench for SimBench {
+        fn set_up(&mut self, setup: Setup) -> Result<(), BenchError> {
+            let want_standard = setup == Setup::Standard;
+            let mut s = lock(&self.sim);
+            if want_standard != self.standard_on {
+                let (b, ch) = self.other.take().ok_or_else(|| {
+                    BenchError::Declined("mount a reference standard: the plan has none".into())
+                })?;
+                self.other = Some(s.swap_sample(b, ch));
+                self.standard_on = want_standard;
+            }
+            s.set_light_path(match setup {
+                Setup::Sample | Setup::Standard => LightPath::Sample,
+                Setup::Dark => LightPath::Dark,
+                Setup::Incident { transmittance } => LightPath::Incident { transmittance },
+            });
+            Ok(())
+        }
+
+        fn select_channel(&mut self, channel: &str) -> Result<(), BenchError> {
+            let mut s = lock(&self.sim);
+            if s.select_channel(channel) {
+                Ok(())
+            } else {
+                Err(BenchError::UnknownChannel(channel.into()))
+            }
+        }
+
+        fn at_step(&mut self, step_id: i64) {
+            lock(&self.sim).begin_point(step_id as u64);
+        }
+    }
+}

@@ -1,0 +1,749 @@
+//! The run engine: takes a run file's pending steps one by one through the
+//! goniometer, commits each reading as it is taken, and tells listeners.
+//!
+//! The drivers block (serial I/O, waits on the instrument clock), so each step runs
+//! on tokio's blocking pool and the async side stays free for listeners and for
+//! Ctrl-C. The instrument, the bench and the store travel together into each step
+//! and back; nothing else touches them meanwhile.
+//!
+//! What the engine does with faults:
+//! - lost, late or garbled replies are retried by the drivers; the count is stored
+//!   with the reading and logged as a `retry` event;
+//! - a controller that was reset or lost power is reset and re-homed, and the step is
+//!   measured again (up to [`EngineConfig::max_attempts`] times);
+//! - a flagged reading (overload, unlock) is read again up to
+//!   [`EngineConfig::flagged_rereads`] times, then stored with its flags: data is
+//!   never thrown away, the reduction decides;
+//! - a step the instrument refuses for good (a target outside the limits, a signal
+//!   autoranging cannot hold) is marked failed with its reason, and the run goes on;
+//! - anything else that persists (a stalled stage, a dead line) stops the stages and
+//!   ends the session `faulted`, resumable once the cause is fixed;
+//! - raising the [`Stopper`] (Ctrl-C) aborts the move in flight, stops every stage,
+//!   and ends the session `interrupted`, resumable.
+
+use std::time::Duration;
+
+use gonio_core::SphericalDeg;
+use gonio_core::dirfile::PairDeg;
+use gonio_core::kinematics;
+use gonio_driver::smc100::{AbortFlag, AxisError, MotionError};
+use gonio_driver::sr830::{Reading, Sr830Error};
+use gonio_driver::{Clock, Goniometer, Transport};
+use gonio_proto::sr830::Sensitivity;
+use tokio::sync::broadcast;
+
+use crate::bench::{Bench, BenchError, Setup};
+use crate::plan::Mechanics;
+use crate::schedule::StepKind;
+use crate::store::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
+
+/// How hard the engine tries.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EngineConfig {
+    /// Attempts at one step (re-measured after a recovered fault) before the run stops.
+    pub max_attempts: u32,
+    /// Extra readings of a step whose reading came back flagged.
+    pub flagged_rereads: u32,
+    /// Transmittance of the incident-beam filter (from the plan).
+    pub incident_transmittance: f64,
+    /// Software version written with each session.
+    pub software: String,
+}
+
+impl Default for EngineConfig {
+    fn default() -> Self {
+        EngineConfig {
+            max_attempts: 3,
+            flagged_rereads: 2,
+            incident_transmittance: 1.0,
+            software: concat!("gonio ", env!("CARGO_PKG_VERSION")).into(),
+        }
+    }
+}
+
+/// How a session ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// Every step is done or failed.
+    Complete,
+    /// Stopped on request (Ctrl-C); resumable.
+    Interrupted,
+    /// Stopped by a fault that persisted; resumable once it is fixed.
+    Faulted(String),
+}
+
+impl Outcome {
+    /// The run status it leaves: `complete`, `interrupted` or `faulted`.
+    pub fn status(&self) -> &'static str {
+        match self {
+            Outcome::Complete => "complete",
+            Outcome::Interrupted => "interrupted",
+            Outcome::Faulted(_) => "faulted",
+        }
+    }
+}
+
+/// What listeners hear.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Event {
+    /// A session started: `done` of `total` steps already finished.
+    Started {
+        /// Steps done or failed before this session.
+        done: usize,
+        /// Steps in the schedule.
+        total: usize,
+        /// True when an earlier session worked on the run.
+        resumed: bool,
+    },
+    /// Axes were homed.
+    Homed {
+        /// Their names.
+        axes: Vec<String>,
+    },
+    /// The bench was set up (light path or band).
+    Bench {
+        /// What was done.
+        what: String,
+    },
+    /// A step was measured and committed.
+    Measured {
+        /// The step.
+        step_id: i64,
+        /// Its kind.
+        kind: StepKind,
+        /// Steps finished so far.
+        done: usize,
+        /// Steps in the schedule.
+        total: usize,
+        /// Mean R, V.
+        r_mean: f64,
+        /// Standard deviation of R, V.
+        r_std: f64,
+        /// [`flags`] bits.
+        flags: u32,
+        /// Instrument time since the session started, s.
+        physical_s: f64,
+    },
+    /// A fault, and whether the engine recovers from it.
+    Fault {
+        /// The step, if any.
+        step_id: Option<i64>,
+        /// What happened.
+        message: String,
+        /// True when the engine carries on.
+        recovering: bool,
+    },
+    /// A step was given up.
+    Skipped {
+        /// The step.
+        step_id: i64,
+        /// Why.
+        reason: String,
+    },
+    /// The session ended.
+    Finished {
+        /// How.
+        outcome: Outcome,
+    },
+}
+
+/// Why the engine itself failed (the run file could not be written, a step panicked).
+/// The stages are stopped first.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    /// The run file.
+    #[error("run file: {0}")]
+    Store(#[from] StoreError),
+    /// A step's task panicked.
+    #[error("a step's task failed: {0}")]
+    Task(String),
+}
+
+/// Stops a running engine from elsewhere (a signal handler): the move in flight is
+/// aborted, the stages stop, the session ends `interrupted`.
+#[derive(Clone, Debug)]
+pub struct Stopper(AbortFlag);
+
+impl Stopper {
+    /// Requests the stop.
+    pub fn stop(&self) {
+        self.0.raise();
+    }
+
+    /// True once requested.
+    pub fn is_stopped(&self) -> bool {
+        self.0.is_raised()
+    }
+}
+
+/// What a session did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionReport {
+    /// How it ended.
+    pub outcome: Outcome,
+    /// Steps measured in this session.
+    pub measured: usize,
+    /// Steps given up in this session.
+    pub skipped: usize,
+    /// Steps done or failed in the whole run.
+    pub finished: usize,
+    /// Steps in the schedule.
+    pub total: usize,
+    /// Instrument time of the session, s.
+    pub physical_s: f64,
+}
+
+/// How one step went.
+enum StepOutcome {
+    Measured(Box<ReadingRecord>),
+    /// Recovered from a fault; measure the step again.
+    Again(String),
+    Skip(String),
+    Stop(Outcome),
+}
+
+/// The instrument, the bench and the store: what travels into each step.
+struct Rig<M: Transport, D: Transport, C: Clock, B: Bench> {
+    gonio: Goniometer<M, D, C>,
+    bench: B,
+    store: RunStore,
+    mech: Mechanics,
+    cfg: EngineConfig,
+    setup: Option<Setup>,
+    channel: Option<String>,
+    t0: Duration,
+    events: broadcast::Sender<Event>,
+}
+
+/// A run in progress: the goniometer, the bench and the run file.
+pub struct Engine<M: Transport, D: Transport, C: Clock, B: Bench> {
+    rig: Rig<M, D, C, B>,
+    stopper: Stopper,
+}
+
+impl<M, D, C, B> Engine<M, D, C, B>
+where
+    M: Transport + Send + 'static,
+    D: Transport + Send + 'static,
+    C: Clock + Send + 'static,
+    B: Bench + 'static,
+{
+    /// An engine that will take `store`'s pending steps on `gonio`, whose stages play
+    /// the roles of `mech`.
+    pub fn new(
+        gonio: Goniometer<M, D, C>,
+        bench: B,
+        store: RunStore,
+        mech: Mechanics,
+        cfg: EngineConfig,
+    ) -> Self {
+        let stopper = Stopper(gonio.motion.abort_flag());
+        let (events, _) = broadcast::channel(1024);
+        let t0 = gonio.motion.clock().now();
+        Engine {
+            rig: Rig {
+                gonio,
+                bench,
+                store,
+                mech,
+                cfg,
+                setup: None,
+                channel: None,
+                t0,
+                events,
+            },
+            stopper,
+        }
+    }
+
+    /// The handle that stops the run.
+    pub fn stopper(&self) -> Stopper {
+        self.stopper.clone()
+    }
+
+    /// A receiver of the engine's events (subscribe before [`run`](Self::run)).
+    pub fn subscribe(&self) -> broadcast::Receiver<Event> {
+        self.rig.events.subscribe()
+    }
+
+    /// Runs a session: start-up (identify, home what needs it, restore the detector),
+    /// then every pending step; returns the report and the run file.
+    pub async fn run(self) -> Result<(SessionReport, RunStore), EngineError> {
+        let Engine { rig, stopper } = self;
+        let (mut rig, started) = blocking(rig, Rig::start).await?;
+        let start = match started? {
+            Ok(s) => s,
+            Err(outcome) => {
+                let (rig, r) = blocking(rig, move |rig| rig.finish(outcome, 0, 0)).await?;
+                return Ok((r?, rig.store));
+            }
+        };
+        let total = start.total;
+        let mut finished = start.finished;
+        let (mut measured, mut skipped) = (0, 0);
+        let mut outcome = Outcome::Complete;
+        let mut queue = start.pending.into_iter().peekable();
+        let mut attempts = 0u32;
+        while let Some(step) = queue.peek().cloned() {
+            if stopper.is_stopped() {
+                outcome = Outcome::Interrupted;
+                break;
+            }
+            attempts += 1;
+            let s = step.clone();
+            let (r, res) = blocking(rig, move |rig| rig.step(&s)).await?;
+            rig = r;
+            match res? {
+                StepOutcome::Measured(rec) => {
+                    measured += 1;
+                    finished += 1;
+                    let _ = rig.events.send(Event::Measured {
+                        step_id: step.id,
+                        kind: step.step.kind,
+                        done: finished,
+                        total,
+                        r_mean: rec.r_mean,
+                        r_std: rec.r_std,
+                        flags: rec.flags,
+                        physical_s: rec.physical_s,
+                    });
+                    queue.next();
+                    attempts = 0;
+                }
+                StepOutcome::Again(why) => {
+                    if stopper.is_stopped() {
+                        outcome = Outcome::Interrupted;
+                        break;
+                    }
+                    if attempts >= rig.cfg.max_attempts {
+                        outcome = Outcome::Faulted(format!(
+                            "step {} failed {attempts} times; last: {why}",
+                            step.id
+                        ));
+                        break;
+                    }
+                }
+                StepOutcome::Skip(reason) => {
+                    rig.store.fail_step(step.id, &reason)?;
+                    let _ = rig.events.send(Event::Skipped {
+                        step_id: step.id,
+                        reason,
+                    });
+                    skipped += 1;
+                    finished += 1;
+                    queue.next();
+                    attempts = 0;
+                }
+                StepOutcome::Stop(o) => {
+                    outcome = o;
+                    break;
+                }
+            }
+        }
+        let (rig, r) = blocking(rig, move |rig| rig.finish(outcome, measured, skipped)).await?;
+        Ok((r?, rig.store))
+    }
+}
+
+/// Runs `f` on the blocking pool with the rig, and hands the rig back.
+async fn blocking<M, D, C, B, T, F>(
+    rig: Rig<M, D, C, B>,
+    f: F,
+) -> Result<(Rig<M, D, C, B>, T), EngineError>
+where
+    M: Transport + Send + 'static,
+    D: Transport + Send + 'static,
+    C: Clock + Send + 'static,
+    B: Bench + 'static,
+    T: Send + 'static,
+    F: FnOnce(&mut Rig<M, D, C, B>) -> T + Send + 'static,
+{
+    let mut rig = rig;
+    tokio::task::spawn_blocking(move || {
+        let t = f(&mut rig);
+        (rig, t)
+    })
+    .await
+    .map_err(|e| EngineError::Task(e.to_string()))
+}
+
+/// What start-up found.
+struct Start {
+    pending: Vec<StoredStep>,
+    total: usize,
+    finished: usize,
+}
+
+/// The role axes with their targets, for `move_to`.
+fn targets<'a>(axes: &'a [String; 4], stages: &[f64; 4]) -> Vec<(&'a str, f64)> {
+    axes.iter()
+        .map(String::as_str)
+        .zip(stages.iter().copied())
+        .collect()
+}
+
+/// A pair in degrees from directions.
+fn pair_deg(d: gonio_core::DirPair) -> PairDeg {
+    PairDeg {
+        incident: SphericalDeg::from(d.wi),
+        outgoing: SphericalDeg::from(d.wo),
+    }
+}
+
+/// The axis and cause of a motion error.
+fn axis_fault(e: &MotionError) -> Option<(&str, &AxisError)> {
+    match e {
+        MotionError::AtAxis { axis, source } => Some((axis.as_str(), source)),
+        _ => None,
+    }
+}
+
+impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
+    fn physical_s(&self) -> f64 {
+        self.gonio
+            .motion
+            .clock()
+            .now()
+            .saturating_sub(self.t0)
+            .as_secs_f64()
+    }
+
+    fn retried(&self) -> u64 {
+        self.gonio.motion.retried() + self.gonio.detector.retried()
+    }
+
+    fn fault(
+        &mut self,
+        step: Option<i64>,
+        message: &str,
+        recovering: bool,
+    ) -> Result<(), StoreError> {
+        let _ = self.events.send(Event::Fault {
+            step_id: step,
+            message: message.to_string(),
+            recovering,
+        });
+        self.store.event("fault", step, message)
+    }
+
+    /// Session start-up: a session row, the instrument identified and set up, the
+    /// axes that lost their reference homed, the detector's range restored to where
+    /// the run left it. `Ok(Err(outcome))` when the instrument cannot start.
+    fn start(&mut self) -> Result<Result<Start, Outcome>, StoreError> {
+        self.gonio.motion.abort_flag().clear();
+        let sessions = self.store.sessions()?;
+        self.store.begin_session(&self.cfg.software)?;
+        let steps = self.store.steps()?;
+        let total = steps.len();
+        let pending: Vec<StoredStep> = steps.into_iter().filter(|s| s.state == "pending").collect();
+        let finished = total - pending.len();
+        let resumed = !sessions.is_empty();
+        if sessions.last().is_some_and(|s| s.ended_s.is_none()) {
+            self.store.event(
+                "note",
+                None,
+                "the previous session ended without a clean stop (killed or power lost)",
+            )?;
+        }
+        self.store.event(
+            if resumed { "resume" } else { "start" },
+            None,
+            &format!("{finished} of {total} steps finished before this session"),
+        )?;
+        let _ = self.events.send(Event::Started {
+            done: finished,
+            total,
+            resumed,
+        });
+        self.t0 = self.gonio.motion.clock().now();
+        let report = match self.gonio.start() {
+            Ok(r) => r,
+            Err(e) => {
+                let m = format!("instrument start-up failed: {e}");
+                self.fault(None, &m, false)?;
+                return Ok(Err(Outcome::Faulted(m)));
+            }
+        };
+        self.store.event(
+            "instrument",
+            None,
+            &format!(
+                "detector {}; axes {}",
+                report.detector,
+                report
+                    .axes
+                    .iter()
+                    .map(|(n, i)| format!("{n}: {} ({})", i.stage, i.state))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )?;
+        let unreferenced: Vec<String> = report
+            .axes
+            .iter()
+            .filter(|(_, i)| !i.state.is_ready())
+            .map(|(n, _)| n.clone())
+            .collect();
+        if !unreferenced.is_empty() {
+            let names: Vec<&str> = unreferenced.iter().map(String::as_str).collect();
+            if let Err(e) = self.gonio.motion.home(&names) {
+                let m = format!("homing failed: {e}");
+                let aborted = matches!(axis_fault(&e), Some((_, AxisError::Aborted)));
+                self.fault(None, &m, false)?;
+                return Ok(Err(if aborted {
+                    Outcome::Interrupted
+                } else {
+                    Outcome::Faulted(m)
+                }));
+            }
+            self.store
+                .event("home", None, &format!("homed {}", unreferenced.join(", ")))?;
+            let _ = self.events.send(Event::Homed { axes: unreferenced });
+        }
+        // The detector's range where the run left it, so that autoranging takes the
+        // same path as it would have without the interruption.
+        if let Some(first) = pending.first()
+            && let Some(last) = self.store.last_reading_before(first.id)?
+            && let Some(sens) = Sensitivity::new(last.sensitivity)
+            && sens != self.gonio.detector.sensitivity()
+        {
+            if let Err(e) = self.gonio.detector.set_sensitivity(sens) {
+                let m = format!("restoring the sensitivity failed: {e}");
+                self.fault(None, &m, false)?;
+                return Ok(Err(Outcome::Faulted(m)));
+            }
+            self.store
+                .event("detector", None, &format!("sensitivity restored to {sens}"))?;
+        }
+        Ok(Ok(Start {
+            pending,
+            total,
+            finished,
+        }))
+    }
+
+    /// Takes one step: bench, motion, reading, commit.
+    fn step(&mut self, s: &StoredStep) -> Result<StepOutcome, StoreError> {
+        let retried_before = self.retried();
+        let id = s.id;
+        if let Some(ch) = &s.step.channel
+            && self.channel.as_ref() != Some(ch)
+        {
+            if let Err(e) = self.bench.select_channel(ch) {
+                return self.bench_failed(id, e);
+            }
+            self.store.event("bench", Some(id), &format!("band {ch}"))?;
+            let _ = self.events.send(Event::Bench {
+                what: format!("band {ch}"),
+            });
+            self.channel = Some(ch.clone());
+        }
+        let setup = Setup::for_kind(s.step.kind, self.cfg.incident_transmittance);
+        if self.setup != Some(setup) {
+            if let Err(e) = self.bench.set_up(setup) {
+                return self.bench_failed(id, e);
+            }
+            let what = setup.instruction();
+            self.store.event("bench", Some(id), &what)?;
+            let _ = self.events.send(Event::Bench { what });
+            self.setup = Some(setup);
+        }
+        let axes = self.mech.axes.clone();
+        let moved = match &s.step.stages {
+            Some(t) => self.gonio.motion.move_to(&targets(&axes, t)),
+            None => axes
+                .iter()
+                .map(|a| self.gonio.motion.position(a))
+                .collect::<Result<Vec<f64>, _>>(),
+        };
+        let positions = match moved {
+            Ok(p) => p,
+            Err(e) => return self.motion_failed(id, e),
+        };
+        let position = [positions[0], positions[1], positions[2], positions[3]];
+        self.bench.at_step(id);
+        self.gonio.detector.input_changed();
+        let mut reading = match self.gonio.detector.read() {
+            Ok(r) => r,
+            Err(e) => return self.detector_failed(id, e),
+        };
+        let mut rereads = 0;
+        while !reading.is_valid() && rereads < self.cfg.flagged_rereads {
+            rereads += 1;
+            self.store.event(
+                "flagged",
+                Some(id),
+                &format!("reading flagged {:?}; reading again", reading.flags),
+            )?;
+            reading = match self.gonio.detector.read() {
+                Ok(r) => r,
+                Err(e) => return self.detector_failed(id, e),
+            };
+        }
+        let record = self.record(s, position, &reading, retried_before);
+        let mut events = Vec::new();
+        if record.retries > 0 {
+            events.push(EventRecord {
+                wall_s: record.wall_s,
+                kind: "retry".into(),
+                step_id: Some(id),
+                message: format!("{} exchanges retried", record.retries),
+            });
+        }
+        self.store.commit(&record, &events)?;
+        Ok(StepOutcome::Measured(Box::new(record)))
+    }
+
+    fn record(
+        &self,
+        s: &StoredStep,
+        position: [f64; 4],
+        r: &Reading,
+        retried_before: u64,
+    ) -> ReadingRecord {
+        let dirs = self.mech.layout.forward(position);
+        let g = &self.mech.geometry;
+        let mut bits = u32::from(r.status.0) & 0x0F;
+        let sample_lit = matches!(
+            s.step.kind,
+            StepKind::Sample | StepKind::Reference | StepKind::Standard
+        );
+        if sample_lit && kinematics::arm_separation_deg(dirs) < g.min_arm_separation_deg {
+            bits |= flags::SHADOWED;
+        }
+        if sample_lit && dirs.wi.z > 0.0 && g.beam_diameter_m / dirs.wi.z > g.sample_length_m {
+            bits |= flags::OVERFILLED;
+        }
+        ReadingRecord {
+            step_id: s.id,
+            commanded: s.step.stages,
+            position,
+            read_pair: pair_deg(dirs),
+            sensitivity: r.sensitivity.index(),
+            sensitivity_v: r.sensitivity.volts(),
+            time_constant: r.time_constant.index(),
+            time_constant_s: r.time_constant.seconds(),
+            slope_db: r.slope.db_per_octave(),
+            r_mean: r.r_mean,
+            r_std: r.r_std,
+            x_mean: r.x_mean,
+            y_mean: r.y_mean,
+            n: r.n as u32,
+            autorange_steps: r.autorange_steps as u32,
+            lias: r.status.0,
+            flags: bits,
+            retries: self.retried() - retried_before,
+            physical_s: self.physical_s(),
+            wall_s: wall_now(),
+        }
+    }
+
+    fn bench_failed(&mut self, id: i64, e: BenchError) -> Result<StepOutcome, StoreError> {
+        let m = format!("bench: {e}");
+        self.fault(Some(id), &m, false)?;
+        Ok(StepOutcome::Stop(match e {
+            BenchError::Declined(_) | BenchError::NoOperator(_) => Outcome::Interrupted,
+            BenchError::UnknownChannel(_) => Outcome::Faulted(m),
+        }))
+    }
+
+    fn motion_failed(&mut self, id: i64, e: MotionError) -> Result<StepOutcome, StoreError> {
+        let m = e.to_string();
+        let Some((axis, cause)) = axis_fault(&e) else {
+            self.fault(Some(id), &m, false)?;
+            return Ok(StepOutcome::Stop(Outcome::Faulted(m)));
+        };
+        let axis = axis.to_string();
+        match cause {
+            AxisError::Aborted => {
+                self.store
+                    .event("interrupt", Some(id), "stop requested; stages stopped")?;
+                Ok(StepOutcome::Stop(Outcome::Interrupted))
+            }
+            AxisError::ControllerReset | AxisError::NotReferenced { .. } => {
+                self.fault(Some(id), &m, true)?;
+                let _ = self.gonio.motion.stop_all();
+                let recovered = if matches!(cause, AxisError::ControllerReset) {
+                    self.gonio.motion.reset_and_home(&axis)
+                } else {
+                    self.gonio.motion.home(&[axis.as_str()])
+                };
+                match recovered {
+                    Ok(()) => {
+                        self.store.event(
+                            "home",
+                            Some(id),
+                            &format!("re-homed {axis}; measuring the step again"),
+                        )?;
+                        let _ = self.events.send(Event::Homed { axes: vec![axis] });
+                        Ok(StepOutcome::Again(m))
+                    }
+                    Err(e2) => {
+                        let m2 = format!("re-homing {axis} failed: {e2}");
+                        self.fault(Some(id), &m2, false)?;
+                        Ok(StepOutcome::Stop(Outcome::Faulted(m2)))
+                    }
+                }
+            }
+            AxisError::OutOfLimits { .. } => Ok(StepOutcome::Skip(m)),
+            _ => {
+                self.fault(Some(id), &m, false)?;
+                Ok(StepOutcome::Stop(Outcome::Faulted(m)))
+            }
+        }
+    }
+
+    fn detector_failed(&mut self, id: i64, e: Sr830Error) -> Result<StepOutcome, StoreError> {
+        let m = e.to_string();
+        match e {
+            Sr830Error::Autorange { .. } => Ok(StepOutcome::Skip(m)),
+            Sr830Error::Transport { .. }
+            | Sr830Error::Protocol { .. }
+            | Sr830Error::Interrupted { .. } => {
+                // Survived the driver's own retries: measure the step again, within
+                // the engine's attempts.
+                self.fault(Some(id), &m, true)?;
+                Ok(StepOutcome::Again(m))
+            }
+            _ => {
+                self.fault(Some(id), &m, false)?;
+                Ok(StepOutcome::Stop(Outcome::Faulted(m)))
+            }
+        }
+    }
+
+    /// Ends the session: stages stopped, outcome stored.
+    fn finish(
+        &mut self,
+        outcome: Outcome,
+        measured: usize,
+        skipped: usize,
+    ) -> Result<SessionReport, StoreError> {
+        // Whatever happened, nothing keeps moving.
+        if let Err(e) = self.gonio.motion.stop_all() {
+            self.store
+                .event("fault", None, &format!("stopping the stages: {e}"))?;
+        }
+        let counts = self.store.state_counts()?;
+        let total: u64 = counts.values().sum();
+        let pending = counts.get("pending").copied().unwrap_or(0);
+        let message = match &outcome {
+            Outcome::Complete => "every step finished".to_string(),
+            Outcome::Interrupted => "interrupted; resumable".to_string(),
+            Outcome::Faulted(m) => format!("stopped by a fault; resumable: {m}"),
+        };
+        self.store.event("stop", None, &message)?;
+        self.store.end_session(outcome.status())?;
+        let _ = self.events.send(Event::Finished {
+            outcome: outcome.clone(),
+        });
+        Ok(SessionReport {
+            outcome,
+            measured,
+            skipped,
+            finished: (total - pending) as usize,
+            total: total as usize,
+            physical_s: self.physical_s(),
+        })
+    }
+}

@@ -1,0 +1,1013 @@
+//! The run file: one SQLite database per run (`.gonio`), the unit that is archived,
+//! resumed and reprocessed. Schema and guarantees in `docs/run-file.md`.
+//!
+//! Crash safety comes from SQLite: write-ahead log, `synchronous = FULL` (a commit
+//! is on the disk when it returns), and one transaction per measured step (its
+//! reading, its state, its events). A kill at any instant leaves every committed
+//! step whole and the step in flight absent.
+//!
+//! Corruption is detected, not trusted: opening checks the file is SQLite, that its
+//! `application_id` is Gonio's, that its schema version is one this build reads,
+//! runs `PRAGMA quick_check`, and verifies a checksum stored with every step and
+//! reading row (which catches damaged values SQLite's structure checks cannot).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use rusqlite::types::Value;
+use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
+
+use crate::schedule::{Step, StepKind};
+use gonio_core::SphericalDeg;
+use gonio_core::dirfile::PairDeg;
+
+/// `PRAGMA application_id` of a run file: "GONI".
+pub const APPLICATION_ID: i32 = 0x474F_4E49;
+/// The schema version this build writes.
+pub const SCHEMA_VERSION: i32 = 1;
+
+/// Migrations: entry `k` takes a file from version `k` to `k + 1`. Version 0 is an
+/// empty database.
+const MIGRATIONS: &[&str] = &[SCHEMA_V1];
+
+const SCHEMA_V1: &str = "
+CREATE TABLE meta (
+    key   TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+CREATE TABLE sessions (
+    id          INTEGER PRIMARY KEY,
+    started_s   REAL NOT NULL,
+    ended_s     REAL,
+    outcome     TEXT,
+    software    TEXT NOT NULL,
+    pid         INTEGER NOT NULL
+);
+CREATE TABLE steps (
+    id          INTEGER PRIMARY KEY,
+    kind        TEXT NOT NULL CHECK (kind IN ('sample','reference','dark','incident','standard')),
+    channel     TEXT,
+    repeat      INTEGER NOT NULL,
+    plan_index  INTEGER,
+    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
+    target_0 REAL, target_1 REAL, target_2 REAL, target_3 REAL,
+    crc         INTEGER NOT NULL,
+    state       TEXT NOT NULL DEFAULT 'pending' CHECK (state IN ('pending','done','failed')),
+    attempts    INTEGER NOT NULL DEFAULT 0
+);
+CREATE TABLE readings (
+    step_id     INTEGER PRIMARY KEY REFERENCES steps(id),
+    session     INTEGER NOT NULL REFERENCES sessions(id),
+    cmd_0 REAL, cmd_1 REAL, cmd_2 REAL, cmd_3 REAL,
+    pos_0 REAL, pos_1 REAL, pos_2 REAL, pos_3 REAL,
+    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
+    sensitivity INTEGER NOT NULL,
+    sensitivity_v REAL NOT NULL,
+    time_constant INTEGER NOT NULL,
+    time_constant_s REAL NOT NULL,
+    slope_db INTEGER NOT NULL,
+    r_mean REAL,
+    r_std REAL,
+    x_mean REAL,
+    y_mean REAL,
+    n INTEGER NOT NULL,
+    autorange_steps INTEGER NOT NULL,
+    lias INTEGER NOT NULL,
+    flags INTEGER NOT NULL,
+    retries INTEGER NOT NULL,
+    physical_s REAL,
+    wall_s REAL NOT NULL,
+    crc INTEGER NOT NULL
+);
+CREATE TABLE events (
+    id       INTEGER PRIMARY KEY,
+    session  INTEGER REFERENCES sessions(id),
+    wall_s   REAL NOT NULL,
+    kind     TEXT NOT NULL,
+    step_id  INTEGER,
+    message  TEXT NOT NULL
+);
+";
+
+/// Columns of `steps` covered by its checksum, in hashing order.
+const STEP_COLUMNS: &str = "id, kind, channel, repeat, plan_index, theta_i, phi_i, theta_o, \
+     phi_o, target_0, target_1, target_2, target_3";
+/// Columns of `readings` covered by its checksum, in hashing order.
+const READING_COLUMNS: &str = "step_id, session, cmd_0, cmd_1, cmd_2, cmd_3, pos_0, pos_1, \
+     pos_2, pos_3, theta_i, phi_i, theta_o, phi_o, sensitivity, sensitivity_v, time_constant, \
+     time_constant_s, slope_db, r_mean, r_std, x_mean, y_mean, n, autorange_steps, lias, flags, \
+     retries, physical_s, wall_s";
+
+/// `flags` bits of a reading (bits 0–3 are the LIAS overload and unlock bits).
+pub mod flags {
+    /// LIAS bit 0: input or reserve overload.
+    pub const INPUT_OVERLOAD: u32 = 1 << 0;
+    /// LIAS bit 1: filter overload.
+    pub const FILTER_OVERLOAD: u32 = 1 << 1;
+    /// LIAS bit 2: output overload.
+    pub const OUTPUT_OVERLOAD: u32 = 1 << 2;
+    /// LIAS bit 3: reference unlock.
+    pub const UNLOCK: u32 = 1 << 3;
+    /// The read-back directions put the detector arm in the beam.
+    pub const SHADOWED: u32 = 1 << 8;
+    /// The read-back incidence makes the beam overfill the sample.
+    pub const OVERFILLED: u32 = 1 << 9;
+}
+
+/// Why a run file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// SQLite failed (I/O, a full disk, a locked file).
+    #[error("{path}: {source}")]
+    Sqlite {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: rusqlite::Error,
+    },
+    /// The file exists already (a new run never overwrites one).
+    #[error("{0}: exists already; choose another name, or `gonio resume` it")]
+    Exists(PathBuf),
+    /// No such file.
+    #[error("{0}: no such run file")]
+    Missing(PathBuf),
+    /// Not an SQLite database, or not a Gonio run file.
+    #[error("{path}: not a Gonio run file ({why})")]
+    NotARunFile {
+        /// The file.
+        path: PathBuf,
+        /// What gave it away.
+        why: String,
+    },
+    /// Written by a newer Gonio.
+    #[error(
+        "{path}: schema version {found} is newer than this build reads ({supported}); \
+         use a newer gonio"
+    )]
+    NewerSchema {
+        /// The file.
+        path: PathBuf,
+        /// Its version.
+        found: i32,
+        /// The newest this build reads.
+        supported: i32,
+    },
+    /// A step was committed twice (two processes on one run file).
+    #[error("{path}: step {step} is not pending; is another process working on this run?")]
+    NotPending {
+        /// The file.
+        path: PathBuf,
+        /// The step.
+        step: i64,
+    },
+    /// Damaged: structure or content fails its checks.
+    #[error("{path}: corrupted: {why}")]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        why: String,
+    },
+}
+
+impl StoreError {
+    /// True for faults of the file given (exit status 2), rather than of the machine.
+    pub fn is_bad_input(&self) -> bool {
+        !matches!(
+            self,
+            StoreError::Sqlite { .. } | StoreError::NotPending { .. }
+        )
+    }
+}
+
+/// One reading as stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReadingRecord {
+    /// The step it measures.
+    pub step_id: i64,
+    /// Stage targets commanded, role order (none when the step does not move).
+    pub commanded: Option<[f64; 4]>,
+    /// Stage positions read back, role order.
+    pub position: [f64; 4],
+    /// The directions the read-back positions mean, degrees.
+    pub read_pair: PairDeg,
+    /// `SENS` index.
+    pub sensitivity: u8,
+    /// Full scale, V.
+    pub sensitivity_v: f64,
+    /// `OFLT` index.
+    pub time_constant: u8,
+    /// Time constant, s.
+    pub time_constant_s: f64,
+    /// Filter slope, dB/oct.
+    pub slope_db: u8,
+    /// Mean R, V.
+    pub r_mean: f64,
+    /// Standard deviation of R, V.
+    pub r_std: f64,
+    /// Mean X, V.
+    pub x_mean: f64,
+    /// Mean Y, V.
+    pub y_mean: f64,
+    /// Samples.
+    pub n: u32,
+    /// Range changes before the reading.
+    pub autorange_steps: u32,
+    /// The raw `LIAS?` byte.
+    pub lias: u8,
+    /// [`flags`] bits.
+    pub flags: u32,
+    /// Exchanges retried while taking this step.
+    pub retries: u64,
+    /// Instrument clock at the reading, s since the session started.
+    pub physical_s: f64,
+    /// Wall clock, Unix seconds.
+    pub wall_s: f64,
+}
+
+/// A stored step with its state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StoredStep {
+    /// Its id (position in the schedule).
+    pub id: i64,
+    /// The step.
+    pub step: Step,
+    /// `pending`, `done` or `failed`.
+    pub state: String,
+    /// Times it was attempted.
+    pub attempts: u32,
+}
+
+/// A session (one process working on the run) as stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionRow {
+    /// Its id.
+    pub id: i64,
+    /// Start, Unix seconds.
+    pub started_s: f64,
+    /// End, Unix seconds (none: killed, or still running).
+    pub ended_s: Option<f64>,
+    /// `complete`, `interrupted` or `faulted`.
+    pub outcome: Option<String>,
+}
+
+/// An event as stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EventRecord {
+    /// Wall clock, Unix seconds.
+    pub wall_s: f64,
+    /// `start`, `resume`, `rehome`, `retry`, `fault`, `interrupt`, `stop`, ...
+    pub kind: String,
+    /// The step concerned.
+    pub step_id: Option<i64>,
+    /// What happened.
+    pub message: String,
+}
+
+/// FNV-1a, 64 bits: the checksum of a row (corruption, not tampering, is the threat).
+fn fnv1a(h: &mut u64, bytes: &[u8]) {
+    for b in bytes {
+        *h ^= u64::from(*b);
+        *h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+}
+
+/// Checksum of a row's values, type tags included (NULL differs from 0).
+fn row_crc(values: &[Value]) -> i64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for v in values {
+        match v {
+            Value::Null => fnv1a(&mut h, &[0]),
+            Value::Integer(i) => {
+                fnv1a(&mut h, &[1]);
+                fnv1a(&mut h, &i.to_le_bytes());
+            }
+            Value::Real(x) => {
+                fnv1a(&mut h, &[2]);
+                // SQLite keeps −0.0 as 0 (an integral REAL is stored as an integer).
+                let x = if *x == 0.0 { 0.0 } else { *x };
+                fnv1a(&mut h, &x.to_bits().to_le_bytes());
+            }
+            Value::Text(s) => {
+                fnv1a(&mut h, &[3]);
+                fnv1a(&mut h, &(s.len() as u64).to_le_bytes());
+                fnv1a(&mut h, s.as_bytes());
+            }
+            Value::Blob(b) => {
+                fnv1a(&mut h, &[4]);
+                fnv1a(&mut h, &(b.len() as u64).to_le_bytes());
+                fnv1a(&mut h, b);
+            }
+        }
+    }
+    h as i64
+}
+
+fn opt(x: Option<f64>) -> Value {
+    x.map_or(Value::Null, real)
+}
+
+/// A REAL value; SQLite has no NaN or infinity (it would store NULL), so a
+/// non-finite number is stored as NULL and read back as NaN.
+fn real(x: f64) -> Value {
+    if x.is_finite() {
+        Value::Real(x)
+    } else {
+        Value::Null
+    }
+}
+
+fn step_values(id: i64, s: &Step) -> Vec<Value> {
+    let pair = s.pair.map(|p| {
+        [
+            p.incident.theta_deg,
+            p.incident.phi_deg,
+            p.outgoing.theta_deg,
+            p.outgoing.phi_deg,
+        ]
+    });
+    let mut v = vec![
+        Value::Integer(id),
+        Value::Text(s.kind.as_str().into()),
+        s.channel.clone().map_or(Value::Null, Value::Text),
+        Value::Integer(i64::from(s.repeat)),
+        s.plan_index
+            .map_or(Value::Null, |i| Value::Integer(i as i64)),
+    ];
+    for k in 0..4 {
+        v.push(opt(pair.map(|p| p[k])));
+    }
+    for k in 0..4 {
+        v.push(opt(s.stages.map(|p| p[k])));
+    }
+    v
+}
+
+fn reading_values(r: &ReadingRecord, session: i64) -> Vec<Value> {
+    let mut v = vec![Value::Integer(r.step_id), Value::Integer(session)];
+    for k in 0..4 {
+        v.push(opt(r.commanded.map(|c| c[k])));
+    }
+    for k in 0..4 {
+        v.push(real(r.position[k]));
+    }
+    let p = &r.read_pair;
+    for x in [
+        p.incident.theta_deg,
+        p.incident.phi_deg,
+        p.outgoing.theta_deg,
+        p.outgoing.phi_deg,
+    ] {
+        v.push(real(x));
+    }
+    v.extend([
+        Value::Integer(i64::from(r.sensitivity)),
+        real(r.sensitivity_v),
+        Value::Integer(i64::from(r.time_constant)),
+        real(r.time_constant_s),
+        Value::Integer(i64::from(r.slope_db)),
+        real(r.r_mean),
+        real(r.r_std),
+        real(r.x_mean),
+        real(r.y_mean),
+        Value::Integer(i64::from(r.n)),
+        Value::Integer(i64::from(r.autorange_steps)),
+        Value::Integer(i64::from(r.lias)),
+        Value::Integer(i64::from(r.flags)),
+        Value::Integer(r.retries as i64),
+        real(r.physical_s),
+        real(r.wall_s),
+    ]);
+    v
+}
+
+/// Wall clock now, Unix seconds.
+pub fn wall_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// Unix seconds as `YYYY-MM-DDTHH:MM:SSZ` (UTC).
+pub fn utc(unix_s: f64) -> String {
+    let secs = unix_s.floor() as i64;
+    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+/// An open run file.
+pub struct RunStore {
+    conn: Connection,
+    path: PathBuf,
+    session: Option<i64>,
+}
+
+impl std::fmt::Debug for RunStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunStore")
+            .field("path", &self.path)
+            .field("session", &self.session)
+            .finish()
+    }
+}
+
+impl RunStore {
+    fn sql(&self, source: rusqlite::Error) -> StoreError {
+        StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    fn pragmas(conn: &Connection) -> rusqlite::Result<()> {
+        conn.pragma_update(None, "journal_mode", "WAL")?;
+        conn.pragma_update(None, "synchronous", "FULL")?;
+        conn.pragma_update(None, "foreign_keys", "ON")?;
+        conn.busy_timeout(std::time::Duration::from_secs(5))?;
+        Ok(())
+    }
+
+    /// Creates a new run file with its metadata and schedule; refuses to overwrite.
+    pub fn create(
+        path: &Path,
+        meta: &BTreeMap<String, String>,
+        steps: &[Step],
+    ) -> Result<RunStore, StoreError> {
+        if path.exists() {
+            return Err(StoreError::Exists(path.to_path_buf()));
+        }
+        let sql = |source| StoreError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        };
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_WRITE
+                | OpenFlags::SQLITE_OPEN_CREATE
+                | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .map_err(sql)?;
+        Self::pragmas(&conn).map_err(sql)?;
+        let mut store = RunStore {
+            conn,
+            path: path.to_path_buf(),
+            session: None,
+        };
+        store.migrate(0)?;
+        let tx = store.conn.transaction().map_err(sql)?;
+        {
+            let mut m = tx
+                .prepare("INSERT INTO meta (key, value) VALUES (?1, ?2)")
+                .map_err(sql)?;
+            for (k, v) in meta {
+                m.execute(params![k, v]).map_err(sql)?;
+            }
+            m.execute(params!["step_count", steps.len().to_string()])
+                .map_err(sql)?;
+            m.execute(params!["status", "created"]).map_err(sql)?;
+            let mut s = tx
+                .prepare(&format!(
+                    "INSERT INTO steps ({STEP_COLUMNS}, crc) VALUES \
+                     (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
+                ))
+                .map_err(sql)?;
+            for (i, step) in steps.iter().enumerate() {
+                let mut v = step_values(i as i64, step);
+                let crc = row_crc(&v);
+                v.push(Value::Integer(crc));
+                s.execute(rusqlite::params_from_iter(v)).map_err(sql)?;
+            }
+        }
+        tx.commit().map_err(sql)?;
+        Ok(store)
+    }
+
+    /// Opens an existing run file after checking that it is one, that this build
+    /// reads its schema (migrating an older one), and that it is intact.
+    pub fn open(path: &Path) -> Result<RunStore, StoreError> {
+        if !path.exists() {
+            return Err(StoreError::Missing(path.to_path_buf()));
+        }
+        let not_run = |why: String| StoreError::NotARunFile {
+            path: path.to_path_buf(),
+            why,
+        };
+        let corrupt = |why: String| StoreError::Corrupt {
+            path: path.to_path_buf(),
+            why,
+        };
+        let mut head = [0u8; 16];
+        {
+            use std::io::Read;
+            let mut f = std::fs::File::open(path).map_err(|e| not_run(e.to_string()))?;
+            f.read_exact(&mut head)
+                .map_err(|_| not_run("shorter than an SQLite header".into()))?;
+        }
+        if &head != b"SQLite format 3\0" {
+            return Err(not_run("no SQLite header".into()));
+        }
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .map_err(|e| corrupt(e.to_string()))?;
+        let read_i32 = |name: &str| -> Result<i32, StoreError> {
+            conn.pragma_query_value(None, name, |r| r.get(0))
+                .map_err(|e| corrupt(e.to_string()))
+        };
+        let app = read_i32("application_id")?;
+        if app != APPLICATION_ID {
+            return Err(not_run(format!(
+                "application_id {app:#010x}, not Gonio's {APPLICATION_ID:#010x}"
+            )));
+        }
+        let version = read_i32("user_version")?;
+        if version > SCHEMA_VERSION {
+            return Err(StoreError::NewerSchema {
+                path: path.to_path_buf(),
+                found: version,
+                supported: SCHEMA_VERSION,
+            });
+        }
+        let check: String = conn
+            .query_row("PRAGMA quick_check", [], |r| r.get(0))
+            .map_err(|e| corrupt(e.to_string()))?;
+        if check != "ok" {
+            return Err(corrupt(format!("quick_check: {check}")));
+        }
+        Self::pragmas(&conn).map_err(|e| corrupt(e.to_string()))?;
+        let mut store = RunStore {
+            conn,
+            path: path.to_path_buf(),
+            session: None,
+        };
+        if version < 1 {
+            return Err(not_run("schema version 0: never initialised".into()));
+        }
+        store.migrate(version)?;
+        store.verify()?;
+        Ok(store)
+    }
+
+    /// Brings the schema from `from` to [`SCHEMA_VERSION`], one migration a
+    /// transaction.
+    fn migrate(&mut self, from: i32) -> Result<(), StoreError> {
+        for v in from..SCHEMA_VERSION {
+            let sql_text = MIGRATIONS[v as usize];
+            let path = self.path.clone();
+            let sql = |source| StoreError::Sqlite {
+                path: path.clone(),
+                source,
+            };
+            let tx = self.conn.transaction().map_err(sql)?;
+            tx.execute_batch(sql_text).map_err(sql)?;
+            tx.pragma_update(None, "user_version", v + 1).map_err(sql)?;
+            if v == 0 {
+                tx.pragma_update(None, "application_id", APPLICATION_ID)
+                    .map_err(sql)?;
+            }
+            tx.commit().map_err(sql)?;
+        }
+        Ok(())
+    }
+
+    /// Recomputes every row checksum and checks the schedule is whole.
+    fn verify(&self) -> Result<(), StoreError> {
+        let corrupt = |why: String| StoreError::Corrupt {
+            path: self.path.clone(),
+            why,
+        };
+        for (table, cols, key) in [
+            ("steps", STEP_COLUMNS, "id"),
+            ("readings", READING_COLUMNS, "step_id"),
+        ] {
+            let n = cols.split(',').count();
+            let mut stmt = self
+                .conn
+                .prepare(&format!("SELECT {cols}, crc FROM {table} ORDER BY {key}"))
+                .map_err(|e| corrupt(e.to_string()))?;
+            let mut rows = stmt.query([]).map_err(|e| corrupt(e.to_string()))?;
+            while let Some(row) = rows.next().map_err(|e| corrupt(e.to_string()))? {
+                let values: Vec<Value> = (0..n)
+                    .map(|i| row.get::<_, Value>(i))
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| corrupt(e.to_string()))?;
+                let stored: i64 = row.get(n).map_err(|e| corrupt(e.to_string()))?;
+                if row_crc(&values) != stored {
+                    let id = match &values[0] {
+                        Value::Integer(i) => i.to_string(),
+                        other => format!("{other:?}"),
+                    };
+                    return Err(corrupt(format!(
+                        "{table} row {id} fails its checksum (a damaged value)"
+                    )));
+                }
+            }
+        }
+        let count: i64 = self
+            .conn
+            .query_row("SELECT count(*) FROM steps", [], |r| r.get(0))
+            .map_err(|e| corrupt(e.to_string()))?;
+        let want = self
+            .meta_value("step_count")?
+            .and_then(|v| v.parse::<i64>().ok())
+            .ok_or_else(|| corrupt("meta step_count missing".into()))?;
+        if count != want {
+            return Err(corrupt(format!(
+                "{count} steps stored, the schedule had {want}"
+            )));
+        }
+        let orphans: i64 = self
+            .conn
+            .query_row(
+                "SELECT count(*) FROM readings r LEFT JOIN steps s ON s.id = r.step_id \
+                 WHERE s.id IS NULL OR s.state != 'done'",
+                [],
+                |r| r.get(0),
+            )
+            .map_err(|e| corrupt(e.to_string()))?;
+        if orphans != 0 {
+            return Err(corrupt(format!("{orphans} readings without a done step")));
+        }
+        Ok(())
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// One metadata value.
+    pub fn meta_value(&self, key: &str) -> Result<Option<String>, StoreError> {
+        self.conn
+            .query_row("SELECT value FROM meta WHERE key = ?1", [key], |r| r.get(0))
+            .optional()
+            .map_err(|e| self.sql(e))
+    }
+
+    /// All metadata.
+    pub fn meta(&self) -> Result<BTreeMap<String, String>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT key, value FROM meta ORDER BY key")
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// Sets a metadata value (its own transaction).
+    pub fn set_meta(&mut self, key: &str, value: &str) -> Result<(), StoreError> {
+        self.conn
+            .execute(
+                "INSERT INTO meta (key, value) VALUES (?1, ?2) \
+                 ON CONFLICT(key) DO UPDATE SET value = excluded.value",
+                params![key, value],
+            )
+            .map_err(|e| self.sql(e))?;
+        Ok(())
+    }
+
+    /// Starts a session (a process working on the run): status `running`.
+    pub fn begin_session(&mut self, software: &str) -> Result<i64, StoreError> {
+        let path = self.path.clone();
+        let sql = |source| StoreError::Sqlite {
+            path: path.clone(),
+            source,
+        };
+        let tx = self.conn.transaction().map_err(sql)?;
+        tx.execute(
+            "INSERT INTO sessions (started_s, software, pid) VALUES (?1, ?2, ?3)",
+            params![wall_now(), software, std::process::id()],
+        )
+        .map_err(sql)?;
+        let id = tx.last_insert_rowid();
+        tx.execute(
+            "INSERT INTO meta (key, value) VALUES ('status', 'running') \
+             ON CONFLICT(key) DO UPDATE SET value = excluded.value",
+            [],
+        )
+        .map_err(sql)?;
+        tx.commit().map_err(sql)?;
+        self.session = Some(id);
+        Ok(id)
+    }
+
+    /// Ends the session with `outcome` (`complete`, `interrupted`, `failed`), which
+    /// becomes the run's status.
+    pub fn end_session(&mut self, outcome: &str) -> Result<(), StoreError> {
+        let path = self.path.clone();
+        let sql = |source| StoreError::Sqlite {
+            path: path.clone(),
+            source,
+        };
+        let tx = self.conn.transaction().map_err(sql)?;
+        if let Some(s) = self.session {
+            tx.execute(
+                "UPDATE sessions SET ended_s = ?1, outcome = ?2 WHERE id = ?3",
+                params![wall_now(), outcome, s],
+            )
+            .map_err(sql)?;
+        }
+        tx.execute(
+            "INSERT INTO meta (key, value) VALUES ('status', ?1) \
+             ON CONFLICT(key) DO UPDATE SET value = excluded.value",
+            [outcome],
+        )
+        .map_err(sql)?;
+        tx.commit().map_err(sql)?;
+        Ok(())
+    }
+
+    /// Sessions, oldest first.
+    pub fn sessions(&self) -> Result<Vec<SessionRow>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT id, started_s, ended_s, outcome FROM sessions ORDER BY id")
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok(SessionRow {
+                    id: r.get(0)?,
+                    started_s: r.get(1)?,
+                    ended_s: r.get(2)?,
+                    outcome: r.get(3)?,
+                })
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// Per session: readings taken and the instrument time of the last one.
+    pub fn session_readings(&self) -> Result<BTreeMap<i64, (usize, f64)>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT session, count(*), max(physical_s) FROM readings GROUP BY session")
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    (r.get::<_, i64>(1)? as usize, r.get::<_, f64>(2)?),
+                ))
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// Logs an event now (its own transaction).
+    pub fn event(
+        &mut self,
+        kind: &str,
+        step_id: Option<i64>,
+        message: &str,
+    ) -> Result<(), StoreError> {
+        self.conn
+            .execute(
+                "INSERT INTO events (session, wall_s, kind, step_id, message) \
+                 VALUES (?1, ?2, ?3, ?4, ?5)",
+                params![self.session, wall_now(), kind, step_id, message],
+            )
+            .map_err(|e| self.sql(e))?;
+        Ok(())
+    }
+
+    /// Commits a measured step: its reading, its state `done`, and `events`, all or
+    /// nothing.
+    pub fn commit(
+        &mut self,
+        reading: &ReadingRecord,
+        events: &[EventRecord],
+    ) -> Result<(), StoreError> {
+        let session = self.session.unwrap_or(0);
+        let path = self.path.clone();
+        let sql = |source| StoreError::Sqlite {
+            path: path.clone(),
+            source,
+        };
+        let tx = self.conn.transaction().map_err(sql)?;
+        let mut v = reading_values(reading, session);
+        let crc = row_crc(&v);
+        v.push(Value::Integer(crc));
+        let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
+        tx.prepare_cached(&format!(
+            "INSERT INTO readings ({READING_COLUMNS}, crc) VALUES ({})",
+            placeholders.join(", ")
+        ))
+        .and_then(|mut s| s.execute(rusqlite::params_from_iter(v)))
+        .map_err(sql)?;
+        let changed = tx
+            .prepare_cached(
+                "UPDATE steps SET state = 'done', attempts = attempts + 1 \
+                 WHERE id = ?1 AND state != 'done'",
+            )
+            .and_then(|mut s| s.execute([reading.step_id]))
+            .map_err(sql)?;
+        if changed != 1 {
+            // Dropping the transaction rolls it back: a step is never measured twice.
+            return Err(StoreError::NotPending {
+                path: self.path.clone(),
+                step: reading.step_id,
+            });
+        }
+        for e in events {
+            tx.prepare_cached(
+                "INSERT INTO events (session, wall_s, kind, step_id, message) \
+                 VALUES (?1, ?2, ?3, ?4, ?5)",
+            )
+            .and_then(|mut s| {
+                s.execute(params![
+                    self.session,
+                    e.wall_s,
+                    e.kind,
+                    e.step_id,
+                    e.message
+                ])
+            })
+            .map_err(sql)?;
+        }
+        tx.commit().map_err(sql)?;
+        Ok(())
+    }
+
+    /// Marks a step failed (skipped for good) with the reason as an event.
+    pub fn fail_step(&mut self, step_id: i64, reason: &str) -> Result<(), StoreError> {
+        let path = self.path.clone();
+        let sql = |source| StoreError::Sqlite {
+            path: path.clone(),
+            source,
+        };
+        let tx = self.conn.transaction().map_err(sql)?;
+        tx.execute(
+            "UPDATE steps SET state = 'failed', attempts = attempts + 1 WHERE id = ?1",
+            [step_id],
+        )
+        .map_err(sql)?;
+        tx.execute(
+            "INSERT INTO events (session, wall_s, kind, step_id, message) \
+             VALUES (?1, ?2, 'skip', ?3, ?4)",
+            params![self.session, wall_now(), step_id, reason],
+        )
+        .map_err(sql)?;
+        tx.commit().map_err(sql)?;
+        Ok(())
+    }
+
+    /// Every step, in schedule order.
+    pub fn steps(&self) -> Result<Vec<StoredStep>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare(&format!(
+                "SELECT {STEP_COLUMNS}, state, attempts FROM steps ORDER BY id"
+            ))
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                let kind: String = r.get(1)?;
+                let angles: [Option<f64>; 4] = [r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?];
+                let targets: [Option<f64>; 4] = [r.get(9)?, r.get(10)?, r.get(11)?, r.get(12)?];
+                let pair = match angles {
+                    [Some(a), Some(b), Some(c), Some(d)] => Some(PairDeg {
+                        incident: SphericalDeg::new(a, b),
+                        outgoing: SphericalDeg::new(c, d),
+                    }),
+                    _ => None,
+                };
+                let stages = match targets {
+                    [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
+                    _ => None,
+                };
+                let plan_index: Option<i64> = r.get(4)?;
+                Ok(StoredStep {
+                    id: r.get(0)?,
+                    step: Step {
+                        // The CHECK constraint admits only the five names.
+                        kind: StepKind::parse(&kind).unwrap_or(StepKind::Sample),
+                        channel: r.get(2)?,
+                        repeat: r.get(3)?,
+                        pair,
+                        stages,
+                        plan_index: plan_index.map(|i| i as usize),
+                    },
+                    state: r.get(13)?,
+                    attempts: r.get(14)?,
+                })
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// Every reading, in step order.
+    pub fn readings(&self) -> Result<Vec<ReadingRecord>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare(&format!(
+                "SELECT {READING_COLUMNS} FROM readings ORDER BY step_id"
+            ))
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                let num = |r: &rusqlite::Row<'_>, i: usize| -> rusqlite::Result<f64> {
+                    Ok(r.get::<_, Option<f64>>(i)?.unwrap_or(f64::NAN))
+                };
+                let cmd: [Option<f64>; 4] = [r.get(2)?, r.get(3)?, r.get(4)?, r.get(5)?];
+                let commanded = match cmd {
+                    [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
+                    _ => None,
+                };
+                let retries: i64 = r.get(27)?;
+                Ok(ReadingRecord {
+                    step_id: r.get(0)?,
+                    commanded,
+                    position: [num(r, 6)?, num(r, 7)?, num(r, 8)?, num(r, 9)?],
+                    read_pair: PairDeg {
+                        incident: SphericalDeg::new(num(r, 10)?, num(r, 11)?),
+                        outgoing: SphericalDeg::new(num(r, 12)?, num(r, 13)?),
+                    },
+                    sensitivity: r.get(14)?,
+                    sensitivity_v: num(r, 15)?,
+                    time_constant: r.get(16)?,
+                    time_constant_s: num(r, 17)?,
+                    slope_db: r.get(18)?,
+                    r_mean: num(r, 19)?,
+                    r_std: num(r, 20)?,
+                    x_mean: num(r, 21)?,
+                    y_mean: num(r, 22)?,
+                    n: r.get(23)?,
+                    autorange_steps: r.get(24)?,
+                    lias: r.get(25)?,
+                    flags: r.get(26)?,
+                    retries: retries as u64,
+                    physical_s: num(r, 28)?,
+                    wall_s: num(r, 29)?,
+                })
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// The reading of the latest done step before `step_id` (the detector's state
+    /// to restore on resume), if any.
+    pub fn last_reading_before(&self, step_id: i64) -> Result<Option<ReadingRecord>, StoreError> {
+        let last: Option<i64> = self
+            .conn
+            .query_row(
+                "SELECT max(step_id) FROM readings WHERE step_id < ?1",
+                [step_id],
+                |r| r.get(0),
+            )
+            .map_err(|e| self.sql(e))?;
+        let Some(id) = last else { return Ok(None) };
+        Ok(self.readings()?.into_iter().find(|r| r.step_id == id))
+    }
+
+    /// Every event, in order.
+    pub fn events(&self) -> Result<Vec<EventRecord>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT wall_s, kind, step_id, message FROM events ORDER BY id")
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok(EventRecord {
+                    wall_s: r.get(0)?,
+                    kind: r.get(1)?,
+                    step_id: r.get(2)?,
+                    message: r.get(3)?,
+                })
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+
+    /// Counts of steps by state.
+    pub fn state_counts(&self) -> Result<BTreeMap<String, u64>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT state, count(*) FROM steps GROUP BY state")
+            .map_err(|e| self.sql(e))?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as u64))
+            })
+            .map_err(|e| self.sql(e))?;
+        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+    }
+}

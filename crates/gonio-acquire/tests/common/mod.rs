@@ -1,0 +1,100 @@
+//! Shared set-up of the acquisition tests: the simulated instrument of
+//! `config/instrument-sim.toml` and `config/sim-example.toml`, plans from text.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use gonio_acquire::bench::SimBench;
+use gonio_acquire::engine::{Engine, EngineConfig, SessionReport};
+use gonio_acquire::plan::Plan;
+use gonio_acquire::run::{self, Inputs, Prepared};
+use gonio_acquire::store::RunStore;
+use gonio_driver::InstrumentConfig;
+use gonio_sim::{SharedSim, SimConfig};
+
+/// The repository's root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The simulated instrument's config.
+pub fn instrument() -> (InstrumentConfig, String) {
+    let path = root().join("config/instrument-sim.toml");
+    InstrumentConfig::load_with_text(&path).expect("example instrument")
+}
+
+/// The simulator's default config, with `seed`.
+pub fn sim(seed: u64) -> SimConfig {
+    let mut s = SimConfig::default_config().expect("embedded sim");
+    s.seed = seed;
+    s
+}
+
+/// A plan from text, anchored in `config/` (for relative paths).
+pub fn plan(text: &str) -> Plan {
+    Plan::from_toml(text, Some(&root().join("config/test-plan.toml"))).expect("valid plan")
+}
+
+/// A fresh directory for run files.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("gonio-acquire-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+/// Prepares `plan` and creates its run file at `out`.
+pub fn create(out: &Path, plan: &Plan, plan_text: &str, seed: u64) -> (RunStore, Prepared) {
+    let (inst, inst_text) = instrument();
+    let prepared = run::prepare(&inst, "instrument-sim.toml", plan).expect("prepares");
+    let s = sim(seed);
+    let inputs = Inputs {
+        instrument_text: inst_text,
+        plan_text: plan_text.to_string(),
+        sim: Some((
+            gonio_sim::config::DEFAULT_SIM.to_string(),
+            s.sample_model_text().expect("sample"),
+        )),
+        seed: Some(seed),
+        software: "test".into(),
+        ..Inputs::default()
+    };
+    let store = run::create(out, plan, &prepared, &inputs).expect("creates");
+    (store, prepared)
+}
+
+/// An engine on a fresh simulator for `store`.
+pub fn engine(
+    store: RunStore,
+    seed: u64,
+    tweak: impl FnOnce(&mut SimConfig),
+) -> (
+    Engine<gonio_sim::SimTransport, gonio_sim::SimTransport, gonio_sim::SimClock, SimBench>,
+    SharedSim,
+) {
+    let (inst, _) = instrument();
+    let mut s = sim(seed);
+    tweak(&mut s);
+    let (g, shared) = gonio_sim::connect(&inst, &s).expect("sim");
+    let mech = gonio_acquire::plan::Mechanics::of(&inst).expect("mechanics");
+    let stored = run::stored(&store).expect("stored");
+    let bench = SimBench::new(shared.clone(), None);
+    let cfg = EngineConfig {
+        incident_transmittance: stored.transmittance,
+        ..EngineConfig::default()
+    };
+    (Engine::new(g, bench, store, mech, cfg), shared)
+}
+
+/// Runs one session to its end.
+pub fn run_session(
+    engine: Engine<gonio_sim::SimTransport, gonio_sim::SimTransport, gonio_sim::SimClock, SimBench>,
+) -> (SessionReport, RunStore) {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime")
+        .block_on(engine.run())
+        .expect("engine runs")
+}
