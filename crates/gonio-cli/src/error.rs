@@ -10,6 +10,9 @@ pub enum CliError {
     Input(String),
     /// A failure while running on good input: exit status 1.
     Runtime(String),
+    /// Stopped by the operator (Ctrl-C), cleanly and resumably: exit status 130, the
+    /// shell's code for an interrupt.
+    Interrupted(String),
 }
 
 impl CliError {
@@ -18,6 +21,7 @@ impl CliError {
         match self {
             CliError::Input(_) => 2,
             CliError::Runtime(_) => 1,
+            CliError::Interrupted(_) => 130,
         }
     }
 }
@@ -25,7 +29,7 @@ impl CliError {
 impl fmt::Display for CliError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            CliError::Input(m) | CliError::Runtime(m) => f.write_str(m),
+            CliError::Input(m) | CliError::Runtime(m) | CliError::Interrupted(m) => f.write_str(m),
         }
     }
 }

@@ -4,6 +4,7 @@
 //! stdout; logs and errors go to stderr. Exit status 0 on success, 1 on a runtime
 //! failure, 2 on bad input, with a one-line reason naming the file and line or field.
 
+mod acquire_cmd;
 mod demo;
 mod error;
 mod instrument_cmd;
@@ -43,9 +44,81 @@ enum Command {
         #[command(subcommand)]
         command: InstrumentCommand,
     },
+    /// Check a measurement plan against an instrument: what can be measured, what
+    /// cannot and why, and how long it will take.
+    Plan {
+        #[command(subcommand)]
+        command: PlanCommand,
+    },
+    /// Measure a plan into a new run file (`.gonio`). Ctrl-C stops the stages and
+    /// leaves the run resumable; a second Ctrl-C quits at once.
+    Acquire {
+        /// The instrument config (TOML).
+        #[arg(long)]
+        instrument: PathBuf,
+        /// The plan (TOML).
+        #[arg(long)]
+        plan: PathBuf,
+        /// The run file to create.
+        #[arg(long)]
+        out: PathBuf,
+        /// Simulator config for ports named "sim" (the embedded default otherwise).
+        #[arg(long)]
+        sim: Option<PathBuf>,
+        /// Seed of the simulator's random draws (overrides its config).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Operator notes stored with the run.
+        #[arg(long)]
+        notes: Option<String>,
+        /// Print one JSON object at the end instead of progress and text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Continue an interrupted or killed run where it stopped (re-homing if needed).
+    Resume {
+        /// The run file.
+        run: PathBuf,
+        /// Print one JSON object at the end instead of progress and text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// List the run files in a directory.
+    Runs {
+        /// The directory.
+        dir: PathBuf,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Show a run: status, counts, durations, configs.
+    Show {
+        /// The run file.
+        run: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until standard input closes.
     Sim(gonio_sim::cli::ServeArgs),
+}
+
+#[derive(Subcommand)]
+enum PlanCommand {
+    /// Map every pair through the instrument's kinematics; list the pairs left out
+    /// (outside the limits, shadowed, overfilled, below the horizon, duplicated) and
+    /// estimate the motion and detector time.
+    Check {
+        /// The plan (TOML).
+        plan: PathBuf,
+        /// The instrument config (TOML).
+        #[arg(long)]
+        instrument: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Subcommand)]
@@ -127,6 +200,34 @@ fn run(cli: Cli) -> Result<(), CliError> {
                 json,
             } => instrument_cmd::check(&config, connect, sim.as_deref(), json),
         },
+        Command::Plan {
+            command:
+                PlanCommand::Check {
+                    plan,
+                    instrument,
+                    json,
+                },
+        } => acquire_cmd::plan_check(&plan, &instrument, json),
+        Command::Acquire {
+            instrument,
+            plan,
+            out,
+            sim,
+            seed,
+            notes,
+            json,
+        } => acquire_cmd::acquire(acquire_cmd::AcquireArgs {
+            instrument,
+            plan,
+            out,
+            sim,
+            seed,
+            notes,
+            json,
+        }),
+        Command::Resume { run, json } => acquire_cmd::resume(&run, json),
+        Command::Runs { dir, json } => acquire_cmd::runs(&dir, json),
+        Command::Show { run, json } => acquire_cmd::show(&run, json),
         Command::Sim(args) => {
             gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
                 match e.exit_code() {
