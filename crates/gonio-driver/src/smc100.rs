@@ -632,8 +632,7 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
             let s = self.status_of(i).map_err(|e| self.fail(i, e))?;
             let st = s.state;
             if st.is_not_referenced() {
-                self.command(i, Command::Home)
-                    .map_err(|e| self.fail(i, e))?;
+                self.start_home(i)?;
                 searching.push(i);
             } else if st.is_homing() {
                 searching.push(i);
@@ -858,6 +857,37 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
             out.push(p);
         }
         Ok(out)
+    }
+
+    /// Sends `OR` to a NOT REFERENCED controller. `OR` must not be re-sent blindly,
+    /// but a lost acknowledgement is not a lost command: the state tells which. HOMING
+    /// (or READY) means it ran; still NOT REFERENCED means it never arrived, and it is
+    /// sent again (up to `retries` times).
+    fn start_home(&mut self, i: usize) -> Result<(), MotionError> {
+        for _ in 0..=self.policy.retries {
+            match self.command(i, Command::Home) {
+                Ok(()) => return Ok(()),
+                Err(AxisError::Ambiguous { .. }) => {
+                    self.retried += 1;
+                    let s = self.status_of(i).map_err(|e| self.fail(i, e))?;
+                    if s.state.is_homing() || s.state.is_ready() {
+                        return Ok(());
+                    }
+                    if !s.state.is_not_referenced() {
+                        return Err(self.fail(
+                            i,
+                            AxisError::HomingFailed {
+                                state: s.state,
+                                errors: s.errors.0,
+                            },
+                        ));
+                    }
+                }
+                Err(e) => return Err(self.fail(i, e)),
+            }
+        }
+        let command = line_text(&Frame::addressed(self.axes[i].address, Command::Home).to_bytes());
+        Err(self.fail(i, AxisError::Ambiguous { command }))
     }
 
     /// Resets the named controller (`RS`), waits for it to come back NOT REFERENCED

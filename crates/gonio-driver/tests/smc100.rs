@@ -87,6 +87,40 @@ fn homing_from_not_referenced() {
     finish(c, &h);
 }
 
+/// A lost acknowledgement of `OR`: the state says whether it ran. HOMING: it did,
+/// and it is not sent again. Still NOT REFERENCED: it never arrived, and is sent again.
+#[test]
+fn lost_ack_of_home_is_resolved_by_the_state() {
+    let (mut c, h, _) = chain(vec![axis("source", 1)]);
+    h.exchange("1TS\r\n", "1TS00000A\r\n")
+        .send("1OR\r\n")
+        .send("1TE\r\n")
+        .exchange("1TS\r\n", "1TS00001E\r\n")
+        .exchange("1TS\r\n", "1TS000032\r\n")
+        .send("1VA10\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .send("1AC40\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n");
+    c.home(&["source"]).expect("homes");
+    assert_eq!(c.retried(), 1);
+    finish(c, &h);
+
+    let (mut c, h, _) = chain(vec![axis("source", 1)]);
+    h.exchange("1TS\r\n", "1TS00000A\r\n")
+        .send("1OR\r\n")
+        .send("1TE\r\n")
+        .exchange("1TS\r\n", "1TS00000A\r\n")
+        .send("1OR\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .exchange("1TS\r\n", "1TS000032\r\n")
+        .send("1VA10\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .send("1AC40\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n");
+    c.home(&["source"]).expect("homes after a second OR");
+    finish(c, &h);
+}
+
 /// Manual §1.8, move and read cycle, with two stages moving at once.
 #[test]
 fn concurrent_absolute_moves() {
