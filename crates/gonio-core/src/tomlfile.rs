@@ -89,8 +89,10 @@ pub fn parse<T: DeserializeOwned>(
     validate: impl FnOnce(&T) -> Result<(), (String, String)>,
 ) -> Result<T, FileError> {
     let value: T = toml::from_str(text).map_err(|e| {
-        let mut err = FileError::whole(kind, path, e.message().trim());
+        let message = e.message().trim();
+        let mut err = FileError::whole(kind, path, message);
         if let Some(s) = e.span() {
+            let s = refine(text, s, message);
             let (l, c) = crate::text::line_col(text, s.start);
             err.line = Some(l);
             err.column = Some(c);
@@ -100,6 +102,35 @@ pub fn parse<T: DeserializeOwned>(
     validate(&value)
         .map_err(|(field, message)| FileError::at_field(kind, path, text, field, message))?;
     Ok(value)
+}
+
+/// Narrows an error's span from a whole table to the offending key, where the
+/// message names one (`unknown field `speed``): tagged enums make the TOML parser
+/// report the table rather than the key.
+fn refine(text: &str, span: Range<usize>, message: &str) -> Range<usize> {
+    let Some(rest) = message.strip_prefix("unknown field `") else {
+        return span;
+    };
+    let Some(key) = rest.split('`').next() else {
+        return span;
+    };
+    // The span may be just the table's header: search its body, up to the next header.
+    let region = text.get(span.start..).unwrap_or("");
+    let mut offset = span.start;
+    for (k, line) in region.split_inclusive('\n').enumerate() {
+        let trimmed = line.trim_start();
+        if k > 0 && trimmed.starts_with('[') {
+            break;
+        }
+        if let Some(after) = trimmed.strip_prefix(key)
+            && after.trim_start().starts_with('=')
+        {
+            let at = offset + (line.len() - trimmed.len());
+            return at..at + key.len();
+        }
+        offset += line.len();
+    }
+    span
 }
 
 /// Reads the file at `path` and [`parse`]s it; also returns the text (run files keep
@@ -203,6 +234,26 @@ mod tests {
         );
         let e = parse::<Doc>("plan", "a = \n", None, |_| Ok(())).expect_err("syntax");
         assert_eq!(e.line, Some(1));
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Tagged {
+        #[allow(dead_code)]
+        points: Kind,
+    }
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(tag = "kind", deny_unknown_fields)]
+    enum Kind {
+        #[allow(dead_code)]
+        One { x: f64 },
+    }
+
+    #[test]
+    fn unknown_keys_of_tagged_tables_point_at_the_key() {
+        let text = "[points]\nkind = \"One\"\nx = 1.0\n  speed = 3\n";
+        let e = parse::<Tagged>("plan", text, None, |_| Ok(())).expect_err("speed");
+        assert_eq!((e.line, e.column), (Some(4), Some(3)), "{e}");
     }
 
     #[test]
