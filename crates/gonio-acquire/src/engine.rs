@@ -9,8 +9,9 @@
 //! What the engine does with faults:
 //! - lost, late or garbled replies are retried by the drivers; the count is stored
 //!   with the reading and logged as a `retry` event;
-//! - a controller that was reset or lost power is reset and re-homed, and the step is
-//!   measured again (up to [`EngineConfig::max_attempts`] times);
+//! - after a controller was reset or lost power, every axis that lost its reference
+//!   is re-homed (the NUL byte on the shared line does not say which controller sent
+//!   it), and the step is measured again (up to [`EngineConfig::max_attempts`] times);
 //! - a flagged reading (overload, unlock) is read again up to
 //!   [`EngineConfig::flagged_rereads`] times, then stored with its flags: data is
 //!   never thrown away, the reduction decides;
@@ -28,7 +29,7 @@ use gonio_core::dirfile::PairDeg;
 use gonio_core::kinematics;
 use gonio_driver::smc100::{AbortFlag, AxisError, MotionError};
 use gonio_driver::sr830::{Reading, Sr830Error};
-use gonio_driver::{Clock, Goniometer, Transport};
+use gonio_driver::{Clock, Goniometer, Transport, TransportError};
 use gonio_proto::sr830::Sensitivity;
 use tokio::sync::broadcast;
 
@@ -575,6 +576,9 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                 Some(id),
                 &format!("reading flagged {:?}; reading again", reading.flags),
             )?;
+            // What flagged it (an unlock: nothing demodulated; an overload) upset the
+            // filters: the next reading waits a full settling time, as after a move.
+            self.gonio.detector.input_changed();
             reading = match self.gonio.detector.read() {
                 Ok(r) => r,
                 Err(e) => return self.detector_failed(id, e),
@@ -663,23 +667,26 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             AxisError::ControllerReset | AxisError::NotReferenced { .. } => {
                 self.fault(Some(id), &m, true)?;
                 let _ = self.gonio.motion.stop_all();
-                let recovered = if matches!(cause, AxisError::ControllerReset) {
-                    self.gonio.motion.reset_and_home(&axis)
-                } else {
-                    self.gonio.motion.home(&[axis.as_str()])
-                };
-                match recovered {
-                    Ok(()) => {
+                match self.rehome_lost() {
+                    Ok(lost) if lost.is_empty() => {
                         self.store.event(
                             "home",
                             Some(id),
-                            &format!("re-homed {axis}; measuring the step again"),
+                            "every axis kept its reference; measuring the step again",
                         )?;
-                        let _ = self.events.send(Event::Homed { axes: vec![axis] });
+                        Ok(StepOutcome::Again(m))
+                    }
+                    Ok(lost) => {
+                        self.store.event(
+                            "home",
+                            Some(id),
+                            &format!("re-homed {}; measuring the step again", lost.join(", ")),
+                        )?;
+                        let _ = self.events.send(Event::Homed { axes: lost });
                         Ok(StepOutcome::Again(m))
                     }
                     Err(e2) => {
-                        let m2 = format!("re-homing {axis} failed: {e2}");
+                        let m2 = format!("re-homing after the fault on {axis} failed: {e2}");
                         self.fault(Some(id), &m2, false)?;
                         Ok(StepOutcome::Stop(Outcome::Faulted(m2)))
                     }
@@ -691,6 +698,56 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                 Ok(StepOutcome::Stop(Outcome::Faulted(m)))
             }
         }
+    }
+
+    /// After a controller reset or lost power: waits until every controller answers
+    /// (a rebooting one is silent for a few seconds) and no stage is still stopping,
+    /// then homes each axis that lost its reference. Every controller is asked, not
+    /// only the axis the error named: a power loss's NUL byte arrives on the shared
+    /// line in answer to whichever controller was being polled, so it does not say
+    /// which one rebooted. Returns the axes homed.
+    fn rehome_lost(&mut self) -> Result<Vec<String>, MotionError> {
+        const BOOT: Duration = Duration::from_secs(10);
+        let names: Vec<String> = self
+            .gonio
+            .motion
+            .axes()
+            .iter()
+            .map(|a| a.name.clone())
+            .collect();
+        let start = self.gonio.motion.clock().now();
+        let mut lost = Vec::new();
+        for name in &names {
+            loop {
+                let waiting = match self.gonio.motion.status(name) {
+                    Ok(s) if s.state.is_moving() => AxisError::WrongState {
+                        state: s.state,
+                        operation: "homing",
+                    },
+                    Ok(s) => {
+                        if !s.state.is_ready() {
+                            lost.push(name.clone());
+                        }
+                        break;
+                    }
+                    Err(MotionError::AtAxis {
+                        source: e @ AxisError::Transport(TransportError::Timeout(_)),
+                        ..
+                    }) => e,
+                    Err(e) => return Err(e),
+                };
+                if self.gonio.motion.clock().now().saturating_sub(start) > BOOT {
+                    return Err(MotionError::AtAxis {
+                        axis: name.clone(),
+                        source: waiting,
+                    });
+                }
+                self.gonio.motion.clock().sleep(Duration::from_millis(500));
+            }
+        }
+        let refs: Vec<&str> = lost.iter().map(String::as_str).collect();
+        self.gonio.motion.home(&refs)?;
+        Ok(lost)
     }
 
     fn detector_failed(&mut self, id: i64, e: Sr830Error) -> Result<StepOutcome, StoreError> {

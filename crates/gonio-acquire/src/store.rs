@@ -126,6 +126,15 @@ pub enum StoreError {
         #[source]
         source: rusqlite::Error,
     },
+    /// A file operation failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
     /// The file exists already (a new run never overwrites one).
     #[error("{0}: exists already; choose another name, or `gonio resume` it")]
     Exists(PathBuf),
@@ -176,7 +185,7 @@ impl StoreError {
     pub fn is_bad_input(&self) -> bool {
         !matches!(
             self,
-            StoreError::Sqlite { .. } | StoreError::NotPending { .. }
+            StoreError::Sqlite { .. } | StoreError::Io { .. } | StoreError::NotPending { .. }
         )
     }
 }
@@ -444,6 +453,10 @@ impl RunStore {
     }
 
     /// Creates a new run file with its metadata and schedule; refuses to overwrite.
+    ///
+    /// Atomic: the file is written whole under a temporary name and linked into place
+    /// only when complete, so a kill during creation leaves no run file (and no
+    /// half-made one that `resume` would have to refuse).
     pub fn create(
         path: &Path,
         meta: &BTreeMap<String, String>,
@@ -452,6 +465,47 @@ impl RunStore {
         if path.exists() {
             return Err(StoreError::Exists(path.to_path_buf()));
         }
+        let name = path
+            .file_name()
+            .map_or("run".into(), |n| n.to_string_lossy().into_owned());
+        let tmp = path.with_file_name(format!(".{name}.partial-{}", std::process::id()));
+        let _ = std::fs::remove_file(&tmp);
+        let written = Self::write_new(&tmp, meta, steps);
+        let placed = written.and_then(|()| {
+            let io = |source| StoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            };
+            // A hard link never replaces an existing file: two runs racing for one
+            // name cannot both win.
+            match std::fs::hard_link(&tmp, path) {
+                Ok(()) => Ok(()),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    Err(StoreError::Exists(path.to_path_buf()))
+                }
+                // File systems without hard links: check, then rename.
+                Err(_) if path.exists() => Err(StoreError::Exists(path.to_path_buf())),
+                Err(_) => std::fs::rename(&tmp, path).map_err(io),
+            }
+        });
+        let _ = std::fs::remove_file(&tmp);
+        placed?;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+            && let Ok(d) = std::fs::File::open(dir)
+        {
+            // The new name is durable too (best effort: not every platform syncs
+            // directories).
+            let _ = d.sync_all();
+        }
+        Self::open(path)
+    }
+
+    /// Writes a complete new run file at `path` (rollback journal, closed after).
+    fn write_new(
+        path: &Path,
+        meta: &BTreeMap<String, String>,
+        steps: &[Step],
+    ) -> Result<(), StoreError> {
         let sql = |source| StoreError::Sqlite {
             path: path.to_path_buf(),
             source,
@@ -463,7 +517,7 @@ impl RunStore {
                 | OpenFlags::SQLITE_OPEN_NO_MUTEX,
         )
         .map_err(sql)?;
-        Self::pragmas(&conn).map_err(sql)?;
+        conn.pragma_update(None, "synchronous", "FULL").map_err(sql)?;
         let mut store = RunStore {
             conn,
             path: path.to_path_buf(),
@@ -495,7 +549,7 @@ impl RunStore {
             }
         }
         tx.commit().map_err(sql)?;
-        Ok(store)
+        Ok(())
     }
 
     /// Opens an existing run file after checking that it is one, that this build
@@ -806,17 +860,10 @@ impl RunStore {
         let mut v = reading_values(reading, session);
         let crc = row_crc(&v);
         v.push(Value::Integer(crc));
-        let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
-        tx.prepare_cached(&format!(
-            "INSERT INTO readings ({READING_COLUMNS}, crc) VALUES ({})",
-            placeholders.join(", ")
-        ))
-        .and_then(|mut s| s.execute(rusqlite::params_from_iter(v)))
-        .map_err(sql)?;
         let changed = tx
             .prepare_cached(
                 "UPDATE steps SET state = 'done', attempts = attempts + 1 \
-                 WHERE id = ?1 AND state != 'done'",
+                 WHERE id = ?1 AND state = 'pending'",
             )
             .and_then(|mut s| s.execute([reading.step_id]))
             .map_err(sql)?;
@@ -827,6 +874,13 @@ impl RunStore {
                 step: reading.step_id,
             });
         }
+        let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
+        tx.prepare_cached(&format!(
+            "INSERT INTO readings ({READING_COLUMNS}, crc) VALUES ({})",
+            placeholders.join(", ")
+        ))
+        .and_then(|mut s| s.execute(rusqlite::params_from_iter(v)))
+        .map_err(sql)?;
         for e in events {
             tx.prepare_cached(
                 "INSERT INTO events (session, wall_s, kind, step_id, message) \

@@ -1,0 +1,232 @@
+//! The run file: refuses what it cannot trust (newer schemas, other files, damage),
+//! never overwrites a run, and commits a step all or nothing.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::Path;
+
+use gonio_acquire::schedule::{Step, StepKind};
+use gonio_acquire::store::{self, ReadingRecord, RunStore, StoreError};
+use gonio_core::SphericalDeg;
+use gonio_core::dirfile::PairDeg;
+
+fn steps(n: usize) -> Vec<Step> {
+    (0..n)
+        .map(|i| Step {
+            kind: StepKind::Sample,
+            channel: None,
+            repeat: 0,
+            pair: Some(PairDeg {
+                incident: SphericalDeg::new(30.0, 0.0),
+                outgoing: SphericalDeg::new(i as f64, 180.0),
+            }),
+            stages: Some([-30.0, i as f64, 90.0, 0.0]),
+            plan_index: Some(i),
+        })
+        .collect()
+}
+
+fn reading(step_id: i64, r: f64) -> ReadingRecord {
+    ReadingRecord {
+        step_id,
+        commanded: Some([-30.0, step_id as f64, 90.0, 0.0]),
+        position: [-30.0, step_id as f64, 90.0, -0.0],
+        read_pair: PairDeg {
+            incident: SphericalDeg::new(30.0, 0.0),
+            outgoing: SphericalDeg::new(step_id as f64, 180.0),
+        },
+        sensitivity: 17,
+        sensitivity_v: 1e-3,
+        time_constant: 8,
+        time_constant_s: 0.1,
+        slope_db: 24,
+        r_mean: r,
+        r_std: r * 1e-3,
+        x_mean: r,
+        y_mean: 1e-9,
+        n: 10,
+        autorange_steps: 0,
+        lias: 0,
+        flags: 0,
+        retries: 0,
+        physical_s: 3.5 * step_id as f64,
+        wall_s: 1.8e9,
+    }
+}
+
+/// A run file of `n` steps with the first `done` measured, closed.
+fn make(path: &Path, n: usize, done: usize) {
+    let mut meta = BTreeMap::new();
+    meta.insert("instrument".to_string(), "name = \"x\"".to_string());
+    let mut s = RunStore::create(path, &meta, &steps(n)).expect("creates");
+    s.begin_session("test").expect("session");
+    for i in 0..done {
+        s.commit(&reading(i as i64, 1e-3 * (i + 1) as f64), &[])
+            .expect("commit");
+    }
+    s.end_session("interrupted").expect("end");
+}
+
+#[test]
+fn round_trip() {
+    let dir = common::scratch("store-rt");
+    let p = dir.join("r.gonio");
+    make(&p, 5, 3);
+    let s = RunStore::open(&p).expect("opens");
+    let r = s.readings().expect("readings");
+    assert_eq!(r.len(), 3);
+    // −0.0 reads back as 0.0 (SQLite stores integral reals as integers); all else exact.
+    assert_eq!(r[2], ReadingRecord {
+        position: [-30.0, 2.0, 90.0, 0.0],
+        ..reading(2, 3e-3)
+    });
+    let st = s.steps().expect("steps");
+    assert_eq!(st.len(), 5);
+    assert_eq!(st[1].step, steps(5)[1]);
+    assert_eq!(
+        st.iter().filter(|x| x.state == "done").count(),
+        3,
+        "{st:?}"
+    );
+    assert_eq!(s.meta_value("status").expect("meta").as_deref(), Some("interrupted"));
+}
+
+#[test]
+fn a_run_is_never_overwritten() {
+    let dir = common::scratch("store-exists");
+    let p = dir.join("r.gonio");
+    make(&p, 2, 1);
+    let e = RunStore::create(&p, &BTreeMap::new(), &steps(1)).expect_err("exists");
+    assert!(matches!(e, StoreError::Exists(_)));
+    assert_eq!(RunStore::open(&p).expect("intact").readings().expect("r").len(), 1);
+}
+
+#[test]
+fn a_step_is_committed_once_all_or_nothing() {
+    let dir = common::scratch("store-once");
+    let p = dir.join("r.gonio");
+    make(&p, 3, 1);
+    let mut s = RunStore::open(&p).expect("opens");
+    s.begin_session("test").expect("session");
+    let ev = store::EventRecord {
+        wall_s: 1.0,
+        kind: "retry".into(),
+        step_id: Some(0),
+        message: "x".into(),
+    };
+    let e = s.commit(&reading(0, 9.0), &[ev]).expect_err("already done");
+    assert!(matches!(e, StoreError::NotPending { step: 0, .. }), "{e}");
+    // Neither the second reading nor its event was kept.
+    assert_eq!(s.readings().expect("r")[0].r_mean, 1e-3);
+    assert!(s.events().expect("events").iter().all(|e| e.kind != "retry"));
+}
+
+#[test]
+fn a_newer_schema_is_refused() {
+    let dir = common::scratch("store-newer");
+    let p = dir.join("r.gonio");
+    make(&p, 2, 1);
+    {
+        let c = rusqlite::Connection::open(&p).expect("sqlite");
+        c.pragma_update(None, "user_version", 7).expect("bump");
+    }
+    let e = RunStore::open(&p).expect_err("newer");
+    assert!(matches!(
+        e,
+        StoreError::NewerSchema {
+            found: 7,
+            supported: 1,
+            ..
+        }
+    ));
+    assert!(e.to_string().contains("schema version 7 is newer than this build reads (1)"));
+    assert!(e.is_bad_input());
+}
+
+#[test]
+fn other_files_are_not_run_files() {
+    let dir = common::scratch("store-other");
+    let text = dir.join("notes.gonio");
+    std::fs::write(&text, "just some text, long enough for a header\n").expect("write");
+    let e = RunStore::open(&text).expect_err("text");
+    assert!(matches!(e, StoreError::NotARunFile { .. }), "{e}");
+    let empty = dir.join("empty.gonio");
+    std::fs::write(&empty, "").expect("write");
+    assert!(matches!(
+        RunStore::open(&empty).expect_err("empty"),
+        StoreError::NotARunFile { .. }
+    ));
+    let other = dir.join("other.gonio");
+    {
+        let c = rusqlite::Connection::open(&other).expect("sqlite");
+        c.execute_batch("CREATE TABLE t (x); INSERT INTO t VALUES (1);")
+            .expect("table");
+    }
+    let e = RunStore::open(&other).expect_err("foreign database");
+    assert!(e.to_string().contains("application_id 0x00000000"), "{e}");
+    assert!(matches!(
+        RunStore::open(&dir.join("missing.gonio")).expect_err("missing"),
+        StoreError::Missing(_)
+    ));
+}
+
+/// Finds the 8 bytes of `x` (big-endian, as SQLite stores a REAL) in the file.
+fn find_f64(bytes: &[u8], x: f64) -> Option<usize> {
+    let pat = x.to_be_bytes();
+    bytes.windows(8).position(|w| w == pat)
+}
+
+#[test]
+fn a_damaged_value_is_detected() {
+    let dir = common::scratch("store-damage");
+    let p = dir.join("r.gonio");
+    make(&p, 4, 3);
+    let mut bytes = Vec::new();
+    std::fs::File::open(&p)
+        .and_then(|mut f| f.read_to_end(&mut bytes))
+        .expect("read");
+    // Change one reading's R in place: the file stays valid SQLite, only the row's
+    // checksum can tell.
+    let at = find_f64(&bytes, 2e-3).expect("the value is stored");
+    let mut f = std::fs::OpenOptions::new().write(true).open(&p).expect("open");
+    f.seek(SeekFrom::Start(at as u64)).expect("seek");
+    f.write_all(&2.5e-3f64.to_be_bytes()).expect("write");
+    drop(f);
+    let e = RunStore::open(&p).expect_err("damaged");
+    assert!(
+        e.to_string().contains("readings row 1 fails its checksum"),
+        "{e}"
+    );
+}
+
+#[test]
+fn structural_damage_is_detected() {
+    let dir = common::scratch("store-struct");
+    let p = dir.join("r.gonio");
+    make(&p, 200, 150);
+    let len = std::fs::metadata(&p).expect("meta").len();
+    // Overwrite a page in the middle with garbage.
+    let mut f = std::fs::OpenOptions::new().write(true).open(&p).expect("open");
+    f.seek(SeekFrom::Start(len / 2)).expect("seek");
+    f.write_all(&[0xA5; 4096]).expect("write");
+    drop(f);
+    let e = RunStore::open(&p).expect_err("damaged");
+    assert!(matches!(e, StoreError::Corrupt { .. }), "{e}");
+    // A truncated file.
+    let q = dir.join("t.gonio");
+    make(&q, 200, 150);
+    let f = std::fs::OpenOptions::new().write(true).open(&q).expect("open");
+    f.set_len(len / 3).expect("truncate");
+    drop(f);
+    let e = RunStore::open(&q).expect_err("truncated");
+    assert!(matches!(e, StoreError::Corrupt { .. }), "{e}");
+}
+
+#[test]
+fn utc_dates() {
+    assert_eq!(store::utc(0.0), "1970-01-01T00:00:00Z");
+    assert_eq!(store::utc(951_782_400.0), "2000-02-29T00:00:00Z");
+    assert_eq!(store::utc(1_795_305_599.5), "2026-11-21T23:59:59Z");
+}
