@@ -280,7 +280,7 @@ where
 }
 
 /// Where a run's instrument lives.
-enum Rig {
+pub(crate) enum Rig {
     /// The in-process simulator, built from these configs.
     Sim(Box<gonio_sim::SimConfig>),
     /// Real ports.
@@ -288,7 +288,7 @@ enum Rig {
 }
 
 /// Builds the engine for `store` on `instrument` and runs a session.
-fn session(
+pub(crate) fn session(
     store: RunStore,
     instrument: &InstrumentConfig,
     instrument_name: &str,

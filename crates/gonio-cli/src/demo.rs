@@ -2,6 +2,7 @@
 //! Lafortune et al. 1997, Table 1, at 550 nm.
 
 use std::io::Write;
+use std::path::{Path, PathBuf};
 
 use gonio_brdf::albedo::{DEFAULT_TOLERANCE, integrate};
 use gonio_brdf::{Brdf, Lafortune, Model};
@@ -54,7 +55,7 @@ struct AlbedoRow {
     cubature: f64,
 }
 
-pub fn run(json: bool) -> CliResult<()> {
+pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
     let model = Model::from_toml(BLUE_PAINT, None)
         .map_err(|e| CliError::Runtime(format!("embedded demo model: {e}")))?;
     let Model::Lafortune(paint) = &model else {
@@ -111,16 +112,36 @@ pub fn run(json: bool) -> CliResult<()> {
             }
         }
     }
-    let measured = simulated_cut()?;
+    let acq = acquisition(keep)?;
+    let worst = acq
+        .points
+        .iter()
+        .map(|p| ((p.measured - p.model) / p.sigma).abs())
+        .fold(0.0, f64::max);
+    let worst_rel = acq
+        .points
+        .iter()
+        .map(|p| ((p.measured - p.model) / p.model).abs())
+        .fold(0.0, f64::max);
     if json {
         return output::json(&json!({
-            "simulated_measurement": {
-                "theta_i": SIM_THETA_I,
-                "points": measured.points.iter().map(|p| json!({
-                    "theta_o": p.theta_o, "model": p.model, "measured": p.measured,
-                    "sigma": p.sigma,
+            "acquisition": {
+                "plan": "config/plan-in-plane.toml",
+                "steps": acq.steps,
+                "rejected": acq.rejected.iter().map(|(k, v)| (k.to_string(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
+                "motion_s": acq.motion_s,
+                "raster_motion_s": acq.raster_motion_s,
+                "physical_s": acq.physical_s,
+                "wall_s": acq.wall_s,
+                "dark_v": acq.dark_v,
+                "incident_v": acq.incident_v,
+                "max_deviation_sigmas": worst,
+                "max_relative_deviation": worst_rel,
+                "run_file": acq.run_file.as_ref().map(|p| p.display().to_string()),
+                "points": acq.points.iter().map(|p| json!({
+                    "theta_i": p.theta_i, "theta_o": p.theta_o, "model": p.model,
+                    "measured": p.measured, "sigma": p.sigma,
                 })).collect::<Vec<_>>(),
-                "physical_seconds": measured.physical_s,
             },
             "model": "Lafortune et al. 1997, Table 1: blue paint",
             "channels": ch.names(),
@@ -207,21 +228,43 @@ pub fn run(json: bool) -> CliResult<()> {
         writeln!(w)?;
         writeln!(
             w,
-            "Measured on the simulated goniometer: the real SMC100 and SR830 drivers against"
+            "Acquired on the simulated goniometer (gonio-sim: coplanar arms, this paint, seed 1)"
         )?;
         writeln!(
             w,
-            "gonio-sim (coplanar arms, this paint, seed 1), theta_i = {SIM_THETA_I}, in the plane"
+            "through the real stack: plan check, motion ordering, run file, engine, SMC100 and"
+        )?;
+        writeln!(w, "SR830 drivers. Plan config/plan-in-plane.toml:")?;
+        let rejected: Vec<String> = acq.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        writeln!(
+            w,
+            "  {} steps ({} left out: {}); motion {:.0} s ordered vs {:.0} s in plan order",
+            acq.steps,
+            acq.rejected.iter().map(|(_, v)| v).sum::<usize>(),
+            rejected.join(", "),
+            acq.motion_s,
+            acq.raster_motion_s
         )?;
         writeln!(
             w,
-            "{:>7} {:>11} {:>11} {:>10} {:>7}",
-            "theta_o", "model", "measured", "sigma", "dev/s"
+            "  {:.0} s of instrument time in {:.2} s of wall time; dark {:.2e} V, incident {:.3e} V \
+             above dark (ND 1e-3)",
+            acq.physical_s, acq.wall_s, acq.dark_v, acq.incident_v
         )?;
-        for p in &measured.points {
+        writeln!(
+            w,
+            "Reduced with the run's own dark and incident readings (DeYoung Eq. A.15), every 10°:"
+        )?;
+        writeln!(
+            w,
+            "{:>7} {:>7} {:>11} {:>11} {:>10} {:>7}",
+            "theta_i", "theta_o", "model", "measured", "sigma", "dev/s"
+        )?;
+        for p in acq.points.iter().filter(|p| p.theta_o.rem_euclid(10.0) == 0.0) {
             writeln!(
                 w,
-                "{:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2}",
+                "{:>7} {:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2}",
+                p.theta_i,
                 p.theta_o,
                 p.model,
                 p.measured,
@@ -231,10 +274,13 @@ pub fn run(json: bool) -> CliResult<()> {
         }
         writeln!(
             w,
-            "{} points: {:.1} s of instrument time (homing, moves, settling, sampling)",
-            measured.points.len(),
-            measured.physical_s
+            "{} sample readings: largest deviation {worst:.2} sigma, {:.2} % of the model",
+            acq.points.len(),
+            100.0 * worst_rel
         )?;
+        if let Some(p) = &acq.run_file {
+            writeln!(w, "run file: {} (gonio show {})", p.display(), p.display())?;
+        }
         writeln!(w)?;
         writeln!(
             w,
@@ -242,82 +288,175 @@ pub fn run(json: bool) -> CliResult<()> {
         )?;
         writeln!(
             w,
-            "(gonio instrument check) and the simulated goniometer (gonio sim). Acquisition"
+            "(gonio instrument check), the simulated goniometer (gonio sim) and acquisition"
         )?;
-        writeln!(w, "plans and run files, processing and fitting come next.")?;
+        writeln!(
+            w,
+            "(gonio plan check | acquire | resume | runs | show). Processing and fitting come next."
+        )?;
         w.flush()
     })())
 }
 
-/// Incidence angle of the simulated measurement.
-const SIM_THETA_I: f64 = 35.0;
+/// The embedded acquisition plan.
+const PLAN: &str = include_str!("../../../config/plan-in-plane.toml");
 
-struct SimPoint {
+/// The simulator's instrument config, embedded.
+const INSTRUMENT_SIM: &str = include_str!("../../../config/instrument-sim.toml");
+
+/// One reduced sample reading.
+struct Point {
+    theta_i: f64,
     theta_o: f64,
     model: f64,
     measured: f64,
     sigma: f64,
 }
 
-struct SimCut {
-    points: Vec<SimPoint>,
+/// What the demo's acquisition measured.
+struct Acquired {
+    points: Vec<Point>,
+    steps: usize,
+    rejected: Vec<(&'static str, usize)>,
+    motion_s: f64,
+    raster_motion_s: f64,
     physical_s: f64,
+    wall_s: f64,
+    dark_v: f64,
+    incident_v: f64,
+    run_file: Option<PathBuf>,
 }
 
-/// Measures the paint's in-plane BRDF at θi = 35° on the simulated goniometer, through
-/// the real drivers, and turns each reading back into a BRDF with the simulator's
-/// known optics (`R = g · R_v · P · f_r · cos θo · Ω`).
-fn simulated_cut() -> CliResult<SimCut> {
-    use gonio_core::DirPair;
-    use gonio_core::kinematics::Layout;
+/// Runs the embedded plan on the embedded simulator through the real acquisition
+/// stack (plan check, ordering, run file, engine, drivers, simulator), then reduces
+/// each sample reading with the run's own calibrations, DeYoung Eq. A.15:
+/// `f = (S − S_dark) / ((S_in − S_dark) / T) / (Ω cos θo)`, with `T` the incident
+/// filter's transmittance and `Ω` the detector's solid angle.
+fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
+    use gonio_acquire::plan::Plan;
+    use gonio_acquire::run;
+    use gonio_acquire::schedule::StepKind;
+    use gonio_core::radiometry::{Aperture, brdf_from_flux_ratio};
 
-    let runtime =
-        |e: &dyn std::fmt::Display| CliError::Runtime(format!("simulated measurement: {e}"));
-    let icfg =
+    let runtime = |e: &dyn std::fmt::Display| CliError::Runtime(format!("demo acquisition: {e}"));
+    let inst =
         gonio_driver::InstrumentConfig::from_toml(INSTRUMENT_SIM, None).map_err(|e| runtime(&e))?;
-    let scfg = gonio_sim::SimConfig::default_config().map_err(|e| runtime(&e))?;
-    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).map_err(|e| runtime(&e))?;
-    g.start().map_err(|e| runtime(&e))?;
-    g.home().map_err(|e| runtime(&e))?;
-    let omega = gonio_sim::lock(&sim).optics().solid_angle_sr();
-    let scale = scfg.lockin.chop_gain
-        * scfg.optics.responsivity_v_per_w
-        * scfg.optics.source_power_w
-        * omega;
-    let wi = deg(SIM_THETA_I, 0.0);
+    let plan = Plan::from_toml(PLAN, None).map_err(|e| runtime(&e))?;
+    let prepared = run::prepare(&inst, "instrument-sim.toml", &plan).map_err(|e| runtime(&e))?;
+    let sim = gonio_sim::SimConfig::default_config().map_err(|e| runtime(&e))?;
+    let path = match keep {
+        Some(p) => p.to_path_buf(),
+        None => std::env::temp_dir().join(format!("gonio-demo-{}.gonio", std::process::id())),
+    };
+    let inputs = run::Inputs {
+        instrument_text: INSTRUMENT_SIM.into(),
+        plan_text: PLAN.into(),
+        sim: Some((
+            gonio_sim::config::DEFAULT_SIM.into(),
+            sim.sample_model_text().map_err(|e| runtime(&e))?,
+        )),
+        seed: Some(sim.seed),
+        notes: Some("gonio demo".into()),
+        software: crate::acquire_cmd::SOFTWARE.into(),
+        ..run::Inputs::default()
+    };
+    let store = run::create(&path, &plan, &prepared, &inputs).map_err(|e| match e {
+        run::CreateError::Store(s) if s.is_bad_input() => CliError::Input(s.to_string()),
+        other => runtime(&other),
+    })?;
+    let transmittance = plan.calibration.incident.as_ref().map_or(1.0, |i| i.transmittance);
+    let started = std::time::Instant::now();
+    let (report, store) = crate::acquire_cmd::session(
+        store,
+        &inst,
+        "instrument-sim.toml",
+        crate::acquire_cmd::Rig::Sim(Box::new(sim)),
+        None,
+        transmittance,
+        true,
+    )?;
+    let wall_s = started.elapsed().as_secs_f64();
+    if report.outcome != gonio_acquire::engine::Outcome::Complete {
+        return Err(runtime(&format!("the run ended {}", report.outcome.status())));
+    }
+    let steps = store.steps().map_err(|e| runtime(&e))?;
+    let readings = store.readings().map_err(|e| runtime(&e))?;
+    // The lock-in's X and Y average to the coherent signal; R of a dark reading is
+    // mostly noise (its mean is σ√(π/2), not zero), so darks are subtracted as vectors.
+    let mean_of = |k: StepKind| {
+        let v: Vec<(f64, f64)> = steps
+            .iter()
+            .filter(|s| s.step.kind == k)
+            .filter_map(|s| readings.iter().find(|r| r.step_id == s.id))
+            .map(|r| (r.x_mean, r.y_mean))
+            .collect();
+        let n = v.len().max(1) as f64;
+        (
+            v.iter().map(|p| p.0).sum::<f64>() / n,
+            v.iter().map(|p| p.1).sum::<f64>() / n,
+        )
+    };
+    let dark = mean_of(StepKind::Dark);
+    let above_dark = |x: f64, y: f64| (x - dark.0).hypot(y - dark.1);
+    let inc = mean_of(StepKind::Incident);
+    let dark_v = dark.0.hypot(dark.1);
+    let incident_v = above_dark(inc.0, inc.1);
+    let incident_w = incident_v / transmittance;
+    let omega = Aperture {
+        radius_m: inst.geometry.detector_radius_m,
+        distance_m: inst.geometry.detector_distance_m,
+    }
+    .solid_angle_sr();
+    let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| runtime(&e))?;
     let mut points = Vec::new();
-    let mut hint = [0.0; 4];
-    // θo < 0 on the source's side; −35° would put the detector in the beam.
-    for to in [-70.0, -50.0, -20.0, 0.0, 20.0, 35.0, 50.0, 70.0] {
-        let wo = in_plane(to);
-        let pair = DirPair::new(wi, wo);
-        let a = Layout::CoplanarArms
-            .inverse(pair, Some(hint))
-            .map_err(|e| runtime(&e))?;
-        hint = a;
-        let targets = [
-            ("source", a[0]),
-            ("detector", a[1]),
-            ("sample_rot", a[2]),
-            ("sample_tilt", a[3]),
-        ];
-        let (_, r) = g.measure_at(&targets).map_err(|e| runtime(&e))?;
-        let cos_o = wo.z;
-        let mut f = [0.0];
-        gonio_sim::lock(&sim).optics().sample().eval(wi, wo, &mut f);
+    for s in steps.iter().filter(|s| s.step.kind == StepKind::Sample) {
+        let (Some(r), Some(pair)) = (readings.iter().find(|r| r.step_id == s.id), s.step.pair)
+        else {
+            continue;
+        };
+        let d = pair.to_dirs();
+        let cos_o = d.wo.z;
         // Neighbouring samples, one time constant apart, correlate (e^-1): the mean's
         // variance is about 2.2 σ²/n.
-        let sigma = r.r_std * (2.2 / r.n as f64).sqrt() / (scale * cos_o);
-        points.push(SimPoint {
-            theta_o: to,
-            model: f[0],
-            measured: r.r_mean / (scale * cos_o),
+        let sigma = r.r_std * (2.2 / f64::from(r.n)).sqrt() / (incident_w * omega * cos_o);
+        let signed = if pair.outgoing.theta_deg == 0.0 {
+            0.0
+        } else if pair.outgoing.phi_deg == pair.incident.phi_deg {
+            -pair.outgoing.theta_deg
+        } else {
+            pair.outgoing.theta_deg
+        };
+        points.push(Point {
+            theta_i: pair.incident.theta_deg,
+            theta_o: signed,
+            model: eval1(&model, d.wi, d.wo),
+            measured: brdf_from_flux_ratio(above_dark(r.x_mean, r.y_mean), incident_w, omega, cos_o),
             sigma,
         });
     }
-    let physical_s = gonio_sim::lock(&sim).clock().seconds();
-    Ok(SimCut { points, physical_s })
+    points.sort_by(|a, b| (a.theta_i, a.theta_o).partial_cmp(&(b.theta_i, b.theta_o)).unwrap_or(std::cmp::Ordering::Equal));
+    let rejected = gonio_acquire::run::rejection_counts(&prepared.checked)
+        .into_iter()
+        .collect();
+    drop(store);
+    let run_file = if keep.is_some() {
+        Some(path)
+    } else {
+        for suffix in ["", "-wal", "-shm"] {
+            let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+        }
+        None
+    };
+    Ok(Acquired {
+        points,
+        steps: steps.len(),
+        rejected,
+        motion_s: prepared.schedule.motion_s,
+        raster_motion_s: prepared.schedule.raster_motion_s,
+        physical_s: report.physical_s,
+        wall_s,
+        dark_v,
+        incident_v,
+        run_file,
+    })
 }
-
-/// The simulator's instrument config, embedded.
-const INSTRUMENT_SIM: &str = include_str!("../../../config/instrument-sim.toml");

@@ -28,11 +28,15 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Show what Gonio does on an embedded default: the blue paint of Lafortune et al.
-    /// 1997 (Table 1), its albedo curve and its BRDF in the plane of incidence.
+    /// 1997 (Table 1), its albedo curve and its BRDF in the plane of incidence, and a
+    /// complete simulated acquisition of it, reduced and compared with the model.
     Demo {
         /// Print one JSON object instead of tables.
         #[arg(long)]
         json: bool,
+        /// Keep the demo's run file here (a temporary file, removed, otherwise).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Evaluate and integrate analytic BRDF model files.
     Model {
@@ -177,7 +181,7 @@ enum ModelCommand {
 
 fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
-        Command::Demo { json } => demo::run(json),
+        Command::Demo { json, out } => demo::run(json, out.as_deref()),
         Command::Model { command } => match command {
             ModelCommand::Eval {
                 model,
