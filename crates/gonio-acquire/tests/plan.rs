@@ -71,7 +71,10 @@ fn each_rejection_reason() {
     // horizontal, within [−5°, 85°]; with the tilt stage limited to 30° the pair is out
     // of reach.
     let ok = reason(&m, pair(45.0, 0.0, 45.0, 90.0)).expect("reachable");
-    assert!((ok[3].abs() - (0.5f64.sqrt()).atan().to_degrees()).abs() < 1e-9, "{ok:?}");
+    assert!(
+        (ok[3].abs() - (0.5f64.sqrt()).atan().to_degrees()).abs() < 1e-9,
+        "{ok:?}"
+    );
     let mut narrow = m.clone();
     narrow.limits[3] = (-5.0, 30.0);
     match reason(&narrow, pair(45.0, 0.0, 45.0, 90.0)) {
@@ -129,17 +132,27 @@ fn plan_kinds_expand() {
     let p = iso.pairs().expect("pairs");
     assert_eq!(p.len(), 5);
     assert_eq!(p[4].outgoing.phi_deg, 190.0);
-    let inplane = common::plan(
-        "[points]\nkind = \"in-plane\"\ntheta_i = [30]\ntheta_o = [-40, 40]\n",
-    );
+    let inplane =
+        common::plan("[points]\nkind = \"in-plane\"\ntheta_i = [30]\ntheta_o = [-40, 40]\n");
     let p = inplane.pairs().expect("pairs");
-    assert_eq!((p[0].outgoing.theta_deg, p[0].outgoing.phi_deg), (40.0, 0.0));
-    assert_eq!((p[1].outgoing.theta_deg, p[1].outgoing.phi_deg), (40.0, 180.0));
+    assert_eq!(
+        (p[0].outgoing.theta_deg, p[0].outgoing.phi_deg),
+        (40.0, 0.0)
+    );
+    assert_eq!(
+        (p[1].outgoing.theta_deg, p[1].outgoing.phi_deg),
+        (40.0, 180.0)
+    );
     // A range whose end is off the grid stops short of it.
     let r = common::plan(
         "[points]\nkind = \"in-plane\"\ntheta_i = { from = 0, to = 50, step = 20 }\ntheta_o = [30]\n",
     );
-    let t: Vec<f64> = r.pairs().expect("pairs").iter().map(|p| p.incident.theta_deg).collect();
+    let t: Vec<f64> = r
+        .pairs()
+        .expect("pairs")
+        .iter()
+        .map(|p| p.incident.theta_deg)
+        .collect();
     assert_eq!(t, vec![0.0, 20.0, 40.0]);
     // The list kind reads the CSV relative to the plan.
     let list = Plan::load(&common::root().join("config/plan-list.toml"))
@@ -188,15 +201,22 @@ fn plan_errors_name_file_line_and_field() {
     assert_eq!(e.line, Some(5));
     // A bad row of a directions file names that file and line.
     let dir = common::scratch("plan-errors");
-    std::fs::write(dir.join("d.csv"), "theta_i,phi_i,theta_o,phi_o\n0,0,30,0\n0,0,x,0\n")
-        .expect("write");
+    std::fs::write(
+        dir.join("d.csv"),
+        "theta_i,phi_i,theta_o,phi_o\n0,0,30,0\n0,0,x,0\n",
+    )
+    .expect("write");
     let list = Plan::from_toml(
         "[points]\nkind = \"list\"\nfile = \"d.csv\"\n",
         Some(&dir.join("p.toml")),
     )
     .expect("parses");
     let e = list.pairs().expect_err("bad row");
-    assert!(e.to_string().starts_with(&format!("{}:3", dir.join("d.csv").display())), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with(&format!("{}:3", dir.join("d.csv").display())),
+        "{e}"
+    );
 }
 
 /// The schedule: calibrations first (and last), references every N pairs, repeats
@@ -231,13 +251,16 @@ repeat_at_end = true
         let ch = if k == 0 { "550nm" } else { "650nm" };
         assert!(pass.iter().all(|s| s.channel.as_deref() == Some(ch)));
         let kinds: Vec<StepKind> = pass.iter().map(|s| s.kind).collect();
-        assert_eq!(&kinds[..5], &[
-            StepKind::Dark,
-            StepKind::Dark,
-            StepKind::Incident,
-            StepKind::Incident,
-            StepKind::Reference
-        ]);
+        assert_eq!(
+            &kinds[..5],
+            &[
+                StepKind::Dark,
+                StepKind::Dark,
+                StepKind::Incident,
+                StepKind::Incident,
+                StepKind::Reference
+            ]
+        );
         let mut seen: Vec<usize> = pass
             .iter()
             .filter(|s| s.kind == StepKind::Sample && s.repeat == 0)
@@ -271,8 +294,13 @@ repeat_at_end = true
 
 #[test]
 fn a_plan_with_nothing_measurable_is_refused() {
-    let plan = common::plan("[points]\nkind = \"in-plane\"\ntheta_i = [30]\ntheta_o = [-30, -25]\n");
+    let plan =
+        common::plan("[points]\nkind = \"in-plane\"\ntheta_i = [30]\ntheta_o = [-30, -25]\n");
     let (inst, _) = common::instrument();
     let e = run::prepare(&inst, "sim", &plan).expect_err("all shadowed");
-    assert!(e.to_string().contains("no pair of the plan can be measured"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("no pair of the plan can be measured"),
+        "{e}"
+    );
 }

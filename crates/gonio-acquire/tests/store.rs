@@ -78,19 +78,21 @@ fn round_trip() {
     let r = s.readings().expect("readings");
     assert_eq!(r.len(), 3);
     // −0.0 reads back as 0.0 (SQLite stores integral reals as integers); all else exact.
-    assert_eq!(r[2], ReadingRecord {
-        position: [-30.0, 2.0, 90.0, 0.0],
-        ..reading(2, 3e-3)
-    });
+    assert_eq!(
+        r[2],
+        ReadingRecord {
+            position: [-30.0, 2.0, 90.0, 0.0],
+            ..reading(2, 3e-3)
+        }
+    );
     let st = s.steps().expect("steps");
     assert_eq!(st.len(), 5);
     assert_eq!(st[1].step, steps(5)[1]);
+    assert_eq!(st.iter().filter(|x| x.state == "done").count(), 3, "{st:?}");
     assert_eq!(
-        st.iter().filter(|x| x.state == "done").count(),
-        3,
-        "{st:?}"
+        s.meta_value("status").expect("meta").as_deref(),
+        Some("interrupted")
     );
-    assert_eq!(s.meta_value("status").expect("meta").as_deref(), Some("interrupted"));
 }
 
 #[test]
@@ -100,7 +102,14 @@ fn a_run_is_never_overwritten() {
     make(&p, 2, 1);
     let e = RunStore::create(&p, &BTreeMap::new(), &steps(1)).expect_err("exists");
     assert!(matches!(e, StoreError::Exists(_)));
-    assert_eq!(RunStore::open(&p).expect("intact").readings().expect("r").len(), 1);
+    assert_eq!(
+        RunStore::open(&p)
+            .expect("intact")
+            .readings()
+            .expect("r")
+            .len(),
+        1
+    );
 }
 
 #[test]
@@ -120,7 +129,12 @@ fn a_step_is_committed_once_all_or_nothing() {
     assert!(matches!(e, StoreError::NotPending { step: 0, .. }), "{e}");
     // Neither the second reading nor its event was kept.
     assert_eq!(s.readings().expect("r")[0].r_mean, 1e-3);
-    assert!(s.events().expect("events").iter().all(|e| e.kind != "retry"));
+    assert!(
+        s.events()
+            .expect("events")
+            .iter()
+            .all(|e| e.kind != "retry")
+    );
 }
 
 #[test]
@@ -141,7 +155,10 @@ fn a_newer_schema_is_refused() {
             ..
         }
     ));
-    assert!(e.to_string().contains("schema version 7 is newer than this build reads (1)"));
+    assert!(
+        e.to_string()
+            .contains("schema version 7 is newer than this build reads (1)")
+    );
     assert!(e.is_bad_input());
 }
 
@@ -190,7 +207,10 @@ fn a_damaged_value_is_detected() {
     // Change one reading's R in place: the file stays valid SQLite, only the row's
     // checksum can tell.
     let at = find_f64(&bytes, 2e-3).expect("the value is stored");
-    let mut f = std::fs::OpenOptions::new().write(true).open(&p).expect("open");
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&p)
+        .expect("open");
     f.seek(SeekFrom::Start(at as u64)).expect("seek");
     f.write_all(&2.5e-3f64.to_be_bytes()).expect("write");
     drop(f);
@@ -208,7 +228,10 @@ fn structural_damage_is_detected() {
     make(&p, 200, 150);
     let len = std::fs::metadata(&p).expect("meta").len();
     // Overwrite a page in the middle with garbage.
-    let mut f = std::fs::OpenOptions::new().write(true).open(&p).expect("open");
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&p)
+        .expect("open");
     f.seek(SeekFrom::Start(len / 2)).expect("seek");
     f.write_all(&[0xA5; 4096]).expect("write");
     drop(f);
@@ -217,7 +240,10 @@ fn structural_damage_is_detected() {
     // A truncated file.
     let q = dir.join("t.gonio");
     make(&q, 200, 150);
-    let f = std::fs::OpenOptions::new().write(true).open(&q).expect("open");
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&q)
+        .expect("open");
     f.set_len(len / 3).expect("truncate");
     drop(f);
     let e = RunStore::open(&q).expect_err("truncated");

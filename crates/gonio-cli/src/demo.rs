@@ -235,7 +235,11 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
             "through the real stack: plan check, motion ordering, run file, engine, SMC100 and"
         )?;
         writeln!(w, "SR830 drivers. Plan config/plan-in-plane.toml:")?;
-        let rejected: Vec<String> = acq.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        let rejected: Vec<String> = acq
+            .rejected
+            .iter()
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect();
         writeln!(
             w,
             "  {} steps ({} left out: {}); motion {:.0} s ordered vs {:.0} s in plan order",
@@ -260,7 +264,11 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
             "{:>7} {:>7} {:>11} {:>11} {:>10} {:>7}",
             "theta_i", "theta_o", "model", "measured", "sigma", "dev/s"
         )?;
-        for p in acq.points.iter().filter(|p| p.theta_o.rem_euclid(10.0) == 0.0) {
+        for p in acq
+            .points
+            .iter()
+            .filter(|p| p.theta_o.rem_euclid(10.0) == 0.0)
+        {
             writeln!(
                 w,
                 "{:>7} {:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2}",
@@ -364,7 +372,11 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         run::CreateError::Store(s) if s.is_bad_input() => CliError::Input(s.to_string()),
         other => runtime(&other),
     })?;
-    let transmittance = plan.calibration.incident.as_ref().map_or(1.0, |i| i.transmittance);
+    let transmittance = plan
+        .calibration
+        .incident
+        .as_ref()
+        .map_or(1.0, |i| i.transmittance);
     let started = std::time::Instant::now();
     let (report, store) = crate::acquire_cmd::session(
         store,
@@ -377,7 +389,10 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     )?;
     let wall_s = started.elapsed().as_secs_f64();
     if report.outcome != gonio_acquire::engine::Outcome::Complete {
-        return Err(runtime(&format!("the run ended {}", report.outcome.status())));
+        return Err(runtime(&format!(
+            "the run ended {}",
+            report.outcome.status()
+        )));
     }
     let steps = store.steps().map_err(|e| runtime(&e))?;
     let readings = store.readings().map_err(|e| runtime(&e))?;
@@ -430,11 +445,20 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
             theta_i: pair.incident.theta_deg,
             theta_o: signed,
             model: eval1(&model, d.wi, d.wo),
-            measured: brdf_from_flux_ratio(above_dark(r.x_mean, r.y_mean), incident_w, omega, cos_o),
+            measured: brdf_from_flux_ratio(
+                above_dark(r.x_mean, r.y_mean),
+                incident_w,
+                omega,
+                cos_o,
+            ),
             sigma,
         });
     }
-    points.sort_by(|a, b| (a.theta_i, a.theta_o).partial_cmp(&(b.theta_i, b.theta_o)).unwrap_or(std::cmp::Ordering::Equal));
+    points.sort_by(|a, b| {
+        (a.theta_i, a.theta_o)
+            .partial_cmp(&(b.theta_i, b.theta_o))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
     let rejected = gonio_acquire::run::rejection_counts(&prepared.checked)
         .into_iter()
         .collect();

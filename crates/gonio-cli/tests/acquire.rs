@@ -83,7 +83,10 @@ fn readings(path: &Path) -> Vec<Vec<String>> {
     let rows = stmt
         .query_map([], |r| {
             (0..19)
-                .map(|i| r.get::<_, rusqlite::types::Value>(i).map(|v| format!("{v:?}")))
+                .map(|i| {
+                    r.get::<_, rusqlite::types::Value>(i)
+                        .map(|v| format!("{v:?}"))
+                })
                 .collect::<Result<Vec<_>, _>>()
         })
         .expect("rows");
@@ -113,8 +116,15 @@ fn killed_and_resumed_runs_end_with_the_uninterrupted_readings() {
     // The uninterrupted run, as fast as possible.
     let whole = dir.join("whole.gonio");
     let o = gonio(&[
-        "acquire", "--instrument", &inst, "--plan", &plan, "--out",
-        &whole.display().to_string(), "--seed", "11",
+        "acquire",
+        "--instrument",
+        &inst,
+        "--plan",
+        &plan,
+        "--out",
+        &whole.display().to_string(),
+        "--seed",
+        "11",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let want = readings(&whole);
@@ -135,8 +145,17 @@ fn killed_and_resumed_runs_end_with_the_uninterrupted_readings() {
             spawn(&["resume", &out_s])
         } else {
             spawn(&[
-                "acquire", "--instrument", &inst, "--plan", &plan, "--out", &out_s,
-                "--sim", &slow, "--seed", "11",
+                "acquire",
+                "--instrument",
+                &inst,
+                "--plan",
+                &plan,
+                "--out",
+                &out_s,
+                "--sim",
+                &slow,
+                "--seed",
+                "11",
             ])
         };
         let delay = Duration::from_millis(40 + rng.next() % 260);
@@ -152,7 +171,11 @@ fn killed_and_resumed_runs_end_with_the_uninterrupted_readings() {
         match finished {
             Some(status) => {
                 let mut err = String::new();
-                let _ = child.stderr.take().expect("stderr").read_to_string(&mut err);
+                let _ = child
+                    .stderr
+                    .take()
+                    .expect("stderr")
+                    .read_to_string(&mut err);
                 assert!(status.success(), "session {sessions}: {status:?} {err}");
                 break;
             }
@@ -168,7 +191,10 @@ fn killed_and_resumed_runs_end_with_the_uninterrupted_readings() {
             }
         }
     }
-    assert!(kills >= 3, "only {kills} kills: the run was too quick to interrupt");
+    assert!(
+        kills >= 3,
+        "only {kills} kills: the run was too quick to interrupt"
+    );
     let got = readings(&out);
     assert_eq!(got.len(), want.len());
     for (g, w) in got.iter().zip(&want) {
@@ -237,8 +263,13 @@ fn ctrl_c_stops_the_stages_and_the_run_resumes() {
     let out = dir.join("run.gonio");
     let out_s = out.display().to_string();
     let mut child = spawn(&[
-        "acquire", "--instrument", &inst.display().to_string(), "--plan",
-        &plan.display().to_string(), "--out", &out_s,
+        "acquire",
+        "--instrument",
+        &inst.display().to_string(),
+        "--plan",
+        &plan.display().to_string(),
+        "--out",
+        &out_s,
     ]);
     // The operator confirms the sample is mounted.
     child
@@ -253,7 +284,11 @@ fn ctrl_c_stops_the_stages_and_the_run_resumes() {
     interrupt(&child);
     let t = Instant::now();
     let o = child.wait_with_output().expect("exits");
-    assert!(t.elapsed() < Duration::from_secs(5), "took {:?} to stop", t.elapsed());
+    assert!(
+        t.elapsed() < Duration::from_secs(5),
+        "took {:?} to stop",
+        t.elapsed()
+    );
     assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
     assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
     let v: serde_json::Value =
@@ -289,7 +324,10 @@ fn ctrl_c_stops_the_stages_and_the_run_resumes() {
         if states.iter().all(|s| !s.ends_with("28")) {
             break;
         }
-        assert!(t.elapsed() < Duration::from_secs(3), "still moving: {states:?}");
+        assert!(
+            t.elapsed() < Duration::from_secs(3),
+            "still moving: {states:?}"
+        );
         std::thread::sleep(Duration::from_millis(100));
     }
     let c = Connection::open(&out).expect("run file");
@@ -307,7 +345,10 @@ fn ctrl_c_stops_the_stages_and_the_run_resumes() {
             (p - targets[a - 1]).abs()
         })
         .collect();
-    assert!(short.iter().any(|d| *d > 1.0), "reached {targets:?}: {short:?}");
+    assert!(
+        short.iter().any(|d| *d > 1.0),
+        "reached {targets:?}: {short:?}"
+    );
     drop(port);
 
     // Resume finishes the run; every step measured exactly once.
@@ -332,8 +373,12 @@ fn ctrl_c_stops_the_stages_and_the_run_resumes() {
 #[test]
 fn plan_check_reports_reasons_and_estimates() {
     let o = gonio(&[
-        "plan", "check", &config("plan-in-plane.toml"), "--instrument",
-        &config("instrument-sim.toml"), "--json",
+        "plan",
+        "check",
+        &config("plan-in-plane.toml"),
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
@@ -345,10 +390,16 @@ fn plan_check_reports_reasons_and_estimates() {
     // A bad plan: exit 2, naming the file, line and field.
     let dir = scratch("badplan");
     let bad = dir.join("bad.toml");
-    std::fs::write(&bad, "[points]\nkind = \"in-plane\"\ntheta_i = [0]\ntheta_o = [95]\n")
-        .expect("write");
+    std::fs::write(
+        &bad,
+        "[points]\nkind = \"in-plane\"\ntheta_i = [0]\ntheta_o = [95]\n",
+    )
+    .expect("write");
     let o = gonio(&[
-        "plan", "check", &bad.display().to_string(), "--instrument",
+        "plan",
+        "check",
+        &bad.display().to_string(),
+        "--instrument",
         &config("instrument-sim.toml"),
     ]);
     assert_eq!(o.status.code(), Some(2));
@@ -364,16 +415,27 @@ fn show_and_runs_refuse_damaged_files_with_status_2() {
     let dir = scratch("damaged");
     let good = dir.join("a.gonio");
     let o = gonio(&[
-        "acquire", "--instrument", &config("instrument-sim.toml"), "--plan",
-        &config("plan-list.toml"), "--out", &good.display().to_string(), "--json",
+        "acquire",
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--plan",
+        &config("plan-list.toml"),
+        "--out",
+        &good.display().to_string(),
+        "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
     assert_eq!(v["status"], "complete");
     // Acquiring onto an existing run file is refused.
     let o = gonio(&[
-        "acquire", "--instrument", &config("instrument-sim.toml"), "--plan",
-        &config("plan-list.toml"), "--out", &good.display().to_string(),
+        "acquire",
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--plan",
+        &config("plan-list.toml"),
+        "--out",
+        &good.display().to_string(),
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("exists already"), "{}", stderr(&o));
@@ -381,10 +443,18 @@ fn show_and_runs_refuse_damaged_files_with_status_2() {
     std::fs::write(&bad, "not a database at all, but long enough").expect("write");
     let o = gonio(&["show", &bad.display().to_string()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("not a Gonio run file"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a Gonio run file"),
+        "{}",
+        stderr(&o)
+    );
     let o = gonio(&["resume", &good.display().to_string()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("complete; nothing to resume"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("complete; nothing to resume"),
+        "{}",
+        stderr(&o)
+    );
     let o = gonio(&["runs", &dir.display().to_string(), "--json"]);
     assert!(o.status.success());
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
