@@ -209,6 +209,9 @@ impl SimConfig {
                 return Err((f.into(), "must be positive".into()));
             }
         }
+        if !(o.pickup_v.is_finite() && o.pickup_v >= 0.0) {
+            return Err(("optics.pickup_v".into(), "must be ≥ 0".into()));
+        }
         self.lockin
             .validate()
             .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
