@@ -98,6 +98,13 @@ const READING_COLUMNS: &str = "step_id, session, cmd_0, cmd_1, cmd_2, cmd_3, pos
      time_constant_s, slope_db, r_mean, r_std, x_mean, y_mean, n, autorange_steps, lias, flags, \
      retries, physical_s, wall_s";
 
+/// Sets the run's status.
+const SET_STATUS: &str = "INSERT INTO meta (key, value) VALUES ('status', ?1) \
+     ON CONFLICT(key) DO UPDATE SET value = excluded.value";
+/// Logs an event.
+const INSERT_EVENT: &str = "INSERT INTO events (session, wall_s, kind, step_id, message) \
+     VALUES (?1, ?2, ?3, ?4, ?5)";
+
 /// `flags` bits of a reading (bits 0–3 are the LIAS overload and unlock bits).
 pub mod flags {
     /// LIAS bit 0: input or reserve overload.
@@ -444,6 +451,34 @@ impl RunStore {
         }
     }
 
+    /// Runs `f` in one transaction, committed only if it succeeds: all or nothing.
+    fn in_tx<T>(
+        &mut self,
+        f: impl FnOnce(&rusqlite::Transaction<'_>) -> rusqlite::Result<T>,
+    ) -> Result<T, StoreError> {
+        let path = self.path.clone();
+        let sql = |source| StoreError::Sqlite {
+            path: path.clone(),
+            source,
+        };
+        let tx = self.conn.transaction().map_err(sql)?;
+        let t = f(&tx).map_err(sql)?;
+        tx.commit().map_err(sql)?;
+        Ok(t)
+    }
+
+    /// Every row of a query, mapped.
+    fn rows<T, P: rusqlite::Params, C: FromIterator<T>>(
+        &self,
+        query: &str,
+        params: P,
+        map: impl FnMut(&rusqlite::Row<'_>) -> rusqlite::Result<T>,
+    ) -> Result<C, StoreError> {
+        let mut stmt = self.conn.prepare(query).map_err(|e| self.sql(e))?;
+        let rows = stmt.query_map(params, map).map_err(|e| self.sql(e))?;
+        rows.collect::<Result<C, _>>().map_err(|e| self.sql(e))
+    }
+
     fn pragmas(conn: &Connection) -> rusqlite::Result<()> {
         conn.pragma_update(None, "journal_mode", "WAL")?;
         conn.pragma_update(None, "synchronous", "FULL")?;
@@ -624,20 +659,14 @@ impl RunStore {
     /// transaction.
     fn migrate(&mut self, from: i32) -> Result<(), StoreError> {
         for v in from..SCHEMA_VERSION {
-            let sql_text = MIGRATIONS[v as usize];
-            let path = self.path.clone();
-            let sql = |source| StoreError::Sqlite {
-                path: path.clone(),
-                source,
-            };
-            let tx = self.conn.transaction().map_err(sql)?;
-            tx.execute_batch(sql_text).map_err(sql)?;
-            tx.pragma_update(None, "user_version", v + 1).map_err(sql)?;
-            if v == 0 {
-                tx.pragma_update(None, "application_id", APPLICATION_ID)
-                    .map_err(sql)?;
-            }
-            tx.commit().map_err(sql)?;
+            self.in_tx(|tx| {
+                tx.execute_batch(MIGRATIONS[v as usize])?;
+                tx.pragma_update(None, "user_version", v + 1)?;
+                if v == 0 {
+                    tx.pragma_update(None, "application_id", APPLICATION_ID)?;
+                }
+                Ok(())
+            })?;
         }
         Ok(())
     }
@@ -718,14 +747,9 @@ impl RunStore {
 
     /// All metadata.
     pub fn meta(&self) -> Result<BTreeMap<String, String>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare("SELECT key, value FROM meta ORDER BY key")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+        self.rows("SELECT key, value FROM meta ORDER BY key", [], |r| {
+            Ok((r.get(0)?, r.get(1)?))
+        })
     }
 
     /// Sets a metadata value (its own transaction).
@@ -742,89 +766,62 @@ impl RunStore {
 
     /// Starts a session (a process working on the run): status `running`.
     pub fn begin_session(&mut self, software: &str) -> Result<i64, StoreError> {
-        let path = self.path.clone();
-        let sql = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
-        tx.execute(
-            "INSERT INTO sessions (started_s, software, pid) VALUES (?1, ?2, ?3)",
-            params![wall_now(), software, std::process::id()],
-        )
-        .map_err(sql)?;
-        let id = tx.last_insert_rowid();
-        tx.execute(
-            "INSERT INTO meta (key, value) VALUES ('status', 'running') \
-             ON CONFLICT(key) DO UPDATE SET value = excluded.value",
-            [],
-        )
-        .map_err(sql)?;
-        tx.commit().map_err(sql)?;
+        let id = self.in_tx(|tx| {
+            tx.execute(
+                "INSERT INTO sessions (started_s, software, pid) VALUES (?1, ?2, ?3)",
+                params![wall_now(), software, std::process::id()],
+            )?;
+            let id = tx.last_insert_rowid();
+            tx.execute(SET_STATUS, ["running"])?;
+            Ok(id)
+        })?;
         self.session = Some(id);
         Ok(id)
     }
 
-    /// Ends the session with `outcome` (`complete`, `interrupted`, `failed`), which
+    /// Ends the session with `outcome` (`complete`, `interrupted`, `faulted`), which
     /// becomes the run's status.
     pub fn end_session(&mut self, outcome: &str) -> Result<(), StoreError> {
-        let path = self.path.clone();
-        let sql = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
-        if let Some(s) = self.session {
-            tx.execute(
-                "UPDATE sessions SET ended_s = ?1, outcome = ?2 WHERE id = ?3",
-                params![wall_now(), outcome, s],
-            )
-            .map_err(sql)?;
-        }
-        tx.execute(
-            "INSERT INTO meta (key, value) VALUES ('status', ?1) \
-             ON CONFLICT(key) DO UPDATE SET value = excluded.value",
-            [outcome],
-        )
-        .map_err(sql)?;
-        tx.commit().map_err(sql)?;
-        Ok(())
+        let session = self.session;
+        self.in_tx(|tx| {
+            if let Some(s) = session {
+                tx.execute(
+                    "UPDATE sessions SET ended_s = ?1, outcome = ?2 WHERE id = ?3",
+                    params![wall_now(), outcome, s],
+                )?;
+            }
+            tx.execute(SET_STATUS, [outcome])?;
+            Ok(())
+        })
     }
 
     /// Sessions, oldest first.
     pub fn sessions(&self) -> Result<Vec<SessionRow>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare("SELECT id, started_s, ended_s, outcome FROM sessions ORDER BY id")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        self.rows(
+            "SELECT id, started_s, ended_s, outcome FROM sessions ORDER BY id",
+            [],
+            |r| {
                 Ok(SessionRow {
                     id: r.get(0)?,
                     started_s: r.get(1)?,
                     ended_s: r.get(2)?,
                     outcome: r.get(3)?,
                 })
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+            },
+        )
     }
 
     /// Per session: readings taken and the instrument time of the last one.
     pub fn session_readings(&self) -> Result<BTreeMap<i64, (usize, f64)>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare("SELECT session, count(*), max(physical_s) FROM readings GROUP BY session")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
-                Ok((
-                    r.get::<_, i64>(0)?,
-                    (r.get::<_, i64>(1)? as usize, r.get::<_, f64>(2)?),
-                ))
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+        self.rows(
+            "SELECT session, count(*), max(physical_s) FROM readings GROUP BY session",
+            [],
+            |r| {
+                let n: i64 = r.get(1)?;
+                let t: Option<f64> = r.get(2)?;
+                Ok((r.get::<_, i64>(0)?, (n as usize, t.unwrap_or(f64::NAN))))
+            },
+        )
     }
 
     /// Logs an event now (its own transaction).
@@ -836,8 +833,7 @@ impl RunStore {
     ) -> Result<(), StoreError> {
         self.conn
             .execute(
-                "INSERT INTO events (session, wall_s, kind, step_id, message) \
-                 VALUES (?1, ?2, ?3, ?4, ?5)",
+                INSERT_EVENT,
                 params![self.session, wall_now(), kind, step_id, message],
             )
             .map_err(|e| self.sql(e))?;
@@ -851,90 +847,65 @@ impl RunStore {
         reading: &ReadingRecord,
         events: &[EventRecord],
     ) -> Result<(), StoreError> {
-        let session = self.session.unwrap_or(0);
-        let path = self.path.clone();
-        let sql = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
-        let mut v = reading_values(reading, session);
+        let session = self.session;
+        let mut v = reading_values(reading, session.unwrap_or(0));
         let crc = row_crc(&v);
         v.push(Value::Integer(crc));
-        let changed = tx
-            .prepare_cached(
-                "UPDATE steps SET state = 'done', attempts = attempts + 1 \
-                 WHERE id = ?1 AND state = 'pending'",
-            )
-            .and_then(|mut s| s.execute([reading.step_id]))
-            .map_err(sql)?;
-        if changed != 1 {
-            // Dropping the transaction rolls it back: a step is never measured twice.
-            return Err(StoreError::NotPending {
+        let marked = self.in_tx(|tx| {
+            let changed = tx
+                .prepare_cached(
+                    "UPDATE steps SET state = 'done', attempts = attempts + 1 \
+                     WHERE id = ?1 AND state = 'pending'",
+                )?
+                .execute([reading.step_id])?;
+            if changed != 1 {
+                // Nothing written: a step is never measured twice.
+                return Ok(false);
+            }
+            let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
+            tx.prepare_cached(&format!(
+                "INSERT INTO readings ({READING_COLUMNS}, crc) VALUES ({})",
+                placeholders.join(", ")
+            ))?
+            .execute(rusqlite::params_from_iter(v))?;
+            let mut ins = tx.prepare_cached(INSERT_EVENT)?;
+            for e in events {
+                ins.execute(params![session, e.wall_s, e.kind, e.step_id, e.message])?;
+            }
+            Ok(true)
+        })?;
+        if marked {
+            Ok(())
+        } else {
+            Err(StoreError::NotPending {
                 path: self.path.clone(),
                 step: reading.step_id,
-            });
-        }
-        let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
-        tx.prepare_cached(&format!(
-            "INSERT INTO readings ({READING_COLUMNS}, crc) VALUES ({})",
-            placeholders.join(", ")
-        ))
-        .and_then(|mut s| s.execute(rusqlite::params_from_iter(v)))
-        .map_err(sql)?;
-        for e in events {
-            tx.prepare_cached(
-                "INSERT INTO events (session, wall_s, kind, step_id, message) \
-                 VALUES (?1, ?2, ?3, ?4, ?5)",
-            )
-            .and_then(|mut s| {
-                s.execute(params![
-                    self.session,
-                    e.wall_s,
-                    e.kind,
-                    e.step_id,
-                    e.message
-                ])
             })
-            .map_err(sql)?;
         }
-        tx.commit().map_err(sql)?;
-        Ok(())
     }
 
     /// Marks a step failed (skipped for good) with the reason as an event.
     pub fn fail_step(&mut self, step_id: i64, reason: &str) -> Result<(), StoreError> {
-        let path = self.path.clone();
-        let sql = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
-        let tx = self.conn.transaction().map_err(sql)?;
-        tx.execute(
-            "UPDATE steps SET state = 'failed', attempts = attempts + 1 WHERE id = ?1",
-            [step_id],
-        )
-        .map_err(sql)?;
-        tx.execute(
-            "INSERT INTO events (session, wall_s, kind, step_id, message) \
-             VALUES (?1, ?2, 'skip', ?3, ?4)",
-            params![self.session, wall_now(), step_id, reason],
-        )
-        .map_err(sql)?;
-        tx.commit().map_err(sql)?;
-        Ok(())
+        let session = self.session;
+        self.in_tx(|tx| {
+            tx.execute(
+                "UPDATE steps SET state = 'failed', attempts = attempts + 1 WHERE id = ?1",
+                [step_id],
+            )?;
+            tx.execute(
+                INSERT_EVENT,
+                params![session, wall_now(), "skip", step_id, reason],
+            )?;
+            Ok(())
+        })
     }
 
     /// Every step, in schedule order.
     pub fn steps(&self) -> Result<Vec<StoredStep>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare(&format!(
-                "SELECT {STEP_COLUMNS}, state, attempts FROM steps ORDER BY id"
-            ))
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        self.rows(
+            &format!("SELECT {STEP_COLUMNS}, state, attempts FROM steps ORDER BY id"),
+            [],
+            |r| {
                 let kind: String = r.get(1)?;
                 let angles: [Option<f64>; 4] = [r.get(5)?, r.get(6)?, r.get(7)?, r.get(8)?];
                 let targets: [Option<f64>; 4] = [r.get(9)?, r.get(10)?, r.get(11)?, r.get(12)?];
@@ -964,21 +935,25 @@ impl RunStore {
                     state: r.get(13)?,
                     attempts: r.get(14)?,
                 })
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+            },
+        )
     }
 
     /// Every reading, in step order.
     pub fn readings(&self) -> Result<Vec<ReadingRecord>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare(&format!(
-                "SELECT {READING_COLUMNS} FROM readings ORDER BY step_id"
-            ))
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        self.readings_where("1", [])
+    }
+
+    /// The readings a condition on the `readings` table selects, in step order.
+    fn readings_where<P: rusqlite::Params>(
+        &self,
+        condition: &str,
+        params: P,
+    ) -> Result<Vec<ReadingRecord>, StoreError> {
+        self.rows(
+            &format!("SELECT {READING_COLUMNS} FROM readings WHERE {condition} ORDER BY step_id"),
+            params,
+            |r| {
                 let num = |r: &rusqlite::Row<'_>, i: usize| -> rusqlite::Result<f64> {
                     Ok(r.get::<_, Option<f64>>(i)?.unwrap_or(f64::NAN))
                 };
@@ -1013,56 +988,43 @@ impl RunStore {
                     physical_s: num(r, 28)?,
                     wall_s: num(r, 29)?,
                 })
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+            },
+        )
     }
 
     /// The reading of the latest done step before `step_id` (the detector's state
     /// to restore on resume), if any.
     pub fn last_reading_before(&self, step_id: i64) -> Result<Option<ReadingRecord>, StoreError> {
-        let last: Option<i64> = self
-            .conn
-            .query_row(
-                "SELECT max(step_id) FROM readings WHERE step_id < ?1",
+        Ok(self
+            .readings_where(
+                "step_id = (SELECT max(step_id) FROM readings WHERE step_id < ?1)",
                 [step_id],
-                |r| r.get(0),
-            )
-            .map_err(|e| self.sql(e))?;
-        let Some(id) = last else { return Ok(None) };
-        Ok(self.readings()?.into_iter().find(|r| r.step_id == id))
+            )?
+            .pop())
     }
 
     /// Every event, in order.
     pub fn events(&self) -> Result<Vec<EventRecord>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare("SELECT wall_s, kind, step_id, message FROM events ORDER BY id")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
+        self.rows(
+            "SELECT wall_s, kind, step_id, message FROM events ORDER BY id",
+            [],
+            |r| {
                 Ok(EventRecord {
                     wall_s: r.get(0)?,
                     kind: r.get(1)?,
                     step_id: r.get(2)?,
                     message: r.get(3)?,
                 })
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+            },
+        )
     }
 
     /// Counts of steps by state.
     pub fn state_counts(&self) -> Result<BTreeMap<String, u64>, StoreError> {
-        let mut stmt = self
-            .conn
-            .prepare("SELECT state, count(*) FROM steps GROUP BY state")
-            .map_err(|e| self.sql(e))?;
-        let rows = stmt
-            .query_map([], |r| {
-                Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as u64))
-            })
-            .map_err(|e| self.sql(e))?;
-        rows.collect::<Result<_, _>>().map_err(|e| self.sql(e))
+        self.rows(
+            "SELECT state, count(*) FROM steps GROUP BY state",
+            [],
+            |r| Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as u64)),
+        )
     }
 }
