@@ -1,0 +1,64 @@
+//! Processing: a run's readings become BRDF samples with uncertainties, samples
+//! become tabulated BRDFs, and tabulated BRDFs are measured and transformed for the
+//! four properties of DeYoung's thesis (reciprocity, energy conservation, isotropy,
+//! separability).
+//!
+//! - [`reduce`]: readings → BRDF samples (DeYoung Eq. A.15, or relative to a
+//!   reference standard), drift-corrected, with propagated uncertainties.
+//! - [`samples`]: scattered samples, the nearest-j Gaussian kernel of Sec. 3.2.1,
+//!   resampling onto grids.
+//! - [`grid`]: uniform and isotropic grids and quadrilinear interpolation.
+//! - [`measure`]: P_r, P_ec, P_i, P_s^(k) (Ch. 4).
+//! - [`transform`]: the δ-transforms of Ch. 5, weighted by the uncertainties.
+//! - [`separable`]: the k-separable representation (Eq. 5.13–5.14).
+//! - [`sh`]: real spherical harmonics with a symmetric coefficient matrix, exactly
+//!   reciprocal (Westin et al. 1992, Eq. 8–10).
+//! - [`file`]: the table and sample file (CSV with a grid header).
+
+pub mod file;
+pub mod grid;
+pub mod measure;
+pub mod reduce;
+pub mod samples;
+pub mod separable;
+pub mod sh;
+pub mod transform;
+
+mod kdtree;
+
+pub use grid::{Axis, Grid, Table};
+pub use samples::{Sample, Samples};
+
+/// Why processing refused its input.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProcessError {
+    /// A grid axis that cannot be used.
+    #[error("grid axis `{axis}` {why}")]
+    Grid {
+        /// The axis (`phi_i`, `theta_i`, `phi_o`, `theta_o`).
+        axis: &'static str,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// Arrays of the wrong length.
+    #[error("shape: {0}")]
+    Shape(String),
+    /// A value that is not usable (not finite, negative uncertainty…).
+    #[error("value: {0}")]
+    Value(String),
+    /// A request that the data cannot answer (no samples, no hemisphere coverage…).
+    #[error("{0}")]
+    Unsupported(String),
+    /// A linear-algebra routine did not converge.
+    #[error("numerics: {0}")]
+    Numerics(String),
+}
+
+impl ProcessError {
+    pub(crate) fn grid(axis: &'static str, why: &str) -> ProcessError {
+        ProcessError::Grid {
+            axis,
+            why: why.into(),
+        }
+    }
+}

@@ -1,0 +1,310 @@
+//! DeYoung's measures of the four properties of a tabulated BRDF (Ch. 4): each is 0
+//! when the table has the property and grows with the departure from it, and none
+//! depends on the number of samples (Sec. 4.1). Every measure is computed per channel.
+
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+use faer::Mat;
+use serde::Serialize;
+
+use crate::grid::interpolate;
+use crate::{Axis, Grid, ProcessError, Table};
+
+/// Whether the reciprocal angles of a node lie inside the table's axes, so that the
+/// reciprocal value is data, not the held end value of an axis.
+fn reciprocal_inside(g: &Grid, ang: [f64; 4]) -> bool {
+    let inside = |ax: &Axis, x: f64| {
+        ax.is_periodic() || ax.node_at(x).is_some() || {
+            let (lo, hi) = (ax.start, ax.node(ax.n - 1));
+            x >= lo - 1e-9 && x <= hi + 1e-9
+        }
+    };
+    let [pi, ti, po, to] = ang;
+    if g.isotropic {
+        return inside(&g.theta_i, to) && inside(&g.theta_o, ti) && inside(&g.phi_o, pi - po);
+    }
+    inside(&g.phi_i, po) && inside(&g.theta_i, to) && inside(&g.phi_o, pi) && inside(&g.theta_o, ti)
+}
+
+/// The value of channel `values` at the reciprocal of node `i`, f(φo, θo, φi, θi):
+/// looked up when the grid pairs, interpolated quadrilinearly when it does not (Sec.
+/// 4.2.1). None when the reciprocal lies outside the table.
+pub(crate) fn reciprocal_value(g: &Grid, values: &[f64], i: usize) -> Option<f64> {
+    let [pi, ti, po, to] = g.angles(i);
+    reciprocal_inside(g, [pi, ti, po, to]).then(|| interpolate(g, values, [po, to, pi, ti]))
+}
+
+/// P_r, DeYoung Eq. 4.1, per channel: the RMS difference between each value and its
+/// reciprocal, with the factor 2 for each pair counted twice. Nodes whose reciprocal
+/// lies outside the table are left out of both sums; the count used is returned.
+pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
+    let g = &t.grid;
+    let n = g.len();
+    let mut used = 0;
+    let out = (0..t.channels.len())
+        .map(|ch| {
+            let v = t.channel(ch);
+            let (mut sum, mut count) = (0.0, 0usize);
+            for i in 0..n {
+                if let Some(r) = reciprocal_value(g, v, i) {
+                    sum += (v[i] - r).powi(2);
+                    count += 1;
+                }
+            }
+            used = count;
+            if count == 0 {
+                0.0
+            } else {
+                (sum / (2.0 * count as f64)).sqrt()
+            }
+        })
+        .collect();
+    (out, used)
+}
+
+/// Energy conservation of a table, DeYoung Sec. 4.2.2.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Energy {
+    /// P_ec per channel, Eq. 4.5.
+    pub p_ec: Vec<f64>,
+    /// The directional albedo M/E per channel and incident node (Eq. 4.3 as the sum
+    /// of Eq. 4.4 before the −1), rows in incident-node order (φi, θi).
+    pub albedo: Vec<Vec<f64>>,
+    /// The fraction of the outgoing hemisphere's projected solid angle the outgoing
+    /// axes cover (1 for a full turn of azimuth and polar bands reaching 90°); the
+    /// albedo undercounts by about this fraction when it is below 1.
+    pub coverage: f64,
+    /// The incident directions with the largest albedo, worst first: (θi°, φi°, the
+    /// albedo per channel).
+    pub worst: Vec<(f64, f64, Vec<f64>)>,
+}
+
+/// The weight of outgoing node (c, d) in DeYoung's sum, sinθo cosθo Δφo Δθo (Eq. 4.4).
+pub(crate) fn out_weights(g: &Grid) -> Vec<f64> {
+    let (dp, dt) = (g.phi_o.delta(), g.theta_o.delta());
+    let mut w = Vec::with_capacity(g.n_out());
+    for _c in 0..g.phi_o.n {
+        for d in 0..g.theta_o.n {
+            let th = g.theta_o.node(d);
+            w.push(th.sin() * th.cos() * dp * dt);
+        }
+    }
+    w
+}
+
+/// Directional albedo of every incident node, per channel: Σ f sinθo cosθo Δφo Δθo.
+pub(crate) fn albedos(t: &Table) -> Vec<Vec<f64>> {
+    let w = out_weights(&t.grid);
+    let (p, q) = (t.grid.n_in(), t.grid.n_out());
+    (0..t.channels.len())
+        .map(|ch| {
+            let v = t.channel(ch);
+            (0..p)
+                .map(|r| {
+                    v[r * q..(r + 1) * q]
+                        .iter()
+                        .zip(&w)
+                        .map(|(a, b)| a * b)
+                        .sum()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The measure of energy conservation, Eq. 4.4–4.5 (with the threshold τ of Eq. 4.7
+/// in place of 1 when given; DeYoung's measure is τ = 1).
+pub fn energy(t: &Table, tau: f64, worst: usize) -> Energy {
+    let g = &t.grid;
+    let alb = albedos(t);
+    let p_ec = alb
+        .iter()
+        .map(|a| a.iter().map(|x| (x - tau).max(0.0)).sum::<f64>() / a.len() as f64)
+        .collect();
+    let span_phi = if g.phi_o.n == 1 {
+        1.0
+    } else {
+        (g.phi_o.n as f64 * g.phi_o.step / TAU).min(1.0)
+    };
+    // ∫ sinθ cosθ dθ over the bands the polar nodes stand for, against 1/2.
+    let (t0, dt, nt) = (g.theta_o.start, g.theta_o.delta(), g.theta_o.n);
+    let lo = (t0 - 0.5 * dt).max(0.0);
+    let hi = (t0 + (nt as f64 - 0.5) * dt).min(FRAC_PI_2);
+    let span_theta = if nt == 1 {
+        0.0
+    } else {
+        (hi.sin().powi(2) - lo.sin().powi(2)).clamp(0.0, 1.0)
+    };
+    let mut order: Vec<usize> = (0..g.n_in()).collect();
+    let peak = |r: usize| alb.iter().map(|a| a[r]).fold(f64::NEG_INFINITY, f64::max);
+    order.sort_by(|&a, &b| peak(b).total_cmp(&peak(a)));
+    let worst = order
+        .into_iter()
+        .take(worst)
+        .map(|r| {
+            let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
+            (
+                g.theta_i.node(b).to_degrees(),
+                g.phi_i.node(a).to_degrees(),
+                alb.iter().map(|x| x[r]).collect(),
+            )
+        })
+        .collect();
+    Energy {
+        p_ec,
+        albedo: alb,
+        coverage: span_phi * span_theta,
+        worst,
+    }
+}
+
+/// The isotropic mean of a table, μ_i of Eq. 4.8, on the grid (θi, φ+, θo) with φ+
+/// the outgoing azimuth steps, and P_i of Eq. 4.10 per channel (from σ_i, Eq. 4.9).
+/// With `weighted`, the mean weights each value by its inverse variance (Ch. 5
+/// introduction) and carries the uncertainty of the mean; P_i is always DeYoung's
+/// unweighted measure.
+pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), ProcessError> {
+    let g = &t.grid;
+    if g.isotropic {
+        return Ok((t.clone(), vec![0.0; t.channels.len()]));
+    }
+    let plus = Axis::new(g.phi_o.start - g.phi_i.start, g.phi_o.step, g.phi_o.n);
+    let mg = Grid::isotropic(g.theta_i, plus, g.theta_o);
+    let m = mg.len();
+    let nc = t.channels.len();
+    let na = g.phi_i.n;
+    let use_sigma = weighted && t.sigma.as_ref().is_some_and(|s| s.iter().all(|x| *x > 0.0));
+    let mut mu = vec![0.0; m * nc];
+    let mut mu_sigma = use_sigma.then(|| vec![0.0; m * nc]);
+    let mut p_i = vec![0.0; nc];
+    let mut vals = vec![0.0; na];
+    let mut sig = vec![0.0; na];
+    for ch in 0..nc {
+        let v = t.channel(ch);
+        let s = t.channel_sigma(ch);
+        let mut total = 0.0;
+        for j in 0..m {
+            let [_, ti, pp, to] = mg.angles(j);
+            for a in 0..na {
+                let pi = g.phi_i.node(a);
+                vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
+                if let Some(s) = s {
+                    sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
+                }
+            }
+            let mean = vals.iter().sum::<f64>() / na as f64;
+            total += (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+            if let Some(ms) = mu_sigma.as_mut() {
+                let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
+                mu[ch * m + j] = vals.iter().zip(&sig).map(|(x, s)| x / (s * s)).sum::<f64>() / sw;
+                ms[ch * m + j] = sw.sqrt().recip();
+            } else {
+                mu[ch * m + j] = mean;
+            }
+        }
+        p_i[ch] = total / m as f64;
+    }
+    let table = Table::new(t.channels.clone(), mg, mu, mu_sigma)?;
+    Ok((table, p_i))
+}
+
+/// P_i, DeYoung Eq. 4.8–4.10, per channel (0 for a table in the isotropic form).
+pub fn isotropy(t: &Table) -> Result<Vec<f64>, ProcessError> {
+    Ok(isotropic_mean(t, false)?.1)
+}
+
+/// Separability of one channel: the singular values of DeYoung's matrix A (Eq. 4.13)
+/// and P_s^(k) of Eq. 4.20 for the k asked.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Separability {
+    /// Singular values, descending.
+    pub singular_values: Vec<f64>,
+    /// (k, P_s^(k)); k = 1 is P_s of Eq. 4.16.
+    pub p_s: Vec<(usize, f64)>,
+}
+
+/// DeYoung's matrix A of one channel (Sec. 4.2.4): rows the incident nodes (φi, θi),
+/// columns the outgoing nodes (φo, θo), both lexicographic.
+pub(crate) fn matrix(t: &Table, ch: usize) -> Mat<f64> {
+    let (p, q) = (t.grid.n_in(), t.grid.n_out());
+    let v = t.channel(ch);
+    Mat::from_fn(p, q, |r, c| v[r * q + c])
+}
+
+/// The 4D form separability works on: an isotropic table expands over a full turn
+/// of φi with its own φ+ steps.
+pub(crate) fn full_form(t: &Table) -> Result<Table, ProcessError> {
+    if !t.grid.isotropic {
+        return Ok(t.clone());
+    }
+    if !t.grid.phi_o.is_periodic() {
+        return Err(ProcessError::Unsupported(
+            "separability of an isotropic table needs its φ+ axis to close a full turn".into(),
+        ));
+    }
+    t.to_full(t.grid.phi_o.n)
+}
+
+/// P_s^(k), Eq. 4.16–4.20, per channel. ‖A − A^(k)‖_F² is the sum of the squared
+/// singular values A^(k) drops (Eckart–Young), so no product is formed.
+pub fn separability(t: &Table, ks: &[usize]) -> Result<Vec<Separability>, ProcessError> {
+    let full = full_form(t)?;
+    let n = full.grid.len() as f64;
+    (0..full.channels.len())
+        .map(|ch| {
+            let a = matrix(&full, ch);
+            let sv = a
+                .singular_values()
+                .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
+            let p_s = ks
+                .iter()
+                .map(|&k| {
+                    let tail: f64 = sv.iter().skip(k).map(|d| d * d).sum();
+                    (k, (tail / n).sqrt())
+                })
+                .collect();
+            Ok(Separability {
+                singular_values: sv,
+                p_s,
+            })
+        })
+        .collect()
+}
+
+/// All four measures of a table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// Channel names.
+    pub channels: Vec<String>,
+    /// Nodes of the table.
+    pub nodes: usize,
+    /// Whether the grid pairs incident and outgoing nodes (else reciprocals are
+    /// interpolated).
+    pub paired: bool,
+    /// P_r per channel.
+    pub reciprocity: Vec<f64>,
+    /// Nodes whose reciprocal lies in the table (the count P_r averages over).
+    pub reciprocity_nodes: usize,
+    /// Energy conservation.
+    pub energy: Energy,
+    /// P_i per channel.
+    pub isotropy: Vec<f64>,
+    /// Separability per channel (none when the table cannot be expanded to 4D).
+    pub separability: Option<Vec<Separability>>,
+}
+
+/// Measures a table: P_r, P_ec (with the `worst` incident directions), P_i, and
+/// P_s^(k) for each k of `ks`.
+pub fn report(t: &Table, ks: &[usize], worst: usize) -> Result<Report, ProcessError> {
+    let (reciprocity, reciprocity_nodes) = reciprocity(t);
+    Ok(Report {
+        channels: t.channels.names(),
+        nodes: t.grid.len(),
+        paired: t.grid.is_paired(),
+        reciprocity,
+        reciprocity_nodes,
+        energy: energy(t, 1.0, worst),
+        isotropy: isotropy(t)?,
+        separability: separability(t, ks).ok(),
+    })
+}

@@ -1,0 +1,160 @@
+//! Reduction of simulated runs: the BRDF the simulator's sample has, recovered from
+//! raw lock-in readings within the propagated uncertainties, with and without a
+//! drifting source.
+
+use std::path::{Path, PathBuf};
+
+use gonio_acquire::bench::SimBench;
+use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
+use gonio_acquire::plan::Plan;
+use gonio_acquire::run::{self, Inputs};
+use gonio_acquire::store::RunStore;
+use gonio_brdf::{Brdf, Model};
+use gonio_driver::InstrumentConfig;
+use gonio_process::reduce::{self, Drift, Options};
+use gonio_sim::SimConfig;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+const PLAN: &str = r#"
+name = "reduction test"
+[points]
+kind = "in-plane"
+phi_i = 0
+theta_i = [10, 40]
+theta_o = { from = -70, to = 70, step = 10 }
+[drift]
+every = 5
+at = [0, 0, 30, 180]
+[calibration]
+dark = true
+incident = { transmittance = 1e-3 }
+repeat_at_end = true
+"#;
+
+/// Measures PLAN on the simulator with a source drifting by `drift_per_hour`.
+fn measure(name: &str, drift_per_hour: f64) -> (RunStore, Model) {
+    let dir = std::env::temp_dir().join(format!("gonio-process-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let (inst, inst_text) =
+        InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml")).expect("inst");
+    let plan = Plan::from_toml(PLAN, Some(&root().join("config/test.toml"))).expect("plan");
+    let prepared = run::prepare(&inst, "instrument-sim.toml", &plan).expect("prepares");
+    let mut sim = SimConfig::default_config().expect("sim");
+    sim.seed = 7;
+    sim.optics.drift_per_hour = drift_per_hour;
+    let sample_text = sim.sample_model_text().expect("sample");
+    let inputs = Inputs {
+        instrument_text: inst_text,
+        plan_text: PLAN.into(),
+        sim: Some((gonio_sim::config::DEFAULT_SIM.into(), sample_text.clone())),
+        seed: Some(7),
+        software: "test".into(),
+        ..Inputs::default()
+    };
+    let store = run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
+    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
+    let mech = gonio_acquire::plan::Mechanics::of(&inst).expect("mechanics");
+    let cfg = EngineConfig {
+        incident_transmittance: 1e-3,
+        ..EngineConfig::default()
+    };
+    let engine = Engine::new(g, SimBench::new(shared, None), store, mech, cfg);
+    let (report, store) = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime")
+        .block_on(engine.run())
+        .expect("runs");
+    assert_eq!(report.outcome, Outcome::Complete);
+    (store, Model::from_toml(&sample_text, None).expect("model"))
+}
+
+/// Normalised residuals (f − model)/σ and relative errors of a reduction.
+fn residuals(red: &reduce::Reduction, model: &Model) -> (Vec<f64>, Vec<f64>) {
+    let mut out = vec![0.0; 1];
+    let (mut z, mut rel) = (Vec::new(), Vec::new());
+    for s in &red.samples.samples {
+        let d = s.pair.to_dirs();
+        model.eval(d.wi, d.wo, &mut out);
+        let sigma = s.sigma.as_ref().expect("sigma")[0];
+        z.push((s.value[0] - out[0]) / sigma);
+        rel.push((s.value[0] - out[0]) / out[0]);
+    }
+    (z, rel)
+}
+
+#[test]
+fn a_steady_source_reduces_to_the_sample_brdf_within_its_uncertainty() {
+    let (store, model) = measure("steady", 0.0);
+    let red = reduce::reduce(&store, &Options::default()).expect("reduces");
+    // 2 incidences × 15 θo, less the pairs the arms cannot reach (the source's own
+    // direction and its 8° exclusion).
+    assert!(
+        red.samples.samples.len() >= 26,
+        "{}",
+        red.samples.samples.len()
+    );
+    assert_eq!(red.report.unmeasured, 0);
+    let (z, rel) = residuals(&red, &model);
+    let rms_z = (z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64).sqrt();
+    let worst = rel.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    // The uncertainties are honest: residuals scatter like unit normals.
+    assert!(
+        rms_z > 0.3 && rms_z < 2.0,
+        "RMS normalised residual {rms_z}"
+    );
+    assert!(z.iter().all(|x| x.abs() < 5.0), "{z:?}");
+    assert!(worst < 0.01, "worst relative error {worst}");
+    let ch = &red.report.channels[0];
+    assert_eq!(ch.calibration, "incident");
+    assert_eq!(ch.calibration_readings, 2);
+    assert!(ch.drift_max < 0.01, "{}", ch.drift_max);
+}
+
+#[test]
+fn a_drifting_source_is_corrected_by_the_reference_readings() {
+    // 120 %/h over a run of a few minutes: several per cent of drift.
+    let (store, model) = measure("drift", 1.2);
+    let with = |drift| {
+        reduce::reduce(
+            &store,
+            &Options {
+                drift,
+                ..Options::default()
+            },
+        )
+        .expect("reduces")
+    };
+    let (refs, cals, none) = (
+        with(Drift::Auto),
+        with(Drift::Calibrations),
+        with(Drift::None),
+    );
+    let ch = &refs.report.channels[0];
+    assert!(ch.drift_max > 0.01, "drift seen: {}", ch.drift_max);
+    assert_eq!(ch.drift_readings, 7);
+    let worst = |r: &reduce::Reduction| {
+        let (z, rel) = residuals(r, &model);
+        (
+            rel.iter().map(|x| x.abs()).fold(0.0, f64::max),
+            z.iter().map(|x| x.abs()).fold(0.0, f64::max),
+        )
+    };
+    let (w_none, _) = worst(&none);
+    let (w_refs, z_refs) = worst(&refs);
+    let (w_cals, _) = worst(&cals);
+    // Uncorrected, the drift shows at its full size; the references remove it to the
+    // noise level; so does interpolating the start and end calibrations, the drift
+    // being linear here.
+    eprintln!("worst relative error: none {w_none}, references {w_refs}, calibrations {w_cals}");
+    assert!(w_none > 0.03, "uncorrected: {w_none}");
+    assert!(
+        w_refs < 0.002 && z_refs < 5.0,
+        "references: {w_refs}, |z| ≤ {z_refs}"
+    );
+    assert!(w_cals < 0.01, "calibrations: {w_cals}");
+}
