@@ -113,6 +113,7 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
         }
     }
     let acq = acquisition(keep)?;
+    let props = properties(paint)?;
     let worst = acq
         .points
         .iter()
@@ -156,6 +157,9 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
                 "brdf": c,
             })).collect::<Vec<_>>(),
             "reciprocity_max_relative_difference": recip,
+            "properties": props.iter().map(|(name, r, ratio)| json!({
+                "table": name, "measures": r, "separable_5_storage_ratio": ratio,
+            })).collect::<Vec<_>>(),
         }));
     }
     let mut w = output::open(None)?;
@@ -292,6 +296,37 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
         writeln!(w)?;
         writeln!(
             w,
+            "DeYoung's measures (Ch. 4) of 10°-grid tables (gonio check): the paint is reciprocal"
+        )?;
+        writeln!(
+            w,
+            "and isotropic; the Phong shading model is neither reciprocal nor energy-conserving:"
+        )?;
+        writeln!(
+            w,
+            "{:<22} {:>10} {:>10} {:>10} {:>10} {:>10} {:>8}",
+            "table (first channel)", "P_r", "P_ec", "P_i", "P_s^(1)", "P_s^(5)", "5-sep."
+        )?;
+        for (name, r, ratio) in &props {
+            let sep = r
+                .separability
+                .as_ref()
+                .map(|s| (s[0].p_s[0].1, s[0].p_s[1].1));
+            let (s1, s5) = sep.unwrap_or((f64::NAN, f64::NAN));
+            writeln!(
+                w,
+                "{name:<22} {:>10.2e} {:>10.2e} {:>10.2e} {:>10.2e} {:>10.2e} {:>7.1}%",
+                r.reciprocity[0],
+                r.energy.p_ec[0],
+                r.isotropy[0],
+                s1,
+                s5,
+                100.0 * ratio
+            )?;
+        }
+        writeln!(w)?;
+        writeln!(
+            w,
             "Gonio today: BRDF models (gonio model eval | albedo), the SMC100 / SR830 drivers"
         )?;
         writeln!(
@@ -300,10 +335,46 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
         )?;
         writeln!(
             w,
-            "(gonio plan check | acquire | resume | runs | show). Processing and fitting come next."
+            "(gonio plan check | acquire | resume | runs | show), processing (gonio reduce | check |"
         )?;
+        writeln!(w, "correct | harmonics). Lobe fitting comes next.")?;
         w.flush()
     })())
+}
+
+/// The Phong shading BRDF DeYoung measures in Sec. 5.2 (non-reciprocal: the lobe is
+/// divided by cos θi).
+const PHONG_SHADING: &str = r#"
+kind = "phong"
+channels = ["value"]
+rho_s = [0.6]
+n = [20]
+shading = true
+[diffuse]
+rho = [0.3]
+"#;
+
+/// DeYoung's four measures of the paint and of the Phong shading model, tabulated on
+/// a 10° hemisphere grid, with the storage of their 5-separable form.
+fn properties(
+    paint: &dyn gonio_brdf::Brdf,
+) -> CliResult<Vec<(&'static str, gonio_process::measure::Report, f64)>> {
+    use gonio_process::separable::SeparableBrdf;
+    use gonio_process::{Grid, Table, measure};
+    let runtime = |e: &dyn std::fmt::Display| CliError::Runtime(format!("demo properties: {e}"));
+    let phong = Model::from_toml(PHONG_SHADING, None).map_err(|e| runtime(&e))?;
+    let mut out = Vec::new();
+    let models: [(&'static str, &dyn gonio_brdf::Brdf); 2] =
+        [("blue paint (Table 1)", paint), ("Phong shading", &phong)];
+    for (name, m) in models {
+        let t = Table::from_brdf(m, Grid::hemisphere(9, 36)).map_err(|e| runtime(&e))?;
+        let r = measure::report(&t, &[1, 5], 1).map_err(|e| runtime(&e))?;
+        let ratio = SeparableBrdf::from_table(&t, 5, false)
+            .map_err(|e| runtime(&e))?
+            .storage_ratio();
+        out.push((name, r, ratio));
+    }
+    Ok(out)
 }
 
 /// The embedded acquisition plan.
@@ -337,14 +408,11 @@ struct Acquired {
 
 /// Runs the embedded plan on the embedded simulator through the real acquisition
 /// stack (plan check, ordering, run file, engine, drivers, simulator), then reduces
-/// each sample reading with the run's own calibrations, DeYoung Eq. A.15:
-/// `f = (S − S_dark) / ((S_in − S_dark) / T) / (Ω cos θo)`, with `T` the incident
-/// filter's transmittance and `Ω` the detector's solid angle.
+/// it with `gonio_process::reduce` (DeYoung Eq. A.15 with the run's own dark,
+/// incident-beam and drift readings).
 fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     use gonio_acquire::plan::Plan;
     use gonio_acquire::run;
-    use gonio_acquire::schedule::StepKind;
-    use gonio_core::radiometry::{Aperture, brdf_from_flux_ratio};
 
     let runtime = |e: &dyn std::fmt::Display| CliError::Runtime(format!("demo acquisition: {e}"));
     let inst =
@@ -395,45 +463,22 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         )));
     }
     let steps = store.steps().map_err(|e| runtime(&e))?;
-    let readings = store.readings().map_err(|e| runtime(&e))?;
-    // The lock-in's X and Y average to the coherent signal; R of a dark reading is
-    // mostly noise (its mean is σ√(π/2), not zero), so darks are subtracted as vectors.
-    let mean_of = |k: StepKind| {
-        let v: Vec<(f64, f64)> = steps
-            .iter()
-            .filter(|s| s.step.kind == k)
-            .filter_map(|s| readings.iter().find(|r| r.step_id == s.id))
-            .map(|r| (r.x_mean, r.y_mean))
-            .collect();
-        let n = v.len().max(1) as f64;
-        (
-            v.iter().map(|p| p.0).sum::<f64>() / n,
-            v.iter().map(|p| p.1).sum::<f64>() / n,
-        )
-    };
-    let dark = mean_of(StepKind::Dark);
-    let above_dark = |x: f64, y: f64| (x - dark.0).hypot(y - dark.1);
-    let inc = mean_of(StepKind::Incident);
-    let dark_v = dark.0.hypot(dark.1);
-    let incident_v = above_dark(inc.0, inc.1);
-    let incident_w = incident_v / transmittance;
-    let omega = Aperture {
-        radius_m: inst.geometry.detector_radius_m,
-        distance_m: inst.geometry.detector_distance_m,
-    }
-    .solid_angle_sr();
+    let reduction =
+        gonio_process::reduce::reduce(&store, &gonio_process::reduce::Options::default())
+            .map_err(|e| runtime(&e))?;
+    let cal = reduction
+        .report
+        .channels
+        .first()
+        .ok_or_else(|| runtime(&"no channel reduced"))?;
+    let dark_v = cal.dark_v[0].hypot(cal.dark_v[1]);
+    // The report's incident flux is the full beam; the reading was through the filter.
+    let incident_v = cal.incident_v * transmittance;
     let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| runtime(&e))?;
     let mut points = Vec::new();
-    for s in steps.iter().filter(|s| s.step.kind == StepKind::Sample) {
-        let (Some(r), Some(pair)) = (readings.iter().find(|r| r.step_id == s.id), s.step.pair)
-        else {
-            continue;
-        };
+    for s in &reduction.samples.samples {
+        let pair = s.pair;
         let d = pair.to_dirs();
-        let cos_o = d.wo.z;
-        // Neighbouring samples, one time constant apart, correlate (e^-1): the mean's
-        // variance is about 2.2 σ²/n.
-        let sigma = r.r_std * (2.2 / f64::from(r.n)).sqrt() / (incident_w * omega * cos_o);
         let signed = if pair.outgoing.theta_deg == 0.0 {
             0.0
         } else if pair.outgoing.phi_deg == pair.incident.phi_deg {
@@ -445,13 +490,8 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
             theta_i: pair.incident.theta_deg,
             theta_o: signed,
             model: eval1(&model, d.wi, d.wo),
-            measured: brdf_from_flux_ratio(
-                above_dark(r.x_mean, r.y_mean),
-                incident_w,
-                omega,
-                cos_o,
-            ),
-            sigma,
+            measured: s.value[0],
+            sigma: s.sigma.as_ref().map_or(0.0, |v| v[0]),
         });
     }
     points.sort_by(|a, b| {

@@ -10,6 +10,7 @@ mod error;
 mod instrument_cmd;
 mod model_cmd;
 mod output;
+mod process_cmd;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -103,9 +104,117 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Reduce a run's readings to BRDF samples with uncertainties (DeYoung Eq. A.15, or
+    /// relative to the run's reference standard), drift-corrected; writes a table when
+    /// the samples form a grid, else the samples (CSV).
+    Reduce {
+        /// The run file.
+        run: PathBuf,
+        /// The table or sample file to write (CSV).
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Resample onto a hemisphere grid of DTHETA,DPHI degrees (nearest-j kernel).
+        #[arg(long, value_parser = process_cmd::parse_grid)]
+        grid: Option<(f64, f64)>,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Measure reciprocity, energy conservation, isotropy and separability (DeYoung
+    /// Ch. 4) of a run, a table, a separable or harmonics file, or a model file.
+    Check {
+        /// The input.
+        input: PathBuf,
+        /// The k of P_s^(k), comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        k: Vec<usize>,
+        /// Resample (or tabulate a model) on a hemisphere grid of DTHETA,DPHI degrees.
+        #[arg(long, value_parser = process_cmd::parse_grid)]
+        grid: Option<(f64, f64)>,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Transform a table towards reciprocity, energy conservation, isotropy or
+    /// k-separability (DeYoung Ch. 5), the steps in the order given.
+    Correct {
+        /// The input.
+        input: PathBuf,
+        /// Reciprocity with δ in [0, 1] (Eq. 5.1–5.2).
+        #[arg(long)]
+        reciprocity: Vec<String>,
+        /// Energy conservation: δ[:per-direction|:global][:tau=T] (Eq. 5.4–5.8).
+        #[arg(long)]
+        energy: Vec<String>,
+        /// Isotropy with δ (Eq. 5.9–5.10).
+        #[arg(long)]
+        isotropy: Vec<String>,
+        /// k-separability: k[:δ] (Eq. 5.15); a last step with δ = 1 and a .toml output
+        /// writes the k factor pairs.
+        #[arg(long)]
+        separable: Vec<String>,
+        /// The output (CSV table, or TOML factors).
+        #[arg(long)]
+        out: PathBuf,
+        /// Resample (or tabulate a model) on a hemisphere grid of DTHETA,DPHI degrees.
+        #[arg(long, value_parser = process_cmd::parse_grid)]
+        grid: Option<(f64, f64)>,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Represent a table by real spherical harmonics with a symmetric coefficient
+    /// matrix (Westin et al. 1992): exactly reciprocal; reports the truncation error.
+    Harmonics {
+        /// The input.
+        input: PathBuf,
+        /// The truncation order l_max.
+        #[arg(long)]
+        order: usize,
+        /// Attenuate orders above this one (against ringing); none by default.
+        #[arg(long)]
+        filter: Option<usize>,
+        /// The coefficient file to write (TOML).
+        #[arg(long)]
+        out: PathBuf,
+        /// Resample (or tabulate a model) on a hemisphere grid of DTHETA,DPHI degrees.
+        #[arg(long, value_parser = process_cmd::parse_grid)]
+        grid: Option<(f64, f64)>,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until standard input closes.
     Sim(gonio_sim::cli::ServeArgs),
+}
+
+/// How a run file's readings are reduced.
+#[derive(clap::Args)]
+struct ReduceFlags {
+    /// The calibration giving the incident flux: auto, incident or standard.
+    #[arg(long, default_value = "auto")]
+    calibration: String,
+    /// Drift correction: auto (reference readings), calibrations, none.
+    #[arg(long, default_value = "auto")]
+    drift: String,
+}
+
+impl ReduceFlags {
+    fn args(self) -> process_cmd::ReduceArgs {
+        process_cmd::ReduceArgs {
+            calibration: self.calibration,
+            drift: self.drift,
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -232,6 +341,45 @@ fn run(cli: Cli) -> Result<(), CliError> {
         Command::Resume { run, json } => acquire_cmd::resume(&run, json),
         Command::Runs { dir, json } => acquire_cmd::runs(&dir, json),
         Command::Show { run, json } => acquire_cmd::show(&run, json),
+        Command::Reduce {
+            run,
+            out,
+            reduction,
+            grid,
+            json,
+        } => process_cmd::reduce_cmd(&run, &out, &reduction.args(), grid, json),
+        Command::Check {
+            input,
+            k,
+            grid,
+            reduction,
+            json,
+        } => process_cmd::check(&input, &k, grid, &reduction.args(), json),
+        Command::Correct {
+            input,
+            reciprocity,
+            energy,
+            isotropy,
+            separable,
+            out,
+            grid,
+            reduction,
+            json,
+        } => {
+            let raw: Vec<String> = std::env::args().collect();
+            let steps =
+                process_cmd::ordered_steps(&raw, &reciprocity, &energy, &isotropy, &separable)?;
+            process_cmd::correct(&input, &steps, &out, grid, &reduction.args(), json)
+        }
+        Command::Harmonics {
+            input,
+            order,
+            filter,
+            out,
+            grid,
+            reduction,
+            json,
+        } => process_cmd::harmonics(&input, order, filter, &out, grid, &reduction.args(), json),
         Command::Sim(args) => {
             gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
                 match e.exit_code() {

@@ -351,15 +351,25 @@ impl Table {
 
     /// Tabulates any BRDF at the grid's nodes (its uncertainties unknown).
     pub fn from_brdf(brdf: &dyn gonio_brdf::Brdf, grid: Grid) -> Result<Table, ProcessError> {
+        Table::from_fn(brdf.channels().clone(), grid, |wi, wo, out| {
+            brdf.eval(wi, wo, out)
+        })
+    }
+
+    /// Tabulates `f(wi, wo, out)`, which writes one value a channel, at the nodes.
+    pub fn from_fn(
+        channels: Channels,
+        grid: Grid,
+        f: impl Fn(Dir, Dir, &mut [f64]),
+    ) -> Result<Table, ProcessError> {
         grid.validate()?;
-        let channels = brdf.channels().clone();
         let nc = channels.len();
         let n = grid.len();
         let mut values = vec![0.0; n * nc];
         let mut out = vec![0.0; nc];
         for i in 0..n {
             let [pi, ti, po, to] = grid.angles(i);
-            brdf.eval(Dir::from_angles(ti, pi), Dir::from_angles(to, po), &mut out);
+            f(Dir::from_angles(ti, pi), Dir::from_angles(to, po), &mut out);
             for (ch, v) in out.iter().enumerate() {
                 values[ch * n + i] = *v;
             }

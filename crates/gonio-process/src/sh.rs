@@ -60,7 +60,7 @@ use crate::grid::{Axis, Grid, Table};
 ///
 /// Eq. 3.6 builds the unnormalised `P_mm = (−1)^m (2m − 1)!! sin^m θ`, which leaves the
 /// range of `f64` for m ≳ 150; 128 keeps every intermediate within it (and is far
-/// beyond what a projection can afford: it needs ~ (2 l_max)⁴ evaluations of f).
+/// beyond what a projection can afford: by default it evaluates f ~ 64 l_max⁴ times).
 pub const MAX_L_MAX: usize = 128;
 
 /// The `kind` of a spherical-harmonics file.

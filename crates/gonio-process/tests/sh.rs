@@ -3,7 +3,6 @@
 //! on a lobe, lossless files.
 
 use std::f64::consts::PI;
-use std::time::Instant;
 
 use gonio_brdf::Model;
 use gonio_core::{Channels, Dir};
@@ -200,7 +199,6 @@ fn converge(model_text: &str, degrees: &[usize], from_model: bool) -> Vec<Vec<f6
     let mut measured = Vec::new();
     for &l_max in degrees {
         let opts = ShOptions::new(l_max);
-        let t0 = Instant::now();
         let sh = if from_model {
             let f = |ch: usize, wi: Dir, wo: Dir| {
                 let mut out = [0.0; 3];
@@ -212,27 +210,20 @@ fn converge(model_text: &str, degrees: &[usize], from_model: bool) -> Vec<Vec<f6
             ShBrdf::from_table(&table, &opts)
         }
         .expect("projection");
-        let dt = t0.elapsed();
         let err = sh.error_against(&table).expect("same channels");
         eprintln!(
             "{} l_max {l_max:2}: K = {:3}, {:6} coefficients ({:.4} of the table), \
-             {:.3} s, relative RMS {:.4?}, max abs {:.4?}",
+             relative RMS {:.4?}, max abs {:.4?}",
             if from_model { "model" } else { "table" },
             basis_len(l_max),
             sh.coefficient_count(),
             sh.compression(&table),
-            dt.as_secs_f64(),
             err.relative_rms,
             err.max_abs
         );
-        for ch in 0..nc {
-            assert!(
-                err.relative_rms[ch] < last[ch],
-                "l_max {l_max}, channel {ch}: {} after {}",
-                err.relative_rms[ch],
-                last[ch]
-            );
-            last[ch] = err.relative_rms[ch];
+        for (ch, (e, l)) in err.relative_rms.iter().zip(&mut last).enumerate() {
+            assert!(*e < *l, "l_max {l_max}, channel {ch}: {e} after {l}");
+            *l = *e;
         }
         measured.push(err.relative_rms.clone());
     }
@@ -279,16 +270,12 @@ fn sh_a_measured_lafortune_fit_converges_as_the_degree_grows() {
 }
 
 #[test]
-fn sh_projecting_a_9_by_36_table_at_degree_8_is_fast() {
+fn sh_a_degree_8_table_projection_stores_the_upper_triangle_per_channel() {
+    // The speed of this projection is measured in benches/process.rs.
     let m = model(LAFORTUNE);
     let table = Table::from_brdf(m.as_brdf(), Grid::hemisphere(9, 36)).expect("table");
-    let t0 = Instant::now();
     let sh = ShBrdf::from_table(&table, &ShOptions::new(8)).expect("projection");
-    let dt = t0.elapsed().as_secs_f64();
-    eprintln!("l_max 8 from a 9 x 36 RGB table: {dt:.3} s");
     assert_eq!(sh.coefficient_count(), 3 * 45 * 46 / 2);
-    // Generous for a loaded machine; typically a few hundredths of a second.
-    assert!(dt < 2.0, "{dt} s");
 }
 
 #[test]
