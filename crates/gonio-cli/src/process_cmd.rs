@@ -172,12 +172,14 @@ pub fn load(
     if looks_toml {
         return match kind.as_deref() {
             Some("separable") => {
-                let s = SeparableBrdf::from_toml(&text).map_err(|e| input_err(path, e))?;
+                let s = SeparableBrdf::from_toml(&text, Some(path))
+                    .map_err(|e| CliError::Input(e.to_string()))?;
                 let t = s.to_table().map_err(|e| process_err(path, e))?;
                 Ok((Input::Table(t), None))
             }
             Some("spherical-harmonics") => {
-                let sh = ShBrdf::from_toml(&text).map_err(|e| input_err(path, e))?;
+                let sh = ShBrdf::from_toml(&text, Some(path))
+                    .map_err(|e| CliError::Input(e.to_string()))?;
                 let g = grid_of(grid.unwrap_or((10.0, 10.0)));
                 let t = Table::from_fn(sh.channels.clone(), g, |wi, wo, out| sh.eval(wi, wo, out))
                     .map_err(|e| process_err(path, e))?;

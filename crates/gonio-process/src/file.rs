@@ -37,7 +37,7 @@ pub enum Content {
 }
 
 fn axis_text(a: &Axis) -> String {
-    format!("{}:{}:{}", a.start.to_degrees(), a.step.to_degrees(), a.n)
+    format!("{}:{}:{}", deg(a.start), deg(a.step), a.n)
 }
 
 fn grid_line(g: &Grid) -> String {
@@ -124,12 +124,9 @@ pub fn write_table(t: &Table) -> String {
     out
 }
 
-/// Degrees of a node, cleaned of the radian round trip's last-digit noise so that
-/// nodes print as the numbers they were given as (30, not 29.999999999999996).
+/// Degrees of a node angle, as [`crate::Axis::node_deg`] prints them.
 fn deg(x: f64) -> f64 {
-    let d = x.to_degrees();
-    let r = (d * 1e9).round() / 1e9;
-    if (d - r).abs() < 1e-9 { r } else { d }
+    crate::grid::clean_deg(x.to_degrees())
 }
 
 fn parse_axis(s: &str) -> Option<Axis> {

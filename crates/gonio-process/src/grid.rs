@@ -51,14 +51,20 @@ impl Axis {
         Axis::new(0.5 * step, step, n)
     }
 
-    /// A single node.
+    /// A single node (its step a full turn, the span DeYoung's sums give it).
     pub fn single(at: f64) -> Axis {
-        Axis::new(at, 1.0, 1)
+        Axis::new(at, TAU, 1)
     }
 
     /// Node `k`, radians.
     pub fn node(&self, k: usize) -> f64 {
         self.start + k as f64 * self.step
+    }
+
+    /// Node `k` in degrees, cleaned of the radian round trip's last-digit noise so
+    /// that nodes print as the numbers they were given as (30, not 29.999999999999996).
+    pub fn node_deg(&self, k: usize) -> f64 {
+        clean_deg(self.node(k).to_degrees())
     }
 
     /// Whether the nodes close a full turn (azimuth axes that wrap around).
@@ -140,6 +146,12 @@ impl Axis {
     pub fn delta(&self) -> f64 {
         if self.n == 1 { TAU } else { self.step }
     }
+}
+
+/// Degrees rounded to 1e-9° when within that of such a number.
+pub(crate) fn clean_deg(d: f64) -> f64 {
+    let r = (d * 1e9).round() / 1e9;
+    if (d - r).abs() < 1e-9 { r } else { d }
 }
 
 /// The four axes of a tabulated BRDF, and whether it is the isotropic form.

@@ -144,8 +144,8 @@ pub fn energy(t: &Table, tau: f64, worst: usize) -> Energy {
         .map(|r| {
             let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
             (
-                g.theta_i.node(b).to_degrees(),
-                g.phi_i.node(a).to_degrees(),
+                g.theta_i.node_deg(b),
+                g.phi_i.node_deg(a),
                 alb.iter().map(|x| x[r]).collect(),
             )
         })

@@ -16,6 +16,9 @@
 use faer::Mat;
 use serde::{Deserialize, Serialize};
 
+use std::path::Path;
+
+use gonio_core::tomlfile::{self, FileError};
 use gonio_core::{Channels, Dir};
 
 use crate::measure::{full_form, matrix};
@@ -223,48 +226,47 @@ impl SeparableBrdf {
         toml::to_string(&file).unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
     }
 
-    /// Reads a separable file; errors name the field at fault.
-    pub fn from_toml(text: &str) -> Result<SeparableBrdf, ProcessError> {
-        let f: SepFile = toml::from_str(text)
-            .map_err(|e| ProcessError::Value(e.to_string().trim().to_string()))?;
-        if f.kind != "separable" {
-            return Err(ProcessError::Value(format!(
-                "field `kind`: expected \"separable\", found {:?}",
-                f.kind
-            )));
-        }
+    /// Reads a separable file strictly (unknown keys are errors); errors name the line
+    /// and field at fault. `path` only labels errors.
+    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<SeparableBrdf, FileError> {
+        const KIND: &str = "separable file";
+        let f: SepFile = tomlfile::parse(KIND, text, path, SepFile::check)?;
         let channels = Channels::from_names(&f.channels)
-            .map_err(|e| ProcessError::Value(format!("field `channels`: {e}")))?;
-        let grid = f.grid.to_grid()?;
+            .map_err(|e| FileError::at_field(KIND, path, text, "channels".into(), e.to_string()))?;
+        let grid = f
+            .grid
+            .to_grid()
+            .map_err(|e| FileError::at_field(KIND, path, text, "grid".into(), e.to_string()))?;
+        let bad = |field: String, msg: String| FileError::at_field(KIND, path, text, field, msg);
         if f.channel.len() != channels.len() {
-            return Err(ProcessError::Shape(format!(
-                "field `channel`: {} channel blocks for {} channels",
-                f.channel.len(),
-                channels.len()
-            )));
+            return Err(bad(
+                "channel".into(),
+                format!(
+                    "{} channel blocks for {} channels",
+                    f.channel.len(),
+                    channels.len()
+                ),
+            ));
         }
         for (ch, c) in f.channel.iter().enumerate() {
             if c.term.len() != f.k {
-                return Err(ProcessError::Shape(format!(
-                    "field `channel[{ch}].term`: {} terms, k = {}",
-                    c.term.len(),
-                    f.k
-                )));
+                return Err(bad(
+                    format!("channel[{ch}].term"),
+                    format!("{} terms, k = {}", c.term.len(), f.k),
+                ));
             }
             for (j, t) in c.term.iter().enumerate() {
                 if t.f_in.len() != grid.n_in() || t.f_out.len() != grid.n_out() {
-                    return Err(ProcessError::Shape(format!(
-                        "field `channel[{ch}].term[{j}]`: in/out have {}/{} values, the grid needs {}/{}",
-                        t.f_in.len(),
-                        t.f_out.len(),
-                        grid.n_in(),
-                        grid.n_out()
-                    )));
-                }
-                if t.f_in.iter().chain(&t.f_out).any(|x| !x.is_finite()) {
-                    return Err(ProcessError::Value(format!(
-                        "field `channel[{ch}].term[{j}]`: values must be finite"
-                    )));
+                    return Err(bad(
+                        format!("channel[{ch}].term[{j}]"),
+                        format!(
+                            "in/out have {}/{} values, the grid needs {}/{}",
+                            t.f_in.len(),
+                            t.f_out.len(),
+                            grid.n_in(),
+                            grid.n_out()
+                        ),
+                    ));
                 }
             }
         }
@@ -363,4 +365,29 @@ struct SepFile {
     k: usize,
     grid: GridFile,
     channel: Vec<ChannelFile>,
+}
+
+impl SepFile {
+    fn check(&self) -> Result<(), (String, String)> {
+        if self.kind != "separable" {
+            return Err((
+                "kind".into(),
+                format!("expected \"separable\", found {:?}", self.kind),
+            ));
+        }
+        if self.k == 0 {
+            return Err(("k".into(), "must be at least 1".into()));
+        }
+        for (ch, c) in self.channel.iter().enumerate() {
+            for (j, t) in c.term.iter().enumerate() {
+                if t.f_in.iter().chain(&t.f_out).any(|x| !x.is_finite()) {
+                    return Err((
+                        format!("channel[{ch}].term[{j}]"),
+                        "values must be finite".into(),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
 }

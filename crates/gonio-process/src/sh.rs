@@ -835,10 +835,13 @@ impl ShBrdf {
 
     /// Reads [`to_toml`](ShBrdf::to_toml)'s format strictly (unknown keys are errors);
     /// errors name the line and field (`matrices[1].upper`).
-    pub fn from_toml(text: &str) -> Result<ShBrdf, ProcessError> {
-        let file: ShFile =
-            gonio_core::tomlfile::parse("spherical-harmonics file", text, None, ShFile::check)
-                .map_err(|e| ProcessError::Value(e.to_string()))?;
+    /// `path` only labels errors.
+    pub fn from_toml(
+        text: &str,
+        path: Option<&std::path::Path>,
+    ) -> Result<ShBrdf, gonio_core::tomlfile::FileError> {
+        const KIND: &str = "spherical-harmonics file";
+        let file: ShFile = gonio_core::tomlfile::parse(KIND, text, path, ShFile::check)?;
         let k = basis_len(file.l_max);
         let matrices = file
             .matrices
@@ -863,7 +866,8 @@ impl ShBrdf {
             basis: basis(file.l_max),
             matrices,
         };
-        sh.validate()?;
+        sh.validate()
+            .map_err(|e| gonio_core::tomlfile::FileError::whole(KIND, path, e.to_string()))?;
         Ok(sh)
     }
 }
