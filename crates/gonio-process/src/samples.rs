@@ -146,12 +146,22 @@ impl Samples {
 
     /// Resamples onto a grid with the nearest-j kernel: every node gets a value and,
     /// when the samples have uncertainties, the kernel-propagated uncertainty.
+    ///
+    /// Refused when the samples do not cover the grid: a node farther from every
+    /// sample than twice the grid's polar spacing (in the R⁶ distance, for incidence
+    /// and exitance together) would be invented, not interpolated — an in-plane scan
+    /// cannot be resampled onto a hemisphere.
     pub fn resample(&self, grid: Grid, kernel: Kernel) -> Result<Table, ProcessError> {
         grid.validate()?;
         let interp = self.interpolator(kernel)?;
         let nc = self.channels.len();
         let n = grid.len();
-        let rows: Vec<(Vec<f64>, Option<Vec<f64>>)> = (0..n)
+        let spacing = |a: &Axis| if a.n > 1 { a.step } else { 0.0 };
+        let limit = 2.0
+            * spacing(&grid.theta_i)
+                .hypot(spacing(&grid.theta_o))
+                .max(1e-6);
+        let rows: Vec<(Vec<f64>, Option<Vec<f64>>, f64)> = (0..n)
             .into_par_iter()
             .map(|i| {
                 let [pi, ti, po, to] = grid.angles(i);
@@ -159,13 +169,22 @@ impl Samples {
                     incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
                     outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
                 };
-                interp.eval(&pair)
+                let (v, s) = interp.eval(&pair);
+                (v, s, interp.nearest_distance(&pair))
             })
             .collect();
+        let far = rows.iter().filter(|r| r.2 > limit).count();
+        if far > 0 {
+            return Err(ProcessError::Unsupported(format!(
+                "the samples do not cover the grid: {far} of {n} nodes lie farther than \
+                 {:.1}° from every sample",
+                limit.to_degrees()
+            )));
+        }
         let mut values = vec![0.0; n * nc];
         let has_sigma = rows.iter().all(|r| r.1.is_some());
         let mut sigma = has_sigma.then(|| vec![0.0; n * nc]);
-        for (i, (v, s)) in rows.into_iter().enumerate() {
+        for (i, (v, s, _)) in rows.into_iter().enumerate() {
             for ch in 0..nc {
                 values[ch * n + i] = v[ch];
                 if let (Some(out), Some(s)) = (sigma.as_mut(), s.as_ref()) {
@@ -377,6 +396,15 @@ impl Interpolator<'_> {
             }
         }
         (v, known.then(|| var.into_iter().map(f64::sqrt).collect()))
+    }
+
+    /// The R⁶ distance from a pair to the nearest sample.
+    pub fn nearest_distance(&self, pair: &PairDeg) -> f64 {
+        let q = key(pair, self.samples.isotropic);
+        self.tree
+            .nearest(&q, 1)
+            .first()
+            .map_or(f64::INFINITY, |(d2, _)| d2.sqrt())
     }
 
     /// Channel values only, at a pair of directions.

@@ -169,6 +169,20 @@ fn resampling_a_dense_sample_set_recovers_the_measures() {
         let tol = if theta_i < 70.0 { 0.005 } else { 0.05 };
         assert!(e.abs() < tol, "θi = {theta_i}: albedo off by {e}");
     }
+    // An in-plane scan does not cover the hemisphere: refused, not invented.
+    let in_plane: Vec<PairDeg> = (0..=80)
+        .step_by(5)
+        .flat_map(|to| {
+            [
+                pair(30.0, 0.0, to as f64, 0.0),
+                pair(30.0, 0.0, to as f64, 180.0),
+            ]
+        })
+        .collect();
+    let e = Samples::from_brdf(&lam, &in_plane)
+        .resample(g, Kernel::default())
+        .expect_err("gaps");
+    assert!(e.to_string().contains("do not cover the grid"), "{e}");
     // Oren–Nayar is reciprocal; the resampled table nearly so (a node and its
     // reciprocal are estimated from different neighbours: 1.7 % of the mean here).
     let pr = measure::reciprocity(&res).0[0];
