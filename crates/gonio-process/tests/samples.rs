@@ -231,17 +231,13 @@ fn a_separable_file_is_a_brdf_that_evaluates_to_its_rank_k_table() {
     let ak = sep.to_table().expect("A^(k)");
     let ps5 = measure::separability(&t, &[5]).expect("svd");
     // ‖A − A^(5)‖ of the factors is P_s^(5) (Eckart–Young): the factors are optimal.
-    for ch in 0..3 {
+    for (ch, want) in ps5.iter().enumerate() {
         let n = g.len();
         let d: f64 = (0..n)
             .map(|i| (ak.values[ch * n + i] - t.values[ch * n + i]).powi(2))
             .sum();
         let ps = (d / n as f64).sqrt();
-        assert!(
-            (ps - ps5[ch].p_s[0].1).abs() < 1e-12,
-            "{ps} vs {:?}",
-            ps5[ch].p_s
-        );
+        assert!((ps - want.p_s[0].1).abs() < 1e-12, "{ps} vs {:?}", want.p_s);
     }
     // Between nodes the factors' bilinear product is the quadrilinear interpolant of
     // A^(k); at nodes it is A^(k).
