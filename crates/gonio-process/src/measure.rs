@@ -26,12 +26,45 @@ fn reciprocal_inside(g: &Grid, ang: [f64; 4]) -> bool {
     inside(&g.phi_i, po) && inside(&g.theta_i, to) && inside(&g.phi_o, pi) && inside(&g.theta_o, ti)
 }
 
-/// The value of channel `values` at the reciprocal of node `i`, f(φo, θo, φi, θi):
-/// looked up when the grid pairs, interpolated quadrilinearly when it does not (Sec.
-/// 4.2.1). None when the reciprocal lies outside the table.
-pub(crate) fn reciprocal_value(g: &Grid, values: &[f64], i: usize) -> Option<f64> {
-    let [pi, ti, po, to] = g.angles(i);
-    reciprocal_inside(g, [pi, ti, po, to]).then(|| interpolate(g, values, [po, to, pi, ti]))
+/// Where each node's reciprocal value f(φo, θo, φi, θi) comes from: looked up when
+/// the grid pairs (an index map, built once per table), interpolated quadrilinearly
+/// when it does not (Sec. 4.2.1).
+pub(crate) struct Reciprocals {
+    map: Option<Vec<usize>>,
+}
+
+impl Reciprocals {
+    pub(crate) fn new(g: &Grid) -> Reciprocals {
+        if !g.is_paired() {
+            return Reciprocals { map: None };
+        }
+        let map = (0..g.len())
+            .map(|i| {
+                let [a, b, c, d] = g.unindex(i);
+                if g.isotropic {
+                    // f(θi, φ+, θo) ↔ f(θo, −φ+, θi); pairing guarantees the node.
+                    let minus = g.phi_o.node_at(-g.phi_o.node(c)).unwrap_or(c);
+                    g.index(0, d, minus, b)
+                } else {
+                    g.index(c, d, a, b)
+                }
+            })
+            .collect();
+        Reciprocals { map: Some(map) }
+    }
+
+    /// The reciprocal of node `i` in `values` (one channel); none when it lies
+    /// outside the table.
+    pub(crate) fn value(&self, g: &Grid, values: &[f64], i: usize) -> Option<f64> {
+        match &self.map {
+            Some(m) => Some(values[m[i]]),
+            None => {
+                let [pi, ti, po, to] = g.angles(i);
+                reciprocal_inside(g, [pi, ti, po, to])
+                    .then(|| interpolate(g, values, [po, to, pi, ti]))
+            }
+        }
+    }
 }
 
 /// P_r, DeYoung Eq. 4.1, per channel: the RMS difference between each value and its
@@ -40,13 +73,14 @@ pub(crate) fn reciprocal_value(g: &Grid, values: &[f64], i: usize) -> Option<f64
 pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
     let g = &t.grid;
     let n = g.len();
+    let rec = Reciprocals::new(g);
     let mut used = 0;
     let out = (0..t.channels.len())
         .map(|ch| {
             let v = t.channel(ch);
             let (mut sum, mut count) = (0.0, 0usize);
             for i in 0..n {
-                if let Some(r) = reciprocal_value(g, v, i) {
+                if let Some(r) = rec.value(g, v, i) {
                     sum += (v[i] - r).powi(2);
                     count += 1;
                 }
@@ -179,13 +213,25 @@ pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), Pr
     let mut p_i = vec![0.0; nc];
     let mut vals = vec![0.0; na];
     let mut sig = vec![0.0; na];
+    // Both azimuth axes the same full turn: φ+ = φo − φi stays on the nodes.
+    let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
     for ch in 0..nc {
         let v = t.channel(ch);
         let s = t.channel_sigma(ch);
         let mut total = 0.0;
         for j in 0..m {
             let [_, ti, pp, to] = mg.angles(j);
+            let [_, b, c, d] = mg.unindex(j);
             for a in 0..na {
+                if same_phi {
+                    // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
+                    let k = g.index(a, b, (a + c) % g.phi_o.n, d);
+                    vals[a] = v[k];
+                    if let Some(s) = s {
+                        sig[a] = s[k];
+                    }
+                    continue;
+                }
                 let pi = g.phi_i.node(a);
                 vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
                 if let Some(s) = s {

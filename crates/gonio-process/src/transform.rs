@@ -13,7 +13,7 @@
 use serde::Serialize;
 
 use crate::grid::interpolate;
-use crate::measure::{albedos, full_form, isotropic_mean, matrix, reciprocal_value};
+use crate::measure::{Reciprocals, albedos, full_form, isotropic_mean, matrix};
 use crate::separable::{factor, weights};
 use crate::{ProcessError, Table};
 
@@ -34,19 +34,20 @@ pub fn reciprocity(t: &Table, delta: f64) -> Result<Table, ProcessError> {
     check_delta(delta)?;
     let g = &t.grid;
     let n = g.len();
+    let rec = Reciprocals::new(g);
     let mut values = t.values.clone();
     let mut sigma = t.sigma.clone();
     for ch in 0..t.channels.len() {
         let v = t.channel(ch);
         let s = t.channel_sigma(ch);
         for i in 0..n {
-            let Some(r) = reciprocal_value(g, v, i) else {
+            let Some(r) = rec.value(g, v, i) else {
                 continue;
             };
             // Weights of the value and its reciprocal in f^r (equal without σ).
             let (wf, wr, sf, sr) = match s {
                 Some(s) => {
-                    let sr = reciprocal_value(g, s, i).unwrap_or(s[i]);
+                    let sr = rec.value(g, s, i).unwrap_or(s[i]);
                     if s[i] > 0.0 && sr > 0.0 {
                         (s[i].powi(-2), sr.powi(-2), s[i], sr)
                     } else {
