@@ -1,0 +1,236 @@
+//! Generalized cosine lobes (Lafortune et al. 1997, Eq. 8) as a separable basis.
+//!
+//! A lobe max(0, Cx ux vx + Cy uy vy + Cz uz vz)ⁿ is written s · max(0, ĉ·(u∘v))ⁿ with
+//! ĉ = C/|C| a unit vector and s = |C|ⁿ ≥ 0: its strength s is then a linear
+//! coefficient (found exactly by the projection) and only the direction of ĉ and the
+//! exponent are searched. Isotropic lobes (Cx = Cy) have ĉ = (sin β/√2, sin β/√2,
+//! cos β) — β > 0 retro-reflective, β < 0 forward; anisotropic ones ĉ = (sin β cos γ,
+//! sin β sin γ, cos β). Exponents are n = e^η (never negative, any real value). The
+//! diffuse term is Lambert's ρd/π or Minnaert's ρd (m+2)/(2π) (uz vz)^m (Eq. 6) with
+//! m = κ² ≥ 0. The derivatives below are analytic; `tests/fit.rs` checks them against
+//! central differences.
+
+use std::f64::consts::{FRAC_1_SQRT_2, PI, TAU};
+
+use crate::varpro::Basis;
+
+/// The diffuse term.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Diffuse {
+    /// ρd / π.
+    Lambert,
+    /// ρd (m+2)/(2π) (uz vz)^m (Lafortune Eq. 6).
+    Minnaert,
+}
+
+/// The shape of a lobe model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Shape {
+    /// Number of lobes.
+    pub lobes: usize,
+    /// Cx ≠ Cy allowed.
+    pub anisotropic: bool,
+    /// The diffuse term.
+    pub diffuse: Diffuse,
+}
+
+impl Shape {
+    /// Direction parameters a lobe.
+    pub fn dir_params(&self) -> usize {
+        if self.anisotropic { 2 } else { 1 }
+    }
+
+    /// Non-linear parameters a channel: directions, exponents, Minnaert's κ.
+    pub fn params_per_channel(&self) -> usize {
+        self.lobes * (self.dir_params() + 1) + usize::from(self.diffuse == Diffuse::Minnaert)
+    }
+}
+
+/// The lobe basis over `channels` channels fitted together; with `shared`, the lobes'
+/// exponents (and Minnaert's) are one set for all channels, the layout being
+/// [η_1 … η_N, κ] then per channel [β_j (γ_j)]; otherwise per channel
+/// [β_j (γ_j), η_j …, κ].
+#[derive(Clone, Copy, Debug)]
+pub struct LobeBasis {
+    /// The model's shape.
+    pub shape: Shape,
+    /// Channels in this fit.
+    pub channels: usize,
+    /// Shared exponents.
+    pub shared: bool,
+}
+
+/// Indices of one lobe's parameters in θ.
+struct LobeIdx {
+    beta: usize,
+    gamma: Option<usize>,
+    eta: usize,
+}
+
+impl LobeBasis {
+    fn shared_len(&self) -> usize {
+        self.shape.lobes + usize::from(self.shape.diffuse == Diffuse::Minnaert)
+    }
+
+    fn lobe_idx(&self, ch: usize, j: usize) -> LobeIdx {
+        let s = &self.shape;
+        let dp = s.dir_params();
+        if self.shared {
+            let base = self.shared_len() + ch * s.lobes * dp + j * dp;
+            LobeIdx {
+                beta: base,
+                gamma: s.anisotropic.then_some(base + 1),
+                eta: j,
+            }
+        } else {
+            let base = ch * s.params_per_channel() + j * (dp + 1);
+            LobeIdx {
+                beta: base,
+                gamma: s.anisotropic.then_some(base + 1),
+                eta: base + dp,
+            }
+        }
+    }
+
+    /// Index of Minnaert's κ for a channel.
+    pub fn kappa_idx(&self, ch: usize) -> Option<usize> {
+        (self.shape.diffuse == Diffuse::Minnaert).then(|| {
+            if self.shared {
+                self.shape.lobes
+            } else {
+                ch * self.shape.params_per_channel()
+                    + self.shape.lobes * (self.shape.dir_params() + 1)
+            }
+        })
+    }
+
+    /// The unit direction ĉ of lobe j in channel ch, and its exponent.
+    pub fn lobe(&self, theta: &[f64], ch: usize, j: usize) -> ([f64; 3], f64) {
+        let ix = self.lobe_idx(ch, j);
+        let b = theta[ix.beta];
+        let c = match ix.gamma {
+            Some(g) => {
+                let g = theta[g];
+                [b.sin() * g.cos(), b.sin() * g.sin(), b.cos()]
+            }
+            None => [b.sin() * FRAC_1_SQRT_2, b.sin() * FRAC_1_SQRT_2, b.cos()],
+        };
+        (c, theta[ix.eta].exp())
+    }
+
+    /// Minnaert's exponent m for a channel (0 for Lambert).
+    pub fn diffuse_exponent(&self, theta: &[f64], ch: usize) -> f64 {
+        self.kappa_idx(ch).map_or(0.0, |k| theta[k] * theta[k])
+    }
+
+    /// Sets lobe j of channel ch from a direction angle β (γ) and exponent n.
+    pub fn set_lobe(&self, theta: &mut [f64], ch: usize, j: usize, beta: f64, gamma: f64, n: f64) {
+        let ix = self.lobe_idx(ch, j);
+        theta[ix.beta] = beta;
+        if let Some(g) = ix.gamma {
+            theta[g] = gamma;
+        }
+        theta[ix.eta] = n.max(1e-3).ln();
+    }
+}
+
+impl Basis for LobeBasis {
+    fn n_params(&self) -> usize {
+        if self.shared {
+            self.shared_len() + self.channels * self.shape.lobes * self.shape.dir_params()
+        } else {
+            self.channels * self.shape.params_per_channel()
+        }
+    }
+
+    fn n_cols(&self) -> usize {
+        1 + self.shape.lobes
+    }
+
+    fn eval(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        cols: &mut [f64],
+        mut d: Option<&mut [f64]>,
+    ) {
+        let np = self.n_params();
+        if let Some(d) = d.as_deref_mut() {
+            d.fill(0.0);
+        }
+        // The diffuse column.
+        match self.kappa_idx(ch) {
+            None => cols[0] = 1.0 / PI,
+            Some(ki) => {
+                let kappa = theta[ki];
+                let m = kappa * kappa;
+                let t = wi[2] * wo[2];
+                let tm = t.powf(m);
+                cols[0] = (m + 2.0) / TAU * tm;
+                if let Some(d) = d.as_deref_mut() {
+                    // d/dm [(m+2)/(2π) t^m] = t^m/(2π) + (m+2)/(2π) t^m ln t; dm/dκ = 2κ.
+                    d[ki] = 2.0 * kappa * (tm / TAU + (m + 2.0) / TAU * tm * t.ln());
+                }
+            }
+        }
+        let uv = [wi[0] * wo[0], wi[1] * wo[1], wi[2] * wo[2]];
+        for j in 0..self.shape.lobes {
+            let ix = self.lobe_idx(ch, j);
+            let (c, n) = self.lobe(theta, ch, j);
+            let x = c[0] * uv[0] + c[1] * uv[1] + c[2] * uv[2];
+            if x <= 0.0 {
+                cols[1 + j] = 0.0;
+                continue;
+            }
+            let h = x.powf(n);
+            cols[1 + j] = h;
+            let Some(d) = d.as_deref_mut() else { continue };
+            let row = &mut d[(1 + j) * np..(2 + j) * np];
+            let dh_dx = n * h / x;
+            let b = theta[ix.beta];
+            let dx_db = match ix.gamma {
+                Some(gi) => {
+                    let g = theta[gi];
+                    let dx_dg = b.sin() * (-g.sin() * uv[0] + g.cos() * uv[1]);
+                    row[gi] = dh_dx * dx_dg;
+                    b.cos() * (g.cos() * uv[0] + g.sin() * uv[1]) - b.sin() * uv[2]
+                }
+                None => b.cos() * FRAC_1_SQRT_2 * (uv[0] + uv[1]) - b.sin() * uv[2],
+            };
+            row[ix.beta] = dh_dx * dx_db;
+            row[ix.eta] = h * x.ln() * n;
+        }
+    }
+}
+
+/// Natural parameters of one channel's fitted model: ρd, Minnaert's m, and per lobe
+/// (Cx, Cy, Cz, n) with C = s^{1/n} ĉ.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Natural {
+    /// Diffuse albedo at normal incidence.
+    pub rho_d: f64,
+    /// Minnaert exponent (0: Lambert).
+    pub m: f64,
+    /// (Cx, Cy, Cz, n) per lobe.
+    pub lobes: Vec<[f64; 4]>,
+}
+
+impl LobeBasis {
+    /// The natural parameters of channel `ch` from θ and its linear coefficients.
+    pub fn natural(&self, theta: &[f64], ch: usize, coef: &[f64]) -> Natural {
+        let lobes = (0..self.shape.lobes)
+            .map(|j| {
+                let (c, n) = self.lobe(theta, ch, j);
+                let r = coef[1 + j].max(0.0).powf(1.0 / n);
+                [r * c[0], r * c[1], r * c[2], n]
+            })
+            .collect();
+        Natural {
+            rho_d: coef[0],
+            m: self.diffuse_exponent(theta, ch),
+            lobes,
+        }
+    }
+}
