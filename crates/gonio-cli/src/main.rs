@@ -7,6 +7,7 @@
 mod acquire_cmd;
 mod demo;
 mod error;
+mod fit_cmd;
 mod instrument_cmd;
 mod model_cmd;
 mod output;
@@ -186,6 +187,51 @@ enum Command {
         /// Resample (or tabulate a model) on a hemisphere grid of DTHETA,DPHI degrees.
         #[arg(long, value_parser = process_cmd::parse_grid)]
         grid: Option<(f64, f64)>,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Fit sums of generalized cosine lobes (Lafortune et al. 1997) by
+    /// Levenberg–Marquardt; write the model file and report parameters with standard
+    /// errors. `--compare` also fits Ward, Blinn-Phong and Cook–Torrance.
+    Fit {
+        /// The input: a run file, a table or sample CSV, a separable file.
+        input: PathBuf,
+        /// The model fitted: lafortune.
+        #[arg(long, default_value = "lafortune")]
+        model: String,
+        /// Number of lobes.
+        #[arg(long, default_value_t = 3)]
+        lobes: usize,
+        /// The diffuse term: lambert or minnaert.
+        #[arg(long, default_value = "lambert")]
+        diffuse: String,
+        /// Let Cx and Cy differ.
+        #[arg(long)]
+        anisotropic: bool,
+        /// The error measured: lafortune (f cos θi cos θo) or ngan (f cos θi).
+        #[arg(long, default_value = "lafortune")]
+        metric: String,
+        /// Leave out pairs with θi or θo above this, degrees.
+        #[arg(long, default_value_t = 90.0)]
+        cutoff: f64,
+        /// One set of exponents for all channels.
+        #[arg(long)]
+        share_exponents: bool,
+        /// Scale the model down where its directional albedo exceeds 1.
+        #[arg(long)]
+        conserve_energy: bool,
+        /// Ignore the samples' uncertainties (fit the metric unweighted).
+        #[arg(long)]
+        unweighted: bool,
+        /// Also fit Ward, Blinn-Phong and Cook–Torrance on the same data and metric.
+        #[arg(long)]
+        compare: bool,
+        /// The model file to write (TOML).
+        #[arg(long)]
+        out: Option<PathBuf>,
         #[command(flatten)]
         reduction: ReduceFlags,
         /// Print one JSON object instead of text.
@@ -380,6 +426,37 @@ fn run(cli: Cli) -> Result<(), CliError> {
             reduction,
             json,
         } => process_cmd::harmonics(&input, order, filter, &out, grid, &reduction.args(), json),
+        Command::Fit {
+            input,
+            model,
+            lobes,
+            diffuse,
+            anisotropic,
+            metric,
+            cutoff,
+            share_exponents,
+            conserve_energy,
+            unweighted,
+            compare,
+            out,
+            reduction,
+            json,
+        } => fit_cmd::fit(fit_cmd::FitArgs {
+            input,
+            model,
+            lobes,
+            diffuse,
+            anisotropic,
+            metric,
+            cutoff,
+            share_exponents,
+            conserve_energy,
+            unweighted,
+            compare,
+            out,
+            reduction: reduction.args(),
+            json,
+        }),
         Command::Sim(args) => {
             gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
                 match e.exit_code() {

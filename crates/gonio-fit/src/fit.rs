@@ -64,9 +64,10 @@ pub struct ChannelFit {
     pub params: Natural,
     /// Their standard errors (same layout).
     pub std_err: Natural,
-    /// RMS of the (metric-weighted) residuals f_model − f_data, 1/sr.
+    /// RMS of f_model − f_data over the pairs, 1/sr (unweighted).
     pub rms: f64,
-    /// RMS relative to the RMS of the weighted data.
+    /// RMS of the weighted residuals relative to the RMS of the weighted data: the
+    /// metric's (or χ²'s) relative error.
     pub relative_rms: f64,
     /// Per incident polar angle (degrees, rounded to 0.01°): RMS and relative RMS.
     pub per_theta_i: Vec<(f64, f64, f64)>,
@@ -439,7 +440,14 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
             let wy: Vec<f64> = (0..m)
                 .map(|i| g.data.weight[ch][i] * g.data.y[ch][i])
                 .collect();
-            let rms = (res.iter().map(|r| r * r).sum::<f64>() / m as f64).sqrt();
+            let wrms = (res.iter().map(|r| r * r).sum::<f64>() / m as f64).sqrt();
+            let rms = (res
+                .iter()
+                .zip(&g.data.weight[ch])
+                .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
+                .sum::<f64>()
+                / m as f64)
+                .sqrt();
             let scale = (wy.iter().map(|x| x * x).sum::<f64>() / m as f64).sqrt();
             let mut by_theta: std::collections::BTreeMap<i64, (f64, f64, usize)> =
                 std::collections::BTreeMap::new();
@@ -468,7 +476,7 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
                 params: p.clone(),
                 std_err,
                 rms,
-                relative_rms: if scale > 0.0 { rms / scale } else { 0.0 },
+                relative_rms: if scale > 0.0 { wrms / scale } else { 0.0 },
                 per_theta_i,
                 reduced_chi2: s2,
             });

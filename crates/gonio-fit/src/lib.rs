@@ -8,6 +8,7 @@
 //! - [`lobes`]: the lobe basis with its analytic derivatives.
 //! - [`fit`]: start search, refinement, standard errors, the model file and report.
 
+pub mod compare;
 pub mod data;
 pub mod fit;
 pub mod lobes;

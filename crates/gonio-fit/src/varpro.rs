@@ -212,10 +212,15 @@ pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> 
                 },
             );
         let c = nnls(&g, &h, k);
-        let res = &mut residuals[ch * m..(ch + 1) * m];
-        for i in 0..m {
-            res[i] = (0..k).map(|u| a[i * k + u] * c[u]).sum::<f64>() - w[i] * y[i];
-        }
+        residuals[ch * m..(ch + 1) * m]
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, res)| {
+                for (r, out) in res.iter_mut().enumerate() {
+                    let i = ci * CHUNK + r;
+                    *out = (0..k).map(|u| a[i * k + u] * c[u]).sum::<f64>() - w[i] * y[i];
+                }
+            });
         if let Some(jm) = jacobian.as_mut() {
             // v_p = W ∂A/∂θ_p c, then projected off the free columns.
             let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
@@ -232,39 +237,67 @@ pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> 
                 .or_else(|| gf.try_inverse())
                 .unwrap_or_else(|| DMatrix::zeros(nf, nf));
             let gf_inv = DMatrix::from_fn(nf, nf, |x, z| gs_inv[(x, z)] / (ds[x] * ds[z]));
-            let mut v = vec![0.0; m * p];
-            for i in 0..m {
-                for q in 0..p {
-                    v[i * p + q] = (0..k).map(|u| da[(i * k + u) * p + q] * c[u]).sum();
-                }
-            }
-            // Aᵀ_F v (nf × p), then the correction A_F G_F⁻¹ Aᵀ_F v.
-            let mut atv = vec![0.0; nf * p];
-            for i in 0..m {
-                for (x, &u) in free.iter().enumerate() {
-                    let aiu = a[i * k + u];
-                    for q in 0..p {
-                        atv[x * p + q] += aiu * v[i * p + q];
+            // v_p = W ∂A/∂θ_p c, written straight into the Jacobian's rows.
+            let block = &mut jm[ch * m * p..(ch + 1) * m * p];
+            block
+                .par_chunks_mut(CHUNK * p)
+                .enumerate()
+                .for_each(|(ci, rows)| {
+                    for (r, row) in rows.chunks_mut(p).enumerate() {
+                        let i = ci * CHUNK + r;
+                        for (q, out) in row.iter_mut().enumerate() {
+                            *out = (0..k).map(|u| da[(i * k + u) * p + q] * c[u]).sum();
+                        }
                     }
-                }
-            }
+                });
+            // Aᵀ_F v (nf × p), summed in fixed chunks (thread-count independent).
+            let atv = block
+                .par_chunks(CHUNK * p)
+                .enumerate()
+                .map(|(ci, rows)| {
+                    let mut acc = vec![0.0; nf * p];
+                    for (r, row) in rows.chunks(p).enumerate() {
+                        let i = ci * CHUNK + r;
+                        for (x, &u) in free.iter().enumerate() {
+                            let aiu = a[i * k + u];
+                            for q in 0..p {
+                                acc[x * p + q] += aiu * row[q];
+                            }
+                        }
+                    }
+                    acc
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
+                .fold(vec![0.0; nf * p], |mut s, c| {
+                    for (x, y) in s.iter_mut().zip(c) {
+                        *x += y;
+                    }
+                    s
+                });
             let mut coefs = vec![0.0; nf * p];
             for x in 0..nf {
                 for q in 0..p {
                     coefs[x * p + q] = (0..nf).map(|z| gf_inv[(x, z)] * atv[z * p + q]).sum();
                 }
             }
-            let block = &mut jm[ch * m * p..(ch + 1) * m * p];
-            for i in 0..m {
-                for q in 0..p {
-                    let proj: f64 = free
-                        .iter()
-                        .enumerate()
-                        .map(|(x, &u)| a[i * k + u] * coefs[x * p + q])
-                        .sum();
-                    block[i * p + q] = v[i * p + q] - proj;
-                }
-            }
+            // J = v − A_F G_F⁻¹ Aᵀ_F v.
+            block
+                .par_chunks_mut(CHUNK * p)
+                .enumerate()
+                .for_each(|(ci, rows)| {
+                    for (r, row) in rows.chunks_mut(p).enumerate() {
+                        let i = ci * CHUNK + r;
+                        for (q, out) in row.iter_mut().enumerate() {
+                            let proj: f64 = free
+                                .iter()
+                                .enumerate()
+                                .map(|(x, &u)| a[i * k + u] * coefs[x * p + q])
+                                .sum();
+                            *out -= proj;
+                        }
+                    }
+                });
         }
         coef.push(c);
     }

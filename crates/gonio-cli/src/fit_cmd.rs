@@ -1,0 +1,253 @@
+//! `gonio fit`: generalized cosine lobes fitted to a run, a table or samples, with a
+//! report, and the comparison table of other models on the same data and metric.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use gonio_fit::compare::{self, Kind};
+use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Shape, fit_lobes};
+use gonio_process::Samples;
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::output;
+use crate::process_cmd::{self, Input, ReduceArgs};
+
+/// The arguments of `gonio fit`.
+pub struct FitArgs {
+    /// The input.
+    pub input: PathBuf,
+    /// `lafortune` (the only model fitted as the result).
+    pub model: String,
+    /// Lobes.
+    pub lobes: usize,
+    /// `lambert` or `minnaert`.
+    pub diffuse: String,
+    /// Cx ≠ Cy.
+    pub anisotropic: bool,
+    /// `lafortune` or `ngan`.
+    pub metric: String,
+    /// Angle cutoff, degrees.
+    pub cutoff: f64,
+    /// Share exponents across channels.
+    pub share_exponents: bool,
+    /// Scale the model down where its albedo exceeds 1.
+    pub conserve_energy: bool,
+    /// Ignore the samples' uncertainties.
+    pub unweighted: bool,
+    /// Also fit the comparison models.
+    pub compare: bool,
+    /// The model file to write.
+    pub out: Option<PathBuf>,
+    /// Run-file reduction options.
+    pub reduction: ReduceArgs,
+    /// One JSON object.
+    pub json: bool,
+}
+
+fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
+    CliError::Input(format!("{}: {e}", path.display()))
+}
+
+/// `gonio fit INPUT --model lafortune --lobes 3 … --out FIT.toml`.
+pub fn fit(a: FitArgs) -> CliResult<()> {
+    if a.model != "lafortune" {
+        return Err(CliError::Input(format!(
+            "--model: only `lafortune` lobes are fitted as the result (got {:?}); use --compare \
+             for Ward, Blinn-Phong and Cook-Torrance",
+            a.model
+        )));
+    }
+    if a.out.is_none() && !a.compare {
+        return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
+    }
+    if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
+        return Err(CliError::Input(format!(
+            "--cutoff must lie in (0, 90] degrees, got {}",
+            a.cutoff
+        )));
+    }
+    let diffuse = match a.diffuse.as_str() {
+        "lambert" => Diffuse::Lambert,
+        "minnaert" => Diffuse::Minnaert,
+        x => {
+            return Err(CliError::Input(format!(
+                "--diffuse: lambert or minnaert, got {x:?}"
+            )));
+        }
+    };
+    let metric = match a.metric.as_str() {
+        "lafortune" => Metric::Lafortune,
+        "ngan" => Metric::Ngan,
+        x => {
+            return Err(CliError::Input(format!(
+                "--metric: lafortune or ngan, got {x:?}"
+            )));
+        }
+    };
+    let (input, _) = process_cmd::load(&a.input, &a.reduction, None)?;
+    let samples = match input {
+        Input::Table(t) => Samples::from_table(&t),
+        Input::Samples(s) => s,
+    };
+    let data = FitData::from_samples(
+        &samples,
+        &DataOptions {
+            metric,
+            cutoff_deg: a.cutoff,
+            use_sigma: !a.unweighted,
+        },
+    )
+    .map_err(|e| input_err(&a.input, e))?;
+    let opts = FitOptions {
+        shape: Shape {
+            lobes: a.lobes,
+            anisotropic: a.anisotropic,
+            diffuse,
+        },
+        share_exponents: a.share_exponents,
+        conserve_energy: a.conserve_energy,
+        ..FitOptions::default()
+    };
+    let fit = fit_lobes(&data, &opts)
+        .map_err(|e| CliError::Runtime(format!("{}: {e}", a.input.display())))?;
+    if let Some(out) = &a.out {
+        let header = format!(
+            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",
+            a.input.display(),
+            a.lobes,
+            diffuse,
+            metric,
+            data.len()
+        );
+        std::fs::write(out, header + &fit.model_toml).map_err(|e| {
+            CliError::Input(format!("{}: cannot write output file: {e}", out.display()))
+        })?;
+    }
+    let comparison = if a.compare {
+        let mut rows = Vec::new();
+        for k in Kind::ALL {
+            rows.extend(
+                compare::fit_model(k, &data)
+                    .map_err(|e| CliError::Runtime(format!("{}: {e}", a.input.display())))?,
+            );
+        }
+        Some(rows)
+    } else {
+        None
+    };
+    if a.json {
+        return output::json(&json!({
+            "out": a.out.as_ref().map(|p| p.display().to_string()),
+            "fit": fit,
+            "comparison": comparison,
+            "cut_by_angle": data.cut,
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: {} pairs ({} above the {}° cutoff left out), {} fit, metric {:?}",
+            a.input.display(),
+            data.len(),
+            data.cut,
+            a.cutoff,
+            if data.chi_square {
+                "χ² (1/σ weights)"
+            } else {
+                "unweighted"
+            },
+            metric
+        )?;
+        for c in &fit.channels {
+            writeln!(
+                w,
+                "channel {}: RMS {:.4e} 1/sr ({:.3}% of the data's RMS), reduced χ² {:.3}",
+                c.channel,
+                c.rms,
+                100.0 * c.relative_rms,
+                c.reduced_chi2
+            )?;
+            writeln!(
+                w,
+                "  diffuse ρd = {:.6} ± {:.2e}",
+                c.params.rho_d, c.std_err.rho_d
+            )?;
+            if diffuse == Diffuse::Minnaert {
+                writeln!(w, "  Minnaert m = {:.4} ± {:.2e}", c.params.m, c.std_err.m)?;
+            }
+            for (j, (l, s)) in c.params.lobes.iter().zip(&c.std_err.lobes).enumerate() {
+                writeln!(
+                    w,
+                    "  lobe {}: Cx {:+.5} ± {:.1e}  Cy {:+.5} ± {:.1e}  Cz {:+.5} ± {:.1e}  n {:.4} ± {:.1e}",
+                    j + 1,
+                    l[0],
+                    s[0],
+                    l[1],
+                    s[1],
+                    l[2],
+                    s[2],
+                    l[3],
+                    s[3]
+                )?;
+            }
+            let per: Vec<String> = c
+                .per_theta_i
+                .iter()
+                .map(|(t, _, rel)| format!("{t:.0}°: {:.2}%", 100.0 * rel))
+                .collect();
+            writeln!(w, "  relative error by θi: {}", per.join(", "))?;
+        }
+        writeln!(
+            w,
+            "{} evaluations, {:.3} s; largest directional albedo {:.4}{}",
+            fit.evaluations,
+            fit.seconds,
+            fit.max_albedo,
+            if fit.energy_scale < 1.0 {
+                format!(" (scaled by {:.4} to conserve energy)", fit.energy_scale)
+            } else if fit.max_albedo > 1.0 {
+                " — exceeds 1: --conserve-energy scales it down".to_string()
+            } else {
+                String::new()
+            }
+        )?;
+        if let Some(out) = &a.out {
+            writeln!(w, "model: {}", out.display())?;
+        }
+        if let Some(rows) = &comparison {
+            writeln!(
+                w,
+                "\nthe same data, the same metric (relative RMS per channel):"
+            )?;
+            writeln!(
+                w,
+                "{:<28}{}",
+                "model",
+                fit.channels
+                    .iter()
+                    .map(|c| format!("{:>12}", c.channel))
+                    .collect::<String>()
+            )?;
+            writeln!(
+                w,
+                "{:<28}{}",
+                format!("Lafortune, {} lobe(s)", a.lobes),
+                fit.channels
+                    .iter()
+                    .map(|c| format!("{:>11.3}%", 100.0 * c.relative_rms))
+                    .collect::<String>()
+            )?;
+            for k in Kind::ALL {
+                let v: String = rows
+                    .iter()
+                    .filter(|r| r.model == k.name())
+                    .map(|r| format!("{:>11.3}%", 100.0 * r.relative_rms))
+                    .collect();
+                writeln!(w, "{:<28}{v}", k.name())?;
+            }
+        }
+        w.flush()
+    })())
+}
