@@ -275,3 +275,62 @@ fn bad_data_is_refused_with_a_reason() {
     let e = varpro::evaluate(&basis, &d, &[0.5, 1.0], false);
     assert!(e.coef[0].iter().all(|c| *c >= 0.0));
 }
+
+#[test]
+fn shared_exponents_minnaert_and_the_ngan_metric_recover_their_models() {
+    // RGB lobes with one exponent per lobe across channels, a Minnaert diffuse term,
+    // fitted with shared exponents under the Ngan metric.
+    let text = r#"
+kind = "lafortune"
+channels = ["R", "G", "B"]
+[diffuse]
+rho = [0.30, 0.40, 0.70]
+n = [0.4, 0.4, 0.4]
+[[lobes]]
+cx = [-0.95, -0.90, -0.80]
+cz = [0.80, 0.75, 0.60]
+n = [15.0, 15.0, 15.0]
+[[lobes]]
+cx = [0.60, 0.55, 0.50]
+cz = [0.55, 0.50, 0.45]
+n = [6.0, 6.0, 6.0]
+"#;
+    let truth = Model::from_toml(text, None).expect("model");
+    let opts = DataOptions {
+        metric: gonio_fit::Metric::Ngan,
+        ..DataOptions::default()
+    };
+    let data =
+        FitData::from_samples(&Samples::from_brdf(&truth, &hemisphere()), &opts).expect("data");
+    let fit = fit_lobes(
+        &data,
+        &FitOptions {
+            shape: Shape {
+                lobes: 2,
+                anisotropic: false,
+                diffuse: Diffuse::Minnaert,
+            },
+            share_exponents: true,
+            ..FitOptions::default()
+        },
+    )
+    .expect("fit");
+    assert!(fit.shared_exponents);
+    let want = [
+        [[-0.95, 0.80, 15.0], [0.60, 0.55, 6.0]],
+        [[-0.90, 0.75, 15.0], [0.55, 0.50, 6.0]],
+        [[-0.80, 0.60, 15.0], [0.50, 0.45, 6.0]],
+    ];
+    let rho = [0.30, 0.40, 0.70];
+    for (ch, c) in fit.channels.iter().enumerate() {
+        assert!((c.params.rho_d - rho[ch]).abs() < 1e-6, "{:?}", c.params);
+        assert!((c.params.m - 0.4).abs() < 1e-6, "{:?}", c.params);
+        let mut got = c.params.lobes.clone();
+        got.sort_by(|a, b| b[3].total_cmp(&a[3]));
+        for (g, w) in got.iter().zip(&want[ch]) {
+            for (x, y) in [g[0], g[2], g[3]].iter().zip(w) {
+                assert!((x - y).abs() < 1e-6 * y.abs(), "channel {ch}: {got:?}");
+            }
+        }
+    }
+}
