@@ -3,7 +3,7 @@
 //! **Start.** No start values are asked for. Lobes are added one at a time
 //! (greedy), each from a grid of seeds — retro-reflective (β > 0), forward and
 //! off-specular (β < 0), exponents from 1.5 to 100 — scored by the projected cost
-//! (the linear coefficients solved exactly for each seed), the best few refined by
+//! (the linear coefficients solved exactly for each seed), the best four refined by
 //! Levenberg–Marquardt together with the lobes already placed; the search runs on an
 //! evenly thinned subset of at most `search_samples` pairs. The best model then gets
 //! a final joint Levenberg–Marquardt refinement on all the data.
@@ -49,7 +49,7 @@ impl Default for FitOptions {
                 diffuse: Diffuse::Lambert,
             },
             share_exponents: false,
-            search_samples: 3000,
+            search_samples: 2000,
             conserve_energy: false,
         }
     }
@@ -233,11 +233,11 @@ fn search(d: &FitData, shape: Shape, shared: bool) -> Vec<f64> {
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
         let best = scored
             .into_iter()
-            .take(6)
+            .take(4)
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|(_, t)| {
-                let s = varpro::solve(&basis, d, &t, 40);
+                let s = varpro::solve(&basis, d, &t, 15);
                 (s.cost, s.theta)
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))

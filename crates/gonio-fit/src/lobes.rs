@@ -154,53 +154,107 @@ impl Basis for LobeBasis {
         wi: [f64; 3],
         wo: [f64; 3],
         cols: &mut [f64],
+        d: Option<&mut [f64]>,
+    ) {
+        self.eval_chunk(theta, ch, &[wi], &[wo], cols, d);
+    }
+
+    fn eval_chunk(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        wi: &[[f64; 3]],
+        wo: &[[f64; 3]],
+        cols: &mut [f64],
         mut d: Option<&mut [f64]>,
     ) {
-        let np = self.n_params();
+        let (np, k) = (self.n_params(), self.n_cols());
+        // Per lobe, once for the chunk: ĉ, ∂ĉ/∂β, ∂ĉ/∂γ, n and the parameter indices.
+        struct Lobe {
+            c: [f64; 3],
+            dc_db: [f64; 3],
+            dc_dg: Option<(usize, [f64; 3])>,
+            n: f64,
+            beta: usize,
+            eta: usize,
+        }
+        let lobes: Vec<Lobe> = (0..self.shape.lobes)
+            .map(|j| {
+                let ix = self.lobe_idx(ch, j);
+                let b = theta[ix.beta];
+                let (sb, cb) = b.sin_cos();
+                let (c, dc_db, dc_dg) = match ix.gamma {
+                    Some(gi) => {
+                        let (sg, cg) = theta[gi].sin_cos();
+                        (
+                            [sb * cg, sb * sg, cb],
+                            [cb * cg, cb * sg, -sb],
+                            Some((gi, [-sb * sg, sb * cg, 0.0])),
+                        )
+                    }
+                    None => (
+                        [sb * FRAC_1_SQRT_2, sb * FRAC_1_SQRT_2, cb],
+                        [cb * FRAC_1_SQRT_2, cb * FRAC_1_SQRT_2, -sb],
+                        None,
+                    ),
+                };
+                Lobe {
+                    c,
+                    dc_db,
+                    dc_dg,
+                    n: theta[ix.eta].exp(),
+                    beta: ix.beta,
+                    eta: ix.eta,
+                }
+            })
+            .collect();
+        let kappa = self.kappa_idx(ch).map(|ki| (ki, theta[ki]));
         if let Some(d) = d.as_deref_mut() {
             d.fill(0.0);
         }
-        // The diffuse column.
-        match self.kappa_idx(ch) {
-            None => cols[0] = 1.0 / PI,
-            Some(ki) => {
-                let kappa = theta[ki];
-                let m = kappa * kappa;
-                let t = wi[2] * wo[2];
-                let tm = t.powf(m);
-                cols[0] = (m + 2.0) / TAU * tm;
-                if let Some(d) = d.as_deref_mut() {
-                    // d/dm [(m+2)/(2π) t^m] = t^m/(2π) + (m+2)/(2π) t^m ln t; dm/dκ = 2κ.
-                    d[ki] = 2.0 * kappa * (tm / TAU + (m + 2.0) / TAU * tm * t.ln());
+        for i in 0..wi.len() {
+            let (u, v) = (wi[i], wo[i]);
+            let col = &mut cols[i * k..(i + 1) * k];
+            let mut drow = d
+                .as_deref_mut()
+                .map(|d| &mut d[i * k * np..(i + 1) * k * np]);
+            match kappa {
+                None => col[0] = 1.0 / PI,
+                Some((ki, kp)) => {
+                    let m = kp * kp;
+                    let t = u[2] * v[2];
+                    let lt = t.ln();
+                    let tm = (m * lt).exp();
+                    col[0] = (m + 2.0) / TAU * tm;
+                    if let Some(dr) = drow.as_deref_mut() {
+                        // d/dm [(m+2)/(2π) t^m] = t^m/(2π) + (m+2)/(2π) t^m ln t; dm/dκ = 2κ.
+                        dr[ki] = 2.0 * kp * (tm / TAU + (m + 2.0) / TAU * tm * lt);
+                    }
                 }
             }
-        }
-        let uv = [wi[0] * wo[0], wi[1] * wo[1], wi[2] * wo[2]];
-        for j in 0..self.shape.lobes {
-            let ix = self.lobe_idx(ch, j);
-            let (c, n) = self.lobe(theta, ch, j);
-            let x = c[0] * uv[0] + c[1] * uv[1] + c[2] * uv[2];
-            if x <= 0.0 {
-                cols[1 + j] = 0.0;
-                continue;
-            }
-            let h = x.powf(n);
-            cols[1 + j] = h;
-            let Some(d) = d.as_deref_mut() else { continue };
-            let row = &mut d[(1 + j) * np..(2 + j) * np];
-            let dh_dx = n * h / x;
-            let b = theta[ix.beta];
-            let dx_db = match ix.gamma {
-                Some(gi) => {
-                    let g = theta[gi];
-                    let dx_dg = b.sin() * (-g.sin() * uv[0] + g.cos() * uv[1]);
-                    row[gi] = dh_dx * dx_dg;
-                    b.cos() * (g.cos() * uv[0] + g.sin() * uv[1]) - b.sin() * uv[2]
+            let uv = [u[0] * v[0], u[1] * v[1], u[2] * v[2]];
+            for (j, l) in lobes.iter().enumerate() {
+                let x = l.c[0] * uv[0] + l.c[1] * uv[1] + l.c[2] * uv[2];
+                if x <= 0.0 {
+                    col[1 + j] = 0.0;
+                    continue;
                 }
-                None => b.cos() * FRAC_1_SQRT_2 * (uv[0] + uv[1]) - b.sin() * uv[2],
-            };
-            row[ix.beta] = dh_dx * dx_db;
-            row[ix.eta] = h * x.ln() * n;
+                // x^n as exp(n ln x): the logarithm is needed for ∂/∂η anyway.
+                let lx = x.ln();
+                let h = (l.n * lx).exp();
+                col[1 + j] = h;
+                let Some(dr) = drow.as_deref_mut() else {
+                    continue;
+                };
+                let row = &mut dr[(1 + j) * np..(2 + j) * np];
+                let dh_dx = l.n * h / x;
+                row[l.beta] =
+                    dh_dx * (l.dc_db[0] * uv[0] + l.dc_db[1] * uv[1] + l.dc_db[2] * uv[2]);
+                if let Some((gi, dg)) = l.dc_dg {
+                    row[gi] = dh_dx * (dg[0] * uv[0] + dg[1] * uv[1]);
+                }
+                row[l.eta] = h * lx * l.n;
+            }
         }
     }
 }

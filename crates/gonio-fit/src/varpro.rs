@@ -34,6 +34,25 @@ pub trait Basis: Sync {
         cols: &mut [f64],
         d: Option<&mut [f64]>,
     );
+
+    /// [`eval`](Basis::eval) over consecutive samples: `cols` holds K values a sample,
+    /// `d` K × P a sample. Bases whose columns share work across samples at one θ
+    /// (the lobes' directions and exponents) override it.
+    fn eval_chunk(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        wi: &[[f64; 3]],
+        wo: &[[f64; 3]],
+        cols: &mut [f64],
+        mut d: Option<&mut [f64]>,
+    ) {
+        let (k, p) = (self.n_cols(), self.n_params());
+        for i in 0..wi.len() {
+            let di = d.as_deref_mut().map(|d| &mut d[i * k * p..(i + 1) * k * p]);
+            self.eval(theta, ch, wi[i], wo[i], &mut cols[i * k..(i + 1) * k], di);
+        }
+    }
 }
 
 /// Samples a chunk of the parallel loops handles.
@@ -151,27 +170,45 @@ pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> 
             Vec::new()
         };
         let w = &data.weight[ch];
-        a.par_chunks_mut(CHUNK * k)
-            .enumerate()
-            .for_each(|(ci, rows)| {
-                for (r, row) in rows.chunks_mut(k).enumerate() {
-                    let i = ci * CHUNK + r;
-                    basis.eval(theta, ch, data.wi[i], data.wo[i], row, None);
-                    for x in row.iter_mut() {
-                        *x *= w[i];
-                    }
-                }
-            });
         if jac {
-            da.par_chunks_mut(CHUNK * k * p)
+            a.par_chunks_mut(CHUNK * k)
+                .zip(da.par_chunks_mut(CHUNK * k * p))
+                .enumerate()
+                .for_each(|(ci, (rows, drows))| {
+                    let lo = ci * CHUNK;
+                    let hi = lo + rows.len() / k;
+                    basis.eval_chunk(
+                        theta,
+                        ch,
+                        &data.wi[lo..hi],
+                        &data.wo[lo..hi],
+                        rows,
+                        Some(drows),
+                    );
+                    for (r, row) in rows.chunks_mut(k).enumerate() {
+                        let wr = w[lo + r];
+                        for x in row.iter_mut() {
+                            *x *= wr;
+                        }
+                    }
+                    for (r, row) in drows.chunks_mut(k * p).enumerate() {
+                        let wr = w[lo + r];
+                        for x in row.iter_mut() {
+                            *x *= wr;
+                        }
+                    }
+                });
+        } else {
+            a.par_chunks_mut(CHUNK * k)
                 .enumerate()
                 .for_each(|(ci, rows)| {
-                    let mut cols = vec![0.0; k];
-                    for (r, row) in rows.chunks_mut(k * p).enumerate() {
-                        let i = ci * CHUNK + r;
-                        basis.eval(theta, ch, data.wi[i], data.wo[i], &mut cols, Some(row));
+                    let lo = ci * CHUNK;
+                    let hi = lo + rows.len() / k;
+                    basis.eval_chunk(theta, ch, &data.wi[lo..hi], &data.wo[lo..hi], rows, None);
+                    for (r, row) in rows.chunks_mut(k).enumerate() {
+                        let wr = w[lo + r];
                         for x in row.iter_mut() {
-                            *x *= w[i];
+                            *x *= wr;
                         }
                     }
                 });
@@ -313,6 +350,9 @@ pub struct Projected<'a> {
     basis: &'a dyn Basis,
     data: &'a FitData,
     theta: DVector<f64>,
+    /// The Jacobian computed with the last residuals (the crate asks for it at the
+    /// point it has just accepted, so one pass serves both).
+    cached: std::sync::Mutex<Option<(Vec<f64>, Vec<f64>)>>,
 }
 
 impl<'a> Projected<'a> {
@@ -322,6 +362,7 @@ impl<'a> Projected<'a> {
             basis,
             data,
             theta: DVector::from_column_slice(theta),
+            cached: std::sync::Mutex::new(None),
         }
     }
 }
@@ -340,16 +381,29 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
-        let e = evaluate(self.basis, self.data, self.theta.as_slice(), false);
+        let e = evaluate(self.basis, self.data, self.theta.as_slice(), true);
+        if let (Ok(mut c), Some(j)) = (self.cached.lock(), e.jacobian) {
+            *c = Some((self.theta.as_slice().to_vec(), j));
+        }
         let r = DVector::from_vec(e.residuals);
         r.iter().all(|x| x.is_finite()).then_some(r)
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let e = evaluate(self.basis, self.data, self.theta.as_slice(), true);
         let p = self.basis.n_params();
-        let rows = e.residuals.len();
-        let j = DMatrix::from_row_slice(rows, p, &e.jacobian?);
+        let rows = self.data.len() * self.data.channels.len();
+        let cached = self
+            .cached
+            .lock()
+            .ok()
+            .and_then(|mut c| c.take())
+            .filter(|(t, _)| t.as_slice() == self.theta.as_slice())
+            .map(|(_, j)| j);
+        let j = match cached {
+            Some(j) => j,
+            None => evaluate(self.basis, self.data, self.theta.as_slice(), true).jacobian?,
+        };
+        let j = DMatrix::from_row_slice(rows, p, &j);
         j.iter().all(|x| x.is_finite()).then_some(j)
     }
 }
@@ -372,9 +426,9 @@ pub struct Solved {
 pub fn solve(basis: &dyn Basis, data: &FitData, theta: &[f64], patience: usize) -> Solved {
     let lm = LevenbergMarquardt::new()
         .with_patience(patience)
-        .with_ftol(1e-15)
-        .with_xtol(1e-15)
-        .with_gtol(1e-15);
+        .with_ftol(1e-12)
+        .with_xtol(1e-10)
+        .with_gtol(1e-12);
     let (problem, report) = lm.minimize(Projected::new(basis, data, theta));
     let theta = problem.theta.as_slice().to_vec();
     let e = evaluate(basis, data, &theta, false);
