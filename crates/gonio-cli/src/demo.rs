@@ -139,6 +139,7 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
                 "max_deviation_sigmas": worst,
                 "max_relative_deviation": worst_rel,
                 "run_file": acq.run_file.as_ref().map(|p| p.display().to_string()),
+                "report": acq.report.display().to_string(),
                 "points": acq.points.iter().map(|p| json!({
                     "theta_i": p.theta_i, "theta_o": p.theta_o, "model": p.model,
                     "measured": p.measured, "sigma": p.sigma,
@@ -337,7 +338,14 @@ pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
             w,
             "(gonio plan check | acquire | resume | runs | show), processing (gonio reduce | check |"
         )?;
-        writeln!(w, "correct | harmonics). Lobe fitting comes next.")?;
+        writeln!(w, "correct | harmonics), lobe fitting (gonio fit), formats, plots and reports (gonio export |
+plot | report).")?;
+        writeln!(w)?;
+        writeln!(
+            w,
+            "The run's report (one self-contained HTML page): {}",
+            acq.report.display()
+        )?;
         w.flush()
     })())
 }
@@ -404,6 +412,7 @@ struct Acquired {
     dark_v: f64,
     incident_v: f64,
     run_file: Option<PathBuf>,
+    report: PathBuf,
 }
 
 /// Runs the embedded plan on the embedded simulator through the real acquisition
@@ -503,6 +512,22 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         .into_iter()
         .collect();
     drop(store);
+    // The run report, written before a temporary run file is removed: beside a kept
+    // run file, else in the temporary directory.
+    let report_dir = match keep {
+        Some(p) => p.with_extension("report"),
+        None => std::env::temp_dir().join(format!("gonio-demo-report-{}", std::process::id())),
+    };
+    let args = crate::process_cmd::ReduceArgs {
+        calibration: "auto".into(),
+        drift: "auto".into(),
+    };
+    let page = crate::io_cmd::build_report(&path, &args)?;
+    std::fs::create_dir_all(&report_dir)
+        .map_err(|e| runtime(&format!("{}: {e}", report_dir.display())))?;
+    let report_path = report_dir.join("report.html");
+    std::fs::write(&report_path, gonio_io::report::html(&page))
+        .map_err(|e| runtime(&format!("{}: {e}", report_path.display())))?;
     let run_file = if keep.is_some() {
         Some(path)
     } else {
@@ -522,5 +547,6 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         dark_v,
         incident_v,
         run_file,
+        report: report_path,
     })
 }

@@ -6,12 +6,11 @@ use std::path::{Path, PathBuf};
 
 use gonio_fit::compare::{self, Kind};
 use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Shape, fit_lobes};
-use gonio_process::Samples;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
 use crate::output;
-use crate::process_cmd::{self, Input, ReduceArgs};
+use crate::process_cmd::{self, ReduceArgs};
 
 /// The arguments of `gonio fit`.
 pub struct FitArgs {
@@ -86,10 +85,8 @@ pub fn fit(a: FitArgs) -> CliResult<()> {
         }
     };
     let (input, _) = process_cmd::load(&a.input, &a.reduction, None)?;
-    let samples = match input {
-        Input::Table(t) => Samples::from_table(&t),
-        Input::Samples(s) => s,
-    };
+    // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
+    let samples = input.to_samples(200_000);
     let data = FitData::from_samples(
         &samples,
         &DataOptions {

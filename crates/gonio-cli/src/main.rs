@@ -9,6 +9,7 @@ mod demo;
 mod error;
 mod fit_cmd;
 mod instrument_cmd;
+mod io_cmd;
 mod model_cmd;
 mod output;
 mod process_cmd;
@@ -238,6 +239,64 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Write a run, table or samples as MERL binary, ASTM E1392 text or CSV.
+    Export {
+        /// The input.
+        input: PathBuf,
+        /// merl, astm or csv.
+        #[arg(long)]
+        format: String,
+        /// The file to write.
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Plot a run, table, samples, MERL file or model (PNG or SVG by the extension).
+    Plot {
+        /// The input.
+        input: PathBuf,
+        /// A fitted model file drawn against the data.
+        #[arg(long)]
+        fit: Option<PathBuf>,
+        /// polar, hemisphere, albedo, separability or sphere.
+        #[arg(long)]
+        kind: String,
+        /// The image to write (.png or .svg).
+        #[arg(long)]
+        out: PathBuf,
+        /// Incident polar angles, degrees (polar: the curves; hemisphere: the first).
+        #[arg(long, value_delimiter = ',', default_value = "0,35,65")]
+        theta_i: Vec<f64>,
+        /// Only this channel (by name).
+        #[arg(long)]
+        channel: Option<String>,
+        /// Sphere: the light's angle from the view axis, degrees.
+        #[arg(long, default_value_t = 45.0)]
+        light_theta: f64,
+        /// Sphere: the light's azimuth in the image, degrees from +x towards +y.
+        #[arg(long, default_value_t = 135.0)]
+        light_phi: f64,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+    },
+    /// Write the run report: one self-contained HTML page with the run's metadata,
+    /// calibration, measures, fit and plots.
+    Report {
+        /// The run file.
+        run: PathBuf,
+        /// The directory to write report.html into.
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until standard input closes.
     Sim(gonio_sim::cli::ServeArgs),
@@ -457,6 +516,40 @@ fn run(cli: Cli) -> Result<(), CliError> {
             reduction: reduction.args(),
             json,
         }),
+        Command::Export {
+            input,
+            format,
+            out,
+            reduction,
+            json,
+        } => io_cmd::export(&input, &format, &out, &reduction.args(), json),
+        Command::Plot {
+            input,
+            fit,
+            kind,
+            out,
+            theta_i,
+            channel,
+            light_theta,
+            light_phi,
+            reduction,
+        } => io_cmd::plot(io_cmd::PlotArgs {
+            input,
+            fit,
+            kind,
+            out,
+            theta_i,
+            channel,
+            light_theta,
+            light_phi,
+            reduction: reduction.args(),
+        }),
+        Command::Report {
+            run,
+            out,
+            reduction,
+            json,
+        } => io_cmd::report(&run, &out, &reduction.args(), json).map(|_| ()),
         Command::Sim(args) => {
             gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
                 match e.exit_code() {

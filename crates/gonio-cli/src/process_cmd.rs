@@ -6,7 +6,7 @@ use std::io::{Read as _, Write};
 use std::path::Path;
 
 use gonio_acquire::store::RunStore;
-use gonio_process::file::{self, Content};
+use gonio_process::file;
 use gonio_process::measure;
 use gonio_process::reduce::{self, Calibration, Drift, Options, Reduction};
 use gonio_process::samples::Kernel;
@@ -30,6 +30,21 @@ pub enum Input {
     Table(Table),
     /// Scattered samples.
     Samples(Samples),
+    /// A MERL table (a BRDF of half/difference bins).
+    Merl(Box<gonio_io::formats::merl::MerlBrdf>),
+}
+
+impl Input {
+    /// The input as samples (a MERL table's valid bins thinned to at most `max`).
+    pub fn to_samples(&self, max: usize) -> Samples {
+        match self {
+            Input::Table(t) => Samples::from_table(t),
+            Input::Samples(s) => s.clone(),
+            Input::Merl(m) => {
+                m.to_samples_strided(gonio_io::formats::merl::MerlBrdf::stride_for(max))
+            }
+        }
+    }
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -157,7 +172,9 @@ pub fn load(
             format!("larger than {MAX_TEXT_BYTES} bytes"),
         ));
     }
-    let text = std::fs::read_to_string(path).map_err(|e| input_err(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| input_err(path, e))?;
+    // Binary (MERL) and other non-UTF-8 files go to the format readers.
+    let text = std::str::from_utf8(&bytes).unwrap_or("");
     let kind = text
         .lines()
         .map(str::trim)
@@ -172,13 +189,13 @@ pub fn load(
     if looks_toml {
         return match kind.as_deref() {
             Some("separable") => {
-                let s = SeparableBrdf::from_toml(&text, Some(path))
+                let s = SeparableBrdf::from_toml(text, Some(path))
                     .map_err(|e| CliError::Input(e.to_string()))?;
                 let t = s.to_table().map_err(|e| process_err(path, e))?;
                 Ok((Input::Table(t), None))
             }
             Some("spherical-harmonics") => {
-                let sh = ShBrdf::from_toml(&text, Some(path))
+                let sh = ShBrdf::from_toml(text, Some(path))
                     .map_err(|e| CliError::Input(e.to_string()))?;
                 let g = grid_of(grid.unwrap_or((10.0, 10.0)));
                 let t = Table::from_fn(sh.channels.clone(), g, |wi, wo, out| sh.eval(wi, wo, out))
@@ -186,26 +203,29 @@ pub fn load(
                 Ok((Input::Table(t), None))
             }
             _ => {
-                let m = gonio_brdf::Model::from_toml(&text, Some(path))?;
+                let m = gonio_brdf::Model::from_toml(text, Some(path))?;
                 let g = grid_of(grid.unwrap_or((10.0, 10.0)));
                 let t = Table::from_brdf(&m, g).map_err(|e| process_err(path, e))?;
                 Ok((Input::Table(t), None))
             }
         };
     }
-    match file::read(&text, Some(path)).map_err(|e| CliError::Input(e.to_string()))? {
-        Content::Table(t) => Ok((Input::Table(t), None)),
-        Content::Samples(s) => {
-            s.validate().map_err(|e| input_err(path, e))?;
-            Ok((
+    let data =
+        gonio_io::formats::read(&bytes, Some(path)).map_err(|e| CliError::Input(e.to_string()))?;
+    Ok((
+        match data {
+            gonio_io::formats::Data::Table(t) => Input::Table(t),
+            gonio_io::formats::Data::Merl(m) => Input::Merl(Box::new(m)),
+            gonio_io::formats::Data::Samples(s) => {
+                s.validate().map_err(|e| input_err(path, e))?;
                 match s.to_table() {
                     Some(t) => Input::Table(t),
                     None => Input::Samples(s),
-                },
-                None,
-            ))
-        }
-    }
+                }
+            }
+        },
+        None,
+    ))
 }
 
 /// The input as a table: samples off a grid are resampled onto `grid` with the
@@ -220,6 +240,8 @@ fn as_table(path: &Path, input: Input, grid: Option<(f64, f64)>) -> CliResult<Ta
         }
         (Input::Samples(s), Some(g)) => s
             .resample(grid_of(g), Kernel::default())
+            .map_err(|e| process_err(path, e)),
+        (Input::Merl(m), g) => Table::from_brdf(m.as_ref(), grid_of(g.unwrap_or((10.0, 10.0))))
             .map_err(|e| process_err(path, e)),
         (Input::Samples(s), None) => Err(input_err(
             path,

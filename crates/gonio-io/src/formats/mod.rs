@@ -1,0 +1,461 @@
+//! BRDF files other tools read and write: the MERL binary table, ASTM E1392-style
+//! text, and Gonio's own CSV samples and tables.
+//!
+//! | format | module | holds | reads as |
+//! |---|---|---|---|
+//! | MERL binary (Matusik et al. 2003) | [`merl`] | isotropic RGB BRDF on 90 × 90 × 180 half/difference bins | [`Data::Merl`] ([`MerlBrdf`]) |
+//! | ASTM E1392-style text (the Cornell measurements) | [`astm`] | scattered samples, any channels | [`Data::Samples`] |
+//! | CSV samples or table (`gonio_process::file`) | — | samples, or a table on a grid | [`Data::Samples`] or [`Data::Table`] |
+//!
+//! [`detect`] recognises a format from the bytes alone (never from a file name);
+//! [`read`] detects and parses, [`read_as`] parses as a given format; [`write()`] and
+//! [`write_file`] convert any [`Data`] to any format (resampling onto MERL bins when
+//! needed, see [`MerlBrdf::from_table`] and [`MerlBrdf::from_samples`]).
+//!
+//! **Errors.** Every reader returns a [`FormatError`] that names the file and the
+//! place: a line (and field) in text files, a byte offset in MERL files. Malformed,
+//! truncated or oversized input is refused before anything is allocated for it: the
+//! MERL length is checked before the 35 MB of values are decoded, ASTM `NUM_POINTS`
+//! is capped by [`astm::MAX_POINTS`] and checked against the rows actually present,
+//! and [`read_file`] refuses files larger than [`MAX_FILE_BYTES`] before reading them.
+//! No input makes a reader panic (the [`fuzz`] bodies, run by `fuzz/` and by the
+//! tests, check that).
+//!
+//! ```
+//! use gonio_io::formats::{self, Data, Format};
+//!
+//! let text = "NUM_POINTS 2\nVARS theta_i phi_i theta_s phi_s value\n\
+//!             30 0 30 180 0.25\n30 0 40 180 0.125\n";
+//! assert_eq!(formats::detect(text.as_bytes()), Some(Format::Astm));
+//! let Data::Samples(s) = formats::read(text.as_bytes(), None).unwrap() else { panic!() };
+//! assert_eq!(s.samples.len(), 2);
+//! assert_eq!(s.samples[1].value, vec![0.125]);
+//! ```
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use gonio_core::Channels;
+use gonio_core::tomlfile::FileError;
+use gonio_process::file::Content;
+use gonio_process::{Samples, Table};
+
+pub mod astm;
+pub mod fuzz;
+pub mod merl;
+
+pub use astm::{read_astm, write_astm};
+pub use merl::{Bin, FromSamples, MerlBrdf, read_merl, write_merl};
+
+/// The largest file [`read_file`] reads (4 GiB): far beyond any BRDF Gonio writes
+/// (a full CSV of [`gonio_process::file::MAX_ROWS`] rows is about 3 GB), and a
+/// guard against reading a device or a runaway file into memory.
+pub const MAX_FILE_BYTES: u64 = 1 << 32;
+
+/// How many bytes from the start [`detect`] looks at in a text file.
+const DETECT_BYTES: usize = 64 * 1024;
+
+/// A file format this module reads and writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// The MERL binary BRDF ([`merl`]).
+    Merl,
+    /// ASTM E1392-style text ([`astm`]).
+    Astm,
+    /// Gonio's CSV samples or table (`gonio_process::file`).
+    Csv,
+}
+
+impl Format {
+    /// Every format, in the order [`detect`] tries them.
+    pub const ALL: [Format; 3] = [Format::Merl, Format::Astm, Format::Csv];
+
+    /// The short name commands take (`merl`, `astm`, `csv`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Merl => "merl",
+            Format::Astm => "astm",
+            Format::Csv => "csv",
+        }
+    }
+
+    /// A longer name for messages.
+    pub fn title(self) -> &'static str {
+        match self {
+            Format::Merl => "MERL BRDF",
+            Format::Astm => "ASTM E1392 BRDF",
+            Format::Csv => "BRDF table",
+        }
+    }
+
+    /// The format of a short name (case-insensitive), as [`Format::name`] gives it.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(name.trim()))
+    }
+
+    /// The format a file name's extension suggests: `.binary` or `.merl` (MERL),
+    /// `.astm` (ASTM), `.csv` (CSV). Only a hint for writing; reading detects the
+    /// format from the content.
+    pub fn from_extension(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "binary" | "merl" => Some(Format::Merl),
+            "astm" => Some(Format::Astm),
+            "csv" => Some(Format::Csv),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What a file holds once read.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Data {
+    /// A MERL table of half/difference bins (a BRDF in its own right).
+    Merl(MerlBrdf),
+    /// Scattered samples (ASTM, or a CSV without a grid).
+    Samples(Samples),
+    /// A table on a grid (a CSV with a `grid:` line).
+    Table(Table),
+}
+
+impl Data {
+    /// The channels of the data.
+    pub fn channels(&self) -> &Channels {
+        match self {
+            Data::Merl(m) => gonio_brdf::Brdf::channels(m),
+            Data::Samples(s) => &s.channels,
+            Data::Table(t) => &t.channels,
+        }
+    }
+
+    /// A short description of the variant (`MERL table`, `samples`, `table`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Data::Merl(_) => "MERL table",
+            Data::Samples(_) => "samples",
+            Data::Table(_) => "table",
+        }
+    }
+
+    /// The data as samples: a MERL table's valid bin centres
+    /// ([`MerlBrdf::to_samples`]), a table's nodes, or the samples themselves.
+    pub fn to_samples(&self) -> Samples {
+        match self {
+            Data::Merl(m) => m.to_samples(),
+            Data::Samples(s) => s.clone(),
+            Data::Table(t) => Samples::from_table(t),
+        }
+    }
+
+    /// The data as a BRDF that can be evaluated anywhere, when it is one (a MERL
+    /// table, or a table, which interpolates); `None` for scattered samples.
+    pub fn as_brdf(&self) -> Option<&dyn gonio_brdf::Brdf> {
+        match self {
+            Data::Merl(m) => Some(m),
+            Data::Table(t) => Some(t),
+            Data::Samples(_) => None,
+        }
+    }
+}
+
+/// A file that could not be read or data that could not be written, with where.
+///
+/// Displays as `FILE:LINE: field `NAME`: MESSAGE` for text files and
+/// `FILE: byte OFFSET: MESSAGE` for MERL files, leaving out what is unknown
+/// (`<MERL BRDF file>` and the like stand in for a missing file name).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FormatError {
+    /// The format whose rules the input broke; `None` when no format was recognised.
+    pub format: Option<Format>,
+    /// The file, when known.
+    pub path: Option<PathBuf>,
+    /// 1-based line (text formats).
+    pub line: Option<usize>,
+    /// The field or column at fault (`NUM_POINTS`, `theta_i`, `R`, …).
+    pub field: Option<String>,
+    /// 0-based byte offset (binary formats).
+    pub byte: Option<u64>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl FormatError {
+    /// A fault with the file or data as a whole.
+    pub fn whole(format: Option<Format>, path: Option<&Path>, message: impl Into<String>) -> Self {
+        FormatError {
+            format,
+            path: path.map(Path::to_path_buf),
+            line: None,
+            field: None,
+            byte: None,
+            message: message.into(),
+        }
+    }
+
+    /// A fault at a line (and field) of a text file.
+    pub fn at_line(
+        format: Format,
+        path: Option<&Path>,
+        line: usize,
+        field: Option<&str>,
+        message: impl Into<String>,
+    ) -> Self {
+        FormatError {
+            line: Some(line),
+            field: field.map(str::to_string),
+            ..FormatError::whole(Some(format), path, message)
+        }
+    }
+
+    /// A fault at a byte offset of a binary file.
+    pub fn at_byte(
+        format: Format,
+        path: Option<&Path>,
+        byte: u64,
+        message: impl Into<String>,
+    ) -> Self {
+        FormatError {
+            byte: Some(byte),
+            ..FormatError::whole(Some(format), path, message)
+        }
+    }
+
+    fn from_file_error(e: FileError) -> Self {
+        let message = match e.column {
+            Some(c) => format!("column {c}: {}", e.message),
+            None => e.message,
+        };
+        FormatError {
+            format: Some(Format::Csv),
+            path: e.path,
+            line: e.line,
+            field: e.field,
+            byte: None,
+            message,
+        }
+    }
+}
+
+impl fmt::Display for FormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (&self.path, self.format) {
+            (Some(p), _) => write!(f, "{}", p.display())?,
+            (None, Some(fmt)) => write!(f, "<{} file>", fmt.title())?,
+            (None, None) => f.write_str("<BRDF file>")?,
+        }
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        f.write_str(": ")?;
+        if let Some(b) = self.byte {
+            write!(f, "byte {b}: ")?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, "field `{field}`: ")?;
+        }
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for FormatError {}
+
+/// The format of a file, from its content alone:
+///
+/// - **MERL**: exactly [`merl::FILE_BYTES`] (34 992 012) bytes starting with the
+///   little-endian `int32`s 90, 90, 180;
+/// - **ASTM**: text whose header (before any data row) has a `NUM_POINTS` or `VARS`
+///   keyword line, after any blank lines, `#` comments and other keyword lines;
+/// - **CSV**: text whose first line that is neither blank nor a `#` line starts with
+///   the `CONVENTIONS.md` header `theta_i,phi_i,theta_o,phi_o`.
+///
+/// `None` for anything else, including a MERL file of the wrong length (which
+/// [`read`] still reads as MERL, to say what is wrong with it). Looks at no more
+/// than the first 64 KiB of a text file.
+pub fn detect(bytes: &[u8]) -> Option<Format> {
+    if merl::is_merl(bytes) {
+        return Some(Format::Merl);
+    }
+    detect_text(bytes).ok()
+}
+
+/// The text format of `bytes`, or the 1-based line at which recognition failed
+/// (0 for a file that is not text at all).
+fn detect_text(bytes: &[u8]) -> Result<Format, usize> {
+    let head = &bytes[..bytes.len().min(DETECT_BYTES)];
+    // Recognised from the valid UTF-8 prefix: a text file with a bad byte further on
+    // is still that format, and its reader names the bad byte.
+    let text = match std::str::from_utf8(head) {
+        Ok(t) => t,
+        Err(e) if e.valid_up_to() > 0 => {
+            std::str::from_utf8(&head[..e.valid_up_to()]).map_err(|_| 0usize)?
+        }
+        Err(_) => return Err(0),
+    };
+    if text.contains('\0') {
+        return Err(0);
+    }
+    let mut last = 0;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        last = i + 1;
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() >= 4 && fields[..4] == gonio_core::dirfile::HEADER {
+            return Ok(Format::Csv);
+        }
+        let first = astm::first_token(line);
+        if astm::is_astm_keyword(first) {
+            return Ok(Format::Astm);
+        }
+        if first.starts_with(|c: char| c.is_ascii_alphabetic()) && !line.contains(',') {
+            // Another keyword line of an ASTM header (FORMAT, SOURCE, …): keep looking.
+            // (A comma-separated line here would be a CSV header gone wrong.)
+            continue;
+        }
+        return Err(i + 1);
+    }
+    Err(last.max(1))
+}
+
+/// Reads a file of any format, detected from its content ([`detect`]). `path` only
+/// labels errors.
+///
+/// A file that looks like MERL but is not quite (the right header with the wrong
+/// length, or the right length with a wrong header) is read as MERL so that the
+/// error says what is wrong; a text file of no recognised format is refused with
+/// the line where recognition failed.
+pub fn read(bytes: &[u8], path: Option<&Path>) -> Result<Data, FormatError> {
+    if bytes.is_empty() {
+        return Err(FormatError::whole(None, path, "empty file"));
+    }
+    if let Some(f) = detect(bytes) {
+        return read_as(f, bytes, path);
+    }
+    if merl::looks_like_merl(bytes) {
+        return read_as(Format::Merl, bytes, path);
+    }
+    match detect_text(bytes) {
+        Ok(f) => read_as(f, bytes, path),
+        Err(0) => Err(FormatError::whole(
+            None,
+            path,
+            format!(
+                "not a BRDF file Gonio reads: not text, and not a MERL binary \
+                 ({} bytes; a MERL file has exactly {} bytes and starts with the \
+                 int32s 90, 90, 180)",
+                bytes.len(),
+                merl::FILE_BYTES
+            ),
+        )),
+        Err(line) => Err(FormatError {
+            line: Some(line),
+            ..FormatError::whole(
+                None,
+                path,
+                "not a BRDF file Gonio reads: expected an ASTM E1392 header (NUM_POINTS \
+                 and VARS lines) or the CSV header theta_i,phi_i,theta_o,phi_o,<channels>",
+            )
+        }),
+    }
+}
+
+/// Reads `bytes` as the given format, whatever [`detect`] would say.
+pub fn read_as(format: Format, bytes: &[u8], path: Option<&Path>) -> Result<Data, FormatError> {
+    match format {
+        Format::Merl => read_merl(bytes, path).map(Data::Merl),
+        Format::Astm => read_astm(utf8(format, bytes, path)?, path).map(Data::Samples),
+        Format::Csv => read_csv(utf8(format, bytes, path)?, path),
+    }
+}
+
+/// The bytes as UTF-8 text, or an error at the first invalid byte.
+fn utf8<'a>(format: Format, bytes: &'a [u8], path: Option<&Path>) -> Result<&'a str, FormatError> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        let line = bytes[..at].iter().filter(|b| **b == b'\n').count() + 1;
+        FormatError {
+            line: Some(line),
+            byte: Some(at as u64),
+            ..FormatError::whole(Some(format), path, "not UTF-8 text")
+        }
+    })
+}
+
+/// Reads a CSV sample or table file (`gonio_process::file::read`).
+pub fn read_csv(text: &str, path: Option<&Path>) -> Result<Data, FormatError> {
+    match gonio_process::file::read(text, path) {
+        Ok(Content::Samples(s)) => Ok(Data::Samples(s)),
+        Ok(Content::Table(t)) => Ok(Data::Table(t)),
+        Err(e) => Err(FormatError::from_file_error(e)),
+    }
+}
+
+/// Writes data as CSV: a table with its grid line (`gonio_process::file::write_table`),
+/// samples as they are, a MERL table as the samples of its valid bins
+/// (`gonio_process::file::write_samples`).
+pub fn write_csv(data: &Data) -> String {
+    match data {
+        Data::Table(t) => gonio_process::file::write_table(t),
+        Data::Samples(s) => gonio_process::file::write_samples(s),
+        Data::Merl(m) => gonio_process::file::write_samples(&m.to_samples()),
+    }
+}
+
+/// Writes data in a format, converting when the format cannot hold it as it is:
+///
+/// - MERL from a table ([`MerlBrdf::from_table`]) or samples
+///   ([`MerlBrdf::from_samples`] with the default [`FromSamples`]);
+/// - ASTM from a table's nodes or a MERL table's valid bin centres (ASTM holds
+///   samples only; uncertainties and flags are not part of it and are dropped);
+/// - CSV as [`write_csv`].
+///
+/// Errors (channels MERL cannot hold, samples that cannot be interpolated) carry no
+/// file name; [`write_file`] adds it.
+pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
+    Ok(match (format, data) {
+        (Format::Merl, Data::Merl(m)) => write_merl(m),
+        (Format::Merl, Data::Table(t)) => write_merl(&MerlBrdf::from_table(t)?),
+        (Format::Merl, Data::Samples(s)) => {
+            write_merl(&MerlBrdf::from_samples(s, &FromSamples::default())?)
+        }
+        (Format::Astm, Data::Samples(s)) => write_astm(s).into_bytes(),
+        (Format::Astm, d) => write_astm(&d.to_samples()).into_bytes(),
+        (Format::Csv, d) => write_csv(d).into_bytes(),
+    })
+}
+
+/// Reads a file from disk ([`read`]), refusing files larger than [`MAX_FILE_BYTES`]
+/// before reading them.
+pub fn read_file(path: &Path) -> Result<Data, FormatError> {
+    let io = |e: std::io::Error| FormatError::whole(None, Some(path), format!("cannot read: {e}"));
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    if len > MAX_FILE_BYTES {
+        return Err(FormatError::whole(
+            None,
+            Some(path),
+            format!("{len} bytes, more than the {MAX_FILE_BYTES} a BRDF file may have"),
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    read(&bytes, Some(path))
+}
+
+/// Writes data to a file in a format ([`write()`]); errors name the file.
+pub fn write_file(format: Format, data: &Data, path: &Path) -> Result<(), FormatError> {
+    let bytes = write(format, data).map_err(|mut e| {
+        e.path = Some(path.to_path_buf());
+        e
+    })?;
+    std::fs::write(path, bytes)
+        .map_err(|e| FormatError::whole(Some(format), Some(path), format!("cannot write: {e}")))
+}

@@ -1,0 +1,573 @@
+//! Hemisphere maps of f_r · cos θo for one incident direction (Lafortune et al. 1997,
+//! Figs. 12, 14).
+
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
+
+use gonio_brdf::Brdf;
+use gonio_core::{Dir, Vec3};
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, VPos};
+
+use super::draw::{self, Area, Cells, INK, MUTED, NO_DATA, Sizes};
+use super::eval::Evaluator;
+use super::font::FAMILY;
+use super::output::Figure;
+use super::{
+    ChannelChoice, HemisphereOptions, PanelRect, PlotErrorKind, Source, check_size, check_theta_i,
+    same_channels, select,
+};
+
+/// How the outgoing hemisphere is flattened onto the page. Both put φo = 0 (the
+/// sample's +x) to the right and φo = 90° up.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Projection {
+    /// The hemisphere projected orthographically onto the unit disk, and the disk
+    /// mapped to the square [−1, 1]² by Shirley and Chiu's concentric map (the
+    /// "uniform parametrization"): equal areas of the square are equal projected solid
+    /// angles (∫ cos θo dωo), so the map's mean is the albedo / π. Circles of constant
+    /// θo are squares of half-side sin θo.
+    #[default]
+    Concentric,
+    /// The orthographic disk: x = sin θo cos φo, y = sin θo sin φo.
+    Orthographic,
+}
+
+impl Projection {
+    /// The name written on the plot.
+    pub fn name(self) -> &'static str {
+        match self {
+            Projection::Concentric => {
+                "concentric square (Shirley–Chiu) of the projected hemisphere"
+            }
+            Projection::Orthographic => "orthographic disk",
+        }
+    }
+
+    /// The outgoing direction at a point of the map's [−1, 1]² square; `None` off the
+    /// hemisphere.
+    pub fn to_dir(self, u: f64, v: f64) -> Option<Dir> {
+        let (x, y) = match self {
+            Projection::Concentric => {
+                if u.abs() > 1.0 || v.abs() > 1.0 {
+                    return None;
+                }
+                concentric(u, v)
+            }
+            Projection::Orthographic => (u, v),
+        };
+        let r2 = x * x + y * y;
+        if r2 >= 1.0 {
+            return None;
+        }
+        Dir::new(Vec3::new(x, y, (1.0 - r2).sqrt()))
+    }
+
+    /// The point of the map where a direction of the upper hemisphere lies.
+    pub fn to_map(self, d: Dir) -> (f64, f64) {
+        match self {
+            Projection::Concentric => concentric_inverse(d.x, d.y),
+            Projection::Orthographic => (d.x, d.y),
+        }
+    }
+}
+
+/// Shirley and Chiu's concentric map of the square [−1, 1]² onto the unit disk (in
+/// the form of Cline's note, as in PBRT).
+fn concentric(a: f64, b: f64) -> (f64, f64) {
+    if a == 0.0 && b == 0.0 {
+        return (0.0, 0.0);
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, FRAC_PI_4 * (b / a))
+    } else {
+        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
+    };
+    (r * phi.cos(), r * phi.sin())
+}
+
+/// The inverse of [`concentric`].
+fn concentric_inverse(x: f64, y: f64) -> (f64, f64) {
+    let r = x.hypot(y);
+    if r == 0.0 {
+        return (0.0, 0.0);
+    }
+    let mut phi = y.atan2(x);
+    if phi < -FRAC_PI_4 {
+        phi += TAU;
+    }
+    if phi < FRAC_PI_4 {
+        (r, r * phi / FRAC_PI_4)
+    } else if phi < 3.0 * FRAC_PI_4 {
+        (r * (FRAC_PI_2 - phi) / FRAC_PI_4, r)
+    } else if phi < 5.0 * FRAC_PI_4 {
+        (-r, -r * (phi - PI) / FRAC_PI_4)
+    } else {
+        (-r * (3.0 * FRAC_PI_2 - phi) / FRAC_PI_4, -r)
+    }
+}
+
+/// How values map to colours (viridis).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ColorScale {
+    /// Linear from 0 to the largest value.
+    Linear,
+    /// log₁₀ over this many decades below the largest value.
+    Log {
+        /// Decades shown (at least 1).
+        decades: u32,
+    },
+}
+
+pub(crate) struct HemiFig<'a> {
+    data: Evaluator<'a>,
+    fit: Option<&'a dyn Brdf>,
+    ch: usize,
+    channel_name: String,
+    wi: Dir,
+    theta_i: f64,
+    phi_i: f64,
+    projection: Projection,
+    scale: ColorScale,
+    levels: u32,
+    max_gap: f64,
+    title: String,
+    data_label: String,
+    fit_label: String,
+}
+
+pub(crate) fn build<'a>(
+    data: &Source<'a>,
+    fit: Option<&'a dyn Brdf>,
+    theta_i_deg: f64,
+    opts: &HemisphereOptions,
+) -> Result<HemiFig<'a>, PlotErrorKind> {
+    check_size(opts.size, (360, 240))?;
+    check_theta_i(theta_i_deg)?;
+    if !opts.phi_i_deg.is_finite() {
+        return Err(PlotErrorKind::Input("φi is not a finite number".into()));
+    }
+    if let ColorScale::Log { decades } = opts.scale
+        && !(1..=12).contains(&decades)
+    {
+        return Err(PlotErrorKind::Input(format!(
+            "a logarithmic colour scale needs 1 to 12 decades, got {decades}"
+        )));
+    }
+    if opts.levels == 1 || opts.levels > 256 {
+        return Err(PlotErrorKind::Input(format!(
+            "a banded colour map needs 2 to 256 levels (0 for a continuous one), got {}",
+            opts.levels
+        )));
+    }
+    if opts.max_gap_deg.is_nan() || opts.max_gap_deg <= 0.0 {
+        return Err(PlotErrorKind::Input(format!(
+            "the largest gap must be positive, got {}°",
+            opts.max_gap_deg
+        )));
+    }
+    same_channels(data.channels(), fit.map(|f| f.channels()))?;
+    let chosen = match opts.channel {
+        ChannelChoice::All => ChannelChoice::One(0),
+        c => c,
+    };
+    let ch = select(chosen, data.channels())?[0];
+    let title = opts.title.clone().unwrap_or_else(|| {
+        format!(
+            "f_r · cos θo over the outgoing hemisphere, θi = {}, φi = {}",
+            draw::fmt_deg(theta_i_deg),
+            draw::fmt_deg(opts.phi_i_deg)
+        )
+    });
+    Ok(HemiFig {
+        data: Evaluator::new(data, opts.kernel)?,
+        fit,
+        ch,
+        channel_name: data.channels().name(ch),
+        wi: Dir::from_angles(theta_i_deg.to_radians(), opts.phi_i_deg.to_radians()),
+        theta_i: theta_i_deg,
+        phi_i: opts.phi_i_deg,
+        projection: opts.projection,
+        scale: opts.scale,
+        levels: opts.levels,
+        max_gap: opts.max_gap_deg.to_radians(),
+        title,
+        data_label: opts.data_label.clone(),
+        fit_label: opts.fit_label.clone(),
+    })
+}
+
+/// Maps values to [0, 1] for the colour map.
+struct Scale {
+    scale: ColorScale,
+    vmax: f64,
+}
+
+impl Scale {
+    fn t(&self, v: f64) -> f64 {
+        match self.scale {
+            ColorScale::Linear => v / self.vmax,
+            ColorScale::Log { decades } => {
+                if v > 0.0 {
+                    1.0 + (v / self.vmax).log10() / decades as f64
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// (value, position in [0, 1]) of the colour bar's ticks.
+    fn ticks(&self) -> Vec<(String, f64)> {
+        match self.scale {
+            ColorScale::Linear => {
+                let step = draw::nice_step(self.vmax, 5);
+                let n = (self.vmax / step + 1e-9).floor() as i64;
+                (0..=n)
+                    .map(|k| {
+                        let v = k as f64 * step;
+                        (draw::fmt_tick(v, step), v / self.vmax)
+                    })
+                    .collect()
+            }
+            ColorScale::Log { decades } => {
+                let top = self.vmax.log10();
+                let lo = top - decades as f64;
+                let ms: &[u32] = if decades <= 3 { &[1, 2, 5] } else { &[1] };
+                let mut out = Vec::new();
+                for k in (lo.floor() as i32)..=(top.ceil() as i32) {
+                    for &m in ms {
+                        let lv = (m as f64).log10() + k as f64;
+                        if lv >= lo - 1e-9 && lv <= top + 1e-9 {
+                            out.push((draw::fmt_125(m, k), (lv - lo) / decades as f64));
+                        }
+                    }
+                }
+                out
+            }
+        }
+    }
+}
+
+impl HemiFig<'_> {
+    /// f_r · cos θo of one source over a map's plot rectangle; NaN where there is no
+    /// data, `None` off the hemisphere.
+    fn values(
+        &self,
+        b: &dyn Brdf,
+        gaps: bool,
+        rect: (i32, i32, i32, i32),
+        cell: u32,
+    ) -> Cells<Option<f64>> {
+        let (x0, y0, w, h) = rect;
+        let nc = b.channels().len();
+        let sampled = if gaps { self.data.sampled() } else { None };
+        Cells::sample(rect, cell, |px, py| {
+            let u = 2.0 * (px - x0 as f64) / w as f64 - 1.0;
+            let v = 1.0 - 2.0 * (py - y0 as f64) / h as f64;
+            let wo = self.projection.to_dir(u, v)?;
+            if let Some(s) = sampled
+                && s.gap(self.wi, wo) > self.max_gap
+            {
+                return Some(f64::NAN);
+            }
+            let mut out = vec![0.0; nc];
+            b.eval(self.wi, wo, &mut out);
+            Some(out[self.ch] * wo.z)
+        })
+    }
+
+    fn overlays<DB: DrawingBackend>(
+        &self,
+        area: &Area<DB>,
+        rect: (i32, i32, i32, i32),
+        sz: &Sizes,
+    ) -> Result<(), String> {
+        let (x0, y0, w, h) = rect;
+        let to_px = |u: f64, v: f64| {
+            (
+                x0 + ((u + 1.0) * 0.5 * w as f64).round() as i32,
+                y0 + ((1.0 - v) * 0.5 * h as f64).round() as i32,
+            )
+        };
+        let contour = RGBColor(255, 255, 255).mix(0.55);
+        let thin = sz.px(1.0).max(1) as u32;
+        let thetas: &[f64] = match self.projection {
+            Projection::Concentric => &[30.0, 60.0],
+            Projection::Orthographic => &[30.0, 60.0, 90.0],
+        };
+        for &t in thetas {
+            let r = t.to_radians().sin();
+            let pts: Vec<(i32, i32)> = match self.projection {
+                Projection::Concentric => [(-r, -r), (r, -r), (r, r), (-r, r), (-r, -r)]
+                    .iter()
+                    .map(|&(u, v)| to_px(u, v))
+                    .collect(),
+                Projection::Orthographic => (0..=120)
+                    .map(|k| {
+                        let a = TAU * k as f64 / 120.0;
+                        to_px(r * a.cos(), r * a.sin())
+                    })
+                    .collect(),
+            };
+            area.draw(&PathElement::new(pts, contour.stroke_width(thin)))
+                .map_err(draw::de)?;
+            if t < 90.0 {
+                // Labelled across the plane of incidence, away from the markers.
+                let a = (self.phi_i + 90.0).to_radians();
+                let (u, v) = self.projection.to_map(Dir::from_angles(t.to_radians(), a));
+                let at = to_px(u, v);
+                draw::text(
+                    area,
+                    &format!("θo = {}", draw::fmt_deg(t)),
+                    (at.0, at.1 - sz.px(3.0)),
+                    sz.tick * 0.85,
+                    WHITE,
+                    (HPos::Center, VPos::Bottom),
+                )?;
+            }
+        }
+        // The light's direction (retro-reflection) and the mirror direction.
+        let r = sz.px(7.0);
+        let light = self.projection.to_map(self.wi);
+        let mirror = self.projection.to_map(self.wi.mirror());
+        let (lx, ly) = to_px(light.0, light.1);
+        let (mx, my) = to_px(mirror.0, mirror.1);
+        for (color, width) in [(BLACK, sz.px(4.0)), (WHITE, sz.px(2.0))] {
+            let st = color.stroke_width(width.max(1) as u32);
+            area.draw(&Circle::new((lx, ly), r, st)).map_err(draw::de)?;
+            area.draw(&PathElement::new(
+                vec![(mx - r, my - r), (mx + r, my + r)],
+                st,
+            ))
+            .map_err(draw::de)?;
+            area.draw(&PathElement::new(
+                vec![(mx - r, my + r), (mx + r, my - r)],
+                st,
+            ))
+            .map_err(draw::de)?;
+        }
+        Ok(())
+    }
+}
+
+impl Figure for HemiFig<'_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &Area<DB>,
+        cell: u32,
+    ) -> Result<Vec<PanelRect>, String> {
+        root.fill(&WHITE).map_err(draw::de)?;
+        let sz = Sizes::for_area(root);
+        let (w, h) = root.dim_in_pixel();
+        let (w, h) = (w as i32, h as i32);
+        let mut top = draw::title(root, &self.title, &sz)?;
+        top += draw::subtitle(
+            root,
+            &format!(
+                "channel {} · projection: {}",
+                self.channel_name,
+                self.projection.name()
+            ),
+            top,
+            &sz,
+        )?;
+        let mut names = vec![self.data_label.as_str()];
+        if self.fit.is_some() {
+            names.push(self.fit_label.as_str());
+        }
+        let n = names.len() as i32;
+        let cbw = sz.px(130.0);
+        let cap = (sz.label * 1.7).round() as i32;
+        let ylab = sz.px(62.0);
+        let xlab = sz.px(56.0);
+        let gap = sz.px(40.0);
+        let note = (sz.tick * 1.8).round() as i32;
+        let avail_w = w - cbw - sz.px(12.0);
+        let avail_h = h - top - sz.px(6.0);
+        // The maps share the y axis, labelled on the first.
+        let side = ((avail_w - ylab - (n - 1) * gap) / n).min(avail_h - cap - xlab - note);
+        if side < 60 {
+            return Err("the image is too small for the hemisphere map".into());
+        }
+        let block_w = ylab + n * side + (n - 1) * gap;
+        let x_plot = (avail_w - block_w).max(0) / 2 + sz.px(6.0) + ylab;
+        let y_plot = top + cap + (avail_h - cap - xlab - note - side).max(0) / 2;
+        let sources: Vec<(&dyn Brdf, bool)> = std::iter::once((self.data.brdf(), true))
+            .chain(self.fit.map(|f| (f, false)))
+            .collect();
+        let rects: Vec<(i32, i32, i32, i32)> = (0..n)
+            .map(|k| (x_plot + k * (side + gap), y_plot, side, side))
+            .collect();
+        let values: Vec<Cells<Option<f64>>> = sources
+            .iter()
+            .zip(&rects)
+            .map(|(&(b, gaps), &r)| self.values(b, gaps, r, cell))
+            .collect();
+        let vmax = values
+            .iter()
+            .flat_map(|c| c.v.iter().flatten())
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |a, &v| a.max(v));
+        let scale = Scale {
+            scale: self.scale,
+            vmax: if vmax > 0.0 { vmax } else { 1.0 },
+        };
+        let colour = |t: f64| draw::viridis(band(t, self.levels));
+        let (xd, yd) = match self.projection {
+            Projection::Concentric => ("u (concentric square)", "v (concentric square)"),
+            Projection::Orthographic => ("x = sin θo cos φo", "y = sin θo sin φo"),
+        };
+        let mut out = Vec::new();
+        for (k, ((name, rect), vals)) in names.iter().zip(&rects).zip(&values).enumerate() {
+            let (x0, y0, s, _) = *rect;
+            let left = if k == 0 { ylab } else { 0 };
+            let sub = root
+                .clone()
+                .shrink((x0 - left, y0), ((left + s + 1) as u32, (s + xlab) as u32));
+            let mut chart = ChartBuilder::on(&sub)
+                .x_label_area_size(xlab)
+                .y_label_area_size(left)
+                .build_cartesian_2d(-1.0f64..1.0f64, -1.0f64..1.0f64)
+                .map_err(draw::de)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_labels(5)
+                .y_labels(5)
+                .x_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
+                .y_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
+                .label_style((FAMILY, sz.tick))
+                .axis_desc_style((FAMILY, sz.label))
+                .x_desc(xd)
+                .y_desc(yd)
+                .draw()
+                .map_err(draw::de)?;
+            let colours = vals.map(|v| {
+                v.map(|v| {
+                    if v.is_nan() {
+                        NO_DATA
+                    } else {
+                        colour(scale.t(v))
+                    }
+                })
+            });
+            draw::paint(root, &colours)?;
+            self.overlays(root, *rect, &sz)?;
+            draw::text(
+                root,
+                name,
+                (x0 + s / 2, y0 - cap / 2),
+                sz.label,
+                INK,
+                (HPos::Center, VPos::Center),
+            )?;
+            out.push(PanelRect {
+                label: name.to_string(),
+                x0,
+                y0,
+                x1: x0 + s,
+                y1: y0 + s,
+            });
+        }
+        // Colour bar.
+        let bx = w - cbw + sz.px(8.0);
+        let bw = sz.px(22.0);
+        let bar = (bx, y_plot, bw, side);
+        let grad = Cells::sample(bar, cell, |_, py| {
+            Some(colour(1.0 - (py - bar.1 as f64) / bar.3 as f64))
+        });
+        draw::paint(root, &grad)?;
+        root.draw(&Rectangle::new(
+            [(bx, bar.1), (bx + bw, bar.1 + bar.3)],
+            INK.stroke_width(1),
+        ))
+        .map_err(draw::de)?;
+        for (label, t) in scale.ticks() {
+            let ty = bar.1 + ((1.0 - t) * bar.3 as f64).round() as i32;
+            draw::line(
+                root,
+                vec![(bx + bw, ty), (bx + bw + sz.px(5.0), ty)],
+                INK,
+                1,
+            )?;
+            draw::text(
+                root,
+                &label,
+                (bx + bw + sz.px(8.0), ty),
+                sz.tick,
+                INK,
+                (HPos::Left, VPos::Center),
+            )?;
+        }
+        draw::vtext(
+            root,
+            "f_r · cos θo (1/sr)",
+            (w - sz.px(14.0), bar.1 + bar.3 / 2),
+            sz.label,
+            INK,
+        )?;
+        let marks = if self.data.sampled().is_some() {
+            "○ towards the light   × mirror direction   grey: no sample nearby"
+        } else {
+            "○ towards the light   × mirror direction"
+        };
+        draw::text(
+            root,
+            &format!(
+                "{marks}   (θi = {}, φi = {})",
+                draw::fmt_deg(self.theta_i),
+                draw::fmt_deg(self.phi_i)
+            ),
+            (
+                x_plot - ylab + block_w / 2,
+                y_plot + side + xlab + sz.px(4.0),
+            ),
+            sz.tick,
+            MUTED,
+            (HPos::Center, VPos::Top),
+        )?;
+        Ok(out)
+    }
+}
+
+/// `t` in [0, 1] snapped to the middle of one of `levels` bands (unchanged for 0).
+fn band(t: f64, levels: u32) -> f64 {
+    if levels == 0 {
+        return t;
+    }
+    let n = levels as f64;
+    (((t.clamp(0.0, 1.0) * n).floor().min(n - 1.0)) + 0.5) / n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn concentric_round_trips() {
+        for i in -10..=10 {
+            for j in -10..=10 {
+                let (a, b) = (i as f64 / 10.0, j as f64 / 10.0);
+                let (x, y) = concentric(a, b);
+                assert!(x.hypot(y) <= 1.0 + 1e-12);
+                assert!((x.hypot(y) - a.abs().max(b.abs())).abs() < 1e-12);
+                let (a2, b2) = concentric_inverse(x, y);
+                assert!(
+                    (a - a2).abs() < 1e-12 && (b - b2).abs() < 1e-12,
+                    "{a} {b} → {a2} {b2}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn projections_put_phi_zero_right() {
+        for p in [Projection::Concentric, Projection::Orthographic] {
+            let d = Dir::from_angles(0.5, 0.0);
+            let (u, v) = p.to_map(d);
+            assert!(u > 0.0 && v.abs() < 1e-12);
+            let back = p.to_dir(u, v).expect("on the hemisphere");
+            assert!(back.angle_to(d) < 1e-12);
+        }
+    }
+}

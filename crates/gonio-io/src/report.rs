@@ -1,0 +1,416 @@
+//! The run report: one self-contained HTML page (inline SVG figures and styles, no
+//! network fetches) with a run's metadata, calibration, the plausibility measures, the
+//! fit table with errors, and the plots. It is what a lab attaches to a sample.
+
+use std::fmt::Write as _;
+
+use gonio_fit::LobeFit;
+use gonio_fit::compare::Compared;
+use gonio_process::measure::Report as Measures;
+use gonio_process::reduce::Report as Reduction;
+
+/// A figure of the report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Figure {
+    /// Its title.
+    pub title: String,
+    /// What it shows, one or two sentences.
+    pub caption: String,
+    /// The image.
+    pub image: Image,
+}
+
+/// A figure's image, inlined into the page.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Image {
+    /// An SVG document (line plots: small and sharp).
+    Svg(String),
+    /// PNG bytes, inlined as a `data:` URI (colour maps and renderings, which are far
+    /// smaller as PNG than as SVG rectangles).
+    Png(Vec<u8>),
+}
+
+/// Standard base64 (RFC 4648) of bytes, for `data:` URIs.
+pub fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut o = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for c in bytes.chunks(3) {
+        let b = [c[0], *c.get(1).unwrap_or(&0), *c.get(2).unwrap_or(&0)];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= c.len() {
+                o.push(A[((n >> (18 - 6 * k)) & 63) as usize] as char);
+            } else {
+                o.push('=');
+            }
+        }
+    }
+    o
+}
+
+/// Everything a report shows; each part is optional.
+#[derive(Clone, Debug, Default)]
+pub struct Contents {
+    /// The page title (the run's name).
+    pub title: String,
+    /// Key–value metadata, in order (file, status, software, seed, notes, times…).
+    pub metadata: Vec<(String, String)>,
+    /// The instrument and plan configs, verbatim.
+    pub configs: Vec<(String, String)>,
+    /// The reduction's account (calibration, drift, rejections).
+    pub reduction: Option<Reduction>,
+    /// DeYoung's measures of the data.
+    pub measures: Option<Measures>,
+    /// The lobe fit.
+    pub fit: Option<LobeFit>,
+    /// The comparison models on the same data.
+    pub comparison: Vec<Compared>,
+    /// Notes on parts left out (why a measure or a plot is absent).
+    pub notes: Vec<String>,
+    /// The figures.
+    pub figures: Vec<Figure>,
+}
+
+/// Escapes text for HTML.
+pub fn escape(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            '\'' => o.push_str("&#39;"),
+            _ => o.push(c),
+        }
+    }
+    o
+}
+
+/// An SVG document made safe to inline: its XML declaration dropped (it is not
+/// allowed inside HTML) and any script removed (the report runs none).
+fn inline_svg(svg: &str) -> String {
+    let body = match svg.find("<svg") {
+        Some(i) => &svg[i..],
+        None => return format!("<pre>{}</pre>", escape(svg)),
+    };
+    let mut out = String::with_capacity(body.len());
+    let mut rest = body;
+    while let Some(i) = rest.find("<script") {
+        out.push_str(&rest[..i]);
+        match rest[i..].find("</script>") {
+            Some(j) => rest = &rest[i + j + "</script>".len()..],
+            None => {
+                rest = "";
+                break;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+fn num(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else if x.abs() >= 1e-3 && x.abs() < 1e4 {
+        format!("{x:.5}")
+    } else {
+        format!("{x:.4e}")
+    }
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}\
+table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #bbb;padding:3px 8px;\
+text-align:right}th{background:#eee}td.k,th.k{text-align:left}figure{margin:1.5em 0}\
+figcaption{color:#555;font-size:0.9em}pre{background:#f6f6f6;padding:0.6em;overflow:auto;\
+font-size:0.85em}h2{border-bottom:1px solid #ccc;padding-bottom:0.2em}.note{color:#a40}";
+
+/// Renders the page.
+pub fn html(c: &Contents) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>\
+         <style>{STYLE}</style></head><body>\n<h1>{}</h1>\n",
+        escape(&c.title),
+        escape(&c.title)
+    );
+    if !c.metadata.is_empty() {
+        h.push_str("<h2>Run</h2>\n<table>\n");
+        for (k, v) in &c.metadata {
+            let _ = writeln!(
+                h,
+                "<tr><th class=\"k\">{}</th><td class=\"k\">{}</td></tr>",
+                escape(k),
+                escape(v)
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    if let Some(r) = &c.reduction {
+        h.push_str("<h2>Calibration and reduction</h2>\n");
+        let _ = writeln!(
+            h,
+            "<p>f<sub>r</sub> = (S − S<sub>dark</sub>) / (Φ(t) Ω cos θ<sub>o</sub>) (DeYoung Eq. A.15); \
+             detector solid angle Ω = {} sr; largest read-back position error {:.4}°.</p>",
+            num(r.solid_angle_sr),
+            r.max_position_error_deg
+        );
+        h.push_str(
+            "<table><tr><th class=\"k\">channel</th><th>calibration</th><th>readings</th>\
+             <th>incident flux (V)</th><th>its rel. σ</th><th>dark X, Y (V)</th>\
+             <th>drift references</th><th>max |g − 1|</th><th>samples</th></tr>\n",
+        );
+        for ch in &r.channels {
+            let _ = writeln!(
+                h,
+                "<tr><td class=\"k\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+                 <td>{}, {}</td><td>{}</td><td>{:.3}%</td><td>{}</td></tr>",
+                escape(&ch.channel),
+                ch.calibration,
+                ch.calibration_readings,
+                num(ch.incident_v),
+                num(ch.incident_rel_sigma),
+                num(ch.dark_v[0]),
+                num(ch.dark_v[1]),
+                ch.drift_readings,
+                100.0 * ch.drift_max,
+                ch.samples
+            );
+        }
+        h.push_str("</table>\n");
+        if !r.rejected.is_empty() || r.unmeasured > 0 {
+            let mut parts: Vec<String> =
+                r.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();
+            if r.unmeasured > 0 {
+                parts.push(format!("{} not measured", r.unmeasured));
+            }
+            let _ = writeln!(h, "<p>Left out: {}.</p>", escape(&parts.join(", ")));
+        }
+    }
+    if let Some(m) = &c.measures {
+        h.push_str("<h2>Physical plausibility and compressibility (DeYoung Ch. 4)</h2>\n");
+        let _ = write!(h, "<table><tr><th class=\"k\">measure</th>");
+        for ch in &m.channels {
+            let _ = write!(h, "<th>{}</th>", escape(ch));
+        }
+        h.push_str("</tr>\n");
+        let row = |h: &mut String, name: &str, v: &[f64]| {
+            let _ = write!(h, "<tr><td class=\"k\">{name}</td>");
+            for x in v {
+                let _ = write!(h, "<td>{}</td>", num(*x));
+            }
+            h.push_str("</tr>\n");
+        };
+        row(
+            &mut h,
+            "P<sub>r</sub> reciprocity (Eq. 4.1)",
+            &m.reciprocity,
+        );
+        row(&mut h, "P<sub>ec</sub> energy (Eq. 4.5)", &m.energy.p_ec);
+        row(&mut h, "P<sub>i</sub> isotropy (Eq. 4.10)", &m.isotropy);
+        if let Some(sep) = &m.separability
+            && let Some(first) = sep.first()
+        {
+            for (j, (k, _)) in first.p_s.iter().enumerate() {
+                let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
+                row(
+                    &mut h,
+                    &format!("P<sub>s</sub><sup>({k})</sup> separability (Eq. 4.20)"),
+                    &v,
+                );
+            }
+        }
+        let max_alb: Vec<f64> = m
+            .energy
+            .albedo
+            .iter()
+            .map(|a| a.iter().copied().fold(0.0, f64::max))
+            .collect();
+        row(&mut h, "largest directional albedo", &max_alb);
+        h.push_str("</table>\n");
+        let _ = writeln!(
+            h,
+            "<p>{} nodes; reciprocal values {}; the outgoing nodes cover {:.1}% of the projected hemisphere.</p>",
+            m.nodes,
+            if m.paired {
+                "looked up (paired grid)"
+            } else {
+                "interpolated"
+            },
+            100.0 * m.energy.coverage
+        );
+    }
+    if let Some(f) = &c.fit {
+        h.push_str("<h2>Lobe fit (Lafortune et al. 1997)</h2>\n");
+        let _ = writeln!(
+            h,
+            "<p>{} lobe(s), {:?} diffuse, {} pairs, {} fit; {} evaluations in {:.3} s; largest \
+             directional albedo {:.4}{}.</p>",
+            f.shape.lobes,
+            f.shape.diffuse,
+            f.samples,
+            if f.chi_square {
+                "χ² (1/σ weights)"
+            } else {
+                "metric-weighted"
+            },
+            f.evaluations,
+            f.seconds,
+            f.max_albedo,
+            if f.energy_scale < 1.0 {
+                format!(", scaled by {:.4} to conserve energy", f.energy_scale)
+            } else {
+                String::new()
+            }
+        );
+        h.push_str(
+            "<table><tr><th class=\"k\">channel</th><th class=\"k\">term</th><th>C<sub>x</sub></th>\
+             <th>C<sub>y</sub></th><th>C<sub>z</sub></th><th>n</th><th>ρ<sub>d</sub></th></tr>\n",
+        );
+        for ch in &f.channels {
+            let _ = writeln!(
+                h,
+                "<tr><td class=\"k\">{}</td><td class=\"k\">diffuse</td><td></td><td></td><td></td>\
+                 <td>{}</td><td>{} ± {}</td></tr>",
+                escape(&ch.channel),
+                if ch.params.m > 0.0 {
+                    num(ch.params.m)
+                } else {
+                    String::new()
+                },
+                num(ch.params.rho_d),
+                num(ch.std_err.rho_d)
+            );
+            for (j, (l, s)) in ch.params.lobes.iter().zip(&ch.std_err.lobes).enumerate() {
+                let _ = write!(
+                    h,
+                    "<tr><td class=\"k\">{}</td><td class=\"k\">lobe {}</td>",
+                    escape(&ch.channel),
+                    j + 1
+                );
+                for q in 0..4 {
+                    let _ = write!(h, "<td>{} ± {}</td>", num(l[q]), num(s[q]));
+                }
+                h.push_str("<td></td></tr>\n");
+            }
+        }
+        h.push_str("</table>\n");
+        h.push_str("<table><tr><th class=\"k\">model (same data, same metric)</th>");
+        for ch in &f.channels {
+            let _ = write!(h, "<th>{} rel. RMS</th>", escape(&ch.channel));
+        }
+        h.push_str("</tr>\n");
+        let _ = write!(
+            h,
+            "<tr><td class=\"k\">Lafortune, {} lobe(s)</td>",
+            f.shape.lobes
+        );
+        for ch in &f.channels {
+            let _ = write!(h, "<td>{:.3}%</td>", 100.0 * ch.relative_rms);
+        }
+        h.push_str("</tr>\n");
+        let mut models: Vec<&str> = Vec::new();
+        for r in &c.comparison {
+            if !models.contains(&r.model) {
+                models.push(r.model);
+            }
+        }
+        for m in models {
+            let _ = write!(h, "<tr><td class=\"k\">{}</td>", escape(m));
+            for r in c.comparison.iter().filter(|r| r.model == m) {
+                let _ = write!(h, "<td>{:.3}%</td>", 100.0 * r.relative_rms);
+            }
+            h.push_str("</tr>\n");
+        }
+        h.push_str("</table>\n");
+        let _ = writeln!(
+            h,
+            "<details><summary>Model file</summary><pre>{}</pre></details>",
+            escape(&f.model_toml)
+        );
+    }
+    if !c.figures.is_empty() {
+        h.push_str("<h2>Figures</h2>\n");
+        for f in &c.figures {
+            let img = match &f.image {
+                Image::Svg(s) => inline_svg(s),
+                Image::Png(b) => format!(
+                    "<img alt=\"{}\" src=\"data:image/png;base64,{}\">",
+                    escape(&f.title),
+                    base64(b)
+                ),
+            };
+            let _ = writeln!(
+                h,
+                "<figure><h3>{}</h3>{img}<figcaption>{}</figcaption></figure>",
+                escape(&f.title),
+                escape(&f.caption)
+            );
+        }
+    }
+    if !c.notes.is_empty() {
+        h.push_str("<h2>Notes</h2>\n<ul>\n");
+        for n in &c.notes {
+            let _ = writeln!(h, "<li class=\"note\">{}</li>", escape(n));
+        }
+        h.push_str("</ul>\n");
+    }
+    if !c.configs.is_empty() {
+        h.push_str("<h2>Configuration</h2>\n");
+        for (name, text) in &c.configs {
+            let _ = writeln!(
+                h,
+                "<details><summary>{}</summary><pre>{}</pre></details>",
+                escape(name),
+                escape(text)
+            );
+        }
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc_4648() {
+        // RFC 4648, Sec. 10.
+        for (i, o) in [
+            "", "Zg==", "Zm8=", "Zm9v", "Zm9vYg==", "Zm9vYmE=", "Zm9vYmFy",
+        ]
+        .iter()
+        .enumerate()
+        {
+            assert_eq!(base64(&b"foobar"[..i]), *o);
+        }
+    }
+
+    #[test]
+    fn the_page_is_self_contained_and_escaped() {
+        let c = Contents {
+            title: "run <1> & co".into(),
+            metadata: vec![("notes".into(), "<script>alert(1)</script>".into())],
+            figures: vec![Figure {
+                title: "t".into(),
+                caption: "c".into(),
+                image: Image::Svg("<?xml version=\"1.0\"?><svg xmlns=\"http://www.w3.org/2000/svg\"><script>x()</script><path d=\"M0 0\"/></svg>".into()),
+            }],
+            ..Contents::default()
+        };
+        let h = html(&c);
+        assert!(h.contains("run &lt;1&gt; &amp; co"));
+        assert!(h.contains("&lt;script&gt;alert(1)&lt;/script&gt;"));
+        assert!(!h.contains("<script"), "{h}");
+        assert!(!h.contains("<?xml"));
+        assert!(h.contains("<path d=\"M0 0\"/>"));
+        // Nothing is fetched: no external references at all.
+        for bad in ["http://", "https://", "src=", "<link"] {
+            let outside_svg_ns = h.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
+            assert!(!outside_svg_ns.contains(bad), "{bad}");
+        }
+    }
+}
