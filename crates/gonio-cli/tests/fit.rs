@@ -3,34 +3,12 @@
 //! reduced and fitted, and the fitted model's error against the true one is at the
 //! noise level of the readings.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use common::{acquire, gonio, ok_json, root, s, scratch};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
-use serde_json::Value;
-
-fn gonio(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gonio"))
-        .args(args)
-        .output()
-        .expect("the gonio binary runs")
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let o = gonio(args);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("one JSON object")
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
 
 const PLAN: &str = r#"
 name = "blue paint, isotropic hemisphere"
@@ -46,25 +24,8 @@ incident = { transmittance = 1e-3 }
 
 #[test]
 fn a_simulated_acquisition_reduced_and_fitted_recovers_the_paint_to_the_noise() {
-    let d = std::env::temp_dir().join(format!("gonio-fit-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
-    let run = d.join("run.gonio");
-    let inst = root().join("config/instrument-sim.toml");
-    let s = |p: &Path| p.display().to_string();
-    let o = gonio(&[
-        "acquire",
-        "--instrument",
-        &s(&inst),
-        "--plan",
-        &s(&plan),
-        "--out",
-        &s(&run),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d = scratch("fit");
+    let run = acquire(&d, PLAN);
     let samples = d.join("samples.csv");
     ok_json(&["reduce", &s(&run), "--out", &s(&samples), "--json"]);
     let fit_file = d.join("fit.toml");
@@ -120,9 +81,7 @@ fn a_simulated_acquisition_reduced_and_fitted_recovers_the_paint_to_the_noise() 
 
 #[test]
 fn fit_refuses_bad_input_with_exit_2() {
-    let d = std::env::temp_dir().join(format!("gonio-fit-bad-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
+    let d = scratch("fit-bad");
     let one = d.join("one.csv");
     std::fs::write(
         &one,

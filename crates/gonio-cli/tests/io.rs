@@ -1,77 +1,22 @@
 //! `gonio export`, `plot` and `report` as processes.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+
+use common::{ISO_PLAN, acquire, gonio, ok, root, s, scratch};
 use serde_json::Value;
-
-fn gonio(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gonio"))
-        .args(args)
-        .output()
-        .expect("the gonio binary runs")
-}
-
-fn ok(args: &[&str]) -> Output {
-    let o = gonio(args);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    o
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gonio-io-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn s(p: &Path) -> String {
-    p.display().to_string()
-}
-
-const PLAN: &str = r#"
-name = "isotropic grid for the report"
-[points]
-kind = "isotropic"
-theta_i = [20, 45, 70]
-theta_o = [20, 45, 70]
-delta_phi = { from = 45, to = 315, step = 90 }
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
 
 #[test]
 fn the_report_of_a_run_is_one_self_contained_page() {
     let d = scratch("report");
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
-    let run = d.join("run.gonio");
-    let inst = root().join("config/instrument-sim.toml");
-    ok(&[
-        "acquire",
-        "--instrument",
-        &s(&inst),
-        "--plan",
-        &s(&plan),
-        "--out",
-        &s(&run),
-        "--json",
-    ]);
+    let run = acquire(&d, ISO_PLAN);
     let o = ok(&["report", &s(&run), "--out", &s(&d.join("rep")), "--json"]);
     let v: Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["figures"], 5, "{v}");
     let html = std::fs::read_to_string(d.join("rep/report.html")).expect("html");
     for want in [
-        "isotropic grid for the report",
+        "isotropic grid",
         "Calibration and reduction",
         "P<sub>r</sub> reciprocity",
         "Lobe fit (Lafortune et al. 1997)",

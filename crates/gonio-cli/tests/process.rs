@@ -2,46 +2,9 @@
 //! reduced to a table and measured; DeYoung's transforms applied in the order given;
 //! bad input refused with exit status 2 and the file, line and field named.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-use serde_json::Value;
-
-fn gonio(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gonio"))
-        .args(args)
-        .output()
-        .expect("the gonio binary runs")
-}
-
-fn ok_json(args: &[&str]) -> Value {
-    let o = gonio(args);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).expect("one JSON object")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gonio-proc-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
-
-fn config(rel: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../config")
-        .join(rel)
-        .display()
-        .to_string()
-}
-
-fn p(path: &Path) -> String {
-    path.display().to_string()
-}
+use common::{ISO_PLAN, acquire, gonio, ok_json, s, scratch};
 
 const PHONG: &str = r#"
 kind = "phong"
@@ -54,51 +17,27 @@ rho = [0.3]
 "#;
 
 /// An isotropic grid the simulated arms can reach everywhere (no retro pair).
-const ISO_PLAN: &str = r#"
-name = "isotropic grid"
-[points]
-kind = "isotropic"
-theta_i = [20, 45, 70]
-theta_o = [20, 45, 70]
-delta_phi = { from = 45, to = 315, step = 90 }
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
 
 #[test]
 fn a_simulated_run_reduces_to_a_reciprocal_isotropic_table() {
     let d = scratch("iso");
-    let plan = d.join("plan.toml");
-    std::fs::write(&plan, ISO_PLAN).expect("plan");
-    let run = d.join("run.gonio");
-    let o = gonio(&[
-        "acquire",
-        "--instrument",
-        &config("instrument-sim.toml"),
-        "--plan",
-        &p(&plan),
-        "--out",
-        &p(&run),
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run = acquire(&d, ISO_PLAN);
     let table = d.join("table.csv");
-    let r = ok_json(&["reduce", &p(&run), "--out", &p(&table), "--json"]);
+    let r = ok_json(&["reduce", &s(&run), "--out", &s(&table), "--json"]);
     assert_eq!(r["samples"], 36);
     assert_eq!(r["wrote"], "a table of 36 nodes");
     let text = std::fs::read_to_string(&table).expect("table");
     assert!(text.contains("# grid: isotropic=true phi_i=0:360:1 theta_i=20:25:3 phi_o=45:90:4"));
     // The simulated paint is reciprocal and the table is isotropic by construction:
     // P_r is at the readings' noise (σ ≈ 1e-5 here), P_i exactly 0.
-    let c = ok_json(&["check", &p(&run), "--k", "1,2", "--json"]);
+    let c = ok_json(&["check", &s(&run), "--k", "1,2", "--json"]);
     let pr = c["reciprocity"][0].as_f64().expect("P_r");
     assert!(pr < 5e-5, "P_r {pr}");
     assert_eq!(c["isotropy"][0], 0.0);
     assert_eq!(c["energy"]["p_ec"][0], 0.0);
     assert!(c["paired"].as_bool().expect("paired"));
     // The same measures from the written table as from the run.
-    let c2 = ok_json(&["check", &p(&table), "--k", "1,2", "--json"]);
+    let c2 = ok_json(&["check", &s(&table), "--k", "1,2", "--json"]);
     assert_eq!(c["reciprocity"], c2["reciprocity"]);
     assert_eq!(c["separability"], c2["separability"]);
 }
@@ -110,7 +49,7 @@ fn check_measures_the_phong_shading_model_and_correct_fixes_it_in_order() {
     std::fs::write(&model, PHONG).expect("model");
     let c = ok_json(&[
         "check",
-        &p(&model),
+        &s(&model),
         "--grid",
         "10,10",
         "--k",
@@ -128,13 +67,13 @@ fn check_measures_the_phong_shading_model_and_correct_fixes_it_in_order() {
     let out = d.join("fixed.csv");
     let r = ok_json(&[
         "correct",
-        &p(&model),
+        &s(&model),
         "--energy",
         "1",
         "--reciprocity",
         "1",
         "--out",
-        &p(&out),
+        &s(&out),
         "--json",
     ]);
     assert_eq!(r["steps"][0]["Energy"][0], 1.0);
@@ -142,36 +81,36 @@ fn check_measures_the_phong_shading_model_and_correct_fixes_it_in_order() {
     assert!(r["after"]["reciprocity"][0].as_f64().expect("P_r") < 1e-15);
     let r2 = ok_json(&[
         "correct",
-        &p(&model),
+        &s(&model),
         "--reciprocity",
         "1",
         "--energy",
         "1:global",
         "--out",
-        &p(&out),
+        &s(&out),
         "--json",
     ]);
     assert_eq!(r2["steps"][0]["Reciprocity"], 1.0);
     assert!(r2["after"]["energy"]["p_ec"][0].as_f64().expect("P_ec") < 1e-15);
     // A global scale keeps reciprocity.
     assert!(r2["after"]["reciprocity"][0].as_f64().expect("P_r") < 1e-15);
-    let again = ok_json(&["check", &p(&out), "--json"]);
+    let again = ok_json(&["check", &s(&out), "--json"]);
     assert_eq!(again["energy"]["p_ec"], r2["after"]["energy"]["p_ec"]);
 
     // Five separable components stored as factors: 5 (P + Q) / PQ of the table.
     let sep = d.join("sep5.toml");
-    let s = ok_json(&[
+    let sv = ok_json(&[
         "correct",
-        &p(&out),
+        &s(&out),
         "--separable",
         "5",
         "--out",
-        &p(&sep),
+        &s(&sep),
         "--json",
     ]);
-    let ratio = s["storage_ratio"].as_f64().expect("ratio");
+    let ratio = sv["storage_ratio"].as_f64().expect("ratio");
     assert!((ratio - 10.0 / 324.0).abs() < 1e-12, "{ratio}");
-    let c5 = ok_json(&["check", &p(&sep), "--k", "5", "--json"]);
+    let c5 = ok_json(&["check", &s(&sep), "--k", "5", "--json"]);
     assert!(
         c5["separability"][0]["p_s"][0][1]
             .as_f64()
@@ -183,15 +122,15 @@ fn check_measures_the_phong_shading_model_and_correct_fixes_it_in_order() {
     let sh = d.join("sh.toml");
     let h = ok_json(&[
         "harmonics",
-        &p(&out),
+        &s(&out),
         "--order",
         "6",
         "--out",
-        &p(&sh),
+        &s(&sh),
         "--json",
     ]);
     assert_eq!(h["coefficients"], 28 * 29 / 2);
-    let hc = ok_json(&["check", &p(&sh), "--json"]);
+    let hc = ok_json(&["check", &s(&sh), "--json"]);
     assert!(hc["reciprocity"][0].as_f64().expect("P_r") < 1e-15);
 }
 
@@ -219,7 +158,7 @@ fn bad_input_exits_2_naming_the_file_line_and_field() {
     for (name, text, want) in cases {
         let f = d.join(name);
         std::fs::write(&f, text).expect("write");
-        let o = gonio(&["check", &p(&f)]);
+        let o = gonio(&["check", &s(&f)]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{name}: {err}");
         assert!(err.contains(want), "{name}: {err}");
@@ -232,7 +171,7 @@ fn bad_input_exits_2_naming_the_file_line_and_field() {
         "theta_i,phi_i,theta_o,phi_o,value\n10,0,20,0,0.1\n30,0,20,90,0.2\n",
     )
     .expect("write");
-    let o = gonio(&["check", &p(&f)]);
+    let o = gonio(&["check", &s(&f)]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--grid"));
     // Bad δ and a bad grid.
@@ -245,7 +184,7 @@ fn bad_input_exits_2_naming_the_file_line_and_field() {
         assert_eq!(o.status.code(), Some(2), "{args:?}");
     }
     // reduce wants a run file.
-    let o = gonio(&["reduce", &p(&f), "--out", &p(&d.join("o.csv"))]);
+    let o = gonio(&["reduce", &s(&f), "--out", &s(&d.join("o.csv"))]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a run file"));
 }

@@ -1,0 +1,85 @@
+//! What the process-level tests of processing, fitting and output share: running the
+//! binary, scratch directories, the repository's configs, and a simulated run of an
+//! isotropic grid the arms reach everywhere.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+/// Runs `gonio` with `args`.
+pub fn gonio(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gonio"))
+        .args(args)
+        .output()
+        .expect("the gonio binary runs")
+}
+
+/// Runs `gonio`, asserting success.
+pub fn ok(args: &[&str]) -> Output {
+    let o = gonio(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+/// Runs `gonio … --json`, asserting success, and parses its one JSON object.
+pub fn ok_json(args: &[&str]) -> Value {
+    serde_json::from_slice(&ok(args).stdout).expect("one JSON object")
+}
+
+/// A fresh directory for this test process.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("gonio-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+/// The repository's root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A path as an argument.
+pub fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// An isotropic grid the simulated arms reach everywhere (no retro pair), so its
+/// samples form a table.
+pub const ISO_PLAN: &str = r#"
+name = "isotropic grid"
+[points]
+kind = "isotropic"
+theta_i = [20, 45, 70]
+theta_o = [20, 45, 70]
+delta_phi = { from = 45, to = 315, step = 90 }
+[calibration]
+dark = true
+incident = { transmittance = 1e-3 }
+"#;
+
+/// Measures `plan` on the simulated instrument into `dir/run.gonio`.
+pub fn acquire(dir: &Path, plan: &str) -> PathBuf {
+    let p = dir.join("plan.toml");
+    std::fs::write(&p, plan).expect("plan");
+    let run = dir.join("run.gonio");
+    let inst = root().join("config/instrument-sim.toml");
+    ok(&[
+        "acquire",
+        "--instrument",
+        &s(&inst),
+        "--plan",
+        &s(&p),
+        "--out",
+        &s(&run),
+        "--json",
+    ]);
+    run
+}
