@@ -120,6 +120,34 @@ pub(crate) fn text<DB: DrawingBackend>(
         .map_err(de)
 }
 
+/// Captions a square data panel of side `side` at (`x0`, `y0`) with `name`, centred
+/// `cap / 2` above it, and returns the panel's rectangle.
+pub(crate) fn caption_square<DB: DrawingBackend>(
+    area: &Area<DB>,
+    name: &str,
+    (x0, y0): (i32, i32),
+    side: i32,
+    cap: i32,
+    size: f64,
+    color: RGBColor,
+) -> Result<super::PanelRect, String> {
+    text(
+        area,
+        name,
+        (x0 + side / 2, y0 - cap / 2),
+        size,
+        color,
+        (HPos::Center, VPos::Center),
+    )?;
+    Ok(super::PanelRect {
+        label: name.to_string(),
+        x0,
+        y0,
+        x1: x0 + side,
+        y1: y0 + side,
+    })
+}
+
 /// Draws `s` rotated a quarter turn counter-clockwise (reading upwards), centred at
 /// `pos`.
 pub(crate) fn vtext<DB: DrawingBackend>(

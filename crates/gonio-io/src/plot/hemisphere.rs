@@ -453,21 +453,15 @@ impl Figure for HemiFig<'_> {
             });
             draw::paint(root, &colours)?;
             self.overlays(root, *rect, &sz)?;
-            draw::text(
+            out.push(draw::caption_square(
                 root,
                 name,
-                (x0 + s / 2, y0 - cap / 2),
+                (x0, y0),
+                s,
+                cap,
                 sz.label,
                 INK,
-                (HPos::Center, VPos::Center),
-            )?;
-            out.push(PanelRect {
-                label: name.to_string(),
-                x0,
-                y0,
-                x1: x0 + s,
-                y1: y0 + s,
-            });
+            )?);
         }
         // Colour bar.
         let bx = w - cbw + sz.px(8.0);

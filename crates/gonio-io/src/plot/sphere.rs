@@ -227,21 +227,15 @@ impl Figure for SphereFig<'_> {
                 (rgb != RGBColor(0, 0, 0)).then_some(rgb)
             });
             draw::paint(root, &colours)?;
-            draw::text(
+            out.push(draw::caption_square(
                 root,
                 name,
-                (x0 + s / 2, y0 - cap / 2),
+                (x0, y0),
+                s,
+                cap,
                 sz.label,
                 INK,
-                (HPos::Center, VPos::Center),
-            )?;
-            out.push(PanelRect {
-                label: name.to_string(),
-                x0,
-                y0,
-                x1: x0 + s,
-                y1: y0 + s,
-            });
+            )?);
         }
         let lines = [
             format!(
