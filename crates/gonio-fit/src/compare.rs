@@ -236,19 +236,17 @@ pub fn fit_model(kind: Kind, data: &FitData) -> Result<Vec<Compared>, FitError> 
                 .into_iter()
                 .map(|p| {
                     let t = [p.ln()];
-                    let e = varpro::evaluate(&basis, &one, &t, false);
-                    let c: f64 = e.residuals.iter().map(|r| r * r).sum();
+                    let c = varpro::evaluate(&basis, &one, &t, false).cost;
                     (if c.is_finite() { c } else { f64::INFINITY }, t)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .map(|x| x.1)
                 .ok_or_else(|| FitError::Numerics("no start".into()))?;
             let s = varpro::solve(&basis, &one, &start, 100);
-            let e = varpro::evaluate(&basis, &one, &s.theta, false);
+            let (coef, residuals) = varpro::residuals(&basis, &one, &s.theta);
             let m = one.len() as f64;
-            let wrms = (e.residuals.iter().map(|r| r * r).sum::<f64>() / m).sqrt();
-            let rms = (e
-                .residuals
+            let wrms = (residuals.iter().map(|r| r * r).sum::<f64>() / m).sqrt();
+            let rms = (residuals
                 .iter()
                 .zip(&one.weight[0])
                 .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
@@ -262,7 +260,7 @@ pub fn fit_model(kind: Kind, data: &FitData) -> Result<Vec<Compared>, FitError> 
                 .sum::<f64>()
                 / m)
                 .sqrt();
-            let c = &e.coef[0];
+            let c = &coef[0];
             let (rho_s, f0) = if c.len() == 3 {
                 let s = c[1] + c[2];
                 (s, Some(if s > 0.0 { c[1] / s } else { 0.0 }))

@@ -13,7 +13,7 @@
 //! with s² = Σr²/(m − p), the reduced χ² of a fit weighted by 1/σ (so the errors do not
 //! depend on whether the σ's overall scale is right).
 
-use std::f64::consts::{FRAC_1_SQRT_2, FRAC_PI_4, PI, TAU};
+use std::f64::consts::{FRAC_1_SQRT_2, FRAC_PI_4, PI};
 use std::time::Instant;
 
 use gonio_brdf::Model;
@@ -24,6 +24,7 @@ use serde::Serialize;
 
 use crate::FitError;
 use crate::data::FitData;
+use crate::fastmath;
 use crate::lobes::{Diffuse, LobeBasis, Natural, Shape};
 use crate::varpro::{self, Basis};
 
@@ -147,11 +148,8 @@ fn channel_data(d: &FitData, ch: usize) -> Result<FitData, FitError> {
     })
 }
 
-fn cost(basis: &dyn Basis, d: &FitData, theta: &[f64]) -> f64 {
-    let e = varpro::evaluate(basis, d, theta, false);
-    let c: f64 = e.residuals.iter().map(|r| r * r).sum();
-    if c.is_finite() { c } else { f64::INFINITY }
-}
+/// Relative cost reduction at which the start search's refinements stop.
+const SEARCH_FTOL: f64 = 1e-8;
 
 /// Seeds of a new lobe: (β, γ, n).
 fn seeds(anisotropic: bool) -> Vec<(f64, f64, f64)> {
@@ -188,6 +186,77 @@ fn get_lobe(basis: &LobeBasis, theta: &[f64], ch: usize, j: usize) -> (f64, f64,
     }
 }
 
+/// One channel's weighted columns but the last (the lobe being placed), their Gram
+/// matrix and products with the data, for scoring seeds of that lobe.
+struct Fixed {
+    /// Columns 0..K−1, each over all pairs.
+    cols: Vec<Vec<f64>>,
+    /// Their Gram matrix, (K−1)², and products with Wy.
+    g: Vec<f64>,
+    h: Vec<f64>,
+}
+
+impl Fixed {
+    fn new(basis: &LobeBasis, prep: &varpro::Prepared, theta: &[f64], ch: usize) -> Fixed {
+        let mut cols = varpro::column_vectors(basis, prep, theta, ch);
+        cols.pop();
+        let k = cols.len();
+        let wy = prep.weighted_values(ch);
+        let mut g = vec![0.0; k * k];
+        for u in 0..k {
+            for v in 0..k {
+                g[u * k + v] = fastmath::dot(&cols[u.min(v)], &cols[u.max(v)]);
+            }
+        }
+        let h = cols.iter().map(|c| fastmath::dot(c, wy)).collect();
+        Fixed { cols, g, h }
+    }
+
+    /// The projected cost of channel `ch` with the last lobe as in `theta`.
+    fn cost(&self, basis: &LobeBasis, prep: &varpro::Prepared, theta: &[f64], ch: usize) -> f64 {
+        let d = prep.data;
+        let (c, n) = basis.lobe(theta, ch, basis.shape.lobes - 1);
+        let w = &d.weight[ch];
+        let x: Vec<f64> =
+            d.wi.iter()
+                .zip(&d.wo)
+                .map(|(u, v)| c[0] * u[0] * v[0] + c[1] * u[1] * v[1] + c[2] * u[2] * v[2])
+                .collect();
+        let mut lx = vec![0.0; x.len()];
+        let mut col = vec![0.0; x.len()];
+        fastmath::ln_pow(&x, n, &mut lx, &mut col);
+        for (o, w) in col.iter_mut().zip(w) {
+            *o *= w;
+        }
+        let wy = prep.weighted_values(ch);
+        let k = self.cols.len() + 1;
+        let mut g = vec![0.0; k * k];
+        let mut h = self.h.clone();
+        for u in 0..k - 1 {
+            for v in 0..k - 1 {
+                g[u * k + v] = self.g[u * (k - 1) + v];
+            }
+            let x = fastmath::dot(&self.cols[u], &col);
+            g[u * k + k - 1] = x;
+            g[(k - 1) * k + u] = x;
+        }
+        g[k * k - 1] = fastmath::dot(&col, &col);
+        h.push(fastmath::dot(&col, wy));
+        let coef = varpro::nnls(&g, &h, k);
+        // Σr² from the residuals themselves (no cancellation against Σ(Wy)²).
+        let mut r: Vec<f64> = wy.iter().map(|y| -y).collect();
+        for (u, cu) in coef.iter().enumerate() {
+            if *cu != 0.0 {
+                let cv = if u + 1 == k { &col } else { &self.cols[u] };
+                for (ri, a) in r.iter_mut().zip(cv) {
+                    *ri += cu * a;
+                }
+            }
+        }
+        fastmath::dot(&r, &r)
+    }
+}
+
 /// The greedy multi-start search on `d` (module docs); returns θ for `shape`.
 fn search(d: &FitData, shape: Shape, shared: bool) -> Vec<f64> {
     let nc = d.channels.len();
@@ -215,6 +284,12 @@ fn search(d: &FitData, shape: Shape, shared: bool) -> Vec<f64> {
                 }
             }
         }
+        // Only the new lobe's column changes from seed to seed: the others (and
+        // their Gram matrix) are computed once.
+        let prep = varpro::Prepared::new(d);
+        let fixed: Vec<Fixed> = (0..nc)
+            .map(|ch| Fixed::new(&basis, &prep, &base, ch))
+            .collect();
         let mut scored: Vec<(f64, Vec<f64>)> = seeds(shape.anisotropic)
             .into_par_iter()
             .map(|(b, g, n)| {
@@ -227,7 +302,12 @@ fn search(d: &FitData, shape: Shape, shared: bool) -> Vec<f64> {
                     };
                     basis.set_lobe(&mut t, ch, l - 1, bb, gg, n);
                 }
-                (cost(&basis, d, &t), t)
+                let c: f64 = fixed
+                    .iter()
+                    .enumerate()
+                    .map(|(ch, f)| f.cost(&basis, &prep, &t, ch))
+                    .sum();
+                (if c.is_finite() { c } else { f64::INFINITY }, t)
             })
             .collect();
         scored.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -237,7 +317,7 @@ fn search(d: &FitData, shape: Shape, shared: bool) -> Vec<f64> {
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|(_, t)| {
-                let s = varpro::solve(&basis, d, &t, 15);
+                let s = varpro::solve_to(&basis, d, &t, 15, SEARCH_FTOL);
                 (s.cost, s.theta)
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
@@ -271,64 +351,32 @@ fn fit_group(d: FitData, shape: Shape, shared: bool, opts: &FitOptions) -> Group
     }
 }
 
-/// ∂f/∂(ρd, m, per lobe Cx, [Cy], Cz, n) at one pair, for the standard errors.
-fn natural_gradient(p: &Natural, shape: &Shape, wi: [f64; 3], wo: [f64; 3], out: &mut Vec<f64>) {
-    out.clear();
-    let t = wi[2] * wo[2];
-    let tm = t.powf(p.m);
-    out.push((p.m + 2.0) / TAU * tm);
-    if shape.diffuse == Diffuse::Minnaert {
-        out.push(p.rho_d * (tm / TAU + (p.m + 2.0) / TAU * tm * t.ln()));
-    }
-    let uv = [wi[0] * wo[0], wi[1] * wo[1], wi[2] * wo[2]];
-    for l in &p.lobes {
-        let x = l[0] * uv[0] + l[1] * uv[1] + l[2] * uv[2];
-        let n = l[3];
-        let (h, dh) = if x > 0.0 {
-            let h = x.powf(n);
-            (h, n * h / x)
-        } else {
-            (0.0, 0.0)
-        };
-        if shape.anisotropic {
-            out.push(dh * uv[0]);
-            out.push(dh * uv[1]);
-        } else {
-            out.push(dh * (uv[0] + uv[1]));
-        }
-        out.push(dh * uv[2]);
-        out.push(if x > 0.0 { h * x.ln() } else { 0.0 });
-    }
-}
-
-/// Standard errors of one channel's natural parameters.
-fn std_errors(p: &Natural, shape: &Shape, d: &FitData, ch: usize, s2: f64) -> Natural {
-    let mut g = Vec::new();
-    natural_gradient(p, shape, d.wi[0], d.wo[0], &mut g);
-    let np = g.len();
-    let mut jtj = DMatrix::<f64>::zeros(np, np);
-    for i in 0..d.len() {
-        natural_gradient(p, shape, d.wi[i], d.wo[i], &mut g);
-        let w = d.weight[ch][i];
-        for a in 0..np {
-            let ga = g[a] * w;
-            if ga == 0.0 {
-                continue;
+/// Standard errors of channel `ch`'s natural parameters by the delta method from the
+/// covariance of (θ, c): the same as from the Jacobian in the natural parameters,
+/// without another pass over the data.
+fn std_errors(
+    basis: &LobeBasis,
+    theta: &[f64],
+    coef: &[f64],
+    cov: &DMatrix<f64>,
+    ch: usize,
+) -> Natural {
+    let se: Vec<f64> = basis
+        .natural_jacobian(theta, ch, coef)
+        .iter()
+        .map(|d| {
+            let mut v = 0.0;
+            for (a, da) in d.iter().enumerate() {
+                if *da != 0.0 {
+                    for (b, db) in d.iter().enumerate() {
+                        v += da * cov[(a, b)] * db;
+                    }
+                }
             }
-            for b in 0..np {
-                jtj[(a, b)] += ga * g[b] * w;
-            }
-        }
-    }
-    // Pseudo-inverse: an inactive lobe leaves its parameters undetermined (infinite
-    // error would be the truth; the pseudo-inverse reports 0 for the null space).
-    let cov = jtj
-        .clone()
-        .pseudo_inverse(1e-14 * jtj.diagonal().max().max(f64::MIN_POSITIVE))
-        .unwrap_or_else(|_| DMatrix::zeros(np, np));
-    let se: Vec<f64> = (0..np)
-        .map(|a| (s2 * cov[(a, a)]).max(0.0).sqrt())
+            v.max(0.0).sqrt()
+        })
         .collect();
+    let shape = &basis.shape;
     let mut it = se.into_iter();
     let mut next = || it.next().unwrap_or(f64::NAN);
     let rho_d = next();
@@ -337,9 +385,7 @@ fn std_errors(p: &Natural, shape: &Shape, d: &FitData, ch: usize, s2: f64) -> Na
     } else {
         0.0
     };
-    let lobes = p
-        .lobes
-        .iter()
+    let lobes = (0..shape.lobes)
         .map(|_| {
             if shape.anisotropic {
                 let (cx, cy, cz, n) = (next(), next(), next(), next());
@@ -386,22 +432,103 @@ pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Resul
     Model::from_toml(&s, None).map_err(|e| FitError::Numerics(format!("fitted model: {e}")))
 }
 
-/// The largest directional albedo of a model over θi ∈ [0, 89°] (φi = 0 and 90°).
-fn max_albedo(model: &Model) -> f64 {
+/// The largest directional albedo of a model over θi ∈ [0, 89°] by 1°, at φi = 0
+/// and, for an anisotropic model, also 90°.
+fn max_albedo(model: &Model, anisotropic: bool) -> f64 {
     use gonio_brdf::Brdf;
     let nc = model.channels().len();
-    let mut out = vec![0.0; nc];
-    let mut best = 0.0f64;
-    for t in 0..90 {
-        for phi in [0.0, 90.0f64] {
+    let phis: &[f64] = if anisotropic { &[0.0, 90.0] } else { &[0.0] };
+    (0..90)
+        .flat_map(|t| phis.iter().map(move |&phi| (t, phi)))
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(t, phi): (i32, f64)| {
+            let mut out = vec![0.0; nc];
             model.albedo(
                 Dir::from_angles(f64::from(t).to_radians(), phi.to_radians()),
                 &mut out,
             );
-            best = out.iter().copied().fold(best, f64::max);
+            out.into_iter().fold(0.0f64, f64::max)
+        })
+        .reduce(|| 0.0, f64::max)
+}
+
+/// The fitted parameters and statistics of a group's channels; `channel` is the
+/// group's index in `names` when it holds one channel of several.
+fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFit, Natural)> {
+    let m = g.data.len();
+    let theta = &g.solved.theta;
+    let coef = &g.solved.coef;
+    // The final refinement's last evaluation is normally at θ; recompute if not.
+    let computed;
+    let full = if g.solved.full.residuals.len() == m * g.data.channels.len() {
+        &g.solved.full
+    } else {
+        computed = varpro::evaluate(&g.basis, &g.data, theta, true).full;
+        match &computed {
+            Some(f) => f,
+            None => &g.solved.full,
         }
+    };
+    let residuals = &full.residuals;
+    let (cov, s2) = full.covariance(g.basis.n_params(), g.basis.n_cols());
+    let mut out = Vec::new();
+    for ch in 0..g.data.channels.len() {
+        let p = g.basis.natural(&g.solved.theta, ch, &coef[ch]);
+        let res = &residuals[ch * m..(ch + 1) * m];
+        let wy: Vec<f64> = (0..m)
+            .map(|i| g.data.weight[ch][i] * g.data.y[ch][i])
+            .collect();
+        let wrms = (res.iter().map(|r| r * r).sum::<f64>() / m as f64).sqrt();
+        let rms = (res
+            .iter()
+            .zip(&g.data.weight[ch])
+            .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
+            .sum::<f64>()
+            / m as f64)
+            .sqrt();
+        let scale = (wy.iter().map(|x| x * x).sum::<f64>() / m as f64).sqrt();
+        let mut by_theta: std::collections::BTreeMap<i64, (f64, f64, usize)> =
+            std::collections::BTreeMap::new();
+        // Pairs come in runs of one incident direction: one acos a run.
+        let mut last = (f64::NAN, 0i64);
+        for i in 0..m {
+            let cz = g.data.wi[i][2];
+            if cz != last.0 {
+                let th = (cz.clamp(-1.0, 1.0).acos().to_degrees() * 100.0).round() as i64;
+                last = (cz, th);
+            }
+            let e = by_theta.entry(last.1).or_insert((0.0, 0.0, 0));
+            e.0 += res[i] * res[i];
+            e.1 += wy[i] * wy[i];
+            e.2 += 1;
+        }
+        let per_theta_i = by_theta
+            .into_iter()
+            .map(|(k, (r2, y2, n))| {
+                let rms = (r2 / n as f64).sqrt();
+                (
+                    k as f64 / 100.0,
+                    rms,
+                    if y2 > 0.0 { (r2 / y2).sqrt() } else { 0.0 },
+                )
+            })
+            .collect();
+        let std_err = std_errors(&g.basis, theta, &coef[ch], &cov, ch);
+        out.push((
+            ChannelFit {
+                channel: names.name(channel.unwrap_or(ch)),
+                params: p.clone(),
+                std_err,
+                rms,
+                relative_rms: if scale > 0.0 { wrms / scale } else { 0.0 },
+                per_theta_i,
+                reduced_chi2: s2,
+            },
+            p,
+        ));
     }
-    best
+    out
 }
 
 /// Fits lobes to `data`.
@@ -412,79 +539,27 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
     }
     let nc = data.channels.len();
     let shared = opts.share_exponents && nc > 1;
-    let groups: Vec<Group> = if shared {
-        vec![fit_group(data.clone(), opts.shape, true, opts)]
+    // Each group is fitted and reported in one parallel task, so a channel that
+    // finishes early computes its statistics while the others still fit.
+    let groups: Vec<(usize, Vec<(ChannelFit, Natural)>)> = if shared {
+        let g = fit_group(data.clone(), opts.shape, true, opts);
+        vec![(g.solved.evaluations, report(&g, &data.channels, None))]
     } else {
         (0..nc)
-            .map(|ch| channel_data(data, ch))
+            .map(|ch| channel_data(data, ch).map(|d| (ch, d)))
             .collect::<Result<Vec<_>, _>>()?
             .into_par_iter()
-            .map(|d| fit_group(d, opts.shape, false, opts))
+            .map(|(ch, d)| {
+                let g = fit_group(d, opts.shape, false, opts);
+                (g.solved.evaluations, report(&g, &data.channels, Some(ch)))
+            })
             .collect()
     };
-    let mut params = Vec::new();
-    let mut channels = Vec::new();
-    let mut evaluations = 0;
-    for (gi, g) in groups.iter().enumerate() {
-        evaluations += g.solved.evaluations;
-        let e = varpro::evaluate(&g.basis, &g.data, &g.solved.theta, false);
-        let m = g.data.len();
-        let dof = (m * g.data.channels.len())
-            .saturating_sub(g.basis.n_params() + g.basis.n_cols() * g.data.channels.len());
-        let rss: f64 = e.residuals.iter().map(|r| r * r).sum();
-        let s2 = if dof > 0 { rss / dof as f64 } else { 0.0 };
-        for ch in 0..g.data.channels.len() {
-            let global = if shared { ch } else { gi };
-            let p = g.basis.natural(&g.solved.theta, ch, &e.coef[ch]);
-            let res = &e.residuals[ch * m..(ch + 1) * m];
-            let wy: Vec<f64> = (0..m)
-                .map(|i| g.data.weight[ch][i] * g.data.y[ch][i])
-                .collect();
-            let wrms = (res.iter().map(|r| r * r).sum::<f64>() / m as f64).sqrt();
-            let rms = (res
-                .iter()
-                .zip(&g.data.weight[ch])
-                .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
-                .sum::<f64>()
-                / m as f64)
-                .sqrt();
-            let scale = (wy.iter().map(|x| x * x).sum::<f64>() / m as f64).sqrt();
-            let mut by_theta: std::collections::BTreeMap<i64, (f64, f64, usize)> =
-                std::collections::BTreeMap::new();
-            for i in 0..m {
-                let th =
-                    (g.data.wi[i][2].clamp(-1.0, 1.0).acos().to_degrees() * 100.0).round() as i64;
-                let e = by_theta.entry(th).or_insert((0.0, 0.0, 0));
-                e.0 += res[i] * res[i];
-                e.1 += wy[i] * wy[i];
-                e.2 += 1;
-            }
-            let per_theta_i = by_theta
-                .into_iter()
-                .map(|(k, (r2, y2, n))| {
-                    let rms = (r2 / n as f64).sqrt();
-                    (
-                        k as f64 / 100.0,
-                        rms,
-                        if y2 > 0.0 { (r2 / y2).sqrt() } else { 0.0 },
-                    )
-                })
-                .collect();
-            let std_err = std_errors(&p, &opts.shape, &g.data, ch, s2);
-            channels.push(ChannelFit {
-                channel: data.channels.name(global),
-                params: p.clone(),
-                std_err,
-                rms,
-                relative_rms: if scale > 0.0 { wrms / scale } else { 0.0 },
-                per_theta_i,
-                reduced_chi2: s2,
-            });
-            params.push(p);
-        }
-    }
+    let evaluations = groups.iter().map(|g| g.0).sum();
+    let (mut channels, mut params): (Vec<ChannelFit>, Vec<Natural>) =
+        groups.into_iter().flat_map(|g| g.1).unzip();
     let mut model = to_model(&data.channels, &params, &opts.shape)?;
-    let alb = max_albedo(&model);
+    let alb = max_albedo(&model, opts.shape.anisotropic);
     let mut energy_scale = 1.0;
     if opts.conserve_energy && alb > 1.0 {
         // DeYoung Eq. 5.6 applied to the model: one factor, the worst direction's.

@@ -10,6 +10,7 @@
 
 pub mod compare;
 pub mod data;
+mod fastmath;
 pub mod fit;
 pub mod lobes;
 pub mod varpro;

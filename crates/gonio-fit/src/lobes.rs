@@ -12,7 +12,8 @@
 
 use std::f64::consts::{FRAC_1_SQRT_2, PI, TAU};
 
-use crate::varpro::Basis;
+use crate::fastmath;
+use crate::varpro::{Basis, Chunk};
 
 /// The diffuse term.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -134,6 +135,51 @@ impl LobeBasis {
     }
 }
 
+/// One lobe at a θ: ĉ, ∂ĉ/∂β, ∂ĉ/∂γ, n and its parameter indices.
+struct Lobe {
+    c: [f64; 3],
+    dc_db: [f64; 3],
+    dc_dg: Option<(usize, [f64; 3])>,
+    n: f64,
+    beta: usize,
+    eta: usize,
+}
+
+impl LobeBasis {
+    /// The lobes of channel `ch` at θ (computed once a chunk).
+    fn lobes_at(&self, theta: &[f64], ch: usize) -> Vec<Lobe> {
+        (0..self.shape.lobes)
+            .map(|j| {
+                let ix = self.lobe_idx(ch, j);
+                let (sb, cb) = theta[ix.beta].sin_cos();
+                let (c, dc_db, dc_dg) = match ix.gamma {
+                    Some(gi) => {
+                        let (sg, cg) = theta[gi].sin_cos();
+                        (
+                            [sb * cg, sb * sg, cb],
+                            [cb * cg, cb * sg, -sb],
+                            Some((gi, [-sb * sg, sb * cg, 0.0])),
+                        )
+                    }
+                    None => (
+                        [sb * FRAC_1_SQRT_2, sb * FRAC_1_SQRT_2, cb],
+                        [cb * FRAC_1_SQRT_2, cb * FRAC_1_SQRT_2, -sb],
+                        None,
+                    ),
+                };
+                Lobe {
+                    c,
+                    dc_db,
+                    dc_dg,
+                    n: theta[ix.eta].exp(),
+                    beta: ix.beta,
+                    eta: ix.eta,
+                }
+            })
+            .collect()
+    }
+}
+
 impl Basis for LobeBasis {
     fn n_params(&self) -> usize {
         if self.shared {
@@ -169,45 +215,7 @@ impl Basis for LobeBasis {
         mut d: Option<&mut [f64]>,
     ) {
         let (np, k) = (self.n_params(), self.n_cols());
-        // Per lobe, once for the chunk: ĉ, ∂ĉ/∂β, ∂ĉ/∂γ, n and the parameter indices.
-        struct Lobe {
-            c: [f64; 3],
-            dc_db: [f64; 3],
-            dc_dg: Option<(usize, [f64; 3])>,
-            n: f64,
-            beta: usize,
-            eta: usize,
-        }
-        let lobes: Vec<Lobe> = (0..self.shape.lobes)
-            .map(|j| {
-                let ix = self.lobe_idx(ch, j);
-                let b = theta[ix.beta];
-                let (sb, cb) = b.sin_cos();
-                let (c, dc_db, dc_dg) = match ix.gamma {
-                    Some(gi) => {
-                        let (sg, cg) = theta[gi].sin_cos();
-                        (
-                            [sb * cg, sb * sg, cb],
-                            [cb * cg, cb * sg, -sb],
-                            Some((gi, [-sb * sg, sb * cg, 0.0])),
-                        )
-                    }
-                    None => (
-                        [sb * FRAC_1_SQRT_2, sb * FRAC_1_SQRT_2, cb],
-                        [cb * FRAC_1_SQRT_2, cb * FRAC_1_SQRT_2, -sb],
-                        None,
-                    ),
-                };
-                Lobe {
-                    c,
-                    dc_db,
-                    dc_dg,
-                    n: theta[ix.eta].exp(),
-                    beta: ix.beta,
-                    eta: ix.eta,
-                }
-            })
-            .collect();
+        let lobes = self.lobes_at(theta, ch);
         let kappa = self.kappa_idx(ch).map(|ki| (ki, theta[ki]));
         if let Some(d) = d.as_deref_mut() {
             d.fill(0.0);
@@ -257,6 +265,114 @@ impl Basis for LobeBasis {
             }
         }
     }
+
+    fn scratch_len(&self) -> usize {
+        self.shape.lobes + usize::from(self.shape.diffuse == Diffuse::Minnaert)
+    }
+
+    // The fast path: per lobe, x = ĉ·(u∘v) for the whole chunk and then ln x and xⁿ
+    // by the vectorised kernel; ln x is kept for the derivatives.
+    fn columns(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        chunk: &Chunk,
+        cols: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        let len = chunk.len();
+        let nl = self.shape.lobes;
+        let [ux, uy, uz] = chunk.uv;
+        let (c0, rest) = cols.split_at_mut(len);
+        match self.kappa_idx(ch) {
+            None => {
+                for (o, w) in c0.iter_mut().zip(chunk.w) {
+                    *o = w / PI;
+                }
+            }
+            Some(ki) => {
+                let m = theta[ki] * theta[ki];
+                let lt = &mut scratch[nl * len..(nl + 1) * len];
+                fastmath::ln_pow(uz, m, lt, c0);
+                let f = (m + 2.0) / TAU;
+                for (o, w) in c0.iter_mut().zip(chunk.w) {
+                    *o *= f * w;
+                }
+            }
+        }
+        let mut x = vec![0.0; len];
+        for (j, l) in self.lobes_at(theta, ch).iter().enumerate() {
+            for i in 0..len {
+                x[i] = l.c[0] * ux[i] + l.c[1] * uy[i] + l.c[2] * uz[i];
+            }
+            let col = &mut rest[j * len..(j + 1) * len];
+            fastmath::ln_pow(&x, l.n, &mut scratch[j * len..(j + 1) * len], col);
+            for (o, w) in col.iter_mut().zip(chunk.w) {
+                *o *= w;
+            }
+        }
+    }
+
+    fn directional(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        chunk: &Chunk,
+        cols: &[f64],
+        scratch: &[f64],
+        c: &[f64],
+        v: &mut [f64],
+    ) {
+        let len = chunk.len();
+        let [ux, uy, uz] = chunk.uv;
+        v.fill(0.0);
+        if let Some(ki) = self.kappa_idx(ch) {
+            // d/dκ [w ρ (m+2)/(2π) t^m] = 2κ ρ w t^m/(2π) (1 + (m+2) ln t), m = κ².
+            let kp = theta[ki];
+            let m = kp * kp;
+            let lt = &scratch[self.shape.lobes * len..(self.shape.lobes + 1) * len];
+            let f = c[0] * 2.0 * kp;
+            for ((o, col), lt) in v[ki * len..(ki + 1) * len]
+                .iter_mut()
+                .zip(&cols[..len])
+                .zip(lt)
+            {
+                *o = f * (col / (m + 2.0) + col * lt);
+            }
+        }
+        let mut dx = vec![0.0; len];
+        for (j, l) in self.lobes_at(theta, ch).iter().enumerate() {
+            let s = c[1 + j];
+            if s == 0.0 {
+                continue;
+            }
+            let col = &cols[(1 + j) * len..(2 + j) * len];
+            let lx = &scratch[j * len..(j + 1) * len];
+            let sn = s * l.n;
+            // ∂(s w xⁿ)/∂x = s n w xⁿ / x (0 where the lobe is clamped).
+            for i in 0..len {
+                let x = l.c[0] * ux[i] + l.c[1] * uy[i] + l.c[2] * uz[i];
+                dx[i] = if x > 0.0 { sn * col[i] / x } else { 0.0 };
+            }
+            let d = l.dc_db;
+            for (i, o) in v[l.beta * len..(l.beta + 1) * len].iter_mut().enumerate() {
+                *o = dx[i] * (d[0] * ux[i] + d[1] * uy[i] + d[2] * uz[i]);
+            }
+            if let Some((gi, d)) = l.dc_dg {
+                for (i, o) in v[gi * len..(gi + 1) * len].iter_mut().enumerate() {
+                    *o = dx[i] * (d[0] * ux[i] + d[1] * uy[i]);
+                }
+            }
+            // ∂(s w xⁿ)/∂η = s w xⁿ ln x · n (n = e^η).
+            for ((o, h), lx) in v[l.eta * len..(l.eta + 1) * len]
+                .iter_mut()
+                .zip(col)
+                .zip(lx)
+            {
+                *o = sn * h * lx;
+            }
+        }
+    }
 }
 
 /// Natural parameters of one channel's fitted model: ρd, Minnaert's m, and per lobe
@@ -272,6 +388,53 @@ pub struct Natural {
 }
 
 impl LobeBasis {
+    /// ∂(natural parameters of channel `ch`)/∂(θ, c_0, …, c_{channels−1}): one row a
+    /// natural parameter in the order (ρd, [m], per lobe Cx, [Cy], Cz, n) — Cy only
+    /// when anisotropic — for the delta method. A lobe of strength 0 has zero rows for
+    /// its C (its direction is not determined).
+    pub fn natural_jacobian(&self, theta: &[f64], ch: usize, coef: &[f64]) -> Vec<Vec<f64>> {
+        let (p, k) = (self.n_params(), self.n_cols());
+        let n_all = p + self.channels * k;
+        let c0 = p + ch * k;
+        let mut rows = Vec::new();
+        let mut row = vec![0.0; n_all];
+        row[c0] = 1.0;
+        rows.push(row);
+        if let Some(ki) = self.kappa_idx(ch) {
+            let mut row = vec![0.0; n_all];
+            row[ki] = 2.0 * theta[ki];
+            rows.push(row);
+        }
+        let dirs = self.lobes_at(theta, ch);
+        for (j, l) in dirs.iter().enumerate() {
+            let s = coef[1 + j];
+            let n = l.n;
+            let r = if s > 0.0 { s.powf(1.0 / n) } else { 0.0 };
+            let comps: &[usize] = if self.shape.anisotropic {
+                &[0, 1, 2]
+            } else {
+                &[0, 2]
+            };
+            for &a in comps {
+                let mut row = vec![0.0; n_all];
+                if s > 0.0 {
+                    row[l.beta] = r * l.dc_db[a];
+                    if let Some((gi, dg)) = l.dc_dg {
+                        row[gi] = r * dg[a];
+                    }
+                    // r = s^{1/n}: ∂r/∂s = r/(n s), ∂r/∂η = −r ln s / n (n = e^η).
+                    row[c0 + 1 + j] = l.c[a] * r / (n * s);
+                    row[l.eta] = -l.c[a] * r * s.ln() / n;
+                }
+                rows.push(row);
+            }
+            let mut row = vec![0.0; n_all];
+            row[l.eta] = n;
+            rows.push(row);
+        }
+        rows
+    }
+
     /// The natural parameters of channel `ch` from θ and its linear coefficients.
     pub fn natural(&self, theta: &[f64], ch: usize, coef: &[f64]) -> Natural {
         let lobes = (0..self.shape.lobes)

@@ -11,11 +11,14 @@
 //! free columns. The linear parameters are always exactly optimal, the search space
 //! shrinks by K dimensions, and no start value is needed for them.
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
 
 use crate::data::FitData;
+use crate::fastmath::dot;
 
 /// Columns of a separable model and their derivatives.
 pub trait Basis: Sync {
@@ -53,19 +56,685 @@ pub trait Basis: Sync {
             self.eval(theta, ch, wi[i], wo[i], &mut cols[i * k..(i + 1) * k], di);
         }
     }
+
+    /// Scratch values a sample that [`columns`](Basis::columns) leaves for
+    /// [`directional`](Basis::directional).
+    fn scratch_len(&self) -> usize {
+        0
+    }
+
+    /// The weighted columns `w_i A_k(θ; i)` of channel `ch` over a chunk, column-major
+    /// (`cols[k * len + i]`), keeping in `scratch` (`scratch_len()` a sample, laid out
+    /// as the basis likes) what [`directional`](Basis::directional) needs. The default
+    /// calls [`eval`](Basis::eval) a sample.
+    fn columns(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        chunk: &Chunk,
+        cols: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        let _ = scratch;
+        let (k, len) = (self.n_cols(), chunk.len());
+        let mut row = vec![0.0; k];
+        for i in 0..len {
+            self.eval(theta, ch, chunk.wi[i], chunk.wo[i], &mut row, None);
+            for (u, x) in row.iter().enumerate() {
+                cols[u * len + i] = x * chunk.w[i];
+            }
+        }
+    }
+
+    /// `v[q * len + i] = w_i Σ_k c_k ∂A_k(θ; i)/∂θ_q` over a chunk (column-major), after
+    /// [`columns`](Basis::columns) filled `cols` and `scratch` at the same θ. The
+    /// default calls [`eval`](Basis::eval) with derivatives a sample.
+    #[allow(clippy::too_many_arguments)]
+    fn directional(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        chunk: &Chunk,
+        cols: &[f64],
+        scratch: &[f64],
+        c: &[f64],
+        v: &mut [f64],
+    ) {
+        let _ = (cols, scratch);
+        let (k, p) = (self.n_cols(), self.n_params());
+        let mut row = vec![0.0; k];
+        let mut d = vec![0.0; k * p];
+        for i in 0..chunk.len() {
+            d.fill(0.0);
+            self.eval(theta, ch, chunk.wi[i], chunk.wo[i], &mut row, Some(&mut d));
+            for q in 0..p {
+                v[q * chunk.len() + i] =
+                    chunk.w[i] * (0..k).map(|u| c[u] * d[u * p + q]).sum::<f64>();
+            }
+        }
+    }
 }
 
-/// Samples a chunk of the parallel loops handles.
+/// Consecutive samples as a basis sees them.
+pub struct Chunk<'a> {
+    /// Incident directions.
+    pub wi: &'a [[f64; 3]],
+    /// Outgoing directions.
+    pub wo: &'a [[f64; 3]],
+    /// The componentwise products wi ∘ wo, by component.
+    pub uv: [&'a [f64]; 3],
+    /// Residual weights of the channel being evaluated.
+    pub w: &'a [f64],
+}
+
+impl Chunk<'_> {
+    /// Samples in the chunk.
+    pub fn len(&self) -> usize {
+        self.wi.len()
+    }
+
+    /// Whether it has none.
+    pub fn is_empty(&self) -> bool {
+        self.wi.is_empty()
+    }
+}
+
+/// Fit data with what every evaluation reuses: wi ∘ wo by component, and the
+/// weighted values.
+pub struct Prepared<'a> {
+    /// The data.
+    pub data: &'a FitData,
+    uv: [Vec<f64>; 3],
+    wy: Vec<Vec<f64>>,
+    /// The columns' and scratch buffers of the last evaluation, reused: allocating
+    /// megabytes anew each time costs page faults and zeroing.
+    buffers: std::sync::Mutex<Option<(Vec<f64>, Vec<f64>)>>,
+}
+
+impl<'a> Prepared<'a> {
+    /// Prepares `data`.
+    pub fn new(data: &'a FitData) -> Prepared<'a> {
+        let uv = [0, 1, 2].map(|a| {
+            data.wi
+                .iter()
+                .zip(&data.wo)
+                .map(|(u, v)| u[a] * v[a])
+                .collect()
+        });
+        let wy = data
+            .weight
+            .iter()
+            .zip(&data.y)
+            .map(|(w, y)| w.iter().zip(y).map(|(w, y)| w * y).collect())
+            .collect();
+        Prepared {
+            data,
+            uv,
+            wy,
+            buffers: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// W y of channel `ch`.
+    pub fn weighted_values(&self, ch: usize) -> &[f64] {
+        &self.wy[ch]
+    }
+
+    fn chunk(&self, ch: usize, lo: usize, hi: usize) -> Chunk<'_> {
+        Chunk {
+            wi: &self.data.wi[lo..hi],
+            wo: &self.data.wo[lo..hi],
+            uv: [
+                &self.uv[0][lo..hi],
+                &self.uv[1][lo..hi],
+                &self.uv[2][lo..hi],
+            ],
+            w: &self.data.weight[ch][lo..hi],
+        }
+    }
+}
+
+/// Samples a chunk of the parallel loops handles; sums are formed a chunk at a time
+/// and then added in chunk order, so results do not depend on the thread count.
 const CHUNK: usize = 2048;
 
-/// The evaluation of the projected problem at one θ.
+/// The projected problem at one θ.
 pub struct Evaluation {
     /// Linear coefficients per channel (0 where the constraint c ≥ 0 is active).
     pub coef: Vec<Vec<f64>>,
-    /// Residuals W(Ac − y), channel after channel.
+    /// Σ r², the residuals being W(Ac − y) over every channel.
+    pub cost: f64,
+    /// With the Jacobian asked for: JᵀJ (P × P, row-major) and Jᵀr of Kaufman's
+    /// Jacobian J = P⊥ W ∂A/∂θ c. The Jacobian itself (m × P) is never formed.
+    pub normal: Option<(Vec<f64>, Vec<f64>)>,
+    /// With the Jacobian asked for: the residuals and the Gram matrices of the full
+    /// (unprojected) problem, for the standard errors.
+    pub full: Option<Full>,
+}
+
+/// What the covariance of all parameters (θ and every channel's c) needs: the Gram
+/// matrix of the full Jacobian [∂f/∂θ | ∂f/∂c] = [V | WA] per channel, and the
+/// residuals.
+#[derive(Clone, Debug)]
+pub struct Full {
+    /// W(Ac − y), channel after channel.
     pub residuals: Vec<f64>,
-    /// Kaufman's Jacobian, row-major (residuals × parameters), when asked for.
-    pub jacobian: Option<Vec<f64>>,
+    /// Per channel: VᵀV (P × P), (WA)ᵀV (K × P), (WA)ᵀWA (K × K), row-major.
+    pub grams: Vec<[Vec<f64>; 3]>,
+}
+
+impl Full {
+    /// s² (JᵀJ)⁺ over (θ, c_0, …, c_{nc−1}) with s² = Σr²/(m − parameters): the
+    /// covariance of the weighted least-squares estimate. The pseudo-inverse (after
+    /// equilibration, relative cut 1e-14) reports 0 for parameters the data do not
+    /// determine, such as the direction of a lobe of strength 0.
+    pub fn covariance(&self, p: usize, k: usize) -> (DMatrix<f64>, f64) {
+        let nc = self.grams.len();
+        let n = p + nc * k;
+        let mut m = DMatrix::<f64>::zeros(n, n);
+        for (ch, [vv, av, aa]) in self.grams.iter().enumerate() {
+            let o = p + ch * k;
+            for a in 0..p {
+                for b in 0..p {
+                    m[(a, b)] += vv[a.min(b) * p + a.max(b)];
+                }
+            }
+            for u in 0..k {
+                for a in 0..p {
+                    m[(o + u, a)] = av[u * p + a];
+                    m[(a, o + u)] = av[u * p + a];
+                }
+                for v in 0..k {
+                    m[(o + u, o + v)] = aa[u * k + v];
+                }
+            }
+        }
+        let d: Vec<f64> = (0..n)
+            .map(|a| {
+                let x = m[(a, a)];
+                if x > 0.0 && x.is_finite() {
+                    1.0 / x.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let s = DMatrix::from_fn(n, n, |a, b| m[(a, b)] * d[a] * d[b]);
+        let pinv = s
+            .pseudo_inverse(1e-14 * n as f64)
+            .unwrap_or_else(|_| DMatrix::zeros(n, n));
+        let rows = self.residuals.len();
+        let rss: f64 = self.residuals.iter().map(|r| r * r).sum();
+        let s2 = if rows > n {
+            rss / (rows - n) as f64
+        } else {
+            0.0
+        };
+        (
+            DMatrix::from_fn(n, n, |a, b| s2 * pinv[(a, b)] * d[a] * d[b]),
+            s2,
+        )
+    }
+}
+
+/// Adds `b` into `a` elementwise.
+fn add_into(mut a: Vec<f64>, b: Vec<f64>) -> Vec<f64> {
+    for (x, y) in a.iter_mut().zip(b) {
+        *x += y;
+    }
+    a
+}
+
+/// `out = Aᵀ B` (na × nb, row-major) for column-major A (len × na) and B (len × nb):
+/// faer's matrix product, whose kernels use the CPU's vector units.
+pub(crate) fn gram(a: &[f64], na: usize, b: &[f64], nb: usize, len: usize, out: &mut [f64]) {
+    let am = MatRef::from_column_major_slice(&a[..len * na], len, na);
+    let bm = MatRef::from_column_major_slice(&b[..len * nb], len, nb);
+    let mut dst = Mat::<f64>::zeros(na, nb);
+    matmul(
+        dst.as_mut(),
+        Accum::Replace,
+        am.transpose(),
+        bm,
+        1.0,
+        Par::Seq,
+    );
+    for u in 0..na {
+        for v in 0..nb {
+            out[u * nb + v] = dst[(u, v)];
+        }
+    }
+}
+
+/// One channel's columns over all samples (chunk after chunk, each column-major) and
+/// the basis's scratch.
+struct Columns {
+    cols: Vec<f64>,
+    scratch: Vec<f64>,
+    /// G = (WA)ᵀWA, h = (WA)ᵀWy.
+    g: Vec<f64>,
+    h: Vec<f64>,
+}
+
+fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize) -> Columns {
+    let (k, m) = (basis.n_cols(), prep.data.len());
+    let s = basis.scratch_len().max(1);
+    // Every entry is written by `Basis::columns` before it is read.
+    let (mut cols, mut scratch) = prep
+        .buffers
+        .lock()
+        .ok()
+        .and_then(|mut b| b.take())
+        .unwrap_or_default();
+    cols.resize(m * k, 0.0);
+    scratch.resize(m * s, 0.0);
+    let wy = &prep.wy[ch];
+    let parts: Vec<Vec<f64>> = cols
+        .par_chunks_mut(CHUNK * k)
+        .zip(scratch.par_chunks_mut(CHUNK * s))
+        .enumerate()
+        .map(|(ci, (cc, sc))| {
+            let lo = ci * CHUNK;
+            let len = cc.len() / k;
+            let chunk = prep.chunk(ch, lo, lo + len);
+            basis.columns(theta, ch, &chunk, cc, sc);
+            // [G (k × k) | h (k)] of this chunk.
+            let mut acc = vec![0.0; k * k + k];
+            gram(cc, k, cc, k, len, &mut acc[..k * k]);
+            for u in 0..k {
+                acc[k * k + u] = dot(&cc[u * len..(u + 1) * len], &wy[lo..lo + len]);
+            }
+            acc
+        })
+        .collect();
+    let acc = parts.into_iter().fold(vec![0.0; k * k + k], add_into);
+    // Symmetric by construction, not by the product's rounding.
+    let mut g = acc[..k * k].to_vec();
+    for u in 0..k {
+        for v in 0..u {
+            g[u * k + v] = g[v * k + u];
+        }
+    }
+    Columns {
+        cols,
+        scratch,
+        g,
+        h: acc[k * k..].to_vec(),
+    }
+}
+
+/// The weighted columns of channel `ch` at θ, each over all samples.
+pub fn column_vectors(
+    basis: &dyn Basis,
+    prep: &Prepared,
+    theta: &[f64],
+    ch: usize,
+) -> Vec<Vec<f64>> {
+    let k = basis.n_cols();
+    let cl = columns(basis, prep, theta, ch);
+    let mut out = vec![Vec::with_capacity(prep.data.len()); k];
+    for cc in cl.cols.chunks(CHUNK * k) {
+        let len = cc.len() / k;
+        for (u, o) in out.iter_mut().enumerate() {
+            o.extend_from_slice(&cc[u * len..(u + 1) * len]);
+        }
+    }
+    out
+}
+
+/// (G_F)⁻¹ of the free columns through the equilibrated matrix (see [`nnls`]).
+fn free_inverse(g: &[f64], k: usize, free: &[usize]) -> DMatrix<f64> {
+    let nf = free.len();
+    let ds: Vec<f64> = free.iter().map(|&u| g[u * k + u].sqrt()).collect();
+    let gf = DMatrix::from_fn(nf, nf, |x, z| {
+        g[free[x] * k + free[z]] / (ds[x] * ds[z]) + if x == z { 1e-13 } else { 0.0 }
+    });
+    let inv = gf
+        .clone()
+        .cholesky()
+        .map(|ch| ch.inverse())
+        .or_else(|| gf.try_inverse())
+        .unwrap_or_else(|| DMatrix::zeros(nf, nf));
+    DMatrix::from_fn(nf, nf, |x, z| inv[(x, z)] / (ds[x] * ds[z]))
+}
+
+/// Evaluates the projected problem at `theta`.
+pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> Evaluation {
+    evaluate_prepared(basis, &Prepared::new(data), theta, jac)
+}
+
+/// [`evaluate`] on prepared data.
+pub fn evaluate_prepared(
+    basis: &dyn Basis,
+    prep: &Prepared,
+    theta: &[f64],
+    jac: bool,
+) -> Evaluation {
+    let (k, p) = (basis.n_cols(), basis.n_params());
+    let nc = prep.data.channels.len();
+    let s = basis.scratch_len().max(1);
+    let mut coef = Vec::with_capacity(nc);
+    let mut cost = 0.0;
+    let mut jtj = vec![0.0; p * p];
+    let mut jtr = vec![0.0; p];
+    let mut full = jac.then(|| Full {
+        residuals: Vec::with_capacity(nc * prep.data.len()),
+        grams: Vec::with_capacity(nc),
+    });
+    for ch in 0..nc {
+        let cl = columns(basis, prep, theta, ch);
+        let c = nnls(&cl.g, &cl.h, k);
+        let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
+        let nf = free.len();
+        let wy = &prep.wy[ch];
+        // Per chunk, with M = [V | r]: MᵀM ((p + 1)², row-major; its last entry is
+        // Σr²) then (WA)ᵀM (k × (p + 1)); without the Jacobian only Σr².
+        let width = if jac {
+            (p + 1) * (p + 1) + k * (p + 1)
+        } else {
+            1
+        };
+        let parts: Vec<(Vec<f64>, Vec<f64>)> = cl
+            .cols
+            .par_chunks(CHUNK * k)
+            .zip(cl.scratch.par_chunks(CHUNK * s))
+            .enumerate()
+            .map(|(ci, (cc, sc))| {
+                let lo = ci * CHUNK;
+                let len = cc.len() / k;
+                let mut r = wy[lo..lo + len].iter().map(|y| -y).collect::<Vec<f64>>();
+                for (u, cu) in c.iter().enumerate() {
+                    if *cu != 0.0 {
+                        for (ri, a) in r.iter_mut().zip(&cc[u * len..(u + 1) * len]) {
+                            *ri += cu * a;
+                        }
+                    }
+                }
+                if !jac {
+                    return (vec![dot(&r, &r)], Vec::new());
+                }
+                // M = [V | r] (len × (p + 1), column-major), V = W ∂A/∂θ c; then MᵀM
+                // and (WA)ᵀM, as two small matrix products.
+                let chunk = prep.chunk(ch, lo, lo + len);
+                let mut mv = vec![0.0; len * (p + 1)];
+                basis.directional(theta, ch, &chunk, cc, sc, &c, &mut mv[..len * p]);
+                mv[len * p..].copy_from_slice(&r);
+                let mut acc = vec![0.0; width];
+                let (mm, am) = acc.split_at_mut((p + 1) * (p + 1));
+                gram(&mv, p + 1, &mv, p + 1, len, mm);
+                gram(cc, k, &mv, p + 1, len, am);
+                (acc, r)
+            })
+            .collect();
+        let mut acc = vec![0.0; width];
+        for (a, r) in parts {
+            acc = add_into(acc, a);
+            if let Some(f) = full.as_mut() {
+                f.residuals.extend_from_slice(&r);
+            }
+        }
+        if !jac {
+            cost += acc[0];
+        } else {
+            let q = p + 1;
+            let mm = |a: usize, b: usize| acc[a * q + b];
+            let am = |u: usize, b: usize| acc[q * q + u * q + b];
+            cost += mm(p, p);
+            // JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr:
+            // J = (I − A_F G_F⁻¹ A_Fᵀ) V. (A_Fᵀr vanishes at the projection's optimum
+            // up to rounding; it is kept rather than assumed.)
+            let gi = free_inverse(&cl.g, k, &free);
+            // G_F⁻¹ A_Fᵀ M, nf × (p + 1).
+            let mut gm = vec![0.0; nf * q];
+            for x in 0..nf {
+                for (z, &u) in free.iter().enumerate() {
+                    for b in 0..q {
+                        gm[x * q + b] += gi[(x, z)] * am(u, b);
+                    }
+                }
+            }
+            if let Some(f) = full.as_mut() {
+                let vv = (0..p * p).map(|i| mm(i / p, i % p)).collect();
+                let av = (0..k * p).map(|i| am(i / p, i % p)).collect();
+                f.grams.push([vv, av, cl.g.clone()]);
+            }
+            for a in 0..p {
+                let proj = |b: usize| -> f64 {
+                    free.iter()
+                        .enumerate()
+                        .map(|(x, &u)| am(u, a) * gm[x * q + b])
+                        .sum()
+                };
+                jtr[a] += mm(a, p) - proj(p);
+                for b in a..p {
+                    jtj[a * p + b] += mm(a, b) - proj(b);
+                }
+            }
+        }
+        coef.push(c);
+        if let Ok(mut b) = prep.buffers.lock() {
+            *b = Some((cl.cols, cl.scratch));
+        }
+    }
+    for a in 0..p {
+        for b in 0..a {
+            jtj[a * p + b] = jtj[b * p + a];
+        }
+    }
+    Evaluation {
+        coef,
+        cost,
+        normal: jac.then_some((jtj, jtr)),
+        full,
+    }
+}
+
+/// The linear coefficients and the residuals W(Ac − y), channel after channel.
+pub fn residuals(basis: &dyn Basis, data: &FitData, theta: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let prep = Prepared::new(data);
+    let (k, m) = (basis.n_cols(), data.len());
+    let mut coef = Vec::new();
+    let mut out = Vec::with_capacity(m * data.channels.len());
+    for ch in 0..data.channels.len() {
+        let cl = columns(basis, &prep, theta, ch);
+        let c = nnls(&cl.g, &cl.h, k);
+        for (ci, cc) in cl.cols.chunks(CHUNK * k).enumerate() {
+            let len = cc.len() / k;
+            for i in 0..len {
+                let fit: f64 = (0..k).map(|u| c[u] * cc[u * len + i]).sum();
+                out.push(fit - prep.wy[ch][ci * CHUNK + i]);
+            }
+        }
+        coef.push(c);
+    }
+    (coef, out)
+}
+
+/// Levenberg–Marquardt's view of JᵀJ and Jᵀr: a (P + 1) × P Jacobian R and residual
+/// r̃ with RᵀR = JᵀJ, Rᵀr̃ = Jᵀr and ‖r̃‖² = Σr². Every quantity the crate's steps
+/// and tests use (gradient, column norms, predicted and actual reductions) is the
+/// same as for the m-row problem, at O(P²) memory instead of O(mP).
+fn compress(jtj: &[f64], jtr: &[f64], cost: f64, p: usize) -> (DVector<f64>, DMatrix<f64>) {
+    // Equilibrate (unit diagonal) before the eigen-decomposition: columns differ by
+    // many orders of magnitude.
+    let d: Vec<f64> = (0..p)
+        .map(|a| {
+            let x = jtj[a * p + a];
+            if x > 0.0 && x.is_finite() {
+                x.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let s = DMatrix::from_fn(p, p, |a, b| {
+        if d[a] > 0.0 && d[b] > 0.0 {
+            jtj[a * p + b] / (d[a] * d[b])
+        } else {
+            0.0
+        }
+    });
+    let eig = s.symmetric_eigen();
+    let mut r = DMatrix::zeros(p + 1, p);
+    let mut rt = DVector::zeros(p + 1);
+    let mut explained = 0.0;
+    for e in 0..p {
+        let lam = eig.eigenvalues[e];
+        if lam <= 1e-15 * p as f64 {
+            continue;
+        }
+        let sl = lam.sqrt();
+        let q = eig.eigenvectors.column(e);
+        // Row e of R = √λ qᵀ D; r̃_e = qᵀ D⁻¹ Jᵀr / √λ.
+        let mut proj = 0.0;
+        for a in 0..p {
+            r[(e, a)] = sl * q[a] * d[a];
+            if d[a] > 0.0 {
+                proj += q[a] * jtr[a] / d[a];
+            }
+        }
+        rt[e] = proj / sl;
+        explained += rt[e] * rt[e];
+    }
+    rt[p] = (cost - explained).max(0.0).sqrt();
+    (rt, r)
+}
+
+/// The projected problem as the `levenberg-marquardt` crate sees it: compressed to
+/// P + 1 rows (see [`compress`]).
+pub struct Projected<'a> {
+    basis: &'a dyn Basis,
+    prep: Prepared<'a>,
+    theta: DVector<f64>,
+    /// The compressed Jacobian computed with the last residuals (the crate asks for
+    /// it at the point it has just accepted, so one pass serves both).
+    cached: std::sync::Mutex<Option<(Vec<f64>, DMatrix<f64>)>>,
+    /// θ and the evaluation with the smallest cost yet (where the crate ends).
+    last: std::sync::Mutex<Option<(Vec<f64>, Evaluation)>>,
+}
+
+impl<'a> Projected<'a> {
+    /// The problem at a starting θ.
+    pub fn new(basis: &'a dyn Basis, data: &'a FitData, theta: &[f64]) -> Self {
+        Projected {
+            basis,
+            prep: Prepared::new(data),
+            theta: DVector::from_column_slice(theta),
+            cached: std::sync::Mutex::new(None),
+            last: std::sync::Mutex::new(None),
+        }
+    }
+
+    fn compressed(&self) -> Option<(DVector<f64>, DMatrix<f64>)> {
+        let mut e = evaluate_prepared(self.basis, &self.prep, self.theta.as_slice(), true);
+        let (jtj, jtr) = e.normal.take()?;
+        let finite = e.cost.is_finite() && jtj.iter().chain(&jtr).all(|x| x.is_finite());
+        let out = finite.then(|| compress(&jtj, &jtr, e.cost, self.basis.n_params()));
+        if let Ok(mut l) = self.last.lock()
+            && finite
+            && l.as_ref().is_none_or(|b| e.cost <= b.1.cost)
+        {
+            *l = Some((self.theta.as_slice().to_vec(), e));
+        }
+        out
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.theta.copy_from(x);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.theta.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let (r, j) = self.compressed()?;
+        if let Ok(mut c) = self.cached.lock() {
+            *c = Some((self.theta.as_slice().to_vec(), j));
+        }
+        Some(r)
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let cached = self
+            .cached
+            .lock()
+            .ok()
+            .and_then(|mut c| c.take())
+            .filter(|(t, _)| t.as_slice() == self.theta.as_slice())
+            .map(|(_, j)| j);
+        match cached {
+            Some(j) => Some(j),
+            None => self.compressed().map(|x| x.1),
+        }
+    }
+}
+
+/// The outcome of one Levenberg–Marquardt search.
+pub struct Solved {
+    /// The non-linear parameters.
+    pub theta: Vec<f64>,
+    /// The linear coefficients per channel.
+    pub coef: Vec<Vec<f64>>,
+    /// Sum of squared residuals.
+    pub cost: f64,
+    /// Residual evaluations the search made.
+    pub evaluations: usize,
+    /// Why it stopped.
+    pub termination: TerminationReason,
+    /// Residuals and Gram matrices at θ (for the standard errors).
+    pub full: Full,
+}
+
+/// Minimises the projected problem from `theta` to full precision (relative cost
+/// reduction 1e-12, relative step 1e-10).
+pub fn solve(basis: &dyn Basis, data: &FitData, theta: &[f64], patience: usize) -> Solved {
+    solve_to(basis, data, theta, patience, 1e-12)
+}
+
+/// [`solve`] stopping once a step reduces the cost by less than `ftol` relative (and
+/// moves θ by less than 100 `ftol`): the start search's refinements need a basin, not
+/// its last digits, which the final refinement supplies.
+pub fn solve_to(
+    basis: &dyn Basis,
+    data: &FitData,
+    theta: &[f64],
+    patience: usize,
+    ftol: f64,
+) -> Solved {
+    let lm = LevenbergMarquardt::new()
+        .with_patience(patience)
+        .with_ftol(ftol)
+        .with_xtol((100.0 * ftol).max(1e-10))
+        .with_gtol(1e-12);
+    let (problem, report) = lm.minimize(Projected::new(basis, data, theta));
+    let theta = problem.theta.as_slice().to_vec();
+    // The crate leaves θ at an accepted point, whose evaluation is usually kept.
+    let kept = problem
+        .last
+        .lock()
+        .ok()
+        .and_then(|mut l| l.take())
+        .filter(|(t, _)| *t == theta)
+        .map(|x| x.1);
+    let e = kept.unwrap_or_else(|| evaluate_prepared(basis, &problem.prep, &theta, true));
+    Solved {
+        theta,
+        coef: e.coef,
+        cost: e.cost,
+        evaluations: report.number_of_evaluations,
+        termination: report.termination,
+        full: e.full.unwrap_or(Full {
+            residuals: Vec::new(),
+            grams: Vec::new(),
+        }),
+    }
 }
 
 /// Solves min ‖A c − b‖ with c ≥ 0 from the normal equations G = AᵀA, h = Aᵀb
@@ -152,294 +821,6 @@ pub fn nnls(g: &[f64], h: &[f64], k: usize) -> Vec<f64> {
     (0..k)
         .map(|i| if usable[i] { c[i] / dscale[i] } else { 0.0 })
         .collect()
-}
-
-/// Evaluates the projected problem at `theta`.
-pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> Evaluation {
-    let (k, p, m) = (basis.n_cols(), basis.n_params(), data.len());
-    let nc = data.channels.len();
-    let mut coef = Vec::with_capacity(nc);
-    let mut residuals = vec![0.0; nc * m];
-    let mut jacobian = jac.then(|| vec![0.0; nc * m * p]);
-    for ch in 0..nc {
-        // Weighted columns (m × K) and, with the Jacobian, derivatives (m × K × P).
-        let mut a = vec![0.0; m * k];
-        let mut da = if jac {
-            vec![0.0; m * k * p]
-        } else {
-            Vec::new()
-        };
-        let w = &data.weight[ch];
-        if jac {
-            a.par_chunks_mut(CHUNK * k)
-                .zip(da.par_chunks_mut(CHUNK * k * p))
-                .enumerate()
-                .for_each(|(ci, (rows, drows))| {
-                    let lo = ci * CHUNK;
-                    let hi = lo + rows.len() / k;
-                    basis.eval_chunk(
-                        theta,
-                        ch,
-                        &data.wi[lo..hi],
-                        &data.wo[lo..hi],
-                        rows,
-                        Some(drows),
-                    );
-                    for (r, row) in rows.chunks_mut(k).enumerate() {
-                        let wr = w[lo + r];
-                        for x in row.iter_mut() {
-                            *x *= wr;
-                        }
-                    }
-                    for (r, row) in drows.chunks_mut(k * p).enumerate() {
-                        let wr = w[lo + r];
-                        for x in row.iter_mut() {
-                            *x *= wr;
-                        }
-                    }
-                });
-        } else {
-            a.par_chunks_mut(CHUNK * k)
-                .enumerate()
-                .for_each(|(ci, rows)| {
-                    let lo = ci * CHUNK;
-                    let hi = lo + rows.len() / k;
-                    basis.eval_chunk(theta, ch, &data.wi[lo..hi], &data.wo[lo..hi], rows, None);
-                    for (r, row) in rows.chunks_mut(k).enumerate() {
-                        let wr = w[lo + r];
-                        for x in row.iter_mut() {
-                            *x *= wr;
-                        }
-                    }
-                });
-        }
-        let y = &data.y[ch];
-        // Normal equations G = (WA)ᵀWA, h = (WA)ᵀWy, summed in fixed chunks so the
-        // result does not depend on the thread count.
-        let (g, h) = a
-            .par_chunks(CHUNK * k)
-            .enumerate()
-            .map(|(ci, rows)| {
-                let mut g = vec![0.0; k * k];
-                let mut h = vec![0.0; k];
-                for (r, row) in rows.chunks(k).enumerate() {
-                    let i = ci * CHUNK + r;
-                    let wy = w[i] * y[i];
-                    for u in 0..k {
-                        h[u] += row[u] * wy;
-                        for v in 0..k {
-                            g[u * k + v] += row[u] * row[v];
-                        }
-                    }
-                }
-                (g, h)
-            })
-            .collect::<Vec<_>>()
-            .into_iter()
-            .fold(
-                (vec![0.0; k * k], vec![0.0; k]),
-                |(mut g, mut h), (gc, hc)| {
-                    for (x, y) in g.iter_mut().zip(gc) {
-                        *x += y;
-                    }
-                    for (x, y) in h.iter_mut().zip(hc) {
-                        *x += y;
-                    }
-                    (g, h)
-                },
-            );
-        let c = nnls(&g, &h, k);
-        residuals[ch * m..(ch + 1) * m]
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(ci, res)| {
-                for (r, out) in res.iter_mut().enumerate() {
-                    let i = ci * CHUNK + r;
-                    *out = (0..k).map(|u| a[i * k + u] * c[u]).sum::<f64>() - w[i] * y[i];
-                }
-            });
-        if let Some(jm) = jacobian.as_mut() {
-            // v_p = W ∂A/∂θ_p c, then projected off the free columns.
-            let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
-            let nf = free.len();
-            // G_F⁻¹ through the equilibrated matrix (see `nnls`).
-            let ds: Vec<f64> = free.iter().map(|&u| g[u * k + u].sqrt()).collect();
-            let gf = DMatrix::from_fn(nf, nf, |x, z| {
-                g[free[x] * k + free[z]] / (ds[x] * ds[z]) + if x == z { 1e-13 } else { 0.0 }
-            });
-            let gs_inv = gf
-                .clone()
-                .cholesky()
-                .map(|ch| ch.inverse())
-                .or_else(|| gf.try_inverse())
-                .unwrap_or_else(|| DMatrix::zeros(nf, nf));
-            let gf_inv = DMatrix::from_fn(nf, nf, |x, z| gs_inv[(x, z)] / (ds[x] * ds[z]));
-            // v_p = W ∂A/∂θ_p c, written straight into the Jacobian's rows.
-            let block = &mut jm[ch * m * p..(ch + 1) * m * p];
-            block
-                .par_chunks_mut(CHUNK * p)
-                .enumerate()
-                .for_each(|(ci, rows)| {
-                    for (r, row) in rows.chunks_mut(p).enumerate() {
-                        let i = ci * CHUNK + r;
-                        for (q, out) in row.iter_mut().enumerate() {
-                            *out = (0..k).map(|u| da[(i * k + u) * p + q] * c[u]).sum();
-                        }
-                    }
-                });
-            // Aᵀ_F v (nf × p), summed in fixed chunks (thread-count independent).
-            let atv = block
-                .par_chunks(CHUNK * p)
-                .enumerate()
-                .map(|(ci, rows)| {
-                    let mut acc = vec![0.0; nf * p];
-                    for (r, row) in rows.chunks(p).enumerate() {
-                        let i = ci * CHUNK + r;
-                        for (x, &u) in free.iter().enumerate() {
-                            let aiu = a[i * k + u];
-                            for q in 0..p {
-                                acc[x * p + q] += aiu * row[q];
-                            }
-                        }
-                    }
-                    acc
-                })
-                .collect::<Vec<_>>()
-                .into_iter()
-                .fold(vec![0.0; nf * p], |mut s, c| {
-                    for (x, y) in s.iter_mut().zip(c) {
-                        *x += y;
-                    }
-                    s
-                });
-            let mut coefs = vec![0.0; nf * p];
-            for x in 0..nf {
-                for q in 0..p {
-                    coefs[x * p + q] = (0..nf).map(|z| gf_inv[(x, z)] * atv[z * p + q]).sum();
-                }
-            }
-            // J = v − A_F G_F⁻¹ Aᵀ_F v.
-            block
-                .par_chunks_mut(CHUNK * p)
-                .enumerate()
-                .for_each(|(ci, rows)| {
-                    for (r, row) in rows.chunks_mut(p).enumerate() {
-                        let i = ci * CHUNK + r;
-                        for (q, out) in row.iter_mut().enumerate() {
-                            let proj: f64 = free
-                                .iter()
-                                .enumerate()
-                                .map(|(x, &u)| a[i * k + u] * coefs[x * p + q])
-                                .sum();
-                            *out -= proj;
-                        }
-                    }
-                });
-        }
-        coef.push(c);
-    }
-    Evaluation {
-        coef,
-        residuals,
-        jacobian,
-    }
-}
-
-/// The projected problem as the `levenberg-marquardt` crate sees it.
-pub struct Projected<'a> {
-    basis: &'a dyn Basis,
-    data: &'a FitData,
-    theta: DVector<f64>,
-    /// The Jacobian computed with the last residuals (the crate asks for it at the
-    /// point it has just accepted, so one pass serves both).
-    cached: std::sync::Mutex<Option<(Vec<f64>, Vec<f64>)>>,
-}
-
-impl<'a> Projected<'a> {
-    /// The problem at a starting θ.
-    pub fn new(basis: &'a dyn Basis, data: &'a FitData, theta: &[f64]) -> Self {
-        Projected {
-            basis,
-            data,
-            theta: DVector::from_column_slice(theta),
-            cached: std::sync::Mutex::new(None),
-        }
-    }
-}
-
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        self.theta.copy_from(x);
-    }
-
-    fn params(&self) -> DVector<f64> {
-        self.theta.clone()
-    }
-
-    fn residuals(&self) -> Option<DVector<f64>> {
-        let e = evaluate(self.basis, self.data, self.theta.as_slice(), true);
-        if let (Ok(mut c), Some(j)) = (self.cached.lock(), e.jacobian) {
-            *c = Some((self.theta.as_slice().to_vec(), j));
-        }
-        let r = DVector::from_vec(e.residuals);
-        r.iter().all(|x| x.is_finite()).then_some(r)
-    }
-
-    fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let p = self.basis.n_params();
-        let rows = self.data.len() * self.data.channels.len();
-        let cached = self
-            .cached
-            .lock()
-            .ok()
-            .and_then(|mut c| c.take())
-            .filter(|(t, _)| t.as_slice() == self.theta.as_slice())
-            .map(|(_, j)| j);
-        let j = match cached {
-            Some(j) => j,
-            None => evaluate(self.basis, self.data, self.theta.as_slice(), true).jacobian?,
-        };
-        let j = DMatrix::from_row_slice(rows, p, &j);
-        j.iter().all(|x| x.is_finite()).then_some(j)
-    }
-}
-
-/// The outcome of one Levenberg–Marquardt search.
-pub struct Solved {
-    /// The non-linear parameters.
-    pub theta: Vec<f64>,
-    /// The linear coefficients per channel.
-    pub coef: Vec<Vec<f64>>,
-    /// Sum of squared residuals.
-    pub cost: f64,
-    /// Residual evaluations the search made.
-    pub evaluations: usize,
-    /// Why it stopped.
-    pub termination: TerminationReason,
-}
-
-/// Minimises the projected problem from `theta`.
-pub fn solve(basis: &dyn Basis, data: &FitData, theta: &[f64], patience: usize) -> Solved {
-    let lm = LevenbergMarquardt::new()
-        .with_patience(patience)
-        .with_ftol(1e-12)
-        .with_xtol(1e-10)
-        .with_gtol(1e-12);
-    let (problem, report) = lm.minimize(Projected::new(basis, data, theta));
-    let theta = problem.theta.as_slice().to_vec();
-    let e = evaluate(basis, data, &theta, false);
-    let cost = e.residuals.iter().map(|r| r * r).sum();
-    Solved {
-        theta,
-        coef: e.coef,
-        cost,
-        evaluations: report.number_of_evaluations,
-        termination: report.termination,
-    }
 }
 
 #[cfg(test)]
