@@ -152,6 +152,150 @@ pub fn ln_pow(x: &[f64], n: f64, lx: &mut [f64], h: &mut [f64]) {
     ln_pow_generic::<false>(x, n, lx, h)
 }
 
+/// The products wi ∘ wo of a chunk, by component.
+pub type Uv<'a> = [&'a [f64]; 3];
+
+/// One lobe's column: `x = c · uv`, `lx = ln x`, `col = w xⁿ` (both 0 where x ≤ 0).
+#[inline(always)]
+fn lobe_column_generic<const F: bool>(
+    c: [f64; 3],
+    n: f64,
+    uv: Uv,
+    w: &[f64],
+    lx: &mut [f64],
+    col: &mut [f64],
+) {
+    let len = w
+        .len()
+        .min(lx.len())
+        .min(col.len())
+        .min(uv[0].len())
+        .min(uv[1].len())
+        .min(uv[2].len());
+    let (ux, uy, uz, w) = (&uv[0][..len], &uv[1][..len], &uv[2][..len], &w[..len]);
+    let (lx, col) = (&mut lx[..len], &mut col[..len]);
+    for i in 0..len {
+        let x = madd::<F>(c[0], ux[i], madd::<F>(c[1], uy[i], c[2] * uz[i]));
+        let pos = x > 0.0;
+        let l = ln_lane::<F>(if pos { x } else { 1.0 });
+        let h = exp_lane::<F>(n * l);
+        lx[i] = if pos { l } else { 0.0 };
+        col[i] = if pos { w[i] * h } else { x * 0.0 };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn lobe_column_avx2(c: [f64; 3], n: f64, uv: Uv, w: &[f64], lx: &mut [f64], col: &mut [f64]) {
+    lobe_column_generic::<true>(c, n, uv, w, lx, col)
+}
+
+/// The weighted column `col = w (c·uv)ⁿ` of a lobe and `lx = ln(c·uv)` (both 0 where
+/// c·uv ≤ 0), over the common length.
+pub fn lobe_column(c: [f64; 3], n: f64, uv: Uv, w: &[f64], lx: &mut [f64], col: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2() {
+        // SAFETY: as in `ln_pow`.
+        return unsafe { lobe_column_avx2(c, n, uv, w, lx, col) };
+    }
+    lobe_column_generic::<false>(c, n, uv, w, lx, col)
+}
+
+/// Where one lobe's derivative columns go.
+pub struct LobeDerivatives<'a> {
+    /// ∂/∂β.
+    pub beta: &'a mut [f64],
+    /// ∂/∂γ with ∂ĉ/∂γ (anisotropic lobes).
+    pub gamma: Option<(&'a mut [f64], [f64; 3])>,
+    /// ∂/∂η (η = ln n).
+    pub eta: &'a mut [f64],
+}
+
+#[inline(always)]
+fn lobe_derivatives_generic<const F: bool>(
+    c: [f64; 3],
+    dc_db: [f64; 3],
+    sn: f64,
+    uv: Uv,
+    col: &[f64],
+    lx: &[f64],
+    out: LobeDerivatives,
+) {
+    let len = col
+        .len()
+        .min(lx.len())
+        .min(out.beta.len())
+        .min(out.eta.len());
+    let (ux, uy, uz) = (&uv[0][..len], &uv[1][..len], &uv[2][..len]);
+    let (col, lx) = (&col[..len], &lx[..len]);
+    let (beta, eta) = (&mut out.beta[..len], &mut out.eta[..len]);
+    let dx = |i: usize| {
+        let x = madd::<F>(c[0], ux[i], madd::<F>(c[1], uy[i], c[2] * uz[i]));
+        // ∂(s w xⁿ)/∂x = s n w xⁿ / x, 0 where the lobe is clamped.
+        if x > 0.0 { sn * col[i] / x } else { 0.0 }
+    };
+    match out.gamma {
+        None => {
+            for i in 0..len {
+                let d = dx(i);
+                beta[i] = d * madd::<F>(
+                    dc_db[0],
+                    ux[i],
+                    madd::<F>(dc_db[1], uy[i], dc_db[2] * uz[i]),
+                );
+                eta[i] = sn * col[i] * lx[i];
+            }
+        }
+        Some((gamma, dg)) => {
+            let gamma = &mut gamma[..len];
+            for i in 0..len {
+                let d = dx(i);
+                beta[i] = d * madd::<F>(
+                    dc_db[0],
+                    ux[i],
+                    madd::<F>(dc_db[1], uy[i], dc_db[2] * uz[i]),
+                );
+                gamma[i] = d * madd::<F>(dg[0], ux[i], dg[1] * uy[i]);
+                eta[i] = sn * col[i] * lx[i];
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn lobe_derivatives_avx2(
+    c: [f64; 3],
+    dc_db: [f64; 3],
+    sn: f64,
+    uv: Uv,
+    col: &[f64],
+    lx: &[f64],
+    out: LobeDerivatives,
+) {
+    lobe_derivatives_generic::<true>(c, dc_db, sn, uv, col, lx, out)
+}
+
+/// The derivative columns of a lobe of strength s and exponent n (`sn` = s n) with
+/// direction ĉ = `c` from its weighted column `col` = w (ĉ·uv)ⁿ and `lx` = ln(ĉ·uv):
+/// ∂/∂β = s n w xⁿ⁻¹ (∂ĉ/∂β · uv), likewise γ, and ∂/∂η = s n w xⁿ ln x.
+pub fn lobe_derivatives(
+    c: [f64; 3],
+    dc_db: [f64; 3],
+    sn: f64,
+    uv: Uv,
+    col: &[f64],
+    lx: &[f64],
+    out: LobeDerivatives,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if avx2() {
+        // SAFETY: as in `ln_pow`.
+        return unsafe { lobe_derivatives_avx2(c, dc_db, sn, uv, col, lx, out) };
+    }
+    lobe_derivatives_generic::<false>(c, dc_db, sn, uv, col, lx, out)
+}
+
 /// Σ aᵢbᵢ with eight partial sums (which lets the compiler vectorise it; the order
 /// of the additions is fixed, so the result is deterministic on a given CPU).
 #[inline(always)]

@@ -216,18 +216,9 @@ impl Fixed {
     fn cost(&self, basis: &LobeBasis, prep: &varpro::Prepared, theta: &[f64], ch: usize) -> f64 {
         let d = prep.data;
         let (c, n) = basis.lobe(theta, ch, basis.shape.lobes - 1);
-        let w = &d.weight[ch];
-        let x: Vec<f64> =
-            d.wi.iter()
-                .zip(&d.wo)
-                .map(|(u, v)| c[0] * u[0] * v[0] + c[1] * u[1] * v[1] + c[2] * u[2] * v[2])
-                .collect();
-        let mut lx = vec![0.0; x.len()];
-        let mut col = vec![0.0; x.len()];
-        fastmath::ln_pow(&x, n, &mut lx, &mut col);
-        for (o, w) in col.iter_mut().zip(w) {
-            *o *= w;
-        }
+        let mut lx = vec![0.0; d.len()];
+        let mut col = vec![0.0; d.len()];
+        fastmath::lobe_column(c, n, prep.uv(), &d.weight[ch], &mut lx, &mut col);
         let wy = prep.weighted_values(ch);
         let k = self.cols.len() + 1;
         let mut g = vec![0.0; k * k];

@@ -282,7 +282,7 @@ impl Basis for LobeBasis {
     ) {
         let len = chunk.len();
         let nl = self.shape.lobes;
-        let [ux, uy, uz] = chunk.uv;
+        let uz = chunk.uv[2];
         let (c0, rest) = cols.split_at_mut(len);
         match self.kappa_idx(ch) {
             None => {
@@ -300,16 +300,15 @@ impl Basis for LobeBasis {
                 }
             }
         }
-        let mut x = vec![0.0; len];
         for (j, l) in self.lobes_at(theta, ch).iter().enumerate() {
-            for i in 0..len {
-                x[i] = l.c[0] * ux[i] + l.c[1] * uy[i] + l.c[2] * uz[i];
-            }
-            let col = &mut rest[j * len..(j + 1) * len];
-            fastmath::ln_pow(&x, l.n, &mut scratch[j * len..(j + 1) * len], col);
-            for (o, w) in col.iter_mut().zip(chunk.w) {
-                *o *= w;
-            }
+            fastmath::lobe_column(
+                l.c,
+                l.n,
+                chunk.uv,
+                chunk.w,
+                &mut scratch[j * len..(j + 1) * len],
+                &mut rest[j * len..(j + 1) * len],
+            );
         }
     }
 
@@ -324,7 +323,6 @@ impl Basis for LobeBasis {
         v: &mut [f64],
     ) {
         let len = chunk.len();
-        let [ux, uy, uz] = chunk.uv;
         v.fill(0.0);
         if let Some(ki) = self.kappa_idx(ch) {
             // d/dκ [w ρ (m+2)/(2π) t^m] = 2κ ρ w t^m/(2π) (1 + (m+2) ln t), m = κ².
@@ -340,37 +338,26 @@ impl Basis for LobeBasis {
                 *o = f * (col / (m + 2.0) + col * lt);
             }
         }
-        let mut dx = vec![0.0; len];
+        let mut out: Vec<&mut [f64]> = v.chunks_mut(len).collect();
         for (j, l) in self.lobes_at(theta, ch).iter().enumerate() {
             let s = c[1 + j];
             if s == 0.0 {
                 continue;
             }
-            let col = &cols[(1 + j) * len..(2 + j) * len];
-            let lx = &scratch[j * len..(j + 1) * len];
-            let sn = s * l.n;
-            // ∂(s w xⁿ)/∂x = s n w xⁿ / x (0 where the lobe is clamped).
-            for i in 0..len {
-                let x = l.c[0] * ux[i] + l.c[1] * uy[i] + l.c[2] * uz[i];
-                dx[i] = if x > 0.0 { sn * col[i] / x } else { 0.0 };
-            }
-            let d = l.dc_db;
-            for (i, o) in v[l.beta * len..(l.beta + 1) * len].iter_mut().enumerate() {
-                *o = dx[i] * (d[0] * ux[i] + d[1] * uy[i] + d[2] * uz[i]);
-            }
-            if let Some((gi, d)) = l.dc_dg {
-                for (i, o) in v[gi * len..(gi + 1) * len].iter_mut().enumerate() {
-                    *o = dx[i] * (d[0] * ux[i] + d[1] * uy[i]);
-                }
-            }
-            // ∂(s w xⁿ)/∂η = s w xⁿ ln x · n (n = e^η).
-            for ((o, h), lx) in v[l.eta * len..(l.eta + 1) * len]
-                .iter_mut()
-                .zip(col)
-                .zip(lx)
-            {
-                *o = sn * h * lx;
-            }
+            let derivatives = fastmath::LobeDerivatives {
+                beta: std::mem::take(&mut out[l.beta]),
+                gamma: l.dc_dg.map(|(gi, dg)| (std::mem::take(&mut out[gi]), dg)),
+                eta: std::mem::take(&mut out[l.eta]),
+            };
+            fastmath::lobe_derivatives(
+                l.c,
+                l.dc_db,
+                s * l.n,
+                chunk.uv,
+                &cols[(1 + j) * len..(2 + j) * len],
+                &scratch[j * len..(j + 1) * len],
+                derivatives,
+            );
         }
     }
 }

@@ -175,6 +175,11 @@ impl<'a> Prepared<'a> {
         }
     }
 
+    /// wi ∘ wo of every sample, by component.
+    pub fn uv(&self) -> [&[f64]; 3] {
+        [&self.uv[0], &self.uv[1], &self.uv[2]]
+    }
+
     /// W y of channel `ch`.
     pub fn weighted_values(&self, ch: usize) -> &[f64] {
         &self.wy[ch]

@@ -316,7 +316,11 @@ fn table_1_with_noise_is_recovered_within_the_reported_errors() {
             } else {
                 (0.0, 0.0)
             };
-            g.extend([dh * (uv[0] + uv[1]), dh * uv[2], if x > 0.0 { h * x.ln() } else { 0.0 }]);
+            g.extend([
+                dh * (uv[0] + uv[1]),
+                dh * uv[2],
+                if x > 0.0 { h * x.ln() } else { 0.0 },
+            ]);
         }
         let w = data.weight[0][i];
         for a in 0..np {
@@ -329,7 +333,10 @@ fn table_1_with_noise_is_recovered_within_the_reported_errors() {
     let mut k = 0;
     let mut check = |got: f64| {
         let want = cov[(k, k)].sqrt();
-        assert!((got - want).abs() <= 1e-6 * want, "parameter {k}: {got} vs {want}");
+        assert!(
+            (got - want).abs() <= 1e-6 * want,
+            "parameter {k}: {got} vs {want}"
+        );
         k += 1;
     };
     check(c.std_err.rho_d);
