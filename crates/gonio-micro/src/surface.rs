@@ -1,0 +1,516 @@
+//! Surface files (`SURFACE.toml`): a microgeometry, its facet materials and the
+//! channels, read strictly with errors that name the file, line and field.
+//!
+//! ```toml
+//! channels = ["R", "G", "B"]
+//!
+//! [surface]
+//! kind = "gaussian"            # gaussian | sawtooth (alias v-grooves) | cylinders | height-map
+//! size = [256, 256]            # cells
+//! spacing = 1.0                # lattice spacing (any length unit; only ratios matter)
+//! rms_height = 0.9
+//! correlation_length = 6.0     # of the autocorrelation σ² exp(−r²/l²)
+//! seed = 1
+//! material = "gold"
+//! orientation_deg = 0.0        # optional, every kind: the patch turned about the normal
+//!
+//! [materials.gold]
+//! kind = "conductor"           # mirror | conductor | dielectric | lambert | model
+//! n = [0.18, 0.43, 1.37]
+//! k = [3.42, 2.45, 1.80]
+//! ```
+//!
+//! The other kinds:
+//! - `sawtooth` / `v-grooves`: `period` (default 1), `angles_deg = [a, b]` — the tilts
+//!   of the face facing +x and of the face facing −x — and `faces = ["m0", "m1"]`, their
+//!   materials (DeYoung Fig. 2.3). Ridges run along y before `orientation_deg` turns
+//!   them.
+//! - `cylinders`: `radius`, `spacing` (between axes), `cells_per_period` (default 64),
+//!   `material`; the axes run along x (the brushing direction) before
+//!   `orientation_deg` turns them.
+//! - `height-map`: `file` (relative to the surface file's directory), `spacing`,
+//!   `format = "csv"` (one row of heights a line, x along the row, separated by commas
+//!   or white space; `#` comments) or `"f64le"` / `"f32le"` (raw little-endian, with
+//!   `size = [nx, ny]`), `height_scale` (default 1), `material`.
+//!
+//! Materials: `mirror` (`reflectance`, default 1 in every channel), `conductor` (`n`,
+//! `k`), `dielectric` (`eta`), `lambert` (`albedo`), `model` (`file`, a gonio-brdf model
+//! file relative to the surface file, with the same channels). Every numeric material
+//! parameter is a list with one value a channel (`CONVENTIONS.md`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use gonio_brdf::{Brdf, Model};
+use gonio_core::Channels;
+use gonio_core::tomlfile::{self, FileError};
+use serde::Deserialize;
+
+use crate::heightfield::GaussianParams;
+use crate::{HeightField, Material, MicroError};
+
+const KIND: &str = "surface file";
+
+/// A microgeometry sample: the height field, the material of each material id, the
+/// channels, and the turn of the patch about the normal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample {
+    /// The channels every energy and BRDF value has.
+    pub channels: Channels,
+    /// The microgeometry.
+    pub surface: HeightField,
+    /// The material of each id the surface uses (`materials[id]`).
+    pub materials: Vec<Material>,
+    /// The patch's turn about the normal, radians: a direction at azimuth φ in the
+    /// sample frame is at φ − orientation in the height field's frame.
+    pub orientation: f64,
+}
+
+impl Sample {
+    /// Checks that every material id of the surface has a material and every material
+    /// one value a channel.
+    pub fn new(
+        channels: Channels,
+        surface: HeightField,
+        materials: Vec<Material>,
+        orientation: f64,
+    ) -> Result<Sample, MicroError> {
+        if (surface.max_material() as usize) >= materials.len() {
+            return Err(MicroError::invalid(
+                "materials",
+                format!(
+                    "the surface uses material id {} but {} materials were given",
+                    surface.max_material(),
+                    materials.len()
+                ),
+            ));
+        }
+        for (i, m) in materials.iter().enumerate() {
+            check_material(m, &channels)
+                .map_err(|(f, why)| MicroError::invalid(format!("materials[{i}].{f}"), why))?;
+        }
+        if !orientation.is_finite() {
+            return Err(MicroError::invalid("orientation", "must be finite"));
+        }
+        Ok(Sample {
+            channels,
+            surface,
+            materials,
+            orientation,
+        })
+    }
+
+    /// Reads a surface file (see the module docs).
+    pub fn load(path: &Path) -> Result<Sample, MicroError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| FileError::whole(KIND, Some(path), e.to_string()))?;
+        Sample::from_toml(&text, Some(path))
+    }
+
+    /// Parses a surface file's text; `path` labels errors and anchors the relative
+    /// paths of height maps and model files (the current directory without it).
+    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Sample, MicroError> {
+        let doc: Doc = tomlfile::parse(KIND, text, path, |_| Ok(()))?;
+        let at = |field: &str, msg: String| -> MicroError {
+            FileError::at_field(KIND, path, text, field.to_string(), msg).into()
+        };
+        let dir = path
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let channels =
+            Channels::from_names(&doc.channels).map_err(|e| at("channels", e.to_string()))?;
+        let nc = channels.len();
+
+        // Materials, by name.
+        let mut by_name: BTreeMap<&str, Material> = BTreeMap::new();
+        for (name, spec) in &doc.materials {
+            let f = |k: &str| format!("materials.{name}.{k}");
+            let m = match spec {
+                MaterialSpec::Mirror { reflectance } => Material::Mirror {
+                    reflectance: reflectance.clone().unwrap_or_else(|| vec![1.0; nc]),
+                },
+                MaterialSpec::Conductor { n, k } => Material::Conductor {
+                    n: n.clone(),
+                    k: k.clone(),
+                },
+                MaterialSpec::Dielectric { eta } => Material::Dielectric { eta: eta.clone() },
+                MaterialSpec::Lambert { albedo } => Material::Lambert {
+                    albedo: albedo.clone(),
+                },
+                MaterialSpec::Model { file } => {
+                    let p = dir.join(file);
+                    let model = Model::load(&p).map_err(|e| MicroError::Model {
+                        surface: path
+                            .map_or_else(|| format!("<{KIND}>"), |p| p.display().to_string()),
+                        field: f("file"),
+                        source: Box::new(e),
+                    })?;
+                    if model.channels() != &channels {
+                        return Err(at(
+                            &f("file"),
+                            format!(
+                                "the model {} has channels {:?}, the surface {:?}",
+                                p.display(),
+                                model.channels().names(),
+                                channels.names()
+                            ),
+                        ));
+                    }
+                    Material::Model(Box::new(model))
+                }
+            };
+            check_material(&m, &channels).map_err(|(k, why)| at(&f(&k), why))?;
+            by_name.insert(name.as_str(), m);
+        }
+        let mut used: Vec<Material> = Vec::new();
+        let mut pick = |name: &str, field: &str| -> Result<u8, MicroError> {
+            let m = by_name.get(name).ok_or_else(|| {
+                at(
+                    field,
+                    format!("no material named {name:?} under [materials]"),
+                )
+            })?;
+            used.push(m.clone());
+            Ok((used.len() - 1) as u8)
+        };
+
+        let positive = |v: f64, field: &str| -> Result<f64, MicroError> {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(at(field, format!("must be finite and positive, got {v}")))
+            }
+        };
+        let orientation = |o: Option<f64>| -> Result<f64, MicroError> {
+            let o = o.unwrap_or(0.0);
+            if o.is_finite() {
+                Ok(o.to_radians())
+            } else {
+                Err(at("surface.orientation_deg", "must be finite".into()))
+            }
+        };
+        let (surface, orient) = match &doc.surface {
+            SurfaceSpec::Gaussian {
+                size,
+                spacing,
+                rms_height,
+                correlation_length,
+                seed,
+                material,
+                orientation_deg,
+            } => {
+                let spacing = positive(spacing.unwrap_or(1.0), "surface.spacing")?;
+                if size[0] < 2 || size[1] < 2 || size[0].saturating_mul(size[1]) > 1 << 26 {
+                    return Err(at(
+                        "surface.size",
+                        "needs at least 2 × 2 and at most 2^26 cells".into(),
+                    ));
+                }
+                if !(rms_height.is_finite() && *rms_height >= 0.0) {
+                    return Err(at(
+                        "surface.rms_height",
+                        format!("must be finite and ≥ 0, got {rms_height}"),
+                    ));
+                }
+                let l = positive(*correlation_length, "surface.correlation_length")?;
+                pick(material, "surface.material")?;
+                let hf = HeightField::gaussian(&GaussianParams {
+                    nx: size[0],
+                    ny: size[1],
+                    spacing,
+                    rms_height: *rms_height,
+                    correlation_length: l,
+                    seed: *seed,
+                })
+                .map_err(|e| at("surface", e.to_string()))?;
+                (hf, orientation(*orientation_deg)?)
+            }
+            SurfaceSpec::Sawtooth {
+                period,
+                angles_deg,
+                faces,
+                orientation_deg,
+            } => {
+                let period = positive(period.unwrap_or(1.0), "surface.period")?;
+                for a in angles_deg {
+                    if !(a.is_finite() && (1.0..=89.0).contains(a)) {
+                        return Err(at(
+                            "surface.angles_deg",
+                            format!("face tilts must be between 1° and 89°, got {a}"),
+                        ));
+                    }
+                }
+                pick(&faces[0], "surface.faces")?;
+                pick(&faces[1], "surface.faces")?;
+                let hf = HeightField::sawtooth(
+                    period,
+                    angles_deg[0].to_radians(),
+                    angles_deg[1].to_radians(),
+                )
+                .map_err(|e| at("surface", e.to_string()))?;
+                (hf, orientation(*orientation_deg)?)
+            }
+            SurfaceSpec::Cylinders {
+                radius,
+                spacing,
+                cells_per_period,
+                material,
+                orientation_deg,
+            } => {
+                let r = positive(*radius, "surface.radius")?;
+                let s = positive(*spacing, "surface.spacing")?;
+                let cells = cells_per_period.unwrap_or(64);
+                if !(4..=1 << 20).contains(&cells) {
+                    return Err(at(
+                        "surface.cells_per_period",
+                        format!("must be in 4..=2^20, got {cells}"),
+                    ));
+                }
+                pick(material, "surface.material")?;
+                let hf = HeightField::cylinders(r, s, cells)
+                    .map_err(|e| at("surface", e.to_string()))?;
+                (hf, orientation(*orientation_deg)?)
+            }
+            SurfaceSpec::HeightMap {
+                file,
+                spacing,
+                format,
+                size,
+                height_scale,
+                material,
+                orientation_deg,
+            } => {
+                let spacing = positive(*spacing, "surface.spacing")?;
+                let scale = height_scale.unwrap_or(1.0);
+                if !scale.is_finite() {
+                    return Err(at("surface.height_scale", "must be finite".into()));
+                }
+                let fmt = format.as_deref().unwrap_or("csv");
+                if !["csv", "f64le", "f32le"].contains(&fmt) {
+                    return Err(at(
+                        "surface.format",
+                        format!("unknown format {fmt:?} (csv, f64le or f32le)"),
+                    ));
+                }
+                if fmt != "csv" && size.is_none() {
+                    return Err(at(
+                        "surface.size",
+                        format!("the {fmt} format needs size = [nx, ny]"),
+                    ));
+                }
+                pick(material, "surface.material")?;
+                let p = dir.join(file);
+                let (nx, ny, mut h) = read_height_map(&p, fmt, *size)?;
+                h.iter_mut().for_each(|v| *v *= scale);
+                let hf = HeightField::new(nx, ny, spacing, spacing, h).map_err(|e| {
+                    MicroError::HeightMap {
+                        path: p.clone(),
+                        line: None,
+                        message: e.to_string(),
+                    }
+                })?;
+                (hf, orientation(*orientation_deg)?)
+            }
+        };
+        Sample::new(channels, surface, used, orient)
+    }
+}
+
+/// Checks one material's per-channel lists; `Err((field, why))`.
+fn check_material(m: &Material, channels: &Channels) -> Result<(), (String, String)> {
+    let nc = channels.len();
+    let list = |name: &str, v: &[f64], ok: &dyn Fn(f64) -> bool, what: &str| {
+        if v.len() != nc {
+            return Err((
+                name.to_string(),
+                format!("{} values for {nc} channels", v.len()),
+            ));
+        }
+        match v.iter().position(|x| !ok(*x)) {
+            Some(i) => Err((name.to_string(), format!("value {i} ({}) {what}", v[i]))),
+            None => Ok(()),
+        }
+    };
+    let unit = |x: f64| (0.0..=1.0).contains(&x);
+    match m {
+        Material::Mirror { reflectance } => {
+            list("reflectance", reflectance, &unit, "must be in [0, 1]")
+        }
+        Material::Lambert { albedo } => list("albedo", albedo, &unit, "must be in [0, 1]"),
+        Material::Conductor { n, k } => {
+            list("n", n, &|x| x.is_finite() && x > 0.0, "must be positive")?;
+            list("k", k, &|x| x.is_finite() && x >= 0.0, "must be ≥ 0")
+        }
+        Material::Dielectric { eta } => list(
+            "eta",
+            eta,
+            &|x| x.is_finite() && x > 0.0,
+            "must be positive",
+        ),
+        Material::Model(m) => {
+            if m.channels() == channels {
+                Ok(())
+            } else {
+                Err((
+                    "file".into(),
+                    "the model's channels differ from the surface's".into(),
+                ))
+            }
+        }
+    }
+}
+
+fn read_height_map(
+    path: &Path,
+    fmt: &str,
+    size: Option<[usize; 2]>,
+) -> Result<(usize, usize, Vec<f64>), MicroError> {
+    let err = |line: Option<usize>, message: String| MicroError::HeightMap {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
+    let bytes = std::fs::read(path).map_err(|e| err(None, e.to_string()))?;
+    if fmt == "csv" {
+        let text = String::from_utf8(bytes).map_err(|_| err(None, "not UTF-8 text".into()))?;
+        let mut rows: Vec<Vec<f64>> = Vec::new();
+        let mut first_line = 0;
+        for (k, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let mut row = Vec::new();
+            for tok in line
+                .split(|c: char| c == ',' || c.is_whitespace())
+                .filter(|t| !t.is_empty())
+            {
+                let v: f64 = tok
+                    .parse()
+                    .map_err(|_| err(Some(k + 1), format!("{tok:?} is not a number")))?;
+                if !v.is_finite() {
+                    return Err(err(Some(k + 1), format!("{tok:?} is not finite")));
+                }
+                row.push(v);
+            }
+            if let Some(r0) = rows.first()
+                && r0.len() != row.len()
+            {
+                return Err(err(
+                    Some(k + 1),
+                    format!(
+                        "{} heights, but line {} has {}",
+                        row.len(),
+                        first_line,
+                        r0.len()
+                    ),
+                ));
+            }
+            if rows.is_empty() {
+                first_line = k + 1;
+            }
+            rows.push(row);
+        }
+        let ny = rows.len();
+        let nx = rows.first().map_or(0, Vec::len);
+        if nx == 0 {
+            return Err(err(None, "no heights".into()));
+        }
+        if let Some([sx, sy]) = size
+            && (sx, sy) != (nx, ny)
+        {
+            return Err(err(
+                None,
+                format!("{nx} × {ny} heights, but size = [{sx}, {sy}]"),
+            ));
+        }
+        return Ok((nx, ny, rows.concat()));
+    }
+    let [nx, ny] = size.unwrap_or([0, 0]);
+    let w = if fmt == "f64le" { 8 } else { 4 };
+    let want = nx.saturating_mul(ny).saturating_mul(w);
+    if nx == 0 || ny == 0 || bytes.len() != want {
+        return Err(err(
+            None,
+            format!(
+                "{} bytes, but {nx} × {ny} {fmt} heights need {want}",
+                bytes.len()
+            ),
+        ));
+    }
+    let h = bytes
+        .chunks_exact(w)
+        .map(|c| {
+            if w == 8 {
+                let mut b = [0u8; 8];
+                b.copy_from_slice(c);
+                f64::from_le_bytes(b)
+            } else {
+                let mut b = [0u8; 4];
+                b.copy_from_slice(c);
+                f64::from(f32::from_le_bytes(b))
+            }
+        })
+        .collect::<Vec<_>>();
+    if let Some(k) = h.iter().position(|v| !v.is_finite()) {
+        return Err(err(None, format!("height {k} is not finite")));
+    }
+    Ok((nx, ny, h))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Doc {
+    channels: Vec<String>,
+    surface: SurfaceSpec,
+    #[serde(default)]
+    materials: BTreeMap<String, MaterialSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum SurfaceSpec {
+    Gaussian {
+        size: [usize; 2],
+        spacing: Option<f64>,
+        rms_height: f64,
+        correlation_length: f64,
+        seed: u64,
+        material: String,
+        orientation_deg: Option<f64>,
+    },
+    #[serde(alias = "v-grooves")]
+    Sawtooth {
+        period: Option<f64>,
+        angles_deg: [f64; 2],
+        faces: [String; 2],
+        orientation_deg: Option<f64>,
+    },
+    Cylinders {
+        radius: f64,
+        spacing: f64,
+        cells_per_period: Option<usize>,
+        material: String,
+        orientation_deg: Option<f64>,
+    },
+    HeightMap {
+        file: PathBuf,
+        spacing: f64,
+        format: Option<String>,
+        size: Option<[usize; 2]>,
+        height_scale: Option<f64>,
+        material: String,
+        orientation_deg: Option<f64>,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum MaterialSpec {
+    Mirror { reflectance: Option<Vec<f64>> },
+    Conductor { n: Vec<f64>, k: Vec<f64> },
+    Dielectric { eta: Vec<f64> },
+    Lambert { albedo: Vec<f64> },
+    Model { file: PathBuf },
+}

@@ -1,0 +1,483 @@
+//! Ray–height-field intersection: a max-mip hierarchy traversed by a hierarchical 2D
+//! DDA with periodic wrapping, a flat grid DDA, and brute force over every cell (the
+//! benchmark baseline and the test oracle). All three share one cell test, so they
+//! agree to the last bit on the cell, the triangle and `t` of a hit.
+//!
+//! # Cell test
+//! Within a cell the ray's parameter range `[t_lo, t_hi]` is cut by the diagonal into
+//! at most two pieces, each over one planar triangle. On a piece the vertical gap
+//! `g(t) = z(t) − h(x(t), y(t))` is linear; the ray hits where `g` first drops to 0.
+//! A ray that enters a piece already at or below the surface (`g ≤ 0` at its start,
+//! which only rounding at a shared edge can cause) hits at the entry, so no ray slips
+//! through a crack between cells.
+//!
+//! # Max-mip
+//! Level 0 holds the highest corner of every cell; each level above merges 2 × 2 (or
+//! 2 × 1, along an axis whose block count is still even) blocks of the one below. A
+//! block is skipped when the ray's lowest height over the block's parameter range is
+//! above the block's maximum. The traversal keeps integer block coordinates in the
+//! unwrapped plane (the patch repeats; lookups wrap), descends into the child the ray
+//! is in, steps to the next block across the nearer boundary, and climbs one level
+//! when a step leaves the parent block.
+
+use gonio_core::Vec3;
+
+use crate::HeightField;
+
+/// How [`Tracer::first_hit`] searches for the first hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// The max-mip hierarchy.
+    MaxMip,
+    /// A flat 2D DDA over the cells (the hierarchy's level 0 only).
+    Grid,
+    /// Every cell of every copy of the patch that the ray's bounding box meets.
+    BruteForce,
+}
+
+/// A ray in the surface frame, with what to ignore near its origin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Origin.
+    pub o: Vec3,
+    /// Direction, unit length.
+    pub d: Vec3,
+    /// Hits at `t < t_min` are ignored (a small positive value after a bounce).
+    pub t_min: f64,
+    /// The triangle the ray leaves from, `(cell x, cell y, tri)` in unwrapped cell
+    /// coordinates: never reported as a hit (a planar facet cannot be hit twice in a
+    /// row; its copies in other tiles can).
+    pub skip: Option<(i64, i64, u8)>,
+}
+
+/// The first intersection of a ray with the surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit.
+    pub t: f64,
+    /// Unwrapped cell coordinates.
+    pub cell: [i64; 2],
+    /// Triangle of the cell (0: `u ≥ v`, 1: `u ≤ v`).
+    pub tri: u8,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+struct Level {
+    /// Cells per block along x and y.
+    bx: usize,
+    by: usize,
+    /// Blocks along x and y.
+    nbx: usize,
+    nby: usize,
+    /// Highest corner of each block, row-major.
+    max: Vec<f64>,
+}
+
+impl Level {
+    /// Block coordinates wrapped onto the patch: a mask for power-of-two counts.
+    #[inline]
+    fn wrap(k: i64, n: usize) -> usize {
+        if n.is_power_of_two() {
+            (k & (n as i64 - 1)) as usize
+        } else {
+            k.rem_euclid(n as i64) as usize
+        }
+    }
+
+    #[inline]
+    fn max_at(&self, bx: i64, by: i64) -> f64 {
+        self.max[Level::wrap(by, self.nby) * self.nbx + Level::wrap(bx, self.nbx)]
+    }
+}
+
+/// A height field with its max-mip hierarchy, ready to intersect rays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tracer {
+    hf: HeightField,
+    levels: Vec<Level>,
+    /// Length of a horizontal ray's search before it counts as leaving at the horizon.
+    horizon: f64,
+}
+
+/// `floor(p / size)`, but the lower block when `p` lies on a boundary and the ray
+/// moves towards −: the block the ray is about to cross.
+#[inline]
+fn coord(p: f64, d: f64, size: f64) -> i64 {
+    let u = p / size;
+    let f = u.floor();
+    if d < 0.0 && u == f {
+        f as i64 - 1
+    } else {
+        f as i64
+    }
+}
+
+/// Narrows `[lo, hi]` to the parameters where `o + t·d` lies within `[a, b]`.
+#[inline]
+fn slab(o: f64, d: f64, a: f64, b: f64, lo: &mut f64, hi: &mut f64) -> bool {
+    if d == 0.0 {
+        return o >= a && o <= b;
+    }
+    let (t0, t1) = ((a - o) / d, (b - o) / d);
+    let (t0, t1) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
+    *lo = lo.max(t0);
+    *hi = hi.min(t1);
+    true
+}
+
+impl Tracer {
+    /// Builds the max-mip hierarchy of `hf`.
+    pub fn new(hf: HeightField) -> Tracer {
+        let (nx, ny) = (hf.nx(), hf.ny());
+        let mut max = Vec::with_capacity(nx * ny);
+        for j in 0..ny {
+            for i in 0..nx {
+                let c = hf.corners(i, j);
+                max.push(c[0].max(c[1]).max(c[2]).max(c[3]));
+            }
+        }
+        let mut levels = vec![Level {
+            bx: 1,
+            by: 1,
+            nbx: nx,
+            nby: ny,
+            max,
+        }];
+        while let Some(last) = levels.last() {
+            let mx = last.nbx >= 2 && last.nbx % 2 == 0;
+            let my = last.nby >= 2 && last.nby % 2 == 0;
+            if !mx && !my {
+                break;
+            }
+            let (fx, fy) = (if mx { 2 } else { 1 }, if my { 2 } else { 1 });
+            let (nbx, nby) = (last.nbx / fx, last.nby / fy);
+            let mut m = vec![f64::NEG_INFINITY; nbx * nby];
+            for j in 0..last.nby {
+                for i in 0..last.nbx {
+                    let k = (j / fy) * nbx + i / fx;
+                    m[k] = m[k].max(last.max[j * last.nbx + i]);
+                }
+            }
+            let next = Level {
+                bx: last.bx * fx,
+                by: last.by * fy,
+                nbx,
+                nby,
+                max: m,
+            };
+            levels.push(next);
+        }
+        let (lx, ly) = hf.period();
+        Tracer {
+            // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
+            horizon: (16.0 * (lx + ly))
+                .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
+            hf,
+            levels,
+        }
+    }
+
+    /// The height field.
+    pub fn surface(&self) -> &HeightField {
+        &self.hf
+    }
+
+    /// Number of levels of the hierarchy (1 for a flat grid).
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// The parameter range in which `ray` can meet the surface; `None` when it cannot
+    /// (it points up from above the highest node). The range is cut off after a
+    /// search length of 16 patch perimeters or 10⁴ times the height range plus the
+    /// spacings, whichever is longer; `horizon` is true when it was (rays within
+    /// ~1e-4 rad of horizontal, which could otherwise travel for ever along a
+    /// groove).
+    pub fn span(&self, ray: &Ray) -> Option<(f64, f64, bool)> {
+        let (o, d) = (ray.o, ray.d);
+        let (h_min, h_max) = (self.hf.min_height(), self.hf.max_height());
+        let mut lo = ray.t_min;
+        let mut hi;
+        if d.z > 0.0 {
+            if o.z >= h_max {
+                return None;
+            }
+            hi = (h_max - o.z) / d.z;
+        } else if d.z < 0.0 {
+            if o.z > h_max {
+                lo = lo.max((h_max - o.z) / d.z);
+            }
+            // The surface lies above h_min: the hit comes before the ray passes it (a
+            // small margin keeps a hit exactly at the lowest node).
+            let t = (h_min - o.z) / d.z;
+            hi = t + 1e-9 * (t.abs() + self.hf.dx() + self.hf.dy());
+        } else {
+            if o.z > h_max {
+                return None;
+            }
+            hi = f64::INFINITY;
+        }
+        let mut horizon = false;
+        if hi - lo > self.horizon || (hi - lo).is_nan() {
+            hi = lo + self.horizon;
+            horizon = true;
+        }
+        (lo <= hi).then_some((lo, hi, horizon))
+    }
+
+    /// The first hit of `ray` on the surface, found by `method`; `None` when the ray
+    /// leaves (or, for a horizontal ray, travels the search length without a hit).
+    pub fn first_hit(&self, ray: &Ray, method: Method) -> Option<Hit> {
+        let (t0, t1, _) = self.span(ray)?;
+        match method {
+            Method::MaxMip => {
+                // Start at the level whose blocks are as wide as the ray's horizontal
+                // travel, not at the top: most rays meet the surface within a few
+                // cells, and descending ten levels would cost more than it saves.
+                let (d, span) = (ray.d, t1 - t0);
+                let cells = (d.x.abs() * span / self.hf.dx()).max(d.y.abs() * span / self.hf.dy());
+                let top = self.levels.len() - 1;
+                let start = if cells.is_finite() {
+                    let mut l = 0;
+                    while l < top && ((4usize << l) as f64) < cells {
+                        l += 1;
+                    }
+                    l
+                } else {
+                    top
+                };
+                self.traverse(ray, t0, t1, start, top)
+            }
+            Method::Grid => self.traverse(ray, t0, t1, 0, 0),
+            Method::BruteForce => self.brute(ray, t0, t1),
+        }
+    }
+
+    /// The hierarchical DDA, starting at level `start` and climbing up to `top`.
+    fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
+        let (o, d) = (ray.o, ray.d);
+        let (dx, dy) = (self.hf.dx(), self.hf.dy());
+        let sx: i64 = if d.x > 0.0 {
+            1
+        } else if d.x < 0.0 {
+            -1
+        } else {
+            0
+        };
+        let sy: i64 = if d.y > 0.0 {
+            1
+        } else if d.y < 0.0 {
+            -1
+        } else {
+            0
+        };
+        let mut l = start;
+        let mut t = t0;
+        let p = o + d * t;
+        let mut bx = coord(p.x, d.x, self.levels[l].bx as f64 * dx);
+        let mut by = coord(p.y, d.y, self.levels[l].by as f64 * dy);
+        loop {
+            let lev = &self.levels[l];
+            let wx = lev.bx as f64 * dx;
+            let wy = lev.by as f64 * dy;
+            let tx = if sx > 0 {
+                ((bx + 1) as f64 * wx - o.x) / d.x
+            } else if sx < 0 {
+                (bx as f64 * wx - o.x) / d.x
+            } else {
+                f64::INFINITY
+            };
+            let ty = if sy > 0 {
+                ((by + 1) as f64 * wy - o.y) / d.y
+            } else if sy < 0 {
+                (by as f64 * wy - o.y) / d.y
+            } else {
+                f64::INFINITY
+            };
+            let t_out = tx.min(ty).min(t1);
+            let zmin = (o.z + d.z * t).min(o.z + d.z * t_out);
+            if zmin <= lev.max_at(bx, by) {
+                if l == 0 {
+                    if let Some(h) = self.cell_hit(ray, bx, by, t0, t1) {
+                        return Some(h);
+                    }
+                } else {
+                    l -= 1;
+                    let child = &self.levels[l];
+                    let p = o + d * t;
+                    if child.bx < lev.bx {
+                        bx = coord(p.x, d.x, child.bx as f64 * dx).clamp(2 * bx, 2 * bx + 1);
+                    }
+                    if child.by < lev.by {
+                        by = coord(p.y, d.y, child.by as f64 * dy).clamp(2 * by, 2 * by + 1);
+                    }
+                    continue;
+                }
+            }
+            if t_out >= t1 {
+                return None;
+            }
+            let (obx, oby) = (bx, by);
+            if tx <= ty {
+                bx += sx;
+            }
+            if ty <= tx {
+                by += sy;
+            }
+            t = t_out;
+            if l < top {
+                let parent = &self.levels[l + 1];
+                let rx = (parent.bx / lev.bx) as i64;
+                let ry = (parent.by / lev.by) as i64;
+                let (px, py) = (bx.div_euclid(rx), by.div_euclid(ry));
+                if px != obx.div_euclid(rx) || py != oby.div_euclid(ry) {
+                    l += 1;
+                    bx = px;
+                    by = py;
+                }
+            }
+        }
+    }
+
+    fn brute(&self, ray: &Ray, t0: f64, t1: f64) -> Option<Hit> {
+        let (o, d) = (ray.o, ray.d);
+        let (nx, ny) = (self.hf.nx() as i64, self.hf.ny() as i64);
+        let (a, b) = (o + d * t0, o + d * t1);
+        let cx0 = (a.x.min(b.x) / self.hf.dx()).floor() as i64 - 1;
+        let cx1 = (a.x.max(b.x) / self.hf.dx()).floor() as i64 + 1;
+        let cy0 = (a.y.min(b.y) / self.hf.dy()).floor() as i64 - 1;
+        let cy1 = (a.y.max(b.y) / self.hf.dy()).floor() as i64 + 1;
+        let mut best: Option<Hit> = None;
+        for ky in cy0.div_euclid(ny)..=cy1.div_euclid(ny) {
+            for kx in cx0.div_euclid(nx)..=cx1.div_euclid(nx) {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        if let Some(h) = self.cell_hit(ray, kx * nx + i, ky * ny + j, t0, t1)
+                            && best.is_none_or(|b| h.t < b.t)
+                        {
+                            best = Some(h);
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// The first hit in unwrapped cell `(ix, iy)` within `[t0, t1]` (see the module
+    /// docs).
+    #[inline]
+    fn cell_hit(&self, ray: &Ray, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
+        let hf = &self.hf;
+        let (o, d) = (ray.o, ray.d);
+        let (dx, dy) = (hf.dx(), hf.dy());
+        let x0 = ix as f64 * dx;
+        let y0 = iy as f64 * dy;
+        let (mut lo, mut hi) = (t0, t1);
+        if !slab(o.x, d.x, x0, (ix + 1) as f64 * dx, &mut lo, &mut hi)
+            || !slab(o.y, d.y, y0, (iy + 1) as f64 * dy, &mut lo, &mut hi)
+        {
+            return None;
+        }
+        if lo > hi {
+            return None;
+        }
+        let i = Level::wrap(ix, hf.nx());
+        let j = Level::wrap(iy, hf.ny());
+        let c = hf.corners(i, j);
+        let (ou, du) = ((o.x - x0) / dx, d.x / dx);
+        let (ov, dv) = ((o.y - y0) / dy, d.y / dy);
+        // The diagonal u = v: w(t) = u − v.
+        let (w0, dw) = (ou - ov, du - dv);
+        let tri_at = |t: f64| -> u8 { if w0 + dw * t >= 0.0 { 0 } else { 1 } };
+        let mut pieces = [(lo, hi, 0u8), (hi, hi, 0u8)];
+        let mut np = 1;
+        if dw != 0.0 {
+            let td = -w0 / dw;
+            if td > lo && td < hi {
+                pieces[0] = (lo, td, tri_at(0.5 * (lo + td)));
+                pieces[1] = (td, hi, tri_at(0.5 * (td + hi)));
+                np = 2;
+            }
+        }
+        if np == 1 {
+            pieces[0].2 = tri_at(0.5 * (lo + hi));
+        }
+        for &(ta, tb, tri) in &pieces[..np] {
+            if ray.skip == Some((ix, iy, tri)) {
+                continue;
+            }
+            let (a, b) = HeightField::tri_slopes(c, tri);
+            let g0 = o.z - c[0] - a * ou - b * ov;
+            let k = d.z - a * du - b * dv;
+            let ga = g0 + k * ta;
+            if ga <= 0.0 {
+                return Some(Hit {
+                    t: ta,
+                    cell: [ix, iy],
+                    tri,
+                });
+            }
+            if g0 + k * tb <= 0.0 {
+                return Some(Hit {
+                    t: (-g0 / k).clamp(ta, tb),
+                    cell: [ix, iy],
+                    tri,
+                });
+            }
+        }
+        None
+    }
+
+    /// The unit normal of the triangle of a hit.
+    #[inline]
+    pub fn hit_normal(&self, h: &Hit) -> Vec3 {
+        let (i, j) = self.wrap_cell(h.cell);
+        self.hf.normal(i, j, h.tri)
+    }
+
+    /// The material id of the triangle of a hit.
+    #[inline]
+    pub fn hit_material(&self, h: &Hit) -> u8 {
+        let (i, j) = self.wrap_cell(h.cell);
+        self.hf.material(i, j, h.tri)
+    }
+
+    #[inline]
+    fn wrap_cell(&self, c: [i64; 2]) -> (usize, usize) {
+        (
+            c[0].rem_euclid(self.hf.nx() as i64) as usize,
+            c[1].rem_euclid(self.hf.ny() as i64) as usize,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flat_plane_is_hit_where_expected() {
+        let hf = HeightField::new(4, 4, 1.0, 1.0, vec![0.0; 16]).expect("flat");
+        let tr = Tracer::new(hf);
+        assert_eq!(tr.levels(), 3);
+        let d = Vec3::new(0.6, 0.0, -0.8);
+        let ray = Ray {
+            o: Vec3::new(-3.3, 0.5, 4.0),
+            d,
+            t_min: 0.0,
+            skip: None,
+        };
+        for m in [Method::MaxMip, Method::Grid, Method::BruteForce] {
+            let h = tr.first_hit(&ray, m).expect("hit");
+            assert!((h.t - 5.0).abs() < 1e-12, "{m:?} {h:?}");
+            assert_eq!(h.cell, [-1, 0], "{m:?}");
+        }
+        // Upwards from above: no hit.
+        let up = Ray {
+            d: Vec3::new(0.0, 0.6, 0.8),
+            ..ray
+        };
+        assert!(tr.first_hit(&up, Method::MaxMip).is_none());
+    }
+}
