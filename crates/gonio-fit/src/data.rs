@@ -1,6 +1,8 @@
 //! The data a fit sees: pairs of directions, values per channel, and the weight of
 //! each residual under the chosen metric.
 
+use std::sync::Arc;
+
 use gonio_core::Channels;
 use gonio_process::{Samples, Table};
 use serde::Serialize;
@@ -54,10 +56,11 @@ impl Default for DataOptions {
 pub struct FitData {
     /// The channels.
     pub channels: Channels,
-    /// Incident directions (unit vectors).
-    pub wi: Vec<[f64; 3]>,
+    /// Incident directions (unit vectors); shared, so per-channel copies of the data
+    /// do not copy the directions.
+    pub wi: Arc<[[f64; 3]]>,
     /// Outgoing directions.
-    pub wo: Vec<[f64; 3]>,
+    pub wo: Arc<[[f64; 3]]>,
     /// Values per channel, 1/sr.
     pub y: Vec<Vec<f64>>,
     /// Residual weights per channel.
@@ -111,10 +114,11 @@ impl FitData {
             && s.samples
                 .iter()
                 .all(|x| x.sigma.as_ref().is_some_and(|v| v.iter().all(|s| *s > 0.0)));
+        let (mut wis, mut wos) = (Vec::new(), Vec::new());
         let mut d = FitData {
             channels: s.channels.clone(),
-            wi: Vec::new(),
-            wo: Vec::new(),
+            wi: Arc::from([]),
+            wo: Arc::from([]),
             y: vec![Vec::new(); nc],
             weight: vec![Vec::new(); nc],
             chi_square,
@@ -134,8 +138,8 @@ impl FitData {
             }
             let dirs = p.to_dirs();
             let (wi, wo) = (dirs.wi, dirs.wo);
-            d.wi.push([wi.x, wi.y, wi.z]);
-            d.wo.push([wo.x, wo.y, wo.z]);
+            wis.push([wi.x, wi.y, wi.z]);
+            wos.push([wo.x, wo.y, wo.z]);
             // At normal incidence every φi is the same direction.
             let phi = if p.incident.theta_deg == 0.0 {
                 0.0
@@ -158,6 +162,8 @@ impl FitData {
                 });
             }
         }
+        d.wi = wis.into();
+        d.wo = wos.into();
         if d.is_empty() {
             return Err(FitError::Data(format!(
                 "no sample below the {}° cutoff",

@@ -424,24 +424,40 @@ pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Resul
 }
 
 /// The largest directional albedo of a model over θi ∈ [0, 89°] by 1°, at φi = 0
-/// and, for an anisotropic model, also 90°.
+/// and, for an anisotropic model, also 90°: every 3° (and 89°) first, then the 1°
+/// neighbours of the largest — a lobe model's albedo is smooth in θi, and each value
+/// is an adaptive integral.
 fn max_albedo(model: &Model, anisotropic: bool) -> f64 {
     use gonio_brdf::Brdf;
     let nc = model.channels().len();
     let phis: &[f64] = if anisotropic { &[0.0, 90.0] } else { &[0.0] };
-    (0..90)
-        .flat_map(|t| phis.iter().map(move |&phi| (t, phi)))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|(t, phi): (i32, f64)| {
-            let mut out = vec![0.0; nc];
-            model.albedo(
-                Dir::from_angles(f64::from(t).to_radians(), phi.to_radians()),
-                &mut out,
-            );
-            out.into_iter().fold(0.0f64, f64::max)
-        })
-        .reduce(|| 0.0, f64::max)
+    let at = |ts: &[i32]| -> Vec<(i32, f64)> {
+        ts.iter()
+            .flat_map(|&t| phis.iter().map(move |&phi| (t, phi)))
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(t, phi): (i32, f64)| {
+                let mut out = vec![0.0; nc];
+                model.albedo(
+                    Dir::from_angles(f64::from(t).to_radians(), phi.to_radians()),
+                    &mut out,
+                );
+                (t, out.into_iter().fold(0.0f64, f64::max))
+            })
+            .collect()
+    };
+    let coarse: Vec<i32> = (0..90).step_by(3).chain([89]).collect();
+    let first = at(&coarse);
+    let (t0, best) = first
+        .iter()
+        .copied()
+        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+    let near: Vec<i32> = [-2, -1, 1, 2]
+        .iter()
+        .map(|d| t0 + d)
+        .filter(|t| (0..90).contains(t) && !coarse.contains(t))
+        .collect();
+    at(&near).into_iter().map(|x| x.1).fold(best, f64::max)
 }
 
 /// The fitted parameters and statistics of a group's channels; `channel` is the
@@ -583,4 +599,33 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
         chi_square: data.chi_square,
         model: Some(model),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_refined_albedo_maximum_is_the_one_degree_maximum() {
+        use gonio_brdf::Brdf;
+        // Table 1 of Lafortune et al. (its largest albedo is at grazing incidence) and
+        // a forward lobe whose albedo peaks inside the range.
+        for text in [
+            "kind = \"lafortune\"\nchannels = [\"550nm\"]\n[diffuse]\nrho = [0.408]\n\
+             [[lobes]]\ncx = [0.86]\ncz = [0.77]\nn = [18.6]\n[[lobes]]\ncx = [-0.41]\n\
+             cz = [0.018]\nn = [2.58]\n[[lobes]]\ncx = [-1.03]\ncz = [0.70]\nn = [63.8]\n",
+            "kind = \"lafortune\"\nchannels = [\"550nm\"]\n[diffuse]\nrho = [0.1]\n\
+             [[lobes]]\ncx = [-0.9]\ncz = [1.1]\nn = [8.0]\n",
+        ] {
+            let model = Model::from_toml(text, None).expect("model");
+            let mut out = [0.0];
+            let brute = (0..90)
+                .map(|t| {
+                    model.albedo(Dir::from_angles(f64::from(t).to_radians(), 0.0), &mut out);
+                    out[0]
+                })
+                .fold(0.0f64, f64::max);
+            assert_eq!(max_albedo(&model, false), brute);
+        }
+    }
 }

@@ -157,7 +157,7 @@ impl<'a> Prepared<'a> {
         let uv = [0, 1, 2].map(|a| {
             data.wi
                 .iter()
-                .zip(&data.wo)
+                .zip(data.wo.iter())
                 .map(|(u, v)| u[a] * v[a])
                 .collect()
         });
