@@ -311,6 +311,27 @@ pub(crate) fn gram(a: &[f64], na: usize, b: &[f64], nb: usize, len: usize, out: 
     }
 }
 
+/// `out = Xᵀ X[:, k..]` for column-major X (len × stride): ((stride) × (stride − k),
+/// row-major).
+fn gram_tail(x: &[f64], stride: usize, k: usize, len: usize, out: &mut [f64]) {
+    let xm = MatRef::from_column_major_slice(&x[..len * stride], len, stride);
+    let q = stride - k;
+    let mut dst = Mat::<f64>::zeros(stride, q);
+    matmul(
+        dst.as_mut(),
+        Accum::Replace,
+        xm.transpose(),
+        xm.subcols(k, q),
+        1.0,
+        Par::Seq,
+    );
+    for u in 0..stride {
+        for v in 0..q {
+            out[u * q + v] = dst[(u, v)];
+        }
+    }
+}
+
 /// One channel's columns over all samples (chunk after chunk, each column-major) and
 /// the basis's scratch.
 struct Columns {
@@ -321,8 +342,11 @@ struct Columns {
     h: Vec<f64>,
 }
 
-fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize) -> Columns {
+/// With `extra` > 0 every chunk's block has room for that many more columns after
+/// its K (pass B writes [V | r] there, so one matrix product covers [A | V | r]).
+fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize, extra: usize) -> Columns {
     let (k, m) = (basis.n_cols(), prep.data.len());
+    let stride = k + extra;
     let s = basis.scratch_len().max(1);
     // Every entry is written by `Basis::columns` before it is read.
     let (mut cols, mut scratch) = prep
@@ -331,16 +355,17 @@ fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize) -> Colu
         .ok()
         .and_then(|mut b| b.take())
         .unwrap_or_default();
-    cols.resize(m * k, 0.0);
+    cols.resize(m * stride, 0.0);
     scratch.resize(m * s, 0.0);
     let wy = &prep.wy[ch];
     let parts: Vec<Vec<f64>> = cols
-        .par_chunks_mut(CHUNK * k)
+        .par_chunks_mut(CHUNK * stride)
         .zip(scratch.par_chunks_mut(CHUNK * s))
         .enumerate()
-        .map(|(ci, (cc, sc))| {
+        .map(|(ci, (block, sc))| {
             let lo = ci * CHUNK;
-            let len = cc.len() / k;
+            let len = block.len() / stride;
+            let cc = &mut block[..len * k];
             let chunk = prep.chunk(ch, lo, lo + len);
             basis.columns(theta, ch, &chunk, cc, sc);
             // [G (k × k) | h (k)] of this chunk.
@@ -376,7 +401,7 @@ pub fn column_vectors(
     ch: usize,
 ) -> Vec<Vec<f64>> {
     let k = basis.n_cols();
-    let cl = columns(basis, prep, theta, ch);
+    let cl = columns(basis, prep, theta, ch, 0);
     let mut out = vec![Vec::with_capacity(prep.data.len()); k];
     for cc in cl.cols.chunks(CHUNK * k) {
         let len = cc.len() / k;
@@ -427,27 +452,36 @@ pub fn evaluate_prepared(
         grams: Vec::with_capacity(nc),
     });
     for ch in 0..nc {
-        let cl = columns(basis, prep, theta, ch);
+        let q = if jac { p + 1 } else { 0 };
+        let stride = k + q;
+        let mut cl = columns(basis, prep, theta, ch, q);
         let c = nnls(&cl.g, &cl.h, k);
         let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
         let nf = free.len();
         let wy = &prep.wy[ch];
-        // Per chunk, with M = [V | r]: MᵀM ((p + 1)², row-major; its last entry is
-        // Σr²) then (WA)ᵀM (k × (p + 1)); without the Jacobian only Σr².
-        let width = if jac {
-            (p + 1) * (p + 1) + k * (p + 1)
-        } else {
-            1
-        };
+        // Per chunk, with X = [WA | V | r] (V = W ∂A/∂θ c): Xᵀ[V | r], (k + p + 1) ×
+        // (p + 1) row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r], whose last entry is
+        // Σr²; without the Jacobian only Σr².
+        let width = if jac { stride * q } else { 1 };
         let parts: Vec<(Vec<f64>, Vec<f64>)> = cl
             .cols
-            .par_chunks(CHUNK * k)
+            .par_chunks_mut(CHUNK * stride)
             .zip(cl.scratch.par_chunks(CHUNK * s))
             .enumerate()
-            .map(|(ci, (cc, sc))| {
+            .map(|(ci, (block, sc))| {
                 let lo = ci * CHUNK;
-                let len = cc.len() / k;
-                let mut r = wy[lo..lo + len].iter().map(|y| -y).collect::<Vec<f64>>();
+                let len = block.len() / stride;
+                let (cc, vr) = block.split_at_mut(len * k);
+                let mut r_local = Vec::new();
+                let r: &mut [f64] = if jac {
+                    &mut vr[len * p..len * q]
+                } else {
+                    r_local.resize(len, 0.0);
+                    &mut r_local
+                };
+                for (ri, y) in r.iter_mut().zip(&wy[lo..lo + len]) {
+                    *ri = -y;
+                }
                 for (u, cu) in c.iter().enumerate() {
                     if *cu != 0.0 {
                         for (ri, a) in r.iter_mut().zip(&cc[u * len..(u + 1) * len]) {
@@ -456,18 +490,13 @@ pub fn evaluate_prepared(
                     }
                 }
                 if !jac {
-                    return (vec![dot(&r, &r)], Vec::new());
+                    return (vec![dot(r, r)], Vec::new());
                 }
-                // M = [V | r] (len × (p + 1), column-major), V = W ∂A/∂θ c; then MᵀM
-                // and (WA)ᵀM, as two small matrix products.
+                let r = r.to_vec();
                 let chunk = prep.chunk(ch, lo, lo + len);
-                let mut mv = vec![0.0; len * (p + 1)];
-                basis.directional(theta, ch, &chunk, cc, sc, &c, &mut mv[..len * p]);
-                mv[len * p..].copy_from_slice(&r);
+                basis.directional(theta, ch, &chunk, cc, sc, &c, &mut vr[..len * p]);
                 let mut acc = vec![0.0; width];
-                let (mm, am) = acc.split_at_mut((p + 1) * (p + 1));
-                gram(&mv, p + 1, &mv, p + 1, len, mm);
-                gram(cc, k, &mv, p + 1, len, am);
+                gram_tail(block, stride, k, len, &mut acc);
                 (acc, r)
             })
             .collect();
@@ -481,9 +510,8 @@ pub fn evaluate_prepared(
         if !jac {
             cost += acc[0];
         } else {
-            let q = p + 1;
-            let mm = |a: usize, b: usize| acc[a * q + b];
-            let am = |u: usize, b: usize| acc[q * q + u * q + b];
+            let am = |u: usize, b: usize| acc[u * q + b];
+            let mm = |a: usize, b: usize| acc[(k + a) * q + b];
             cost += mm(p, p);
             // JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr:
             // J = (I − A_F G_F⁻¹ A_Fᵀ) V. (A_Fᵀr vanishes at the projection's optimum
@@ -541,7 +569,7 @@ pub fn residuals(basis: &dyn Basis, data: &FitData, theta: &[f64]) -> (Vec<Vec<f
     let mut coef = Vec::new();
     let mut out = Vec::with_capacity(m * data.channels.len());
     for ch in 0..data.channels.len() {
-        let cl = columns(basis, &prep, theta, ch);
+        let cl = columns(basis, &prep, theta, ch, 0);
         let c = nnls(&cl.g, &cl.h, k);
         for (ci, cc) in cl.cols.chunks(CHUNK * k).enumerate() {
             let len = cc.len() / k;
