@@ -39,6 +39,96 @@ pub struct SampleConfig {
     pub model: Option<PathBuf>,
     /// The channel the detector sees (a name like `G` or `550nm`); the first if absent.
     pub channel: Option<String>,
+    /// A microgeometry sample instead of a model: its BRDF is tabulated by ray tracing
+    /// when the simulator starts.
+    pub micro: Option<MicroSampleConfig>,
+}
+
+/// A microgeometry sample (`[sample.micro]`): a `gonio micro` surface file and how to
+/// tabulate it. The simulator does not trace rays itself (it depends on no processing
+/// crate): whoever starts it — `gonio acquire`, the tests — tabulates the surface with
+/// `gonio-micro` and hands the table over with [`SimConfig::set_sample`].
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MicroSampleConfig {
+    /// The surface file (relative to the config file's directory).
+    pub surface: PathBuf,
+    /// The table's grid, [DTHETA, DPHI] degrees (polar band midpoints, a full turn).
+    #[serde(default = "default_micro_grid")]
+    pub grid: [f64; 2],
+    /// Tabulate the isotropic form (θi, φo − φi, θo): right for isotropic surfaces,
+    /// and far cheaper.
+    #[serde(default = "default_true")]
+    pub isotropic: bool,
+    /// Rays per incident direction of the grid.
+    #[serde(default = "default_micro_rays")]
+    pub rays: usize,
+    /// Seed of the ray tracer (the same seed, the same table).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_micro_grid() -> [f64; 2] {
+    [10.0, 15.0]
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_micro_rays() -> usize {
+    50_000
+}
+
+impl MicroSampleConfig {
+    /// The surface file's path, resolved against the config file's directory.
+    pub fn surface_path(&self, config: Option<&Path>) -> PathBuf {
+        match config.and_then(Path::parent) {
+            Some(b) if self.surface.is_relative() => b.join(&self.surface),
+            _ => self.surface.clone(),
+        }
+    }
+}
+
+/// A sample BRDF prepared outside the simulator (a tabulated microgeometry), shared
+/// by every simulator built from the config.
+#[derive(Clone)]
+pub struct PreparedSample(pub std::sync::Arc<dyn Brdf>);
+
+impl std::fmt::Debug for PreparedSample {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "PreparedSample({})", self.0.channels())
+    }
+}
+
+impl PartialEq for PreparedSample {
+    fn eq(&self, o: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &o.0)
+    }
+}
+
+/// A [`PreparedSample`] as the `Box<dyn Brdf>` the optics hold.
+struct Shared(std::sync::Arc<dyn Brdf>);
+
+impl Brdf for Shared {
+    fn channels(&self) -> &gonio_core::Channels {
+        self.0.channels()
+    }
+    fn eval(&self, wi: gonio_core::Dir, wo: gonio_core::Dir, out: &mut [f64]) {
+        self.0.eval(wi, wo, out)
+    }
+    fn proposals(&self, wi: gonio_core::Dir, out: &mut Vec<gonio_brdf::Weighted>) {
+        self.0.proposals(wi, out)
+    }
+    fn mirror(&self, wi: gonio_core::Dir, out: &mut [f64]) -> bool {
+        self.0.mirror(wi, out)
+    }
+    fn is_reciprocal(&self) -> bool {
+        self.0.is_reciprocal()
+    }
+    fn albedo(&self, wi: gonio_core::Dir, out: &mut [f64]) {
+        self.0.albedo(wi, out)
+    }
 }
 
 /// Serial line timing, for the physical time of each exchange.
@@ -103,6 +193,10 @@ pub struct SimConfig {
     /// (a run file, which keeps it verbatim).
     #[serde(skip)]
     pub sample_text: Option<String>,
+    /// The sample's BRDF when it was prepared outside (see [`MicroSampleConfig`]);
+    /// it takes precedence over the model.
+    #[serde(skip)]
+    pub prepared: Option<PreparedSample>,
 }
 
 /// A sim config that could not be used, with where and why.
@@ -215,6 +309,28 @@ impl SimConfig {
         self.lockin
             .validate()
             .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
+        if let Some(m) = &self.sample.micro {
+            if self.sample.model.is_some() {
+                return Err((
+                    "sample.micro".into(),
+                    "a sample is a model or a microgeometry, not both (remove sample.model)".into(),
+                ));
+            }
+            let [dt, dp] = m.grid;
+            if !(dt > 0.0
+                && dp > 0.0
+                && (90.0 / dt).fract().abs() < 1e-9
+                && (360.0 / dp).fract().abs() < 1e-9)
+            {
+                return Err((
+                    "sample.micro.grid".into(),
+                    format!("[DTHETA, DPHI] must divide 90° and 360°, got {:?}", m.grid),
+                ));
+            }
+            if m.rays < 2 {
+                return Err(("sample.micro.rays".into(), "need at least 2 rays".into()));
+            }
+        }
         if !(self.time_scale.is_finite() && self.time_scale >= 0.0) {
             return Err(("time_scale".into(), "must be ≥ 0".into()));
         }
@@ -247,6 +363,18 @@ impl SimConfig {
         if let Some(t) = &self.sample_text {
             return Ok(t.clone());
         }
+        if self.sample.micro.is_some() {
+            return Err(SimConfigError {
+                field: Some("sample.micro".into()),
+                ..SimConfigError::whole(
+                    KIND,
+                    self.source.as_deref(),
+                    "a microgeometry sample has no model text until it is tabulated \
+                     (SimConfig::set_sample)"
+                        .to_string(),
+                )
+            });
+        }
         match &self.sample.model {
             Some(p) => {
                 let path = match self.source.as_deref().and_then(Path::parent) {
@@ -266,14 +394,42 @@ impl SimConfig {
         }
     }
 
+    /// Hands over a sample prepared outside the simulator (a tabulated microgeometry)
+    /// and the text a run file keeps for it.
+    pub fn set_sample(&mut self, brdf: std::sync::Arc<dyn Brdf>, text: String) {
+        self.prepared = Some(PreparedSample(brdf));
+        self.sample_text = Some(text);
+    }
+
     /// Loads the sample and finds the measured channel.
     pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
-        let text = self.sample_model_text()?;
-        let model =
-            Model::from_toml(&text, self.sample.model.as_deref()).map_err(|e| SimConfigError {
-                field: Some("sample.model".into()),
-                ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
-            })?;
+        let model: Box<dyn Brdf> = match &self.prepared {
+            Some(p) => Box::new(Shared(p.0.clone())),
+            None => {
+                if self.sample.micro.is_some() && self.sample_text.is_none() {
+                    return Err(SimConfigError {
+                        field: Some("sample.micro".into()),
+                        ..SimConfigError::whole(
+                            KIND,
+                            self.source.as_deref(),
+                            "a microgeometry sample is tabulated by `gonio` (gonio-micro) when \
+                             it starts the simulator; the standalone simulator takes model \
+                             samples only"
+                                .to_string(),
+                        )
+                    });
+                }
+                let text = self.sample_model_text()?;
+                Box::new(
+                    Model::from_toml(&text, self.sample.model.as_deref()).map_err(|e| {
+                        SimConfigError {
+                            field: Some("sample.model".into()),
+                            ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
+                        }
+                    })?,
+                )
+            }
+        };
         let channel = match &self.sample.channel {
             None => 0,
             Some(name) => model
@@ -288,6 +444,6 @@ impl SimConfig {
                     )
                 })?,
         };
-        Ok((Box::new(model), channel))
+        Ok((model, channel))
     }
 }

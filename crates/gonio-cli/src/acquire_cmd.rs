@@ -438,6 +438,9 @@ pub fn resume(path: &Path, json: bool) -> CliResult<()> {
             if let Some(seed) = stored.seed {
                 s.seed = seed;
             }
+            // A microgeometry sample's stored text is its table: no re-tracing.
+            crate::micro_cmd::prepare_sim_sample(&mut s)
+                .map_err(|e| input(format!("{}: stored sample: {e}", path.display())))?;
             Rig::Sim(Box::new(s))
         }
         None => Rig::Real,

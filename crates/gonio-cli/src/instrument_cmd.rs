@@ -11,11 +11,13 @@ use crate::output;
 
 /// The simulator config for ports named `"sim"`: the file given, or the default.
 pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
-    match path {
-        Some(p) => gonio_sim::SimConfig::load(p).map_err(|e| CliError::Input(e.to_string())),
+    let mut cfg = match path {
+        Some(p) => gonio_sim::SimConfig::load(p).map_err(|e| CliError::Input(e.to_string()))?,
         None => gonio_sim::SimConfig::default_config()
-            .map_err(|e| CliError::Runtime(format!("embedded simulator config: {e}"))),
-    }
+            .map_err(|e| CliError::Runtime(format!("embedded simulator config: {e}")))?,
+    };
+    crate::micro_cmd::prepare_sim_sample(&mut cfg)?;
+    Ok(cfg)
 }
 
 /// Ports named `"sim"` mean the in-process simulator; both lines must be simulated.

@@ -10,6 +10,7 @@ mod error;
 mod fit_cmd;
 mod instrument_cmd;
 mod io_cmd;
+mod micro_cmd;
 mod model_cmd;
 mod output;
 mod process_cmd;
@@ -190,6 +191,52 @@ enum Command {
         grid: Option<(f64, f64)>,
         #[command(flatten)]
         reduction: ReduceFlags,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Predict a BRDF from microgeometry (the virtual gonioreflectometer of Westin et
+    /// al. 1992): trace rays through every bounce on a surface file's height field and
+    /// tabulate f_r with its Monte Carlo error (and, with --sh, the symmetric
+    /// spherical-harmonic matrix).
+    Micro {
+        /// The surface file (TOML; docs/micro.md).
+        surface: PathBuf,
+        /// The grid, DTHETA,DPHI in degrees (polar band midpoints, a full turn).
+        #[arg(long, value_parser = process_cmd::parse_grid, default_value = "10,15")]
+        grid: (f64, f64),
+        /// Tabulate the isotropic form (θi, φo − φi, θo), averaging over the sample's
+        /// turns; for anisotropic surfaces leave it off.
+        #[arg(long)]
+        isotropic: bool,
+        /// Rays per incident direction of the grid.
+        #[arg(long, default_value_t = 100_000)]
+        rays: usize,
+        /// Seed of every random draw: the same seed gives the same table bytes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// The table to write (CSV with a grid header, sigma columns = Monte Carlo
+        /// standard errors).
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write one table per bounce order (1, 2, 3+) beside OUT.
+        #[arg(long)]
+        per_order: bool,
+        /// Also estimate the spherical-harmonic matrix to this degree from its own rays.
+        #[arg(long)]
+        sh: Option<usize>,
+        /// Taper SH degrees above this one (Westin et al.'s filtering).
+        #[arg(long, requires = "sh")]
+        sh_filter: Option<usize>,
+        /// Where to write the SH file (TOML); required with --sh.
+        #[arg(long, requires = "sh")]
+        sh_out: Option<PathBuf>,
+        /// Rays of the SH estimate (incident directions drawn over the hemisphere).
+        #[arg(long, default_value_t = 1_000_000, requires = "sh")]
+        sh_rays: usize,
+        /// Bounces after which a ray is stopped (its energy is reported).
+        #[arg(long, default_value_t = 100)]
+        max_bounces: u32,
         /// Print one JSON object instead of text.
         #[arg(long)]
         json: bool,
@@ -485,6 +532,41 @@ fn run(cli: Cli) -> Result<(), CliError> {
             reduction,
             json,
         } => process_cmd::harmonics(&input, order, filter, &out, grid, &reduction.args(), json),
+        Command::Micro {
+            surface,
+            grid,
+            isotropic,
+            rays,
+            seed,
+            out,
+            per_order,
+            sh,
+            sh_filter,
+            sh_out,
+            sh_rays,
+            max_bounces,
+            json,
+        } => {
+            let sh = match (sh, sh_out) {
+                (Some(l), Some(p)) => Some((l, sh_filter, p, sh_rays)),
+                (Some(_), None) => {
+                    return Err(CliError::Input("--sh needs --sh-out FILE".into()));
+                }
+                _ => None,
+            };
+            micro_cmd::micro(micro_cmd::MicroArgs {
+                surface,
+                grid,
+                isotropic,
+                rays,
+                seed,
+                out,
+                per_order,
+                sh,
+                max_bounces,
+                json,
+            })
+        }
         Command::Fit {
             input,
             model,

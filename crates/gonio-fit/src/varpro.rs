@@ -588,6 +588,9 @@ pub fn residuals(basis: &dyn Basis, data: &FitData, theta: &[f64]) -> (Vec<Vec<f
 /// and tests use (gradient, column norms, predicted and actual reductions) is the
 /// same as for the m-row problem, at O(P²) memory instead of O(mP).
 fn compress(jtj: &[f64], jtr: &[f64], cost: f64, p: usize) -> (DVector<f64>, DMatrix<f64>) {
+    if p == 0 {
+        return (DVector::from_element(1, cost.max(0.0).sqrt()), DMatrix::zeros(1, 0));
+    }
     // Equilibrate (unit diagonal) before the eigen-decomposition: columns differ by
     // many orders of magnitude.
     let d: Vec<f64> = (0..p)
@@ -742,6 +745,21 @@ pub fn solve_to(
     patience: usize,
     ftol: f64,
 ) -> Solved {
+    if basis.n_params() == 0 {
+        // Nothing non-linear (a Lambertian fit): the projection is the whole answer.
+        let e = evaluate(basis, data, theta, true);
+        return Solved {
+            theta: theta.to_vec(),
+            coef: e.coef,
+            cost: e.cost,
+            evaluations: 1,
+            termination: TerminationReason::Converged { ftol: true, xtol: true },
+            full: e.full.unwrap_or(Full {
+                residuals: Vec::new(),
+                grams: Vec::new(),
+            }),
+        };
+    }
     let lm = LevenbergMarquardt::new()
         .with_patience(patience)
         .with_ftol(ftol)

@@ -500,3 +500,31 @@ n = [6.0, 6.0, 6.0]
         }
     }
 }
+
+#[test]
+fn a_lambertian_fit_has_no_lobes_to_search() {
+    let model = Model::from_toml(
+        "kind = \"lafortune\"\nchannels = [\"550nm\"]\n[diffuse]\nrho = [0.5]\n",
+        None,
+    )
+    .expect("Lambert");
+    let data = FitData::from_samples(&samples(&model, Some((0.01, 9))), &DataOptions::default())
+        .expect("data");
+    let opts = FitOptions {
+        shape: Shape {
+            lobes: 0,
+            anisotropic: false,
+            diffuse: Diffuse::Lambert,
+        },
+        ..FitOptions::default()
+    };
+    let fit = fit_lobes(&data, &opts).expect("fit");
+    let c = &fit.channels[0];
+    assert!(c.params.lobes.is_empty());
+    assert!(
+        (c.params.rho_d - 0.5).abs() < 4.0 * c.std_err.rho_d && c.std_err.rho_d > 0.0,
+        "{} ± {}",
+        c.params.rho_d,
+        c.std_err.rho_d
+    );
+}
