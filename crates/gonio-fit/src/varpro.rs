@@ -589,7 +589,10 @@ pub fn residuals(basis: &dyn Basis, data: &FitData, theta: &[f64]) -> (Vec<Vec<f
 /// same as for the m-row problem, at O(P²) memory instead of O(mP).
 fn compress(jtj: &[f64], jtr: &[f64], cost: f64, p: usize) -> (DVector<f64>, DMatrix<f64>) {
     if p == 0 {
-        return (DVector::from_element(1, cost.max(0.0).sqrt()), DMatrix::zeros(1, 0));
+        return (
+            DVector::from_element(1, cost.max(0.0).sqrt()),
+            DMatrix::zeros(1, 0),
+        );
     }
     // Equilibrate (unit diagonal) before the eigen-decomposition: columns differ by
     // many orders of magnitude.
@@ -753,7 +756,10 @@ pub fn solve_to(
             coef: e.coef,
             cost: e.cost,
             evaluations: 1,
-            termination: TerminationReason::Converged { ftol: true, xtol: true },
+            termination: TerminationReason::Converged {
+                ftol: true,
+                xtol: true,
+            },
             full: e.full.unwrap_or(Full {
                 residuals: Vec::new(),
                 grams: Vec::new(),
