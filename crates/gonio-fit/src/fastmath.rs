@@ -105,6 +105,19 @@ fn ln_lane<const F: bool>(x: f64) -> f64 {
     madd::<F>(ef, LN2_HI, madd::<F>(ef, LN2_LO, lnm))
 }
 
+/// (ln x, xⁿ), or (0, 0) where x ≤ 0 (NaN stays NaN). Arithmetic rather than
+/// selects on the results: a select becomes a masked store, which is microcoded and
+/// slow on AMD cores; ln 1 = 0 exactly, so the clamped lanes need no select.
+#[inline(always)]
+fn ln_pow_lane<const F: bool>(x: f64, n: f64) -> (f64, f64) {
+    let pos = x > 0.0;
+    let keep = if pos { 1.0 } else { 0.0 };
+    let l = ln_lane::<F>(if pos { x } else { 1.0 });
+    let h = exp_lane::<F>(n * l);
+    // x · 0 is 0 for finite x and NaN for NaN, so a NaN argument stays visible.
+    (l, madd::<F>(h, keep, x * 0.0))
+}
+
 /// For each `x[i]`: `lx[i] = ln x[i]` and `h[i] = x[i]^n`, or both 0 where
 /// `x[i] ≤ 0` (a lobe that is clamped to 0).
 #[inline(always)]
@@ -112,12 +125,7 @@ fn ln_pow_generic<const F: bool>(x: &[f64], n: f64, lx: &mut [f64], h: &mut [f64
     // One straight-line body an element: the loop vectoriser turns the branches of
     // `exp_lane` and the selects below into masks.
     for ((x, l), p) in x.iter().zip(lx.iter_mut()).zip(h.iter_mut()) {
-        let pos = *x > 0.0;
-        let lv = ln_lane::<F>(if pos { *x } else { 1.0 });
-        let pv = exp_lane::<F>(n * lv);
-        *l = if pos { lv } else { 0.0 };
-        // x · 0 keeps a NaN argument NaN (the fit then sees a non-finite cost).
-        *p = if pos { pv } else { *x * 0.0 };
+        (*l, *p) = ln_pow_lane::<F>(*x, n);
     }
 }
 
@@ -176,11 +184,9 @@ fn lobe_column_generic<const F: bool>(
     let (lx, col) = (&mut lx[..len], &mut col[..len]);
     for i in 0..len {
         let x = madd::<F>(c[0], ux[i], madd::<F>(c[1], uy[i], c[2] * uz[i]));
-        let pos = x > 0.0;
-        let l = ln_lane::<F>(if pos { x } else { 1.0 });
-        let h = exp_lane::<F>(n * l);
-        lx[i] = if pos { l } else { 0.0 };
-        col[i] = if pos { w[i] * h } else { x * 0.0 };
+        let (l, h) = ln_pow_lane::<F>(x, n);
+        lx[i] = l;
+        col[i] = w[i] * h;
     }
 }
 
