@@ -309,21 +309,6 @@ fn bench(c: &mut Criterion) {
     g.bench_function("fit_lobes_search_subset", |b| {
         b.iter(|| fit_lobes(black_box(&sub), &opts).expect("fit"))
     });
-    // The albedo check `fit_lobes` runs on the fitted model: 90 θi × 2 φi.
-    g.bench_function("albedo_check", |b| {
-        b.iter(|| {
-            let mut out = [0.0; 3];
-            let mut best = 0.0f64;
-            for t in 0..90 {
-                for phi in [0.0, 90.0f64] {
-                    let wi = Dir::from_angles(f64::from(t).to_radians(), phi.to_radians());
-                    black_box(model).albedo(wi, &mut out);
-                    best = out.iter().copied().fold(best, f64::max);
-                }
-            }
-            best
-        })
-    });
     // One residual and one Jacobian evaluation of the final refinement (one channel,
     // all pairs) at the optimum: what each Levenberg–Marquardt step costs.
     let red = channel(&data, 0);

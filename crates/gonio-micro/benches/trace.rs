@@ -5,7 +5,7 @@
 //! and on all.
 //!
 //! `cargo bench -p gonio-micro --bench trace -- --warm-up-time 1 --measurement-time 3`;
-//! figures and the machine are in `crates/gonio-micro/BENCH_NOTES.md`.
+//! figures and the machine are in BENCHMARKS.md ("Virtual gonioreflectometer").
 
 use std::hint::black_box;
 
