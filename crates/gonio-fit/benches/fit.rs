@@ -20,7 +20,7 @@ use std::time::Duration;
 use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::dirfile::PairDeg;
-use gonio_core::{Channels, Dir, SphericalDeg};
+use gonio_core::{Channels, SphericalDeg};
 use gonio_fit::data::{DataOptions, FitData};
 use gonio_fit::lobes::{LobeBasis, Shape};
 use gonio_fit::varpro;
