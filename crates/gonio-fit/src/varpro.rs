@@ -355,8 +355,16 @@ fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize, extra: 
         .ok()
         .and_then(|mut b| b.take())
         .unwrap_or_default();
-    cols.resize(m * stride, 0.0);
-    scratch.resize(m * s, 0.0);
+    // A fresh zeroed allocation (calloc: pages the kernel zeroes on first touch) rather
+    // than growing the old one (which fills it twice, once with zeros).
+    if cols.len() < m * stride {
+        cols = vec![0.0; m * stride];
+    }
+    cols.truncate(m * stride);
+    if scratch.len() < m * s {
+        scratch = vec![0.0; m * s];
+    }
+    scratch.truncate(m * s);
     let wy = &prep.wy[ch];
     let parts: Vec<Vec<f64>> = cols
         .par_chunks_mut(CHUNK * stride)
