@@ -13,7 +13,7 @@
 //! with s² = Σr²/(m − p), the reduced χ² of a fit weighted by 1/σ (so the errors do not
 //! depend on whether the σ's overall scale is right).
 
-use std::f64::consts::{FRAC_1_SQRT_2, FRAC_PI_4, PI};
+use std::f64::consts::{FRAC_PI_4, PI};
 use std::time::Instant;
 
 use gonio_brdf::Model;
@@ -392,7 +392,6 @@ fn std_errors(
 
 /// The model file of the fitted parameters.
 pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Result<Model, FitError> {
-    let nc = channels.len();
     let names = channels.names();
     let list = |f: &dyn Fn(&Natural) -> f64| -> String {
         let v: Vec<String> = params.iter().map(|p| format!("{:?}", f(p))).collect();
@@ -419,7 +418,6 @@ pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Resul
             list(&|p| p.lobes[j][3].max(0.0)),
         ));
     }
-    let _ = nc;
     Model::from_toml(&s, None).map_err(|e| FitError::Numerics(format!("fitted model: {e}")))
 }
 
@@ -541,9 +539,6 @@ fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFi
 /// Fits lobes to `data`.
 pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError> {
     let started = Instant::now();
-    if opts.shape.lobes == 0 && opts.shape.diffuse == Diffuse::Lambert {
-        // Only ρd: still a valid (Lambertian) fit.
-    }
     let nc = data.channels.len();
     let shared = opts.share_exponents && nc > 1;
     // Each group is fitted and reported in one parallel task, so a channel that
@@ -585,7 +580,6 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
         }
         model = to_model(&data.channels, &params, &opts.shape)?;
     }
-    let _ = FRAC_1_SQRT_2;
     Ok(LobeFit {
         model_toml: model.to_toml(),
         channels,

@@ -10,6 +10,9 @@
 //! (1975) approximation J = P⊥ W ∂A/∂θ c, with P⊥ the projection off the span of the
 //! free columns. The linear parameters are always exactly optimal, the search space
 //! shrinks by K dimensions, and no start value is needed for them.
+//!
+//! J itself is never formed: [`evaluate`] accumulates JᵀJ and Jᵀr chunk by chunk, and
+//! [`Projected`] hands the crate an equivalent (P + 1)-row problem (`compress`).
 
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
