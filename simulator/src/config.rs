@@ -39,15 +39,29 @@ pub struct SampleConfig {
     pub model: Option<PathBuf>,
     /// The channel the detector sees (a name like `G` or `550nm`); the first if absent.
     pub channel: Option<String>,
+    /// A measured or tabulated BRDF instead of a model: a table file of
+    /// `docs/processing.md` (CSV with a grid header), interpolated quadrilinearly.
+    pub table: Option<PathBuf>,
     /// A microgeometry sample instead of a model: its BRDF is tabulated by ray tracing
-    /// when the simulator starts.
+    /// (`gonio-micro`) when the sample is first prepared.
     pub micro: Option<MicroSampleConfig>,
 }
 
+/// What the sample is, as the config gives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleKind {
+    /// A model file (or the embedded blue paint).
+    Model,
+    /// A table file.
+    Table,
+    /// A microgeometry surface, tabulated by ray tracing.
+    Micro,
+}
+
 /// A microgeometry sample (`[sample.micro]`): a `gonio micro` surface file and how to
-/// tabulate it. The simulator does not trace rays itself (it depends on no processing
-/// crate): whoever starts it — `gonio acquire`, the tests — tabulates the surface with
-/// `gonio-micro` and hands the table over with [`SimConfig::set_sample`].
+/// tabulate it. The table is traced once, by [`SimConfig::prepare_sample`] (or when
+/// the simulator is built), and its text is what a run file keeps, so a resumed run
+/// measures the same table without tracing again.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MicroSampleConfig {
@@ -309,11 +323,19 @@ impl SimConfig {
         self.lockin
             .validate()
             .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
+        if self.sample.table.is_some() && self.sample.model.is_some() {
+            return Err((
+                "sample.table".into(),
+                "a sample is a model or a table, not both (remove sample.model)".into(),
+            ));
+        }
         if let Some(m) = &self.sample.micro {
-            if self.sample.model.is_some() {
+            if self.sample.model.is_some() || self.sample.table.is_some() {
                 return Err((
                     "sample.micro".into(),
-                    "a sample is a model or a microgeometry, not both (remove sample.model)".into(),
+                    "a sample is a model, a table or a microgeometry, not more than one \
+                     (remove sample.model or sample.table)"
+                        .into(),
                 ));
             }
             let [dt, dp] = m.grid;
@@ -357,92 +379,172 @@ impl SimConfig {
             })
     }
 
-    /// The sample's model file, as text: [`sample_text`](Self::sample_text) when
-    /// set, else the file `sample.model` names, else the embedded blue paint.
+    /// What the sample is: a model, a table or a microgeometry.
+    pub fn sample_kind(&self) -> SampleKind {
+        if self.sample.micro.is_some() {
+            SampleKind::Micro
+        } else if self.sample.table.is_some() {
+            SampleKind::Table
+        } else {
+            SampleKind::Model
+        }
+    }
+
+    fn sample_error(&self, field: &str, message: String) -> SimConfigError {
+        SimConfigError {
+            field: Some(field.into()),
+            ..SimConfigError::whole(KIND, self.source.as_deref(), message)
+        }
+    }
+
+    /// A path from the config, resolved against the config file's directory.
+    fn resolve(&self, p: &Path) -> PathBuf {
+        match self.source.as_deref().and_then(Path::parent) {
+            Some(b) if p.is_relative() => b.join(p),
+            _ => p.to_path_buf(),
+        }
+    }
+
+    /// The sample as text, as a run file keeps it: [`sample_text`](Self::sample_text)
+    /// when set; else the model file `sample.model` names (the embedded blue paint
+    /// without one), the table file `sample.table` names, or the table a
+    /// `[sample.micro]` surface traces to (tracing it: prefer
+    /// [`prepare_sample`](Self::prepare_sample), which keeps the result).
     pub fn sample_model_text(&self) -> Result<String, SimConfigError> {
         if let Some(t) = &self.sample_text {
             return Ok(t.clone());
         }
-        if self.sample.micro.is_some() {
-            return Err(SimConfigError {
-                field: Some("sample.micro".into()),
-                ..SimConfigError::whole(
-                    KIND,
-                    self.source.as_deref(),
-                    "a microgeometry sample has no model text until it is tabulated \
-                     (SimConfig::set_sample)"
-                        .to_string(),
-                )
-            });
-        }
-        match &self.sample.model {
-            Some(p) => {
-                let path = match self.source.as_deref().and_then(Path::parent) {
-                    Some(b) if p.is_relative() => b.join(p),
-                    _ => p.clone(),
-                };
-                std::fs::read_to_string(&path).map_err(|e| SimConfigError {
-                    field: Some("sample.model".into()),
-                    ..SimConfigError::whole(
-                        KIND,
-                        self.source.as_deref(),
-                        format!("{}: {e}", path.display()),
-                    )
+        match self.sample_kind() {
+            SampleKind::Micro => Ok(self.trace_micro()?.1),
+            SampleKind::Table => {
+                let p = self.sample.table.as_deref().unwrap_or(Path::new(""));
+                let path = self.resolve(p);
+                std::fs::read_to_string(&path).map_err(|e| {
+                    self.sample_error("sample.table", format!("{}: {e}", path.display()))
                 })
             }
-            None => Ok(BLUE_PAINT.to_string()),
+            SampleKind::Model => match &self.sample.model {
+                Some(p) => {
+                    let path = self.resolve(p);
+                    std::fs::read_to_string(&path).map_err(|e| {
+                        self.sample_error("sample.model", format!("{}: {e}", path.display()))
+                    })
+                }
+                None => Ok(BLUE_PAINT.to_string()),
+            },
         }
     }
 
-    /// Hands over a sample prepared outside the simulator (a tabulated microgeometry)
-    /// and the text a run file keeps for it.
+    /// Traces a `[sample.micro]` surface into its table: the BRDF and its text.
+    fn trace_micro(&self) -> Result<(std::sync::Arc<dyn Brdf>, String), SimConfigError> {
+        let Some(m) = &self.sample.micro else {
+            return Err(self.sample_error("sample.micro", "no microgeometry sample".into()));
+        };
+        let surface = m.surface_path(self.source.as_deref());
+        let err = |e: &dyn std::fmt::Display| {
+            let msg = e.to_string();
+            // Surface-file errors already start with the file's name.
+            if msg.starts_with(&surface.display().to_string()) {
+                self.sample_error("sample.micro.surface", msg)
+            } else {
+                self.sample_error(
+                    "sample.micro.surface",
+                    format!("{}: {msg}", surface.display()),
+                )
+            }
+        };
+        let sample = gonio_micro::Sample::load(&surface).map_err(|e| err(&e))?;
+        let sim = gonio_micro::Simulation::new(sample, gonio_micro::SimOptions::default())
+            .map_err(|e| err(&e))?;
+        let step = gonio_process::GridStep::new(m.grid[0], m.grid[1])
+            .map_err(|e| self.sample_error("sample.micro.grid", e))?;
+        let grid = if m.isotropic {
+            step.isotropic_grid()
+        } else {
+            step.grid()
+        };
+        tracing::info!(
+            surface = %surface.display(),
+            rays = m.rays,
+            seed = m.seed,
+            "tracing the microgeometry sample"
+        );
+        let r = sim.to_table(&grid, m.rays, m.seed).map_err(|e| err(&e))?;
+        let text = gonio_process::file::write_table(&r.table);
+        Ok((std::sync::Arc::new(r.table), text))
+    }
+
+    /// Reads a table sample's text.
+    fn table_of(&self, text: &str, field: &str) -> Result<gonio_process::Table, SimConfigError> {
+        match gonio_process::file::read(text, None) {
+            Ok(gonio_process::file::Content::Table(t)) => Ok(t),
+            Ok(_) => Err(self.sample_error(
+                field,
+                "the sample's text holds scattered samples, not a table".into(),
+            )),
+            Err(e) => Err(self.sample_error(field, format!("sample table: {e}"))),
+        }
+    }
+
+    /// Loads (or traces) the sample once and keeps it with its text, so that every
+    /// simulator built from this config, and the run file, share it. Nothing to do
+    /// when it is already prepared.
+    pub fn prepare_sample(&mut self) -> Result<(), SimConfigError> {
+        if self.prepared.is_some() {
+            return Ok(());
+        }
+        let (brdf, text): (std::sync::Arc<dyn Brdf>, String) = match self.sample_kind() {
+            SampleKind::Micro if self.sample_text.is_none() => self.trace_micro()?,
+            SampleKind::Micro | SampleKind::Table => {
+                let field = if self.sample_kind() == SampleKind::Micro {
+                    "sample.micro"
+                } else {
+                    "sample.table"
+                };
+                let text = self.sample_model_text()?;
+                (std::sync::Arc::new(self.table_of(&text, field)?), text)
+            }
+            SampleKind::Model => {
+                let text = self.sample_model_text()?;
+                let m = Model::from_toml(&text, self.sample.model.as_deref())
+                    .map_err(|e| self.sample_error("sample.model", e.to_string()))?;
+                (std::sync::Arc::new(m), text)
+            }
+        };
+        self.set_sample(brdf, text);
+        Ok(())
+    }
+
+    /// Hands over a sample prepared outside the simulator (any `Brdf`) and the text a
+    /// run file keeps for it.
     pub fn set_sample(&mut self, brdf: std::sync::Arc<dyn Brdf>, text: String) {
         self.prepared = Some(PreparedSample(brdf));
         self.sample_text = Some(text);
     }
 
-    /// Loads the sample and finds the measured channel.
+    /// Loads the sample (preparing it if needed) and finds the measured channel.
     pub fn load_sample(&self) -> Result<(Box<dyn Brdf>, usize), SimConfigError> {
         let model: Box<dyn Brdf> = match &self.prepared {
             Some(p) => Box::new(Shared(p.0.clone())),
             None => {
-                if self.sample.micro.is_some() && self.sample_text.is_none() {
-                    return Err(SimConfigError {
-                        field: Some("sample.micro".into()),
-                        ..SimConfigError::whole(
-                            KIND,
-                            self.source.as_deref(),
-                            "a microgeometry sample is tabulated by `gonio` (gonio-micro) when \
-                             it starts the simulator; the standalone simulator takes model \
-                             samples only"
-                                .to_string(),
-                        )
-                    });
+                let mut c = self.clone();
+                c.prepare_sample()?;
+                match c.prepared {
+                    Some(p) => Box::new(Shared(p.0)),
+                    None => {
+                        return Err(self.sample_error("sample", "not prepared".into()));
+                    }
                 }
-                let text = self.sample_model_text()?;
-                Box::new(
-                    Model::from_toml(&text, self.sample.model.as_deref()).map_err(|e| {
-                        SimConfigError {
-                            field: Some("sample.model".into()),
-                            ..SimConfigError::whole(KIND, self.source.as_deref(), e.to_string())
-                        }
-                    })?,
-                )
             }
         };
         let channel = match &self.sample.channel {
             None => 0,
-            Some(name) => model
-                .channels()
-                .index_of(name)
-                .ok_or_else(|| SimConfigError {
-                    field: Some("sample.channel".into()),
-                    ..SimConfigError::whole(
-                        KIND,
-                        self.source.as_deref(),
-                        format!("the sample has channels {}, not {name:?}", model.channels()),
-                    )
-                })?,
+            Some(name) => model.channels().index_of(name).ok_or_else(|| {
+                self.sample_error(
+                    "sample.channel",
+                    format!("the sample has channels {}, not {name:?}", model.channels()),
+                )
+            })?,
         };
         Ok((model, channel))
     }

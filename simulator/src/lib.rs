@@ -14,7 +14,7 @@
 //! Deterministic: the config's seed fixes every noise sample and every random fault,
 //! so the same seed and the same commands give the same bytes.
 
-pub mod cli;
+pub mod bench;
 pub mod clock;
 pub mod config;
 pub mod controller;
@@ -23,10 +23,12 @@ pub mod instrument;
 pub mod lockin;
 pub mod optics;
 pub mod pty;
+pub mod serve;
 pub mod transport;
 
+pub use bench::SimBench;
 pub use clock::SimClock;
-pub use config::{SimConfig, SimConfigError};
+pub use config::{SampleKind, SimConfig, SimConfigError};
 pub use faults::{FaultConfig, Port};
 pub use instrument::{SimInstrument, SimStats};
 pub use optics::LightPath;

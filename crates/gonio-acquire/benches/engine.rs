@@ -20,13 +20,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
-use gonio_acquire::bench::{Bench, Setup, SimBench};
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome, SessionReport};
-use gonio_acquire::plan::{Mechanics, Plan};
-use gonio_acquire::run::{self, Inputs, Prepared};
-use gonio_acquire::schedule::Step;
+use gonio_acquire::engine::{Engine, EngineConfig, Outcome, SessionReport, setup_for};
 use gonio_driver::InstrumentConfig;
-use gonio_sim::{SimClock, SimConfig, SimTransport};
+use gonio_driver::bench::Bench;
+use gonio_plan::{Plan, Prepared, Step};
+use gonio_run::Inputs;
+use gonio_sim::{SimBench, SimClock, SimConfig, SimTransport};
 
 /// 3 incidence angles × 7 polar × 13 azimuthal outgoing angles, with a drift reference
 /// every 50 pairs, a dark and an incident-beam reading: a few hundred steps.
@@ -133,7 +132,9 @@ fn acquire(
     let t = Instant::now();
     let plan =
         Plan::from_toml(plan_text, Some(&root().join("config/bench-plan.toml"))).expect("plan");
-    let prepared: Prepared = run::prepare(&inst.0, "instrument-sim.toml", &plan).expect("prepares");
+    let mech = inst.0.mechanics().expect("mechanics");
+    let prepared: Prepared =
+        gonio_plan::prepare(&mech, inst.0.reading_seconds(), &plan).expect("prepares");
     let prepare = t.elapsed();
 
     let t = Instant::now();
@@ -149,13 +150,12 @@ fn acquire(
         software: "bench".into(),
         ..Inputs::default()
     };
-    let store = run::create(out, &plan, &prepared, &inputs).expect("creates");
+    let store = gonio_run::create(out, &plan, &prepared, &inputs).expect("creates");
     let create = t.elapsed();
 
     let t = Instant::now();
     let (g, shared) = gonio_sim::connect(&inst.0, &s).expect("sim");
-    let mech = Mechanics::of(&inst.0).expect("mechanics");
-    let stored = run::stored(&store).expect("stored");
+    let stored = gonio_acquire::stored(&store).expect("stored");
     let cfg = EngineConfig {
         incident_transmittance: stored.transmittance,
         ..EngineConfig::default()
@@ -192,13 +192,13 @@ fn runtime() -> tokio::runtime::Runtime {
 fn drive(inst: &InstrumentConfig, steps: &[Step], transmittance: f64) -> Duration {
     let (mut g, shared) = gonio_sim::connect(inst, &sim()).expect("sim");
     let mut bench = SimBench::new(shared, None);
-    let axes = Mechanics::of(inst).expect("mechanics").axes;
+    let axes = inst.mechanics().expect("mechanics").axes;
     let t = Instant::now();
     g.start().expect("starts");
     g.home().expect("homes");
     let mut setup = None;
     for (id, s) in steps.iter().enumerate() {
-        let want = Setup::for_kind(s.kind, transmittance);
+        let want = setup_for(s.kind, transmittance);
         if setup != Some(want) {
             bench.set_up(want).expect("bench");
             setup = Some(want);
@@ -288,7 +288,8 @@ fn bench(c: &mut Criterion) {
     let disk_label = format!("{} (disk)", disk.display());
 
     let plan = Plan::from_toml(PLAN, None).expect("plan");
-    let prepared = run::prepare(&inst.0, "instrument-sim.toml", &plan).expect("prepares");
+    let mech = inst.0.mechanics().expect("mechanics");
+    let prepared = gonio_plan::prepare(&mech, inst.0.reading_seconds(), &plan).expect("prepares");
     let transmittance = plan
         .calibration
         .incident

@@ -33,10 +33,10 @@ use gonio_driver::{Clock, Goniometer, Transport, TransportError};
 use gonio_proto::sr830::Sensitivity;
 use tokio::sync::broadcast;
 
-use crate::bench::{Bench, BenchError, Setup};
-use crate::plan::Mechanics;
-use crate::schedule::StepKind;
-use crate::store::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
+use gonio_core::goniometer::Mechanics;
+use gonio_driver::bench::{Bench, BenchError, Setup};
+use gonio_plan::StepKind;
+use gonio_run::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
 
 /// How hard the engine tries.
 #[derive(Clone, Debug, PartialEq)]
@@ -375,6 +375,16 @@ struct Start {
     finished: usize,
 }
 
+/// The set-up a kind of step needs.
+pub fn setup_for(kind: StepKind, transmittance: f64) -> Setup {
+    match kind {
+        StepKind::Sample | StepKind::Reference => Setup::Sample,
+        StepKind::Dark => Setup::Dark,
+        StepKind::Incident => Setup::Incident { transmittance },
+        StepKind::Standard => Setup::Standard,
+    }
+}
+
 /// The role axes with their targets, for `move_to`.
 fn targets<'a>(axes: &'a [String; 4], stages: &[f64; 4]) -> Vec<(&'a str, f64)> {
     axes.iter()
@@ -539,7 +549,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             });
             self.channel = Some(ch.clone());
         }
-        let setup = Setup::for_kind(s.step.kind, self.cfg.incident_transmittance);
+        let setup = setup_for(s.step.kind, self.cfg.incident_transmittance);
         if self.setup != Some(setup) {
             if let Err(e) = self.bench.set_up(setup) {
                 return self.bench_failed(id, e);

@@ -1,20 +1,14 @@
-//! Acquisition: measurement plans checked against the instrument, ordered for least
-//! motion, taken step by step by an async engine into a crash-safe run file.
+//! Acquisition: the run engine that takes a run file's pending steps through a
+//! goniometer, commits each reading as it is taken, and recovers from faults.
 //!
-//! - [`plan`]: plan files, their expansion into direction pairs, and the check of
-//!   every pair against the stages' limits and the optical geometry.
-//! - [`order`]: the visiting order that minimises motion time.
-//! - [`schedule`]: the steps of a run (channels, repeats, drift references,
-//!   calibrations), fixed when the run is created.
-//! - [`store`]: the run file (SQLite).
-//! - [`engine`]: the run engine; [`bench`]: what changes the light path between kinds
-//!   of readings.
-//! - [`run`]: creating and resuming runs, the glue the CLI calls.
+//! - [`engine`]: the async engine, its fault policy, its events.
+//! - [`stored()`]: a run file's instrument config and simulator, parsed back.
+//!
+//! Plans come from `gonio-plan`, the run file from `gonio-run`, the instrument from
+//! `gonio-driver`; nothing here knows whether the instrument is real or simulated.
 
-pub mod bench;
 pub mod engine;
-pub mod order;
-pub mod plan;
-pub mod run;
-pub mod schedule;
-pub mod store;
+mod stored;
+
+pub use engine::{Engine, EngineConfig, EngineError, Event, Outcome, SessionReport, Stopper};
+pub use stored::{Stored, stored};

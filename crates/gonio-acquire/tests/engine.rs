@@ -3,10 +3,10 @@
 mod common;
 
 use gonio_acquire::engine::Outcome;
-use gonio_acquire::schedule::StepKind;
-use gonio_acquire::store::{RunStore, flags};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::radiometry::Aperture;
+use gonio_plan::StepKind;
+use gonio_run::{RunStore, flags};
 
 const PLAN: &str = r#"
 name = "in-plane test"
@@ -23,8 +23,8 @@ incident = { transmittance = 1e-3 }
 
 #[test]
 fn a_complete_run_measures_the_blue_paint() {
-    let dir = common::scratch("complete");
-    let out = dir.join("run.gonio");
+    let dir = common::scratch();
+    let out = dir.path().join("run.gonio");
     let plan = common::plan(PLAN);
     let (store, prepared) = common::create(&out, &plan, PLAN, 7);
     // θo = −20 lies 10° from the source: measurable; none are shadowed at 8°.

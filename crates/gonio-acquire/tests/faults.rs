@@ -16,15 +16,14 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use gonio_acquire::bench::{Bench, BenchError, Setup, SimBench};
 use gonio_acquire::engine::{Engine, EngineConfig, Event, Outcome, SessionReport};
-use gonio_acquire::plan::Mechanics;
-use gonio_acquire::run;
-use gonio_acquire::schedule::StepKind;
-use gonio_acquire::store::{EventRecord, ReadingRecord, RunStore, StoredStep, flags};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::radiometry::Aperture;
 use gonio_driver::Goniometer;
+use gonio_driver::bench::{Bench, BenchError, Setup};
+use gonio_plan::StepKind;
+use gonio_run::{EventRecord, ReadingRecord, RunStore, StoredStep, flags};
+use gonio_sim::SimBench;
 use gonio_sim::faults::{PortOutage, PowerLoss, Stall, Window};
 use gonio_sim::{Port, SharedSim, SimClock, SimInstrument, SimTransport, lock};
 
@@ -117,8 +116,8 @@ fn engine_on(store: RunStore, sim: &SharedSim, hooks: Vec<(i64, Hook)>) -> Fault
         clock,
     )
     .expect("goniometer");
-    let mech = Mechanics::of(&inst).expect("mechanics");
-    let stored = run::stored(&store).expect("stored");
+    let mech = inst.mechanics().expect("mechanics");
+    let stored = gonio_acquire::stored(&store).expect("stored");
     let cfg = EngineConfig {
         incident_transmittance: stored.transmittance,
         ..EngineConfig::default()
@@ -159,7 +158,13 @@ fn run_session(engine: FaultEngine) -> Session {
 
 /// A new run file of [`PLAN`].
 fn new_run(name: &str) -> (PathBuf, RunStore) {
-    let out = common::scratch(&format!("faults-{name}")).join("run.gonio");
+    // Kept after the test (the file is reopened by path, as `gonio resume` does).
+    let out = tempfile::Builder::new()
+        .prefix(&format!("gonio-faults-{name}-"))
+        .tempdir()
+        .expect("temp dir")
+        .keep()
+        .join("run.gonio");
     let plan = common::plan(PLAN);
     let (store, prepared) = common::create(&out, &plan, PLAN, SEED);
     assert_eq!(prepared.checked.accepted.len(), 7);

@@ -4,12 +4,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use gonio_acquire::bench::{Bench, OperatorBench, SimBench};
 use gonio_acquire::engine::{Engine, EngineConfig, Event, Outcome, SessionReport};
-use gonio_acquire::plan::{Mechanics, Plan};
-use gonio_acquire::run::{self, Inputs, Prepared};
-use gonio_acquire::store::{RunStore, StoreError};
-use gonio_driver::{Clock, Goniometer, InstrumentConfig, Transport};
+use gonio_driver::{Bench, Clock, Goniometer, InstrumentConfig, OperatorBench, Transport};
+use gonio_plan::{Plan, Prepared, rejection_counts};
+use gonio_run::{Inputs, RunStore, StoreError};
+use gonio_sim::SimBench;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
@@ -38,8 +37,10 @@ fn load_and_prepare(
 ) -> CliResult<(InstrumentConfig, String, Plan, String, Prepared)> {
     let (inst, inst_text) = InstrumentConfig::load_with_text(instrument).map_err(input)?;
     let (plan_cfg, plan_text) = Plan::load(plan).map_err(input)?;
-    let prepared =
-        run::prepare(&inst, &instrument.display().to_string(), &plan_cfg).map_err(input)?;
+    let mech = inst
+        .mechanics()
+        .map_err(|e| input(format!("{}: {e}", instrument.display())))?;
+    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan_cfg).map_err(input)?;
     Ok((inst, inst_text, plan_cfg, plan_text, prepared))
 }
 
@@ -84,7 +85,7 @@ pub fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             "instrument": instrument.display().to_string(),
             "pairs": p.pairs.len(),
             "accepted": p.checked.accepted.len(),
-            "rejected_by_reason": run::rejection_counts(&p.checked),
+            "rejected_by_reason": rejection_counts(&p.checked),
             "rejected": rejected,
             "steps": s.steps.len(),
             "estimate": {
@@ -104,7 +105,7 @@ pub fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             p.checked.accepted.len(),
             p.checked.rejected.len()
         )?;
-        for (reason, n) in run::rejection_counts(&p.checked) {
+        for (reason, n) in rejection_counts(&p.checked) {
             writeln!(w, "  {reason}: {n}")?;
         }
         for r in &p.checked.rejected {
@@ -297,7 +298,9 @@ pub(crate) fn session(
     transmittance: f64,
     quiet: bool,
 ) -> CliResult<(SessionReport, RunStore)> {
-    let mech = Mechanics::of(instrument).map_err(|e| input(format!("{instrument_name}: {e}")))?;
+    let mech = instrument
+        .mechanics()
+        .map_err(|e| input(format!("{instrument_name}: {e}")))?;
     let cfg = EngineConfig {
         incident_transmittance: transmittance,
         software: SOFTWARE.into(),
@@ -384,11 +387,11 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
     } else {
         Rig::Real
     };
-    let store = run::create(&a.out, &plan, &prepared, &inputs).map_err(|e| match e {
-        run::CreateError::Store(s) => store_err(s),
+    let store = gonio_run::create(&a.out, &plan, &prepared, &inputs).map_err(|e| match e {
+        gonio_run::CreateError::Store(s) => store_err(s),
         other => input(other),
     })?;
-    let stored = run::stored(&store).map_err(store_err)?;
+    let stored = gonio_acquire::stored(&store).map_err(store_err)?;
     let s = &prepared.schedule;
     if !a.json {
         eprintln!(
@@ -429,7 +432,7 @@ pub fn resume(path: &Path, json: bool) -> CliResult<()> {
             path.display()
         )));
     }
-    let stored = run::stored(&store).map_err(store_err)?;
+    let stored = gonio_acquire::stored(&store).map_err(store_err)?;
     let rig = match &stored.sim {
         Some((sim_text, sample)) => {
             let mut s = gonio_sim::SimConfig::from_toml(sim_text, None)
@@ -439,7 +442,7 @@ pub fn resume(path: &Path, json: bool) -> CliResult<()> {
                 s.seed = seed;
             }
             // A microgeometry sample's stored text is its table: no re-tracing.
-            crate::micro_cmd::prepare_sim_sample(&mut s)
+            s.prepare_sample()
                 .map_err(|e| input(format!("{}: stored sample: {e}", path.display())))?;
             Rig::Sim(Box::new(s))
         }
@@ -460,7 +463,7 @@ pub fn resume(path: &Path, json: bool) -> CliResult<()> {
 /// `gonio show RUN [--json]`.
 pub fn show(path: &Path, json: bool) -> CliResult<()> {
     let store = RunStore::open(path).map_err(store_err)?;
-    let s = run::summary(&store).map_err(store_err)?;
+    let s = gonio_run::summary(&store).map_err(store_err)?;
     if json {
         return output::json(
             &serde_json::to_value(&s).map_err(|e| CliError::Runtime(e.to_string()))?,
@@ -551,7 +554,7 @@ pub fn runs(dir: &Path, json: bool) -> CliResult<()> {
     paths.sort();
     let mut rows = Vec::new();
     for p in &paths {
-        let row = match RunStore::open(p).and_then(|s| run::summary(&s)) {
+        let row = match RunStore::open(p).and_then(|s| gonio_run::summary(&s)) {
             Ok(s) => json!({
                 "path": p.display().to_string(), "name": s.name, "status": s.status,
                 "steps": s.steps,

@@ -417,17 +417,19 @@ struct Acquired {
 
 /// Runs the embedded plan on the embedded simulator through the real acquisition
 /// stack (plan check, ordering, run file, engine, drivers, simulator), then reduces
-/// it with `gonio_process::reduce` (DeYoung Eq. A.15 with the run's own dark,
+/// it with `gonio_reduce` (DeYoung Eq. A.15 with the run's own dark,
 /// incident-beam and drift readings).
 fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
-    use gonio_acquire::plan::Plan;
-    use gonio_acquire::run;
+    use gonio_plan::Plan;
+    use gonio_run as run;
 
     let runtime = |e: &dyn std::fmt::Display| CliError::Runtime(format!("demo acquisition: {e}"));
     let inst =
         gonio_driver::InstrumentConfig::from_toml(INSTRUMENT_SIM, None).map_err(|e| runtime(&e))?;
     let plan = Plan::from_toml(PLAN, None).map_err(|e| runtime(&e))?;
-    let prepared = run::prepare(&inst, "instrument-sim.toml", &plan).map_err(|e| runtime(&e))?;
+    let mech = inst.mechanics().map_err(|e| runtime(&e))?;
+    let prepared =
+        gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).map_err(|e| runtime(&e))?;
     let sim = gonio_sim::SimConfig::default_config().map_err(|e| runtime(&e))?;
     let path = match keep {
         Some(p) => p.to_path_buf(),
@@ -473,8 +475,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     }
     let steps = store.steps().map_err(|e| runtime(&e))?;
     let reduction =
-        gonio_process::reduce::reduce(&store, &gonio_process::reduce::Options::default())
-            .map_err(|e| runtime(&e))?;
+        gonio_reduce::reduce(&store, &gonio_reduce::Options::default()).map_err(|e| runtime(&e))?;
     let cal = reduction
         .report
         .channels
@@ -508,7 +509,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
             .partial_cmp(&(b.theta_i, b.theta_o))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    let rejected = gonio_acquire::run::rejection_counts(&prepared.checked)
+    let rejected = gonio_plan::rejection_counts(&prepared.checked)
         .into_iter()
         .collect();
     drop(store);

@@ -16,7 +16,8 @@ pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
         None => gonio_sim::SimConfig::default_config()
             .map_err(|e| CliError::Runtime(format!("embedded simulator config: {e}")))?,
     };
-    crate::micro_cmd::prepare_sim_sample(&mut cfg)?;
+    cfg.prepare_sample()
+        .map_err(|e| CliError::Input(e.to_string()))?;
     Ok(cfg)
 }
 
@@ -117,4 +118,36 @@ pub fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliR
         }
         w.flush()
     })())
+}
+
+/// `gonio sim`: the simulator on two pseudo-terminals, announced by one JSON line on
+/// stdout, served until standard input closes.
+pub fn sim(
+    config: Option<std::path::PathBuf>,
+    seed: Option<u64>,
+    time_scale: Option<f64>,
+) -> CliResult<()> {
+    use std::io::Read;
+    let served = gonio_sim::serve::serve(&gonio_sim::serve::ServeOptions {
+        config,
+        seed,
+        time_scale,
+    })
+    .map_err(|e| match e.exit_code() {
+        2 => CliError::Input(e.to_string()),
+        _ => CliError::Runtime(e.to_string()),
+    })?;
+    output::finish((|| {
+        let mut out = std::io::stdout().lock();
+        writeln!(out, "{}", served.announcement())?;
+        out.flush()
+    })())?;
+    let mut sink = [0u8; 256];
+    let mut stdin = std::io::stdin().lock();
+    while stdin
+        .read(&mut sink)
+        .map_err(|e| CliError::Runtime(format!("reading standard input: {e}")))?
+        > 0
+    {}
+    Ok(())
 }

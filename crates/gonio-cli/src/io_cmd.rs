@@ -4,12 +4,12 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use gonio_acquire::store::RunStore;
 use gonio_brdf::{Brdf, Model};
 use gonio_io::formats::{self, Data, Format};
 use gonio_io::plot::{self, ChannelChoice, Output, Source};
 use gonio_io::report::{self, Contents, Figure, Image};
 use gonio_process::{Samples, Table, measure};
+use gonio_run::RunStore;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
@@ -315,7 +315,7 @@ pub fn build_report(run: &Path, reduction: &ReduceArgs) -> CliResult<Contents> {
         if let Some(v) = meta.get(k) {
             let v = if k == "created_s" {
                 v.parse::<f64>()
-                    .map(gonio_acquire::store::utc)
+                    .map(gonio_run::utc)
                     .unwrap_or_else(|_| v.clone())
             } else {
                 v.clone()

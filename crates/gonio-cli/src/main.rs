@@ -346,7 +346,21 @@ enum Command {
     },
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until standard input closes.
-    Sim(gonio_sim::cli::ServeArgs),
+    Sim(SimArgs),
+}
+
+/// Options of `gonio sim` (the same as `gonio-sim`'s).
+#[derive(clap::Args)]
+struct SimArgs {
+    /// Simulator config (TOML); the embedded default when absent.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override the config's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Wall seconds per physical second (> 0; default 1, real time).
+    #[arg(long)]
+    time_scale: Option<f64>,
 }
 
 /// How a run file's readings are reduced.
@@ -632,14 +646,7 @@ fn run(cli: Cli) -> Result<(), CliError> {
             reduction,
             json,
         } => io_cmd::report(&run, &out, &reduction.args(), json).map(|_| ()),
-        Command::Sim(args) => {
-            gonio_sim::cli::serve(args, &mut std::io::stdin().lock()).map_err(|e| {
-                match e.exit_code() {
-                    2 => CliError::Input(e.to_string()),
-                    _ => CliError::Runtime(e.to_string()),
-                }
-            })
-        }
+        Command::Sim(args) => instrument_cmd::sim(args.config, args.seed, args.time_scale),
     }
 }
 

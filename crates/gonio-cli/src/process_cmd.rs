@@ -5,15 +5,15 @@
 use std::io::{Read as _, Write};
 use std::path::Path;
 
-use gonio_acquire::store::RunStore;
 use gonio_process::file;
 use gonio_process::measure;
-use gonio_process::reduce::{self, Calibration, Drift, Options, Reduction};
 use gonio_process::samples::Kernel;
 use gonio_process::separable::SeparableBrdf;
 use gonio_process::sh::{ShBrdf, ShOptions};
 use gonio_process::transform::{self, Step};
 use gonio_process::{Axis, Grid, ProcessError, Samples, Table};
+use gonio_reduce::{self as reduce, Calibration, Drift, Options, Reduction};
+use gonio_run::RunStore;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};

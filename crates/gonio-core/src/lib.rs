@@ -14,6 +14,8 @@
 //! - [`special`] has the error function the microfacet models need.
 //! - [`dirfile`] reads and writes the directions CSV of `CONVENTIONS.md`.
 //! - [`kinematics`] maps a goniometer's stage positions to direction pairs and back.
+//! - [`goniometer`] is the instrument as planning and reduction see it: layout, role
+//!   axes, limits, speeds ([`motion`]) and optical geometry.
 //!
 //! ```
 //! use gonio_core::{Dir, SphericalDeg};
@@ -30,7 +32,9 @@ mod channels;
 pub mod dirfile;
 mod frame;
 mod geometry;
+pub mod goniometer;
 pub mod kinematics;
+pub mod motion;
 pub mod quad;
 pub mod radiometry;
 pub mod special;
@@ -98,43 +102,6 @@ pub mod text {
             // 'é' is two bytes: the '=' at byte 10 is the 4th character of line 2.
             assert_eq!(super::line_col(t, 10), (2, 4));
             assert_eq!(super::line_col(t, 999), (3, 1));
-        }
-    }
-}
-
-/// Point-to-point motion of a stage.
-pub mod motion {
-    /// Duration (s) of a move of `distance` (any sign) for a stage that accelerates at
-    /// `acceleration` up to `velocity`, cruises, and decelerates to rest: a trapezoidal
-    /// velocity profile, or a triangular one when the move is too short to reach
-    /// `velocity` — the profile an SMC100 executes and answers `PT` with.
-    pub fn trapezoid_time(distance: f64, velocity: f64, acceleration: f64) -> f64 {
-        let d = distance.abs();
-        if d == 0.0 {
-            return 0.0;
-        }
-        let ramp = velocity * velocity / acceleration;
-        if d >= ramp {
-            2.0 * velocity / acceleration + (d - ramp) / velocity
-        } else {
-            2.0 * (d / acceleration).sqrt()
-        }
-    }
-
-    #[cfg(test)]
-    mod tests {
-        use super::trapezoid_time;
-
-        #[test]
-        fn trapezoid_and_triangle() {
-            // 20 °/s, 80 °/s²: ramps of 0.25 s and 2.5°; 10° takes 0.75 s.
-            assert!((trapezoid_time(10.0, 20.0, 80.0) - 0.75).abs() < 1e-15);
-            assert!((trapezoid_time(-10.0, 20.0, 80.0) - 0.75).abs() < 1e-15);
-            // 1°: a triangle, 2·√(1/80) s.
-            assert!((trapezoid_time(1.0, 20.0, 80.0) - 2.0 * (1.0f64 / 80.0).sqrt()).abs() < 1e-15);
-            // Continuous where the two meet (5° = v²/a).
-            assert!((trapezoid_time(5.0, 20.0, 80.0) - 0.5).abs() < 1e-15);
-            assert_eq!(trapezoid_time(0.0, 20.0, 80.0), 0.0);
         }
     }
 }

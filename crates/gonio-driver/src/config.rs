@@ -7,6 +7,9 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
+pub use gonio_core::goniometer::{GeometryConfig, KinematicsConfig};
+use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
+
 use crate::smc100::{AxisConfig, ChainPolicy};
 use crate::sr830::Sr830Config;
 use crate::transport::{FlowControl, SerialSettings};
@@ -28,57 +31,6 @@ pub struct InstrumentConfig {
     /// The optical geometry (needed to plan and to reduce readings).
     #[serde(default)]
     pub geometry: GeometryConfig,
-}
-
-/// Which layout the stages form and which axis plays each role.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct KinematicsConfig {
-    /// The layout (`spherical` or `coplanar-arms`, see `gonio_core::kinematics`).
-    pub layout: gonio_core::kinematics::Layout,
-    /// Axis name of each role (`source = "arm1"`); a role not listed is played by the
-    /// axis of the same name.
-    #[serde(default)]
-    pub axes: std::collections::BTreeMap<String, String>,
-}
-
-impl KinematicsConfig {
-    /// The axis name of each of the layout's four roles, in role order.
-    pub fn role_axes(&self) -> [String; 4] {
-        self.layout
-            .roles()
-            .map(|r| self.axes.get(r).cloned().unwrap_or_else(|| r.to_string()))
-    }
-}
-
-/// The geometry of the light path: what limits which configurations can be measured,
-/// and what turns detector signals into BRDF values.
-#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GeometryConfig {
-    /// Closest the source and detector may come, as seen from the sample, before the
-    /// detector arm blocks the beam, degrees.
-    pub min_arm_separation_deg: f64,
-    /// Beam diameter at the sample, m.
-    pub beam_diameter_m: f64,
-    /// Sample length along the plane of incidence, m.
-    pub sample_length_m: f64,
-    /// Detector aperture radius, m.
-    pub detector_radius_m: f64,
-    /// Sample-to-aperture distance, m.
-    pub detector_distance_m: f64,
-}
-
-impl Default for GeometryConfig {
-    fn default() -> Self {
-        GeometryConfig {
-            min_arm_separation_deg: 8.0,
-            beam_diameter_m: 0.005,
-            sample_length_m: 0.05,
-            detector_radius_m: 0.005,
-            detector_distance_m: 0.3,
-        }
-    }
 }
 
 /// The serial line of the SMC100 chain and its axes.
@@ -203,6 +155,37 @@ pub type ConfigFileError = gonio_core::tomlfile::FileError;
 const KIND: &str = "instrument config";
 
 impl InstrumentConfig {
+    /// The stages as planning sees them: names, limits, speeds.
+    pub fn stages(&self) -> Vec<Stage> {
+        self.motion
+            .axes
+            .iter()
+            .map(|a| Stage {
+                name: a.name.clone(),
+                min: a.min,
+                max: a.max,
+                velocity: a.velocity,
+                acceleration: a.acceleration,
+            })
+            .collect()
+    }
+
+    /// The instrument as planning sees it (layout, role axes, limits, speeds,
+    /// geometry); fails without a `[kinematics]` section.
+    pub fn mechanics(&self) -> Result<Mechanics, MechanicsError> {
+        Mechanics::new(self.kinematics.as_ref(), &self.stages(), &self.geometry)
+    }
+
+    /// Estimated seconds per reading on the detector: settling, sampling, and the
+    /// serial exchanges of a read cycle (a status query before and after, one
+    /// snapshot per sample, each about 36 characters both ways).
+    pub fn reading_seconds(&self) -> f64 {
+        let lockin = &self.detector.lockin;
+        let exchanges = lockin.samples as f64 + 2.0;
+        let wire = exchanges * 36.0 * 10.0 / f64::from(self.detector.baud.max(1));
+        lockin.reading_seconds() + wire
+    }
+
     /// Parses and validates a config's text; `path` only labels errors.
     pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Self, ConfigFileError> {
         gonio_core::tomlfile::parse(KIND, text, path, Self::validate)

@@ -12,6 +12,7 @@
 //! - [`Goniometer`] is the named axes and the detector, built from an instrument
 //!   config file.
 
+pub mod bench;
 pub mod clock;
 pub mod config;
 mod goniometer;
@@ -20,6 +21,7 @@ pub mod smc100;
 pub mod sr830;
 mod transport;
 
+pub use bench::{Bench, BenchError, OperatorBench, Setup};
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use config::{ConfigFileError, InstrumentConfig};
 pub use goniometer::{Goniometer, GoniometerError, StartupReport};

@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use gonio_fit::LobeFit;
 use gonio_fit::compare::Compared;
 use gonio_process::measure::Report as Measures;
-use gonio_process::reduce::Report as Reduction;
+use gonio_process::reduction::Report as Reduction;
 
 /// A figure of the report.
 #[derive(Clone, Debug, PartialEq)]

@@ -2,16 +2,16 @@
 //! Throughput of processing: DeYoung's measures and transforms on tabulated BRDFs,
 //! P_s^(k) against a naive reconstruction, nearest-j kernel interpolation against a
 //! brute-force scan, resampling, spherical-harmonic and separable representations
-//! against quadrilinear table evaluation, and the reduction of a simulated run.
+//! against quadrilinear table evaluation.
 //!
 //! `cargo bench -p gonio-process --bench process`; figures and the machine are in
 //! BENCHMARKS.md at the repository root. Each reference (a streaming pass over the
 //! values, the naive SVD reconstruction, the brute-force nearest-j scan, the table's
-//! own evaluation, reading the run file's rows) is timed in the same group as the
+//! own evaluation) is timed in the same group as the
 //! figure it stands beside.
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
+
 use std::time::Duration;
 
 use criterion::measurement::WallTime;
@@ -19,20 +19,14 @@ use criterion::{
     BenchmarkGroup, Criterion, SamplingMode, Throughput, criterion_group, criterion_main,
 };
 use faer::Mat;
-use gonio_acquire::bench::SimBench;
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
-use gonio_acquire::plan::{Mechanics, Plan};
-use gonio_acquire::run::{self, Inputs};
-use gonio_acquire::store::RunStore;
 use gonio_brdf::{Brdf, Model};
 use gonio_core::dirfile::PairDeg;
 use gonio_core::{Channels, Dir, SphericalDeg, Vec3};
-use gonio_driver::InstrumentConfig;
 use gonio_process::samples::Kernel;
 use gonio_process::separable::SeparableBrdf;
 use gonio_process::sh::{ShBrdf, ShOptions};
 use gonio_process::transform::{self, EnergyMode};
-use gonio_process::{Grid, Samples, Table, measure, reduce};
+use gonio_process::{Grid, Samples, Table, measure};
 
 /// The blue paint of CONVENTIONS.md (one Lafortune lobe + Lambert, RGB).
 const BLUE_PAINT: &str = r#"
@@ -422,102 +416,12 @@ fn harmonics(c: &mut Criterion) {
     );
 }
 
-/// An isotropic plan of 1 685 steps (as the acquisition bench's long plan): θi ∈ {0,
-/// 30, 60}, θo = 10…80 and Δφ = 0…180 by 5°, drift references every 50 pairs, a dark
-/// and an incident-beam reading.
-const PLAN: &str = r#"
-name = "bench: reduction"
-[points]
-kind = "isotropic"
-phi_i = 0
-theta_i = [0, 30, 60]
-theta_o = { from = 10, to = 80, step = 5 }
-delta_phi = { from = 0, to = 180, step = 5 }
-[drift]
-every = 50
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// Measures PLAN on the simulator at time scale 0 into a run file in `dir`.
-fn simulated_run(dir: &Path) -> RunStore {
-    let (inst, inst_text) =
-        InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml"))
-            .expect("example instrument");
-    let plan = Plan::from_toml(PLAN, Some(&root().join("config/bench-plan.toml"))).expect("plan");
-    let prepared = run::prepare(&inst, "instrument-sim.toml", &plan).expect("prepares");
-    let mut sim = gonio_sim::SimConfig::default_config().expect("embedded sim");
-    sim.seed = 7;
-    let inputs = Inputs {
-        instrument_text: inst_text,
-        plan_text: PLAN.into(),
-        sim: Some((
-            gonio_sim::config::DEFAULT_SIM.into(),
-            sim.sample_model_text().expect("sample"),
-        )),
-        seed: Some(7),
-        software: "bench".into(),
-        ..Inputs::default()
-    };
-    let store = run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
-    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let mech = Mechanics::of(&inst).expect("mechanics");
-    let cfg = EngineConfig {
-        incident_transmittance: 1e-3,
-        ..EngineConfig::default()
-    };
-    let engine = Engine::new(g, SimBench::new(shared, None), store, mech, cfg);
-    let (report, store) = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(engine.run())
-        .expect("engine runs");
-    assert_eq!(report.outcome, Outcome::Complete);
-    store
-}
-
-fn reduction(c: &mut Criterion) {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("gonio-process-bench-reduce-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    let store = simulated_run(&dir);
-    let opts = reduce::Options::default();
-    let red = reduce::reduce(&store, &opts).expect("reduces");
-    let n = red.samples.samples.len();
-    let readings = store.readings().expect("readings").len();
-    eprintln!("reduction: {n} samples from {readings} readings");
-    let mut g = slow(c, "reduce a simulated run", 3.0);
-    g.throughput(Throughput::Elements(n as u64));
-    g.bench_function("reduce::reduce, default options", |b| {
-        b.iter(|| black_box(reduce::reduce(black_box(&store), &opts).expect("reduces")))
-    });
-    g.bench_function("reference: read the run's steps, readings and meta", |b| {
-        b.iter(|| {
-            black_box(run::stored(&store).expect("stored"));
-            black_box(store.meta().expect("meta"));
-            black_box(store.steps().expect("steps"));
-            black_box(store.readings().expect("readings"))
-        })
-    });
-    g.finish();
-    drop(store);
-    let _ = std::fs::remove_dir_all(&dir);
-}
-
 criterion_group!(
     benches,
     measures,
     transforms,
     separability,
     interpolation,
-    harmonics,
-    reduction
+    harmonics
 );
 criterion_main!(benches);

@@ -200,6 +200,14 @@ impl Grid {
         Grid::full(p, t, p, t)
     }
 
+    /// The isotropic form of [`hemisphere`](Self::hemisphere): `n_theta` polar
+    /// midpoints for θi and θo, `n_phi` values of φo − φi over a full turn.
+    pub fn hemisphere_isotropic(n_theta: usize, n_phi: usize) -> Grid {
+        let t = Axis::polar_midpoints(n_theta);
+        let p = Axis::full_turn(n_phi);
+        Grid::isotropic(t, p, t)
+    }
+
     /// Number of incident nodes, P = nφi·nθi (rows of DeYoung's matrix A).
     pub fn n_in(&self) -> usize {
         self.phi_i.n * self.theta_i.n
@@ -571,5 +579,76 @@ mod tests {
         assert!(!Grid::isotropic(t, Axis::from_deg(0.0, 10.0, 19), t).is_paired());
         let g = Grid::full(Axis::full_turn(36), t, Axis::full_turn(24), t);
         assert!(!g.is_paired());
+    }
+}
+
+/// A hemisphere grid given by its steps in degrees, as `--grid DTHETA,DPHI` and
+/// config files write it: polar band midpoints every DTHETA, a full turn of azimuth
+/// every DPHI, the same for incidence and exitance.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct GridStep {
+    /// Polar step, degrees; divides 90.
+    pub dtheta_deg: f64,
+    /// Azimuth step, degrees; divides 360.
+    pub dphi_deg: f64,
+}
+
+impl GridStep {
+    /// The steps, checked: both positive and finite, DTHETA dividing 90° and DPHI
+    /// dividing 360°.
+    pub fn new(dtheta_deg: f64, dphi_deg: f64) -> Result<GridStep, String> {
+        let ok = |v: f64, whole: f64| {
+            v.is_finite() && v > 0.0 && (whole / v - (whole / v).round()).abs() < 1e-9
+        };
+        if ok(dtheta_deg, 90.0) && ok(dphi_deg, 360.0) {
+            Ok(GridStep {
+                dtheta_deg,
+                dphi_deg,
+            })
+        } else {
+            Err(format!(
+                "DTHETA must divide 90 and DPHI 360 (degrees, positive), got {dtheta_deg},{dphi_deg}"
+            ))
+        }
+    }
+
+    /// Polar bands.
+    pub fn n_theta(&self) -> usize {
+        (90.0 / self.dtheta_deg).round() as usize
+    }
+
+    /// Azimuths over a full turn.
+    pub fn n_phi(&self) -> usize {
+        (360.0 / self.dphi_deg).round() as usize
+    }
+
+    /// The full 4-D grid.
+    pub fn grid(&self) -> Grid {
+        Grid::hemisphere(self.n_theta(), self.n_phi())
+    }
+
+    /// The isotropic (θi, φo − φi, θo) grid.
+    pub fn isotropic_grid(&self) -> Grid {
+        Grid::hemisphere_isotropic(self.n_theta(), self.n_phi())
+    }
+}
+
+impl std::str::FromStr for GridStep {
+    type Err = String;
+
+    /// `DTHETA,DPHI` in degrees.
+    fn from_str(s: &str) -> Result<GridStep, String> {
+        let (a, b) = s
+            .split_once(',')
+            .ok_or_else(|| format!("expected DTHETA,DPHI in degrees, got {s:?}"))?;
+        let num = |x: &str| x.trim().parse::<f64>().ok();
+        match (num(a), num(b)) {
+            (Some(dt), Some(dp)) => GridStep::new(dt, dp).map_err(|_| {
+                format!("DTHETA must divide 90 and DPHI 360 (degrees, positive), got {s:?}")
+            }),
+            _ => Err(format!(
+                "DTHETA must divide 90 and DPHI 360 (degrees, positive), got {s:?}"
+            )),
+        }
     }
 }

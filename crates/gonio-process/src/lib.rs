@@ -1,10 +1,10 @@
-//! Processing: a run's readings become BRDF samples with uncertainties, samples
-//! become tabulated BRDFs, and tabulated BRDFs are measured and transformed for the
-//! four properties of DeYoung's thesis (reciprocity, energy conservation, isotropy,
-//! separability).
+//! Processing: BRDF samples become tabulated BRDFs, and tabulated BRDFs are
+//! measured and transformed for the four properties of DeYoung's thesis
+//! (reciprocity, energy conservation, isotropy, separability).
 //!
-//! - [`reduce`]: readings → BRDF samples (DeYoung Eq. A.15, or relative to a
-//!   reference standard), drift-corrected, with propagated uncertainties.
+//! Pure: this crate knows nothing of run files, SQLite, serial ports or clocks. A
+//! run's readings become [`Samples`] in `gonio-reduce`.
+//!
 //! - [`samples`]: scattered samples, the nearest-j Gaussian kernel of Sec. 3.2.1,
 //!   resampling onto grids.
 //! - [`grid`]: uniform and isotropic grids and quadrilinear interpolation.
@@ -13,12 +13,13 @@
 //! - [`separable`]: the k-separable representation (Eq. 5.13–5.14).
 //! - [`sh`]: real spherical harmonics with a symmetric coefficient matrix, exactly
 //!   reciprocal (Westin et al. 1992, Eq. 8–10).
+//! - [`reduction`]: the account a run's reduction gives (written by `gonio-reduce`).
 //! - [`file`]: the table and sample file (CSV with a grid header).
 
 pub mod file;
 pub mod grid;
 pub mod measure;
-pub mod reduce;
+pub mod reduction;
 pub mod samples;
 pub mod separable;
 pub mod sh;
@@ -26,7 +27,7 @@ pub mod transform;
 
 mod kdtree;
 
-pub use grid::{Axis, Grid, Table};
+pub use grid::{Axis, Grid, GridStep, Table};
 pub use samples::{Sample, Samples};
 
 /// Why processing refused its input.

@@ -27,7 +27,7 @@ pub struct Sample {
     pub value: Vec<f64>,
     /// One standard uncertainty per channel, 1/sr.
     pub sigma: Option<Vec<f64>>,
-    /// Reading flags carried from the run (see `gonio_acquire::store::flags`).
+    /// Reading flags carried from the run (see `gonio_run::flags`).
     pub flags: u32,
 }
 

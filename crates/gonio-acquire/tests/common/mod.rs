@@ -5,13 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
-use gonio_acquire::bench::SimBench;
 use gonio_acquire::engine::{Engine, EngineConfig, SessionReport};
-use gonio_acquire::plan::Plan;
-use gonio_acquire::run::{self, Inputs, Prepared};
-use gonio_acquire::store::RunStore;
 use gonio_driver::InstrumentConfig;
-use gonio_sim::{SharedSim, SimConfig};
+use gonio_plan::{Plan, Prepared};
+use gonio_run::{Inputs, RunStore};
+use gonio_sim::{SharedSim, SimBench, SimConfig};
 
 /// The repository's root.
 pub fn root() -> PathBuf {
@@ -36,18 +34,16 @@ pub fn plan(text: &str) -> Plan {
     Plan::from_toml(text, Some(&root().join("config/test-plan.toml"))).expect("valid plan")
 }
 
-/// A fresh directory for run files.
-pub fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gonio-acquire-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+/// A fresh directory for run files, removed when dropped.
+pub fn scratch() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temp dir")
 }
 
 /// Prepares `plan` and creates its run file at `out`.
 pub fn create(out: &Path, plan: &Plan, plan_text: &str, seed: u64) -> (RunStore, Prepared) {
     let (inst, inst_text) = instrument();
-    let prepared = run::prepare(&inst, "instrument-sim.toml", plan).expect("prepares");
+    let mech = inst.mechanics().expect("mechanics");
+    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), plan).expect("prepares");
     let s = sim(seed);
     let inputs = Inputs {
         instrument_text: inst_text,
@@ -60,7 +56,7 @@ pub fn create(out: &Path, plan: &Plan, plan_text: &str, seed: u64) -> (RunStore,
         software: "test".into(),
         ..Inputs::default()
     };
-    let store = run::create(out, plan, &prepared, &inputs).expect("creates");
+    let store = gonio_run::create(out, plan, &prepared, &inputs).expect("creates");
     (store, prepared)
 }
 
@@ -77,8 +73,8 @@ pub fn engine(
     let mut s = sim(seed);
     tweak(&mut s);
     let (g, shared) = gonio_sim::connect(&inst, &s).expect("sim");
-    let mech = gonio_acquire::plan::Mechanics::of(&inst).expect("mechanics");
-    let stored = run::stored(&store).expect("stored");
+    let mech = inst.mechanics().expect("mechanics");
+    let stored = gonio_acquire::stored(&store).expect("stored");
     let bench = SimBench::new(shared.clone(), None);
     let cfg = EngineConfig {
         incident_transmittance: stored.transmittance,

@@ -4,15 +4,13 @@
 
 use std::path::{Path, PathBuf};
 
-use gonio_acquire::bench::SimBench;
 use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
-use gonio_acquire::plan::Plan;
-use gonio_acquire::run::{self, Inputs};
-use gonio_acquire::store::RunStore;
 use gonio_brdf::{Brdf, Model};
 use gonio_driver::InstrumentConfig;
-use gonio_process::reduce::{self, Drift, Options};
-use gonio_sim::SimConfig;
+use gonio_plan::Plan;
+use gonio_reduce::{self as reduce, Drift, Options};
+use gonio_run::{Inputs, RunStore};
+use gonio_sim::{SimBench, SimConfig};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -36,13 +34,17 @@ repeat_at_end = true
 
 /// Measures PLAN on the simulator with a source drifting by `drift_per_hour`.
 fn measure(name: &str, drift_per_hour: f64) -> (RunStore, Model) {
-    let dir = std::env::temp_dir().join(format!("gonio-process-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    // Kept: the returned run file stays open in it.
+    let dir = tempfile::Builder::new()
+        .prefix(&format!("gonio-reduce-{name}-"))
+        .tempdir()
+        .expect("temp dir")
+        .keep();
     let (inst, inst_text) =
         InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml")).expect("inst");
     let plan = Plan::from_toml(PLAN, Some(&root().join("config/test.toml"))).expect("plan");
-    let prepared = run::prepare(&inst, "instrument-sim.toml", &plan).expect("prepares");
+    let mech = inst.mechanics().expect("mechanics");
+    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
     let mut sim = SimConfig::default_config().expect("sim");
     sim.seed = 7;
     sim.optics.drift_per_hour = drift_per_hour;
@@ -55,9 +57,9 @@ fn measure(name: &str, drift_per_hour: f64) -> (RunStore, Model) {
         software: "test".into(),
         ..Inputs::default()
     };
-    let store = run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
+    let store =
+        gonio_run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
     let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let mech = gonio_acquire::plan::Mechanics::of(&inst).expect("mechanics");
     let cfg = EngineConfig {
         incident_transmittance: 1e-3,
         ..EngineConfig::default()

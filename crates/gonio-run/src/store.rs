@@ -1,5 +1,4 @@
-//! The run file: one SQLite database per run (`.gonio`), the unit that is archived,
-//! resumed and reprocessed. Schema and guarantees in `docs/run-file.md`.
+//! An open run file.
 //!
 //! Crash safety comes from SQLite: write-ahead log, `synchronous = FULL` (a commit
 //! is on the disk when it returns), and one transaction per measured step (its
@@ -17,109 +16,19 @@ use std::path::{Path, PathBuf};
 use rusqlite::types::Value;
 use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 
-use crate::schedule::{Step, StepKind};
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
+use gonio_plan::schedule::{Step, StepKind};
 
-/// `PRAGMA application_id` of a run file: "GONI".
-pub const APPLICATION_ID: i32 = 0x474F_4E49;
-/// The schema version this build writes.
-pub const SCHEMA_VERSION: i32 = 1;
-
-/// Migrations: entry `k` takes a file from version `k` to `k + 1`. Version 0 is an
-/// empty database.
-const MIGRATIONS: &[&str] = &[SCHEMA_V1];
-
-const SCHEMA_V1: &str = "
-CREATE TABLE meta (
-    key   TEXT PRIMARY KEY,
-    value TEXT NOT NULL
-);
-CREATE TABLE sessions (
-    id          INTEGER PRIMARY KEY,
-    started_s   REAL NOT NULL,
-    ended_s     REAL,
-    outcome     TEXT,
-    software    TEXT NOT NULL,
-    pid         INTEGER NOT NULL
-);
-CREATE TABLE steps (
-    id          INTEGER PRIMARY KEY,
-    kind        TEXT NOT NULL CHECK (kind IN ('sample','reference','dark','incident','standard')),
-    channel     TEXT,
-    repeat      INTEGER NOT NULL,
-    plan_index  INTEGER,
-    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
-    target_0 REAL, target_1 REAL, target_2 REAL, target_3 REAL,
-    crc         INTEGER NOT NULL,
-    state       TEXT NOT NULL DEFAULT 'pending' CHECK (state IN ('pending','done','failed')),
-    attempts    INTEGER NOT NULL DEFAULT 0
-);
-CREATE TABLE readings (
-    step_id     INTEGER PRIMARY KEY REFERENCES steps(id),
-    session     INTEGER NOT NULL REFERENCES sessions(id),
-    cmd_0 REAL, cmd_1 REAL, cmd_2 REAL, cmd_3 REAL,
-    pos_0 REAL, pos_1 REAL, pos_2 REAL, pos_3 REAL,
-    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
-    sensitivity INTEGER NOT NULL,
-    sensitivity_v REAL NOT NULL,
-    time_constant INTEGER NOT NULL,
-    time_constant_s REAL NOT NULL,
-    slope_db INTEGER NOT NULL,
-    r_mean REAL,
-    r_std REAL,
-    x_mean REAL,
-    y_mean REAL,
-    n INTEGER NOT NULL,
-    autorange_steps INTEGER NOT NULL,
-    lias INTEGER NOT NULL,
-    flags INTEGER NOT NULL,
-    retries INTEGER NOT NULL,
-    physical_s REAL,
-    wall_s REAL NOT NULL,
-    crc INTEGER NOT NULL
-);
-CREATE TABLE events (
-    id       INTEGER PRIMARY KEY,
-    session  INTEGER REFERENCES sessions(id),
-    wall_s   REAL NOT NULL,
-    kind     TEXT NOT NULL,
-    step_id  INTEGER,
-    message  TEXT NOT NULL
-);
-";
-
-/// Columns of `steps` covered by its checksum, in hashing order.
-const STEP_COLUMNS: &str = "id, kind, channel, repeat, plan_index, theta_i, phi_i, theta_o, \
-     phi_o, target_0, target_1, target_2, target_3";
-/// Columns of `readings` covered by its checksum, in hashing order.
-const READING_COLUMNS: &str = "step_id, session, cmd_0, cmd_1, cmd_2, cmd_3, pos_0, pos_1, \
-     pos_2, pos_3, theta_i, phi_i, theta_o, phi_o, sensitivity, sensitivity_v, time_constant, \
-     time_constant_s, slope_db, r_mean, r_std, x_mean, y_mean, n, autorange_steps, lias, flags, \
-     retries, physical_s, wall_s";
-
-/// Sets the run's status.
-const SET_STATUS: &str = "INSERT INTO meta (key, value) VALUES ('status', ?1) \
-     ON CONFLICT(key) DO UPDATE SET value = excluded.value";
-/// Logs an event.
-const INSERT_EVENT: &str = "INSERT INTO events (session, wall_s, kind, step_id, message) \
-     VALUES (?1, ?2, ?3, ?4, ?5)";
-
-/// `flags` bits of a reading (bits 0–3 are the LIAS overload and unlock bits).
-pub mod flags {
-    /// LIAS bit 0: input or reserve overload.
-    pub const INPUT_OVERLOAD: u32 = 1 << 0;
-    /// LIAS bit 1: filter overload.
-    pub const FILTER_OVERLOAD: u32 = 1 << 1;
-    /// LIAS bit 2: output overload.
-    pub const OUTPUT_OVERLOAD: u32 = 1 << 2;
-    /// LIAS bit 3: reference unlock.
-    pub const UNLOCK: u32 = 1 << 3;
-    /// The read-back directions put the detector arm in the beam.
-    pub const SHADOWED: u32 = 1 << 8;
-    /// The read-back incidence makes the beam overfill the sample.
-    pub const OVERFILLED: u32 = 1 << 9;
-}
+use crate::meta::RunMeta;
+use crate::records::{
+    EventRecord, ReadingRecord, SessionRow, StoredStep, reading_values, row_crc, step_values,
+};
+use crate::schema::{
+    APPLICATION_ID, INSERT_EVENT, MIGRATIONS, READING_COLUMNS, SCHEMA_VERSION, SET_STATUS,
+    STEP_COLUMNS,
+};
+use crate::time::wall_now;
 
 /// Why a run file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -195,236 +104,6 @@ impl StoreError {
             StoreError::Sqlite { .. } | StoreError::Io { .. } | StoreError::NotPending { .. }
         )
     }
-}
-
-/// One reading as stored.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ReadingRecord {
-    /// The step it measures.
-    pub step_id: i64,
-    /// Stage targets commanded, role order (none when the step does not move).
-    pub commanded: Option<[f64; 4]>,
-    /// Stage positions read back, role order.
-    pub position: [f64; 4],
-    /// The directions the read-back positions mean, degrees.
-    pub read_pair: PairDeg,
-    /// `SENS` index.
-    pub sensitivity: u8,
-    /// Full scale, V.
-    pub sensitivity_v: f64,
-    /// `OFLT` index.
-    pub time_constant: u8,
-    /// Time constant, s.
-    pub time_constant_s: f64,
-    /// Filter slope, dB/oct.
-    pub slope_db: u8,
-    /// Mean R, V.
-    pub r_mean: f64,
-    /// Standard deviation of R, V.
-    pub r_std: f64,
-    /// Mean X, V.
-    pub x_mean: f64,
-    /// Mean Y, V.
-    pub y_mean: f64,
-    /// Samples.
-    pub n: u32,
-    /// Range changes before the reading.
-    pub autorange_steps: u32,
-    /// The raw `LIAS?` byte.
-    pub lias: u8,
-    /// [`flags`] bits.
-    pub flags: u32,
-    /// Exchanges retried while taking this step.
-    pub retries: u64,
-    /// Instrument clock at the reading, s since the session started.
-    pub physical_s: f64,
-    /// Wall clock, Unix seconds.
-    pub wall_s: f64,
-}
-
-/// A stored step with its state.
-#[derive(Clone, Debug, PartialEq)]
-pub struct StoredStep {
-    /// Its id (position in the schedule).
-    pub id: i64,
-    /// The step.
-    pub step: Step,
-    /// `pending`, `done` or `failed`.
-    pub state: String,
-    /// Times it was attempted.
-    pub attempts: u32,
-}
-
-/// A session (one process working on the run) as stored.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SessionRow {
-    /// Its id.
-    pub id: i64,
-    /// Start, Unix seconds.
-    pub started_s: f64,
-    /// End, Unix seconds (none: killed, or still running).
-    pub ended_s: Option<f64>,
-    /// `complete`, `interrupted` or `faulted`.
-    pub outcome: Option<String>,
-}
-
-/// An event as stored.
-#[derive(Clone, Debug, PartialEq)]
-pub struct EventRecord {
-    /// Wall clock, Unix seconds.
-    pub wall_s: f64,
-    /// `start`, `resume`, `rehome`, `retry`, `fault`, `interrupt`, `stop`, ...
-    pub kind: String,
-    /// The step concerned.
-    pub step_id: Option<i64>,
-    /// What happened.
-    pub message: String,
-}
-
-/// FNV-1a, 64 bits: the checksum of a row (corruption, not tampering, is the threat).
-fn fnv1a(h: &mut u64, bytes: &[u8]) {
-    for b in bytes {
-        *h ^= u64::from(*b);
-        *h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-}
-
-/// Checksum of a row's values, type tags included (NULL differs from 0).
-fn row_crc(values: &[Value]) -> i64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    for v in values {
-        match v {
-            Value::Null => fnv1a(&mut h, &[0]),
-            Value::Integer(i) => {
-                fnv1a(&mut h, &[1]);
-                fnv1a(&mut h, &i.to_le_bytes());
-            }
-            Value::Real(x) => {
-                fnv1a(&mut h, &[2]);
-                // SQLite keeps −0.0 as 0 (an integral REAL is stored as an integer).
-                let x = if *x == 0.0 { 0.0 } else { *x };
-                fnv1a(&mut h, &x.to_bits().to_le_bytes());
-            }
-            Value::Text(s) => {
-                fnv1a(&mut h, &[3]);
-                fnv1a(&mut h, &(s.len() as u64).to_le_bytes());
-                fnv1a(&mut h, s.as_bytes());
-            }
-            Value::Blob(b) => {
-                fnv1a(&mut h, &[4]);
-                fnv1a(&mut h, &(b.len() as u64).to_le_bytes());
-                fnv1a(&mut h, b);
-            }
-        }
-    }
-    h as i64
-}
-
-fn opt(x: Option<f64>) -> Value {
-    x.map_or(Value::Null, real)
-}
-
-/// A REAL value; SQLite has no NaN or infinity (it would store NULL), so a
-/// non-finite number is stored as NULL and read back as NaN.
-fn real(x: f64) -> Value {
-    if x.is_finite() {
-        Value::Real(x)
-    } else {
-        Value::Null
-    }
-}
-
-fn step_values(id: i64, s: &Step) -> Vec<Value> {
-    let pair = s.pair.map(|p| {
-        [
-            p.incident.theta_deg,
-            p.incident.phi_deg,
-            p.outgoing.theta_deg,
-            p.outgoing.phi_deg,
-        ]
-    });
-    let mut v = vec![
-        Value::Integer(id),
-        Value::Text(s.kind.as_str().into()),
-        s.channel.clone().map_or(Value::Null, Value::Text),
-        Value::Integer(i64::from(s.repeat)),
-        s.plan_index
-            .map_or(Value::Null, |i| Value::Integer(i as i64)),
-    ];
-    for k in 0..4 {
-        v.push(opt(pair.map(|p| p[k])));
-    }
-    for k in 0..4 {
-        v.push(opt(s.stages.map(|p| p[k])));
-    }
-    v
-}
-
-fn reading_values(r: &ReadingRecord, session: i64) -> Vec<Value> {
-    let mut v = vec![Value::Integer(r.step_id), Value::Integer(session)];
-    for k in 0..4 {
-        v.push(opt(r.commanded.map(|c| c[k])));
-    }
-    for k in 0..4 {
-        v.push(real(r.position[k]));
-    }
-    let p = &r.read_pair;
-    for x in [
-        p.incident.theta_deg,
-        p.incident.phi_deg,
-        p.outgoing.theta_deg,
-        p.outgoing.phi_deg,
-    ] {
-        v.push(real(x));
-    }
-    v.extend([
-        Value::Integer(i64::from(r.sensitivity)),
-        real(r.sensitivity_v),
-        Value::Integer(i64::from(r.time_constant)),
-        real(r.time_constant_s),
-        Value::Integer(i64::from(r.slope_db)),
-        real(r.r_mean),
-        real(r.r_std),
-        real(r.x_mean),
-        real(r.y_mean),
-        Value::Integer(i64::from(r.n)),
-        Value::Integer(i64::from(r.autorange_steps)),
-        Value::Integer(i64::from(r.lias)),
-        Value::Integer(i64::from(r.flags)),
-        Value::Integer(r.retries as i64),
-        real(r.physical_s),
-        real(r.wall_s),
-    ]);
-    v
-}
-
-/// Wall clock now, Unix seconds.
-pub fn wall_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
-}
-
-/// Unix seconds as `YYYY-MM-DDTHH:MM:SSZ` (UTC).
-pub fn utc(unix_s: f64) -> String {
-    let secs = unix_s.floor() as i64;
-    let (days, rem) = (secs.div_euclid(86_400), secs.rem_euclid(86_400));
-    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60
-    )
 }
 
 /// An open run file.
@@ -750,6 +429,11 @@ impl RunStore {
         self.rows("SELECT key, value FROM meta ORDER BY key", [], |r| {
             Ok((r.get(0)?, r.get(1)?))
         })
+    }
+
+    /// All metadata, typed.
+    pub fn run_meta(&self) -> Result<RunMeta, StoreError> {
+        RunMeta::from_map(&self.meta()?, &self.path)
     }
 
     /// Sets a metadata value (its own transaction).

@@ -1,16 +1,14 @@
 //! The run file: refuses what it cannot trust (newer schemas, other files, damage),
 //! never overwrites a run, and commits a step all or nothing.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
-use gonio_acquire::schedule::{Step, StepKind};
-use gonio_acquire::store::{self, ReadingRecord, RunStore, StoreError};
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
+use gonio_plan::schedule::{Step, StepKind};
+use gonio_run::{self as store, ReadingRecord, RunStore, StoreError};
 
 fn steps(n: usize) -> Vec<Step> {
     (0..n)
@@ -71,7 +69,8 @@ fn make(path: &Path, n: usize, done: usize) {
 
 #[test]
 fn round_trip() {
-    let dir = common::scratch("store-rt");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 5, 3);
     let s = RunStore::open(&p).expect("opens");
@@ -97,7 +96,8 @@ fn round_trip() {
 
 #[test]
 fn a_run_is_never_overwritten() {
-    let dir = common::scratch("store-exists");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 2, 1);
     let e = RunStore::create(&p, &BTreeMap::new(), &steps(1)).expect_err("exists");
@@ -114,7 +114,8 @@ fn a_run_is_never_overwritten() {
 
 #[test]
 fn a_step_is_committed_once_all_or_nothing() {
-    let dir = common::scratch("store-once");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 3, 1);
     let mut s = RunStore::open(&p).expect("opens");
@@ -139,7 +140,8 @@ fn a_step_is_committed_once_all_or_nothing() {
 
 #[test]
 fn a_newer_schema_is_refused() {
-    let dir = common::scratch("store-newer");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 2, 1);
     {
@@ -164,7 +166,8 @@ fn a_newer_schema_is_refused() {
 
 #[test]
 fn other_files_are_not_run_files() {
-    let dir = common::scratch("store-other");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let text = dir.join("notes.gonio");
     std::fs::write(&text, "just some text, long enough for a header\n").expect("write");
     let e = RunStore::open(&text).expect_err("text");
@@ -197,7 +200,8 @@ fn find_f64(bytes: &[u8], x: f64) -> Option<usize> {
 
 #[test]
 fn a_damaged_value_is_detected() {
-    let dir = common::scratch("store-damage");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 4, 3);
     let mut bytes = Vec::new();
@@ -223,7 +227,8 @@ fn a_damaged_value_is_detected() {
 
 #[test]
 fn structural_damage_is_detected() {
-    let dir = common::scratch("store-struct");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let p = dir.join("r.gonio");
     make(&p, 200, 150);
     let len = std::fs::metadata(&p).expect("meta").len();

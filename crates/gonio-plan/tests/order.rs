@@ -5,11 +5,9 @@
 
 use std::time::{Duration, Instant};
 
-use gonio_acquire::order::{
-    AxisMotion, EXACT_MAX, MotionModel, nearest_neighbour, optimise, raster,
-};
 use gonio_core::kinematics::{Layout, arm_separation_deg};
 use gonio_core::{Dir, DirPair, SphericalDeg};
+use gonio_plan::order::{AxisMotion, EXACT_MAX, MotionModel, nearest_neighbour, optimise, raster};
 use proptest::prelude::*;
 
 const BUDGET: Duration = Duration::from_secs(20);

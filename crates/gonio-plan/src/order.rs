@@ -43,7 +43,7 @@
 
 use std::time::{Duration, Instant};
 
-use gonio_core::motion::trapezoid_time;
+pub use gonio_core::motion::{AxisMotion, MotionModel};
 
 /// Length of each point's neighbour list (candidates for the local search and the
 /// greedy construction).
@@ -55,65 +55,6 @@ const LEAF: usize = 8;
 const MIN_GAIN: f64 = 1e-10;
 /// Longest run Or-opt moves.
 const OR_MAX: usize = 3;
-
-/// One stage's motion limits.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AxisMotion {
-    /// Top speed, degrees per second.
-    pub velocity: f64,
-    /// Acceleration and deceleration, degrees per second squared.
-    pub acceleration: f64,
-}
-
-impl AxisMotion {
-    /// Time of a move of `distance` degrees (any sign) on this stage.
-    pub fn move_time(&self, distance: f64) -> f64 {
-        trapezoid_time(distance, self.velocity, self.acceleration)
-    }
-
-    fn is_valid(&self) -> bool {
-        self.velocity.is_finite()
-            && self.acceleration.is_finite()
-            && self.velocity > 0.0
-            && self.acceleration > 0.0
-    }
-}
-
-/// The stages of an instrument, in the order of the position vectors.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MotionModel {
-    /// One entry per stage, in the order of the position vectors.
-    pub axes: Vec<AxisMotion>,
-}
-
-impl MotionModel {
-    /// Time of a step: the slowest axis' trapezoid time (the stages move concurrently).
-    ///
-    /// Coordinates beyond the number of axes (or axes beyond the coordinates) are
-    /// ignored; an empty model makes every step free.
-    pub fn step_time(&self, from: &[f64], to: &[f64]) -> f64 {
-        self.axes
-            .iter()
-            .zip(from.iter().zip(to))
-            .map(|(ax, (a, b))| ax.move_time(b - a))
-            .fold(0.0, f64::max)
-    }
-
-    /// Time to visit `points` in `order` starting at `start`.
-    ///
-    /// # Panics
-    /// If `order` holds an index out of `points`' range.
-    pub fn path_time(&self, start: &[f64], points: &[[f64; 4]], order: &[usize]) -> f64 {
-        let mut at = start;
-        let mut total = 0.0;
-        for &i in order {
-            let p = &points[i];
-            total += self.step_time(at, p);
-            at = p;
-        }
-        total
-    }
-}
 
 /// The raster order (0, 1, 2, …): the baseline.
 pub fn raster(n: usize) -> Vec<usize> {
@@ -409,7 +350,7 @@ impl Problem {
     }
 }
 
-/// An axis' trapezoid profile with the divisions of [`trapezoid_time`] done once: the
+/// An axis' trapezoid profile with the divisions of [`trapezoid_time`](gonio_core::motion::trapezoid_time) done once: the
 /// search evaluates it millions of times. (It may differ from `trapezoid_time` in the
 /// last bit; every comparison [`optimise`] promises is made with
 /// [`MotionModel::path_time`].)

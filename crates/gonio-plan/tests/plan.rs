@@ -3,11 +3,10 @@
 
 mod common;
 
-use gonio_acquire::plan::{self, Mechanics, Plan, Rejection};
-use gonio_acquire::run;
-use gonio_acquire::schedule::StepKind;
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
+use gonio_plan::plan::{self, Mechanics, Plan, Rejection};
+use gonio_plan::schedule::StepKind;
 
 fn pair(ti: f64, pi: f64, to: f64, po: f64) -> PairDeg {
     PairDeg {
@@ -17,7 +16,7 @@ fn pair(ti: f64, pi: f64, to: f64, po: f64) -> PairDeg {
 }
 
 fn mech() -> Mechanics {
-    Mechanics::of(&common::instrument().0).expect("mechanics")
+    common::mechanics()
 }
 
 fn reason(m: &Mechanics, p: PairDeg) -> Result<[f64; 4], Rejection> {
@@ -200,7 +199,8 @@ fn plan_errors_name_file_line_and_field() {
     .expect_err("unknown key");
     assert_eq!(e.line, Some(5));
     // A bad row of a directions file names that file and line.
-    let dir = common::scratch("plan-errors");
+    let scratch = common::scratch();
+    let dir = scratch.path();
     std::fs::write(
         dir.join("d.csv"),
         "theta_i,phi_i,theta_o,phi_o\n0,0,30,0\n0,0,x,0\n",
@@ -238,8 +238,7 @@ incident = { transmittance = 0.01 }
 repeat_at_end = true
 "#;
     let plan = common::plan(text);
-    let (inst, _) = common::instrument();
-    let p = run::prepare(&inst, "sim", &plan).expect("prepares");
+    let p = common::prepare(&plan).expect("prepares");
     let steps = &p.schedule.steps;
     let accepted = p.checked.accepted.len();
     assert_eq!(accepted, 7);
@@ -279,7 +278,7 @@ repeat_at_end = true
         }
     }
     // The second pass runs the pairs backwards.
-    let order = |pass: &[gonio_acquire::schedule::Step]| -> Vec<usize> {
+    let order = |pass: &[gonio_plan::schedule::Step]| -> Vec<usize> {
         pass.iter()
             .filter(|s| s.kind == StepKind::Sample && s.repeat == 0)
             .map(|s| s.plan_index.expect("index"))
@@ -296,8 +295,7 @@ repeat_at_end = true
 fn a_plan_with_nothing_measurable_is_refused() {
     let plan =
         common::plan("[points]\nkind = \"in-plane\"\ntheta_i = [30]\ntheta_o = [-30, -25]\n");
-    let (inst, _) = common::instrument();
-    let e = run::prepare(&inst, "sim", &plan).expect_err("all shadowed");
+    let e = common::prepare(&plan).expect_err("all shadowed");
     assert!(
         e.to_string()
             .contains("no pair of the plan can be measured"),

@@ -7,7 +7,6 @@ use std::time::Duration;
 
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
-use gonio_driver::InstrumentConfig;
 use serde::{Deserialize, Serialize};
 
 use crate::order;
@@ -112,16 +111,6 @@ pub enum ScheduleError {
     /// The incident-beam reading has no usable stage positions.
     #[error("field `calibration.incident.stages`: {0}")]
     Incident(String),
-}
-
-/// Estimated seconds per reading on `cfg`'s detector: settling, sampling, and the
-/// serial exchanges of a read cycle (a status query before and after, one snapshot
-/// per sample, each about 36 characters both ways).
-pub fn reading_seconds(cfg: &InstrumentConfig) -> f64 {
-    let lockin = &cfg.detector.lockin;
-    let exchanges = lockin.samples as f64 + 2.0;
-    let wire = exchanges * 36.0 * 10.0 / f64::from(cfg.detector.baud.max(1));
-    lockin.reading_seconds() + wire
 }
 
 fn pair_of(p: [f64; 4]) -> PairDeg {

@@ -2,7 +2,7 @@
 //!
 //! **The formula.** A reading of the sample at (ωi, ωo) measures reflected flux; the
 //! BRDF is that flux over the incident flux, the detector's solid angle Ω and the
-//! projection cos θo (DeYoung App. A, Eq. A.15, the statement):
+//! projection cos θo (DeYoung App. A, Eq. A.15):
 //!
 //!   f_r = (S_o − S_dark) / ((S_in − S_dark) · Ω · cos θo)
 //!
@@ -31,14 +31,14 @@
 
 use std::collections::BTreeMap;
 
-use gonio_acquire::schedule::StepKind;
-use gonio_acquire::store::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
 use gonio_core::Channels;
 use gonio_core::dirfile::PairDeg;
 use gonio_core::radiometry::Aperture;
+use gonio_plan::StepKind;
+pub use gonio_process::reduction::{ChannelReport, Report};
+use gonio_process::{Sample, Samples};
+use gonio_run::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
 use serde::Serialize;
-
-use crate::{Sample, Samples};
 
 /// The variance factor of a lock-in mean over samples one time constant apart.
 pub const CORRELATION_FACTOR: f64 = 2.2;
@@ -104,44 +104,6 @@ pub enum ReduceError {
         /// What is missing.
         why: String,
     },
-}
-
-/// What the reduction did, per channel.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct ChannelReport {
-    /// The channel.
-    pub channel: String,
-    /// The calibration used (`incident` or `standard`).
-    pub calibration: &'static str,
-    /// Dark X and Y, V.
-    pub dark_v: [f64; 2],
-    /// Incident flux C (at g = 1), in detector volts.
-    pub incident_v: f64,
-    /// Its relative standard uncertainty (common to every sample of the channel).
-    pub incident_rel_sigma: f64,
-    /// Calibration readings used.
-    pub calibration_readings: usize,
-    /// Drift reference readings used.
-    pub drift_readings: usize,
-    /// Largest |g − 1| over the run (0 without drift correction).
-    pub drift_max: f64,
-    /// Samples produced.
-    pub samples: usize,
-}
-
-/// The reduction's account of itself.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Report {
-    /// Per channel.
-    pub channels: Vec<ChannelReport>,
-    /// The detector's solid angle Ω, sr.
-    pub solid_angle_sr: f64,
-    /// Sample readings left out, by reason.
-    pub rejected: BTreeMap<String, usize>,
-    /// Largest difference between read-back and commanded directions, degrees.
-    pub max_position_error_deg: f64,
-    /// Sample steps not measured (pending or failed).
-    pub unmeasured: usize,
 }
 
 /// Samples and the report.
@@ -283,13 +245,10 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         path: path.clone(),
         why,
     };
-    let stored = gonio_acquire::run::stored(store)?;
-    let meta = store.meta()?;
-    let isotropic = meta
-        .get(gonio_acquire::run::keys::PLAN)
-        .and_then(|t| gonio_acquire::plan::Plan::from_toml(t, None).ok())
-        .is_some_and(|p| matches!(p.points, gonio_acquire::plan::Points::Isotropic { .. }));
-    let geo = &stored.instrument.geometry;
+    let stored = store.run_meta()?;
+    let isotropic = gonio_plan::Plan::from_toml(&stored.plan, None)
+        .is_ok_and(|p| matches!(p.points, gonio_plan::plan::Points::Isotropic { .. }));
+    let geo = &stored.geometry;
     let omega = Aperture {
         radius_m: geo.detector_radius_m,
         distance_m: geo.detector_distance_m,

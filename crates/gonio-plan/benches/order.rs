@@ -1,16 +1,16 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented functions
 //! Time to order a measurement plan, and the motion time it saves over raster order.
 //!
-//! `cargo bench -p gonio-acquire --bench order`; prints (stderr) the raster and
+//! `cargo bench -p gonio-plan --bench order`; prints (stderr) the raster and
 //! optimised motion times quoted in BENCHMARKS.md as "ordering gain vs raster".
 
 use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use gonio_acquire::order::{AxisMotion, MotionModel, optimise, raster};
 use gonio_core::kinematics::{Layout, arm_separation_deg};
 use gonio_core::{Dir, DirPair, SphericalDeg};
+use gonio_plan::order::{AxisMotion, MotionModel, optimise, raster};
 
 const BUDGET: Duration = Duration::from_secs(30);
 

@@ -5,7 +5,7 @@
 //! 10 000-step run file, which runs `PRAGMA quick_check` and verifies every row's
 //! checksum.
 //!
-//! `cargo bench -p gonio-acquire --bench store -- --warm-up-time 1 --measurement-time 3`;
+//! `cargo bench -p gonio-run --bench store -- --warm-up-time 1 --measurement-time 3`;
 //! figures in BENCHMARKS.md.
 
 use std::collections::BTreeMap;
@@ -15,10 +15,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use gonio_acquire::schedule::{Step, StepKind};
-use gonio_acquire::store::{EventRecord, ReadingRecord, RunStore, wall_now};
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
+use gonio_plan::schedule::{Step, StepKind};
+use gonio_run::{EventRecord, ReadingRecord, RunStore, wall_now};
 
 /// Steps in a run file the commit bench writes into (a fresh file when used up).
 const COMMIT_STEPS: usize = 20_000;

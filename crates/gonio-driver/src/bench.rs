@@ -1,12 +1,12 @@
 //! The bench: what changes in the light path between kinds of readings (blocking
 //! the source, removing the sample, mounting a standard, changing the band). On a
-//! real instrument an operator does it when asked; on the simulator it is automatic.
+//! real instrument an operator does it when asked ([`OperatorBench`]); a shutter,
+//! filter wheel or monochromator under program control implements [`Bench`] too, as
+//! the simulator does.
 
 use std::io::{BufRead, Write};
 
-use crate::schedule::StepKind;
-
-/// What the light path must be for a step.
+/// What the light path must be for a reading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Setup {
     /// The sample in the beam (sample and drift-reference steps).
@@ -24,16 +24,6 @@ pub enum Setup {
 }
 
 impl Setup {
-    /// The set-up a kind of step needs.
-    pub fn for_kind(kind: StepKind, transmittance: f64) -> Setup {
-        match kind {
-            StepKind::Sample | StepKind::Reference => Setup::Sample,
-            StepKind::Dark => Setup::Dark,
-            StepKind::Incident => Setup::Incident { transmittance },
-            StepKind::Standard => Setup::Standard,
-        }
-    }
-
     /// What the operator is asked to do.
     pub fn instruction(self) -> String {
         match self {
@@ -112,70 +102,5 @@ impl<R: BufRead + Send, W: Write + Send> Bench for OperatorBench<R, W> {
 
     fn select_channel(&mut self, channel: &str) -> Result<(), BenchError> {
         self.ask(format!("select the band {channel:?}"))
-    }
-}
-
-#[cfg(feature = "sim")]
-pub use sim::SimBench;
-
-#[cfg(feature = "sim")]
-mod sim {
-    use gonio_brdf::Brdf;
-    use gonio_sim::{LightPath, SharedSim, lock};
-
-    use super::{Bench, BenchError, Setup};
-
-    /// The simulator's bench: shutter, sample holder, filter and band under program
-    /// control.
-    pub struct SimBench {
-        sim: SharedSim,
-        /// The standard while the sample is off, or the sample while the standard is on.
-        other: Option<(Box<dyn Brdf>, usize)>,
-        standard_on: bool,
-    }
-
-    impl SimBench {
-        /// A bench for `sim`, with the reference standard `standard` (a model and its
-        /// channel) when the plan has one.
-        pub fn new(sim: SharedSim, standard: Option<(Box<dyn Brdf>, usize)>) -> Self {
-            SimBench {
-                sim,
-                other: standard,
-                standard_on: false,
-            }
-        }
-    }
-
-    impl Bench for SimBench {
-        fn set_up(&mut self, setup: Setup) -> Result<(), BenchError> {
-            let want_standard = setup == Setup::Standard;
-            let mut s = lock(&self.sim);
-            if want_standard != self.standard_on {
-                let (b, ch) = self.other.take().ok_or_else(|| {
-                    BenchError::Declined("mount a reference standard: the plan has none".into())
-                })?;
-                self.other = Some(s.swap_sample(b, ch));
-                self.standard_on = want_standard;
-            }
-            s.set_light_path(match setup {
-                Setup::Sample | Setup::Standard => LightPath::Sample,
-                Setup::Dark => LightPath::Dark,
-                Setup::Incident { transmittance } => LightPath::Incident { transmittance },
-            });
-            Ok(())
-        }
-
-        fn select_channel(&mut self, channel: &str) -> Result<(), BenchError> {
-            let mut s = lock(&self.sim);
-            if s.select_channel(channel) {
-                Ok(())
-            } else {
-                Err(BenchError::UnknownChannel(channel.into()))
-            }
-        }
-
-        fn at_step(&mut self, step_id: i64) {
-            lock(&self.sim).begin_point(step_id as u64);
-        }
     }
 }

@@ -1,0 +1,21 @@
+//! Measurement plans, checked and ordered before anything moves.
+//!
+//! - [`plan`]: plan files, their expansion into direction pairs, and the check of
+//!   every pair through the instrument's inverse kinematics against the stages'
+//!   limits and the optical geometry.
+//! - [`order`]: the visiting order that minimises motion time.
+//! - [`schedule`]: the steps of a run (channels, repeats, drift references,
+//!   calibrations), fixed when the run is created.
+//! - [`prepare()`]: all three on one instrument, with the estimates.
+//!
+//! Pure: the instrument comes in as a [`gonio_core::goniometer::Mechanics`] value,
+//! so this crate knows nothing of serial ports, controllers, run files or clocks.
+
+pub mod order;
+pub mod plan;
+mod prepare;
+pub mod schedule;
+
+pub use plan::{Checked, Mechanics, Plan, Rejection};
+pub use prepare::{PrepareError, Prepared, prepare, rejection_counts};
+pub use schedule::{Schedule, Step, StepKind};

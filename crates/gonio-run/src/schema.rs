@@ -1,0 +1,103 @@
+//! The run file's schema: tables, migrations, the columns each row checksum covers,
+//! and the reading flag bits. `docs/run-file.md` describes it for readers outside
+//! Gonio.
+
+/// `PRAGMA application_id` of a run file: "GONI".
+pub const APPLICATION_ID: i32 = 0x474F_4E49;
+/// The schema version this build writes.
+pub const SCHEMA_VERSION: i32 = 1;
+
+/// Migrations: entry `k` takes a file from version `k` to `k + 1`. Version 0 is an
+/// empty database.
+pub(crate) const MIGRATIONS: &[&str] = &[SCHEMA_V1];
+
+const SCHEMA_V1: &str = "
+CREATE TABLE meta (
+    key   TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+CREATE TABLE sessions (
+    id          INTEGER PRIMARY KEY,
+    started_s   REAL NOT NULL,
+    ended_s     REAL,
+    outcome     TEXT,
+    software    TEXT NOT NULL,
+    pid         INTEGER NOT NULL
+);
+CREATE TABLE steps (
+    id          INTEGER PRIMARY KEY,
+    kind        TEXT NOT NULL CHECK (kind IN ('sample','reference','dark','incident','standard')),
+    channel     TEXT,
+    repeat      INTEGER NOT NULL,
+    plan_index  INTEGER,
+    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
+    target_0 REAL, target_1 REAL, target_2 REAL, target_3 REAL,
+    crc         INTEGER NOT NULL,
+    state       TEXT NOT NULL DEFAULT 'pending' CHECK (state IN ('pending','done','failed')),
+    attempts    INTEGER NOT NULL DEFAULT 0
+);
+CREATE TABLE readings (
+    step_id     INTEGER PRIMARY KEY REFERENCES steps(id),
+    session     INTEGER NOT NULL REFERENCES sessions(id),
+    cmd_0 REAL, cmd_1 REAL, cmd_2 REAL, cmd_3 REAL,
+    pos_0 REAL, pos_1 REAL, pos_2 REAL, pos_3 REAL,
+    theta_i REAL, phi_i REAL, theta_o REAL, phi_o REAL,
+    sensitivity INTEGER NOT NULL,
+    sensitivity_v REAL NOT NULL,
+    time_constant INTEGER NOT NULL,
+    time_constant_s REAL NOT NULL,
+    slope_db INTEGER NOT NULL,
+    r_mean REAL,
+    r_std REAL,
+    x_mean REAL,
+    y_mean REAL,
+    n INTEGER NOT NULL,
+    autorange_steps INTEGER NOT NULL,
+    lias INTEGER NOT NULL,
+    flags INTEGER NOT NULL,
+    retries INTEGER NOT NULL,
+    physical_s REAL,
+    wall_s REAL NOT NULL,
+    crc INTEGER NOT NULL
+);
+CREATE TABLE events (
+    id       INTEGER PRIMARY KEY,
+    session  INTEGER REFERENCES sessions(id),
+    wall_s   REAL NOT NULL,
+    kind     TEXT NOT NULL,
+    step_id  INTEGER,
+    message  TEXT NOT NULL
+);
+";
+
+/// Columns of `steps` covered by its checksum, in hashing order.
+pub(crate) const STEP_COLUMNS: &str = "id, kind, channel, repeat, plan_index, theta_i, phi_i, theta_o, \
+     phi_o, target_0, target_1, target_2, target_3";
+/// Columns of `readings` covered by its checksum, in hashing order.
+pub(crate) const READING_COLUMNS: &str = "step_id, session, cmd_0, cmd_1, cmd_2, cmd_3, pos_0, pos_1, \
+     pos_2, pos_3, theta_i, phi_i, theta_o, phi_o, sensitivity, sensitivity_v, time_constant, \
+     time_constant_s, slope_db, r_mean, r_std, x_mean, y_mean, n, autorange_steps, lias, flags, \
+     retries, physical_s, wall_s";
+
+/// Sets the run's status.
+pub(crate) const SET_STATUS: &str = "INSERT INTO meta (key, value) VALUES ('status', ?1) \
+     ON CONFLICT(key) DO UPDATE SET value = excluded.value";
+/// Logs an event.
+pub(crate) const INSERT_EVENT: &str = "INSERT INTO events (session, wall_s, kind, step_id, message) \
+     VALUES (?1, ?2, ?3, ?4, ?5)";
+
+/// `flags` bits of a reading (bits 0–3 are the LIAS overload and unlock bits).
+pub mod flags {
+    /// LIAS bit 0: input or reserve overload.
+    pub const INPUT_OVERLOAD: u32 = 1 << 0;
+    /// LIAS bit 1: filter overload.
+    pub const FILTER_OVERLOAD: u32 = 1 << 1;
+    /// LIAS bit 2: output overload.
+    pub const OUTPUT_OVERLOAD: u32 = 1 << 2;
+    /// LIAS bit 3: reference unlock.
+    pub const UNLOCK: u32 = 1 << 3;
+    /// The read-back directions put the detector arm in the beam.
+    pub const SHADOWED: u32 = 1 << 8;
+    /// The read-back incidence makes the beam overfill the sample.
+    pub const OVERFILLED: u32 = 1 << 9;
+}

@@ -1,0 +1,127 @@
+//! What `gonio show` prints: a run's status, counts, sessions and inputs.
+
+use std::collections::BTreeMap;
+
+use gonio_plan::StepKind;
+use serde::Serialize;
+
+use crate::store::{RunStore, StoreError};
+use crate::time::utc;
+
+/// A session of a run, for reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct SessionSummary {
+    /// Start, UTC.
+    pub started: String,
+    /// End, UTC (none: killed or still running).
+    pub ended: Option<String>,
+    /// How it ended.
+    pub outcome: Option<String>,
+    /// Wall seconds.
+    pub wall_s: Option<f64>,
+    /// Readings taken.
+    pub readings: usize,
+    /// Instrument seconds (to its last reading).
+    pub physical_s: f64,
+}
+
+/// What `gonio show` prints.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// The file.
+    pub path: String,
+    /// Run name.
+    pub name: Option<String>,
+    /// Status.
+    pub status: String,
+    /// Steps in the schedule.
+    pub steps: usize,
+    /// Steps by state.
+    pub states: BTreeMap<String, u64>,
+    /// Done steps by kind.
+    pub done_by_kind: BTreeMap<String, usize>,
+    /// Readings with a flag.
+    pub flagged: usize,
+    /// Exchanges retried.
+    pub retries: u64,
+    /// Sessions.
+    pub sessions: Vec<SessionSummary>,
+    /// Estimated motion, raster motion and detector seconds.
+    pub estimate: serde_json::Value,
+    /// The plan check.
+    pub check: serde_json::Value,
+    /// Events by kind.
+    pub events: BTreeMap<String, usize>,
+    /// Creation time, UTC.
+    pub created: Option<String>,
+    /// Software that created it.
+    pub software: Option<String>,
+    /// Seed.
+    pub seed: Option<String>,
+    /// Notes.
+    pub notes: Option<String>,
+    /// Instrument config, verbatim.
+    pub instrument: String,
+    /// Plan, verbatim.
+    pub plan: String,
+    /// Simulator config, verbatim.
+    pub sim: Option<String>,
+}
+
+/// Summarises a run file.
+pub fn summary(store: &RunStore) -> Result<Summary, StoreError> {
+    let meta = store.run_meta()?;
+    let steps = store.steps()?;
+    let readings = store.readings()?;
+    let kinds: BTreeMap<i64, StepKind> = steps.iter().map(|s| (s.id, s.step.kind)).collect();
+    let mut done_by_kind = BTreeMap::new();
+    for r in &readings {
+        if let Some(k) = kinds.get(&r.step_id) {
+            *done_by_kind.entry(k.as_str().to_string()).or_insert(0) += 1;
+        }
+    }
+    let per_session = store.session_readings()?;
+    let sessions = store
+        .sessions()?
+        .into_iter()
+        .map(|s| {
+            let (readings, physical_s) = per_session.get(&s.id).copied().unwrap_or((0, 0.0));
+            SessionSummary {
+                started: utc(s.started_s),
+                ended: s.ended_s.map(utc),
+                outcome: s.outcome,
+                wall_s: s.ended_s.map(|e| e - s.started_s),
+                readings,
+                physical_s,
+            }
+        })
+        .collect();
+    let mut events = BTreeMap::new();
+    for e in store.events()? {
+        *events.entry(e.kind).or_insert(0) += 1;
+    }
+    Ok(Summary {
+        path: store.path().display().to_string(),
+        name: meta.name,
+        status: meta.status.as_str().to_string(),
+        steps: steps.len(),
+        states: store.state_counts()?,
+        done_by_kind,
+        flagged: readings.iter().filter(|r| r.flags != 0).count(),
+        retries: readings.iter().map(|r| r.retries).sum(),
+        sessions,
+        estimate: meta
+            .estimate
+            .and_then(|e| serde_json::to_value(e).ok())
+            .unwrap_or(serde_json::Value::Null),
+        check: meta.check.unwrap_or(serde_json::Value::Null),
+        events,
+        created: meta.created_s.map(utc),
+        software: meta.software,
+        seed: meta.seed.map(|s| s.to_string()),
+        notes: meta.notes,
+        instrument: meta.instrument,
+        plan: meta.plan,
+        sim: meta.sim,
+    })
+}
