@@ -1,0 +1,416 @@
+//! Every input Gonio takes, opened one way.
+//!
+//! [`detect`] recognises a file's [`Kind`] from its content alone (never its name):
+//! a run file (SQLite with Gonio's header), a MERL binary, ASTM text, Gonio's CSV
+//! (a table when it has a grid line, else samples), or a TOML file — a separable
+//! representation, spherical harmonics, or else an analytic model. [`open`] reads
+//! it into a [`Dataset`], reducing a run file on the way (its
+//! [`Reduction`](gonio_reduce::Reduction) account is kept), and every command takes
+//! the dataset from there: as a table on a grid ([`Dataset::to_table`]), as samples
+//! ([`Dataset::to_samples`]), as a BRDF to evaluate ([`Dataset::brdf`]), or as what
+//! an export format holds ([`Dataset::to_format_data`]).
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use gonio_brdf::{Brdf, Model};
+use gonio_core::Channels;
+use gonio_io::formats::{self, Data, FormatError, MerlBrdf};
+use gonio_process::samples::Kernel;
+use gonio_process::separable::SeparableBrdf;
+use gonio_process::sh::ShBrdf;
+use gonio_process::{GridStep, ProcessError, Samples, Table};
+use gonio_reduce::{ReduceError, Reduction};
+use gonio_run::{RunStore, StoreError};
+
+/// The largest text input read (a 5° full 4-D RGB table with uncertainties is
+/// ~0.5 GB of text; anything past this is refused rather than read into memory).
+pub const MAX_TEXT_BYTES: u64 = 4 << 30;
+
+/// The grid analytic inputs (models, harmonics) are tabulated on when a command
+/// needs a table and none is given: 10° × 10°.
+pub const DEFAULT_STEP: GridStep = GridStep {
+    dtheta_deg: 10.0,
+    dphi_deg: 10.0,
+};
+
+/// What a file is, from its content.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// A run file (`.gonio`, SQLite).
+    Run,
+    /// A MERL binary table.
+    Merl,
+    /// ASTM E1392-style text.
+    Astm,
+    /// Gonio's CSV: a table or samples.
+    Csv,
+    /// A k-separable representation (TOML, `kind = "separable"`).
+    Separable,
+    /// Spherical harmonics (TOML, `kind = "spherical-harmonics"`).
+    Harmonics,
+    /// An analytic model file (TOML).
+    Model,
+}
+
+impl Kind {
+    /// A name for messages and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Run => "run",
+            Kind::Merl => "merl",
+            Kind::Astm => "astm",
+            Kind::Csv => "csv",
+            Kind::Separable => "separable",
+            Kind::Harmonics => "harmonics",
+            Kind::Model => "model",
+        }
+    }
+}
+
+/// Why an input could not be opened or used.
+#[derive(Debug, thiserror::Error)]
+pub enum DatasetError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Larger than [`MAX_TEXT_BYTES`].
+    #[error("{}: larger than {MAX_TEXT_BYTES} bytes", .0.display())]
+    TooLarge(PathBuf),
+    /// Not a format Gonio reads, or malformed in it.
+    #[error("{0}")]
+    Format(#[from] FormatError),
+    /// A model, separable or harmonics file that does not parse.
+    #[error("{0}")]
+    File(#[from] gonio_core::tomlfile::FileError),
+    /// A model file that does not parse.
+    #[error("{0}")]
+    Model(#[from] gonio_brdf::ModelError),
+    /// The run file.
+    #[error("{0}")]
+    Run(#[from] StoreError),
+    /// The run file's reduction.
+    #[error("{0}")]
+    Reduce(#[from] ReduceError),
+    /// Processing refused the data (a grid it cannot support, bad values).
+    #[error("{path}: {source}")]
+    Process {
+        /// The input.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: ProcessError,
+    },
+    /// Scattered samples where a table is needed and no grid was given.
+    #[error(
+        "{}: its {samples} samples do not form a complete uniform grid; pass --grid \
+         DTHETA,DPHI to resample them (nearest-j Gaussian kernel, DeYoung Sec. 3.2.1)",
+        .path.display()
+    )]
+    NotOnGrid {
+        /// The input.
+        path: PathBuf,
+        /// How many samples.
+        samples: usize,
+    },
+}
+
+impl DatasetError {
+    /// True for faults of the input (exit status 2), false for failures of the
+    /// machine or the numerics (exit status 1).
+    pub fn is_bad_input(&self) -> bool {
+        match self {
+            DatasetError::Run(e) => e.is_bad_input(),
+            DatasetError::Reduce(ReduceError::Store(e)) => e.is_bad_input(),
+            DatasetError::Process { source, .. } => !matches!(source, ProcessError::Numerics(_)),
+            _ => true,
+        }
+    }
+
+    fn process(path: &Path, source: ProcessError) -> DatasetError {
+        DatasetError::Process {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// The data of an input.
+#[derive(Clone, Debug)]
+pub enum Dataset {
+    /// Values on a grid (a table file, a run or CSV whose samples form a grid).
+    Table(Table),
+    /// Scattered samples.
+    Samples(Samples),
+    /// A MERL table of half/difference bins.
+    Merl(Box<MerlBrdf>),
+    /// An analytic model.
+    Model(Box<Model>),
+    /// A k-separable representation.
+    Separable(Box<SeparableBrdf>),
+    /// Spherical harmonics.
+    Harmonics(Box<ShBrdf>),
+}
+
+/// An opened input: what it was, its data, and, for a run file, the reduction's
+/// account.
+#[derive(Clone, Debug)]
+pub struct Opened {
+    /// The file.
+    pub path: PathBuf,
+    /// What it was.
+    pub kind: Kind,
+    /// Its data.
+    pub data: Dataset,
+    /// The reduction, for a run file.
+    pub reduction: Option<Reduction>,
+}
+
+/// How inputs are opened.
+#[derive(Clone, Debug, Default)]
+pub struct OpenOptions {
+    /// How a run file's readings are reduced.
+    pub reduce: gonio_reduce::Options,
+}
+
+/// The first bytes of a run file (any SQLite database).
+const SQLITE_MAGIC: &[u8; 16] = b"SQLite format 3\0";
+
+/// The kind of `bytes` (a whole file, or at least its first 64 KiB), or `None` when
+/// Gonio reads no such file.
+pub fn detect(bytes: &[u8]) -> Option<Kind> {
+    if bytes.starts_with(SQLITE_MAGIC) {
+        return Some(Kind::Run);
+    }
+    if let Some(k) = toml_kind(bytes) {
+        return Some(k);
+    }
+    formats::detect(bytes).map(|f| match f {
+        formats::Format::Merl => Kind::Merl,
+        formats::Format::Astm => Kind::Astm,
+        formats::Format::Csv => Kind::Csv,
+    })
+}
+
+/// A TOML file's kind: its first line that is neither blank nor a comment starts
+/// with `kind` or a `[table]`; `kind = "separable"` and `kind =
+/// "spherical-harmonics"` name the representations, anything else is a model.
+fn toml_kind(bytes: &[u8]) -> Option<Kind> {
+    let text = match std::str::from_utf8(bytes) {
+        Ok(t) => t,
+        Err(e) => std::str::from_utf8(&bytes[..e.valid_up_to()]).ok()?,
+    };
+    let first = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))?;
+    if !(first.starts_with("kind") || first.starts_with('[')) {
+        return None;
+    }
+    let kind = text
+        .lines()
+        .map(str::trim)
+        .find(|l| l.starts_with("kind"))
+        .and_then(|l| l.split_once('='))
+        .map(|(_, v)| v.trim().trim_matches('"').to_string());
+    Some(match kind.as_deref() {
+        Some("separable") => Kind::Separable,
+        Some("spherical-harmonics") => Kind::Harmonics,
+        _ => Kind::Model,
+    })
+}
+
+/// Opens any input: a run file (reduced with `opts`), a table or samples CSV, a MERL
+/// or ASTM file, a separable or harmonics file, or a model file.
+pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
+    let _span = tracing::debug_span!("open", path = %path.display()).entered();
+    let io = |source| DatasetError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut head = [0u8; 16];
+    let n = std::fs::File::open(path)
+        .map_err(io)?
+        .read(&mut head)
+        .map_err(io)?;
+    if n == 16 && &head == SQLITE_MAGIC {
+        let (data, red) = open_run(path, opts)?;
+        tracing::debug!(kind = "run", samples = red.samples.samples.len(), "opened");
+        return Ok(Opened {
+            path: path.to_path_buf(),
+            kind: Kind::Run,
+            data,
+            reduction: Some(red),
+        });
+    }
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if meta.len() > MAX_TEXT_BYTES {
+        return Err(DatasetError::TooLarge(path.to_path_buf()));
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    let (kind, data) = open_bytes(&bytes, path)?;
+    tracing::debug!(kind = kind.name(), "opened");
+    Ok(Opened {
+        path: path.to_path_buf(),
+        kind,
+        data,
+        reduction: None,
+    })
+}
+
+/// Reduces a run file into samples (a table when they form a grid).
+fn open_run(path: &Path, opts: &OpenOptions) -> Result<(Dataset, Reduction), DatasetError> {
+    let store = RunStore::open(path)?;
+    let red = gonio_reduce::reduce(&store, &opts.reduce)?;
+    let data = match red.samples.to_table() {
+        Some(t) => Dataset::Table(t),
+        None => Dataset::Samples(red.samples.clone()),
+    };
+    Ok((data, red))
+}
+
+/// Opens the bytes of any input but a run file; `path` names it in errors.
+pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetError> {
+    let text = std::str::from_utf8(bytes).unwrap_or("");
+    match toml_kind(bytes) {
+        Some(Kind::Separable) => {
+            let s = SeparableBrdf::from_toml(text, Some(path))?;
+            return Ok((Kind::Separable, Dataset::Separable(Box::new(s))));
+        }
+        Some(Kind::Harmonics) => {
+            let sh = ShBrdf::from_toml(text, Some(path))?;
+            return Ok((Kind::Harmonics, Dataset::Harmonics(Box::new(sh))));
+        }
+        Some(_) => {
+            let m = Model::from_toml(text, Some(path))?;
+            return Ok((Kind::Model, Dataset::Model(Box::new(m))));
+        }
+        None => {}
+    }
+    let kind = match formats::detect(bytes) {
+        Some(formats::Format::Astm) => Kind::Astm,
+        Some(formats::Format::Csv) => Kind::Csv,
+        _ => Kind::Merl,
+    };
+    let data = match formats::read(bytes, Some(path))? {
+        Data::Table(t) => Dataset::Table(t),
+        Data::Merl(m) => Dataset::Merl(Box::new(m)),
+        Data::Samples(s) => {
+            s.validate().map_err(|e| DatasetError::process(path, e))?;
+            match s.to_table() {
+                Some(t) => Dataset::Table(t),
+                None => Dataset::Samples(s),
+            }
+        }
+    };
+    Ok((kind, data))
+}
+
+impl Dataset {
+    /// The channels.
+    pub fn channels(&self) -> &Channels {
+        match self {
+            Dataset::Table(t) => &t.channels,
+            Dataset::Samples(s) => &s.channels,
+            Dataset::Merl(m) => m.channels(),
+            Dataset::Model(m) => m.channels(),
+            Dataset::Separable(s) => s.channels(),
+            Dataset::Harmonics(h) => &h.channels,
+        }
+    }
+
+    /// A short description (`table`, `samples`, `MERL table`, `model`, …).
+    pub fn describe(&self) -> &'static str {
+        match self {
+            Dataset::Table(_) => "table",
+            Dataset::Samples(_) => "samples",
+            Dataset::Merl(_) => "MERL table",
+            Dataset::Model(_) => "model",
+            Dataset::Separable(_) => "separable representation",
+            Dataset::Harmonics(_) => "spherical harmonics",
+        }
+    }
+
+    /// The data as a BRDF that can be evaluated anywhere, when it is one; `None` for
+    /// scattered samples.
+    pub fn brdf(&self) -> Option<&dyn Brdf> {
+        match self {
+            Dataset::Table(t) => Some(t),
+            Dataset::Samples(_) => None,
+            Dataset::Merl(m) => Some(m.as_ref()),
+            Dataset::Model(m) => Some(m.as_ref()),
+            Dataset::Separable(s) => Some(s.as_ref()),
+            Dataset::Harmonics(h) => Some(h.as_ref()),
+        }
+    }
+
+    /// True for data defined everywhere by a formula or factors (a model, a
+    /// separable or harmonics representation, a MERL table), which a grid samples
+    /// exactly rather than resamples.
+    pub fn is_analytic(&self) -> bool {
+        matches!(
+            self,
+            Dataset::Merl(_) | Dataset::Model(_) | Dataset::Separable(_) | Dataset::Harmonics(_)
+        )
+    }
+
+    /// The data as a table: a table as it is (resampled onto `step` when one is
+    /// given, with the nearest-j kernel), scattered samples resampled onto `step`
+    /// (refused without one), anything analytic evaluated on `step` (its own grid
+    /// for a separable representation, [`DEFAULT_STEP`] otherwise, when none is
+    /// given). `path` names the input in errors.
+    pub fn to_table(&self, step: Option<GridStep>, path: &Path) -> Result<Table, DatasetError> {
+        let p = |e| DatasetError::process(path, e);
+        match (self, step) {
+            (Dataset::Table(t), None) => Ok(t.clone()),
+            (Dataset::Table(t), Some(g)) => Samples::from_table(t)
+                .resample(g.grid(), Kernel::default())
+                .map_err(p),
+            (Dataset::Samples(s), Some(g)) => s.resample(g.grid(), Kernel::default()).map_err(p),
+            (Dataset::Samples(s), None) => Err(DatasetError::NotOnGrid {
+                path: path.to_path_buf(),
+                samples: s.samples.len(),
+            }),
+            (Dataset::Separable(s), None) => s.to_table().map_err(p),
+            (d, g) => {
+                let g = g.unwrap_or(DEFAULT_STEP).grid();
+                let Some(b) = d.brdf() else {
+                    return Err(DatasetError::NotOnGrid {
+                        path: path.to_path_buf(),
+                        samples: 0,
+                    });
+                };
+                Table::from_brdf(b, g).map_err(p)
+            }
+        }
+    }
+
+    /// The data as samples: a table's nodes, the samples themselves, a MERL table's
+    /// valid bins thinned to at most `max`, an analytic BRDF's values on
+    /// [`DEFAULT_STEP`].
+    pub fn to_samples(&self, max: usize, path: &Path) -> Result<Samples, DatasetError> {
+        Ok(match self {
+            Dataset::Table(t) => Samples::from_table(t),
+            Dataset::Samples(s) => s.clone(),
+            Dataset::Merl(m) => m.to_samples_strided(MerlBrdf::stride_for(max)),
+            d => Samples::from_table(&d.to_table(None, path)?),
+        })
+    }
+
+    /// What an export format holds: a table, samples or a MERL table; anything
+    /// analytic is tabulated on its own grid or [`DEFAULT_STEP`].
+    pub fn to_format_data(&self, path: &Path) -> Result<Data, DatasetError> {
+        Ok(match self {
+            Dataset::Table(t) => Data::Table(t.clone()),
+            Dataset::Samples(s) => Data::Samples(s.clone()),
+            Dataset::Merl(m) => Data::Merl(m.as_ref().clone()),
+            d => Data::Table(d.to_table(None, path)?),
+        })
+    }
+}
