@@ -214,6 +214,8 @@ struct Rig<M: Transport, D: Transport, C: Clock, B: Bench> {
     channel: Option<String>,
     t0: Duration,
     events: broadcast::Sender<Event>,
+    /// The session's span: each step's span is its child, on whichever thread runs it.
+    span: tracing::Span,
 }
 
 /// A run in progress: the goniometer, the bench and the run file.
@@ -252,6 +254,7 @@ where
                 channel: None,
                 t0,
                 events,
+                span: tracing::Span::none(),
             },
             stopper,
         }
@@ -270,7 +273,8 @@ where
     /// Runs a session: start-up (identify, home what needs it, restore the detector),
     /// then every pending step; returns the report and the run file.
     pub async fn run(self) -> Result<(SessionReport, RunStore), EngineError> {
-        let Engine { rig, stopper } = self;
+        let Engine { mut rig, stopper } = self;
+        rig.span = tracing::info_span!("run", file = %rig.store.path().display());
         let (mut rig, started) = blocking(rig, Rig::start).await?;
         let start = match started? {
             Ok(s) => s,
@@ -325,6 +329,7 @@ where
                     }
                 }
                 StepOutcome::Skip(reason) => {
+                    tracing::warn!(parent: &rig.span, step = step.id, "step skipped: {reason}");
                     rig.store.fail_step(step.id, &reason)?;
                     let _ = rig.events.send(Event::Skipped {
                         step_id: step.id,
@@ -429,6 +434,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
         message: &str,
         recovering: bool,
     ) -> Result<(), StoreError> {
+        tracing::warn!(parent: &self.span, step = ?step, recovering, "fault: {message}");
         let _ = self.events.send(Event::Fault {
             step_id: step,
             message: message.to_string(),
@@ -441,6 +447,8 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     /// axes that lost their reference homed, the detector's range restored to where
     /// the run left it. `Ok(Err(outcome))` when the instrument cannot start.
     fn start(&mut self) -> Result<Result<Start, Outcome>, StoreError> {
+        let span = self.span.clone();
+        let _entered = span.enter();
         self.gonio.motion.abort_flag().clear();
         let sessions = self.store.sessions()?;
         self.store.begin_session(&self.cfg.software)?;
@@ -461,6 +469,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             None,
             &format!("{finished} of {total} steps finished before this session"),
         )?;
+        tracing::info!(finished, total, resumed, "session started");
         let _ = self.events.send(Event::Started {
             done: finished,
             total,
@@ -507,6 +516,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                     Outcome::Faulted(m)
                 }));
             }
+            tracing::info!(axes = ?unreferenced, "homed");
             self.store
                 .event("home", None, &format!("homed {}", unreferenced.join(", ")))?;
             let _ = self.events.send(Event::Homed { axes: unreferenced });
@@ -535,6 +545,14 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
 
     /// Takes one step: bench, motion, reading, commit.
     fn step(&mut self, s: &StoredStep) -> Result<StepOutcome, StoreError> {
+        let _span = tracing::info_span!(
+            parent: &self.span,
+            "step",
+            id = s.id,
+            kind = s.step.kind.as_str(),
+            channel = s.step.channel.as_deref()
+        )
+        .entered();
         let retried_before = self.retried();
         let id = s.id;
         if let Some(ch) = &s.step.channel
@@ -543,6 +561,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             if let Err(e) = self.bench.select_channel(ch) {
                 return self.bench_failed(id, e);
             }
+            tracing::info!("bench: band {ch}");
             self.store.event("bench", Some(id), &format!("band {ch}"))?;
             let _ = self.events.send(Event::Bench {
                 what: format!("band {ch}"),
@@ -555,6 +574,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                 return self.bench_failed(id, e);
             }
             let what = setup.instruction();
+            tracing::info!("bench: {what}");
             self.store.event("bench", Some(id), &what)?;
             let _ = self.events.send(Event::Bench { what });
             self.setup = Some(setup);
@@ -605,6 +625,13 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             });
         }
         self.store.commit(&record, &events)?;
+        tracing::debug!(
+            r_mean = record.r_mean,
+            r_std = record.r_std,
+            flags = record.flags,
+            retries = record.retries,
+            "step committed"
+        );
         Ok(StepOutcome::Measured(Box::new(record)))
     }
 
@@ -786,6 +813,8 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
         measured: usize,
         skipped: usize,
     ) -> Result<SessionReport, StoreError> {
+        let span = self.span.clone();
+        let _entered = span.enter();
         // Whatever happened, nothing keeps moving.
         if let Err(e) = self.gonio.motion.stop_all() {
             self.store
@@ -799,6 +828,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             Outcome::Interrupted => "interrupted; resumable".to_string(),
             Outcome::Faulted(m) => format!("stopped by a fault; resumable: {m}"),
         };
+        tracing::info!(outcome = outcome.status(), "session ended: {message}");
         self.store.event("stop", None, &message)?;
         self.store.end_session(outcome.status())?;
         let _ = self.events.send(Event::Finished {

@@ -1,13 +1,66 @@
-//! `gonio instrument check`.
+//! `gonio instrument check` and `gonio sim`.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use gonio_driver::{Goniometer, InstrumentConfig};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::JsonFlag;
 use crate::output;
+
+/// `gonio instrument`: check an instrument config, and optionally talk to it.
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Validate an instrument config (ports, axes, limits, detector settings); with
+    /// `--connect`, open the ports, identify every controller and set the lock-in up.
+    /// Nothing moves.
+    Check(CheckArgs),
+}
+
+/// `gonio instrument check`.
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    /// The instrument config (TOML).
+    config: PathBuf,
+    /// Open the ports and identify the instruments.
+    #[arg(long)]
+    connect: bool,
+    #[command(flatten)]
+    sim: SimFlag,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// `--sim`: the simulator behind ports named "sim".
+#[derive(Clone, Debug, clap::Args)]
+pub struct SimFlag {
+    /// Simulator config for ports named "sim" (the embedded default otherwise).
+    #[arg(long)]
+    pub sim: Option<PathBuf>,
+}
+
+/// Runs `gonio instrument …`.
+pub fn run(c: Command) -> CliResult<()> {
+    match c {
+        Command::Check(a) => check(&a.config, a.connect, a.sim.sim.as_deref(), a.json.json),
+    }
+}
+
+/// `gonio sim`: the simulated goniometer on two pseudo-terminals.
+#[derive(clap::Args)]
+pub struct SimArgs {
+    /// Simulator config (TOML); the embedded default when absent.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override the config's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Wall seconds per physical second (> 0; default 1, real time).
+    #[arg(long)]
+    time_scale: Option<f64>,
+}
 
 /// The simulator config for ports named `"sim"`: the file given, or the default.
 pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
@@ -16,8 +69,7 @@ pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
         None => gonio_sim::SimConfig::default_config()
             .map_err(|e| CliError::Runtime(format!("embedded simulator config: {e}")))?,
     };
-    cfg.prepare_sample()
-        .map_err(|e| CliError::Input(e.to_string()))?;
+    cfg.prepare_sample()?;
     Ok(cfg)
 }
 
@@ -34,7 +86,7 @@ pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
 }
 
 /// `gonio instrument check CONFIG [--connect] [--sim SIM] [--json]`.
-pub fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResult<()> {
+fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResult<()> {
     let cfg = InstrumentConfig::load(path).map_err(|e| CliError::Input(e.to_string()))?;
     let axes: Vec<_> = cfg
         .motion
@@ -122,20 +174,12 @@ pub fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliR
 
 /// `gonio sim`: the simulator on two pseudo-terminals, announced by one JSON line on
 /// stdout, served until standard input closes.
-pub fn sim(
-    config: Option<std::path::PathBuf>,
-    seed: Option<u64>,
-    time_scale: Option<f64>,
-) -> CliResult<()> {
+pub fn sim(a: SimArgs) -> CliResult<()> {
     use std::io::Read;
     let served = gonio_sim::serve::serve(&gonio_sim::serve::ServeOptions {
-        config,
-        seed,
-        time_scale,
-    })
-    .map_err(|e| match e.exit_code() {
-        2 => CliError::Input(e.to_string()),
-        _ => CliError::Runtime(e.to_string()),
+        config: a.config,
+        seed: a.seed,
+        time_scale: a.time_scale,
     })?;
     output::finish((|| {
         let mut out = std::io::stdout().lock();

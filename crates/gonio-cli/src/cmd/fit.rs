@@ -9,39 +9,53 @@ use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Shape, fit_lo
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::{JsonFlag, ReduceFlags};
 use crate::output;
-use crate::process_cmd::{self, ReduceArgs};
 
-/// The arguments of `gonio fit`.
+/// `gonio fit`: sums of generalized cosine lobes (Lafortune et al. 1997) fitted by
+/// Levenberg–Marquardt; writes the model file and reports parameters with standard
+/// errors. `--compare` also fits Ward, Blinn-Phong and Cook–Torrance.
+#[derive(clap::Args)]
 pub struct FitArgs {
-    /// The input.
-    pub input: PathBuf,
-    /// `lafortune` (the only model fitted as the result).
-    pub model: String,
-    /// Lobes.
-    pub lobes: usize,
-    /// `lambert` or `minnaert`.
-    pub diffuse: String,
-    /// Cx ≠ Cy.
-    pub anisotropic: bool,
-    /// `lafortune` or `ngan`.
-    pub metric: String,
-    /// Angle cutoff, degrees.
-    pub cutoff: f64,
-    /// Share exponents across channels.
-    pub share_exponents: bool,
-    /// Scale the model down where its albedo exceeds 1.
-    pub conserve_energy: bool,
-    /// Ignore the samples' uncertainties.
-    pub unweighted: bool,
-    /// Also fit the comparison models.
-    pub compare: bool,
-    /// The model file to write.
-    pub out: Option<PathBuf>,
-    /// Run-file reduction options.
-    pub reduction: ReduceArgs,
-    /// One JSON object.
-    pub json: bool,
+    /// The input: a run file, a table or sample CSV, a separable file.
+    input: PathBuf,
+    /// The model fitted: lafortune.
+    #[arg(long, default_value = "lafortune")]
+    model: String,
+    /// Number of lobes.
+    #[arg(long, default_value_t = 3)]
+    lobes: usize,
+    /// The diffuse term: lambert or minnaert.
+    #[arg(long, default_value = "lambert")]
+    diffuse: String,
+    /// Let Cx and Cy differ.
+    #[arg(long)]
+    anisotropic: bool,
+    /// The error measured: lafortune (f cos θi cos θo) or ngan (f cos θi).
+    #[arg(long, default_value = "lafortune")]
+    metric: String,
+    /// Leave out pairs with θi or θo above this, degrees.
+    #[arg(long, default_value_t = 90.0)]
+    cutoff: f64,
+    /// One set of exponents for all channels.
+    #[arg(long)]
+    share_exponents: bool,
+    /// Scale the model down where its directional albedo exceeds 1.
+    #[arg(long)]
+    conserve_energy: bool,
+    /// Ignore the samples' uncertainties (fit the metric unweighted).
+    #[arg(long)]
+    unweighted: bool,
+    /// Also fit Ward, Blinn-Phong and Cook–Torrance on the same data and metric.
+    #[arg(long)]
+    compare: bool,
+    /// The model file to write (TOML).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -49,7 +63,7 @@ fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
 }
 
 /// `gonio fit INPUT --model lafortune --lobes 3 … --out FIT.toml`.
-pub fn fit(a: FitArgs) -> CliResult<()> {
+pub fn run(a: FitArgs) -> CliResult<()> {
     if a.model != "lafortune" {
         return Err(CliError::Input(format!(
             "--model: only `lafortune` lobes are fitted as the result (got {:?}); use --compare \
@@ -84,9 +98,9 @@ pub fn fit(a: FitArgs) -> CliResult<()> {
             )));
         }
     };
-    let (input, _) = process_cmd::load(&a.input, &a.reduction, None)?;
+    let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
     // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
-    let samples = input.to_samples(200_000);
+    let samples = opened.data.to_samples(200_000, &a.input)?;
     let data = FitData::from_samples(
         &samples,
         &DataOptions {
@@ -133,7 +147,7 @@ pub fn fit(a: FitArgs) -> CliResult<()> {
     } else {
         None
     };
-    if a.json {
+    if a.json.json {
         return output::json(&json!({
             "out": a.out.as_ref().map(|p| p.display().to_string()),
             "fit": fit,

@@ -1,137 +1,88 @@
-//! `gonio plan check`, `gonio acquire`, `gonio resume`, `gonio runs`, `gonio show`.
+//! `gonio acquire` and `gonio resume`: a plan measured into a run file, and a run
+//! continued where it stopped.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use gonio_acquire::engine::{Engine, EngineConfig, Event, Outcome, SessionReport};
 use gonio_driver::{Bench, Clock, Goniometer, InstrumentConfig, OperatorBench, Transport};
-use gonio_plan::{Plan, Prepared, rejection_counts};
-use gonio_run::{Inputs, RunStore, StoreError};
+use gonio_run::{Inputs, RunStore};
 use gonio_sim::SimBench;
 use serde_json::json;
 
+use crate::cmd::instrument::{SimFlag, is_simulated, sim_config};
+use crate::cmd::plan::{Loaded, hms, load_and_prepare};
 use crate::error::{CliError, CliResult};
-use crate::instrument_cmd::{is_simulated, sim_config};
 use crate::output;
 
 /// The software name and version written into run files.
 pub const SOFTWARE: &str = concat!("gonio ", env!("CARGO_PKG_VERSION"));
 
+/// `gonio acquire`: measure a plan into a new run file (`.gonio`).
+#[derive(clap::Args)]
+pub struct AcquireArgs {
+    /// The instrument config (TOML).
+    #[arg(long)]
+    instrument: PathBuf,
+    /// The plan (TOML).
+    #[arg(long)]
+    plan: PathBuf,
+    /// The run file to create.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    sim: SimFlag,
+    /// Seed of the simulator's random draws (overrides its config).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Operator notes stored with the run.
+    #[arg(long)]
+    notes: Option<String>,
+    #[command(flatten)]
+    log: LogFlag,
+    /// Print one JSON object at the end instead of progress and text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `gonio resume`: continue an interrupted or killed run.
+#[derive(clap::Args)]
+pub struct ResumeArgs {
+    /// The run file.
+    run: PathBuf,
+    #[command(flatten)]
+    log: LogFlag,
+    /// Print one JSON object at the end instead of progress and text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `--log FILE`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct LogFlag {
+    /// Also write the session's log (spans and events, serial exchanges with -vv) to
+    /// FILE as JSON lines; the file must not exist. The run file's event log stays the
+    /// record of the run.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+}
+
+impl AcquireArgs {
+    /// Where the log file goes, if any.
+    pub fn log_file(&self) -> Option<&Path> {
+        self.log.log.as_deref()
+    }
+}
+
+impl ResumeArgs {
+    /// Where the log file goes, if any.
+    pub fn log_file(&self) -> Option<&Path> {
+        self.log.log.as_deref()
+    }
+}
+
 fn input(e: impl std::fmt::Display) -> CliError {
     CliError::Input(e.to_string())
-}
-
-fn store_err(e: StoreError) -> CliError {
-    if e.is_bad_input() {
-        CliError::Input(e.to_string())
-    } else {
-        CliError::Runtime(e.to_string())
-    }
-}
-
-/// Loads an instrument and a plan and prepares the plan on it.
-fn load_and_prepare(
-    instrument: &Path,
-    plan: &Path,
-) -> CliResult<(InstrumentConfig, String, Plan, String, Prepared)> {
-    let (inst, inst_text) = InstrumentConfig::load_with_text(instrument).map_err(input)?;
-    let (plan_cfg, plan_text) = Plan::load(plan).map_err(input)?;
-    let mech = inst
-        .mechanics()
-        .map_err(|e| input(format!("{}: {e}", instrument.display())))?;
-    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan_cfg).map_err(input)?;
-    Ok((inst, inst_text, plan_cfg, plan_text, prepared))
-}
-
-/// Seconds as `1h02m03s`.
-pub fn hms(s: f64) -> String {
-    if !s.is_finite() || s < 0.0 {
-        return "?".into();
-    }
-    let t = s.round() as u64;
-    match (t / 3600, t % 3600 / 60, t % 60) {
-        (0, 0, s) => format!("{s}s"),
-        (0, m, s) => format!("{m}m{s:02}s"),
-        (h, m, s) => format!("{h}h{m:02}m{s:02}s"),
-    }
-}
-
-/// `gonio plan check PLAN --instrument INSTR [--json]`.
-pub fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
-    let (_, _, _, _, p) = load_and_prepare(instrument, plan)?;
-    let s = &p.schedule;
-    let gain = if s.raster_motion_s > 0.0 {
-        1.0 - s.motion_s / s.raster_motion_s
-    } else {
-        0.0
-    };
-    let rejected: Vec<_> = p
-        .checked
-        .rejected
-        .iter()
-        .map(|r| {
-            json!({
-                "index": r.index,
-                "theta_i": r.pair.incident.theta_deg, "phi_i": r.pair.incident.phi_deg,
-                "theta_o": r.pair.outgoing.theta_deg, "phi_o": r.pair.outgoing.phi_deg,
-                "reason": r.reason.name(), "detail": r.reason.to_string(),
-            })
-        })
-        .collect();
-    if json {
-        return output::json(&json!({
-            "plan": plan.display().to_string(),
-            "instrument": instrument.display().to_string(),
-            "pairs": p.pairs.len(),
-            "accepted": p.checked.accepted.len(),
-            "rejected_by_reason": rejection_counts(&p.checked),
-            "rejected": rejected,
-            "steps": s.steps.len(),
-            "estimate": {
-                "motion_s": s.motion_s, "raster_motion_s": s.raster_motion_s,
-                "motion_saving": gain, "detector_s": s.detector_s,
-                "total_s": s.duration_s(),
-            },
-        }));
-    }
-    let mut w = output::open(None)?;
-    output::finish((|| {
-        writeln!(
-            w,
-            "{}: {} pairs, {} measurable, {} left out",
-            plan.display(),
-            p.pairs.len(),
-            p.checked.accepted.len(),
-            p.checked.rejected.len()
-        )?;
-        for (reason, n) in rejection_counts(&p.checked) {
-            writeln!(w, "  {reason}: {n}")?;
-        }
-        for r in &p.checked.rejected {
-            writeln!(
-                w,
-                "  pair {} (θi {}, φi {}, θo {}, φo {}): {}",
-                r.index,
-                r.pair.incident.theta_deg,
-                r.pair.incident.phi_deg,
-                r.pair.outgoing.theta_deg,
-                r.pair.outgoing.phi_deg,
-                r.reason
-            )?;
-        }
-        writeln!(
-            w,
-            "{} steps; motion {} ({} in plan order, {:.0}% less), detector {}, total {}",
-            s.steps.len(),
-            hms(s.motion_s),
-            hms(s.raster_motion_s),
-            100.0 * gain,
-            hms(s.detector_s),
-            hms(s.duration_s())
-        )?;
-        w.flush()
-    })())
 }
 
 /// What `acquire` and `resume` print at the end.
@@ -180,6 +131,8 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
     } else {
         indicatif::ProgressBar::new(0)
     };
+    // Log lines (faults are logged at warn by the engine) are written around the bar.
+    crate::logging::set_bar(Some(bar.clone()));
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "{bar:30} {pos}/{len} steps  ETA {prefix} (instrument time)  {msg}",
@@ -216,21 +169,15 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
                     if flags != 0 { " (flagged)" } else { "" }
                 ));
             }
-            Ok(Event::Fault {
-                message,
-                recovering,
-                ..
-            }) => bar.println(format!(
-                "gonio: fault: {message}{}",
-                if recovering { " (recovering)" } else { "" }
-            )),
+            // The engine logs faults (warn); the log writes around the bar.
+            Ok(Event::Fault { .. }) => {}
             Ok(Event::Homed { axes }) => bar.println(format!("gonio: homed {}", axes.join(", "))),
             Ok(Event::Bench { what }) => bar.println(format!("gonio: bench: {what}")),
-            Ok(Event::Skipped { step_id, reason }) => {
-                bar.println(format!("gonio: step {step_id} skipped: {reason}"));
-            }
+            // Logged by the engine (warn).
+            Ok(Event::Skipped { .. }) => {}
             Ok(Event::Finished { .. }) | Err(tokio::sync::broadcast::error::RecvError::Closed) => {
                 bar.finish_and_clear();
+                crate::logging::set_bar(None);
                 return;
             }
             Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => {}
@@ -335,26 +282,14 @@ pub(crate) fn session(
 }
 
 /// `gonio acquire --instrument INSTR --plan PLAN --out RUN [--sim SIM] [--seed N]`.
-pub struct AcquireArgs {
-    /// Instrument config.
-    pub instrument: PathBuf,
-    /// Plan.
-    pub plan: PathBuf,
-    /// Run file to create.
-    pub out: PathBuf,
-    /// Simulator config for "sim" ports.
-    pub sim: Option<PathBuf>,
-    /// Seed override.
-    pub seed: Option<u64>,
-    /// Operator notes.
-    pub notes: Option<String>,
-    /// JSON report.
-    pub json: bool,
-}
-
-/// `gonio acquire`.
 pub fn acquire(a: AcquireArgs) -> CliResult<()> {
-    let (inst, inst_text, plan, plan_text, prepared) = load_and_prepare(&a.instrument, &a.plan)?;
+    let Loaded {
+        instrument: inst,
+        instrument_text: inst_text,
+        plan,
+        plan_text,
+        prepared,
+    } = load_and_prepare(&a.instrument, &a.plan)?;
     let simulated = is_simulated(&inst, &a.instrument)?;
     let mut inputs = Inputs {
         instrument_text: inst_text,
@@ -367,11 +302,11 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
         ..Inputs::default()
     };
     let rig = if simulated {
-        let mut s = sim_config(a.sim.as_deref())?;
+        let mut s = sim_config(a.sim.sim.as_deref())?;
         if let Some(seed) = a.seed {
             s.seed = seed;
         }
-        let sim_text = match &a.sim {
+        let sim_text = match &a.sim.sim {
             Some(p) => {
                 std::fs::read_to_string(p).map_err(|e| input(format!("{}: {e}", p.display())))?
             }
@@ -388,10 +323,10 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
         Rig::Real
     };
     let store = gonio_run::create(&a.out, &plan, &prepared, &inputs).map_err(|e| match e {
-        gonio_run::CreateError::Store(s) => store_err(s),
+        gonio_run::CreateError::Store(s) => CliError::from(s),
         other => input(other),
     })?;
-    let stored = gonio_acquire::stored(&store).map_err(store_err)?;
+    let stored = gonio_acquire::stored(&store)?;
     let s = &prepared.schedule;
     if !a.json {
         eprintln!(
@@ -420,19 +355,17 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
 
 /// `gonio resume RUN [--json]`: continues a run where it stopped, with the
 /// instrument (and simulator) its file records.
-pub fn resume(path: &Path, json: bool) -> CliResult<()> {
-    let store = RunStore::open(path).map_err(store_err)?;
-    let status = store
-        .meta_value("status")
-        .map_err(store_err)?
-        .unwrap_or_default();
+pub fn resume(a: ResumeArgs) -> CliResult<()> {
+    let (path, json) = (a.run.as_path(), a.json);
+    let store = RunStore::open(path)?;
+    let status = store.meta_value("status")?.unwrap_or_default();
     if status == "complete" {
         return Err(CliError::Input(format!(
             "{}: the run is complete; nothing to resume",
             path.display()
         )));
     }
-    let stored = gonio_acquire::stored(&store).map_err(store_err)?;
+    let stored = gonio_acquire::stored(&store)?;
     let rig = match &stored.sim {
         Some((sim_text, sample)) => {
             let mut s = gonio_sim::SimConfig::from_toml(sim_text, None)
@@ -458,139 +391,4 @@ pub fn resume(path: &Path, json: bool) -> CliResult<()> {
         json,
     )?;
     report_session(path, &report, json)
-}
-
-/// `gonio show RUN [--json]`.
-pub fn show(path: &Path, json: bool) -> CliResult<()> {
-    let store = RunStore::open(path).map_err(store_err)?;
-    let s = gonio_run::summary(&store).map_err(store_err)?;
-    if json {
-        return output::json(
-            &serde_json::to_value(&s).map_err(|e| CliError::Runtime(e.to_string()))?,
-        );
-    }
-    let mut w = output::open(None)?;
-    output::finish((|| {
-        writeln!(w, "{}: {}", s.path, s.status)?;
-        if let Some(n) = &s.name {
-            writeln!(w, "name: {n}")?;
-        }
-        writeln!(
-            w,
-            "created {} by {}{}",
-            s.created.as_deref().unwrap_or("?"),
-            s.software.as_deref().unwrap_or("?"),
-            s.seed
-                .as_ref()
-                .map(|x| format!(", seed {x}"))
-                .unwrap_or_default()
-        )?;
-        if let Some(n) = &s.notes {
-            writeln!(w, "notes: {n}")?;
-        }
-        let states: Vec<String> = s.states.iter().map(|(k, v)| format!("{v} {k}")).collect();
-        writeln!(w, "steps: {} ({})", s.steps, states.join(", "))?;
-        let kinds: Vec<String> = s
-            .done_by_kind
-            .iter()
-            .map(|(k, v)| format!("{v} {k}"))
-            .collect();
-        writeln!(
-            w,
-            "readings: {} ; {} flagged, {} exchanges retried",
-            kinds.join(", "),
-            s.flagged,
-            s.retries
-        )?;
-        if let Some(t) = s
-            .estimate
-            .get("motion_s")
-            .and_then(serde_json::Value::as_f64)
-        {
-            let d = s
-                .estimate
-                .get("detector_s")
-                .and_then(serde_json::Value::as_f64)
-                .unwrap_or(0.0);
-            writeln!(
-                w,
-                "estimated: {} (motion {}, detector {})",
-                hms(t + d),
-                hms(t),
-                hms(d)
-            )?;
-        }
-        for (k, x) in s.sessions.iter().enumerate() {
-            writeln!(
-                w,
-                "session {}: {} → {} {}; {} readings, {} instrument time",
-                k + 1,
-                x.started,
-                x.ended.as_deref().unwrap_or("(no clean stop)"),
-                x.outcome.as_deref().unwrap_or(""),
-                x.readings,
-                hms(x.physical_s)
-            )?;
-        }
-        let ev: Vec<String> = s.events.iter().map(|(k, v)| format!("{v} {k}")).collect();
-        writeln!(w, "events: {}", ev.join(", "))?;
-        writeln!(w, "--- instrument config ---\n{}", s.instrument.trim_end())?;
-        writeln!(w, "--- plan ---\n{}", s.plan.trim_end())?;
-        if let Some(sim) = &s.sim {
-            writeln!(w, "--- simulator config ---\n{}", sim.trim_end())?;
-        }
-        w.flush()
-    })())
-}
-
-/// `gonio runs DIR [--json]`: every `.gonio` file in DIR, damaged ones included.
-pub fn runs(dir: &Path, json: bool) -> CliResult<()> {
-    let entries = std::fs::read_dir(dir).map_err(|e| input(format!("{}: {e}", dir.display())))?;
-    let mut paths: Vec<PathBuf> = entries
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "gonio"))
-        .collect();
-    paths.sort();
-    let mut rows = Vec::new();
-    for p in &paths {
-        let row = match RunStore::open(p).and_then(|s| gonio_run::summary(&s)) {
-            Ok(s) => json!({
-                "path": p.display().to_string(), "name": s.name, "status": s.status,
-                "steps": s.steps,
-                "done": s.states.get("done").copied().unwrap_or(0),
-                "failed": s.states.get("failed").copied().unwrap_or(0),
-                "created": s.created, "sessions": s.sessions.len(),
-            }),
-            Err(e) => json!({
-                "path": p.display().to_string(), "status": "unreadable", "error": e.to_string(),
-            }),
-        };
-        rows.push(row);
-    }
-    if json {
-        return output::json(&json!({ "dir": dir.display().to_string(), "runs": rows }));
-    }
-    let mut w = output::open(None)?;
-    output::finish((|| {
-        for r in &rows {
-            let name = r["path"].as_str().unwrap_or("");
-            match r.get("error") {
-                Some(e) => writeln!(w, "{name}  unreadable: {}", e.as_str().unwrap_or(""))?,
-                None => writeln!(
-                    w,
-                    "{name}  {:<11} {}/{} steps  {}  {}",
-                    r["status"].as_str().unwrap_or(""),
-                    r["done"],
-                    r["steps"],
-                    r["created"].as_str().unwrap_or(""),
-                    r["name"].as_str().unwrap_or("")
-                )?,
-            }
-        }
-        if rows.is_empty() {
-            writeln!(w, "{}: no run files", dir.display())?;
-        }
-        w.flush()
-    })())
 }

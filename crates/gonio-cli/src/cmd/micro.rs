@@ -7,46 +7,58 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use gonio_micro::{MicroResult, ORDERS, Sample, SimOptions, Simulation};
-use gonio_process::{Axis, Grid};
+use gonio_process::GridStep;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::{JsonFlag, parse_grid};
 use crate::output;
-use crate::process_cmd::grid_of;
 
-/// What `gonio micro` was asked for.
+/// `gonio micro`: predict a BRDF from microgeometry (the virtual gonioreflectometer of
+/// Westin et al. 1992): trace rays through every bounce on a surface file's height
+/// field and tabulate f_r with its Monte Carlo error (and, with --sh, the symmetric
+/// spherical-harmonic matrix).
+#[derive(clap::Args)]
 pub struct MicroArgs {
-    /// The surface file.
-    pub surface: PathBuf,
-    /// The grid, DTHETA,DPHI degrees.
-    pub grid: (f64, f64),
-    /// Tabulate the isotropic (θi, φo − φi, θo) form, averaging the sample's turns.
-    pub isotropic: bool,
+    /// The surface file (TOML; docs/micro.md).
+    surface: PathBuf,
+    /// The grid, DTHETA,DPHI in degrees (polar band midpoints, a full turn).
+    #[arg(long, value_parser = parse_grid, default_value = "10,15")]
+    grid: GridStep,
+    /// Tabulate the isotropic form (θi, φo − φi, θo), averaging over the sample's
+    /// turns; for anisotropic surfaces leave it off.
+    #[arg(long)]
+    isotropic: bool,
     /// Rays per incident direction of the grid.
-    pub rays: usize,
-    /// Seed of every random draw.
-    pub seed: u64,
-    /// The table to write.
-    pub out: PathBuf,
-    /// Also write one table per bounce order beside `out`.
-    pub per_order: bool,
-    /// Spherical-harmonic estimate: degree, optional filter degree, file, rays.
-    pub sh: Option<(usize, Option<usize>, PathBuf, usize)>,
-    /// Bounces after which a ray is stopped.
-    pub max_bounces: u32,
-    /// JSON instead of text.
-    pub json: bool,
-}
-
-/// The grid of `--grid`, full or isotropic.
-pub fn micro_grid((dt, dp): (f64, f64), isotropic: bool) -> Grid {
-    if isotropic {
-        let t = Axis::polar_midpoints((90.0 / dt).round() as usize);
-        let p = Axis::full_turn((360.0 / dp).round() as usize);
-        Grid::isotropic(t, p, t)
-    } else {
-        grid_of((dt, dp))
-    }
+    #[arg(long, default_value_t = 100_000)]
+    rays: usize,
+    /// Seed of every random draw: the same seed gives the same table bytes.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// The table to write (CSV with a grid header, sigma columns = Monte Carlo
+    /// standard errors).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write one table per bounce order (1, 2, 3+) beside OUT.
+    #[arg(long)]
+    per_order: bool,
+    /// Also estimate the spherical-harmonic matrix to this degree from its own rays.
+    #[arg(long)]
+    sh: Option<usize>,
+    /// Taper SH degrees above this one (Westin et al.'s filtering).
+    #[arg(long, requires = "sh")]
+    sh_filter: Option<usize>,
+    /// Where to write the SH file (TOML); required with --sh.
+    #[arg(long, requires = "sh")]
+    sh_out: Option<PathBuf>,
+    /// Rays of the SH estimate (incident directions drawn over the hemisphere).
+    #[arg(long, default_value_t = 1_000_000, requires = "sh")]
+    sh_rays: usize,
+    /// Bounces after which a ray is stopped (its energy is reported).
+    #[arg(long, default_value_t = 100)]
+    max_bounces: u32,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -100,7 +112,14 @@ fn median_relative_error(r: &MicroResult) -> f64 {
 }
 
 /// `gonio micro SURFACE --grid DT,DP --rays N --out TABLE`.
-pub fn micro(a: MicroArgs) -> CliResult<()> {
+pub fn run(a: MicroArgs) -> CliResult<()> {
+    let sh_request = match (a.sh, &a.sh_out) {
+        (Some(l), Some(p)) => Some((l, a.sh_filter, p.clone(), a.sh_rays)),
+        (Some(_), None) => {
+            return Err(CliError::Input("--sh needs --sh-out FILE".into()));
+        }
+        _ => None,
+    };
     let started = Instant::now();
     let sample = Sample::load(&a.surface).map_err(|e| input_err(&a.surface, e))?;
     let opts = SimOptions {
@@ -108,7 +127,11 @@ pub fn micro(a: MicroArgs) -> CliResult<()> {
         ..SimOptions::default()
     };
     let sim = Simulation::new(sample, opts).map_err(|e| input_err(&a.surface, e))?;
-    let grid = micro_grid(a.grid, a.isotropic);
+    let grid = if a.isotropic {
+        a.grid.isotropic_grid()
+    } else {
+        a.grid.grid()
+    };
     let r = sim
         .to_table(&grid, a.rays, a.seed)
         .map_err(|e| input_err(&a.surface, e))?;
@@ -121,7 +144,7 @@ pub fn micro(a: MicroArgs) -> CliResult<()> {
             order_files.push(p);
         }
     }
-    let sh = match &a.sh {
+    let sh = match &sh_request {
         Some((l_max, l_filter, path, rays)) => {
             let e = sim
                 .estimate_sh(*l_max, *l_filter, *rays, a.seed)
@@ -135,7 +158,7 @@ pub fn micro(a: MicroArgs) -> CliResult<()> {
     let seconds = started.elapsed().as_secs_f64();
     let s = &r.stats;
     let mc = median_relative_error(&r);
-    if a.json {
+    if a.json.json {
         let albedo: Vec<_> = r
             .albedo
             .iter()

@@ -1,7 +1,7 @@
 //! `gonio model eval` and `gonio model albedo`.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
 use gonio_core::dirfile::{self, PairDeg};
@@ -9,7 +9,57 @@ use gonio_core::{Dir, SphericalDeg};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::JsonFlag;
 use crate::output;
+
+/// `gonio model`: evaluate and integrate analytic BRDF model files.
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Evaluate a model at the direction pairs of a CSV file
+    /// (`theta_i,phi_i,theta_o,phi_o`, degrees); writes the pairs with one column a
+    /// channel, in 1/sr.
+    Eval(EvalArgs),
+    /// Directional–hemispherical reflectance ρ(θi) per channel.
+    Albedo(AlbedoArgs),
+}
+
+/// `gonio model eval`.
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    /// The model file (TOML).
+    model: PathBuf,
+    /// The directions file (CSV).
+    dirs: PathBuf,
+    /// Write the CSV here instead of stdout.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// `gonio model albedo`.
+#[derive(clap::Args)]
+pub struct AlbedoArgs {
+    /// The model file (TOML).
+    model: PathBuf,
+    /// Incident polar angles in degrees, comma-separated, each in [0, 90].
+    #[arg(long, value_delimiter = ',', default_value = "0,15,30,45,60,75,85",
+          value_parser = parse_theta)]
+    theta_i: Vec<f64>,
+    /// Incident azimuth in degrees (matters for anisotropic models).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    phi_i: f64,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// Runs `gonio model …`.
+pub fn run(c: Command) -> CliResult<()> {
+    match c {
+        Command::Eval(a) => eval(&a.model, &a.dirs, a.out.as_deref(), a.json.json),
+        Command::Albedo(a) => albedo(&a.model, &a.theta_i, a.phi_i, a.json.json),
+    }
+}
 
 /// Parses one `--theta-i` value: degrees in [0, 90].
 pub fn parse_theta(s: &str) -> Result<f64, String> {
@@ -43,7 +93,7 @@ fn read_pairs(path: &Path) -> CliResult<Vec<PairDeg>> {
 }
 
 /// `gonio model eval MODEL DIRS [--out FILE] [--json]`.
-pub fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool) -> CliResult<()> {
+fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool) -> CliResult<()> {
     let model = Model::load(model_path)?;
     let pairs = read_pairs(dirs_path)?;
     let ch = model.channels().clone();
@@ -82,7 +132,7 @@ pub fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool)
 }
 
 /// `gonio model albedo MODEL [--theta-i LIST] [--phi-i DEG] [--json]`.
-pub fn albedo(model_path: &Path, thetas: &[f64], phi_i: f64, json: bool) -> CliResult<()> {
+fn albedo(model_path: &Path, thetas: &[f64], phi_i: f64, json: bool) -> CliResult<()> {
     if !phi_i.is_finite() {
         return Err(CliError::Input(format!(
             "--phi-i: {phi_i} is not a finite angle"

@@ -10,10 +10,21 @@ use gonio_core::{Dir, SphericalDeg};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::JsonFlag;
 use crate::output;
 
+/// `gonio demo`: what Gonio does, on an embedded default.
+#[derive(clap::Args)]
+pub struct DemoArgs {
+    #[command(flatten)]
+    json: JsonFlag,
+    /// Keep the demo's run file here (a temporary file, removed, otherwise).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
 /// The embedded default model.
-const BLUE_PAINT: &str = include_str!("../../../config/models/blue-paint-550nm.toml");
+const BLUE_PAINT: &str = include_str!("../../../../config/models/blue-paint-550nm.toml");
 
 const ALBEDO_THETAS: [f64; 12] = [
     0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 65.0, 70.0, 75.0, 80.0, 85.0,
@@ -55,7 +66,9 @@ struct AlbedoRow {
     cubature: f64,
 }
 
-pub fn run(json: bool, keep: Option<&Path>) -> CliResult<()> {
+/// Runs the demo.
+pub fn run(a: DemoArgs) -> CliResult<()> {
+    let (json, keep) = (a.json.json, a.out.as_deref());
     let model = Model::from_toml(BLUE_PAINT, None)
         .map_err(|e| CliError::Runtime(format!("embedded demo model: {e}")))?;
     let Model::Lafortune(paint) = &model else {
@@ -386,10 +399,10 @@ fn properties(
 }
 
 /// The embedded acquisition plan.
-const PLAN: &str = include_str!("../../../config/plan-in-plane.toml");
+const PLAN: &str = include_str!("../../../../config/plan-in-plane.toml");
 
 /// The simulator's instrument config, embedded.
-const INSTRUMENT_SIM: &str = include_str!("../../../config/instrument-sim.toml");
+const INSTRUMENT_SIM: &str = include_str!("../../../../config/instrument-sim.toml");
 
 /// One reduced sample reading.
 struct Point {
@@ -444,7 +457,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         )),
         seed: Some(sim.seed),
         notes: Some("gonio demo".into()),
-        software: crate::acquire_cmd::SOFTWARE.into(),
+        software: crate::cmd::acquire::SOFTWARE.into(),
         ..run::Inputs::default()
     };
     let store = run::create(&path, &plan, &prepared, &inputs).map_err(|e| match e {
@@ -457,11 +470,11 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         .as_ref()
         .map_or(1.0, |i| i.transmittance);
     let started = std::time::Instant::now();
-    let (report, store) = crate::acquire_cmd::session(
+    let (report, store) = crate::cmd::acquire::session(
         store,
         &inst,
         "instrument-sim.toml",
-        crate::acquire_cmd::Rig::Sim(Box::new(sim)),
+        crate::cmd::acquire::Rig::Sim(Box::new(sim)),
         None,
         transmittance,
         true,
@@ -519,11 +532,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         Some(p) => p.with_extension("report"),
         None => std::env::temp_dir().join(format!("gonio-demo-report-{}", std::process::id())),
     };
-    let args = crate::process_cmd::ReduceArgs {
-        calibration: "auto".into(),
-        drift: "auto".into(),
-    };
-    let page = crate::io_cmd::build_report(&path, &args)?;
+    let page = crate::cmd::report::build_report(&path, &crate::flags::ReduceFlags::default())?;
     std::fs::create_dir_all(&report_dir)
         .map_err(|e| runtime(&format!("{}: {e}", report_dir.display())))?;
     let report_path = report_dir.join("report.html");

@@ -1,229 +1,33 @@
-//! `gonio export`, `gonio plot` and `gonio report`: results in the formats and
-//! figures people already use, and the page a lab attaches to a sample.
+//! `gonio report`: the run's one self-contained HTML page — metadata, calibration,
+//! measures, fit and plots.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
-use gonio_io::formats::{self, Data, Format};
-use gonio_io::plot::{self, ChannelChoice, Output, Source};
+use gonio_dataset::Dataset;
+use gonio_io::plot::{self, Output, Source};
 use gonio_io::report::{self, Contents, Figure, Image};
 use gonio_process::{Samples, Table, measure};
 use gonio_run::RunStore;
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
+use crate::flags::{JsonFlag, ReduceFlags};
 use crate::output;
-use crate::process_cmd::{self, Input, ReduceArgs};
 
-fn plot_err(e: plot::PlotError) -> CliError {
-    if e.is_input() {
-        CliError::Input(e.to_string())
-    } else {
-        CliError::Runtime(e.to_string())
-    }
-}
-
-/// `gonio export INPUT --format merl|astm|csv --out FILE`.
-pub fn export(
-    input: &Path,
-    format: &str,
-    out: &Path,
-    reduction: &ReduceArgs,
-    json_out: bool,
-) -> CliResult<()> {
-    let format = Format::from_name(format)
-        .ok_or_else(|| CliError::Input(format!("--format: merl, astm or csv, got {format:?}")))?;
-    let (inp, _) = process_cmd::load(input, reduction, None)?;
-    let data = match inp {
-        Input::Table(t) => Data::Table(t),
-        Input::Samples(s) => Data::Samples(s),
-        Input::Merl(m) => Data::Merl(*m),
-    };
-    formats::write_file(format, &data, out).map_err(|e| CliError::Input(e.to_string()))?;
-    let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
-    if json_out {
-        return output::json(&json!({
-            "out": out.display().to_string(),
-            "format": format.name(),
-            "from": data.kind(),
-            "bytes": bytes,
-        }));
-    }
-    let mut w = output::open(None)?;
-    output::finish((|| {
-        writeln!(
-            w,
-            "{}: {} ({} bytes) from {}",
-            out.display(),
-            format.title(),
-            bytes,
-            data.kind()
-        )?;
-        w.flush()
-    })())
-}
-
-/// The arguments of `gonio plot`.
-pub struct PlotArgs {
-    /// The input.
-    pub input: PathBuf,
-    /// A fitted model file.
-    pub fit: Option<PathBuf>,
-    /// polar, hemisphere, albedo, separability, sphere.
-    pub kind: String,
-    /// The output (.png or .svg).
-    pub out: PathBuf,
-    /// Incident polar angles, degrees.
-    pub theta_i: Vec<f64>,
-    /// A channel by name.
-    pub channel: Option<String>,
-    /// Light direction (sphere), degrees from the view axis.
-    pub light_theta: f64,
-    /// Light azimuth (sphere), degrees.
-    pub light_phi: f64,
-    /// Run-file reduction options.
-    pub reduction: ReduceArgs,
-}
-
-/// What a plot's input became.
-enum Loaded {
-    Model(Model),
-    Table(Table),
-    Samples(Samples),
-    Merl(Box<gonio_io::formats::merl::MerlBrdf>),
-}
-
-fn load_for_plot(path: &Path, reduction: &ReduceArgs) -> CliResult<Loaded> {
-    // A model file is plotted as the model (its terms in the albedo plot).
-    if let Ok(text) = std::fs::read_to_string(path)
-        && text.lines().map(str::trim).any(|l| l.starts_with("kind"))
-        && !text.contains("\"separable\"")
-        && !text.contains("\"spherical-harmonics\"")
-    {
-        return Ok(Loaded::Model(Model::from_toml(&text, Some(path))?));
-    }
-    Ok(match process_cmd::load(path, reduction, None)?.0 {
-        Input::Table(t) => Loaded::Table(t),
-        Input::Samples(s) => Loaded::Samples(s),
-        Input::Merl(m) => Loaded::Merl(m),
-    })
-}
-
-impl Loaded {
-    fn source(&self) -> Source<'_> {
-        match self {
-            Loaded::Model(m) => Source::Model(m),
-            Loaded::Table(t) => Source::Brdf(t),
-            Loaded::Samples(s) => Source::Samples(s),
-            Loaded::Merl(m) => Source::Brdf(m.as_ref()),
-        }
-    }
-}
-
-/// `gonio plot INPUT [--fit FIT.toml] --kind … --out FILE.png|svg`.
-pub fn plot(a: PlotArgs) -> CliResult<()> {
-    let data = load_for_plot(&a.input, &a.reduction)?;
-    let fit = match &a.fit {
-        Some(p) => Some(Model::from_toml(
-            &std::fs::read_to_string(p)
-                .map_err(|e| CliError::Input(format!("{}: {e}", p.display())))?,
-            Some(p),
-        )?),
-        None => None,
-    };
-    let src = data.source();
-    let channel = match &a.channel {
-        None => ChannelChoice::All,
-        Some(name) => ChannelChoice::One(src.channels().index_of(name).ok_or_else(|| {
-            CliError::Input(format!(
-                "--channel: {name:?} is not one of {}",
-                src.channels().names().join(", ")
-            ))
-        })?),
-    };
-    let fit_brdf: Option<&dyn Brdf> = fit.as_ref().map(|m| m as &dyn Brdf);
-    let out = Output::File(&a.out);
-    match a.kind.as_str() {
-        "polar" => plot::polar(
-            out,
-            &src,
-            fit_brdf,
-            &a.theta_i,
-            &plot::PolarOptions {
-                channel,
-                ..plot::PolarOptions::default()
-            },
-        ),
-        "hemisphere" => plot::hemisphere(
-            out,
-            &src,
-            fit_brdf,
-            a.theta_i.first().copied().unwrap_or(30.0),
-            &plot::HemisphereOptions {
-                channel,
-                ..plot::HemisphereOptions::default()
-            },
-        ),
-        "albedo" => plot::albedo(
-            out,
-            &src,
-            fit.as_ref(),
-            &plot::AlbedoOptions {
-                channel,
-                ..plot::AlbedoOptions::default()
-            },
-        ),
-        "separability" => {
-            let table = match &data {
-                Loaded::Table(t) => t.clone(),
-                Loaded::Model(m) => Table::from_brdf(m, gonio_process::Grid::hemisphere(9, 36))
-                    .map_err(|e| CliError::Input(e.to_string()))?,
-                Loaded::Merl(m) => {
-                    Table::from_brdf(m.as_ref(), gonio_process::Grid::hemisphere(9, 36))
-                        .map_err(|e| CliError::Input(e.to_string()))?
-                }
-                Loaded::Samples(_) => {
-                    return Err(CliError::Input(format!(
-                        "{}: separability needs a table (these samples are not on a grid)",
-                        a.input.display()
-                    )));
-                }
-            };
-            let name = a
-                .input
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            plot::separability(
-                out,
-                &[(name.as_str(), &table)],
-                &[],
-                &plot::SeparabilityOptions {
-                    channel,
-                    ..plot::SeparabilityOptions::default()
-                },
-            )
-        }
-        "sphere" => plot::sphere(
-            out,
-            &src,
-            fit_brdf,
-            &plot::SphereOptions {
-                channel,
-                light_theta_deg: a.light_theta,
-                light_phi_deg: a.light_phi,
-                ..plot::SphereOptions::default()
-            },
-        ),
-        k => {
-            return Err(CliError::Input(format!(
-                "--kind: polar, hemisphere, albedo, separability or sphere, got {k:?}"
-            )));
-        }
-    }
-    .map_err(plot_err)?;
-    Ok(())
+/// `gonio report`: write the run report.
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// The run file.
+    run: PathBuf,
+    /// The directory to write report.html into.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 fn svg_of(
@@ -245,13 +49,9 @@ fn png_of(
 }
 
 /// `gonio report RUN.gonio --out DIR`: writes DIR/report.html and returns its path.
-pub fn report(
-    run: &Path,
-    out_dir: &Path,
-    reduction: &ReduceArgs,
-    json_out: bool,
-) -> CliResult<PathBuf> {
-    let page = build_report(run, reduction)?;
+pub fn run(a: ReportArgs) -> CliResult<()> {
+    let (run, out_dir, json_out) = (a.run.as_path(), a.out.as_path(), a.json.json);
+    let page = build_report(run, &a.reduction)?;
     std::fs::create_dir_all(out_dir).map_err(|e| {
         CliError::Input(format!(
             "{}: cannot create the directory: {e}",
@@ -277,21 +77,16 @@ pub fn report(
             w.flush()
         })())?;
     }
-    Ok(path)
+    Ok(())
 }
 
 /// The report's contents for a run file.
-pub fn build_report(run: &Path, reduction: &ReduceArgs) -> CliResult<Contents> {
-    let store = RunStore::open(run).map_err(|e| {
-        if e.is_bad_input() {
-            CliError::Input(e.to_string())
-        } else {
-            CliError::Runtime(e.to_string())
-        }
-    })?;
+pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> {
+    let store = RunStore::open(run)?;
     let meta = store.meta().map_err(|e| CliError::Runtime(e.to_string()))?;
     drop(store);
-    let (input, red) = process_cmd::load(run, reduction, None)?;
+    let opened = gonio_dataset::open(run, &reduction.open_options()?)?;
+    let red = opened.reduction.as_ref();
     let mut c = Contents {
         title: format!(
             "Gonio run report: {}",
@@ -328,12 +123,12 @@ pub fn build_report(run: &Path, reduction: &ReduceArgs) -> CliResult<Contents> {
             c.configs.push((name.into(), v.clone()));
         }
     }
-    c.reduction = red.as_ref().map(|r| r.report.clone());
-    let samples = input.to_samples(200_000);
+    c.reduction = red.map(|r| r.report.clone());
+    let samples = opened.data.to_samples(200_000, run)?;
     c.metadata
         .push(("BRDF samples".into(), samples.samples.len().to_string()));
-    let table = match &input {
-        Input::Table(t) => Some(t.clone()),
+    let table = match &opened.data {
+        Dataset::Table(t) => Some(t.clone()),
         _ => None,
     };
     match &table {

@@ -1,0 +1,186 @@
+//! `gonio correct`: DeYoung's δ-transforms (Ch. 5) towards reciprocity, energy
+//! conservation, isotropy or k-separability, in the order given.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use gonio_process::separable::SeparableBrdf;
+use gonio_process::transform::{self, Step};
+use gonio_process::{file, measure};
+use serde_json::json;
+
+use crate::cmd::reduce::write_text;
+use crate::error::{CliError, CliResult};
+use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
+use crate::output;
+
+/// `gonio correct`: transform a table towards reciprocity, energy conservation,
+/// isotropy or k-separability (DeYoung Ch. 5), the steps in the order given.
+#[derive(clap::Args)]
+pub struct CorrectArgs {
+    /// The input.
+    input: PathBuf,
+    /// Reciprocity with δ in [0, 1] (Eq. 5.1–5.2).
+    #[arg(long)]
+    reciprocity: Vec<String>,
+    /// Energy conservation: δ[:per-direction|:global][:tau=T] (Eq. 5.4–5.8).
+    #[arg(long)]
+    energy: Vec<String>,
+    /// Isotropy with δ (Eq. 5.9–5.10).
+    #[arg(long)]
+    isotropy: Vec<String>,
+    /// k-separability: k[:δ] (Eq. 5.15); a last step with δ = 1 and a .toml output
+    /// writes the k factor pairs.
+    #[arg(long)]
+    separable: Vec<String>,
+    /// The output (CSV table, or TOML factors).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    grid: GridFlag,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// The four step flags, as clap names them.
+const STEP_FLAGS: [(&str, &str); 4] = [
+    ("reciprocity", "--reciprocity"),
+    ("energy", "--energy"),
+    ("isotropy", "--isotropy"),
+    ("separable", "--separable"),
+];
+
+impl CorrectArgs {
+    /// The steps in the order their flags appear on the command line: clap keeps
+    /// each flag's values in order, and `matches` (the subcommand's) says where on
+    /// the line each value stood. Without `matches`, the flags' own order.
+    fn steps(&self, matches: Option<&clap::ArgMatches>) -> CliResult<Vec<Step>> {
+        let lists = [
+            &self.reciprocity,
+            &self.energy,
+            &self.isotropy,
+            &self.separable,
+        ];
+        let mut placed: Vec<(usize, usize, &String)> = Vec::new();
+        for (k, ((id, _), values)) in STEP_FLAGS.iter().zip(lists).enumerate() {
+            let at: Vec<usize> = matches
+                .and_then(|m| m.indices_of(id))
+                .map(Iterator::collect)
+                .unwrap_or_default();
+            for (j, v) in values.iter().enumerate() {
+                let index = at.get(j).copied().unwrap_or(usize::MAX);
+                placed.push((index, k, v));
+            }
+        }
+        placed.sort_by_key(|(index, k, _)| (*index, *k));
+        placed
+            .into_iter()
+            .map(|(_, k, v)| {
+                let step = match k {
+                    0 => transform::parse_delta(v).map(Step::Reciprocity),
+                    1 => Step::parse_energy(v),
+                    2 => transform::parse_delta(v).map(Step::Isotropy),
+                    _ => Step::parse_separable(v),
+                };
+                step.map_err(|e| CliError::Input(format!("{}: {e}", STEP_FLAGS[k].1)))
+            })
+            .collect()
+    }
+}
+
+/// `gonio correct INPUT --reciprocity δ --energy … --isotropy δ --separable k[:δ]
+/// --out OUTPUT`, the steps in the order given.
+pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> {
+    let steps = a.steps(matches)?;
+    let steps = steps.as_slice();
+    let (path, out, json_out) = (a.input.as_path(), a.out.as_path(), a.json.json);
+    if steps.is_empty() {
+        return Err(CliError::Input(
+            "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
+        ));
+    }
+    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
+    let mut table = opened.data.to_table(a.grid.grid, path)?;
+    let ks: Vec<usize> = steps
+        .iter()
+        .filter_map(|s| match s {
+            Step::Separable(k, _) => Some(*k),
+            _ => None,
+        })
+        .chain([1])
+        .collect();
+    let before = measure::report(&table, &ks, 1).map_err(|e| CliError::process(path, e))?;
+    for s in steps {
+        table = s.apply(&table).map_err(|e| CliError::process(path, e))?;
+    }
+    let after = measure::report(&table, &ks, 1).map_err(|e| CliError::process(path, e))?;
+    // A last separable step with δ = 1 writes its factors when the output is TOML:
+    // the compressed representation.
+    let factors = match steps.last() {
+        Some(Step::Separable(k, d))
+            if *d == 1.0 && out.extension().is_some_and(|e| e == "toml") =>
+        {
+            Some(
+                SeparableBrdf::from_table(&table, *k, true)
+                    .map_err(|e| CliError::process(path, e))?,
+            )
+        }
+        _ => None,
+    };
+    match &factors {
+        Some(f) => write_text(out, &f.to_toml())?,
+        None => write_text(out, &file::write_table(&table))?,
+    }
+    let ratio = factors.as_ref().map(SeparableBrdf::storage_ratio);
+    if json_out {
+        return output::json(&json!({
+            "out": out.display().to_string(),
+            "steps": steps,
+            "before": before,
+            "after": after,
+            "storage_ratio": ratio,
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(w, "{}: {} step(s) applied", out.display(), steps.len())?;
+        let pair = |name: &str, b: &[f64], a: &[f64]| {
+            format!(
+                "{name:<8}{}",
+                b.iter()
+                    .zip(a)
+                    .map(|(x, y)| format!("  {x:.4e} → {y:.4e}"))
+                    .collect::<String>()
+            )
+        };
+        writeln!(
+            w,
+            "{}",
+            pair("P_r", &before.reciprocity, &after.reciprocity)
+        )?;
+        writeln!(
+            w,
+            "{}",
+            pair("P_ec", &before.energy.p_ec, &after.energy.p_ec)
+        )?;
+        writeln!(w, "{}", pair("P_i", &before.isotropy, &after.isotropy))?;
+        if let (Some(b), Some(a)) = (&before.separability, &after.separability) {
+            for (j, k) in ks.iter().enumerate().take(ks.len() - 1) {
+                let bv: Vec<f64> = b.iter().map(|s| s.p_s[j].1).collect();
+                let av: Vec<f64> = a.iter().map(|s| s.p_s[j].1).collect();
+                writeln!(w, "{}", pair(&format!("P_s^({k})"), &bv, &av))?;
+            }
+        }
+        if let Some(r) = ratio {
+            writeln!(
+                w,
+                "stored as {} factor values: {:.2}% of the table",
+                factors.as_ref().map_or(0, SeparableBrdf::stored_values),
+                100.0 * r
+            )?;
+        }
+        w.flush()
+    })())
+}

@@ -1,0 +1,61 @@
+//! `gonio export`: a run, table, samples or model in the formats other tools read.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use gonio_io::formats::{self, Format};
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::flags::{JsonFlag, ReduceFlags};
+use crate::output;
+
+/// `gonio export`: write a run, table or samples as MERL binary, ASTM E1392 text or
+/// CSV.
+#[derive(clap::Args)]
+pub struct ExportArgs {
+    /// The input.
+    input: PathBuf,
+    /// merl, astm or csv.
+    #[arg(long)]
+    format: String,
+    /// The file to write.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// `gonio export INPUT --format merl|astm|csv --out FILE`.
+pub fn run(a: ExportArgs) -> CliResult<()> {
+    let (input, out, json_out) = (a.input.as_path(), a.out.as_path(), a.json.json);
+    let format = Format::from_name(&a.format).ok_or_else(|| {
+        CliError::Input(format!("--format: merl, astm or csv, got {:?}", a.format))
+    })?;
+    let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
+    let data = opened.data.to_format_data(input)?;
+    formats::write_file(format, &data, out).map_err(|e| CliError::Input(e.to_string()))?;
+    let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    if json_out {
+        return output::json(&json!({
+            "out": out.display().to_string(),
+            "format": format.name(),
+            "from": data.kind(),
+            "bytes": bytes,
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: {} ({} bytes) from {}",
+            out.display(),
+            format.title(),
+            bytes,
+            data.kind()
+        )?;
+        w.flush()
+    })())
+}

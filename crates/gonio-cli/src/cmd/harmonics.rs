@@ -1,0 +1,91 @@
+//! `gonio harmonics`: a table as real spherical harmonics with a symmetric
+//! coefficient matrix (Westin et al. 1992), exactly reciprocal.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use gonio_process::sh::{ShBrdf, ShOptions};
+use serde_json::json;
+
+use crate::cmd::reduce::write_text;
+use crate::error::{CliError, CliResult};
+use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
+use crate::output;
+
+/// `gonio harmonics`: represent a table by real spherical harmonics with a symmetric
+/// coefficient matrix; reports the truncation error.
+#[derive(clap::Args)]
+pub struct HarmonicsArgs {
+    /// The input.
+    input: PathBuf,
+    /// The truncation order l_max.
+    #[arg(long)]
+    order: usize,
+    /// Attenuate orders above this one (against ringing); none by default.
+    #[arg(long)]
+    filter: Option<usize>,
+    /// The coefficient file to write (TOML).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    grid: GridFlag,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// `gonio harmonics INPUT --order L [--filter LF] --out SH.toml`.
+pub fn run(a: HarmonicsArgs) -> CliResult<()> {
+    let (path, order, filter, out, json_out) = (
+        a.input.as_path(),
+        a.order,
+        a.filter,
+        a.out.as_path(),
+        a.json.json,
+    );
+    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
+    let table = opened.data.to_table(a.grid.grid, path)?;
+    let opts = ShOptions {
+        l_max: order,
+        l_filter: filter,
+        quadrature: None,
+    };
+    let sh = ShBrdf::from_table(&table, &opts).map_err(|e| CliError::process(path, e))?;
+    let err = sh
+        .error_against(&table)
+        .map_err(|e| CliError::process(path, e))?;
+    write_text(out, &sh.to_toml())?;
+    let ratio = sh.coefficient_count() as f64 / table.values.len() as f64;
+    if json_out {
+        return output::json(&json!({
+            "out": out.display().to_string(),
+            "order": order,
+            "coefficients": sh.coefficient_count(),
+            "storage_ratio": ratio,
+            "rms": err.rms,
+            "relative_rms": err.relative_rms,
+            "max_abs": err.max_abs,
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: spherical harmonics to order {order}, {} coefficients ({:.2}% of the table), exactly reciprocal",
+            out.display(),
+            sh.coefficient_count(),
+            100.0 * ratio
+        )?;
+        for (ch, name) in table.channels.names().iter().enumerate() {
+            writeln!(
+                w,
+                "channel {name}: RMS error {:.4e} 1/sr ({:.2}% of the RMS value), max {:.4e} 1/sr",
+                err.rms[ch],
+                100.0 * err.relative_rms[ch],
+                err.max_abs[ch]
+            )?;
+        }
+        w.flush()
+    })())
+}

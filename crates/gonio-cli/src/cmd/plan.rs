@@ -1,0 +1,166 @@
+//! `gonio plan check`: what a plan measures on an instrument, what it cannot and
+//! why, and how long it takes.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use gonio_driver::InstrumentConfig;
+use gonio_plan::{Plan, Prepared, rejection_counts};
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::flags::JsonFlag;
+use crate::output;
+
+/// `gonio plan`: check a measurement plan against an instrument.
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Map every pair through the instrument's kinematics; list the pairs left out
+    /// (outside the limits, shadowed, overfilled, below the horizon, duplicated) and
+    /// estimate the motion and detector time.
+    Check(CheckArgs),
+}
+
+/// `gonio plan check`.
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    /// The plan (TOML).
+    plan: PathBuf,
+    /// The instrument config (TOML).
+    #[arg(long)]
+    instrument: PathBuf,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// Runs `gonio plan …`.
+pub fn run(c: Command) -> CliResult<()> {
+    match c {
+        Command::Check(a) => plan_check(&a.plan, &a.instrument, a.json.json),
+    }
+}
+
+fn input(e: impl std::fmt::Display) -> CliError {
+    CliError::Input(e.to_string())
+}
+
+/// An instrument and a plan, loaded and checked, and the plan prepared on it.
+pub struct Loaded {
+    /// The instrument config.
+    pub instrument: InstrumentConfig,
+    /// Its text.
+    pub instrument_text: String,
+    /// The plan.
+    pub plan: Plan,
+    /// Its text.
+    pub plan_text: String,
+    /// The plan prepared on the instrument.
+    pub prepared: Prepared,
+}
+
+/// Loads an instrument and a plan and prepares the plan on it.
+pub fn load_and_prepare(instrument: &Path, plan: &Path) -> CliResult<Loaded> {
+    let (inst, inst_text) = InstrumentConfig::load_with_text(instrument).map_err(input)?;
+    let (plan_cfg, plan_text) = Plan::load(plan).map_err(input)?;
+    let mech = inst
+        .mechanics()
+        .map_err(|e| input(format!("{}: {e}", instrument.display())))?;
+    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan_cfg).map_err(input)?;
+    Ok(Loaded {
+        instrument: inst,
+        instrument_text: inst_text,
+        plan: plan_cfg,
+        plan_text,
+        prepared,
+    })
+}
+
+/// Seconds as `1h02m03s`.
+pub fn hms(s: f64) -> String {
+    if !s.is_finite() || s < 0.0 {
+        return "?".into();
+    }
+    let t = s.round() as u64;
+    match (t / 3600, t % 3600 / 60, t % 60) {
+        (0, 0, s) => format!("{s}s"),
+        (0, m, s) => format!("{m}m{s:02}s"),
+        (h, m, s) => format!("{h}h{m:02}m{s:02}s"),
+    }
+}
+
+/// `gonio plan check PLAN --instrument INSTR [--json]`.
+fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
+    let p = load_and_prepare(instrument, plan)?.prepared;
+    let s = &p.schedule;
+    let gain = if s.raster_motion_s > 0.0 {
+        1.0 - s.motion_s / s.raster_motion_s
+    } else {
+        0.0
+    };
+    let rejected: Vec<_> = p
+        .checked
+        .rejected
+        .iter()
+        .map(|r| {
+            json!({
+                "index": r.index,
+                "theta_i": r.pair.incident.theta_deg, "phi_i": r.pair.incident.phi_deg,
+                "theta_o": r.pair.outgoing.theta_deg, "phi_o": r.pair.outgoing.phi_deg,
+                "reason": r.reason.name(), "detail": r.reason.to_string(),
+            })
+        })
+        .collect();
+    if json {
+        return output::json(&json!({
+            "plan": plan.display().to_string(),
+            "instrument": instrument.display().to_string(),
+            "pairs": p.pairs.len(),
+            "accepted": p.checked.accepted.len(),
+            "rejected_by_reason": rejection_counts(&p.checked),
+            "rejected": rejected,
+            "steps": s.steps.len(),
+            "estimate": {
+                "motion_s": s.motion_s, "raster_motion_s": s.raster_motion_s,
+                "motion_saving": gain, "detector_s": s.detector_s,
+                "total_s": s.duration_s(),
+            },
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: {} pairs, {} measurable, {} left out",
+            plan.display(),
+            p.pairs.len(),
+            p.checked.accepted.len(),
+            p.checked.rejected.len()
+        )?;
+        for (reason, n) in rejection_counts(&p.checked) {
+            writeln!(w, "  {reason}: {n}")?;
+        }
+        for r in &p.checked.rejected {
+            writeln!(
+                w,
+                "  pair {} (θi {}, φi {}, θo {}, φo {}): {}",
+                r.index,
+                r.pair.incident.theta_deg,
+                r.pair.incident.phi_deg,
+                r.pair.outgoing.theta_deg,
+                r.pair.outgoing.phi_deg,
+                r.reason
+            )?;
+        }
+        writeln!(
+            w,
+            "{} steps; motion {} ({} in plan order, {:.0}% less), detector {}, total {}",
+            s.steps.len(),
+            hms(s.motion_s),
+            hms(s.raster_motion_s),
+            100.0 * gain,
+            hms(s.detector_s),
+            hms(s.duration_s())
+        )?;
+        w.flush()
+    })())
+}

@@ -1,0 +1,157 @@
+//! `gonio plot`: a run, table, samples, MERL file or model as a figure.
+
+use std::path::PathBuf;
+
+use gonio_brdf::{Brdf, Model};
+use gonio_dataset::Dataset;
+use gonio_io::plot::{self, ChannelChoice, Output, Source};
+
+use crate::error::{CliError, CliResult};
+use crate::flags::ReduceFlags;
+
+/// `gonio plot`: plot a run, table, samples, MERL file or model (PNG or SVG by the
+/// extension).
+#[derive(clap::Args)]
+pub struct PlotArgs {
+    /// The input.
+    input: PathBuf,
+    /// A fitted model file drawn against the data.
+    #[arg(long)]
+    fit: Option<PathBuf>,
+    /// polar, hemisphere, albedo, separability or sphere.
+    #[arg(long)]
+    kind: String,
+    /// The image to write (.png or .svg).
+    #[arg(long)]
+    out: PathBuf,
+    /// Incident polar angles, degrees (polar: the curves; hemisphere: the first).
+    #[arg(long, value_delimiter = ',', default_value = "0,35,65")]
+    theta_i: Vec<f64>,
+    /// Only this channel (by name).
+    #[arg(long)]
+    channel: Option<String>,
+    /// Sphere: the light's angle from the view axis, degrees.
+    #[arg(long, default_value_t = 45.0)]
+    light_theta: f64,
+    /// Sphere: the light's azimuth in the image, degrees from +x towards +y.
+    #[arg(long, default_value_t = 135.0)]
+    light_phi: f64,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+}
+
+/// A plot failure: bad input (a channel, an angle) or a drawing failure.
+pub fn plot_err(e: plot::PlotError) -> CliError {
+    CliError::classify(e.is_input(), e)
+}
+
+/// `gonio plot INPUT [--fit FIT.toml] --kind … --out FILE.png|svg`.
+pub fn run(a: PlotArgs) -> CliResult<()> {
+    let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
+    let data = &opened.data;
+    let fit = match &a.fit {
+        Some(p) => Some(Model::from_toml(
+            &std::fs::read_to_string(p)
+                .map_err(|e| CliError::Input(format!("{}: {e}", p.display())))?,
+            Some(p),
+        )?),
+        None => None,
+    };
+    let src =
+        match data {
+            Dataset::Model(m) => Source::Model(m),
+            Dataset::Samples(s) => Source::Samples(s),
+            d => Source::Brdf(d.brdf().ok_or_else(|| {
+                CliError::Input(format!("{}: nothing to plot", a.input.display()))
+            })?),
+        };
+    let channel = match &a.channel {
+        None => ChannelChoice::All,
+        Some(name) => ChannelChoice::One(src.channels().index_of(name).ok_or_else(|| {
+            CliError::Input(format!(
+                "--channel: {name:?} is not one of {}",
+                src.channels().names().join(", ")
+            ))
+        })?),
+    };
+    let fit_brdf: Option<&dyn Brdf> = fit.as_ref().map(|m| m as &dyn Brdf);
+    let out = Output::File(&a.out);
+    match a.kind.as_str() {
+        "polar" => plot::polar(
+            out,
+            &src,
+            fit_brdf,
+            &a.theta_i,
+            &plot::PolarOptions {
+                channel,
+                ..plot::PolarOptions::default()
+            },
+        ),
+        "hemisphere" => plot::hemisphere(
+            out,
+            &src,
+            fit_brdf,
+            a.theta_i.first().copied().unwrap_or(30.0),
+            &plot::HemisphereOptions {
+                channel,
+                ..plot::HemisphereOptions::default()
+            },
+        ),
+        "albedo" => plot::albedo(
+            out,
+            &src,
+            fit.as_ref(),
+            &plot::AlbedoOptions {
+                channel,
+                ..plot::AlbedoOptions::default()
+            },
+        ),
+        "separability" => {
+            let table = match data {
+                Dataset::Table(t) => t.clone(),
+                Dataset::Samples(_) => {
+                    return Err(CliError::Input(format!(
+                        "{}: separability needs a table (these samples are not on a grid)",
+                        a.input.display()
+                    )));
+                }
+                // Analytic data on its own grid, or 10° × 10°.
+                d => d
+                    .to_table(None, &a.input)
+                    .map_err(|e| CliError::Input(e.to_string()))?,
+            };
+            let name = a
+                .input
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            plot::separability(
+                out,
+                &[(name.as_str(), &table)],
+                &[],
+                &plot::SeparabilityOptions {
+                    channel,
+                    ..plot::SeparabilityOptions::default()
+                },
+            )
+        }
+        "sphere" => plot::sphere(
+            out,
+            &src,
+            fit_brdf,
+            &plot::SphereOptions {
+                channel,
+                light_theta_deg: a.light_theta,
+                light_phi_deg: a.light_phi,
+                ..plot::SphereOptions::default()
+            },
+        ),
+        k => {
+            return Err(CliError::Input(format!(
+                "--kind: polar, hemisphere, albedo, separability or sphere, got {k:?}"
+            )));
+        }
+    }
+    .map_err(plot_err)?;
+    Ok(())
+}

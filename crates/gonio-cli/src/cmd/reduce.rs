@@ -1,0 +1,142 @@
+//! `gonio reduce`: a run's readings to BRDF samples with uncertainties (DeYoung Eq.
+//! A.15, or relative to the run's reference standard), drift-corrected.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use gonio_dataset::Kind;
+use gonio_process::file;
+use gonio_process::samples::Kernel;
+use gonio_reduce::Reduction;
+use serde_json::json;
+
+use crate::error::{CliError, CliResult};
+use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
+use crate::output;
+
+/// `gonio reduce`: writes a table when the samples form a grid, else the samples
+/// (CSV).
+#[derive(clap::Args)]
+pub struct ReduceArgs {
+    /// The run file.
+    run: PathBuf,
+    /// The table or sample file to write (CSV).
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    reduction: ReduceFlags,
+    #[command(flatten)]
+    grid: GridFlag,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// The first bytes of a file, for recognising its kind.
+pub fn head(path: &Path) -> CliResult<Vec<u8>> {
+    use std::io::Read;
+    let mut h = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(64 * 1024).read_to_end(&mut h))
+        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    Ok(h)
+}
+
+pub fn write_text(out: &Path, text: &str) -> CliResult<()> {
+    std::fs::write(out, text)
+        .map_err(|e| CliError::Input(format!("{}: cannot write output file: {e}", out.display())))
+}
+
+fn reduction_json(r: &Reduction) -> serde_json::Value {
+    serde_json::to_value(&r.report).unwrap_or_default()
+}
+
+/// `gonio reduce RUN --out TABLE`.
+pub fn run(a: ReduceArgs) -> CliResult<()> {
+    let (path, out, grid, json_out) = (a.run.as_path(), a.out.as_path(), a.grid.grid, a.json.json);
+    if gonio_dataset::detect(&head(path)?) != Some(Kind::Run) {
+        return Err(CliError::Input(format!(
+            "{}: not a run file (.gonio, SQLite)",
+            path.display()
+        )));
+    }
+    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
+    let Some(red) = opened.reduction else {
+        return Err(CliError::Runtime(format!(
+            "{}: not reduced",
+            path.display()
+        )));
+    };
+    let (text, what) = match (red.samples.to_table(), grid) {
+        (Some(t), None) => (
+            file::write_table(&t),
+            format!("a table of {} nodes", t.grid.len()),
+        ),
+        (_, Some(g)) => {
+            let t = red
+                .samples
+                .resample(g.grid(), Kernel::default())
+                .map_err(|e| CliError::process(path, e))?;
+            (
+                file::write_table(&t),
+                format!("a table of {} nodes (resampled)", t.grid.len()),
+            )
+        }
+        (None, None) => (
+            file::write_samples(&red.samples),
+            format!("{} samples", red.samples.samples.len()),
+        ),
+    };
+    write_text(out, &text)?;
+    if json_out {
+        return output::json(&json!({
+            "out": out.display().to_string(),
+            "wrote": what,
+            "samples": red.samples.samples.len(),
+            "channels": red.samples.channels.names(),
+            "reduction": reduction_json(&red),
+        }));
+    }
+    let mut w = output::open(None)?;
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: {} from {} samples",
+            out.display(),
+            what,
+            red.samples.samples.len()
+        )?;
+        print_reduction(&mut w, &red)?;
+        w.flush()
+    })())
+}
+
+pub fn print_reduction(w: &mut dyn Write, red: &Reduction) -> std::io::Result<()> {
+    let r = &red.report;
+    writeln!(w, "detector solid angle {:.4e} sr", r.solid_angle_sr)?;
+    for c in &r.channels {
+        writeln!(
+            w,
+            "channel {}: {} calibration ({} readings), incident {:.6e} V ± {:.2e} (rel.), dark ({:.2e}, {:.2e}) V, drift {} references, max |g−1| {:.3}%",
+            c.channel,
+            c.calibration,
+            c.calibration_readings,
+            c.incident_v,
+            c.incident_rel_sigma,
+            c.dark_v[0],
+            c.dark_v[1],
+            c.drift_readings,
+            100.0 * c.drift_max
+        )?;
+    }
+    for (why, n) in &r.rejected {
+        writeln!(w, "left out: {n} ({why})")?;
+    }
+    if r.unmeasured > 0 {
+        writeln!(w, "not measured (run incomplete): {}", r.unmeasured)?;
+    }
+    writeln!(
+        w,
+        "largest read-back position error {:.4}°",
+        r.max_position_error_deg
+    )
+}
