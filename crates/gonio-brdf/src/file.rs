@@ -695,3 +695,23 @@ fn write_alpha(s: &mut String, ax: &[f64], ay: &[f64]) {
         let _ = writeln!(s, "alpha_x = {}\nalpha_y = {}", list(ax), list(ay));
     }
 }
+
+/// Model files: a [`Model`] to and from its TOML text.
+impl Model {
+    /// Parses a model file's text; `path` only labels errors.
+    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Model, ModelError> {
+        parse(text, path)
+    }
+
+    /// Reads and parses a model file.
+    pub fn load(path: &Path) -> Result<Model, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError::io(path, &e))?;
+        Self::from_toml(&text, Some(path))
+    }
+
+    /// The model as a model file that [`from_toml`](Self::from_toml) reads back to an
+    /// equal model.
+    pub fn to_toml(&self) -> String {
+        write(self)
+    }
+}

@@ -1,9 +1,6 @@
-use std::path::Path;
-
 use gonio_core::{Channels, Dir};
 
 use crate::Brdf;
-use crate::file::{self, ModelError};
 use crate::models::{BlinnPhong, CookTorrance, Diffuse, Lafortune, OrenNayar, Phong, Ward};
 use crate::proposal::Weighted;
 
@@ -108,23 +105,6 @@ impl Model {
             Model::OrenNayar(m) => m,
             Model::Lafortune(m) => m,
         }
-    }
-
-    /// Parses a model file's text; `path` only labels errors.
-    pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Model, ModelError> {
-        file::parse(text, path)
-    }
-
-    /// Reads and parses a model file.
-    pub fn load(path: &Path) -> Result<Model, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ModelError::io(path, &e))?;
-        Self::from_toml(&text, Some(path))
-    }
-
-    /// The model as a model file that [`from_toml`](Self::from_toml) reads back to an
-    /// equal model.
-    pub fn to_toml(&self) -> String {
-        file::write(self)
     }
 }
 

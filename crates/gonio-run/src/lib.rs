@@ -10,6 +10,7 @@
 //! This is the only crate that depends on SQLite.
 
 pub mod create;
+mod error;
 pub mod meta;
 pub mod records;
 pub mod schema;
@@ -18,9 +19,10 @@ mod summary;
 mod time;
 
 pub use create::{CreateError, Inputs, create};
+pub use error::StoreError;
 pub use meta::{Estimate, RunMeta, RunStatus, keys};
 pub use records::{EventRecord, ReadingRecord, SessionRow, StoredStep};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION, flags};
-pub use store::{RunStore, StoreError};
+pub use store::RunStore;
 pub use summary::{SessionSummary, Summary, summary};
 pub use time::{utc, wall_now};

@@ -11,7 +11,7 @@ use std::path::Path;
 use gonio_core::goniometer::GeometryConfig;
 use serde::Serialize;
 
-use crate::store::StoreError;
+use crate::error::StoreError;
 
 /// Metadata keys of a run file (see `docs/run-file.md`).
 pub mod keys {

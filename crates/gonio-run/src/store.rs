@@ -20,6 +20,7 @@ use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
 use gonio_plan::schedule::{Step, StepKind};
 
+pub use crate::error::StoreError;
 use crate::meta::RunMeta;
 use crate::records::{
     EventRecord, ReadingRecord, SessionRow, StoredStep, reading_values, row_crc, step_values,
@@ -29,82 +30,6 @@ use crate::schema::{
     STEP_COLUMNS,
 };
 use crate::time::wall_now;
-
-/// Why a run file cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum StoreError {
-    /// SQLite failed (I/O, a full disk, a locked file).
-    #[error("{path}: {source}")]
-    Sqlite {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        #[source]
-        source: rusqlite::Error,
-    },
-    /// A file operation failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The file exists already (a new run never overwrites one).
-    #[error("{0}: exists already; choose another name, or `gonio resume` it")]
-    Exists(PathBuf),
-    /// No such file.
-    #[error("{0}: no such run file")]
-    Missing(PathBuf),
-    /// Not an SQLite database, or not a Gonio run file.
-    #[error("{path}: not a Gonio run file ({why})")]
-    NotARunFile {
-        /// The file.
-        path: PathBuf,
-        /// What gave it away.
-        why: String,
-    },
-    /// Written by a newer Gonio.
-    #[error(
-        "{path}: schema version {found} is newer than this build reads ({supported}); \
-         use a newer gonio"
-    )]
-    NewerSchema {
-        /// The file.
-        path: PathBuf,
-        /// Its version.
-        found: i32,
-        /// The newest this build reads.
-        supported: i32,
-    },
-    /// A step was committed twice (two processes on one run file).
-    #[error("{path}: step {step} is not pending; is another process working on this run?")]
-    NotPending {
-        /// The file.
-        path: PathBuf,
-        /// The step.
-        step: i64,
-    },
-    /// Damaged: structure or content fails its checks.
-    #[error("{path}: corrupted: {why}")]
-    Corrupt {
-        /// The file.
-        path: PathBuf,
-        /// What failed.
-        why: String,
-    },
-}
-
-impl StoreError {
-    /// True for faults of the file given (exit status 2), rather than of the machine.
-    pub fn is_bad_input(&self) -> bool {
-        !matches!(
-            self,
-            StoreError::Sqlite { .. } | StoreError::Io { .. } | StoreError::NotPending { .. }
-        )
-    }
-}
 
 /// An open run file.
 pub struct RunStore {
