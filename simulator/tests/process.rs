@@ -57,9 +57,8 @@ fn a_driver_in_another_process_measures() {
 
 #[test]
 fn bad_config_exits_2_naming_the_field() {
-    let dir = std::env::temp_dir().join(format!("gonio-sim-badcfg-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
-    let p = dir.join("sim.toml");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let p = dir.path().join("sim.toml");
     std::fs::write(&p, "[kinematics]\nlayout = \"coplanar-arms\"\n[kinematics.addresses]\nsource = 1\ndetector = 2\nsample_rot = 3\nsample_tilt = 40\n").expect("write");
     let out = Command::new(env!("CARGO_BIN_EXE_gonio-sim"))
         .args(["--config", p.to_str().expect("utf-8")])
@@ -72,5 +71,4 @@ fn bad_config_exits_2_naming_the_field() {
         err.contains("field `kinematics.addresses.sample_tilt`: must be in 1..=31"),
         "{err}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -84,12 +84,13 @@ fn sim() -> SimConfig {
     s
 }
 
-/// A directory for run files: on /work's disk (cargo's target tmp) or on tmpfs.
-fn scratch(base: &Path) -> PathBuf {
-    let d = base.join(format!("gonio-acquire-bench-engine-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("scratch dir");
-    d
+/// A directory for run files, removed when dropped: on /work's disk (cargo's target
+/// tmp) or on tmpfs.
+fn scratch(base: &Path) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("gonio-acquire-bench-engine-")
+        .tempdir_in(base)
+        .expect("scratch dir")
 }
 
 /// A fresh run file path in `dir`.
@@ -285,7 +286,7 @@ fn bench(c: &mut Criterion) {
     let rt = runtime();
     let disk = scratch(Path::new(env!("CARGO_TARGET_TMPDIR")));
     let shm = scratch(Path::new("/dev/shm"));
-    let disk_label = format!("{} (disk)", disk.display());
+    let disk_label = format!("{} (disk)", disk.path().display());
 
     let plan = Plan::from_toml(PLAN, None).expect("plan");
     let mech = inst.0.mechanics().expect("mechanics");
@@ -295,7 +296,7 @@ fn bench(c: &mut Criterion) {
         .incident
         .as_ref()
         .map_or(1.0, |i| i.transmittance);
-    let probe = fresh(&shm);
+    let probe = fresh(shm.path());
     let first = acquire(&rt, &inst, PLAN, &probe);
     remove(&probe);
     let steps = first.report.measured;
@@ -307,8 +308,8 @@ fn bench(c: &mut Criterion) {
         prepared.checked.accepted.len(),
         first.report.physical_s / steps as f64,
     );
-    breakdown(&rt, &inst, PLAN, 7, &disk, &disk_label);
-    breakdown(&rt, &inst, PLAN, 7, &shm, "/dev/shm (tmpfs)");
+    breakdown(&rt, &inst, PLAN, 7, disk.path(), &disk_label);
+    breakdown(&rt, &inst, PLAN, 7, shm.path(), "/dev/shm (tmpfs)");
     let driven = median(
         (0..7)
             .map(|_| drive(&inst.0, &prepared.schedule.steps, transmittance))
@@ -320,14 +321,17 @@ fn bench(c: &mut Criterion) {
         1e3 * driven.as_secs_f64() / steps as f64,
         1e6 * handoff(&rt).as_secs_f64(),
     );
-    breakdown(&rt, &inst, LONG_PLAN, 3, &disk, &disk_label);
-    breakdown(&rt, &inst, LONG_PLAN, 3, &shm, "/dev/shm (tmpfs)");
+    breakdown(&rt, &inst, LONG_PLAN, 3, disk.path(), &disk_label);
+    breakdown(&rt, &inst, LONG_PLAN, 3, shm.path(), "/dev/shm (tmpfs)");
 
     let mut g = c.benchmark_group("engine");
     g.sample_size(10);
     g.sampling_mode(SamplingMode::Flat);
     g.throughput(Throughput::Elements(steps as u64));
-    for (name, dir) in [("complete run, disk", &disk), ("complete run, tmpfs", &shm)] {
+    for (name, dir) in [
+        ("complete run, disk", disk.path()),
+        ("complete run, tmpfs", shm.path()),
+    ] {
         g.bench_function(name, |b| {
             b.iter_custom(|iters| {
                 let mut total = Duration::ZERO;
@@ -348,8 +352,6 @@ fn bench(c: &mut Criterion) {
         })
     });
     g.finish();
-    let _ = std::fs::remove_dir_all(&disk);
-    let _ = std::fs::remove_dir_all(&shm);
 }
 
 criterion_group!(benches, bench);

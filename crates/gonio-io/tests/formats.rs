@@ -810,8 +810,8 @@ fn detection_picks_the_format_from_content() {
 
 #[test]
 fn files_on_disk_name_themselves() {
-    let dir = std::env::temp_dir().join(format!("gonio-io-formats-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let s = awkward_samples(Channels::Rgb, 20, 3, true);
     let path = dir.join("s.astm");
     formats::write_file(Format::Astm, &Data::Samples(s.clone()), &path).expect("writes");

@@ -92,23 +92,19 @@ fn measured(m: &dyn Brdf, step: f64, rel: f64) -> Samples {
 }
 
 /// A scratch directory under the system's temporary directory, removed on drop.
-struct Scratch(PathBuf);
+struct Scratch(tempfile::TempDir);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let p = std::env::temp_dir().join(format!("gonio-io-plot-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("create a scratch directory");
-        Scratch(p)
+        Scratch(
+            tempfile::Builder::new()
+                .prefix(&format!("gonio-io-plot-{name}-"))
+                .tempdir()
+                .expect("create a scratch directory"),
+        )
     }
     fn path(&self, f: &str) -> PathBuf {
-        self.0.join(f)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
+        self.0.path().join(f)
     }
 }
 

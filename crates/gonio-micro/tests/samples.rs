@@ -4,18 +4,12 @@
 //! determinism over thread counts, and surface files that name their faults.
 #![allow(clippy::needless_range_loop)] // index arithmetic over grid nodes reads best
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use gonio_brdf::{Brdf, Model};
 use gonio_core::{Dir, SphericalDeg};
 use gonio_micro::{MicroError, Sample, SimOptions, Simulation};
 use gonio_process::{Axis, Grid, Table, measure};
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gonio-micro-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
 
 fn sim_from(text: &str, path: Option<&Path>) -> Simulation {
     let s = Sample::from_toml(text, path).expect("surface file");
@@ -203,7 +197,8 @@ fn sh_estimate_is_bit_reciprocal() {
 /// 2^18 rays: M_00 = 2.4073 ± 0.0095 for ρ = 0.6.
 #[test]
 fn sh_estimate_of_a_lambertian_plane() {
-    let dir = temp_dir("sh");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     std::fs::write(dir.join("flat.csv"), "0 0 0\n0 0 0\n").expect("write");
     let text = r#"
 channels = ["value"]
@@ -250,7 +245,8 @@ albedo = [0.6]
 /// model's own (computed by gonio-brdf to 1e-8) within Monte Carlo error.
 #[test]
 fn model_facets_reproduce_the_models_albedo_on_a_flat_surface() {
-    let dir = temp_dir("model");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let model_path =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models/cook-torrance-gold.toml");
     std::fs::write(dir.join("flat.csv"), "0,0\n0,0\n").expect("write");
@@ -352,7 +348,8 @@ fn load_err(dir: &Path, name: &str, text: &str) -> MicroError {
 
 #[test]
 fn bad_surface_files_name_file_and_field() {
-    let dir = temp_dir("bad");
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
     let base = CYLINDERS;
     let cases: Vec<(&str, String, &[&str])> = vec![
         (

@@ -33,12 +33,35 @@ pub fn ok_json(args: &[&str]) -> Value {
     serde_json::from_slice(&ok(args).stdout).expect("one JSON object")
 }
 
-/// A fresh directory for this test process.
-pub fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("gonio-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+/// A fresh directory for one test's files, removed when dropped; derefs to its
+/// path.
+pub struct Scratch(tempfile::TempDir);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+/// A fresh directory named after the test (`gonio-NAME-…`).
+pub fn scratch(name: &str) -> Scratch {
+    Scratch(
+        tempfile::Builder::new()
+            .prefix(&format!("gonio-{name}-"))
+            .tempdir()
+            .expect("temp dir"),
+    )
+}
+
+/// What a run of `gonio` wrote on stderr.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A file of the repository's `config/`, as an argument.
+pub fn config(rel: &str) -> String {
+    root().join("config").join(rel).display().to_string()
 }
 
 /// The repository's root.
