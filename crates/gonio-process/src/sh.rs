@@ -970,6 +970,26 @@ impl ShFile {
     }
 }
 
+/// A harmonics representation evaluates anywhere, so it is a `Brdf` (sampled by the
+/// cosine proposal; its values may dip below zero where a truncated series rings).
+impl gonio_brdf::Brdf for ShBrdf {
+    fn channels(&self) -> &Channels {
+        &self.channels
+    }
+
+    fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
+        ShBrdf::eval(self, wi, wo, out);
+    }
+
+    fn proposals(&self, _wi: Dir, out: &mut Vec<gonio_brdf::Weighted>) {
+        crate::grid::cosine_proposal(out);
+    }
+
+    fn is_reciprocal(&self) -> bool {
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1188,22 +1208,3 @@ mod tests {
     }
 }
 
-/// A harmonics representation evaluates anywhere, so it is a `Brdf` (sampled by the
-/// cosine proposal; its values may dip below zero where a truncated series rings).
-impl gonio_brdf::Brdf for ShBrdf {
-    fn channels(&self) -> &Channels {
-        &self.channels
-    }
-
-    fn eval(&self, wi: Dir, wo: Dir, out: &mut [f64]) {
-        ShBrdf::eval(self, wi, wo, out);
-    }
-
-    fn proposals(&self, _wi: Dir, out: &mut Vec<gonio_brdf::Weighted>) {
-        crate::grid::cosine_proposal(out);
-    }
-
-    fn is_reciprocal(&self) -> bool {
-        true
-    }
-}
