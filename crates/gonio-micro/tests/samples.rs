@@ -393,7 +393,7 @@ fn bad_surface_files_name_file_and_field() {
         ),
     ];
     for (name, text, needles) in cases {
-        let e = load_err(&dir, name, &text).to_string();
+        let e = load_err(dir, name, &text).to_string();
         println!("{e}");
         for n in needles {
             assert!(e.contains(n), "{name}: {e:?} lacks {n:?}");
@@ -411,12 +411,12 @@ material = "m"
 [materials.m]
 kind = "mirror"
 "#;
-    let e = load_err(&dir, "hm.toml", hm).to_string();
+    let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:") && e.contains("\"x\""), "{e}");
     std::fs::write(dir.join("bumps.csv"), "0 1 2\n0 1\n").expect("write");
-    let e = load_err(&dir, "hm.toml", hm).to_string();
+    let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:"), "{e}");
-    let e = load_err(&dir, "hm2.toml", &hm.replace("bumps.csv", "missing.csv")).to_string();
+    let e = load_err(dir, "hm2.toml", &hm.replace("bumps.csv", "missing.csv")).to_string();
     assert!(e.contains("missing.csv"), "{e}");
     // A model file that is not there: the surface file, the field, and the model path.
     let md = hm.replace(
@@ -424,7 +424,7 @@ kind = "mirror"
         "kind = \"model\"\nfile = \"nowhere.toml\"",
     );
     std::fs::write(dir.join("bumps.csv"), "0 1\n1 0\n").expect("write");
-    let e = load_err(&dir, "md.toml", &md).to_string();
+    let e = load_err(dir, "md.toml", &md).to_string();
     assert!(
         e.contains("md.toml") && e.contains("materials.m.file") && e.contains("nowhere.toml"),
         "{e}"
