@@ -1,33 +1,12 @@
-//! The run engine: takes a run file's pending steps one by one through the
-//! goniometer, commits each reading as it is taken, and tells listeners.
-//!
-//! The drivers block (serial I/O, waits on the instrument clock), so each step runs
-//! on tokio's blocking pool and the async side stays free for listeners and for
-//! Ctrl-C. The instrument, the bench and the store travel together into each step
-//! and back; nothing else touches them meanwhile.
-//!
-//! What the engine does with faults:
-//! - lost, late or garbled replies are retried by the drivers; the count is stored
-//!   with the reading and logged as a `retry` event;
-//! - after a controller was reset or lost power, every axis that lost its reference
-//!   is re-homed (the NUL byte on the shared line does not say which controller sent
-//!   it), and the step is measured again (up to [`EngineConfig::max_attempts`] times);
-//! - a flagged reading (overload, unlock) is read again up to
-//!   [`EngineConfig::flagged_rereads`] times, then stored with its flags: data is
-//!   never thrown away, the reduction decides;
-//! - a step the instrument refuses for good (a target outside the limits, a signal
-//!   autoranging cannot hold) is marked failed with its reason, and the run goes on;
-//! - anything else that persists (a stalled stage, a dead line) stops the stages and
-//!   ends the session `faulted`, resumable once the cause is fixed;
-//! - raising the [`Stopper`] (Ctrl-C) aborts the move in flight, stops every stage,
-//!   and ends the session `interrupted`, resumable.
+//! The rig: the instrument, the bench and the run file that travel together into
+//! each step, and what one step, the session's start-up and its end do with them.
 
 use std::time::Duration;
 
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
 use gonio_core::kinematics;
-use gonio_driver::smc100::{AbortFlag, AxisError, MotionError};
+use gonio_driver::smc100::{AxisError, MotionError};
 use gonio_driver::sr830::{Reading, Sr830Error};
 use gonio_driver::{Clock, Goniometer, Transport, TransportError};
 use gonio_proto::sr830::Sensitivity;
@@ -38,164 +17,10 @@ use gonio_driver::bench::{Bench, BenchError, Setup};
 use gonio_plan::StepKind;
 use gonio_run::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
 
-/// How hard the engine tries.
-#[derive(Clone, Debug, PartialEq)]
-pub struct EngineConfig {
-    /// Attempts at one step (re-measured after a recovered fault) before the run stops.
-    pub max_attempts: u32,
-    /// Extra readings of a step whose reading came back flagged.
-    pub flagged_rereads: u32,
-    /// Transmittance of the incident-beam filter (from the plan).
-    pub incident_transmittance: f64,
-    /// Software version written with each session.
-    pub software: String,
-}
-
-impl Default for EngineConfig {
-    fn default() -> Self {
-        EngineConfig {
-            max_attempts: 3,
-            flagged_rereads: 2,
-            incident_transmittance: 1.0,
-            software: concat!("gonio ", env!("CARGO_PKG_VERSION")).into(),
-        }
-    }
-}
-
-/// How a session ended.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Outcome {
-    /// Every step is done or failed.
-    Complete,
-    /// Stopped on request (Ctrl-C); resumable.
-    Interrupted,
-    /// Stopped by a fault that persisted; resumable once it is fixed.
-    Faulted(String),
-}
-
-impl Outcome {
-    /// The run status it leaves: `complete`, `interrupted` or `faulted`.
-    pub fn status(&self) -> &'static str {
-        match self {
-            Outcome::Complete => "complete",
-            Outcome::Interrupted => "interrupted",
-            Outcome::Faulted(_) => "faulted",
-        }
-    }
-}
-
-/// What listeners hear.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Event {
-    /// A session started: `done` of `total` steps already finished.
-    Started {
-        /// Steps done or failed before this session.
-        done: usize,
-        /// Steps in the schedule.
-        total: usize,
-        /// True when an earlier session worked on the run.
-        resumed: bool,
-    },
-    /// Axes were homed.
-    Homed {
-        /// Their names.
-        axes: Vec<String>,
-    },
-    /// The bench was set up (light path or band).
-    Bench {
-        /// What was done.
-        what: String,
-    },
-    /// A step was measured and committed.
-    Measured {
-        /// The step.
-        step_id: i64,
-        /// Its kind.
-        kind: StepKind,
-        /// Steps finished so far.
-        done: usize,
-        /// Steps in the schedule.
-        total: usize,
-        /// Mean R, V.
-        r_mean: f64,
-        /// Standard deviation of R, V.
-        r_std: f64,
-        /// [`flags`] bits.
-        flags: u32,
-        /// Instrument time since the session started, s.
-        physical_s: f64,
-    },
-    /// A fault, and whether the engine recovers from it.
-    Fault {
-        /// The step, if any.
-        step_id: Option<i64>,
-        /// What happened.
-        message: String,
-        /// True when the engine carries on.
-        recovering: bool,
-    },
-    /// A step was given up.
-    Skipped {
-        /// The step.
-        step_id: i64,
-        /// Why.
-        reason: String,
-    },
-    /// The session ended.
-    Finished {
-        /// How.
-        outcome: Outcome,
-    },
-}
-
-/// Why the engine itself failed (the run file could not be written, a step panicked).
-/// The stages are stopped first.
-#[derive(Debug, thiserror::Error)]
-pub enum EngineError {
-    /// The run file.
-    #[error("run file: {0}")]
-    Store(#[from] StoreError),
-    /// A step's task panicked.
-    #[error("a step's task failed: {0}")]
-    Task(String),
-}
-
-/// Stops a running engine from elsewhere (a signal handler): the move in flight is
-/// aborted, the stages stop, the session ends `interrupted`.
-#[derive(Clone, Debug)]
-pub struct Stopper(AbortFlag);
-
-impl Stopper {
-    /// Requests the stop.
-    pub fn stop(&self) {
-        self.0.raise();
-    }
-
-    /// True once requested.
-    pub fn is_stopped(&self) -> bool {
-        self.0.is_raised()
-    }
-}
-
-/// What a session did.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SessionReport {
-    /// How it ended.
-    pub outcome: Outcome,
-    /// Steps measured in this session.
-    pub measured: usize,
-    /// Steps given up in this session.
-    pub skipped: usize,
-    /// Steps done or failed in the whole run.
-    pub finished: usize,
-    /// Steps in the schedule.
-    pub total: usize,
-    /// Instrument time of the session, s.
-    pub physical_s: f64,
-}
+use super::{EngineConfig, Event, Outcome, SessionReport, setup_for};
 
 /// How one step went.
-enum StepOutcome {
+pub(super) enum StepOutcome {
     Measured(Box<ReadingRecord>),
     /// Recovered from a fault; measure the step again.
     Again(String),
@@ -204,190 +29,25 @@ enum StepOutcome {
 }
 
 /// The instrument, the bench and the store: what travels into each step.
-struct Rig<M: Transport, D: Transport, C: Clock, B: Bench> {
-    gonio: Goniometer<M, D, C>,
-    bench: B,
-    store: RunStore,
-    mech: Mechanics,
-    cfg: EngineConfig,
-    setup: Option<Setup>,
-    channel: Option<String>,
-    t0: Duration,
-    events: broadcast::Sender<Event>,
+pub(super) struct Rig<M: Transport, D: Transport, C: Clock, B: Bench> {
+    pub(super) gonio: Goniometer<M, D, C>,
+    pub(super) bench: B,
+    pub(super) store: RunStore,
+    pub(super) mech: Mechanics,
+    pub(super) cfg: EngineConfig,
+    pub(super) setup: Option<Setup>,
+    pub(super) channel: Option<String>,
+    pub(super) t0: Duration,
+    pub(super) events: broadcast::Sender<Event>,
     /// The session's span: each step's span is its child, on whichever thread runs it.
-    span: tracing::Span,
-}
-
-/// A run in progress: the goniometer, the bench and the run file.
-pub struct Engine<M: Transport, D: Transport, C: Clock, B: Bench> {
-    rig: Rig<M, D, C, B>,
-    stopper: Stopper,
-}
-
-impl<M, D, C, B> Engine<M, D, C, B>
-where
-    M: Transport + Send + 'static,
-    D: Transport + Send + 'static,
-    C: Clock + Send + 'static,
-    B: Bench + 'static,
-{
-    /// An engine that will take `store`'s pending steps on `gonio`, whose stages play
-    /// the roles of `mech`.
-    pub fn new(
-        gonio: Goniometer<M, D, C>,
-        bench: B,
-        store: RunStore,
-        mech: Mechanics,
-        cfg: EngineConfig,
-    ) -> Self {
-        let stopper = Stopper(gonio.motion.abort_flag());
-        let (events, _) = broadcast::channel(1024);
-        let t0 = gonio.motion.clock().now();
-        Engine {
-            rig: Rig {
-                gonio,
-                bench,
-                store,
-                mech,
-                cfg,
-                setup: None,
-                channel: None,
-                t0,
-                events,
-                span: tracing::Span::none(),
-            },
-            stopper,
-        }
-    }
-
-    /// The handle that stops the run.
-    pub fn stopper(&self) -> Stopper {
-        self.stopper.clone()
-    }
-
-    /// A receiver of the engine's events (subscribe before [`run`](Self::run)).
-    pub fn subscribe(&self) -> broadcast::Receiver<Event> {
-        self.rig.events.subscribe()
-    }
-
-    /// Runs a session: start-up (identify, home what needs it, restore the detector),
-    /// then every pending step; returns the report and the run file.
-    pub async fn run(self) -> Result<(SessionReport, RunStore), EngineError> {
-        let Engine { mut rig, stopper } = self;
-        rig.span = tracing::info_span!("run", file = %rig.store.path().display());
-        let (mut rig, started) = blocking(rig, Rig::start).await?;
-        let start = match started? {
-            Ok(s) => s,
-            Err(outcome) => {
-                let (rig, r) = blocking(rig, move |rig| rig.finish(outcome, 0, 0)).await?;
-                return Ok((r?, rig.store));
-            }
-        };
-        let total = start.total;
-        let mut finished = start.finished;
-        let (mut measured, mut skipped) = (0, 0);
-        let mut outcome = Outcome::Complete;
-        let mut queue = start.pending.into_iter().peekable();
-        let mut attempts = 0u32;
-        while let Some(step) = queue.peek().cloned() {
-            if stopper.is_stopped() {
-                outcome = Outcome::Interrupted;
-                break;
-            }
-            attempts += 1;
-            let s = step.clone();
-            let (r, res) = blocking(rig, move |rig| rig.step(&s)).await?;
-            rig = r;
-            match res? {
-                StepOutcome::Measured(rec) => {
-                    measured += 1;
-                    finished += 1;
-                    let _ = rig.events.send(Event::Measured {
-                        step_id: step.id,
-                        kind: step.step.kind,
-                        done: finished,
-                        total,
-                        r_mean: rec.r_mean,
-                        r_std: rec.r_std,
-                        flags: rec.flags,
-                        physical_s: rec.physical_s,
-                    });
-                    queue.next();
-                    attempts = 0;
-                }
-                StepOutcome::Again(why) => {
-                    if stopper.is_stopped() {
-                        outcome = Outcome::Interrupted;
-                        break;
-                    }
-                    if attempts >= rig.cfg.max_attempts {
-                        outcome = Outcome::Faulted(format!(
-                            "step {} failed {attempts} times; last: {why}",
-                            step.id
-                        ));
-                        break;
-                    }
-                }
-                StepOutcome::Skip(reason) => {
-                    tracing::warn!(parent: &rig.span, step = step.id, "step skipped: {reason}");
-                    rig.store.fail_step(step.id, &reason)?;
-                    let _ = rig.events.send(Event::Skipped {
-                        step_id: step.id,
-                        reason,
-                    });
-                    skipped += 1;
-                    finished += 1;
-                    queue.next();
-                    attempts = 0;
-                }
-                StepOutcome::Stop(o) => {
-                    outcome = o;
-                    break;
-                }
-            }
-        }
-        let (rig, r) = blocking(rig, move |rig| rig.finish(outcome, measured, skipped)).await?;
-        Ok((r?, rig.store))
-    }
-}
-
-/// Runs `f` on the blocking pool with the rig, and hands the rig back.
-async fn blocking<M, D, C, B, T, F>(
-    rig: Rig<M, D, C, B>,
-    f: F,
-) -> Result<(Rig<M, D, C, B>, T), EngineError>
-where
-    M: Transport + Send + 'static,
-    D: Transport + Send + 'static,
-    C: Clock + Send + 'static,
-    B: Bench + 'static,
-    T: Send + 'static,
-    F: FnOnce(&mut Rig<M, D, C, B>) -> T + Send + 'static,
-{
-    let mut rig = rig;
-    tokio::task::spawn_blocking(move || {
-        let t = f(&mut rig);
-        (rig, t)
-    })
-    .await
-    .map_err(|e| EngineError::Task(e.to_string()))
+    pub(super) span: tracing::Span,
 }
 
 /// What start-up found.
-struct Start {
-    pending: Vec<StoredStep>,
-    total: usize,
-    finished: usize,
-}
-
-/// The set-up a kind of step needs.
-pub fn setup_for(kind: StepKind, transmittance: f64) -> Setup {
-    match kind {
-        StepKind::Sample | StepKind::Reference => Setup::Sample,
-        StepKind::Dark => Setup::Dark,
-        StepKind::Incident => Setup::Incident { transmittance },
-        StepKind::Standard => Setup::Standard,
-    }
+pub(super) struct Start {
+    pub(super) pending: Vec<StoredStep>,
+    pub(super) total: usize,
+    pub(super) finished: usize,
 }
 
 /// The role axes with their targets, for `move_to`.
@@ -446,7 +106,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     /// Session start-up: a session row, the instrument identified and set up, the
     /// axes that lost their reference homed, the detector's range restored to where
     /// the run left it. `Ok(Err(outcome))` when the instrument cannot start.
-    fn start(&mut self) -> Result<Result<Start, Outcome>, StoreError> {
+    pub(super) fn start(&mut self) -> Result<Result<Start, Outcome>, StoreError> {
         let span = self.span.clone();
         let _entered = span.enter();
         self.gonio.motion.abort_flag().clear();
@@ -544,7 +204,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     }
 
     /// Takes one step: bench, motion, reading, commit.
-    fn step(&mut self, s: &StoredStep) -> Result<StepOutcome, StoreError> {
+    pub(super) fn step(&mut self, s: &StoredStep) -> Result<StepOutcome, StoreError> {
         let _span = tracing::info_span!(
             parent: &self.span,
             "step",
@@ -807,7 +467,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     }
 
     /// Ends the session: stages stopped, outcome stored.
-    fn finish(
+    pub(super) fn finish(
         &mut self,
         outcome: Outcome,
         measured: usize,
