@@ -18,211 +18,15 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
+pub use gonio_proto::smc100::{
+    AxisConfig, AxisError, ChainPolicy, ControllerInfo, MotionError, describe_errors,
+};
 use gonio_proto::smc100::{
-    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody, Status,
+    Command, ControllerState, ErrorCode, Frame, Param, Reply, ReplyBody, Status,
 };
 
 use crate::clock::Clock;
 use crate::transport::{Transport, TransportError};
-
-/// What a stage is and how the driver may move it.
-#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct AxisConfig {
-    /// The axis' name in plans and configs (`source`, `detector`, `sample_rot`).
-    pub name: String,
-    /// Controller address on the chain, 1–31.
-    pub address: u8,
-    /// Position units of the stage (`deg` for rotation stages).
-    #[serde(default = "default_units")]
-    pub units: String,
-    /// Lowest position the driver will ever command, units.
-    pub min: f64,
-    /// Highest position the driver will ever command, units.
-    pub max: f64,
-    /// Velocity applied after homing (`VA`), units/s; the controller's own otherwise.
-    #[serde(default)]
-    pub velocity: Option<f64>,
-    /// Acceleration applied after homing (`AC`), units/s².
-    #[serde(default)]
-    pub acceleration: Option<f64>,
-    /// Largest |position − target| accepted at the end of a move, units.
-    #[serde(default = "default_tolerance")]
-    pub tolerance: f64,
-    /// Longest a home search may take, s.
-    #[serde(default = "default_home_timeout")]
-    pub home_timeout_s: f64,
-}
-
-fn default_units() -> String {
-    "deg".into()
-}
-fn default_tolerance() -> f64 {
-    0.01
-}
-fn default_home_timeout() -> f64 {
-    120.0
-}
-
-/// Timing and retry policy for a chain.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ChainPolicy {
-    /// How long to wait for a reply line (a `TP` takes 10–16 ms).
-    pub reply_timeout: Duration,
-    /// Pause between status polls while stages move.
-    pub poll_interval: Duration,
-    /// Re-sends of an idempotent command after a lost or garbled reply.
-    pub retries: usize,
-    /// Attempts to reopen a vanished port before giving up.
-    pub reconnect_attempts: usize,
-    /// Pause between reconnection attempts.
-    pub reconnect_delay: Duration,
-    /// Extra time allowed beyond the controller's own estimate (`PT`) for a move.
-    pub move_margin: Duration,
-    /// Factor on the controller's estimate for a move's deadline.
-    pub move_factor: f64,
-}
-
-impl Default for ChainPolicy {
-    fn default() -> Self {
-        ChainPolicy {
-            reply_timeout: Duration::from_millis(100),
-            poll_interval: Duration::from_millis(50),
-            retries: 2,
-            reconnect_attempts: 5,
-            reconnect_delay: Duration::from_millis(500),
-            move_margin: Duration::from_secs(2),
-            move_factor: 1.5,
-        }
-    }
-}
-
-/// Why an operation on one axis failed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum AxisError {
-    /// The link failed (timeout, vanished port, bad framing).
-    #[error("{0}")]
-    Transport(#[from] TransportError),
-    /// The controller refused a command: its `TE` letter.
-    #[error("controller refused `{command}`: error {code}")]
-    Controller {
-        /// The command line sent, without terminator.
-        command: String,
-        /// The error letter.
-        code: ErrorCode,
-    },
-    /// A reply that is not a reply to what was asked.
-    #[error("bad reply to `{sent}`: {reply:?} ({reason})")]
-    Protocol {
-        /// The command line sent.
-        sent: String,
-        /// The reply received.
-        reply: String,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// A target outside the axis' limits; nothing was sent.
-    #[error(
-        "target {target} {units} is outside the limits [{min}, {max}] {units}; nothing was sent"
-    )]
-    OutOfLimits {
-        /// The refused target.
-        target: f64,
-        /// Lower limit.
-        min: f64,
-        /// Upper limit.
-        max: f64,
-        /// Units.
-        units: String,
-    },
-    /// The controller lost its reference (state NOT REFERENCED) where it should have had it.
-    #[error("controller is NOT REFERENCED (state {state}); home it again")]
-    NotReferenced {
-        /// The state reported.
-        state: ControllerState,
-    },
-    /// The controller restarted (state `0A` mid-run, or a NUL byte on the line: power loss).
-    #[error("controller was reset or lost power; home it again")]
-    ControllerReset,
-    /// The controller disabled the motor (e.g. a following error).
-    #[error("controller went to DISABLE (state {state}, errors {errors:04X})")]
-    Disabled {
-        /// The state reported.
-        state: ControllerState,
-        /// The positioner error bits seen.
-        errors: u16,
-    },
-    /// The home search ended without reaching READY.
-    #[error("home search failed (state {state}, errors {errors:04X})")]
-    HomingFailed {
-        /// The state reported.
-        state: ControllerState,
-        /// The positioner error bits seen.
-        errors: u16,
-    },
-    /// The state does not allow the operation (CONFIGURATION, JOGGING).
-    #[error("controller is in state {state}, which does not allow {operation}")]
-    WrongState {
-        /// The state reported.
-        state: ControllerState,
-        /// What was attempted.
-        operation: &'static str,
-    },
-    /// A move or home search did not finish in time; the stage was stopped.
-    #[error(
-        "{operation} did not finish within {waited:?} (target {target}, at {position:?}); stopped"
-    )]
-    Timeout {
-        /// `move` or `home`.
-        operation: &'static str,
-        /// The target.
-        target: f64,
-        /// The position read after stopping, if it could be read.
-        position: Option<f64>,
-        /// How long was waited.
-        waited: Duration,
-    },
-    /// The move ended away from its target.
-    #[error("stage stopped at {position}, {} from its target {target} (tolerance {tolerance})", (position - target).abs())]
-    TargetNotReached {
-        /// The target.
-        target: f64,
-        /// Where the stage is.
-        position: f64,
-        /// The tolerance.
-        tolerance: f64,
-    },
-    /// A non-idempotent command's acknowledgement was lost: it may or may not have run,
-    /// and it must not be re-sent. The stage was stopped.
-    #[error("lost the acknowledgement of `{command}`, which must not be re-sent; stage stopped")]
-    Ambiguous {
-        /// The command line.
-        command: String,
-    },
-    /// The operation was aborted; the stages were stopped.
-    #[error("aborted; stages stopped")]
-    Aborted,
-}
-
-/// An error on a named axis.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum MotionError {
-    /// Something failed on this axis.
-    #[error("axis {axis}: {source}")]
-    AtAxis {
-        /// The axis' name.
-        axis: String,
-        /// What failed.
-        #[source]
-        source: AxisError,
-    },
-    /// No axis has this name.
-    #[error("no axis named {0:?}")]
-    UnknownAxis(String),
-    /// The chain configuration is not usable.
-    #[error("chain configuration: {0}")]
-    Config(String),
-}
 
 /// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
 /// running and every later wait stop all stages and return [`AxisError::Aborted`].
@@ -246,17 +50,6 @@ impl AbortFlag {
     pub fn is_raised(&self) -> bool {
         self.0.load(Ordering::SeqCst)
     }
-}
-
-/// What the driver learnt about a controller at start-up.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ControllerInfo {
-    /// The `VE` text.
-    pub version: String,
-    /// The `ID?` stage name.
-    pub stage: String,
-    /// The state found.
-    pub state: ControllerState,
 }
 
 /// A chain of SMC100 controllers sharing one serial line.
@@ -919,25 +712,4 @@ impl<T: Transport, C: Clock> Drop for Smc100Chain<T, C> {
         // A chain going away must not leave a stage moving.
         let _ = self.stop_all();
     }
-}
-
-/// A positioner error word's named bits, for messages.
-pub fn describe_errors(e: PositionerErrors) -> Vec<&'static str> {
-    let names = [
-        (PositionerErrors::NEGATIVE_END_OF_RUN, "negative end of run"),
-        (PositionerErrors::POSITIVE_END_OF_RUN, "positive end of run"),
-        (PositionerErrors::PEAK_CURRENT, "peak current limit"),
-        (PositionerErrors::RMS_CURRENT, "RMS current limit"),
-        (PositionerErrors::SHORT_CIRCUIT, "short circuit"),
-        (PositionerErrors::FOLLOWING_ERROR, "following error"),
-        (PositionerErrors::HOMING_TIMEOUT, "homing time-out"),
-        (PositionerErrors::WRONG_STAGE, "wrong ESP stage"),
-        (PositionerErrors::LOW_VOLTAGE, "DC voltage too low"),
-        (PositionerErrors::OVER_POWER, "80 W output power exceeded"),
-    ];
-    names
-        .iter()
-        .filter(|(m, _)| e.has(*m))
-        .map(|(_, n)| *n)
-        .collect()
 }

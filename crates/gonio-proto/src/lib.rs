@@ -23,8 +23,10 @@
 //! error instead, and the `fuzz/` targets exercise that.
 
 mod framing;
+pub mod link;
 mod number;
 pub mod smc100;
 pub mod sr830;
 
 pub use framing::{FrameError, LineFramer};
+pub use link::TransportError;

@@ -15,12 +15,16 @@
 //! [`PositionerErrors`]), and [`Reply`] (controller to host).
 
 mod command;
+mod config;
+mod error;
 mod reply;
 mod status;
 
 pub mod fuzz;
 
 pub use command::{Command, CommandError, Frame, Param};
+pub use config::{AxisConfig, ChainPolicy};
+pub use error::{AxisError, ControllerInfo, MotionError, describe_errors};
 pub use reply::{Reply, ReplyBody, ReplyError};
 pub use status::{ControllerState, ErrorCode, PositionerErrors, Status};
 

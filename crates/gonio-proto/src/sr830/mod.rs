@@ -28,6 +28,8 @@
 //! to host).
 
 mod command;
+mod config;
+mod reading;
 mod reply;
 mod status;
 mod tables;
@@ -38,6 +40,8 @@ pub use command::{
     BitIndex, Command, CommandError, Interface, Output, ReferenceSource, SnapParam, SnapParams,
     encode_line, parse_line,
 };
+pub use config::{ConfigError, Sr830Config};
+pub use reading::{MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Sr830Error};
 pub use reply::{Identity, Reply, ReplyError};
 pub use status::{ErrorStatus, EventStatus, LiaStatus};
 pub use tables::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
