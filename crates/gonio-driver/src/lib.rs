@@ -15,6 +15,7 @@
 pub mod clock;
 pub mod config;
 mod goniometer;
+mod pump;
 pub mod script;
 pub mod smc100;
 pub mod sr830;

@@ -24,6 +24,7 @@
 
 mod framing;
 pub mod link;
+mod machine;
 mod number;
 pub mod smc100;
 pub mod sr830;

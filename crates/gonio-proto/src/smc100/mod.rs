@@ -18,6 +18,7 @@ mod command;
 mod config;
 mod error;
 mod reply;
+mod session;
 mod status;
 
 pub mod fuzz;
@@ -26,6 +27,7 @@ pub use command::{Command, CommandError, Frame, Param};
 pub use config::{AxisConfig, ChainPolicy};
 pub use error::{AxisError, ControllerInfo, MotionError, describe_errors};
 pub use reply::{Reply, ReplyBody, ReplyError};
+pub use session::Smc100Session;
 pub use status::{ControllerState, ErrorCode, PositionerErrors, Status};
 
 /// The line terminator in both directions.
