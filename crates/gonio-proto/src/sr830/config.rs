@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use super::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
 
-/// How an SR830 session sets the instrument up and reads it. Embeddable in an instrument config file
+/// How an [`Sr830Session`](super::Sr830Session) sets the instrument up and reads it. Embeddable in an instrument config file
 /// (TOML); every field has a default, and unknown fields are refused:
 ///
 /// ```toml

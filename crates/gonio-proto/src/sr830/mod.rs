@@ -31,6 +31,7 @@ mod command;
 mod config;
 mod reading;
 mod reply;
+mod session;
 mod status;
 mod tables;
 
@@ -43,6 +44,7 @@ pub use command::{
 pub use config::{ConfigError, Sr830Config};
 pub use reading::{MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Sr830Error};
 pub use reply::{Identity, Reply, ReplyError};
+pub use session::Sr830Session;
 pub use status::{ErrorStatus, EventStatus, LiaStatus};
 pub use tables::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
 

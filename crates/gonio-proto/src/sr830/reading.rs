@@ -7,8 +7,9 @@ use super::{
 };
 use crate::TransportError;
 
-/// Most range changes one read makes before giving up: one more than it takes
-/// to cross the whole table (26), so only an oscillating signal reaches it.
+/// Most range changes one read ([`Sr830Session::start_read`](super::Sr830Session::start_read))
+/// makes before giving up: one more than it takes to cross the whole table (26), so
+/// only an oscillating signal reaches it.
 pub const MAX_AUTORANGE_STEPS: usize = 27;
 
 /// What went wrong while a reading could be trusted.
