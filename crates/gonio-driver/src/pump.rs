@@ -83,16 +83,6 @@ pub(crate) fn pump<O: Operation>(
     }
 }
 
-/// Logs the end of an operation at `debug` (its faults were logged where they were
-/// decided) and passes its result on.
-pub(crate) fn finished<T, E: fmt::Display>(what: &str, r: Result<T, E>) -> Result<T, E> {
-    match &r {
-        Ok(_) => debug!("{what} finished"),
-        Err(e) => debug!(error = %e, "{what} failed"),
-    }
-    r
-}
-
 /// A line as log text: printable ASCII as is, `\r`, `\n`, `\0`, `\\` and other bytes
 /// escaped.
 pub(crate) struct Escaped<'a>(pub(crate) &'a [u8]);

@@ -25,7 +25,7 @@ use gonio_proto::smc100::{Smc100Session, Status};
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::{finished, pump};
+use crate::pump::pump;
 use crate::transport::Transport;
 
 /// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
@@ -74,14 +74,12 @@ impl<T: Transport, C: Clock> std::fmt::Debug for Smc100Chain<T, C> {
 }
 
 /// Runs one operation of the chain's session: starts it with `$start` (a method of
-/// the session, given the clock's now), pumps it over the chain's transport, and
-/// logs its end.
+/// the session, given the clock's now) and pumps it over the chain's transport.
 macro_rules! run {
-    ($chain:ident, $what:literal, $start:ident($($arg:expr),*)) => {{
+    ($chain:ident, $start:ident($($arg:expr),*)) => {{
         let now = $chain.clock.now();
         let op = $chain.session.$start($($arg,)* now);
-        let r = pump(&mut $chain.transport, &$chain.clock, Some(&$chain.abort), &$chain.port, op);
-        finished($what, r)
+        pump(&mut $chain.transport, &$chain.clock, Some(&$chain.abort), &$chain.port, op)
     }};
 }
 
@@ -129,20 +127,20 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// Status of the named axis (`TS`).
     pub fn status(&mut self, name: &str) -> Result<Status, MotionError> {
         let _span = debug_span!("smc100.status", port = %self.port, axis = name).entered();
-        run!(self, "status", start_status(name))
+        run!(self, start_status(name))
     }
 
     /// Encoder position of the named axis (`TP`), units.
     pub fn position(&mut self, name: &str) -> Result<f64, MotionError> {
         let _span = debug_span!("smc100.position", port = %self.port, axis = name).entered();
-        run!(self, "position", start_position(name))
+        run!(self, start_position(name))
     }
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`):
     /// what Gonio sends at start-up. Proves each address answers.
     pub fn identify(&mut self) -> Result<Vec<ControllerInfo>, MotionError> {
         let _span = debug_span!("smc100.identify", port = %self.port).entered();
-        run!(self, "identify", start_identify())
+        run!(self, start_identify())
     }
 
     /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
@@ -150,13 +148,13 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// stage gets its stop.
     pub fn stop_all(&mut self) -> Result<(), MotionError> {
         let _span = debug_span!("smc100.stop_all", port = %self.port).entered();
-        run!(self, "stop of every stage", start_stop_all())
+        run!(self, start_stop_all())
     }
 
     /// Stops one stage (`ST`, then `TE`).
     pub fn stop(&mut self, name: &str) -> Result<(), MotionError> {
         let _span = debug_span!("smc100.stop", port = %self.port, axis = name).entered();
-        run!(self, "stop", start_stop(name))
+        run!(self, start_stop(name))
     }
 
     /// Brings the named axes to READY with a reference: a home search (`OR`) from NOT
@@ -164,13 +162,13 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// configured velocity and acceleration. Home searches run concurrently.
     pub fn home(&mut self, names: &[&str]) -> Result<(), MotionError> {
         let _span = debug_span!("smc100.home", port = %self.port, axes = ?names).entered();
-        run!(self, "home", start_home(names))
+        run!(self, start_home(names))
     }
 
     /// Homes every axis.
     pub fn home_all(&mut self) -> Result<(), MotionError> {
         let _span = debug_span!("smc100.home", port = %self.port, axes = "all").entered();
-        run!(self, "home", start_home_all())
+        run!(self, start_home_all())
     }
 
     /// Moves the named axes to absolute targets, concurrently, and waits until every
@@ -178,14 +176,14 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// before any byte is sent. Returns the positions read at the end.
     pub fn move_to(&mut self, targets: &[(&str, f64)]) -> Result<Vec<f64>, MotionError> {
         let _span = debug_span!("smc100.move", port = %self.port, targets = ?targets).entered();
-        run!(self, "move", start_move(targets))
+        run!(self, start_move(targets))
     }
 
     /// Moves one axis by `delta` from its current target (`PR`). Checked against the
     /// limits from the set-point (`TH`); never re-sent.
     pub fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
         let _span = debug_span!("smc100.move_by", port = %self.port, axis = name, delta).entered();
-        run!(self, "relative move", start_move_by(name, delta))
+        run!(self, start_move_by(name, delta))
     }
 
     /// Resets the named controller (`RS`), waits for it to come back NOT REFERENCED
@@ -193,7 +191,7 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// [`AxisError::ControllerReset`] or a fault that only a reset clears.
     pub fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError> {
         let _span = debug_span!("smc100.reset_and_home", port = %self.port, axis = name).entered();
-        run!(self, "reset and home", start_reset_and_home(name))
+        run!(self, start_reset_and_home(name))
     }
 }
 

@@ -37,7 +37,7 @@ pub use gonio_proto::sr830::{
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::{finished, pump};
+use crate::pump::pump;
 use crate::transport::Transport;
 
 /// The SR830 on a transport, waiting on a clock.
@@ -51,12 +51,12 @@ pub struct Sr830<T: Transport, C: Clock> {
 }
 
 /// Runs one operation of the lock-in's session: starts it with `$start` (a method of
-/// the session, given the clock's now), pumps it over the transport, and logs its end.
+/// the session, given the clock's now) and pumps it over the transport.
 macro_rules! run {
-    ($d:ident, $what:literal, $start:ident($($arg:expr),*)) => {{
+    ($d:ident, $start:ident($($arg:expr),*)) => {{
         let now = $d.clock.now();
         let op = $d.session.$start($($arg,)* now);
-        finished($what, pump(&mut $d.transport, &$d.clock, None, &$d.port, op))
+        pump(&mut $d.transport, &$d.clock, None, &$d.port, op)
     }};
 }
 
@@ -87,7 +87,7 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
             slope = %c.slope,
         )
         .entered();
-        run!(self, "set-up", start_setup())
+        run!(self, start_setup())
     }
 
     /// One averaged reading; see the module docs for the sequence and autoranging.
@@ -101,37 +101,37 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
             samples = self.session.config().samples,
         )
         .entered();
-        run!(self, "reading", start_read())
+        run!(self, start_read())
     }
 
     /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.
     pub fn set_sensitivity(&mut self, s: Sensitivity) -> Result<(), Sr830Error> {
         let _span = debug_span!("sr830.set_sensitivity", port = %self.port, to = %s).entered();
-        run!(self, "sensitivity change", start_set_sensitivity(s))
+        run!(self, start_set_sensitivity(s))
     }
 
     /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
     pub fn set_time_constant(&mut self, t: TimeConstant) -> Result<(), Sr830Error> {
         let _span = debug_span!("sr830.set_time_constant", port = %self.port, to = %t).entered();
-        run!(self, "time constant change", start_set_time_constant(t))
+        run!(self, start_set_time_constant(t))
     }
 
     /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
     pub fn set_slope(&mut self, s: FilterSlope) -> Result<(), Sr830Error> {
         let _span = debug_span!("sr830.set_slope", port = %self.port, to = %s).entered();
-        run!(self, "slope change", start_set_slope(s))
+        run!(self, start_set_slope(s))
     }
 
     /// `LIAS?`: the LIA status byte (reading clears it).
     pub fn lia_status(&mut self) -> Result<LiaStatus, Sr830Error> {
         let _span = debug_span!("sr830.lia_status", port = %self.port).entered();
-        run!(self, "LIAS?", start_lia_status())
+        run!(self, start_lia_status())
     }
 
     /// `*ESR?`: the standard event status byte (reading clears it).
     pub fn event_status(&mut self) -> Result<EventStatus, Sr830Error> {
         let _span = debug_span!("sr830.event_status", port = %self.port).entered();
-        run!(self, "*ESR?", start_event_status())
+        run!(self, start_event_status())
     }
 
     /// Sends any command and, for a query, reads its reply. A vanished port is
@@ -141,14 +141,14 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
     /// driver tracks and restart the settling wait.
     pub fn execute(&mut self, command: &Command) -> Result<Option<Reply>, Sr830Error> {
         let _span = debug_span!("sr830.execute", port = %self.port, command = ?command).entered();
-        run!(self, "command", start_execute(command))
+        run!(self, start_execute(command))
     }
 
     /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the driver tracks (after
     /// `AGAN`, or a change from the front panel).
     pub fn refresh_settings(&mut self) -> Result<(), Sr830Error> {
         let _span = debug_span!("sr830.refresh_settings", port = %self.port).entered();
-        run!(self, "settings read-back", start_refresh_settings())
+        run!(self, start_refresh_settings())
     }
 
     /// Settling time at the current time constant and slope, to the config's

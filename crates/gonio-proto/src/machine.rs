@@ -100,9 +100,11 @@ enum RunState<T> {
 }
 
 /// A machine running on a borrowed session: the [`Operation`] a session's `start_*`
-/// methods return.
+/// methods return. It logs the operation's start and end at `debug`.
 #[derive(Debug)]
 pub(crate) struct Run<'s, S, M: Machine<S>> {
+    /// The operation's name, for the log (`smc100.move`, `sr830.read`).
+    name: &'static str,
     session: &'s mut S,
     machine: M,
     cx: Cx,
@@ -111,10 +113,15 @@ pub(crate) struct Run<'s, S, M: Machine<S>> {
     since: Duration,
 }
 
-impl<'s, S, M: Machine<S>> Run<'s, S, M> {
-    /// Starts `machine` on `session` at `now`.
-    pub(crate) fn new(session: &'s mut S, machine: M, now: Duration) -> Self {
+impl<'s, S, M: Machine<S>> Run<'s, S, M>
+where
+    M::Output: Outcome,
+{
+    /// Starts `machine`, the operation `name`, on `session` at `now`.
+    pub(crate) fn new(name: &'static str, session: &'s mut S, machine: M, now: Duration) -> Self {
+        tracing::debug!(operation = name, "operation started");
         let mut run = Run {
+            name,
             session,
             machine,
             cx: Cx::default(),
@@ -129,7 +136,15 @@ impl<'s, S, M: Machine<S>> Run<'s, S, M> {
         self.cx.now = now;
         self.since = now;
         self.state = match self.machine.step(self.session, &mut self.cx, ev) {
-            Step::Done(out) => RunState::Done(out),
+            Step::Done(out) => {
+                match out.failure() {
+                    None => tracing::debug!(operation = self.name, "operation finished"),
+                    Some(error) => {
+                        tracing::debug!(operation = self.name, %error, "operation failed");
+                    }
+                }
+                RunState::Done(out)
+            }
             Step::Wait(p) => RunState::Waiting(p),
         };
     }
@@ -150,7 +165,10 @@ impl<'s, S, M: Machine<S>> Run<'s, S, M> {
     }
 }
 
-impl<S, M: Machine<S>> Operation for Run<'_, S, M> {
+impl<S, M: Machine<S>> Operation for Run<'_, S, M>
+where
+    M::Output: Outcome,
+{
     type Output = M::Output;
 
     fn poll_io(&mut self) -> Option<Io<'_>> {
@@ -175,7 +193,7 @@ impl<S, M: Machine<S>> Operation for Run<'_, S, M> {
     }
 
     fn poll_output(&mut self) -> Option<Self::Output> {
-        if self.cx.clears > 0 || !matches!(self.state, RunState::Done(_)) {
+        if self.cx.clears > 0 {
             return None;
         }
         match std::mem::replace(&mut self.state, RunState::Taken) {
@@ -231,6 +249,18 @@ impl<S, M: Machine<S>> Operation for Run<'_, S, M> {
             Some(Pending::Poll(_)) => self.feed(now, Event::Abort),
             _ => self.ignored("abort"),
         }
+    }
+}
+
+/// An operation's result, as the log reports it.
+pub(crate) trait Outcome {
+    /// The error, when it failed.
+    fn failure(&self) -> Option<&dyn std::fmt::Display>;
+}
+
+impl<T, E: std::fmt::Display> Outcome for Result<T, E> {
+    fn failure(&self) -> Option<&dyn std::fmt::Display> {
+        self.as_ref().err().map(|e| e as &dyn std::fmt::Display)
     }
 }
 

@@ -168,7 +168,13 @@ impl Machine<Smc100Session> for Query {
             cx.clear_input();
             self.attempt += 1;
             if self.attempt >= self.attempts {
-                warn!(sent = %line_text(&self.frame.to_bytes()), error = %failure, "smc100: no usable reply");
+                let sent = line_text(&self.frame.to_bytes());
+                if self.attempts > 1 {
+                    warn!(%sent, attempts = self.attempts, error = %failure, "smc100: no usable reply");
+                } else {
+                    // Asked once: the caller judges what the silence means.
+                    debug!(%sent, error = %failure, "smc100: no usable reply");
+                }
                 return Step::Done(Err(failure));
             }
             warn!(sent = %line_text(&self.frame.to_bytes()), error = %failure, "smc100: no usable reply; asking again");

@@ -118,8 +118,12 @@ impl Smc100Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<Vec<ControllerInfo>, MotionError>> + '_ {
-        tracing::debug!("smc100: identify");
-        Run::new(self, Exec::new(ops::Identify::default()), now)
+        Run::new(
+            "smc100.identify",
+            self,
+            Exec::new(ops::Identify::default()),
+            now,
+        )
     }
 
     /// The named axis' status (`TS`).
@@ -128,7 +132,12 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<Status, MotionError>> + use<'s> {
-        Run::new(self, Exec::new(ops::ReadStatus::new(name)), now)
+        Run::new(
+            "smc100.status",
+            self,
+            Exec::new(ops::ReadStatus::new(name)),
+            now,
+        )
     }
 
     /// The named axis' encoder position (`TP`), units.
@@ -137,7 +146,12 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
-        Run::new(self, Exec::new(ops::ReadPosition::new(name)), now)
+        Run::new(
+            "smc100.position",
+            self,
+            Exec::new(ops::ReadPosition::new(name)),
+            now,
+        )
     }
 
     /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
@@ -147,7 +161,7 @@ impl Smc100Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
-        Run::new(self, Exec::new(ops::StopEvery), now)
+        Run::new("smc100.stop_all", self, Exec::new(ops::StopEvery), now)
     }
 
     /// Stops one stage (`ST`, then `TE`).
@@ -156,7 +170,7 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        Run::new(self, Exec::new(ops::StopOne::new(name)), now)
+        Run::new("smc100.stop", self, Exec::new(ops::StopOne::new(name)), now)
     }
 
     /// Brings the named axes to READY with a reference: a home search (`OR`) from NOT
@@ -168,8 +182,12 @@ impl Smc100Session {
         names: &[&str],
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        tracing::debug!(axes = ?names, "smc100: home");
-        Run::new(self, Exec::new(home::Home::new(names, false)), now)
+        Run::new(
+            "smc100.home",
+            self,
+            Exec::new(home::Home::new(names, false)),
+            now,
+        )
     }
 
     /// Homes every axis.
@@ -190,8 +208,12 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        tracing::debug!(axis = name, "smc100: reset and home");
-        Run::new(self, Exec::new(home::Home::new(&[name], true)), now)
+        Run::new(
+            "smc100.reset_and_home",
+            self,
+            Exec::new(home::Home::new(&[name], true)),
+            now,
+        )
     }
 
     /// Moves the named axes to absolute targets, concurrently, and waits until every
@@ -203,8 +225,12 @@ impl Smc100Session {
         targets: &[(&str, f64)],
         now: Duration,
     ) -> impl Operation<Output = Result<Vec<f64>, MotionError>> + use<'s> {
-        tracing::debug!(targets = ?targets, "smc100: move");
-        Run::new(self, Exec::new(motion::Motion::to(targets)), now)
+        Run::new(
+            "smc100.move",
+            self,
+            Exec::new(motion::Motion::to(targets)),
+            now,
+        )
     }
 
     /// Moves one axis by `delta` from its current target (`PR`), checked against the
@@ -216,8 +242,12 @@ impl Smc100Session {
         delta: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
-        tracing::debug!(axis = name, delta, "smc100: relative move");
-        Run::new(self, Exec::new(motion::Motion::by(name, delta)), now)
+        Run::new(
+            "smc100.move_by",
+            self,
+            Exec::new(motion::Motion::by(name, delta)),
+            now,
+        )
     }
 
     fn index(&self, name: &str) -> Result<usize, MotionError> {

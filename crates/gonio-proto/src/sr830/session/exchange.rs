@@ -170,11 +170,7 @@ impl Machine<Sr830Session> for Exchange {
                 }
                 self.state = State::Receiving(cx.now.saturating_add(s.config.timeout()));
             }
-            (
-                State::Sending,
-                Event::Sent(Err(e @ TransportError::Disconnected { .. }))
-                | Event::LinkError(e @ TransportError::Disconnected { .. }),
-            )
+            (State::Sending, Event::Sent(Err(e @ TransportError::Disconnected { .. })))
             | (State::Receiving(_), Event::LinkError(e @ TransportError::Disconnected { .. })) => {
                 return self.recover(s, cx, e);
             }

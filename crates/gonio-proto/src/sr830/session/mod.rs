@@ -94,7 +94,7 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<Identity, Sr830Error>> + '_ {
-        Run::new(self, Exec::new(ops::Setup::default()), now)
+        Run::new("sr830.setup", self, Exec::new(ops::Setup::default()), now)
     }
 
     /// One averaged reading: the settling wait, `LIAS?` to clear latched bits, `samples`
@@ -105,7 +105,7 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
-        Run::new(self, Exec::new(read::Read::default()), now)
+        Run::new("sr830.read", self, Exec::new(read::Read::default()), now)
     }
 
     /// Sends any command and, for a query, reads its reply. A vanished port is
@@ -119,7 +119,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<Option<Reply>, Sr830Error>> + use<'s> {
         let op = ops::Execute::new(Some(command.clone()), |reply| reply);
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.execute", self, Exec::new(op), now)
     }
 
     /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the session tracks (after
@@ -128,7 +128,12 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
-        Run::new(self, Exec::new(ops::Execute::new(None, |_| ())), now)
+        Run::new(
+            "sr830.refresh_settings",
+            self,
+            Exec::new(ops::Execute::new(None, |_| ())),
+            now,
+        )
     }
 
     /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.
@@ -138,7 +143,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
         let op = ops::Single::new(Command::SetSensitivity(sensitivity), |_, _| Ok(()));
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.set_sensitivity", self, Exec::new(op), now)
     }
 
     /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
@@ -148,7 +153,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
         let op = ops::Single::new(Command::SetTimeConstant(time_constant), |_, _| Ok(()));
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.set_time_constant", self, Exec::new(op), now)
     }
 
     /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
@@ -158,7 +163,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
         let op = ops::Single::new(Command::SetSlope(slope), |_, _| Ok(()));
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.set_slope", self, Exec::new(op), now)
     }
 
     /// `LIAS?`: the LIA status byte (reading clears it).
@@ -167,7 +172,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<LiaStatus, Sr830Error>> + '_ {
         let op = ops::Single::new(Command::LiaStatus(None), lia_status);
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.lia_status", self, Exec::new(op), now)
     }
 
     /// `*ESR?`: the standard event status byte (reading clears it).
@@ -176,7 +181,7 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<EventStatus, Sr830Error>> + '_ {
         let op = ops::Single::new(Command::EventStatus(None), event_status);
-        Run::new(self, Exec::new(op), now)
+        Run::new("sr830.event_status", self, Exec::new(op), now)
     }
 
     /// The light on the detector changed at `now` (a stage moved, a shutter opened):
