@@ -63,7 +63,12 @@ pub(crate) fn pump<O: Operation>(
                 let now = clock.now();
                 match r {
                     Ok(line) => {
-                        trace!(target: "gonio_driver::wire", port, dir = "rx", line = %Escaped(&line));
+                        trace!(
+                            target: "gonio_driver::wire",
+                            port,
+                            dir = "rx",
+                            line = %Escaped(&line),
+                        );
                         op.handle_line(now, &line);
                     }
                     Err(e) => {

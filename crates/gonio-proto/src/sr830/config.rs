@@ -5,8 +5,9 @@ use std::time::Duration;
 
 use super::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
 
-/// How an [`Sr830Session`](super::Sr830Session) sets the instrument up and reads it. Embeddable in an instrument config file
-/// (TOML); every field has a default, and unknown fields are refused:
+/// How an [`Sr830Session`](super::Sr830Session) sets the instrument up and reads it.
+/// Embeddable in an instrument config file (TOML); every field has a default, and
+/// unknown fields are refused:
 ///
 /// ```toml
 /// sensitivity = "10 mV"     # or the SENS index, 20

@@ -148,7 +148,10 @@ impl Machine<Smc100Session> for Query {
                 Event::Line(line) => match Reply::parse(line) {
                     Ok(r) if r.answers(&self.frame) => return Step::Done(Ok(r.body)),
                     Ok(_) if cx.now < deadline => {
-                        debug!(reply = %line_text(line), "smc100: skipping a reply to another command");
+                        debug!(
+                            reply = %line_text(line),
+                            "smc100: skipping a reply to another command",
+                        );
                         return Step::Wait(Pending::Reply(deadline));
                     }
                     Ok(_) => self.protocol(line, "answers another command".into()),
@@ -170,14 +173,23 @@ impl Machine<Smc100Session> for Query {
             if self.attempt >= self.attempts {
                 let sent = line_text(&self.frame.to_bytes());
                 if self.attempts > 1 {
-                    warn!(%sent, attempts = self.attempts, error = %failure, "smc100: no usable reply");
+                    warn!(
+                        %sent,
+                        attempts = self.attempts,
+                        error = %failure,
+                        "smc100: no usable reply",
+                    );
                 } else {
                     // Asked once: the caller judges what the silence means.
                     debug!(%sent, error = %failure, "smc100: no usable reply");
                 }
                 return Step::Done(Err(failure));
             }
-            warn!(sent = %line_text(&self.frame.to_bytes()), error = %failure, "smc100: no usable reply; asking again");
+            warn!(
+                sent = %line_text(&self.frame.to_bytes()),
+                error = %failure,
+                "smc100: no usable reply; asking again",
+            );
             s.retried += 1;
             self.state = QueryState::Sending(Transfer::new(&self.frame));
             ev = Event::Start;
@@ -259,7 +271,11 @@ impl Machine<Smc100Session> for Checked {
                         self.state = CheckedState::CheckingTarget(q, t);
                     }
                     Ok(ReplyBody::Error(code)) => {
-                        warn!(command = %line_text(&self.frame.to_bytes()), %code, "smc100: command refused");
+                        warn!(
+                            command = %line_text(&self.frame.to_bytes()),
+                            %code,
+                            "smc100: command refused",
+                        );
                         return Step::Done(Err(self.refused(code)));
                     }
                     Ok(other) => {
@@ -281,10 +297,17 @@ impl Machine<Smc100Session> for Checked {
                             if self.frame.command.is_idempotent() {
                                 return Step::Done(Err(e));
                             }
-                            warn!(%command, "smc100: acknowledgement lost; the command must not be sent again");
+                            warn!(
+                                %command,
+                                "smc100: acknowledgement lost; the command must not be sent again",
+                            );
                             return Step::Done(Err(AxisError::Ambiguous { command }));
                         }
-                        warn!(%command, error = %e, "smc100: acknowledgement lost; sending the command again");
+                        warn!(
+                            %command,
+                            error = %e,
+                            "smc100: acknowledgement lost; sending the command again",
+                        );
                         s.retried += 1;
                         self.state = CheckedState::Sending(Transfer::new(&self.frame));
                     }

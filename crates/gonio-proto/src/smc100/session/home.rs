@@ -297,7 +297,11 @@ impl Home {
         } else if st.state.is_homing() {
             let limit = secs(s.axes[i].home_timeout_s);
             if cx.now.saturating_sub(self.start) > limit {
-                warn!(axis = %s.axes[i].name, ?limit, "smc100: home search too long; stopping every stage");
+                warn!(
+                    axis = %s.axes[i].name,
+                    ?limit,
+                    "smc100: home search too long; stopping every stage",
+                );
                 self.timed_out = (i, limit);
                 return Next::StopAll {
                     then: Self::stopped_after_timeout,

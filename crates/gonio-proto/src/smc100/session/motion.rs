@@ -303,7 +303,11 @@ impl<T> Motion<T> {
             debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
         } else if state.is_moving() {
             if cx.now.saturating_sub(self.start) > self.allow {
-                warn!(axis = %s.axes[i].name, waited = ?self.allow, "smc100: move too long; stopping every stage");
+                warn!(
+                    axis = %s.axes[i].name,
+                    waited = ?self.allow,
+                    "smc100: move too long; stopping every stage",
+                );
                 self.timed_out = (i, target);
                 return Next::StopAll {
                     then: Self::stopped_after_timeout,

@@ -85,7 +85,11 @@ impl Exchange {
         lost: TransportError,
     ) -> Step<Result<Option<Reply>, Sr830Error>> {
         if self.budget == 0 {
-            warn!(port = %s.port, attempts = s.config.reconnect_attempts, "sr830: port lost; no reconnection left");
+            warn!(
+                port = %s.port,
+                attempts = s.config.reconnect_attempts,
+                "sr830: port lost; no reconnection left",
+            );
             return Step::Done(Err(Sr830Error::Disconnected {
                 port: s.port.clone(),
                 attempts: s.config.reconnect_attempts,
@@ -205,7 +209,11 @@ impl Machine<Sr830Session> for Exchange {
             }
             (State::SendingOutx, Event::Sent(Ok(()))) => {
                 s.reconnects += 1;
-                debug!(port = %s.port, reconnects = s.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+                debug!(
+                    port = %s.port,
+                    reconnects = s.reconnects,
+                    "sr830: port reopened; OUTX 0 re-sent",
+                );
                 // The instrument may have restarted: let its filters settle again.
                 s.mark_unsettled(cx.now);
                 self.state = State::Sending;

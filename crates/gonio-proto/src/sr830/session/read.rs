@@ -210,7 +210,13 @@ impl Read {
                 last: Box::new(reading),
             }));
         }
-        debug!(from = %s.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange step");
+        debug!(
+            from = %s.sensitivity,
+            to = %next,
+            flags = ?f,
+            r = reading.r_mean,
+            "sr830: autorange step",
+        );
         Next::exchange(Command::SetSensitivity(next), Self::ranged)
     }
 
