@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use tracing::{debug, warn};
 
-use super::script::{Aborted, Next, Op};
+use super::script::{Aborted, Next, Op, Overdue};
 use super::{Smc100Session, line_text};
 use crate::TransportError;
 use crate::machine::{Cx, secs};
@@ -39,8 +39,6 @@ pub(super) struct Home {
     j: usize,
     /// When polling (or the reset controller's boot) began.
     start: Duration,
-    /// The axis whose search timed out, and its limit.
-    timed_out: (usize, Duration),
 }
 
 impl Home {
@@ -55,7 +53,6 @@ impl Home {
             still: Vec::new(),
             j: 0,
             start: Duration::ZERO,
-            timed_out: (0, Duration::ZERO),
         }
     }
 }
@@ -297,15 +294,12 @@ impl Home {
         } else if st.state.is_homing() {
             let limit = secs(s.axes[i].home_timeout_s);
             if cx.now.saturating_sub(self.start) > limit {
-                warn!(
-                    axis = %s.axes[i].name,
-                    ?limit,
-                    "smc100: home search too long; stopping every stage",
-                );
-                self.timed_out = (i, limit);
-                return Next::StopAll {
-                    then: Self::stopped_after_timeout,
-                };
+                return Next::Overdue(Overdue {
+                    axis: i,
+                    operation: "home",
+                    target: 0.0,
+                    waited: limit,
+                });
             }
             self.still.push(i);
         } else {
@@ -314,32 +308,6 @@ impl Home {
         }
         self.j += 1;
         self.poll_next(s, cx)
-    }
-
-    fn stopped_after_timeout(
-        &mut self,
-        _: &mut Smc100Session,
-        _: &mut Cx,
-        _: Result<(), MotionError>,
-    ) -> Next<Self> {
-        Next::query(self.timed_out.0, Command::TellPosition, Self::timed_out)
-    }
-
-    fn timed_out(
-        &mut self,
-        s: &mut Smc100Session,
-        _: &mut Cx,
-        r: Result<ReplyBody, AxisError>,
-    ) -> Next<Self> {
-        let (i, waited) = self.timed_out;
-        let position = s.number(i, "TP", r).ok();
-        let e = AxisError::Timeout {
-            operation: "home",
-            target: 0.0,
-            position,
-            waited,
-        };
-        Next::Done(Err(s.at(i, e)))
     }
 
     // --- the configured velocity and acceleration ---

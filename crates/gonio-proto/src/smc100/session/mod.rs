@@ -135,7 +135,7 @@ impl Smc100Session {
         Run::new(
             "smc100.status",
             self,
-            Exec::new(ops::ReadStatus::new(name)),
+            Exec::new(ops::AxisQuery::status(name)),
             now,
         )
     }
@@ -149,7 +149,7 @@ impl Smc100Session {
         Run::new(
             "smc100.position",
             self,
-            Exec::new(ops::ReadPosition::new(name)),
+            Exec::new(ops::AxisQuery::position(name)),
             now,
         )
     }

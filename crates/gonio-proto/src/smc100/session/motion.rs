@@ -8,9 +8,9 @@ use std::time::Duration;
 use tracing::{debug, warn};
 
 use super::Smc100Session;
-use super::script::{Aborted, Next, Op};
+use super::script::{Aborted, Next, Op, Overdue};
 use crate::machine::{Cx, secs};
-use crate::smc100::{AxisError, Command, ControllerState, MotionError, ReplyBody};
+use crate::smc100::{AxisError, Command, ControllerState, ReplyBody};
 
 /// What was asked.
 #[derive(Debug)]
@@ -45,8 +45,6 @@ pub(super) struct Motion<T> {
     j: usize,
     /// Final positions.
     out: Vec<f64>,
-    /// The move that timed out.
-    timed_out: (usize, f64),
     finish: fn(Vec<f64>) -> T,
 }
 
@@ -62,7 +60,6 @@ impl<T> Motion<T> {
             still: Vec::new(),
             j: 0,
             out: Vec::new(),
-            timed_out: (0, 0.0),
             finish,
         }
     }
@@ -303,15 +300,12 @@ impl<T> Motion<T> {
             debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
         } else if state.is_moving() {
             if cx.now.saturating_sub(self.start) > self.allow {
-                warn!(
-                    axis = %s.axes[i].name,
-                    waited = ?self.allow,
-                    "smc100: move too long; stopping every stage",
-                );
-                self.timed_out = (i, target);
-                return Next::StopAll {
-                    then: Self::stopped_after_timeout,
-                };
+                return Next::Overdue(Overdue {
+                    axis: i,
+                    operation: "move",
+                    target,
+                    waited: self.allow,
+                });
             }
             self.still.push(m);
         } else if state == ControllerState::NotReferencedFromReset {
@@ -327,31 +321,6 @@ impl<T> Motion<T> {
         }
         self.j += 1;
         self.wait_next(s, cx)
-    }
-
-    fn stopped_after_timeout(
-        &mut self,
-        _: &mut Smc100Session,
-        _: &mut Cx,
-        _: Result<(), MotionError>,
-    ) -> Next<Self> {
-        Next::query(self.timed_out.0, Command::TellPosition, Self::timed_out)
-    }
-
-    fn timed_out(
-        &mut self,
-        s: &mut Smc100Session,
-        _: &mut Cx,
-        r: Result<ReplyBody, AxisError>,
-    ) -> Next<Self> {
-        let (i, target) = self.timed_out;
-        let e = AxisError::Timeout {
-            operation: "move",
-            target,
-            position: s.number(i, "TP", r).ok(),
-            waited: self.allow,
-        };
-        Next::Done(Err(s.at(i, e)))
     }
 
     // --- final positions, each checked against its target ---

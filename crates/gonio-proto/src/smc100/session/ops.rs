@@ -116,63 +116,57 @@ impl Named {
     }
 }
 
-/// `TS` of one axis.
+/// How a query's reply is read: as a status, a number.
+type Read<T> = fn(&Smc100Session, usize, Result<ReplyBody, AxisError>) -> Result<T, AxisError>;
+
+/// One query to one axis, its reply read as a `T`.
 #[derive(Debug)]
-pub(super) struct ReadStatus(Named);
-
-impl ReadStatus {
-    pub(super) fn new(name: &str) -> Self {
-        ReadStatus(Named::new(name))
-    }
-
-    fn got(
-        &mut self,
-        s: &mut Smc100Session,
-        _: &mut Cx,
-        r: Result<ReplyBody, AxisError>,
-    ) -> Next<Self> {
-        let i = self.0.axis;
-        Next::Done(s.status(i, r).map_err(|e| s.at(i, e)))
-    }
+pub(super) struct AxisQuery<T> {
+    axis: Named,
+    command: Command,
+    read: Read<T>,
 }
 
-impl Op for ReadStatus {
-    type Value = Status;
-
-    fn start(&mut self, s: &mut Smc100Session, _: &mut Cx) -> Next<Self> {
-        match self.0.resolve(s) {
-            Ok(i) => Next::query(i, Command::TellStatus, Self::got),
-            Err(e) => Next::Done(Err(e)),
+impl AxisQuery<Status> {
+    /// `TS`.
+    pub(super) fn status(name: &str) -> Self {
+        AxisQuery {
+            axis: Named::new(name),
+            command: Command::TellStatus,
+            read: |s, i, r| s.status(i, r),
         }
     }
 }
 
-/// `TP` of one axis.
-#[derive(Debug)]
-pub(super) struct ReadPosition(Named);
-
-impl ReadPosition {
-    pub(super) fn new(name: &str) -> Self {
-        ReadPosition(Named::new(name))
+impl AxisQuery<f64> {
+    /// `TP`, units.
+    pub(super) fn position(name: &str) -> Self {
+        AxisQuery {
+            axis: Named::new(name),
+            command: Command::TellPosition,
+            read: |s, i, r| s.number(i, "TP", r),
+        }
     }
+}
 
+impl<T> AxisQuery<T> {
     fn got(
         &mut self,
         s: &mut Smc100Session,
         _: &mut Cx,
         r: Result<ReplyBody, AxisError>,
     ) -> Next<Self> {
-        let i = self.0.axis;
-        Next::Done(s.number(i, "TP", r).map_err(|e| s.at(i, e)))
+        let i = self.axis.axis;
+        Next::Done((self.read)(s, i, r).map_err(|e| s.at(i, e)))
     }
 }
 
-impl Op for ReadPosition {
-    type Value = f64;
+impl<T> Op for AxisQuery<T> {
+    type Value = T;
 
     fn start(&mut self, s: &mut Smc100Session, _: &mut Cx) -> Next<Self> {
-        match self.0.resolve(s) {
-            Ok(i) => Next::query(i, Command::TellPosition, Self::got),
+        match self.axis.resolve(s) {
+            Ok(i) => Next::query(i, self.command.clone(), Self::got),
             Err(e) => Next::Done(Err(e)),
         }
     }

@@ -60,6 +60,9 @@ pub(super) enum Next<O: Op> {
     },
     /// Stop every stage, then end with `error` at `axis`.
     Fail { axis: usize, error: AxisError },
+    /// A move or home search past its deadline: stop every stage, read the axis'
+    /// position, and end with [`AxisError::Timeout`].
+    Overdue(Overdue),
     /// The end.
     Done(Result<O::Value, MotionError>),
 }
@@ -94,6 +97,17 @@ impl<O: Op> Next<O> {
     }
 }
 
+/// A move or home search that outlasted its deadline.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Overdue {
+    pub(super) axis: usize,
+    /// `move` or `home`.
+    pub(super) operation: &'static str,
+    pub(super) target: f64,
+    /// How long was allowed.
+    pub(super) waited: Duration,
+}
+
 /// The exchange or pause under way, with the step that takes its result.
 enum Current<O: Op> {
     /// Not started yet.
@@ -105,6 +119,9 @@ enum Current<O: Op> {
     Pause(Pending, Then<O, Result<(), Aborted>>),
     /// Stopping every stage before ending with this error.
     Failing(StopAll, MotionError),
+    /// Stopping every stage after a deadline, then reading the position.
+    Stopping(StopAll, Overdue),
+    Locating(Query, Overdue),
 }
 
 /// Runs an [`Op`]: the machine a session's operation is.
@@ -174,6 +191,33 @@ impl<O: Op> Machine<Smc100Session> for Exec<O> {
                     }
                     Step::Done(_) => return Step::Done(Err(error)),
                 },
+                Current::Stopping(mut m, overdue) => match m.step(s, cx, ev) {
+                    Step::Wait(p) => {
+                        self.current = Current::Stopping(m, overdue);
+                        return Step::Wait(p);
+                    }
+                    Step::Done(_) => {
+                        let q = Query::new(s, overdue.axis, Command::TellPosition, true);
+                        self.current = Current::Locating(q, overdue);
+                        ev = Event::Start;
+                        continue;
+                    }
+                },
+                Current::Locating(mut m, o) => match m.step(s, cx, ev) {
+                    Step::Wait(p) => {
+                        self.current = Current::Locating(m, o);
+                        return Step::Wait(p);
+                    }
+                    Step::Done(r) => {
+                        let e = AxisError::Timeout {
+                            operation: o.operation,
+                            target: o.target,
+                            position: s.number(o.axis, "TP", r).ok(),
+                            waited: o.waited,
+                        };
+                        return Step::Done(Err(s.at(o.axis, e)));
+                    }
+                },
             };
             self.current = match next {
                 Next::Done(out) => return Step::Done(out),
@@ -206,6 +250,15 @@ impl<O: Op> Machine<Smc100Session> for Exec<O> {
                     let error = s.at(axis, error);
                     warn!(%error, "smc100: stopping every stage after a fault");
                     Current::Failing(StopAll::new(), error)
+                }
+                Next::Overdue(overdue) => {
+                    warn!(
+                        axis = %s.axes[overdue.axis].name,
+                        operation = overdue.operation,
+                        waited = ?overdue.waited,
+                        "smc100: past the deadline; stopping every stage",
+                    );
+                    Current::Stopping(StopAll::new(), overdue)
                 }
             };
             ev = Event::Start;

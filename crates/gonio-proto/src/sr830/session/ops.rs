@@ -8,19 +8,13 @@ use super::{Sr830Session, event_status, unexpected};
 use crate::machine::Cx;
 use crate::sr830::{Command, Identity, Interface, Reply, Sr830Error};
 
-/// Set-up: input cleared, `OUTX 0`, `*IDN?`, `*CLS`, `SENS`, `OFLT`, `OFSL`, `*ESR?`.
+/// Set-up: input cleared, then each of [`Setup::command`] in turn; `*IDN?` must name an
+/// SR830 and `*ESR?` must show no refused command.
 #[derive(Debug, Default)]
 pub(super) struct Setup {
+    /// The command being exchanged.
+    k: usize,
     identity: Option<Identity>,
-}
-
-impl Op for Setup {
-    type Value = Identity;
-
-    fn start(&mut self, _: &mut Sr830Session, cx: &mut Cx) -> Next<Self> {
-        cx.clear_input();
-        Next::exchange(Command::SetInterface(Interface::Rs232), Self::outx_sent)
-    }
 }
 
 /// Ends the operation on an error, or goes on with the reply.
@@ -34,93 +28,71 @@ macro_rules! ok_or_done {
 }
 
 impl Setup {
-    fn outx_sent(
-        &mut self,
-        _: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        ok_or_done!(r);
-        Next::exchange(Command::Identify, Self::identified)
+    /// The set-up's `k`-th command: `OUTX 0` (replies go to GPIB until then), `*IDN?`,
+    /// `*CLS`, the configured `SENS`, `OFLT`, `OFSL`, and `*ESR?`, whose answer also
+    /// proves every earlier command has run.
+    fn command(s: &Sr830Session, k: usize) -> Option<Command> {
+        Some(match k {
+            0 => Command::SetInterface(Interface::Rs232),
+            1 => Command::Identify,
+            2 => Command::Clear,
+            3 => Command::SetSensitivity(s.config.sensitivity),
+            4 => Command::SetTimeConstant(s.config.time_constant),
+            5 => Command::SetSlope(s.config.slope),
+            6 => Command::EventStatus(None),
+            _ => return None,
+        })
     }
 
-    fn identified(
-        &mut self,
-        _: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        let id = match ok_or_done!(r) {
-            Some(Reply::Identity(id)) => id,
-            other => return Next::Done(Err(unexpected(&Command::Identify, other))),
-        };
-        if !id.is_sr830() {
-            return Next::Done(Err(Sr830Error::WrongInstrument(id)));
+    fn next(&mut self, s: &Sr830Session) -> Next<Self> {
+        match Self::command(s, self.k) {
+            Some(c) => Next::exchange(c, Self::answered),
+            None => match self.identity.take() {
+                Some(id) => Next::Done(Ok(id)),
+                None => Next::Done(Err(unexpected(&Command::Identify, None))),
+            },
         }
-        debug!(identity = %id, "sr830: identified");
-        self.identity = Some(id);
-        Next::exchange(Command::Clear, Self::cleared)
     }
 
-    fn cleared(
+    fn answered(
         &mut self,
         s: &mut Sr830Session,
         _: &mut Cx,
         r: Result<Option<Reply>, Sr830Error>,
     ) -> Next<Self> {
-        ok_or_done!(r);
-        let c = Command::SetSensitivity(s.config.sensitivity);
-        Next::exchange(c, Self::sensitivity_set)
-    }
-
-    fn sensitivity_set(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        ok_or_done!(r);
-        let c = Command::SetTimeConstant(s.config.time_constant);
-        Next::exchange(c, Self::time_constant_set)
-    }
-
-    fn time_constant_set(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        ok_or_done!(r);
-        Next::exchange(Command::SetSlope(s.config.slope), Self::slope_set)
-    }
-
-    fn slope_set(
-        &mut self,
-        _: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        ok_or_done!(r);
-        Next::exchange(Command::EventStatus(None), Self::checked)
-    }
-
-    fn checked(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        let esr = ok_or_done!(r.and_then(|reply| event_status(&Command::EventStatus(None), reply)));
-        if esr.has_command_error() {
-            return Next::Done(Err(Sr830Error::Rejected(esr)));
-        }
-        match self.identity.take() {
-            Some(id) => {
-                s.identity = Some(id.clone());
-                Next::Done(Ok(id))
+        let reply = ok_or_done!(r);
+        match Self::command(s, self.k) {
+            Some(Command::Identify) => {
+                let id = match reply {
+                    Some(Reply::Identity(id)) => id,
+                    other => return Next::Done(Err(unexpected(&Command::Identify, other))),
+                };
+                if !id.is_sr830() {
+                    return Next::Done(Err(Sr830Error::WrongInstrument(id)));
+                }
+                debug!(identity = %id, "sr830: identified");
+                self.identity = Some(id);
             }
-            None => Next::Done(Err(unexpected(&Command::Identify, None))),
+            Some(c @ Command::EventStatus(_)) => {
+                let esr = ok_or_done!(event_status(&c, reply));
+                if esr.has_command_error() {
+                    return Next::Done(Err(Sr830Error::Rejected(esr)));
+                }
+                s.identity.clone_from(&self.identity);
+            }
+            _ => {}
         }
+        self.k += 1;
+        self.next(s)
+    }
+}
+
+impl Op for Setup {
+    type Value = Identity;
+
+    fn start(&mut self, s: &mut Sr830Session, cx: &mut Cx) -> Next<Self> {
+        cx.clear_input();
+        self.next(s)
     }
 }
 
