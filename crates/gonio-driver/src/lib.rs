@@ -1,14 +1,23 @@
-//! Gonio's instrument drivers: the thin I/O layer around `gonio-proto`'s codecs.
+//! Gonio's instrument drivers: the thin I/O layer around `gonio-proto`'s codecs and
+//! sessions. Every policy decision (what to send, what a reply means, when to retry,
+//! reconnect, stop or give up) is made by a `gonio-proto` session; this crate moves its
+//! bytes over a port and waits on a clock.
 //!
 //! - [`Transport`] moves bytes and lines: [`SerialTransport`] over a real port path
 //!   (`/dev/ttyUSB0`, or a pseudo-terminal `/dev/pts/N`), [`ScriptedTransport`] for
 //!   tests that replay expected command → reply transcripts.
 //! - [`Clock`] is where drivers wait: [`SystemClock`] in the lab, [`ManualClock`] in
 //!   tests, so polling loops run on virtual time.
-//! - [`smc100::Smc100Chain`] drives a chain of SMC100 controllers: homing, moves with
-//!   soft limits enforced before any byte goes out, completion by status polling,
-//!   error checks, stops.
-//! - [`sr830::Sr830`] reads the lock-in with settling waits, autoranging and averaging.
+//! - The pump (one loop, `pump.rs`) runs a session's operation over a transport: sends
+//!   what it asks, reads a line until its deadline or sleeps until it, reads the abort
+//!   flag at its abort points, and hands back what happened. It logs every line sent and
+//!   received at `trace` under the target `gonio_driver::wire`.
+//! - [`smc100::Smc100Chain`] drives a chain of SMC100 controllers (the pump around
+//!   [`gonio_proto::smc100::Smc100Session`]): homing, moves with soft limits enforced
+//!   before any byte goes out, completion by status polling, error checks, stops.
+//! - [`sr830::Sr830`] reads the lock-in (the pump around
+//!   [`gonio_proto::sr830::Sr830Session`]) with settling waits, autoranging and
+//!   averaging.
 //! - [`Goniometer`] is the named axes and the detector, built from an instrument
 //!   config file.
 
@@ -16,6 +25,7 @@ pub mod bench;
 pub mod clock;
 pub mod config;
 mod goniometer;
+mod pump;
 pub mod script;
 pub mod smc100;
 pub mod sr830;

@@ -1,12 +1,26 @@
-//! Sans-IO codecs for the instruments of a Gonio goniometer: the Newport SMC100 motion
+//! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
 //! controller ([`smc100`]) and the Stanford Research SR830 lock-in amplifier
-//! ([`sr830`]), byte-exactly as their manuals define them.
+//! ([`sr830`]), byte-exactly as their manuals define them, and the policy that drives
+//! them, as state machines.
 //!
-//! Deterministic: no I/O, no clocks, no threads. Commands and replies are formatted
-//! into caller-owned buffers and parsed from byte slices; [`LineFramer`] cuts a byte
-//! stream into lines. The driver (`gonio-driver`) and the simulated instrument
-//! (`gonio-sim`) both build on these types, so the bytes a test sends to the simulator
-//! are the bytes the lab sends to hardware.
+//! Deterministic: no I/O, no clocks, no threads. Two layers:
+//!
+//! - **Codecs.** Commands and replies are formatted into caller-owned buffers and
+//!   parsed from byte slices; [`LineFramer`] cuts a byte stream into lines. The driver
+//!   (`gonio-driver`) and the simulated instrument (`gonio-sim`) both build on these
+//!   types, so the bytes a test sends to the simulator are the bytes the lab sends to
+//!   hardware.
+//! - **Sessions.** [`smc100::Smc100Session`] and [`sr830::Sr830Session`] hold each
+//!   instrument's policy: limits checked before any byte, `TE` after every set command,
+//!   re-sends only of what may be repeated, lost acknowledgements, power loss, reconnects,
+//!   stops; set-up, settling waits, the read cycle, averaging, autoranging, flags. Each
+//!   `start_*` call returns a running [`link::Operation`], in the shape of quinn-proto's
+//!   connection: its caller (a *pump*) polls out the bytes to send, input to clear, a
+//!   reconnection to attempt or a [`link::Deadline`] to wait for, hands in what happened
+//!   (`handle_sent`, `handle_line`, `handle_link_error`, `handle_timeout`, ...) with the
+//!   time it happened, and finally polls out the typed result. Time is a `Duration` since
+//!   the caller's origin. `gonio-driver` pumps operations over serial ports; the
+//!   simulator's tests pump them straight into the device models on virtual time.
 //!
 //! ```
 //! use gonio_proto::smc100::{Command, Frame, Reply, ReplyBody};
@@ -21,10 +35,17 @@
 //!
 //! Parsers never panic on any input: every function that reads bytes returns a typed
 //! error instead, and the `fuzz/` targets exercise that.
+//!
+//! The sessions record what they decide with `tracing` (state changes at `debug`,
+//! faults, retries, reconnections and stops at `warn`); the bytes themselves are logged
+//! by the pump that moves them.
 
 mod framing;
+pub mod link;
+mod machine;
 mod number;
 pub mod smc100;
 pub mod sr830;
 
 pub use framing::{FrameError, LineFramer};
+pub use link::TransportError;

@@ -1,0 +1,121 @@
+//! The pump: the one loop that moves bytes, lines and deadlines between a
+//! [`Transport`] and a session's [`Operation`], waiting on a [`Clock`]. Every policy
+//! decision (what to send, what a reply means, when to retry, reconnect, stop or give
+//! up) is the operation's; the pump only does what it is told and reports what
+//! happened, with the time it happened.
+//!
+//! It also writes the wire log: every line sent and received, at `trace` level under
+//! the target `gonio_driver::wire`, with the port, the direction (`tx`, `rx`) and the
+//! line with its control bytes escaped (`1PA12.5\r\n`).
+
+use std::fmt;
+
+use gonio_proto::link::{Deadline, Io, Operation};
+use tracing::{debug, trace};
+
+use crate::clock::Clock;
+use crate::smc100::AbortFlag;
+use crate::transport::Transport;
+
+/// Runs `op` to its end over `link`, waiting on `clock`. At each abort point
+/// ([`Deadline::Poll`]) a raised `abort` flag is handed to the operation instead of
+/// the wait.
+pub(crate) fn pump<O: Operation>(
+    link: &mut impl Transport,
+    clock: &impl Clock,
+    abort: Option<&AbortFlag>,
+    port: &str,
+    mut op: O,
+) -> O::Output {
+    loop {
+        while let Some(io) = op.poll_io() {
+            match io {
+                Io::Transmit(bytes) => {
+                    trace!(target: "gonio_driver::wire", port, dir = "tx", line = %Escaped(bytes));
+                    let r = link.send(bytes);
+                    if let Err(e) = &r {
+                        debug!(port, error = %e, "send failed");
+                    }
+                    op.handle_sent(clock.now(), r);
+                }
+                Io::ClearInput => {
+                    // A failure to flush changes nothing the next exchange relies on:
+                    // a vanished port shows on the next send.
+                    let _ = link.clear_input();
+                }
+                Io::Reconnect => {
+                    let r = link.reconnect();
+                    debug!(port, ok = r.is_ok(), "reconnect attempted");
+                    op.handle_reconnected(clock.now(), r);
+                }
+            }
+        }
+        if let Some(out) = op.poll_output() {
+            return out;
+        }
+        // With no I/O to do and no output, an operation always has a deadline.
+        let Some(deadline) = op.poll_timeout() else {
+            continue;
+        };
+        match deadline {
+            Deadline::Reply(at) => {
+                let r = link.receive_line(at.saturating_sub(clock.now()));
+                let now = clock.now();
+                match r {
+                    Ok(line) => {
+                        trace!(
+                            target: "gonio_driver::wire",
+                            port,
+                            dir = "rx",
+                            line = %Escaped(&line),
+                        );
+                        op.handle_line(now, &line);
+                    }
+                    Err(e) => {
+                        trace!(target: "gonio_driver::wire", port, dir = "rx", error = %e);
+                        op.handle_link_error(now, e);
+                    }
+                }
+            }
+            Deadline::Poll(_) if abort.is_some_and(AbortFlag::is_raised) => {
+                op.handle_abort(clock.now());
+            }
+            Deadline::Poll(at) | Deadline::Sleep(at) => {
+                clock.sleep(at.saturating_sub(clock.now()));
+                op.handle_timeout(clock.now());
+            }
+        }
+    }
+}
+
+/// A line as log text: printable ASCII as is, `\r`, `\n`, `\0`, `\\` and other bytes
+/// escaped.
+pub(crate) struct Escaped<'a>(pub(crate) &'a [u8]);
+
+impl fmt::Display for Escaped<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for &b in self.0 {
+            match b {
+                b'\r' => f.write_str("\\r")?,
+                b'\n' => f.write_str("\\n")?,
+                0 => f.write_str("\\0")?,
+                b'\\' => f.write_str("\\\\")?,
+                0x20..=0x7e => fmt::Write::write_char(f, char::from(b))?,
+                _ => write!(f, "\\x{b:02x}")?,
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Escaped;
+
+    #[test]
+    fn escapes_control_bytes() {
+        assert_eq!(Escaped(b"1PA12.5\r\n").to_string(), "1PA12.5\\r\\n");
+        assert_eq!(Escaped(b"SNAP? 1,2\n").to_string(), "SNAP? 1,2\\n");
+        assert_eq!(Escaped(b"\0\xff\\").to_string(), "\\0\\xff\\\\");
+    }
+}

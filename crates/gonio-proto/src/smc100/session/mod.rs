@@ -1,0 +1,323 @@
+//! The chain's policy as a sans-IO state machine: [`Smc100Session`].
+//!
+//! The layers, from the wire up:
+//! - `exchange`: one command on the wire: a frame sent (reopening a vanished port a
+//!   bounded number of times), a query with its reply (stale replies skipped, lost or
+//!   garbled ones asked again when allowed), a set command checked with `TE`, the stop
+//!   of every stage;
+//! - `script`: operations written as steps, each asking for one exchange or pause and
+//!   naming the step that takes its result;
+//! - `ops`, `home`, `motion`: the operations themselves.
+
+mod exchange;
+mod home;
+mod motion;
+mod ops;
+mod script;
+
+use std::time::Duration;
+
+use super::{
+    AxisConfig, AxisError, ChainPolicy, Command, ControllerInfo, Frame, MAX_ADDRESS, MotionError,
+    ReplyBody, Status,
+};
+use crate::link::Operation;
+use crate::machine::Run;
+use script::Exec;
+
+/// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
+/// the timing and retry policy, and everything the chain's operations decide: which
+/// byte goes out next, what a reply means, when to ask again, reopen the port, stop
+/// every stage or give up. It does no I/O and reads no clock.
+///
+/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
+/// do next (see [`Operation`] for the order):
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::link::{Deadline, Io, Operation};
+/// use gonio_proto::smc100::{AxisConfig, ChainPolicy, Smc100Session};
+///
+/// let axis = rotation_stage("source", 1);
+/// let mut session = Smc100Session::new(vec![axis], ChainPolicy::default()).unwrap();
+/// let mut op = session.start_position("source", Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"1TP\r\n")));
+/// op.handle_sent(Duration::ZERO, Ok(()));
+/// assert_eq!(op.poll_timeout(), Some(Deadline::Reply(Duration::from_millis(100))));
+/// op.handle_line(Duration::from_millis(12), b"1TP12.5");
+/// assert_eq!(op.poll_output(), Some(Ok(12.5)));
+/// # fn rotation_stage(name: &str, address: u8) -> AxisConfig {
+/// #     AxisConfig { name: name.into(), address, units: "deg".into(), min: -170.0,
+/// #         max: 170.0, velocity: None, acceleration: None, tolerance: 0.01,
+/// #         home_timeout_s: 60.0 }
+/// # }
+/// ```
+///
+/// `gonio_driver::smc100::Smc100Chain` is the pump that runs these operations over a
+/// serial port.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Smc100Session {
+    axes: Vec<AxisConfig>,
+    policy: ChainPolicy,
+    retried: u64,
+}
+
+impl Smc100Session {
+    /// A session for `axes`. Axes must have distinct names and addresses 1–31, and
+    /// finite limits with `min < max`.
+    pub fn new(axes: Vec<AxisConfig>, policy: ChainPolicy) -> Result<Self, MotionError> {
+        for (i, a) in axes.iter().enumerate() {
+            if !(1..=MAX_ADDRESS).contains(&a.address) {
+                return Err(MotionError::Config(format!(
+                    "axis {:?}: address {} is outside 1..=31",
+                    a.name, a.address
+                )));
+            }
+            if !(a.min.is_finite() && a.max.is_finite() && a.min < a.max) {
+                return Err(MotionError::Config(format!(
+                    "axis {:?}: limits [{}, {}] must be finite with min < max",
+                    a.name, a.min, a.max
+                )));
+            }
+            if let Some(b) = axes[..i]
+                .iter()
+                .find(|b| b.name == a.name || b.address == a.address)
+            {
+                return Err(MotionError::Config(format!(
+                    "axes {:?} and {:?} share a name or the address {}",
+                    b.name, a.name, a.address
+                )));
+            }
+        }
+        Ok(Smc100Session {
+            axes,
+            policy,
+            retried: 0,
+        })
+    }
+
+    /// The axes, in configuration order.
+    pub fn axes(&self) -> &[AxisConfig] {
+        &self.axes
+    }
+
+    /// The timing and retry policy.
+    pub fn policy(&self) -> &ChainPolicy {
+        &self.policy
+    }
+
+    /// Exchanges sent again after a lost, late or garbled reply since the session was
+    /// made: what a run log reports as retries.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+
+    /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).
+    pub fn start_identify(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Vec<ControllerInfo>, MotionError>> + '_ {
+        Run::new(
+            "smc100.identify",
+            self,
+            Exec::new(ops::Identify::default()),
+            now,
+        )
+    }
+
+    /// The named axis' status (`TS`).
+    pub fn start_status<'s>(
+        &'s mut self,
+        name: &str,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Status, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.status",
+            self,
+            Exec::new(ops::AxisQuery::status(name)),
+            now,
+        )
+    }
+
+    /// The named axis' encoder position (`TP`), units.
+    pub fn start_position<'s>(
+        &'s mut self,
+        name: &str,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.position",
+            self,
+            Exec::new(ops::AxisQuery::position(name)),
+            now,
+        )
+    }
+
+    /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
+    /// broadcast could not be sent. Every stage gets its stop; the first failure is
+    /// returned.
+    pub fn start_stop_all(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+        Run::new("smc100.stop_all", self, Exec::new(ops::StopEvery), now)
+    }
+
+    /// Stops one stage (`ST`, then `TE`).
+    pub fn start_stop<'s>(
+        &'s mut self,
+        name: &str,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+        Run::new("smc100.stop", self, Exec::new(ops::StopOne::new(name)), now)
+    }
+
+    /// Brings the named axes to READY with a reference: a home search (`OR`) from NOT
+    /// REFERENCED, `MM1` from DISABLE, nothing when already READY; then applies the
+    /// configured velocity and acceleration. Home searches run concurrently; the wait
+    /// between status polls is an abort point.
+    pub fn start_home<'s>(
+        &'s mut self,
+        names: &[&str],
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+        Run::new(
+            "smc100.home",
+            self,
+            Exec::new(home::Home::new(names, false)),
+            now,
+        )
+    }
+
+    /// Homes every axis.
+    pub fn start_home_all(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+        let names: Vec<String> = self.axes.iter().map(|a| a.name.clone()).collect();
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        self.start_home(&refs, now)
+    }
+
+    /// Resets the named controller (`RS`), waits for it to come back NOT REFERENCED
+    /// (power-up takes under 5 s; 10 s are allowed), and homes it: the recovery after
+    /// [`AxisError::ControllerReset`] or a fault that only a reset clears.
+    pub fn start_reset_and_home<'s>(
+        &'s mut self,
+        name: &str,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+        Run::new(
+            "smc100.reset_and_home",
+            self,
+            Exec::new(home::Home::new(&[name], true)),
+            now,
+        )
+    }
+
+    /// Moves the named axes to absolute targets, concurrently, and waits until every
+    /// one is READY at its target; the positions read at the end are the output. Every
+    /// target is checked against its axis' limits before any byte is sent. The wait
+    /// between status polls is an abort point.
+    pub fn start_move<'s>(
+        &'s mut self,
+        targets: &[(&str, f64)],
+        now: Duration,
+    ) -> impl Operation<Output = Result<Vec<f64>, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.move",
+            self,
+            Exec::new(motion::Motion::to(targets)),
+            now,
+        )
+    }
+
+    /// Moves one axis by `delta` from its current target (`PR`), checked against the
+    /// limits from the set-point (`TH`). A relative move is never re-sent: a lost
+    /// acknowledgement is [`AxisError::Ambiguous`].
+    pub fn start_move_by<'s>(
+        &'s mut self,
+        name: &str,
+        delta: f64,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.move_by",
+            self,
+            Exec::new(motion::Motion::by(name, delta)),
+            now,
+        )
+    }
+
+    fn index(&self, name: &str) -> Result<usize, MotionError> {
+        self.axes
+            .iter()
+            .position(|a| a.name == name)
+            .ok_or_else(|| MotionError::UnknownAxis(name.to_string()))
+    }
+
+    fn at(&self, i: usize, source: AxisError) -> MotionError {
+        MotionError::AtAxis {
+            axis: self.axes[i].name.clone(),
+            source,
+        }
+    }
+
+    fn frame(&self, i: usize, command: Command) -> Frame {
+        Frame::addressed(self.axes[i].address, command)
+    }
+
+    fn check_limits(&self, i: usize, target: f64) -> Result<(), AxisError> {
+        let a = &self.axes[i];
+        if target.is_finite() && target >= a.min && target <= a.max {
+            Ok(())
+        } else {
+            Err(AxisError::OutOfLimits {
+                target,
+                min: a.min,
+                max: a.max,
+                units: a.units.clone(),
+            })
+        }
+    }
+
+    /// A reply read as a status (`TS`).
+    fn status(&self, i: usize, r: Result<ReplyBody, AxisError>) -> Result<Status, AxisError> {
+        match r? {
+            ReplyBody::Status(s) => Ok(s),
+            other => Err(AxisError::Protocol {
+                sent: format!("{}TS", self.axes[i].address),
+                reply: format!("{other:?}"),
+                reason: "not a status".into(),
+            }),
+        }
+    }
+
+    /// A reply read as a number (`TP`, `TH`, `PT`, `xxAA?`); `code` names the query.
+    fn number(
+        &self,
+        i: usize,
+        code: &str,
+        r: Result<ReplyBody, AxisError>,
+    ) -> Result<f64, AxisError> {
+        match r? {
+            ReplyBody::Position(v)
+            | ReplyBody::Setpoint(v)
+            | ReplyBody::MotionTime(v)
+            | ReplyBody::Value(_, v) => Ok(v),
+            other => Err(AxisError::Protocol {
+                sent: format!("{}{code}", self.axes[i].address),
+                reply: format!("{other:?}"),
+                reason: "not a number".into(),
+            }),
+        }
+    }
+}
+
+/// A line as text, terminator removed.
+fn line_text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes)
+        .trim_end_matches(['\r', '\n'])
+        .to_string()
+}

@@ -1,0 +1,262 @@
+//! Instrument to host: [`Reply`] lines, read knowing the query they answer.
+
+use std::fmt;
+
+use super::{
+    Command, ErrorStatus, EventStatus, FilterSlope, Interface, LiaStatus, REPLY_TERMINATOR,
+    ReferenceSource, Sensitivity, TimeConstant,
+};
+use crate::number;
+
+/// The `*IDN?` reply: four comma-separated fields,
+/// `Stanford_Research_Systems,SR830,s/n00111,ver1.000` (manual, *IDN?).
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Identity {
+    /// `Stanford_Research_Systems`.
+    pub manufacturer: String,
+    /// `SR830` (an SR810 or SR850 answers its own name).
+    pub model: String,
+    /// `s/n00111`.
+    pub serial: String,
+    /// `ver1.000` in the manual; real units report e.g. `ver1.07`.
+    pub firmware: String,
+}
+
+impl Identity {
+    /// True when the model field is `SR830`.
+    pub fn is_sr830(&self) -> bool {
+        self.model == "SR830"
+    }
+
+    /// Parses the four fields. Each is trimmed, must be non-empty printable ASCII.
+    pub fn parse(text: &[u8]) -> Option<Identity> {
+        let text = std::str::from_utf8(text).ok()?;
+        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
+        let ok = |f: &&str| !f.is_empty() && f.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
+        match fields.as_slice() {
+            [m, n, s, v] if [m, n, s, v].into_iter().all(ok) => Some(Identity {
+                manufacturer: m.to_string(),
+                model: n.to_string(),
+                serial: s.to_string(),
+                firmware: v.to_string(),
+            }),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Identity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{},{},{},{}",
+            self.manufacturer, self.model, self.serial, self.firmware
+        )
+    }
+}
+
+/// A reply line's content, by the query it answers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reply {
+    /// `OUTX?`.
+    Interface(Interface),
+    /// `FMOD?`.
+    ReferenceSource(ReferenceSource),
+    /// `FREQ?`: Hz.
+    Frequency(f64),
+    /// `SLVL?`: V rms.
+    Amplitude(f64),
+    /// `SENS?`.
+    Sensitivity(Sensitivity),
+    /// `OFLT?`.
+    TimeConstant(TimeConstant),
+    /// `OFSL?`.
+    Slope(FilterSlope),
+    /// `OUTP?`: volts (degrees for θ).
+    Output(f64),
+    /// `SNAP?`: the values in the order asked.
+    Snap(Vec<f64>),
+    /// `LIAS?`.
+    LiaStatus(LiaStatus),
+    /// `ERRS?`.
+    ErrorStatus(ErrorStatus),
+    /// `*ESR?`.
+    EventStatus(EventStatus),
+    /// `LIAS? i`, `ERRS? i`, `*ESR? i`: the one bit asked, `0` or `1`.
+    Bit(bool),
+    /// `*IDN?`.
+    Identity(Identity),
+}
+
+/// Why a reply line could not be understood.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ReplyError {
+    /// The line is empty.
+    #[error("empty reply")]
+    Empty,
+    /// The command is not a query: the instrument never answers it.
+    #[error("{0} sends no reply")]
+    NotAQuery(&'static str),
+    /// A value is not a number, or not the integer the query returns.
+    #[error("malformed value")]
+    BadValue,
+    /// An index or status value outside what the query can return.
+    #[error("value {0} out of range for this query")]
+    OutOfRange(f64),
+    /// `SNAP?` returned a different number of values than asked.
+    #[error("expected {expected} values, got {got}")]
+    WrongCount {
+        /// Values asked.
+        expected: usize,
+        /// Values in the reply.
+        got: usize,
+    },
+}
+
+/// Writes a reply value: the shortest decimal that reads back exactly, with an
+/// exponent outside 1e-4 ≤ |v| < 1e9 so that six values of a `SNAP?` always fit the
+/// 256-byte output buffer. The firmware's own rule (`1000.00`, `-4.17234e-007`) is
+/// unconfirmed; parsers accept both.
+fn format_value(v: f64, out: &mut Vec<u8>) {
+    use std::io::Write;
+    if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
+        number::format(v, out);
+    } else {
+        let _ = write!(out, "{v:e}");
+    }
+}
+
+impl Reply {
+    /// Appends the reply line, terminator included (what the instrument sends).
+    /// Values must be finite; floats are written as described at [`Reply::parse`].
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        let int = |i: u8, out: &mut Vec<u8>| out.extend_from_slice(i.to_string().as_bytes());
+        match self {
+            Reply::Interface(i) => int(i.index(), out),
+            Reply::ReferenceSource(s) => int(s.index(), out),
+            Reply::Sensitivity(s) => int(s.index(), out),
+            Reply::TimeConstant(t) => int(t.index(), out),
+            Reply::Slope(s) => int(s.index(), out),
+            Reply::LiaStatus(s) => int(s.0, out),
+            Reply::ErrorStatus(s) => int(s.0, out),
+            Reply::EventStatus(s) => int(s.0, out),
+            Reply::Bit(b) => int(u8::from(*b), out),
+            Reply::Frequency(v) | Reply::Amplitude(v) | Reply::Output(v) => format_value(*v, out),
+            Reply::Snap(vs) => {
+                for (k, v) in vs.iter().enumerate() {
+                    if k > 0 {
+                        out.push(b',');
+                    }
+                    format_value(*v, out);
+                }
+            }
+            Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
+        }
+        out.push(REPLY_TERMINATOR);
+    }
+
+    /// The reply line as bytes, terminator included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut v = Vec::new();
+        self.encode(&mut v);
+        v
+    }
+
+    /// Parses the reply line (terminator removed) to `command`. Surrounding
+    /// whitespace is ignored. Floats are read in any of the forms the firmware is
+    /// seen to print (`-1.01026`, `1000.00`, `-4.17234e-007`; its rule is not in the
+    /// manual); indices and status bytes must be integers in their range.
+    pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
+        let line = line.trim_ascii();
+        if !command.is_query() {
+            return Err(ReplyError::NotAQuery(command.mnemonic()));
+        }
+        if line.is_empty() {
+            return Err(ReplyError::Empty);
+        }
+        let num = |s: &[u8]| number::parse(s.trim_ascii()).ok_or(ReplyError::BadValue);
+        let int = |max: u8| -> Result<u8, ReplyError> {
+            let v = num(line)?;
+            if v.fract() != 0.0 {
+                return Err(ReplyError::BadValue);
+            }
+            if !(0.0..=f64::from(max)).contains(&v) {
+                return Err(ReplyError::OutOfRange(v));
+            }
+            // Exact: an integral value in 0..=max.
+            Ok(v as u8)
+        };
+        let out_of_range = |i: u8| ReplyError::OutOfRange(f64::from(i));
+        let reply = match command {
+            Command::QueryInterface => {
+                let i = int(1)?;
+                Reply::Interface(Interface::from_index(i).ok_or(out_of_range(i))?)
+            }
+            Command::QueryReferenceSource => {
+                let i = int(1)?;
+                Reply::ReferenceSource(ReferenceSource::from_index(i).ok_or(out_of_range(i))?)
+            }
+            Command::QueryFrequency => Reply::Frequency(num(line)?),
+            Command::QueryAmplitude => Reply::Amplitude(num(line)?),
+            Command::QuerySensitivity => {
+                let i = int(Sensitivity::COUNT - 1)?;
+                Reply::Sensitivity(Sensitivity::new(i).ok_or(out_of_range(i))?)
+            }
+            Command::QueryTimeConstant => {
+                let i = int(TimeConstant::COUNT - 1)?;
+                Reply::TimeConstant(TimeConstant::new(i).ok_or(out_of_range(i))?)
+            }
+            Command::QuerySlope => {
+                let i = int(3)?;
+                Reply::Slope(FilterSlope::from_index(i).ok_or(out_of_range(i))?)
+            }
+            Command::ReadOutput(_) => Reply::Output(num(line)?),
+            Command::Snap(p) => {
+                let values = line
+                    .split(|b| *b == b',')
+                    .map(num)
+                    .collect::<Result<Vec<f64>, _>>()?;
+                let expected = p.as_slice().len();
+                if values.len() != expected {
+                    return Err(ReplyError::WrongCount {
+                        expected,
+                        got: values.len(),
+                    });
+                }
+                Reply::Snap(values)
+            }
+            Command::LiaStatus(Some(_))
+            | Command::ErrorStatus(Some(_))
+            | Command::EventStatus(Some(_)) => Reply::Bit(int(1)? == 1),
+            Command::LiaStatus(None) => Reply::LiaStatus(LiaStatus(int(255)?)),
+            Command::ErrorStatus(None) => Reply::ErrorStatus(ErrorStatus(int(255)?)),
+            Command::EventStatus(None) => Reply::EventStatus(EventStatus(int(255)?)),
+            Command::Identify => {
+                Reply::Identity(Identity::parse(line).ok_or(ReplyError::BadValue)?)
+            }
+            _ => return Err(ReplyError::NotAQuery(command.mnemonic())),
+        };
+        Ok(reply)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reply_values_use_an_exponent_only_outside_the_plain_range() {
+        let f = |v: f64| {
+            let mut out = Vec::new();
+            format_value(v, &mut out);
+            String::from_utf8(out).unwrap()
+        };
+        assert_eq!(f(0.951359), "0.951359");
+        assert_eq!(f(-1.01026), "-1.01026");
+        assert_eq!(f(1000.0), "1000");
+        assert_eq!(f(0.0), "0");
+        assert_eq!(f(-4.17234e-7), "-4.17234e-7");
+        assert_eq!(f(1e-300), "1e-300");
+        assert_eq!(f(2.5e12), "2.5e12");
+    }
+}

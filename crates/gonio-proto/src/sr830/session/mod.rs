@@ -1,0 +1,297 @@
+//! The lock-in's policy as a sans-IO state machine: [`Sr830Session`].
+//!
+//! The layers, from the wire up:
+//! - `exchange`: one command on the wire, with the link policy: a vanished port
+//!   reopened (paced, within a budget) with `OUTX 0` re-sent, a lost or garbled answer
+//!   to a query that only reads asked again, the settings a command changes tracked;
+//! - `script`: operations written as steps, each asking for one exchange or pause and
+//!   naming the step that takes its result;
+//! - `ops` (set-up, commands, settings read back) and `read` (the settled, averaged,
+//!   autoranged reading).
+
+mod exchange;
+mod ops;
+mod read;
+mod script;
+
+use std::time::Duration;
+
+use super::{
+    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, ReplyError, Sensitivity,
+    Sr830Config, Sr830Error, TimeConstant,
+};
+use crate::link::Operation;
+use crate::machine::{Run, secs};
+use script::Exec;
+
+/// The SR830 as a state machine: its configuration, the settings it was last set to,
+/// when its filters will have settled, and everything its operations decide: which
+/// command goes out next, what an answer means, when to wait, ask again, reopen the
+/// port or range. It does no I/O and reads no clock.
+///
+/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
+/// do next (see [`Operation`] for the order):
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::link::{Deadline, Io, Operation};
+/// use gonio_proto::sr830::{LiaStatus, Sr830Config, Sr830Session};
+///
+/// let mut session = Sr830Session::new(Sr830Config::default(), "sim", Duration::ZERO).unwrap();
+/// let mut op = session.start_lia_status(Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"LIAS?\n")));
+/// op.handle_sent(Duration::ZERO, Ok(()));
+/// assert_eq!(op.poll_timeout(), Some(Deadline::Reply(Duration::from_secs(1))));
+/// op.handle_line(Duration::from_millis(5), b"4");
+/// assert_eq!(op.poll_output().map(|r| r.ok()), Some(Some(LiaStatus(4))));
+/// ```
+///
+/// `gonio_driver::sr830::Sr830` is the pump that runs these operations over a serial
+/// port.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sr830Session {
+    config: Sr830Config,
+    /// The port's name, for errors.
+    port: String,
+    sensitivity: Sensitivity,
+    time_constant: TimeConstant,
+    slope: FilterSlope,
+    /// From this time on, readings are trustworthy.
+    settled_at: Duration,
+    reconnects: usize,
+    retried: u64,
+    identity: Option<Identity>,
+}
+
+impl Sr830Session {
+    /// A session for the lock-in on `port` (its name, for errors), at `now`; nothing is
+    /// sent until [`start_setup`](Self::start_setup). Fails if `config` does not
+    /// [`validate`](Sr830Config::validate).
+    pub fn new(
+        config: Sr830Config,
+        port: impl Into<String>,
+        now: Duration,
+    ) -> Result<Self, Sr830Error> {
+        config.validate()?;
+        Ok(Sr830Session {
+            port: port.into(),
+            sensitivity: config.sensitivity,
+            time_constant: config.time_constant,
+            slope: config.slope,
+            config,
+            settled_at: now,
+            reconnects: 0,
+            retried: 0,
+            identity: None,
+        })
+    }
+
+    /// Takes the link and applies the configuration: input cleared, `OUTX 0`, `*IDN?`
+    /// (must be an SR830), `*CLS`, `SENS`, `OFLT`, `OFSL`, then `*ESR?`, whose reply also
+    /// proves every earlier command has run. Starts the settling wait.
+    pub fn start_setup(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Identity, Sr830Error>> + '_ {
+        Run::new("sr830.setup", self, Exec::new(ops::Setup::default()), now)
+    }
+
+    /// One averaged reading: the settling wait, `LIAS?` to clear latched bits, `samples`
+    /// × `SNAP? 1,2` one time constant apart, `LIAS?` for the flags; with autoranging,
+    /// a range change and a new reading on an overload or a small signal. Faults are
+    /// errors; an overloaded or unlocked reading is returned flagged.
+    pub fn start_read(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
+        Run::new("sr830.read", self, Exec::new(read::Read::default()), now)
+    }
+
+    /// Sends any command and, for a query, reads its reply. A vanished port is
+    /// reopened (up to `reconnect_attempts` times, `reconnect_delay_ms` apart, with
+    /// `OUTX 0` re-sent) and the command sent again: every command the session uses is
+    /// idempotent. `SENS`, `OFLT`, `OFSL`, `*RST` and `AGAN` update the settings the
+    /// session tracks and restart the settling wait (`AGAN` reads them back).
+    pub fn start_execute<'s>(
+        &'s mut self,
+        command: &Command,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Option<Reply>, Sr830Error>> + use<'s> {
+        let op = ops::Execute::new(Some(command.clone()), |reply| reply);
+        Run::new("sr830.execute", self, Exec::new(op), now)
+    }
+
+    /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the session tracks (after
+    /// `AGAN`, or a change from the front panel); restarts the settling wait.
+    pub fn start_refresh_settings(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+        Run::new(
+            "sr830.refresh_settings",
+            self,
+            Exec::new(ops::Execute::new(None, |_| ())),
+            now,
+        )
+    }
+
+    /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.
+    pub fn start_set_sensitivity(
+        &mut self,
+        sensitivity: Sensitivity,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+        let op = ops::Single::new(Command::SetSensitivity(sensitivity), |_, _| Ok(()));
+        Run::new("sr830.set_sensitivity", self, Exec::new(op), now)
+    }
+
+    /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
+    pub fn start_set_time_constant(
+        &mut self,
+        time_constant: TimeConstant,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+        let op = ops::Single::new(Command::SetTimeConstant(time_constant), |_, _| Ok(()));
+        Run::new("sr830.set_time_constant", self, Exec::new(op), now)
+    }
+
+    /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
+    pub fn start_set_slope(
+        &mut self,
+        slope: FilterSlope,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+        let op = ops::Single::new(Command::SetSlope(slope), |_, _| Ok(()));
+        Run::new("sr830.set_slope", self, Exec::new(op), now)
+    }
+
+    /// `LIAS?`: the LIA status byte (reading clears it).
+    pub fn start_lia_status(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<LiaStatus, Sr830Error>> + '_ {
+        let op = ops::Single::new(Command::LiaStatus(None), lia_status);
+        Run::new("sr830.lia_status", self, Exec::new(op), now)
+    }
+
+    /// `*ESR?`: the standard event status byte (reading clears it).
+    pub fn start_event_status(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<EventStatus, Sr830Error>> + '_ {
+        let op = ops::Single::new(Command::EventStatus(None), event_status);
+        Run::new("sr830.event_status", self, Exec::new(op), now)
+    }
+
+    /// The light on the detector changed at `now` (a stage moved, a shutter opened):
+    /// the next reading waits a full settling time from now, as after a change of
+    /// settings. Without it, readings taken right after a move average the filters'
+    /// response to the step — biased towards the previous point.
+    pub fn input_changed(&mut self, now: Duration) {
+        self.mark_unsettled(now);
+    }
+
+    /// Settling time at the current time constant and slope, to the config's
+    /// `settle_residual`.
+    pub fn settle_time(&self) -> Duration {
+        secs(self.config.settle_seconds(self.slope, self.time_constant))
+    }
+
+    /// When the filters will have settled (readings wait until then).
+    pub fn settled_at(&self) -> Duration {
+        self.settled_at
+    }
+
+    /// The sensitivity the instrument is set to (as far as the session knows).
+    pub fn sensitivity(&self) -> Sensitivity {
+        self.sensitivity
+    }
+
+    /// The time constant.
+    pub fn time_constant(&self) -> TimeConstant {
+        self.time_constant
+    }
+
+    /// The filter slope.
+    pub fn slope(&self) -> FilterSlope {
+        self.slope
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Sr830Config {
+        &self.config
+    }
+
+    /// The identity set-up read, once it has run.
+    pub fn identity(&self) -> Option<&Identity> {
+        self.identity.as_ref()
+    }
+
+    /// How many times the port was reopened.
+    pub fn reconnects(&self) -> usize {
+        self.reconnects
+    }
+
+    /// Queries asked again (or read cycles restarted) after a lost, late or garbled
+    /// reply: what a run log reports as retries.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+
+    /// Readings wait a full settling time from `now`, at the current settings. A
+    /// pending longer wait is replaced, not kept: the filters now run at the new
+    /// settings, so a mistaken 30 ks set and undone does not cost days.
+    fn mark_unsettled(&mut self, now: Duration) {
+        self.settled_at = now.saturating_add(self.settle_time());
+        tracing::debug!(
+            settle = ?self.settle_time(),
+            time_constant = %self.time_constant,
+            slope = %self.slope,
+            "sr830: settling wait restarts"
+        );
+    }
+}
+
+/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
+/// reported as a protocol error rather than a panic.
+fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error {
+    let mut name = Vec::new();
+    command.encode_body(&mut name);
+    Sr830Error::Protocol {
+        command: String::from_utf8_lossy(&name).into_owned(),
+        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
+        source: ReplyError::BadValue,
+    }
+}
+
+/// The answer to `LIAS?`.
+fn lia_status(command: &Command, reply: Option<Reply>) -> Result<LiaStatus, Sr830Error> {
+    match reply {
+        Some(Reply::LiaStatus(s)) => Ok(s),
+        other => Err(unexpected(command, other)),
+    }
+}
+
+/// The answer to `*ESR?`.
+fn event_status(command: &Command, reply: Option<Reply>) -> Result<EventStatus, Sr830Error> {
+    match reply {
+        Some(Reply::EventStatus(s)) => Ok(s),
+        other => Err(unexpected(command, other)),
+    }
+}
+
+/// Faults a second attempt may not have: a lost, late, garbled or truncated reply.
+fn is_transient(e: &Sr830Error) -> bool {
+    use crate::TransportError;
+    matches!(
+        e,
+        Sr830Error::Protocol { .. }
+            | Sr830Error::Transport {
+                source: TransportError::Timeout(_)
+                    | TransportError::LineTooLong
+                    | TransportError::Nul,
+                ..
+            }
+    )
+}
