@@ -24,6 +24,8 @@ fn acquire_writes_its_log_as_json_lines_beside_the_run() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    // Without -v or RUST_LOG the terminal shows warnings only: no serial lines.
+    assert!(!stderr(&o).contains("dir="), "{}", stderr(&o));
     let text = std::fs::read_to_string(&log).expect("the log file");
     let lines: Vec<serde_json::Value> = text
         .lines()
@@ -51,6 +53,9 @@ fn acquire_writes_its_log_as_json_lines_beside_the_run() {
         assert!(v["fields"]["r_mean"].as_f64().is_some_and(|r| r > 0.0));
     }
     assert!(lines.iter().any(|v| message(v) == "session started"));
+    // The file is at debug: state changes, not the wire (that is -vv).
+    assert!(lines.iter().any(|v| message(v) == "operation started"));
+    assert!(lines.iter().all(|v| v["fields"]["dir"].is_null()));
     assert!(
         lines.iter().any(
             |v| message(v).starts_with("session ended") && v["fields"]["outcome"] == "complete"
@@ -72,4 +77,42 @@ fn acquire_writes_its_log_as_json_lines_beside_the_run() {
     assert!(stderr(&again).contains("cannot create the log file"));
     assert_eq!(std::fs::read_to_string(&log).expect("log"), text);
     assert!(!dir.join("other.gonio").exists());
+}
+
+#[test]
+fn trace_shows_every_serial_exchange_of_the_demo() {
+    let dir = scratch("trace");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_gonio"))
+        .args(["demo", "--out"])
+        .arg(dir.join("demo.gonio"))
+        .env("RUST_LOG", "trace")
+        .output()
+        .expect("the gonio binary runs");
+    assert!(out.status.success(), "{}", stderr(&out));
+    let err = stderr(&out);
+    let wire: Vec<&str> = err.lines().filter(|l| l.contains(" dir=")).collect();
+    let sent = |what: &str| {
+        wire.iter()
+            .any(|l| l.contains("dir=\"tx\"") && l.contains(&format!("line={what}")))
+    };
+    let received = |what: &str| {
+        wire.iter()
+            .any(|l| l.contains("dir=\"rx\"") && l.contains(&format!("line={what}")))
+    };
+    // An absolute move of the source arm and the lock-in's snapshot go out, with the
+    // lines that answer them coming back.
+    assert!(sent("1PA"), "no move sent");
+    assert!(sent("1TS\\r\\n") && received("1TS"), "no status exchange");
+    assert!(sent("SNAP? 1,2\\n"), "no snapshot sent");
+    assert!(
+        wire.iter().any(|l| l.contains("port=\"sim:detector\"")
+            && l.contains("dir=\"rx\"")
+            && l.contains(',')),
+        "no snapshot reply"
+    );
+    // Every exchange is there: as many lines sent to the lock-in as answered, plus the
+    // set commands that have no answer.
+    let tx = wire.iter().filter(|l| l.contains("dir=\"tx\"")).count();
+    let rx = wire.iter().filter(|l| l.contains("dir=\"rx\"")).count();
+    assert!(tx >= rx && rx > 1000, "{tx} sent, {rx} received");
 }
