@@ -9,13 +9,40 @@
 //! line with its control bytes escaped (`1PA12.5\r\n`).
 
 use std::fmt;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use gonio_proto::link::{Deadline, Io, Operation};
 use tracing::{debug, trace};
 
 use crate::clock::Clock;
-use crate::smc100::AbortFlag;
 use crate::transport::Transport;
+
+/// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
+/// running and every later wait stop all stages and return `AxisError::Aborted`.
+/// The pump reads it at each of the session's abort points (the pauses between status
+/// polls of a move or a home search).
+#[derive(Clone, Debug, Default)]
+pub struct AbortFlag(Arc<AtomicBool>);
+
+impl AbortFlag {
+    /// A lowered flag.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Raises it.
+    pub fn raise(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+    /// Lowers it again (after the operator acknowledged).
+    pub fn clear(&self) {
+        self.0.store(false, Ordering::SeqCst);
+    }
+    /// True when raised.
+    pub fn is_raised(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+}
 
 /// Runs `op` to its end over `link`, waiting on `clock`. At each abort point
 /// ([`Deadline::Poll`]) a raised `abort` flag is handed to the operation instead of

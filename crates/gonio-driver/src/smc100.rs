@@ -15,9 +15,6 @@
 //!   mid-run means it was reset; both are errors, and [`Smc100Chain::home`] recovers;
 //! - dropping the chain, or raising its [`AbortFlag`], stops every stage.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-
 pub use gonio_proto::smc100::{
     AxisConfig, AxisError, ChainPolicy, ControllerInfo, MotionError, describe_errors,
 };
@@ -25,34 +22,9 @@ use gonio_proto::smc100::{Smc100Session, Status};
 use tracing::debug_span;
 
 use crate::clock::Clock;
+pub use crate::pump::AbortFlag;
 use crate::pump::pump;
 use crate::transport::Transport;
-
-/// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
-/// running and every later wait stop all stages and return [`AxisError::Aborted`].
-/// The pump reads it at each of the session's abort points (the pauses between status
-/// polls of a move or a home search).
-#[derive(Clone, Debug, Default)]
-pub struct AbortFlag(Arc<AtomicBool>);
-
-impl AbortFlag {
-    /// A lowered flag.
-    pub fn new() -> Self {
-        Self::default()
-    }
-    /// Raises it.
-    pub fn raise(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-    /// Lowers it again (after the operator acknowledged).
-    pub fn clear(&self) {
-        self.0.store(false, Ordering::SeqCst);
-    }
-    /// True when raised.
-    pub fn is_raised(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-}
 
 /// A chain of SMC100 controllers sharing one serial line.
 pub struct Smc100Chain<T: Transport, C: Clock> {
