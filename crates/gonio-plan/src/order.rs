@@ -43,7 +43,9 @@
 
 use std::time::{Duration, Instant};
 
+use gonio_core::kdtree::{KdTree, Metric};
 pub use gonio_core::motion::{AxisMotion, MotionModel};
+use gonio_core::rng::{GOLDEN_GAMMA, splitmix64};
 
 /// Length of each point's neighbour list (candidates for the local search and the
 /// greedy construction).
@@ -202,14 +204,11 @@ fn held_karp(model: &MotionModel, start: [f64; 4], points: &[[f64; 4]]) -> Vec<u
 
 /// Step-time metric on a fixed node set: the points `0..n` and the start `n`.
 struct Problem {
-    /// Node coordinates; the start last.
-    nodes: Vec<[f64; 4]>,
-    /// The four axes' profiles (a missing axis moves for free).
-    axes: [Profile; 4],
+    /// The k-d tree over the node coordinates (the start last) under the step time.
+    tree: KdTree<4, StepTime>,
     /// Neighbour lists, `NEIGHBOURS` per node, nearest first, and their step times.
     neigh: Vec<Vec<usize>>,
     neigh_d: Vec<Vec<f64>>,
-    tree: KdTree,
 }
 
 impl Problem {
@@ -227,14 +226,18 @@ impl Problem {
             return None;
         }
         let mut pb = Problem {
-            tree: KdTree::build(&nodes, &axes),
-            nodes,
-            axes,
+            tree: KdTree::with_leaf_size(nodes, StepTime { axes }, LEAF),
             neigh: Vec::new(),
             neigh_d: Vec::new(),
         };
-        let neigh: Vec<Vec<usize>> = (0..pb.nodes.len())
-            .map(|u| pb.tree.knn(&pb, u, NEIGHBOURS))
+        let neigh: Vec<Vec<usize>> = (0..pb.m())
+            .map(|u| {
+                pb.tree
+                    .nearest_where(pb.node(u), NEIGHBOURS, |v| v != u)
+                    .into_iter()
+                    .map(|(_, v)| v)
+                    .collect()
+            })
             .collect();
         pb.neigh_d = neigh
             .iter()
@@ -245,20 +248,24 @@ impl Problem {
         Some(pb)
     }
 
+    /// Number of nodes: the points and the start.
+    fn m(&self) -> usize {
+        self.tree.len()
+    }
+
     /// Number of points (the start excluded).
     fn n(&self) -> usize {
-        self.nodes.len() - 1
+        self.m() - 1
+    }
+
+    /// Coordinates of node `u`.
+    #[inline]
+    fn node(&self, u: usize) -> &[f64; 4] {
+        &self.tree.points()[u]
     }
 
     fn start(&self) -> usize {
         self.n()
-    }
-
-    #[inline]
-    fn dist_to(&self, u: usize, q: &[f64; 4]) -> f64 {
-        let p = &self.nodes[u];
-        let t = |k: usize| self.axes[k].time((q[k] - p[k]).abs());
-        t(0).max(t(1)).max(t(2).max(t(3)))
     }
 
     /// Step time between nodes; `END` (the free end of the open path) costs nothing.
@@ -267,7 +274,7 @@ impl Problem {
         if u == END || v == END {
             0.0
         } else {
-            self.dist_to(u, &self.nodes[v])
+            self.tree.metric().distance(self.node(u), self.node(v))
         }
     }
 
@@ -277,7 +284,7 @@ impl Problem {
         tree.remove(self.start());
         let mut order = Vec::with_capacity(n);
         let mut at = self.start();
-        while let Some(next) = tree.nearest_active(self, &self.nodes[at]) {
+        while let Some((_, next)) = tree.nearest_one(self.node(at)) {
             tree.remove(next);
             order.push(next);
             at = next;
@@ -287,7 +294,7 @@ impl Problem {
 
     /// Greedy-matching construction (module docs, step 2).
     fn greedy(&self) -> Vec<usize> {
-        let m = self.nodes.len();
+        let m = self.m();
         let start = self.start();
         let mut edges: Vec<(f64, usize, usize)> = Vec::with_capacity(m * NEIGHBOURS);
         for u in 0..m {
@@ -324,7 +331,7 @@ impl Problem {
         let mut at = start;
         tree.remove(start);
         // Walk the fragment that begins at `from`, appending it to `order`.
-        let walk = |from: usize, order: &mut Vec<usize>, tree: &mut KdTree| -> usize {
+        let walk = |from: usize, order: &mut Vec<usize>, tree: &mut KdTree<4, StepTime>| -> usize {
             let (mut prev, mut cur) = (NONE, from);
             loop {
                 let next = adj[cur].iter().copied().find(|&x| x != NONE && x != prev);
@@ -341,7 +348,7 @@ impl Problem {
             cur
         };
         at = walk(at, &mut order, &mut tree);
-        while let Some(next) = tree.nearest_active(self, &self.nodes[at]) {
+        while let Some((_, next)) = tree.nearest_one(self.node(at)) {
             tree.remove(next);
             order.push(next);
             at = walk(next, &mut order, &mut tree);
@@ -395,6 +402,37 @@ impl Profile {
     }
 }
 
+/// The step time `maxᵢ tᵢ(|pᵢ − qᵢ|)` as the k-d tree's metric: its box bound is
+/// `maxᵢ tᵢ(gapᵢ)`, and nodes split on the axis of widest extent *in time*.
+#[derive(Clone, Copy)]
+struct StepTime {
+    /// The four axes' profiles (a missing axis moves for free).
+    axes: [Profile; 4],
+}
+
+impl Metric<4> for StepTime {
+    #[inline]
+    fn distance(&self, q: &[f64; 4], p: &[f64; 4]) -> f64 {
+        let t = |k: usize| self.axes[k].time((q[k] - p[k]).abs());
+        t(0).max(t(1)).max(t(2).max(t(3)))
+    }
+
+    #[inline]
+    fn box_bound(&self, q: &[f64; 4], lo: &[f64; 4], hi: &[f64; 4]) -> f64 {
+        let mut m = 0.0f64;
+        for (k, ax) in self.axes.iter().enumerate() {
+            let gap = (lo[k] - q[k]).max(q[k] - hi[k]).max(0.0);
+            m = m.max(ax.time(gap));
+        }
+        m
+    }
+
+    #[inline]
+    fn spread(&self, axis: usize, width: f64) -> f64 {
+        self.axes[axis].time(width)
+    }
+}
+
 /// Marks "no node".
 const NONE: usize = usize::MAX;
 /// The free end of the open path: a virtual node at zero time from everything.
@@ -428,203 +466,6 @@ impl UnionFind {
         self.parent[ra.max(rb)] = ra.min(rb);
         true
     }
-}
-
-#[derive(Clone)]
-struct KdNode {
-    lo: usize,
-    hi: usize,
-    min: [f64; 4],
-    max: [f64; 4],
-    /// Children, or `NONE` for a leaf.
-    left: usize,
-    right: usize,
-    parent: usize,
-    /// Active points below.
-    count: usize,
-    /// Lowest point index below (active or not): with the time bound, it prunes the
-    /// subtrees that could only tie, which keeps ties to the lower index cheap even
-    /// for many duplicate points.
-    min_idx: usize,
-}
-
-/// A k-d tree over the nodes with deletion (for nearest-neighbour constructions).
-#[derive(Clone)]
-struct KdTree {
-    idx: Vec<usize>,
-    nodes: Vec<KdNode>,
-    leaf_of: Vec<usize>,
-    active: Vec<bool>,
-}
-
-impl KdTree {
-    fn build(pts: &[[f64; 4]], axes: &[Profile; 4]) -> KdTree {
-        let m = pts.len();
-        let mut t = KdTree {
-            idx: (0..m).collect(),
-            nodes: Vec::new(),
-            leaf_of: vec![0; m],
-            active: vec![true; m],
-        };
-        t.build_node(pts, axes, 0, m, NONE);
-        t
-    }
-
-    fn build_node(
-        &mut self,
-        pts: &[[f64; 4]],
-        axes: &[Profile; 4],
-        lo: usize,
-        hi: usize,
-        parent: usize,
-    ) -> usize {
-        let mut min = [f64::INFINITY; 4];
-        let mut max = [f64::NEG_INFINITY; 4];
-        for &i in &self.idx[lo..hi] {
-            for k in 0..4 {
-                min[k] = min[k].min(pts[i][k]);
-                max[k] = max[k].max(pts[i][k]);
-            }
-        }
-        let id = self.nodes.len();
-        self.nodes.push(KdNode {
-            lo,
-            hi,
-            min,
-            max,
-            left: NONE,
-            right: NONE,
-            parent,
-            count: hi - lo,
-            min_idx: self.idx[lo..hi].iter().copied().min().unwrap_or(NONE),
-        });
-        // The axis of widest extent in time: the one that separates best. Points all
-        // alike are still split (in index order), so that leaves stay small.
-        let (axis, _) = axes
-            .iter()
-            .enumerate()
-            .map(|(k, ax)| (k, ax.time(max[k] - min[k])))
-            .fold((0, -1.0), |b, c| if c.1 > b.1 { c } else { b });
-        if hi - lo <= LEAF {
-            for &i in &self.idx[lo..hi] {
-                self.leaf_of[i] = id;
-            }
-            return id;
-        }
-        self.idx[lo..hi]
-            .sort_unstable_by(|&a, &b| pts[a][axis].total_cmp(&pts[b][axis]).then(a.cmp(&b)));
-        let mid = lo + (hi - lo) / 2;
-        let left = self.build_node(pts, axes, lo, mid, id);
-        let right = self.build_node(pts, axes, mid, hi, id);
-        self.nodes[id].left = left;
-        self.nodes[id].right = right;
-        id
-    }
-
-    fn remove(&mut self, u: usize) {
-        if !self.active[u] {
-            return;
-        }
-        self.active[u] = false;
-        let mut id = self.leaf_of[u];
-        while id != NONE {
-            self.nodes[id].count -= 1;
-            id = self.nodes[id].parent;
-        }
-    }
-
-    /// Whether node `id` can hold no point beating `worst` in `(time, index)` order.
-    fn prunes(&self, pb: &Problem, id: usize, q: &[f64; 4], worst: (f64, usize)) -> bool {
-        let b = self.bound(pb, id, q);
-        b > worst.0 || (b == worst.0 && self.nodes[id].min_idx > worst.1)
-    }
-
-    /// Lower bound on the time from `q` to any point of node `id`'s box.
-    fn bound(&self, pb: &Problem, id: usize, q: &[f64; 4]) -> f64 {
-        let nd = &self.nodes[id];
-        let mut m = 0.0f64;
-        for (k, ax) in pb.axes.iter().enumerate() {
-            let gap = (nd.min[k] - q[k]).max(q[k] - nd.max[k]).max(0.0);
-            m = m.max(ax.time(gap));
-        }
-        m
-    }
-
-    /// The `k` nearest nodes to node `u` (itself excluded), nearest first, ties to the
-    /// lower index.
-    fn knn(&self, pb: &Problem, u: usize, k: usize) -> Vec<usize> {
-        let q = &pb.nodes[u];
-        let mut best: Vec<(f64, usize)> = Vec::with_capacity(k + 1);
-        let mut stack = vec![0usize];
-        while let Some(id) = stack.pop() {
-            if best.len() == k && self.prunes(pb, id, q, best[k - 1]) {
-                continue;
-            }
-            let nd = &self.nodes[id];
-            if nd.left == NONE {
-                for &v in &self.idx[nd.lo..nd.hi] {
-                    if v == u {
-                        continue;
-                    }
-                    let c = (pb.d(u, v), v);
-                    if best.len() < k || less(c, best[k - 1]) {
-                        let at = best.partition_point(|&b| less(b, c));
-                        best.insert(at, c);
-                        best.truncate(k);
-                    }
-                }
-            } else {
-                // Visit the nearer child first (pushed last).
-                let (bl, br) = (self.bound(pb, nd.left, q), self.bound(pb, nd.right, q));
-                if bl <= br {
-                    stack.push(nd.right);
-                    stack.push(nd.left);
-                } else {
-                    stack.push(nd.left);
-                    stack.push(nd.right);
-                }
-            }
-        }
-        best.into_iter().map(|(_, v)| v).collect()
-    }
-
-    /// The active node nearest to `q`, ties to the lower index.
-    fn nearest_active(&self, pb: &Problem, q: &[f64; 4]) -> Option<usize> {
-        let mut best: Option<(f64, usize)> = None;
-        let mut stack = vec![0usize];
-        while let Some(id) = stack.pop() {
-            let nd = &self.nodes[id];
-            if nd.count == 0 || best.is_some_and(|b| self.prunes(pb, id, q, b)) {
-                continue;
-            }
-            if nd.left == NONE {
-                for &v in &self.idx[nd.lo..nd.hi] {
-                    if self.active[v] {
-                        let c = (pb.dist_to(v, q), v);
-                        if best.is_none_or(|b| less(c, b)) {
-                            best = Some(c);
-                        }
-                    }
-                }
-            } else {
-                let (bl, br) = (self.bound(pb, nd.left, q), self.bound(pb, nd.right, q));
-                if bl <= br {
-                    stack.push(nd.right);
-                    stack.push(nd.left);
-                } else {
-                    stack.push(nd.left);
-                    stack.push(nd.right);
-                }
-            }
-        }
-        best.map(|(_, v)| v)
-    }
-}
-
-/// `(time, index)` order: by time, ties to the lower index.
-#[inline]
-fn less(a: (f64, usize), b: (f64, usize)) -> bool {
-    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
 }
 
 /// Cap on applied local-search moves per point (a deterministic bound on the work;
@@ -666,7 +507,7 @@ struct Search<'a> {
 
 impl<'a> Search<'a> {
     fn new(pb: &'a Problem, order: &[usize]) -> Search<'a> {
-        let m = pb.nodes.len();
+        let m = pb.m();
         let mut path = Vec::with_capacity(m);
         path.push(pb.start());
         path.extend_from_slice(order);
@@ -930,7 +771,8 @@ impl<'a> Search<'a> {
             if timed_out() {
                 break;
             }
-            let h = splitmix64(k as u64);
+            // The (k + 1)-th output of SplitMix64 seeded with 0.
+            let h = splitmix64((k as u64).wrapping_mul(GOLDEN_GAMMA));
             let max_len = KICK_SEGMENT.min((n - 1) / 2).max(1);
             let l1 = 1 + (h % max_len as u64) as usize;
             let l2 = 1 + ((h >> 16) % max_len as u64) as usize;
@@ -970,12 +812,3 @@ impl<'a> Search<'a> {
 const MOVES_PER_KICK: usize = 1000;
 /// Longest segment a kick moves.
 const KICK_SEGMENT: usize = 30;
-
-/// A well-mixing hash of a counter (SplitMix64's finaliser): where the kicks go,
-/// deterministically.
-fn splitmix64(k: u64) -> u64 {
-    let mut z = k.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
