@@ -23,7 +23,7 @@ pub fn basis_len(l_max: usize) -> usize {
 
 /// All `Y_lm` of [`basis`]`(l_max)` at `dir`, in basis order, into `out` (cleared
 /// first). DeYoung Eq. 3.4–3.6; valid on the whole sphere and accurate up to
-/// [`MAX_L_MAX`].
+/// [`MAX_L_MAX`](super::MAX_L_MAX).
 pub fn eval_basis(l_max: usize, dir: Dir, out: &mut Vec<f64>) {
     let (t, s, cp, sp) = polar_parts(dir);
     fill_basis(l_max, t, s, cp, sp, true, out);
