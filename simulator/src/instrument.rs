@@ -8,6 +8,7 @@
 
 use gonio_core::DirPair;
 use gonio_core::kinematics::Layout;
+use gonio_core::rng::splitmix64;
 use gonio_proto::LineFramer;
 use gonio_proto::smc100::{Frame, MAX_LINE};
 use rand::{Rng, SeedableRng};
@@ -20,14 +21,6 @@ use crate::faults::{FaultConfig, Port};
 use crate::lockin::LockIn;
 use crate::optics::{LightPath, Optics};
 use gonio_brdf::Brdf;
-
-/// SplitMix64's finaliser: a bijective mix of a 64-bit word.
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
 
 /// Counters of what the simulator did.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -16,6 +16,9 @@
 //! - [`kinematics`] maps a goniometer's stage positions to direction pairs and back.
 //! - [`goniometer`] is the instrument as planning and reduction see it: layout, role
 //!   axes, limits, speeds ([`motion`]) and optical geometry.
+//! - [`kdtree`] is the k-d tree for exact k-nearest queries under a pluggable metric
+//!   (Euclidean for scattered samples, motion time for plan ordering), with deletion.
+//! - [`rng`] is SplitMix64, the deterministic hash and generator of counters and seeds.
 //!
 //! ```
 //! use gonio_core::{Dir, SphericalDeg};
@@ -26,17 +29,19 @@
 //! ```
 //!
 //! This crate has no I/O beyond reading the input files it is asked to parse, and no
-//! randomness.
+//! randomness: [`rng`] is a deterministic function of its seed.
 
 mod channels;
 pub mod dirfile;
 mod frame;
 mod geometry;
 pub mod goniometer;
+pub mod kdtree;
 pub mod kinematics;
 pub mod motion;
 pub mod quad;
 pub mod radiometry;
+pub mod rng;
 pub mod special;
 pub mod tomlfile;
 mod vec3;

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Diffuse, Model};
 use gonio_core::dirfile::PairDeg;
+use gonio_core::rng::splitmix64;
 use gonio_core::{Channels, SphericalDeg};
 use gonio_io::plot::{
     self, AlbedoOptions, ChannelChoice, ColorScale, Drawn, HemisphereOptions, Output, PanelRect,
@@ -48,11 +49,7 @@ fn black() -> Model {
 
 /// A deterministic number in [−1, 1) from an index (splitmix64).
 fn noise(i: u64) -> f64 {
-    let mut z = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^= z >> 31;
-    (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    (splitmix64(i) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
 /// A simulated isotropic measurement of `m`: θi and θo from 0° to 85° and φo − φi over

@@ -21,6 +21,7 @@ use criterion::{
 use faer::Mat;
 use gonio_brdf::{Brdf, Model};
 use gonio_core::dirfile::PairDeg;
+use gonio_core::rng::SplitMix64;
 use gonio_core::{Channels, Dir, SphericalDeg, Vec3};
 use gonio_process::samples::Kernel;
 use gonio_process::separable::SeparableBrdf;
@@ -77,16 +78,11 @@ fn table(m: &Model, g: Grid) -> Table {
 }
 
 /// SplitMix64: a seeded generator, so every run draws the same samples.
-struct SplitMix(u64);
+struct SplitMix(SplitMix64);
 
 impl SplitMix {
     fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
+        (self.0.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
     /// A direction uniform in solid angle over the hemisphere, θ < 90°.
@@ -98,7 +94,7 @@ impl SplitMix {
 
 /// `n` random direction pairs, uniform in solid angle on each side.
 fn random_pairs(seed: u64, n: usize) -> Vec<PairDeg> {
-    let mut r = SplitMix(seed);
+    let mut r = SplitMix(SplitMix64::new(seed));
     (0..n)
         .map(|_| PairDeg {
             incident: r.direction(),

@@ -25,8 +25,6 @@ pub mod separable;
 pub mod sh;
 pub mod transform;
 
-mod kdtree;
-
 pub use grid::{Axis, Grid, GridStep, Table};
 pub use samples::{Sample, Samples};
 

@@ -11,11 +11,14 @@
 use std::collections::BTreeMap;
 
 use gonio_core::dirfile::PairDeg;
+use gonio_core::kdtree::{KdTree, SquaredEuclidean};
 use gonio_core::{Channels, Dir, SphericalDeg};
 use rayon::prelude::*;
 
-use crate::kdtree::KdTree;
 use crate::{Axis, Grid, ProcessError, Table};
+
+/// Samples per leaf of the interpolator's k-d tree.
+const LEAF: usize = 12;
 
 /// One sample: a pair of directions, a value per channel (1/sr), its standard
 /// uncertainty where known, and flags.
@@ -139,7 +142,7 @@ impl Samples {
             .collect();
         Ok(Interpolator {
             samples: self,
-            tree: KdTree::build(pts),
+            tree: KdTree::with_leaf_size(pts, SquaredEuclidean, LEAF),
             kernel,
         })
     }
@@ -353,10 +356,12 @@ fn key(p: &PairDeg, isotropic: bool) -> [f64; 6] {
     [wi.x, wi.y, wi.z, wo.x, wo.y, wo.z]
 }
 
-/// The nearest-j Gaussian kernel over a sample set (DeYoung Sec. 3.2.1).
+/// The nearest-j Gaussian kernel over a sample set (DeYoung Sec. 3.2.1). The j
+/// nearest samples are found with [`gonio_core::kdtree`]; samples at equal distance
+/// are taken in the order of their index (a linear scan's answer).
 pub struct Interpolator<'a> {
     samples: &'a Samples,
-    tree: KdTree<6>,
+    tree: KdTree<6, SquaredEuclidean>,
     kernel: Kernel,
 }
 

@@ -1,0 +1,405 @@
+//! One evaluation pass of the projected problem at θ: the columns and their Gram
+//! matrices chunk by chunk, the non-negative linear coefficients, the cost, and
+//! Kaufman's JᵀJ and Jᵀr (plus the full problem's Grams for the standard errors).
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef, Par};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+use super::nnls::nnls;
+use super::{Basis, Prepared};
+use crate::data::FitData;
+use crate::fastmath::dot;
+
+/// Samples a chunk of the parallel loops handles; sums are formed a chunk at a time
+/// and then added in chunk order, so results do not depend on the thread count.
+const CHUNK: usize = 2048;
+
+/// The projected problem at one θ.
+pub struct Evaluation {
+    /// Linear coefficients per channel (0 where the constraint c ≥ 0 is active).
+    pub coef: Vec<Vec<f64>>,
+    /// Σ r², the residuals being W(Ac − y) over every channel.
+    pub cost: f64,
+    /// With the Jacobian asked for: JᵀJ (P × P, row-major) and Jᵀr of Kaufman's
+    /// Jacobian J = P⊥ W ∂A/∂θ c. The Jacobian itself (m × P) is never formed.
+    pub normal: Option<(Vec<f64>, Vec<f64>)>,
+    /// With the Jacobian asked for: the residuals and the Gram matrices of the full
+    /// (unprojected) problem, for the standard errors.
+    pub full: Option<Full>,
+}
+
+/// What the covariance of all parameters (θ and every channel's c) needs: the Gram
+/// matrix of the full Jacobian [∂f/∂θ | ∂f/∂c] = [V | WA] per channel, and the
+/// residuals.
+#[derive(Clone, Debug)]
+pub struct Full {
+    /// W(Ac − y), channel after channel.
+    pub residuals: Vec<f64>,
+    /// Per channel: VᵀV (P × P), (WA)ᵀV (K × P), (WA)ᵀWA (K × K), row-major.
+    pub grams: Vec<[Vec<f64>; 3]>,
+}
+
+impl Full {
+    /// s² (JᵀJ)⁺ over (θ, c_0, …, c_{nc−1}) with s² = Σr²/(m − parameters): the
+    /// covariance of the weighted least-squares estimate. The pseudo-inverse (after
+    /// equilibration, relative cut 1e-14) reports 0 for parameters the data do not
+    /// determine, such as the direction of a lobe of strength 0.
+    pub fn covariance(&self, p: usize, k: usize) -> (DMatrix<f64>, f64) {
+        let nc = self.grams.len();
+        let n = p + nc * k;
+        let mut m = DMatrix::<f64>::zeros(n, n);
+        for (ch, [vv, av, aa]) in self.grams.iter().enumerate() {
+            let o = p + ch * k;
+            for a in 0..p {
+                for b in 0..p {
+                    m[(a, b)] += vv[a.min(b) * p + a.max(b)];
+                }
+            }
+            for u in 0..k {
+                for a in 0..p {
+                    m[(o + u, a)] = av[u * p + a];
+                    m[(a, o + u)] = av[u * p + a];
+                }
+                for v in 0..k {
+                    m[(o + u, o + v)] = aa[u * k + v];
+                }
+            }
+        }
+        let d: Vec<f64> = (0..n)
+            .map(|a| {
+                let x = m[(a, a)];
+                if x > 0.0 && x.is_finite() {
+                    1.0 / x.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let s = DMatrix::from_fn(n, n, |a, b| m[(a, b)] * d[a] * d[b]);
+        let pinv = s
+            .pseudo_inverse(1e-14 * n as f64)
+            .unwrap_or_else(|_| DMatrix::zeros(n, n));
+        let rows = self.residuals.len();
+        let rss: f64 = self.residuals.iter().map(|r| r * r).sum();
+        let s2 = if rows > n {
+            rss / (rows - n) as f64
+        } else {
+            0.0
+        };
+        (
+            DMatrix::from_fn(n, n, |a, b| s2 * pinv[(a, b)] * d[a] * d[b]),
+            s2,
+        )
+    }
+}
+
+/// Adds `b` into `a` elementwise.
+fn add_into(mut a: Vec<f64>, b: Vec<f64>) -> Vec<f64> {
+    for (x, y) in a.iter_mut().zip(b) {
+        *x += y;
+    }
+    a
+}
+
+/// `out = Aᵀ B` (na × nb, row-major) for column-major A (len × na) and B (len × nb):
+/// faer's matrix product, whose kernels use the CPU's vector units.
+fn gram(a: &[f64], na: usize, b: &[f64], nb: usize, len: usize, out: &mut [f64]) {
+    let am = MatRef::from_column_major_slice(&a[..len * na], len, na);
+    let bm = MatRef::from_column_major_slice(&b[..len * nb], len, nb);
+    let mut dst = Mat::<f64>::zeros(na, nb);
+    matmul(
+        dst.as_mut(),
+        Accum::Replace,
+        am.transpose(),
+        bm,
+        1.0,
+        Par::Seq,
+    );
+    for u in 0..na {
+        for v in 0..nb {
+            out[u * nb + v] = dst[(u, v)];
+        }
+    }
+}
+
+/// `out = Xᵀ X[:, k..]` for column-major X (len × stride): ((stride) × (stride − k),
+/// row-major).
+fn gram_tail(x: &[f64], stride: usize, k: usize, len: usize, out: &mut [f64]) {
+    let xm = MatRef::from_column_major_slice(&x[..len * stride], len, stride);
+    let q = stride - k;
+    let mut dst = Mat::<f64>::zeros(stride, q);
+    matmul(
+        dst.as_mut(),
+        Accum::Replace,
+        xm.transpose(),
+        xm.subcols(k, q),
+        1.0,
+        Par::Seq,
+    );
+    for u in 0..stride {
+        for v in 0..q {
+            out[u * q + v] = dst[(u, v)];
+        }
+    }
+}
+
+/// One channel's columns over all samples (chunk after chunk, each column-major) and
+/// the basis's scratch.
+struct Columns {
+    cols: Vec<f64>,
+    scratch: Vec<f64>,
+    /// G = (WA)ᵀWA, h = (WA)ᵀWy.
+    g: Vec<f64>,
+    h: Vec<f64>,
+}
+
+/// With `extra` > 0 every chunk's block has room for that many more columns after
+/// its K (pass B writes [V | r] there, so one matrix product covers [A | V | r]).
+fn columns(basis: &dyn Basis, prep: &Prepared, theta: &[f64], ch: usize, extra: usize) -> Columns {
+    let (k, m) = (basis.n_cols(), prep.data.len());
+    let stride = k + extra;
+    let s = basis.scratch_len().max(1);
+    // Every entry is written by `Basis::columns` before it is read.
+    let (mut cols, mut scratch) = prep
+        .buffers
+        .lock()
+        .ok()
+        .and_then(|mut b| b.take())
+        .unwrap_or_default();
+    // A fresh zeroed allocation (calloc: pages the kernel zeroes on first touch) rather
+    // than growing the old one (which fills it twice, once with zeros).
+    if cols.len() < m * stride {
+        cols = vec![0.0; m * stride];
+    }
+    cols.truncate(m * stride);
+    if scratch.len() < m * s {
+        scratch = vec![0.0; m * s];
+    }
+    scratch.truncate(m * s);
+    let wy = &prep.wy[ch];
+    let parts: Vec<Vec<f64>> = cols
+        .par_chunks_mut(CHUNK * stride)
+        .zip(scratch.par_chunks_mut(CHUNK * s))
+        .enumerate()
+        .map(|(ci, (block, sc))| {
+            let lo = ci * CHUNK;
+            let len = block.len() / stride;
+            let cc = &mut block[..len * k];
+            let chunk = prep.chunk(ch, lo, lo + len);
+            basis.columns(theta, ch, &chunk, cc, sc);
+            // [G (k × k) | h (k)] of this chunk.
+            let mut acc = vec![0.0; k * k + k];
+            gram(cc, k, cc, k, len, &mut acc[..k * k]);
+            for u in 0..k {
+                acc[k * k + u] = dot(&cc[u * len..(u + 1) * len], &wy[lo..lo + len]);
+            }
+            acc
+        })
+        .collect();
+    let acc = parts.into_iter().fold(vec![0.0; k * k + k], add_into);
+    // Symmetric by construction, not by the product's rounding.
+    let mut g = acc[..k * k].to_vec();
+    for u in 0..k {
+        for v in 0..u {
+            g[u * k + v] = g[v * k + u];
+        }
+    }
+    Columns {
+        cols,
+        scratch,
+        g,
+        h: acc[k * k..].to_vec(),
+    }
+}
+
+/// The weighted columns of channel `ch` at θ, each over all samples.
+pub fn column_vectors(
+    basis: &dyn Basis,
+    prep: &Prepared,
+    theta: &[f64],
+    ch: usize,
+) -> Vec<Vec<f64>> {
+    let k = basis.n_cols();
+    let cl = columns(basis, prep, theta, ch, 0);
+    let mut out = vec![Vec::with_capacity(prep.data.len()); k];
+    for cc in cl.cols.chunks(CHUNK * k) {
+        let len = cc.len() / k;
+        for (u, o) in out.iter_mut().enumerate() {
+            o.extend_from_slice(&cc[u * len..(u + 1) * len]);
+        }
+    }
+    out
+}
+
+/// (G_F)⁻¹ of the free columns through the equilibrated matrix (see [`nnls`]).
+fn free_inverse(g: &[f64], k: usize, free: &[usize]) -> DMatrix<f64> {
+    let nf = free.len();
+    let ds: Vec<f64> = free.iter().map(|&u| g[u * k + u].sqrt()).collect();
+    let gf = DMatrix::from_fn(nf, nf, |x, z| {
+        g[free[x] * k + free[z]] / (ds[x] * ds[z]) + if x == z { 1e-13 } else { 0.0 }
+    });
+    let inv = gf
+        .clone()
+        .cholesky()
+        .map(|ch| ch.inverse())
+        .or_else(|| gf.try_inverse())
+        .unwrap_or_else(|| DMatrix::zeros(nf, nf));
+    DMatrix::from_fn(nf, nf, |x, z| inv[(x, z)] / (ds[x] * ds[z]))
+}
+
+/// Evaluates the projected problem at `theta`.
+pub fn evaluate(basis: &dyn Basis, data: &FitData, theta: &[f64], jac: bool) -> Evaluation {
+    evaluate_prepared(basis, &Prepared::new(data), theta, jac)
+}
+
+/// [`evaluate`] on prepared data.
+pub fn evaluate_prepared(
+    basis: &dyn Basis,
+    prep: &Prepared,
+    theta: &[f64],
+    jac: bool,
+) -> Evaluation {
+    let (k, p) = (basis.n_cols(), basis.n_params());
+    let nc = prep.data.channels.len();
+    let s = basis.scratch_len().max(1);
+    let mut coef = Vec::with_capacity(nc);
+    let mut cost = 0.0;
+    let mut jtj = vec![0.0; p * p];
+    let mut jtr = vec![0.0; p];
+    let mut full = jac.then(|| Full {
+        residuals: Vec::with_capacity(nc * prep.data.len()),
+        grams: Vec::with_capacity(nc),
+    });
+    for ch in 0..nc {
+        let q = if jac { p + 1 } else { 0 };
+        let stride = k + q;
+        let mut cl = columns(basis, prep, theta, ch, q);
+        let c = nnls(&cl.g, &cl.h, k);
+        let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
+        let nf = free.len();
+        let wy = &prep.wy[ch];
+        // Per chunk, with X = [WA | V | r] (V = W ∂A/∂θ c): Xᵀ[V | r], (k + p + 1) ×
+        // (p + 1) row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r], whose last entry is
+        // Σr²; without the Jacobian only Σr².
+        let width = if jac { stride * q } else { 1 };
+        let parts: Vec<(Vec<f64>, Vec<f64>)> = cl
+            .cols
+            .par_chunks_mut(CHUNK * stride)
+            .zip(cl.scratch.par_chunks(CHUNK * s))
+            .enumerate()
+            .map(|(ci, (block, sc))| {
+                let lo = ci * CHUNK;
+                let len = block.len() / stride;
+                let (cc, vr) = block.split_at_mut(len * k);
+                let mut r_local = Vec::new();
+                let r: &mut [f64] = if jac {
+                    &mut vr[len * p..len * q]
+                } else {
+                    r_local.resize(len, 0.0);
+                    &mut r_local
+                };
+                for (ri, y) in r.iter_mut().zip(&wy[lo..lo + len]) {
+                    *ri = -y;
+                }
+                for (u, cu) in c.iter().enumerate() {
+                    if *cu != 0.0 {
+                        for (ri, a) in r.iter_mut().zip(&cc[u * len..(u + 1) * len]) {
+                            *ri += cu * a;
+                        }
+                    }
+                }
+                if !jac {
+                    return (vec![dot(r, r)], Vec::new());
+                }
+                let r = r.to_vec();
+                let chunk = prep.chunk(ch, lo, lo + len);
+                basis.directional(theta, ch, &chunk, cc, sc, &c, &mut vr[..len * p]);
+                let mut acc = vec![0.0; width];
+                gram_tail(block, stride, k, len, &mut acc);
+                (acc, r)
+            })
+            .collect();
+        let mut acc = vec![0.0; width];
+        for (a, r) in parts {
+            acc = add_into(acc, a);
+            if let Some(f) = full.as_mut() {
+                f.residuals.extend_from_slice(&r);
+            }
+        }
+        if !jac {
+            cost += acc[0];
+        } else {
+            let am = |u: usize, b: usize| acc[u * q + b];
+            let mm = |a: usize, b: usize| acc[(k + a) * q + b];
+            cost += mm(p, p);
+            // JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr:
+            // J = (I − A_F G_F⁻¹ A_Fᵀ) V. (A_Fᵀr vanishes at the projection's optimum
+            // up to rounding; it is kept rather than assumed.)
+            let gi = free_inverse(&cl.g, k, &free);
+            // G_F⁻¹ A_Fᵀ M, nf × (p + 1).
+            let mut gm = vec![0.0; nf * q];
+            for x in 0..nf {
+                for (z, &u) in free.iter().enumerate() {
+                    for b in 0..q {
+                        gm[x * q + b] += gi[(x, z)] * am(u, b);
+                    }
+                }
+            }
+            if let Some(f) = full.as_mut() {
+                let vv = (0..p * p).map(|i| mm(i / p, i % p)).collect();
+                let av = (0..k * p).map(|i| am(i / p, i % p)).collect();
+                f.grams.push([vv, av, cl.g.clone()]);
+            }
+            for a in 0..p {
+                let proj = |b: usize| -> f64 {
+                    free.iter()
+                        .enumerate()
+                        .map(|(x, &u)| am(u, a) * gm[x * q + b])
+                        .sum()
+                };
+                jtr[a] += mm(a, p) - proj(p);
+                for b in a..p {
+                    jtj[a * p + b] += mm(a, b) - proj(b);
+                }
+            }
+        }
+        coef.push(c);
+        if let Ok(mut b) = prep.buffers.lock() {
+            *b = Some((cl.cols, cl.scratch));
+        }
+    }
+    for a in 0..p {
+        for b in 0..a {
+            jtj[a * p + b] = jtj[b * p + a];
+        }
+    }
+    Evaluation {
+        coef,
+        cost,
+        normal: jac.then_some((jtj, jtr)),
+        full,
+    }
+}
+
+/// The linear coefficients and the residuals W(Ac − y), channel after channel.
+pub fn residuals(basis: &dyn Basis, data: &FitData, theta: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let prep = Prepared::new(data);
+    let (k, m) = (basis.n_cols(), data.len());
+    let mut coef = Vec::new();
+    let mut out = Vec::with_capacity(m * data.channels.len());
+    for ch in 0..data.channels.len() {
+        let cl = columns(basis, &prep, theta, ch, 0);
+        let c = nnls(&cl.g, &cl.h, k);
+        for (ci, cc) in cl.cols.chunks(CHUNK * k).enumerate() {
+            let len = cc.len() / k;
+            for i in 0..len {
+                let fit: f64 = (0..k).map(|u| c[u] * cc[u * len + i]).sum();
+                out.push(fit - prep.wy[ch][ci * CHUNK + i]);
+            }
+        }
+        coef.push(c);
+    }
+    (coef, out)
+}

@@ -1,0 +1,434 @@
+//! The virtual gonioreflectometer: rays shot at the patch, traced through every
+//! bounce, and collected into a tabulated BRDF (per bounce order, with Monte Carlo
+//! errors and albedos) or a spherical-harmonic matrix.
+//!
+//! # Rays
+//! For an incident direction `wi` (sample frame, pointing to the light) a ray starts
+//! at a uniformly random point of the plane `z = h_max` over the periodic patch and
+//! travels along `−wi`: uniform over the macro-surface, so each of `N` rays carries the
+//! fraction `1/N` of the flux falling on it. At every hit the facet's material
+//! reflects it and multiplies its energy (one value a channel, starting at 1); the
+//! ray leaves when it heads up above the highest node (Westin et al. Sec. 4). Its
+//! *order* is the number of bounces. Rays are absorbed when every channel's energy is
+//! 0, and stopped after `max_bounces` (their energy is reported, not silently lost).
+//!
+//! # Table estimator
+//! Since `dΦo/Φi = f_r(wi, wo) cos θo dωo`, the energy leaving into a cell `C` of
+//! outgoing directions estimates `∫_C f_r cos θo dωo`. Each outgoing node of the grid
+//! owns the cell between the midpoints to its neighbours (clipped to `[0°, 90°]`; a
+//! single azimuth node owns the full turn), and
+//!
+//! `f̂(wi, node) = Σ_rays e·1[wo ∈ C] / (N · Ω_proj(C))`, with
+//! `Ω_proj(C) = Δφ (sin²θ_hi − sin²θ_lo)/2 = ∫_C cos θ dω`,
+//!
+//! the cell average of `f_r` weighted by `cos θo`. Its standard error is the sample
+//! standard deviation of the per-ray terms over `√N`. An isotropic grid (φ+ = φo − φi)
+//! draws a uniformly random `φi` for every ray and bins `φo − φi`: the average over
+//! the sample's turns. A full grid traces every (φi, θi) node.
+
+mod sh;
+mod table;
+
+use gonio_core::{Dir, Vec3};
+use gonio_process::Table;
+use gonio_process::sh::ShBrdf;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::material::{Scratch, uniform};
+use crate::trace::{Method, Ray, Tracer};
+use crate::{MicroError, Sample};
+
+/// Rays a block: each block has its own random stream, so results do not depend on
+/// how blocks are spread over threads.
+pub const BLOCK: usize = 1024;
+/// Blocks traced in parallel before their sums are merged (in block order).
+const ROUND: usize = 64;
+/// The bounce orders reported separately: 1, 2 and 3 or more.
+pub const ORDERS: [&str; 3] = ["1", "2", "3+"];
+
+const PURPOSE_TRACE: u64 = 1;
+const PURPOSE_TABLE: u64 = 2;
+const PURPOSE_SH: u64 = 3;
+
+/// The random stream of one block: ChaCha8 seeded with `seed`, on the stream that
+/// `purpose`, the incident index and the block index name.
+fn block_rng(seed: u64, purpose: u64, incident: usize, block: usize) -> ChaCha8Rng {
+    let mut r = ChaCha8Rng::seed_from_u64(seed);
+    r.set_stream((purpose << 56) ^ ((incident as u64) << 28) ^ block as u64);
+    r
+}
+
+/// Runs `task(k)` for `k` in `0..n` in parallel rounds and hands the results to
+/// `merge` in order of `k`, whatever the number of threads.
+fn run_ordered<A: Send>(
+    n: usize,
+    task: impl Fn(usize) -> A + Sync,
+    mut merge: impl FnMut(usize, A),
+) {
+    let mut start = 0;
+    while start < n {
+        let end = (start + ROUND).min(n);
+        let out: Vec<A> = (start..end).into_par_iter().map(&task).collect();
+        for (k, a) in out.into_iter().enumerate() {
+            merge(start + k, a);
+        }
+        start = end;
+    }
+}
+
+/// Options of a [`Simulation`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimOptions {
+    /// Bounces after which a ray is stopped (its energy reported as capped).
+    pub max_bounces: u32,
+    /// How rays find their hits (every method finds the same ones).
+    pub method: Method,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            max_bounces: 100,
+            method: Method::MaxMip,
+        }
+    }
+}
+
+/// What became of the rays of a simulation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TraceStats {
+    /// Rays shot.
+    pub rays: u64,
+    /// Rays that left the surface.
+    pub exits: u64,
+    /// Rays whose energy went to 0 in every channel.
+    pub absorbed: u64,
+    /// Rays stopped at `max_bounces`.
+    pub capped: u64,
+    /// Rays lost to numerical trouble (passed below the surface, or hit a facet from
+    /// behind); 0 in every test.
+    pub leaked: u64,
+    /// Rays given up after the search length without a hit (within ~1e-4 rad of
+    /// horizontal, travelling along a groove; see [`Tracer::span`]); their energy is
+    /// lost.
+    pub horizon: u64,
+    /// Hits over all rays (bounces).
+    pub hits: u64,
+    /// The highest order of an exit.
+    pub max_order: u32,
+    /// Energy (mean over channels, summed over rays) of capped rays.
+    pub capped_energy: f64,
+    /// Energy of leaked and horizontal rays (mean over channels, summed over rays).
+    pub lost_energy: f64,
+}
+
+impl TraceStats {
+    fn merge(&mut self, o: &TraceStats) {
+        self.rays += o.rays;
+        self.exits += o.exits;
+        self.absorbed += o.absorbed;
+        self.capped += o.capped;
+        self.leaked += o.leaked;
+        self.horizon += o.horizon;
+        self.hits += o.hits;
+        self.max_order = self.max_order.max(o.max_order);
+        self.capped_energy += o.capped_energy;
+        self.lost_energy += o.lost_energy;
+    }
+
+    /// Capped energy as a fraction of the energy shot.
+    pub fn capped_fraction(&self) -> f64 {
+        if self.rays == 0 {
+            0.0
+        } else {
+            self.capped_energy / self.rays as f64
+        }
+    }
+}
+
+/// How a path ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum End {
+    Exit,
+    Absorbed,
+    Capped,
+    Leaked,
+    Horizon,
+}
+
+/// Every exit of [`Simulation::trace`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Exits {
+    /// The incident direction (sample frame).
+    pub wi: Dir,
+    /// Rays shot.
+    pub rays: usize,
+    /// Outgoing direction of each exit (sample frame).
+    pub wo: Vec<Dir>,
+    /// Bounce order of each exit.
+    pub order: Vec<u32>,
+    /// Energy of each exit, `energy[exit · channels + ch]`.
+    pub energy: Vec<f64>,
+    /// What became of the rays.
+    pub stats: TraceStats,
+}
+
+/// The directional albedo for one incident node, with its Monte Carlo error.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IncidentAlbedo {
+    /// Incident azimuth, radians (0 and averaged over turns for an isotropic grid).
+    pub phi_i: f64,
+    /// Incident polar angle, radians.
+    pub theta_i: f64,
+    /// Albedo per channel: energy out over energy in.
+    pub albedo: Vec<f64>,
+    /// Its standard error per channel.
+    pub sigma: Vec<f64>,
+    /// Albedo of each order of [`ORDERS`], per channel: `per_order[order][ch]`.
+    pub per_order: Vec<Vec<f64>>,
+    /// The part of the albedo that fell in the table's cells, per channel (less than
+    /// the albedo when the polar cells do not reach 90°).
+    pub in_table: Vec<f64>,
+}
+
+/// A tabulated BRDF simulated by [`Simulation::to_table`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MicroResult {
+    /// The BRDF, all orders, with the Monte Carlo standard error as `sigma`.
+    pub table: Table,
+    /// The BRDF of each order of [`ORDERS`], with their errors.
+    pub per_order: Vec<Table>,
+    /// The albedo per incident node, in grid order (φi-major).
+    pub albedo: Vec<IncidentAlbedo>,
+    /// What became of the rays.
+    pub stats: TraceStats,
+}
+
+/// A spherical-harmonic BRDF estimated by [`Simulation::estimate_sh`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShEstimate {
+    /// The representation (symmetric, tapered).
+    pub sh: ShBrdf,
+    /// Standard error of each coefficient before tapering, per channel, K × K
+    /// row-major (symmetric).
+    pub sigma: Vec<Vec<f64>>,
+    /// What became of the rays.
+    pub stats: TraceStats,
+}
+
+/// A sample ready to be traced: the surface with its hierarchy and the materials.
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    tracer: Tracer,
+    sample: Sample,
+    opts: SimOptions,
+    eps: f64,
+}
+
+impl Simulation {
+    /// Prepares `sample` (checks it again — its fields are public — and builds the
+    /// max-mip hierarchy).
+    pub fn new(sample: Sample, opts: SimOptions) -> Result<Simulation, MicroError> {
+        if opts.max_bounces == 0 {
+            return Err(MicroError::invalid("max_bounces", "must be at least 1"));
+        }
+        let sample = Sample::new(
+            sample.channels,
+            sample.surface,
+            sample.materials,
+            sample.orientation,
+        )?;
+        let tracer = Tracer::new(sample.surface.clone());
+        let eps = 1e-9 * sample.surface.dx().min(sample.surface.dy());
+        Ok(Simulation {
+            tracer,
+            sample,
+            opts,
+            eps,
+        })
+    }
+
+    /// The sample.
+    pub fn sample(&self) -> &Sample {
+        &self.sample
+    }
+
+    /// The tracer (for benchmarks and tests of the intersection methods).
+    pub fn tracer(&self) -> &Tracer {
+        &self.tracer
+    }
+
+    /// Traces one path from `wi_s` (surface frame). `w` starts at 1 and ends as the
+    /// energy carried out; returns how it ended, its bounces and last direction.
+    fn path(
+        &self,
+        wi_s: Vec3,
+        rng: &mut ChaCha8Rng,
+        w: &mut [f64],
+        scratch: &mut Scratch,
+    ) -> (End, u32, Vec3) {
+        let hf = self.tracer.surface();
+        let (lx, ly) = hf.period();
+        let (nx, ny) = (hf.nx() as i64, hf.ny() as i64);
+        w.fill(1.0);
+        let mut o = Vec3::new(uniform(rng) * lx, uniform(rng) * ly, hf.max_height());
+        let mut d = -wi_s;
+        let mut ray_skip = None;
+        let mut t_min = 0.0;
+        let mut bounces = 0u32;
+        loop {
+            let ray = Ray {
+                o,
+                d,
+                t_min,
+                skip: ray_skip,
+            };
+            let Some(h) = self.tracer.first_hit(&ray, self.opts.method) else {
+                let cut_off = self.tracer.span(&ray).is_some_and(|s| s.2);
+                let end = if cut_off {
+                    End::Horizon
+                } else if d.z > 0.0 {
+                    End::Exit
+                } else {
+                    End::Leaked
+                };
+                return (end, bounces, d);
+            };
+            if bounces == self.opts.max_bounces {
+                return (End::Capped, bounces, d);
+            }
+            bounces += 1;
+            let n = self.tracer.hit_normal(&h);
+            if d.dot(n) >= 0.0 {
+                return (End::Leaked, bounces, d);
+            }
+            let mat = &self.sample.materials[self.tracer.hit_material(&h) as usize];
+            let p = o + d * h.t;
+            let Some(nd) = mat.scatter(d, n, rng, w, scratch) else {
+                return (End::Absorbed, bounces, d);
+            };
+            if w.iter().all(|v| *v == 0.0) {
+                return (End::Absorbed, bounces, d);
+            }
+            let Some(nd) = nd.normalized() else {
+                return (End::Leaked, bounces, d);
+            };
+            d = nd;
+            let kx = (p.x / lx).floor();
+            let ky = (p.y / ly).floor();
+            o = Vec3::new(p.x - kx * lx, p.y - ky * ly, p.z);
+            ray_skip = Some((
+                h.cell[0] - kx as i64 * nx,
+                h.cell[1] - ky as i64 * ny,
+                h.tri,
+            ));
+            t_min = self.eps;
+        }
+    }
+
+    /// Sample frame → surface frame.
+    fn to_surface(&self, v: Vec3) -> Vec3 {
+        if self.sample.orientation == 0.0 {
+            v
+        } else {
+            Dir::from_unit(v)
+                .rotate_about_normal(-self.sample.orientation)
+                .vec()
+        }
+    }
+
+    /// Surface frame → sample frame.
+    fn to_sample(&self, v: Vec3) -> Dir {
+        let d = Dir::from_unit(v);
+        if self.sample.orientation == 0.0 {
+            d
+        } else {
+            d.rotate_about_normal(self.sample.orientation)
+        }
+    }
+
+    /// Records one path's end in `stats`.
+    fn count(&self, stats: &mut TraceStats, end: End, bounces: u32, w: &[f64]) {
+        stats.rays += 1;
+        stats.hits += u64::from(bounces);
+        let mean = w.iter().sum::<f64>() / w.len() as f64;
+        match end {
+            End::Exit => {
+                stats.exits += 1;
+                stats.max_order = stats.max_order.max(bounces);
+            }
+            End::Absorbed => stats.absorbed += 1,
+            End::Capped => {
+                stats.capped += 1;
+                stats.capped_energy += mean;
+            }
+            End::Leaked => {
+                stats.leaked += 1;
+                stats.lost_energy += mean;
+            }
+            End::Horizon => {
+                stats.horizon += 1;
+                stats.lost_energy += mean;
+            }
+        }
+    }
+
+    /// Traces `n_rays` rays from `wi` (sample frame) and returns every exit.
+    /// Deterministic in `seed` whatever the number of threads.
+    pub fn trace(&self, wi: Dir, n_rays: usize, seed: u64) -> Result<Exits, MicroError> {
+        if wi.z <= 0.0 || wi.z.is_nan() {
+            return Err(MicroError::invalid("wi", "must point above the surface"));
+        }
+        let nc = self.sample.channels.len();
+        let wi_s = self.to_surface(wi.vec());
+        let n_blocks = n_rays.div_ceil(BLOCK);
+        let mut ex = Exits {
+            wi,
+            rays: n_rays,
+            wo: Vec::new(),
+            order: Vec::new(),
+            energy: Vec::new(),
+            stats: TraceStats::default(),
+        };
+        run_ordered(
+            n_blocks,
+            |b| {
+                let mut rng = block_rng(seed, PURPOSE_TRACE, 0, b);
+                let rays = BLOCK.min(n_rays - b * BLOCK);
+                let mut w = vec![0.0; nc];
+                let mut scratch = Scratch::new(nc);
+                let mut out = (Vec::new(), Vec::new(), Vec::new(), TraceStats::default());
+                for _ in 0..rays {
+                    let (end, k, d) = self.path(wi_s, &mut rng, &mut w, &mut scratch);
+                    self.count(&mut out.3, end, k, &w);
+                    if end == End::Exit {
+                        out.0.push(self.to_sample(d));
+                        out.1.push(k);
+                        out.2.extend_from_slice(&w);
+                    }
+                }
+                out
+            },
+            |_, (wo, order, energy, stats)| {
+                ex.wo.extend(wo);
+                ex.order.extend(order);
+                ex.energy.extend(energy);
+                ex.stats.merge(&stats);
+            },
+        );
+        Ok(ex)
+    }
+}
+
+/// The mean of `n` per-ray terms with sum `s` and sum of squares `s2`, and its
+/// standard error `√(var/n)` with the unbiased sample variance.
+fn mean_and_error(s: f64, s2: f64, n: f64) -> (f64, f64) {
+    if n < 2.0 {
+        return (if n > 0.0 { s / n } else { 0.0 }, 0.0);
+    }
+    let m = s / n;
+    let var = ((s2 / n - m * m) * n / (n - 1.0)).max(0.0);
+    (m, (var / n).sqrt())
+}
