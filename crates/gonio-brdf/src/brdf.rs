@@ -17,7 +17,7 @@ pub struct BrdfSample {
 /// A bidirectional reflectance distribution function with named channels.
 ///
 /// Directions are unit vectors in the local sample frame, both pointing away from the
-/// surface (`CONVENTIONS.md`). The domain is the open upper hemisphere: a direction at
+/// surface (`docs/CONVENTIONS.md`). The domain is the open upper hemisphere: a direction at
 /// or below the horizon gives `f_r = 0`, no sample and zero albedo.
 ///
 /// Implementors provide [`eval`](Brdf::eval) and [`proposals`](Brdf::proposals); the

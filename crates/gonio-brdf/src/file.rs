@@ -1,4 +1,4 @@
-//! Model files: the TOML of `CONVENTIONS.md`, read strictly (unknown keys are errors,
+//! Model files: the TOML of `docs/CONVENTIONS.md`, read strictly (unknown keys are errors,
 //! every list has one value a channel) with errors that name file, line and field.
 //!
 //! Parameter names per kind are documented in `docs/models.md`.

@@ -11,7 +11,7 @@
 //!   height-correlated masking–shadowing and Schlick Fresnel), [`OrenNayar`], and
 //!   [`Lafortune`] generalized cosine lobes (Eq. 3, 4, 8).
 //! - [`Model`] is any of them, read from and written to the TOML model files of
-//!   `CONVENTIONS.md` ([`Model::from_toml`], [`Model::to_toml`]) with errors that name
+//!   `docs/CONVENTIONS.md` ([`Model::from_toml`], [`Model::to_toml`]) with errors that name
 //!   the file, line and field.
 //!
 //! ```

@@ -26,7 +26,7 @@ pub enum ModelKind {
 }
 
 impl ModelKind {
-    /// Every kind, in the order of `CONVENTIONS.md`.
+    /// Every kind, in the order of `docs/CONVENTIONS.md`.
     pub const ALL: [ModelKind; 8] = [
         ModelKind::Lambert,
         ModelKind::Phong,

@@ -33,7 +33,7 @@ pub enum ChannelError {
 /// The spectral channels of a BRDF: one band, R/G/B, or wavelengths in nm.
 ///
 /// Every BRDF value in Gonio carries one number per channel, and every file and
-/// result names its channels (`CONVENTIONS.md`). Cloning is cheap.
+/// result names its channels (`docs/CONVENTIONS.md`). Cloning is cheap.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Channels {
     /// One band, named `value`.

@@ -1,4 +1,4 @@
-//! The directions file of `CONVENTIONS.md`: CSV with the header
+//! The directions file of `docs/CONVENTIONS.md`: CSV with the header
 //! `theta_i,phi_i,theta_o,phi_o` (degrees), one pair of directions a row; and the
 //! evaluation result that repeats those columns and adds one column a channel.
 

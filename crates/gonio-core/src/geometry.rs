@@ -1,4 +1,4 @@
-//! Directions and angles in the local sample frame (`CONVENTIONS.md`: z is the normal,
+//! Directions and angles in the local sample frame (`docs/CONVENTIONS.md`: z is the normal,
 //! both directions point away from the surface, θ from the normal, φ from +x to +y).
 
 use std::f64::consts::TAU;
@@ -81,7 +81,7 @@ impl Dir {
         self.0.z > 0.0
     }
 
-    /// The mirror direction about the normal: `(-x, -y, z)` (`CONVENTIONS.md`).
+    /// The mirror direction about the normal: `(-x, -y, z)` (`docs/CONVENTIONS.md`).
     #[inline]
     pub fn mirror(self) -> Dir {
         Dir(Vec3::new(-self.0.x, -self.0.y, self.0.z))

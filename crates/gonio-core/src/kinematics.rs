@@ -1,5 +1,5 @@
 //! Goniometer kinematics: stage positions ↔ the direction pair `(wi, wo)` in the sample
-//! frame of `CONVENTIONS.md` (z the normal, x the mounting reference, y = z × x).
+//! frame of `docs/CONVENTIONS.md` (z the normal, x the mounting reference, y = z × x).
 //!
 //! Stage positions are in degrees (controller units) at the API; radians inside.
 //!

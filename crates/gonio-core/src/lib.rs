@@ -3,7 +3,7 @@
 //! numerical quadrature every integral in Gonio goes through.
 //!
 //! - [`Vec3`], [`Dir`] (a unit vector), [`Spherical`] (radians) and [`SphericalDeg`]
-//!   (degrees, for files and commands) follow `CONVENTIONS.md`: z is the surface normal,
+//!   (degrees, for files and commands) follow `docs/CONVENTIONS.md`: z is the surface normal,
 //!   both directions point away from the surface, θ from the normal, φ from +x to +y.
 //! - [`Frame`] is an orthonormal local frame; [`HalfDiff`] the half/difference angles.
 //! - [`radiometry`] holds the quantities of DeYoung's Appendix A that an instrument
@@ -12,7 +12,7 @@
 //!   value per channel that knows its channels.
 //! - [`quad`] is adaptive Gauss–Kronrod quadrature in one and two dimensions.
 //! - [`special`] has the error function the microfacet models need.
-//! - [`dirfile`] reads and writes the directions CSV of `CONVENTIONS.md`.
+//! - [`dirfile`] reads and writes the directions CSV of `docs/CONVENTIONS.md`.
 //! - [`kinematics`] maps a goniometer's stage positions to direction pairs and back.
 //! - [`goniometer`] is the instrument as planning and reduction see it: layout, role
 //!   axes, limits, speeds ([`motion`]) and optical geometry.

@@ -5,7 +5,7 @@
 //! (a table when it has a grid line, else samples), or a TOML file — a separable
 //! representation, spherical harmonics, or else an analytic model. [`open`] reads
 //! it into a [`Dataset`], reducing a run file on the way (its
-//! [`Reduction`](gonio_reduce::Reduction) account is kept), and every command takes
+//! [`gonio_reduce::Reduction`] account is kept), and every command takes
 //! the dataset from there: as a table on a grid ([`Dataset::to_table`]), as samples
 //! ([`Dataset::to_samples`]), as a BRDF to evaluate ([`Dataset::brdf`]), or as what
 //! an export format holds ([`Dataset::to_format_data`]).

@@ -84,7 +84,7 @@ fn samples(model: &Model) -> Samples {
     s
 }
 
-/// Writes the samples for `scipy_fit.py`: the four angles (degrees, CONVENTIONS.md),
+/// Writes the samples for `scipy_fit.py`: the four angles (degrees, docs/CONVENTIONS.md),
 /// one value column a channel, one σ column a channel.
 fn write_csv(s: &Samples, path: &Path) {
     let names = s.channels.names();

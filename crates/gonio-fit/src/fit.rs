@@ -79,7 +79,7 @@ pub struct ChannelFit {
 /// A lobe fit.
 #[derive(Clone, Debug, Serialize)]
 pub struct LobeFit {
-    /// The model file's text (CONVENTIONS.md).
+    /// The model file's text (docs/CONVENTIONS.md).
     pub model_toml: String,
     /// Per channel.
     pub channels: Vec<ChannelFit>,

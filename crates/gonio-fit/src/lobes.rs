@@ -376,7 +376,7 @@ pub struct Natural {
 
 impl LobeBasis {
     /// ∂(natural parameters of channel `ch`)/∂(θ, c_0, …, c_{channels−1}): one row a
-    /// natural parameter in the order (ρd, [m], per lobe Cx, [Cy], Cz, n) — Cy only
+    /// natural parameter in the order (ρd, \[m\], per lobe Cx, \[Cy\], Cz, n) — Cy only
     /// when anisotropic — for the delta method. A lobe of strength 0 has zero rows for
     /// its C (its direction is not determined).
     pub fn natural_jacobian(&self, theta: &[f64], ch: usize, coef: &[f64]) -> Vec<Vec<f64>> {

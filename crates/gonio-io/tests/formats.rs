@@ -18,7 +18,7 @@ use gonio_io::formats::{
 use gonio_process::{Axis, Grid, Sample, Samples, Table};
 use proptest::prelude::*;
 
-/// The Lafortune RGB model of `CONVENTIONS.md`.
+/// The Lafortune RGB model of `docs/CONVENTIONS.md`.
 const LAFORTUNE: &str = r#"
 kind = "lafortune"
 channels = ["R", "G", "B"]

@@ -24,7 +24,7 @@ fn paint() -> Model {
     Model::load(&repo().join("config/models/blue-paint-550nm.toml")).expect("the blue paint model")
 }
 
-/// The RGB model of CONVENTIONS.md.
+/// The RGB model of docs/CONVENTIONS.md.
 const RGB_MODEL: &str = r#"
 kind = "lafortune"
 channels = ["R", "G", "B"]
@@ -38,7 +38,7 @@ n  = [21.820103, 18.597755, 7.472717]
 "#;
 
 fn rgb() -> Model {
-    Model::from_toml(RGB_MODEL, None).expect("the RGB model of CONVENTIONS.md")
+    Model::from_toml(RGB_MODEL, None).expect("the RGB model of docs/CONVENTIONS.md")
 }
 
 /// A black 550 nm surface: the negative control.
@@ -583,7 +583,7 @@ fn errors_name_the_output_and_the_problem() {
 
 /// Writes the example images of `docs/images/`: blue paint at 550 nm (Lafortune et
 /// al. 1997, Table 1) measured in simulation on a 5° isotropic grid with ±3 % noise,
-/// against the model itself; the sphere from the RGB model of CONVENTIONS.md.
+/// against the model itself; the sphere from the RGB model of docs/CONVENTIONS.md.
 #[test]
 #[ignore = "writes docs/images; run by hand"]
 fn gallery() {
@@ -658,7 +658,7 @@ fn gallery() {
     let c = rgb();
     let cs = measured(&c, 5.0, 0.03);
     let opts = SphereOptions {
-        title: Some("RGB paint model of CONVENTIONS.md on a sphere".into()),
+        title: Some("RGB paint model of docs/CONVENTIONS.md on a sphere".into()),
         data_label: dl.into(),
         fit_label: fl.into(),
         ..SphereOptions::default()

@@ -36,7 +36,7 @@
 //! Materials: `mirror` (`reflectance`, default 1 in every channel), `conductor` (`n`,
 //! `k`), `dielectric` (`eta`), `lambert` (`albedo`), `model` (`file`, a gonio-brdf model
 //! file relative to the surface file, with the same channels). Every numeric material
-//! parameter is a list with one value a channel (`CONVENTIONS.md`).
+//! parameter is a list with one value a channel (`docs/CONVENTIONS.md`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

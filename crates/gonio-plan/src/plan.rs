@@ -26,7 +26,7 @@
 //! `isotropic` (fixed `phi_i`, `theta_i` × `theta_o` × `delta_phi`, φo = φi + Δφ),
 //! `in-plane` (fixed `phi_i`; a signed `theta_o` > 0 lies on the mirror side,
 //! φo = φi + 180°, < 0 on the source's side, φo = φi) and `list` (a directions CSV
-//! file of `CONVENTIONS.md`, relative to the plan).
+//! file of `docs/CONVENTIONS.md`, relative to the plan).
 
 use std::path::{Path, PathBuf};
 
@@ -132,7 +132,7 @@ pub enum Points {
         /// Signed outgoing polar angles, degrees: > 0 on the mirror side.
         theta_o: Values,
     },
-    /// A directions file (CSV, `CONVENTIONS.md`), relative to the plan file.
+    /// A directions file (CSV, `docs/CONVENTIONS.md`), relative to the plan file.
     List {
         /// The file.
         file: PathBuf,
@@ -173,7 +173,7 @@ fn one() -> f64 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StandardConfig {
-    /// Its model file (`CONVENTIONS.md` model TOML), relative to the plan file.
+    /// Its model file (`docs/CONVENTIONS.md` model TOML), relative to the plan file.
     pub model: PathBuf,
     /// Direction pairs `[θi, φi, θo, φo]` at which it is measured, degrees.
     pub at: Vec<[f64; 4]>,

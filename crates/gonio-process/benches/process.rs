@@ -29,7 +29,7 @@ use gonio_process::sh::{ShBrdf, ShOptions};
 use gonio_process::transform::{self, EnergyMode};
 use gonio_process::{Grid, Samples, Table, measure};
 
-/// The blue paint of CONVENTIONS.md (one Lafortune lobe + Lambert, RGB).
+/// The blue paint of docs/CONVENTIONS.md (one Lafortune lobe + Lambert, RGB).
 const BLUE_PAINT: &str = r#"
 kind = "lafortune"
 channels = ["R", "G", "B"]

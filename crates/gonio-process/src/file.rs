@@ -1,4 +1,4 @@
-//! The sample and table file: CSV in the form of `CONVENTIONS.md` (directions in
+//! The sample and table file: CSV in the form of `docs/CONVENTIONS.md` (directions in
 //! degrees, then one column a channel), then one `sigma_<channel>` column a channel
 //! when uncertainties are known and a `flags` column when any sample has flags.
 //! Leading `#` lines carry `key: value` metadata; a table has a `grid:` line, which

@@ -14,7 +14,7 @@
 //! - [`sh`]: real spherical harmonics with a symmetric coefficient matrix, exactly
 //!   reciprocal (Westin et al. 1992, Eq. 8–10).
 //! - [`reduction`]: the account a run's reduction gives (written by `gonio-reduce`).
-//! - [`file`]: the table and sample file (CSV with a grid header).
+//! - [`file`](mod@file): the table and sample file (CSV with a grid header).
 
 pub mod file;
 pub mod grid;

@@ -116,7 +116,7 @@ pub enum Event {
         r_mean: f64,
         /// Standard deviation of R, V.
         r_std: f64,
-        /// [`flags`] bits.
+        /// [`gonio_run::flags`] bits.
         flags: u32,
         /// Instrument time since the session started, s.
         physical_s: f64,

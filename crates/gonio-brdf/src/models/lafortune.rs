@@ -180,7 +180,7 @@ impl LafortuneLobe {
 /// `f_r(u, v) = Σ_i [uᵀ M_i v]^{n_i} + f_d`.
 ///
 /// No normalisation is hidden in the lobes: the coefficients are exactly those of Eq. 8
-/// (`CONVENTIONS.md`). Reciprocal by construction (each `M_i` is symmetric). The
+/// (`docs/CONVENTIONS.md`). Reciprocal by construction (each `M_i` is symmetric). The
 /// albedo is exact (see [`crate::lobe`]): each lobe is a cosine lobe of scale `C_s(u)`
 /// about `u'` (Eq. 5); sampling is the mixture of those lobes (Sec. 4.3 and 7).
 #[derive(Clone, Debug, PartialEq)]

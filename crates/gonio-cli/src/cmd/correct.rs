@@ -23,13 +23,14 @@ pub struct CorrectArgs {
     /// Reciprocity with δ in [0, 1] (Eq. 5.1–5.2).
     #[arg(long)]
     reciprocity: Vec<String>,
-    /// Energy conservation: δ[:per-direction|:global][:tau=T] (Eq. 5.4–5.8).
+    /// Energy conservation: δ, then optionally :per-direction or :global, and :tau=T
+    /// (Eq. 5.4–5.8).
     #[arg(long)]
     energy: Vec<String>,
     /// Isotropy with δ (Eq. 5.9–5.10).
     #[arg(long)]
     isotropy: Vec<String>,
-    /// k-separability: k[:δ] (Eq. 5.15); a last step with δ = 1 and a .toml output
+    /// k-separability: k or k:δ (Eq. 5.15); a last step with δ = 1 and a .toml output
     /// writes the k factor pairs.
     #[arg(long)]
     separable: Vec<String>,

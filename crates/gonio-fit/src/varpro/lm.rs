@@ -65,7 +65,7 @@ fn compress(jtj: &[f64], jtr: &[f64], cost: f64, p: usize) -> (DVector<f64>, DMa
 }
 
 /// The projected problem as the `levenberg-marquardt` crate sees it: compressed to
-/// P + 1 rows (see [`compress`]).
+/// P + 1 rows (see `compress`).
 pub struct Projected<'a> {
     basis: &'a dyn Basis,
     prep: Prepared<'a>,

@@ -274,7 +274,7 @@ impl std::error::Error for FormatError {}
 /// - **ASTM**: text whose header (before any data row) has a `NUM_POINTS` or `VARS`
 ///   keyword line, after any blank lines, `#` comments and other keyword lines;
 /// - **CSV**: text whose first line that is neither blank nor a `#` line starts with
-///   the `CONVENTIONS.md` header `theta_i,phi_i,theta_o,phi_o`.
+///   the `docs/CONVENTIONS.md` header `theta_i,phi_i,theta_o,phi_o`.
 ///
 /// `None` for anything else, including a MERL file of the wrong length (which
 /// [`read`] still reads as MERL, to say what is wrong with it). Looks at no more
