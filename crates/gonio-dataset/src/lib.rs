@@ -293,12 +293,19 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
         }
         None => {}
     }
-    let kind = match formats::detect(bytes) {
+    // Recognised once: a format detected is read as that format; anything else goes
+    // to the reader that says best what is wrong with it.
+    let detected = formats::detect(bytes);
+    let kind = match detected {
         Some(formats::Format::Astm) => Kind::Astm,
         Some(formats::Format::Csv) => Kind::Csv,
         _ => Kind::Merl,
     };
-    let data = match formats::read(bytes, Some(path))? {
+    let read = match detected {
+        Some(f) => formats::read_as(f, bytes, Some(path)),
+        None => formats::read(bytes, Some(path)),
+    };
+    let data = match read? {
         Data::Table(t) => Dataset::Table(t),
         Data::Merl(m) => Dataset::Merl(Box::new(m)),
         Data::Samples(s) => {
