@@ -12,6 +12,7 @@ mod flags;
 mod logging;
 mod output;
 
+use std::path::Path;
 use std::process::ExitCode;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -94,9 +95,21 @@ fn run(cli: Cli, matches: &clap::ArgMatches) -> Result<(), CliError> {
         Command::Acquire(a) => a.log_file(),
         Command::Resume(a) => a.log_file(),
         _ => None,
-    };
-    logging::init(cli.verbose, log_file)?;
-    match cli.command {
+    }
+    .map(Path::to_path_buf);
+    logging::init(cli.verbose, log_file.as_deref())?;
+    let result = dispatch(cli.command, matches);
+    // Nothing is left behind by a command refused for bad input: the log file this
+    // process created goes too (before any run file exists, it holds nothing).
+    if let (Err(CliError::Input(_)), Some(p)) = (&result, &log_file) {
+        let _ = std::fs::remove_file(p);
+    }
+    result
+}
+
+/// Runs one command.
+fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(), CliError> {
+    match command {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Model(c) => cmd::model::run(c),
         Command::Instrument(c) => cmd::instrument::run(c),

@@ -77,6 +77,28 @@ fn acquire_writes_its_log_as_json_lines_beside_the_run() {
     assert!(stderr(&again).contains("cannot create the log file"));
     assert_eq!(std::fs::read_to_string(&log).expect("log"), text);
     assert!(!dir.join("other.gonio").exists());
+    // Input refused before anything is created leaves no log file behind either.
+    let bad = dir.join("bad-plan.toml");
+    std::fs::write(
+        &bad,
+        "[points]\nkind = \"in-plane\"\ntheta_i = [0]\ntheta_o = [95]\n",
+    )
+    .expect("write");
+    let fresh = dir.join("bad.log.jsonl");
+    let refused = gonio(&[
+        "acquire",
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--plan",
+        &bad.display().to_string(),
+        "--out",
+        &dir.join("bad.gonio").display().to_string(),
+        "--log",
+        &fresh.display().to_string(),
+    ]);
+    assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
+    assert!(stderr(&refused).contains("field `points.theta_o`"));
+    assert!(!fresh.exists() && !dir.join("bad.gonio").exists());
 }
 
 #[test]
