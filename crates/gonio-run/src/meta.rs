@@ -301,3 +301,77 @@ fn geometry_of_instrument(text: &str) -> GeometryConfig {
         .and_then(|g| g.try_into().ok())
         .unwrap_or_default()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(pairs: &[(&str, &str)]) -> BTreeMap<String, String> {
+        pairs
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn round_trips_and_keeps_unknown_keys() {
+        let m = map(&[
+            ("instrument", "[geometry]\ndetector_radius_m = 0.01\n"),
+            ("plan", "[points]\n"),
+            ("seed", "42"),
+            ("created_s", "1800000000.5"),
+            ("incident_transmittance", "0.001"),
+            (
+                "estimate",
+                r#"{"motion_s":1.5,"raster_motion_s":2.0,"detector_s":3.0}"#,
+            ),
+            ("status", "interrupted"),
+            ("step_count", "7"),
+            ("from_a_newer_build", "kept"),
+        ]);
+        let meta = RunMeta::from_map(&m, Path::new("r.gonio")).expect("reads");
+        assert_eq!(meta.seed, Some(42));
+        assert_eq!(meta.created_s, Some(1_800_000_000.5));
+        assert_eq!(meta.transmittance, 0.001);
+        assert_eq!(meta.status, RunStatus::Interrupted);
+        assert_eq!(meta.step_count, Some(7));
+        assert_eq!(meta.estimate.map(|e| e.detector_s), Some(3.0));
+        assert_eq!(meta.other["from_a_newer_build"], "kept");
+        // Without a recorded geometry, the instrument config's own table.
+        assert_eq!(meta.geometry.detector_radius_m, 0.01);
+        assert_eq!(
+            meta.geometry.detector_distance_m,
+            GeometryConfig::default().detector_distance_m
+        );
+        // What the store writes back reads to the same value (status and step count
+        // are the store's own).
+        let mut back = meta.to_map();
+        back.insert("status".into(), "interrupted".into());
+        back.insert("step_count".into(), "7".into());
+        assert_eq!(
+            RunMeta::from_map(&back, Path::new("r.gonio")).expect("reads"),
+            meta
+        );
+    }
+
+    #[test]
+    fn a_bad_value_makes_the_file_corrupt_naming_the_key() {
+        let base = [("instrument", ""), ("plan", "")];
+        for (k, v) in [
+            ("status", "half-done"),
+            ("seed", "-1"),
+            ("created_s", "yesterday"),
+            ("geometry", "{"),
+        ] {
+            let mut m = map(&base);
+            m.insert(k.into(), v.into());
+            let e = RunMeta::from_map(&m, Path::new("r.gonio")).expect_err(k);
+            assert!(matches!(e, StoreError::Corrupt { .. }), "{k}: {e}");
+            assert!(e.to_string().contains(&format!("`{k}`")), "{e}");
+            assert!(e.to_string().starts_with("r.gonio: corrupted"), "{e}");
+        }
+        let e = RunMeta::from_map(&map(&[("plan", "")]), Path::new("r.gonio"))
+            .expect_err("no instrument");
+        assert!(e.to_string().contains("no instrument config"), "{e}");
+    }
+}
