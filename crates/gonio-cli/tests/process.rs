@@ -88,6 +88,8 @@ fn check_measures_the_phong_shading_model_and_correct_fixes_it_in_order() {
         "1:global",
         "--out",
         &s(&out),
+        // The first correction's table is replaced on purpose.
+        "--force",
         "--json",
     ]);
     assert_eq!(r2["steps"][0]["Reciprocity"], 1.0);

@@ -40,7 +40,7 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
     if json_out {
         return output::json(&serde_json::to_value(&r).unwrap_or_default());
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         let g = &table.grid;
         writeln!(

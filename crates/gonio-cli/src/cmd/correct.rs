@@ -9,7 +9,6 @@ use gonio_process::transform::{self, Step};
 use gonio_process::{file, measure};
 use serde_json::json;
 
-use crate::cmd::reduce::write_text;
 use crate::error::{CliError, CliResult};
 use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
 use crate::output;
@@ -37,6 +36,8 @@ pub struct CorrectArgs {
     /// The output (CSV table, or TOML factors).
     #[arg(long)]
     out: PathBuf,
+    #[command(flatten)]
+    force: output::ForceFlag,
     #[command(flatten)]
     grid: GridFlag,
     #[command(flatten)]
@@ -102,6 +103,7 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
             "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
         ));
     }
+    let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
     let mut table = opened.data.to_table(a.grid.grid, path)?;
     let ks: Vec<usize> = steps
@@ -131,8 +133,8 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
         _ => None,
     };
     match &factors {
-        Some(f) => write_text(out, &f.to_toml())?,
-        None => write_text(out, &file::write_table(&table))?,
+        Some(f) => target.write(f.to_toml().as_bytes())?,
+        None => target.write(file::write_table(&table).as_bytes())?,
     }
     let ratio = factors.as_ref().map(SeparableBrdf::storage_ratio);
     if json_out {
@@ -144,7 +146,7 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
             "storage_ratio": ratio,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: {} step(s) applied", out.display(), steps.len())?;
         let pair = |name: &str, b: &[f64], a: &[f64]| {

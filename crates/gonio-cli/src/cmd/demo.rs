@@ -125,6 +125,18 @@ pub fn run(a: DemoArgs) -> CliResult<()> {
             }
         }
     }
+    if let Some(p) = keep {
+        if p.exists() {
+            return Err(CliError::Input(format!(
+                "{}: exists already; a run file is never replaced (choose another name)",
+                p.display()
+            )));
+        }
+        let report_dir = p.with_extension("report");
+        if report_dir.exists() {
+            crate::output::Target::new(&report_dir.join("report.html"), false)?;
+        }
+    }
     let acq = acquisition(keep)?;
     let props = properties(paint)?;
     let worst = acq
@@ -176,7 +188,7 @@ pub fn run(a: DemoArgs) -> CliResult<()> {
             })).collect::<Vec<_>>(),
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,
@@ -536,8 +548,10 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     std::fs::create_dir_all(&report_dir)
         .map_err(|e| runtime(&format!("{}: {e}", report_dir.display())))?;
     let report_path = report_dir.join("report.html");
-    std::fs::write(&report_path, gonio_io::report::html(&page))
-        .map_err(|e| runtime(&format!("{}: {e}", report_path.display())))?;
+    // The temporary directory is this process's own; beside a kept run file, an
+    // existing report is never replaced (checked before the acquisition too).
+    crate::output::Target::new(&report_path, keep.is_none())?
+        .write(gonio_io::report::html(&page).as_bytes())?;
     let run_file = if keep.is_some() {
         Some(path)
     } else {

@@ -23,6 +23,8 @@ pub struct ExportArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     reduction: ReduceFlags,
     #[command(flatten)]
     json: JsonFlag,
@@ -34,10 +36,12 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
     let format = Format::from_name(&a.format).ok_or_else(|| {
         CliError::Input(format!("--format: merl, astm or csv, got {:?}", a.format))
     })?;
+    let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
     let data = opened.data.to_format_data(input)?;
-    formats::write_file(format, &data, out).map_err(|e| CliError::Input(e.to_string()))?;
-    let bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    let bytes = formats::write(format, &data).map_err(|e| CliError::Input(e.to_string()))?;
+    target.write(&bytes)?;
+    let bytes = bytes.len();
     if json_out {
         return output::json(&json!({
             "out": out.display().to_string(),
@@ -46,7 +50,7 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
             "bytes": bytes,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

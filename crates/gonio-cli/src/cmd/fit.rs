@@ -53,6 +53,8 @@ pub struct FitArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     reduction: ReduceFlags,
     #[command(flatten)]
     json: JsonFlag,
@@ -74,6 +76,11 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     if a.out.is_none() && !a.compare {
         return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
     }
+    let target = a
+        .out
+        .as_deref()
+        .map(|p| output::Target::new(p, a.force.force))
+        .transpose()?;
     if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
         return Err(CliError::Input(format!(
             "--cutoff must lie in (0, 90] degrees, got {}",
@@ -122,7 +129,7 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     };
     let fit = fit_lobes(&data, &opts)
         .map_err(|e| CliError::Runtime(format!("{}: {e}", a.input.display())))?;
-    if let Some(out) = &a.out {
+    if let Some(target) = &target {
         let header = format!(
             "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",
             a.input.display(),
@@ -131,9 +138,7 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             metric,
             data.len()
         );
-        std::fs::write(out, header + &fit.model_toml).map_err(|e| {
-            CliError::Input(format!("{}: cannot write output file: {e}", out.display()))
-        })?;
+        target.write((header + &fit.model_toml).as_bytes())?;
     }
     let comparison = if a.compare {
         let mut rows = Vec::new();
@@ -155,7 +160,7 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             "cut_by_angle": data.cut,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 use gonio_process::sh::{ShBrdf, ShOptions};
 use serde_json::json;
 
-use crate::cmd::reduce::write_text;
 use crate::error::{CliError, CliResult};
 use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
 use crate::output;
@@ -28,6 +27,8 @@ pub struct HarmonicsArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     grid: GridFlag,
     #[command(flatten)]
     reduction: ReduceFlags,
@@ -44,6 +45,7 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
         a.out.as_path(),
         a.json.json,
     );
+    let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
     let table = opened.data.to_table(a.grid.grid, path)?;
     let opts = ShOptions {
@@ -55,7 +57,7 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
     let err = sh
         .error_against(&table)
         .map_err(|e| CliError::process(path, e))?;
-    write_text(out, &sh.to_toml())?;
+    target.write(sh.to_toml().as_bytes())?;
     let ratio = sh.coefficient_count() as f64 / table.values.len() as f64;
     if json_out {
         return output::json(&json!({
@@ -68,7 +70,7 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
             "max_abs": err.max_abs,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

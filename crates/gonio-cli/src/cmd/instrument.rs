@@ -138,7 +138,7 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
     if json {
         return output::json(&report);
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: valid", path.display())?;
         writeln!(

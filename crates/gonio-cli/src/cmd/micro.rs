@@ -39,6 +39,8 @@ pub struct MicroArgs {
     /// standard errors).
     #[arg(long)]
     out: PathBuf,
+    #[command(flatten)]
+    force: output::ForceFlag,
     /// Also write one table per bounce order (1, 2, 3+) beside OUT.
     #[arg(long)]
     per_order: bool,
@@ -69,11 +71,6 @@ fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
     } else {
         CliError::Input(format!("{}: {msg}", path.display()))
     }
-}
-
-fn write(out: &Path, text: &str) -> CliResult<()> {
-    std::fs::write(out, text)
-        .map_err(|e| CliError::Input(format!("{}: cannot write output file: {e}", out.display())))
 }
 
 /// `OUT` with `.orderK` before its extension: `brdf.csv` → `brdf.order1.csv`.
@@ -120,6 +117,21 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
         }
         _ => None,
     };
+    // Every output is checked before the rays are traced.
+    let force = a.force.force;
+    let out = output::Target::new(&a.out, force)?;
+    let order_targets = if a.per_order {
+        ORDERS
+            .iter()
+            .map(|name| output::Target::new(&order_path(&a.out, name), force))
+            .collect::<CliResult<Vec<_>>>()?
+    } else {
+        Vec::new()
+    };
+    let sh_target = match &sh_request {
+        Some((_, _, p, _)) => Some(output::Target::new(p, force)?),
+        None => None,
+    };
     let started = Instant::now();
     let sample = Sample::load(&a.surface).map_err(|e| input_err(&a.surface, e))?;
     let opts = SimOptions {
@@ -135,24 +147,21 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
     let r = sim
         .to_table(&grid, a.rays, a.seed)
         .map_err(|e| input_err(&a.surface, e))?;
-    write(&a.out, &gonio_process::file::write_table(&r.table))?;
+    out.write(gonio_process::file::write_table(&r.table).as_bytes())?;
     let mut order_files = Vec::new();
-    if a.per_order {
-        for (t, name) in r.per_order.iter().zip(ORDERS) {
-            let p = order_path(&a.out, name);
-            write(&p, &gonio_process::file::write_table(t))?;
-            order_files.push(p);
-        }
+    for (t, target) in r.per_order.iter().zip(&order_targets) {
+        target.write(gonio_process::file::write_table(t).as_bytes())?;
+        order_files.push(target.path().to_path_buf());
     }
-    let sh = match &sh_request {
-        Some((l_max, l_filter, path, rays)) => {
+    let sh = match (&sh_request, &sh_target) {
+        (Some((l_max, l_filter, path, rays)), Some(target)) => {
             let e = sim
                 .estimate_sh(*l_max, *l_filter, *rays, a.seed)
                 .map_err(|e| input_err(&a.surface, e))?;
-            write(path, &e.sh.to_toml())?;
+            target.write(e.sh.to_toml().as_bytes())?;
             Some((path.clone(), e))
         }
-        None => None,
+        _ => None,
     };
     let channels = r.table.channels.names();
     let seconds = started.elapsed().as_secs_f64();
@@ -201,7 +210,7 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
             "seconds": seconds,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

@@ -34,6 +34,8 @@ pub struct EvalArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     json: JsonFlag,
 }
 
@@ -56,7 +58,14 @@ pub struct AlbedoArgs {
 /// Runs `gonio model …`.
 pub fn run(c: Command) -> CliResult<()> {
     match c {
-        Command::Eval(a) => eval(&a.model, &a.dirs, a.out.as_deref(), a.json.json),
+        Command::Eval(a) => {
+            let out = a
+                .out
+                .as_deref()
+                .map(|p| output::Target::new(p, a.force.force))
+                .transpose()?;
+            eval(&a.model, &a.dirs, out, a.json.json)
+        }
         Command::Albedo(a) => albedo(&a.model, &a.theta_i, a.phi_i, a.json.json),
     }
 }
@@ -93,7 +102,12 @@ fn read_pairs(path: &Path) -> CliResult<Vec<PairDeg>> {
 }
 
 /// `gonio model eval MODEL DIRS [--out FILE] [--json]`.
-fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool) -> CliResult<()> {
+fn eval(
+    model_path: &Path,
+    dirs_path: &Path,
+    out: Option<output::Target>,
+    json: bool,
+) -> CliResult<()> {
     let model = Model::load(model_path)?;
     let pairs = read_pairs(dirs_path)?;
     let ch = model.channels().clone();
@@ -119,16 +133,17 @@ fn eval(model_path: &Path, dirs_path: &Path, out: Option<&Path>, json: bool) -> 
             "rows": rows,
         }));
     }
-    let mut w = output::open(out)?;
-    output::finish((|| {
+    let mut w = output::Sink::new(out);
+    let r = (|| {
         writeln!(w, "{}", dirfile::eval_header(&ch))?;
         for p in &pairs {
             let d = p.to_dirs();
             model.eval(d.wi, d.wo, &mut values);
             writeln!(w, "{}", dirfile::eval_row(p, &values))?;
         }
-        w.flush()
-    })())
+        Ok(())
+    })();
+    w.finish(r)
 }
 
 /// `gonio model albedo MODEL [--theta-i LIST] [--phi-i DEG] [--json]`.
@@ -161,7 +176,7 @@ fn albedo(model_path: &Path, thetas: &[f64], phi_i: f64, json: bool) -> CliResul
             "albedo": rows,
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

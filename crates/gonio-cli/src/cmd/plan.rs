@@ -126,7 +126,7 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             },
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

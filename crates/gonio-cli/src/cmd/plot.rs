@@ -8,6 +8,7 @@ use gonio_io::plot::{self, ChannelChoice, Output, Source};
 
 use crate::error::{CliError, CliResult};
 use crate::flags::ReduceFlags;
+use crate::output;
 
 /// `gonio plot`: plot a run, table, samples, MERL file or model (PNG or SVG by the
 /// extension).
@@ -24,6 +25,8 @@ pub struct PlotArgs {
     /// The image to write (.png or .svg).
     #[arg(long)]
     out: PathBuf,
+    #[command(flatten)]
+    force: output::ForceFlag,
     /// Incident polar angles, degrees (polar: the curves; hemisphere: the first).
     #[arg(long, value_delimiter = ',', default_value = "0,35,65")]
     theta_i: Vec<f64>,
@@ -47,6 +50,7 @@ pub fn plot_err(e: plot::PlotError) -> CliError {
 
 /// `gonio plot INPUT [--fit FIT.toml] --kind … --out FILE.png|svg`.
 pub fn run(a: PlotArgs) -> CliResult<()> {
+    let target = output::Target::new(&a.out, a.force.force)?;
     let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
     let data = &opened.data;
     let fit = match &a.fit {
@@ -75,83 +79,85 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
         })?),
     };
     let fit_brdf: Option<&dyn Brdf> = fit.as_ref().map(|m| m as &dyn Brdf);
-    let out = Output::File(&a.out);
-    match a.kind.as_str() {
-        "polar" => plot::polar(
-            out,
-            &src,
-            fit_brdf,
-            &a.theta_i,
-            &plot::PolarOptions {
-                channel,
-                ..plot::PolarOptions::default()
-            },
-        ),
-        "hemisphere" => plot::hemisphere(
-            out,
-            &src,
-            fit_brdf,
-            a.theta_i.first().copied().unwrap_or(30.0),
-            &plot::HemisphereOptions {
-                channel,
-                ..plot::HemisphereOptions::default()
-            },
-        ),
-        "albedo" => plot::albedo(
-            out,
-            &src,
-            fit.as_ref(),
-            &plot::AlbedoOptions {
-                channel,
-                ..plot::AlbedoOptions::default()
-            },
-        ),
-        "separability" => {
-            let table = match data {
-                Dataset::Table(t) => t.clone(),
-                Dataset::Samples(_) => {
-                    return Err(CliError::Input(format!(
-                        "{}: separability needs a table (these samples are not on a grid)",
-                        a.input.display()
-                    )));
-                }
-                // Analytic data on its own grid, or 10° × 10°.
-                d => d
-                    .to_table(None, &a.input)
-                    .map_err(|e| CliError::Input(e.to_string()))?,
-            };
-            let name = a
-                .input
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            plot::separability(
+    target.write_with(|tmp| -> CliResult<()> {
+        let out = Output::File(tmp);
+        match a.kind.as_str() {
+            "polar" => plot::polar(
                 out,
-                &[(name.as_str(), &table)],
-                &[],
-                &plot::SeparabilityOptions {
+                &src,
+                fit_brdf,
+                &a.theta_i,
+                &plot::PolarOptions {
                     channel,
-                    ..plot::SeparabilityOptions::default()
+                    ..plot::PolarOptions::default()
                 },
-            )
+            ),
+            "hemisphere" => plot::hemisphere(
+                out,
+                &src,
+                fit_brdf,
+                a.theta_i.first().copied().unwrap_or(30.0),
+                &plot::HemisphereOptions {
+                    channel,
+                    ..plot::HemisphereOptions::default()
+                },
+            ),
+            "albedo" => plot::albedo(
+                out,
+                &src,
+                fit.as_ref(),
+                &plot::AlbedoOptions {
+                    channel,
+                    ..plot::AlbedoOptions::default()
+                },
+            ),
+            "separability" => {
+                let table = match data {
+                    Dataset::Table(t) => t.clone(),
+                    Dataset::Samples(_) => {
+                        return Err(CliError::Input(format!(
+                            "{}: separability needs a table (these samples are not on a grid)",
+                            a.input.display()
+                        )));
+                    }
+                    // Analytic data on its own grid, or 10° × 10°.
+                    d => d
+                        .to_table(None, &a.input)
+                        .map_err(|e| CliError::Input(e.to_string()))?,
+                };
+                let name = a
+                    .input
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                plot::separability(
+                    out,
+                    &[(name.as_str(), &table)],
+                    &[],
+                    &plot::SeparabilityOptions {
+                        channel,
+                        ..plot::SeparabilityOptions::default()
+                    },
+                )
+            }
+            "sphere" => plot::sphere(
+                out,
+                &src,
+                fit_brdf,
+                &plot::SphereOptions {
+                    channel,
+                    light_theta_deg: a.light_theta,
+                    light_phi_deg: a.light_phi,
+                    ..plot::SphereOptions::default()
+                },
+            ),
+            k => {
+                return Err(CliError::Input(format!(
+                    "--kind: polar, hemisphere, albedo, separability or sphere, got {k:?}"
+                )));
+            }
         }
-        "sphere" => plot::sphere(
-            out,
-            &src,
-            fit_brdf,
-            &plot::SphereOptions {
-                channel,
-                light_theta_deg: a.light_theta,
-                light_phi_deg: a.light_phi,
-                ..plot::SphereOptions::default()
-            },
-        ),
-        k => {
-            return Err(CliError::Input(format!(
-                "--kind: polar, hemisphere, albedo, separability or sphere, got {k:?}"
-            )));
-        }
-    }
-    .map_err(plot_err)?;
-    Ok(())
+        .map_err(plot_err)?;
+        Ok(())
+    })
 }

@@ -24,6 +24,8 @@ pub struct ReduceArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     reduction: ReduceFlags,
     #[command(flatten)]
     grid: GridFlag,
@@ -41,11 +43,6 @@ pub fn head(path: &Path) -> CliResult<Vec<u8>> {
     Ok(h)
 }
 
-pub fn write_text(out: &Path, text: &str) -> CliResult<()> {
-    std::fs::write(out, text)
-        .map_err(|e| CliError::Input(format!("{}: cannot write output file: {e}", out.display())))
-}
-
 fn reduction_json(r: &Reduction) -> serde_json::Value {
     serde_json::to_value(&r.report).unwrap_or_default()
 }
@@ -53,6 +50,7 @@ fn reduction_json(r: &Reduction) -> serde_json::Value {
 /// `gonio reduce RUN --out TABLE`.
 pub fn run(a: ReduceArgs) -> CliResult<()> {
     let (path, out, grid, json_out) = (a.run.as_path(), a.out.as_path(), a.grid.grid, a.json.json);
+    let target = output::Target::new(out, a.force.force)?;
     if gonio_dataset::detect(&head(path)?) != Some(Kind::Run) {
         return Err(CliError::Input(format!(
             "{}: not a run file (.gonio, SQLite)",
@@ -86,7 +84,7 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             format!("{} samples", red.samples.samples.len()),
         ),
     };
-    write_text(out, &text)?;
+    target.write(text.as_bytes())?;
     if json_out {
         return output::json(&json!({
             "out": out.display().to_string(),
@@ -96,7 +94,7 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             "reduction": reduction_json(&red),
         }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(
             w,

@@ -25,6 +25,8 @@ pub struct ReportArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
+    force: output::ForceFlag,
+    #[command(flatten)]
     reduction: ReduceFlags,
     #[command(flatten)]
     json: JsonFlag,
@@ -51,6 +53,11 @@ fn png_of(
 /// `gonio report RUN.gonio --out DIR`: writes DIR/report.html and returns its path.
 pub fn run(a: ReportArgs) -> CliResult<()> {
     let (run, out_dir, json_out) = (a.run.as_path(), a.out.as_path(), a.json.json);
+    let path = out_dir.join("report.html");
+    // Checked before the work when the directory exists; it is made only after.
+    if out_dir.exists() {
+        output::Target::new(&path, a.force.force)?;
+    }
     let page = build_report(run, &a.reduction)?;
     std::fs::create_dir_all(out_dir).map_err(|e| {
         CliError::Input(format!(
@@ -58,9 +65,7 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
             out_dir.display()
         ))
     })?;
-    let path = out_dir.join("report.html");
-    std::fs::write(&path, report::html(&page))
-        .map_err(|e| CliError::Input(format!("{}: cannot write: {e}", path.display())))?;
+    output::Target::new(&path, a.force.force)?.write(report::html(&page).as_bytes())?;
     if json_out {
         output::json(&json!({
             "out": path.display().to_string(),
@@ -68,7 +73,7 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
             "notes": page.notes,
         }))?;
     } else {
-        let mut w = output::open(None)?;
+        let mut w = output::stdout();
         output::finish((|| {
             writeln!(w, "{}: {} figures", path.display(), page.figures.len())?;
             for n in &page.notes {

@@ -43,7 +43,7 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
             &serde_json::to_value(&s).map_err(|e| CliError::Runtime(e.to_string()))?,
         );
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: {}", s.path, s.status)?;
         if let Some(n) = &s.name {
@@ -146,7 +146,7 @@ pub fn runs(a: RunsArgs) -> CliResult<()> {
     if json {
         return output::json(&json!({ "dir": dir.display().to_string(), "runs": rows }));
     }
-    let mut w = output::open(None)?;
+    let mut w = output::stdout();
     output::finish((|| {
         for r in &rows {
             let name = r["path"].as_str().unwrap_or("");
