@@ -58,6 +58,28 @@ pub enum StoreError {
         /// The step.
         step: i64,
     },
+    /// Another process is measuring into the run.
+    #[error(
+        "{path}: {holder} is working on this run (it holds the run's lock); wait for it \
+         to stop, or stop it (Ctrl-C) first"
+    )]
+    Busy {
+        /// The file.
+        path: PathBuf,
+        /// Who, as far as the file tells.
+        holder: String,
+    },
+    /// A `meta` row every run file has is gone (the file was edited or damaged).
+    #[error(
+        "{path}: the run's meta row `{key}` is missing (the file was edited or damaged); \
+         `gonio verify` lists every fault"
+    )]
+    MissingMeta {
+        /// The file.
+        path: PathBuf,
+        /// The key.
+        key: String,
+    },
     /// Damaged: structure or content fails its checks.
     #[error("{path}: corrupted: {why}")]
     Corrupt {
@@ -73,7 +95,11 @@ impl StoreError {
     pub fn is_bad_input(&self) -> bool {
         !matches!(
             self,
-            StoreError::Sqlite { .. } | StoreError::Io { .. } | StoreError::NotPending { .. }
+            StoreError::Sqlite { .. }
+                | StoreError::Io { .. }
+                | StoreError::NotPending { .. }
+                | StoreError::MissingMeta { .. }
+                | StoreError::Busy { .. }
         )
     }
 }

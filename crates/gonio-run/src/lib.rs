@@ -11,6 +11,8 @@
 
 pub mod create;
 mod error;
+mod integrity;
+mod lock;
 pub mod meta;
 pub mod records;
 pub mod schema;
@@ -20,6 +22,7 @@ mod time;
 
 pub use create::{CreateError, Inputs, create};
 pub use error::StoreError;
+pub use integrity::Integrity;
 pub use meta::{Estimate, RunMeta, RunStatus, keys};
 pub use records::{EventRecord, ReadingRecord, SessionRow, StoredStep};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION, flags};

@@ -55,6 +55,10 @@ pub mod keys {
     pub const STATUS: &str = "status";
     /// Steps in the schedule (written by the store, checked on open).
     pub const STEP_COUNT: &str = "step_count";
+    /// Digest of the `meta` rows fixed at creation (hexadecimal).
+    pub const INTEGRITY_META: &str = "integrity_meta";
+    /// Readings committed and their digest, `COUNT:DIGEST`.
+    pub const INTEGRITY_READINGS: &str = "integrity_readings";
 }
 
 /// A run's status.
@@ -173,9 +177,15 @@ impl RunMeta {
         };
         let mut rest = map.clone();
         let mut take = |k: &str| rest.remove(k);
-        let instrument =
-            take(keys::INSTRUMENT).ok_or_else(|| corrupt("no instrument config".into()))?;
-        let plan = take(keys::PLAN).ok_or_else(|| corrupt("no plan".into()))?;
+        let missing = |key: &str| StoreError::MissingMeta {
+            path: path.to_path_buf(),
+            key: key.to_string(),
+        };
+        let instrument = take(keys::INSTRUMENT).ok_or_else(|| missing(keys::INSTRUMENT))?;
+        let plan = take(keys::PLAN).ok_or_else(|| missing(keys::PLAN))?;
+        // The store's own record, not the run's description.
+        take(keys::INTEGRITY_META);
+        take(keys::INTEGRITY_READINGS);
         let num = |k: &str, v: Option<String>| -> Result<Option<f64>, StoreError> {
             v.map(|v| {
                 v.parse::<f64>()
@@ -372,6 +382,15 @@ mod tests {
         }
         let e = RunMeta::from_map(&map(&[("plan", "")]), Path::new("r.gonio"))
             .expect_err("no instrument");
-        assert!(e.to_string().contains("no instrument config"), "{e}");
+        assert!(matches!(e, StoreError::MissingMeta { ref key, .. } if key == "instrument"));
+        assert!(
+            e.to_string()
+                .starts_with("r.gonio: the run's meta row `instrument` is missing"),
+            "{e}"
+        );
+        assert!(
+            !e.is_bad_input(),
+            "a damaged run is a runtime fault (exit 1)"
+        );
     }
 }

@@ -21,7 +21,9 @@ use gonio_core::dirfile::PairDeg;
 use gonio_plan::schedule::{Step, StepKind};
 
 pub use crate::error::StoreError;
-use crate::meta::RunMeta;
+use crate::integrity::{self, Integrity, ReadingsRecord, meta_digest, reading_term};
+use crate::lock::{LockError, RunLock};
+use crate::meta::{RunMeta, keys};
 use crate::records::{
     EventRecord, ReadingRecord, SessionRow, StoredStep, reading_values, row_crc, step_values,
 };
@@ -31,11 +33,32 @@ use crate::schema::{
 };
 use crate::time::wall_now;
 
+/// Sets one `meta` row (inside a transaction).
+fn put_meta(tx: &rusqlite::Transaction<'_>, key: &str, value: &str) -> rusqlite::Result<()> {
+    tx.execute(
+        "INSERT INTO meta (key, value) VALUES (?1, ?2) \
+         ON CONFLICT(key) DO UPDATE SET value = excluded.value",
+        params![key, value],
+    )?;
+    Ok(())
+}
+
+/// Writes the integrity record as the file now stands: the digest of its `meta`
+/// rows, and its readings.
+fn write_record(tx: &rusqlite::Transaction<'_>) -> rusqlite::Result<()> {
+    let present = integrity::present_readings(tx)?;
+    put_meta(tx, keys::INTEGRITY_READINGS, &present.to_text())?;
+    let digest = meta_digest(&integrity::meta_map(tx)?);
+    put_meta(tx, keys::INTEGRITY_META, &format!("{digest:016x}"))
+}
+
 /// An open run file.
 pub struct RunStore {
     conn: Connection,
     path: PathBuf,
     session: Option<i64>,
+    /// The run's exclusive lock, when this store holds it (dropped after `conn`).
+    lock: Option<RunLock>,
 }
 
 impl std::fmt::Debug for RunStore {
@@ -92,6 +115,7 @@ impl RunStore {
     }
 
     /// Creates a new run file with its metadata and schedule; refuses to overwrite.
+    /// The store returned holds the run's lock ([`RunStore::lock`]).
     ///
     /// Atomic: the file is written whole under a temporary name and linked into place
     /// only when complete, so a kill during creation leaves no run file (and no
@@ -136,7 +160,10 @@ impl RunStore {
             // directories).
             let _ = d.sync_all();
         }
-        Self::open(path)
+        // The creator measures into it: nobody else may until it lets go.
+        let mut store = Self::open(path)?;
+        store.lock()?;
+        Ok(store)
     }
 
     /// Writes a complete new run file at `path` (rollback journal, closed after).
@@ -162,6 +189,7 @@ impl RunStore {
             conn,
             path: path.to_path_buf(),
             session: None,
+            lock: None,
         };
         store.migrate(0)?;
         let tx = store.conn.transaction().map_err(sql)?;
@@ -169,12 +197,24 @@ impl RunStore {
             let mut m = tx
                 .prepare("INSERT INTO meta (key, value) VALUES (?1, ?2)")
                 .map_err(sql)?;
-            for (k, v) in meta {
+            let mut all: BTreeMap<String, String> = meta
+                .iter()
+                .filter(|(k, _)| !integrity::MUTABLE_META.contains(&k.as_str()))
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect();
+            all.insert(keys::STEP_COUNT.into(), steps.len().to_string());
+            all.insert(keys::STATUS.into(), "created".into());
+            all.insert(
+                keys::INTEGRITY_META.into(),
+                format!("{:016x}", meta_digest(&all)),
+            );
+            all.insert(
+                keys::INTEGRITY_READINGS.into(),
+                ReadingsRecord::default().to_text(),
+            );
+            for (k, v) in &all {
                 m.execute(params![k, v]).map_err(sql)?;
             }
-            m.execute(params!["step_count", steps.len().to_string()])
-                .map_err(sql)?;
-            m.execute(params!["status", "created"]).map_err(sql)?;
             let mut s = tx
                 .prepare(&format!(
                     "INSERT INTO steps ({STEP_COLUMNS}, crc) VALUES \
@@ -193,8 +233,81 @@ impl RunStore {
     }
 
     /// Opens an existing run file after checking that it is one, that this build
-    /// reads its schema (migrating an older one), and that it is intact.
+    /// reads its schema (migrating an older one), and that it is intact: every fault
+    /// [`RunStore::integrity`] finds refuses it.
     pub fn open(path: &Path) -> Result<RunStore, StoreError> {
+        let store = Self::open_unverified(path)?;
+        let found = store.integrity(false)?;
+        store.refuse_unless_intact(&found)?;
+        Ok(store)
+    }
+
+    /// The error a damaged file gets: a missing required `meta` row by name, else
+    /// every fault.
+    pub fn refuse_unless_intact(&self, found: &Integrity) -> Result<(), StoreError> {
+        if let Some(key) = found
+            .damage
+            .iter()
+            .find_map(|d| d.strip_prefix("meta row `")?.strip_suffix("` is missing"))
+        {
+            return Err(StoreError::MissingMeta {
+                path: self.path.clone(),
+                key: key.to_string(),
+            });
+        }
+        if found.is_intact() {
+            return Ok(());
+        }
+        Err(StoreError::Corrupt {
+            path: self.path.clone(),
+            why: found.faults().join("; "),
+        })
+    }
+
+    /// Checks the whole file: SQLite's own check (`full`: the slower
+    /// `integrity_check`), every row checksum, the schedule, the required metadata,
+    /// readings against steps, and the integrity record.
+    pub fn integrity(&self, full: bool) -> Result<Integrity, StoreError> {
+        integrity::inspect(&self.conn, full).map_err(|e| StoreError::Corrupt {
+            path: self.path.clone(),
+            why: e.to_string(),
+        })
+    }
+
+    /// Makes the steps whose committed readings are missing pending again, so that
+    /// the next session measures them, with an event for each; rebases the readings
+    /// record on the readings present (and writes the integrity record of a file
+    /// from before it existed). Returns the steps re-opened. All or nothing.
+    pub fn reopen_missing(&mut self) -> Result<Vec<i64>, StoreError> {
+        let found = self.integrity(false)?;
+        let missing = found.missing.clone();
+        let session = self.session;
+        self.in_tx(|tx| {
+            for id in &missing {
+                tx.execute(
+                    "UPDATE steps SET state = 'pending' WHERE id = ?1",
+                    [id],
+                )?;
+                tx.execute(
+                    INSERT_EVENT,
+                    params![
+                        session,
+                        wall_now(),
+                        "remeasure",
+                        id,
+                        "the committed reading of this step is missing from the file;                          it is measured again"
+                    ],
+                )?;
+            }
+            write_record(tx)?;
+            Ok(())
+        })?;
+        Ok(missing)
+    }
+
+    /// Opens a run file after checking only that it is one and that this build
+    /// reads its schema: for [`RunStore::integrity`] to say what is wrong with it.
+    pub fn open_unverified(path: &Path) -> Result<RunStore, StoreError> {
         if !path.exists() {
             return Err(StoreError::Missing(path.to_path_buf()));
         }
@@ -239,23 +352,17 @@ impl RunStore {
                 supported: SCHEMA_VERSION,
             });
         }
-        let check: String = conn
-            .query_row("PRAGMA quick_check", [], |r| r.get(0))
-            .map_err(|e| corrupt(e.to_string()))?;
-        if check != "ok" {
-            return Err(corrupt(format!("quick_check: {check}")));
-        }
         Self::pragmas(&conn).map_err(|e| corrupt(e.to_string()))?;
         let mut store = RunStore {
             conn,
             path: path.to_path_buf(),
             session: None,
+            lock: None,
         };
         if version < 1 {
             return Err(not_run("schema version 0: never initialised".into()));
         }
         store.migrate(version)?;
-        store.verify()?;
         Ok(store)
     }
 
@@ -275,65 +382,50 @@ impl RunStore {
         Ok(())
     }
 
-    /// Recomputes every row checksum and checks the schedule is whole.
-    fn verify(&self) -> Result<(), StoreError> {
-        let corrupt = |why: String| StoreError::Corrupt {
-            path: self.path.clone(),
-            why,
-        };
-        for (table, cols, key) in [
-            ("steps", STEP_COLUMNS, "id"),
-            ("readings", READING_COLUMNS, "step_id"),
-        ] {
-            let n = cols.split(',').count();
-            let mut stmt = self
-                .conn
-                .prepare(&format!("SELECT {cols}, crc FROM {table} ORDER BY {key}"))
-                .map_err(|e| corrupt(e.to_string()))?;
-            let mut rows = stmt.query([]).map_err(|e| corrupt(e.to_string()))?;
-            while let Some(row) = rows.next().map_err(|e| corrupt(e.to_string()))? {
-                let values: Vec<Value> = (0..n)
-                    .map(|i| row.get::<_, Value>(i))
-                    .collect::<Result<_, _>>()
-                    .map_err(|e| corrupt(e.to_string()))?;
-                let stored: i64 = row.get(n).map_err(|e| corrupt(e.to_string()))?;
-                if row_crc(&values) != stored {
-                    let id = match &values[0] {
-                        Value::Integer(i) => i.to_string(),
-                        other => format!("{other:?}"),
-                    };
-                    return Err(corrupt(format!(
-                        "{table} row {id} fails its checksum (a damaged value)"
-                    )));
-                }
+    /// Takes the run's exclusive lock, held until this store is dropped: one
+    /// process at a time measures into a run. Readers (`show`, `reduce`) do not take
+    /// it. A killed process leaves no lock behind (see `lock.rs`).
+    pub fn lock(&mut self) -> Result<(), StoreError> {
+        if self.lock.is_some() {
+            return Ok(());
+        }
+        match RunLock::acquire(&self.path) {
+            Ok(l) => {
+                self.lock = Some(l);
+                Ok(())
             }
+            Err(LockError::Busy(pid)) => Err(StoreError::Busy {
+                path: self.path.clone(),
+                holder: self.holder(pid),
+            }),
+            Err(LockError::Io(path, source)) => Err(StoreError::Io { path, source }),
         }
-        let count: i64 = self
-            .conn
-            .query_row("SELECT count(*) FROM steps", [], |r| r.get(0))
-            .map_err(|e| corrupt(e.to_string()))?;
-        let want = self
-            .meta_value("step_count")?
-            .and_then(|v| v.parse::<i64>().ok())
-            .ok_or_else(|| corrupt("meta step_count missing".into()))?;
-        if count != want {
-            return Err(corrupt(format!(
-                "{count} steps stored, the schedule had {want}"
-            )));
-        }
-        let orphans: i64 = self
+    }
+
+    /// Who holds the lock: its process, and the session it runs when the file has
+    /// one open.
+    fn holder(&self, pid: Option<u32>) -> String {
+        let Some(pid) = pid else {
+            return "another process".into();
+        };
+        let session: Option<(f64, String)> = self
             .conn
             .query_row(
-                "SELECT count(*) FROM readings r LEFT JOIN steps s ON s.id = r.step_id \
-                 WHERE s.id IS NULL OR s.state != 'done'",
-                [],
-                |r| r.get(0),
+                "SELECT started_s, software FROM sessions WHERE ended_s IS NULL AND pid = ?1 \
+                 ORDER BY id DESC LIMIT 1",
+                [pid],
+                |r| Ok((r.get(0)?, r.get(1)?)),
             )
-            .map_err(|e| corrupt(e.to_string()))?;
-        if orphans != 0 {
-            return Err(corrupt(format!("{orphans} readings without a done step")));
+            .optional()
+            .ok()
+            .flatten();
+        match session {
+            Some((started, software)) => format!(
+                "process {pid} ({software}, session started {})",
+                crate::time::utc(started)
+            ),
+            None => format!("process {pid}"),
         }
-        Ok(())
     }
 
     /// The file's path.
@@ -361,21 +453,25 @@ impl RunStore {
         RunMeta::from_map(&self.meta()?, &self.path)
     }
 
-    /// Sets a metadata value (its own transaction).
+    /// Sets a metadata value, and the digest that covers it (one transaction).
     pub fn set_meta(&mut self, key: &str, value: &str) -> Result<(), StoreError> {
-        self.conn
-            .execute(
-                "INSERT INTO meta (key, value) VALUES (?1, ?2) \
-                 ON CONFLICT(key) DO UPDATE SET value = excluded.value",
-                params![key, value],
-            )
-            .map_err(|e| self.sql(e))?;
-        Ok(())
+        self.in_tx(|tx| {
+            put_meta(tx, key, value)?;
+            if !integrity::MUTABLE_META.contains(&key) {
+                let digest = meta_digest(&integrity::meta_map(tx)?);
+                put_meta(tx, keys::INTEGRITY_META, &format!("{digest:016x}"))?;
+            }
+            Ok(())
+        })
     }
 
     /// Starts a session (a process working on the run): status `running`.
     pub fn begin_session(&mut self, software: &str) -> Result<i64, StoreError> {
         let id = self.in_tx(|tx| {
+            // A file from before the integrity record gets one, of what it holds now.
+            if integrity::stored_record(tx)?.is_none() {
+                write_record(tx)?;
+            }
             tx.execute(
                 "INSERT INTO sessions (started_s, software, pid) VALUES (?1, ?2, ?3)",
                 params![wall_now(), software, std::process::id()],
@@ -460,6 +556,7 @@ impl RunStore {
         let mut v = reading_values(reading, session.unwrap_or(0));
         let crc = row_crc(&v);
         v.push(Value::Integer(crc));
+        let term = reading_term(reading.step_id, crc);
         let marked = self.in_tx(|tx| {
             let changed = tx
                 .prepare_cached(
@@ -480,6 +577,18 @@ impl RunStore {
             let mut ins = tx.prepare_cached(INSERT_EVENT)?;
             for e in events {
                 ins.execute(params![session, e.wall_s, e.kind, e.step_id, e.message])?;
+            }
+            // The record moves with the reading it counts.
+            if let Some(text) = integrity::stored_record(tx)? {
+                let mut rec = ReadingsRecord::parse(&text).ok_or_else(|| {
+                    rusqlite::Error::InvalidColumnType(
+                        0,
+                        keys::INTEGRITY_READINGS.into(),
+                        rusqlite::types::Type::Text,
+                    )
+                })?;
+                rec.add(term);
+                put_meta(tx, keys::INTEGRITY_READINGS, &rec.to_text())?;
             }
             Ok(true)
         })?;

@@ -58,6 +58,7 @@ fn reading(step_id: i64, r: f64) -> ReadingRecord {
 fn make(path: &Path, n: usize, done: usize) {
     let mut meta = BTreeMap::new();
     meta.insert("instrument".to_string(), "name = \"x\"".to_string());
+    meta.insert("plan".to_string(), "name = \"p\"".to_string());
     let mut s = RunStore::create(path, &meta, &steps(n)).expect("creates");
     s.begin_session("test").expect("session");
     for i in 0..done {
@@ -260,4 +261,174 @@ fn utc_dates() {
     assert_eq!(store::utc(0.0), "1970-01-01T00:00:00Z");
     assert_eq!(store::utc(951_782_400.0), "2000-02-29T00:00:00Z");
     assert_eq!(store::utc(1_795_305_599.5), "2026-11-21T23:59:59Z");
+}
+
+/// Runs SQL on the file behind Gonio's back, as an editor or a damaged disk would.
+fn edit(path: &Path, sql: &str) {
+    let c = rusqlite::Connection::open(path).expect("opens");
+    c.execute_batch(sql).expect("edits");
+}
+
+#[test]
+fn a_deleted_reading_is_found_and_its_step_reopened_for_measuring_again() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("r.gonio");
+    make(&p, 5, 4);
+    assert!(
+        RunStore::open(&p)
+            .expect("intact")
+            .integrity(true)
+            .expect("checks")
+            .is_intact()
+    );
+    edit(&p, "DELETE FROM readings WHERE step_id = 2");
+    let e = RunStore::open(&p).expect_err("a reading is gone");
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: corrupted: 1 committed reading(s) missing (steps 2); `gonio resume` measures \
+             them again",
+            p.display()
+        )
+    );
+    // Hidden better: the step put back to pending too. It was attempted once.
+    edit(&p, "UPDATE steps SET state = 'pending' WHERE id = 2");
+    let mut s = RunStore::open_unverified(&p).expect("opens");
+    let found = s.integrity(false).expect("checks");
+    assert_eq!(found.missing, vec![2]);
+    assert!(found.damage.is_empty(), "{:?}", found.damage);
+    assert_eq!(found.readings, 3);
+    assert_eq!(s.reopen_missing().expect("reopens"), vec![2]);
+    let ev = s.events().expect("events");
+    let last = ev.last().expect("an event");
+    assert_eq!((last.kind.as_str(), last.step_id), ("remeasure", Some(2)));
+    // Measured again: intact, with all five counted.
+    s.begin_session("test").expect("session");
+    s.commit(&reading(2, 3e-3), &[]).expect("commit");
+    s.commit(&reading(4, 5e-3), &[]).expect("commit");
+    s.end_session("complete").expect("end");
+    drop(s);
+    let s = RunStore::open(&p).expect("intact again");
+    let found = s.integrity(true).expect("checks");
+    assert!(
+        found.is_intact() && found.recorded && found.readings == 5,
+        "{found:?}"
+    );
+}
+
+#[test]
+fn a_replaced_reading_an_edited_config_and_a_lost_meta_row_are_found() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let (a, b) = (
+        scratch.path().join("a.gonio"),
+        scratch.path().join("b.gonio"),
+    );
+    make(&a, 4, 3);
+    // The same steps, other values: a row with a valid checksum but not the one
+    // committed.
+    {
+        let mut meta = BTreeMap::new();
+        meta.insert("instrument".to_string(), "name = \"x\"".to_string());
+        meta.insert("plan".to_string(), "name = \"p\"".to_string());
+        let mut s = RunStore::create(&b, &meta, &steps(4)).expect("creates");
+        s.begin_session("test").expect("session");
+        s.commit(&reading(1, 7e-3), &[]).expect("commit");
+    }
+    edit(
+        &a,
+        &format!(
+            "ATTACH '{}' AS b; DELETE FROM readings WHERE step_id = 1; \
+             INSERT INTO readings SELECT * FROM b.readings WHERE step_id = 1;",
+            b.display()
+        ),
+    );
+    let e = RunStore::open(&a).expect_err("replaced");
+    assert!(
+        e.to_string()
+            .contains("the readings differ from those committed"),
+        "{e}"
+    );
+    // An edited config.
+    let c = scratch.path().join("c.gonio");
+    make(&c, 4, 3);
+    edit(
+        &c,
+        "UPDATE meta SET value = 'name = \"y\"' WHERE key = 'instrument'",
+    );
+    let e = RunStore::open(&c).expect_err("edited");
+    assert!(
+        e.to_string()
+            .contains("the metadata (configs, seed, geometry) differ"),
+        "{e}"
+    );
+    // A required meta row gone: named, and a runtime fault (exit 1).
+    let d = scratch.path().join("d.gonio");
+    make(&d, 4, 3);
+    edit(&d, "DELETE FROM meta WHERE key = 'status'");
+    let e = RunStore::open(&d).expect_err("no status");
+    assert!(
+        matches!(e, StoreError::MissingMeta { ref key, .. } if key == "status"),
+        "{e}"
+    );
+    assert!(!e.is_bad_input());
+}
+
+#[test]
+fn a_file_from_before_the_integrity_record_still_opens_and_gets_one_when_resumed() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("old.gonio");
+    make(&p, 4, 2);
+    edit(
+        &p,
+        "DELETE FROM meta WHERE key IN ('integrity_meta', 'integrity_readings')",
+    );
+    let mut s = RunStore::open(&p).expect("an old file opens");
+    let found = s.integrity(true).expect("checks");
+    assert!(found.is_intact() && !found.recorded, "{found:?}");
+    s.begin_session("test").expect("session");
+    s.commit(&reading(2, 3e-3), &[]).expect("commit");
+    drop(s);
+    let found = RunStore::open(&p)
+        .expect("opens")
+        .integrity(true)
+        .expect("checks");
+    assert!(
+        found.is_intact() && found.recorded && found.readings == 3,
+        "{found:?}"
+    );
+}
+
+#[test]
+fn one_process_at_a_time_holds_a_run_and_a_dead_one_holds_nothing() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("r.gonio");
+    make(&p, 4, 1);
+    let mut first = RunStore::open(&p).expect("opens");
+    first.lock().expect("locks");
+    let lock_file = scratch.path().join("r.gonio.lock");
+    assert_eq!(
+        std::fs::read_to_string(&lock_file)
+            .expect("lock file")
+            .trim(),
+        std::process::id().to_string()
+    );
+    first.begin_session("gonio test").expect("session");
+    let mut second = RunStore::open(&p).expect("a reader opens");
+    let e = second.lock().expect_err("held");
+    assert!(matches!(e, StoreError::Busy { .. }), "{e}");
+    assert!(
+        e.to_string().contains(&format!(
+            "process {} (gonio test, session started",
+            std::process::id()
+        )),
+        "{e}"
+    );
+    drop(first);
+    assert!(!lock_file.exists(), "released and removed");
+    second.lock().expect("free again");
+    drop(second);
+    // A lock file left by a killed process (no one holds its lock) is no obstacle.
+    std::fs::write(&lock_file, "999999\n").expect("stale");
+    let mut third = RunStore::open(&p).expect("opens");
+    third.lock().expect("a stale lock file does not block");
 }
