@@ -1,10 +1,11 @@
 //! `gonio-sim`: the simulated goniometer behind two pseudo-terminals.
 //!
 //! Prints one JSON line — the paths of the SMC100 and SR830 lines — then serves until
-//! its standard input closes (or it is killed). Point an instrument config's ports at
-//! those paths and drive it like the real instrument.
+//! SIGINT, SIGTERM or SIGHUP (standard input is left alone, so `gonio-sim &` and
+//! service managers work). Point an instrument config's ports at those paths and
+//! drive it like the real instrument.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,9 +40,21 @@ fn run(a: Args) -> Result<(), ServeError> {
     writeln!(out, "{}", served.announcement())?;
     out.flush()?;
     drop(out);
-    let mut sink = [0u8; 256];
-    let mut stdin = std::io::stdin().lock();
-    while stdin.read(&mut sink)? > 0 {}
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async {
+        use tokio::signal::unix::{SignalKind, signal};
+        let mut int = signal(SignalKind::interrupt())?;
+        let mut term = signal(SignalKind::terminate())?;
+        let mut hup = signal(SignalKind::hangup())?;
+        tokio::select! {
+            _ = int.recv() => {}
+            _ = term.recv() => {}
+            _ = hup.recv() => {}
+        }
+        Ok::<(), std::io::Error>(())
+    })?;
     Ok(())
 }
 

@@ -1,5 +1,7 @@
 //! `gonio-sim` as its own process: the driver in this one talks to it through the
-//! pseudo-terminals it announces, in (scaled) real time, like to hardware.
+//! pseudo-terminals it announces, in (scaled) real time, like to hardware. It serves
+//! with no standard input (as `gonio-sim </dev/null &` or a service manager runs it)
+//! until a stop signal.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -11,7 +13,7 @@ use gonio_driver::{Goniometer, InstrumentConfig, SerialTransport, SystemClock};
 fn a_driver_in_another_process_measures() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_gonio-sim"))
         .args(["--time-scale", "0.02", "--seed", "7"])
-        .stdin(Stdio::piped())
+        .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
         .expect("gonio-sim starts");
@@ -50,9 +52,14 @@ fn a_driver_in_another_process_measures() {
         assert!(reading.is_valid(), "{reading:?}");
         assert!(reading.r_mean > 0.0);
     }
-    drop(child.stdin.take());
+    assert!(child.try_wait().expect("polls").is_none(), "still serving");
+    let sent = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(sent.success());
     let status = child.wait().expect("exits");
-    assert!(status.success());
+    assert!(status.success(), "SIGTERM is a clean stop: {status:?}");
 }
 
 #[test]

@@ -11,6 +11,7 @@ mod error;
 mod flags;
 mod logging;
 mod output;
+mod signals;
 
 use std::path::Path;
 use std::process::ExitCode;
@@ -45,8 +46,8 @@ enum Command {
     /// cannot and why, and how long it will take.
     #[command(subcommand)]
     Plan(cmd::plan::Command),
-    /// Measure a plan into a new run file (`.gonio`). Ctrl-C stops the stages and
-    /// leaves the run resumable; a second Ctrl-C quits at once.
+    /// Measure a plan into a new run file (`.gonio`). Ctrl-C (or SIGTERM, SIGHUP)
+    /// stops the stages and leaves the run resumable; a second one quits at once.
     Acquire(cmd::acquire::AcquireArgs),
     /// Continue an interrupted or killed run where it stopped (re-homing if needed).
     Resume(cmd::acquire::ResumeArgs),
@@ -54,6 +55,10 @@ enum Command {
     Runs(cmd::runs::RunsArgs),
     /// Show a run: status, counts, durations, configs.
     Show(cmd::runs::ShowArgs),
+    /// Check a run file whole: SQLite's integrity check, every row checksum, and the
+    /// integrity record (readings deleted, replaced or altered, configs edited).
+    /// Exit 0 when intact, 1 with every fault when not.
+    Verify(cmd::verify::VerifyArgs),
     /// Reduce a run's readings to BRDF samples with uncertainties (DeYoung Eq. A.15, or
     /// relative to the run's reference standard), drift-corrected; writes a table when
     /// the samples form a grid, else the samples (CSV).
@@ -84,7 +89,7 @@ enum Command {
     /// calibration, measures, fit and plots.
     Report(cmd::report::ReportArgs),
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
-    /// their paths, then serves until standard input closes.
+    /// their paths, then serves until SIGINT, SIGTERM or SIGHUP.
     Sim(cmd::instrument::SimArgs),
 }
 
@@ -118,6 +123,7 @@ fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(), CliError
         Command::Resume(a) => cmd::acquire::resume(a),
         Command::Runs(a) => cmd::runs::runs(a),
         Command::Show(a) => cmd::runs::show(a),
+        Command::Verify(a) => cmd::verify::run(a),
         Command::Reduce(a) => cmd::reduce::run(a),
         Command::Check(a) => cmd::check::run(a),
         Command::Correct(a) => cmd::correct::run(a, matches.subcommand_matches("correct")),

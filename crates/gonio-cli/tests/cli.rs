@@ -240,12 +240,13 @@ fn instrument_check_validates_configs() {
 }
 
 #[test]
-fn sim_announces_its_ptys_and_stops_when_stdin_closes() {
+fn sim_announces_its_ptys_and_serves_until_a_stop_signal() {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
+    // Standard input closed from the start, as `gonio sim </dev/null &` has it.
     let mut child = Command::new(env!("CARGO_BIN_EXE_gonio"))
         .args(["sim", "--seed", "3"])
-        .stdin(Stdio::piped())
+        .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
         .expect("gonio sim starts");
@@ -259,8 +260,34 @@ fn sim_announces_its_ptys_and_stops_when_stdin_closes() {
         assert!(Path::new(p).exists(), "{p}");
     }
     assert_eq!(v["seed"], 3);
-    drop(child.stdin.take());
-    assert!(child.wait().expect("exits").success());
+    for sig in ["-INT", "-TERM", "-HUP"] {
+        if sig != "-INT" {
+            child = Command::new(env!("CARGO_BIN_EXE_gonio"))
+                .args(["sim", "--seed", "3"])
+                .stdin(Stdio::null())
+                .stdout(Stdio::piped())
+                .spawn()
+                .expect("gonio sim starts");
+            let mut line = String::new();
+            BufReader::new(child.stdout.take().expect("stdout"))
+                .read_line(&mut line)
+                .expect("one line");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert!(
+            child.try_wait().expect("polls").is_none(),
+            "{sig}: still serving"
+        );
+        let sent = Command::new("kill")
+            .args([sig, &child.id().to_string()])
+            .status()
+            .expect("kill runs");
+        assert!(sent.success());
+        assert!(
+            child.wait().expect("exits").success(),
+            "{sig}: a clean stop"
+        );
+    }
 
     let o = gonio(&["sim", "--time-scale", "0"]);
     assert_eq!(o.status.code(), Some(2));

@@ -143,3 +143,113 @@ fn the_report_and_the_demo_keep_what_exists() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("exists already; a run file is never replaced"));
 }
+
+/// Runs SQL on a run file behind Gonio's back.
+fn edit(path: &Path, sql: &str) {
+    rusqlite::Connection::open(path)
+        .expect("opens")
+        .execute_batch(sql)
+        .expect("edits");
+}
+
+/// One reading's R, read directly.
+fn r_mean(path: &Path, step: i64) -> Option<f64> {
+    use rusqlite::OptionalExtension;
+    rusqlite::Connection::open(path)
+        .expect("opens")
+        .query_row(
+            "SELECT r_mean FROM readings WHERE step_id = ?1",
+            [step],
+            |r| r.get(0),
+        )
+        .optional()
+        .expect("query")
+}
+
+#[test]
+fn verify_finds_a_deleted_row_an_altered_value_and_an_edited_config_and_resume_remeasures() {
+    let d = scratch("verify");
+    let run = acquire(&d, ISO_PLAN);
+    let run_s = s(&run);
+    let o = ok(&["verify", &run_s]);
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(": intact ("),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let pristine = std::fs::read(&run).expect("bytes");
+
+    // A deleted reading: verify exits 1 naming the step; show and reduce refuse.
+    let step = 7;
+    let before = r_mean(&run, step).expect("measured");
+    edit(&run, &format!("DELETE FROM readings WHERE step_id = {step}"));
+    let o = gonio(&["verify", &run_s, "--json"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(v["intact"], false);
+    assert_eq!(v["missing"], serde_json::json!([step]));
+    for cmd in [&["show", &run_s][..], &["reduce", &run_s, "--out", &s(&d.join("x.csv"))]] {
+        let o = gonio(cmd);
+        assert_eq!(o.status.code(), Some(2), "{cmd:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!(
+                "1 committed reading(s) missing (steps {step}); `gonio resume` measures them again"
+            )),
+            "{cmd:?}: {}",
+            stderr(&o)
+        );
+    }
+    // Resume measures it again (same seed, same value), and says so.
+    let o = gonio(&["resume", &run_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("measuring those steps again"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(r_mean(&run, step), Some(before));
+    ok(&["verify", &run_s]);
+    let v: serde_json::Value =
+        serde_json::from_slice(&ok(&["show", &run_s, "--json"]).stdout).expect("JSON");
+    assert_eq!(v["status"], "complete");
+    assert_eq!(v["events"]["remeasure"], 1, "{}", v["events"]);
+
+    // An altered value, and an edited config, each on a fresh copy.
+    for (sql, says) in [
+        (
+            format!("UPDATE readings SET r_mean = r_mean * 2 WHERE step_id = {step}"),
+            format!("readings row {step} fails its checksum"),
+        ),
+        (
+            "UPDATE meta SET value = value || '# edited' WHERE key = 'instrument'".to_string(),
+            "the metadata (configs, seed, geometry) differ from those recorded".to_string(),
+        ),
+        (
+            "UPDATE steps SET theta_o = 1 WHERE id = 3".to_string(),
+            "steps row 3 fails its checksum".to_string(),
+        ),
+    ] {
+        std::fs::write(&run, &pristine).expect("restore");
+        edit(&run, &sql);
+        let o = gonio(&["verify", &run_s]);
+        assert_eq!(o.status.code(), Some(1), "{sql}: {}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(out.contains(&says), "{sql}: {out}");
+        assert!(stderr(&o).contains("damaged (1 fault(s))"), "{}", stderr(&o));
+        // Resume refuses damage it cannot repair.
+        let o = gonio(&["resume", &run_s]);
+        assert_eq!(o.status.code(), Some(2), "{sql}: {}", stderr(&o));
+        assert!(stderr(&o).contains(&says), "{sql}: {}", stderr(&o));
+    }
+
+    // A meta row gone: named, exit 1.
+    std::fs::write(&run, &pristine).expect("restore");
+    edit(&run, "DELETE FROM meta WHERE key = 'plan'");
+    let o = gonio(&["show", &run_s]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("the run's meta row `plan` is missing"),
+        "{}",
+        stderr(&o)
+    );
+}

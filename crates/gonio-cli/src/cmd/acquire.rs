@@ -185,9 +185,9 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
     }
 }
 
-/// Runs one session of `engine`, with Ctrl-C: the first stops the stages and ends
-/// the session `interrupted`; a second exits at once, after a moment for the stop to
-/// reach the stages.
+/// Runs one session of `engine`, with the stop signals (Ctrl-C, SIGTERM, SIGHUP): the
+/// first stops the stages and ends the session `interrupted`; a second exits at once,
+/// after a moment for the stop to reach the stages.
 fn drive<M, D, C, B>(
     engine: Engine<M, D, C, B>,
     quiet: bool,
@@ -205,19 +205,22 @@ where
         .map_err(|e| CliError::Runtime(format!("starting the runtime: {e}")))?;
     let stopper = engine.stopper();
     let rx = engine.subscribe();
+    let mut signals = {
+        let _in_runtime = rt.enter();
+        crate::signals::StopSignals::new()
+            .map_err(|e| CliError::Runtime(format!("catching the stop signals: {e}")))?
+    };
     rt.block_on(async move {
         tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                eprintln!("\ngonio: stopping the stages (Ctrl-C again to quit at once)");
-                stopper.stop();
-                if tokio::signal::ctrl_c().await.is_ok() {
-                    stopper.stop();
-                    // The abort flag stops the stages at the driver's next poll.
-                    tokio::time::sleep(Duration::from_millis(300)).await;
-                    eprintln!("gonio: aborted");
-                    std::process::exit(130);
-                }
-            }
+            let sig = signals.next().await;
+            eprintln!("\ngonio: {sig}: stopping the stages (again to quit at once)");
+            stopper.stop();
+            signals.next().await;
+            stopper.stop();
+            // The abort flag stops the stages at the driver's next poll.
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            eprintln!("gonio: aborted");
+            std::process::exit(130);
         });
         let listener = tokio::spawn(progress(rx, quiet));
         let r = engine.run().await;
@@ -357,9 +360,19 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
 /// instrument (and simulator) its file records.
 pub fn resume(a: ResumeArgs) -> CliResult<()> {
     let (path, json) = (a.run.as_path(), a.json);
-    let store = RunStore::open(path)?;
+    let mut store = RunStore::open_unverified(path)?;
+    // Before anything is checked further, let alone a port opened or an axis homed:
+    // one process at a time.
+    store.lock()?;
+    let found = store.integrity(false)?;
+    // Missing readings are measured again; any other damage refuses the run.
+    let intact_but_missing = gonio_run::Integrity {
+        missing: Vec::new(),
+        ..found.clone()
+    };
+    store.refuse_unless_intact(&intact_but_missing)?;
     let status = store.meta_value("status")?.unwrap_or_default();
-    if status == "complete" {
+    if status == "complete" && found.missing.is_empty() {
         return Err(CliError::Input(format!(
             "{}: the run is complete; nothing to resume",
             path.display()
@@ -381,6 +394,14 @@ pub fn resume(a: ResumeArgs) -> CliResult<()> {
         }
         None => Rig::Real,
     };
+    if !found.missing.is_empty() {
+        let reopened = store.reopen_missing()?;
+        tracing::warn!(
+            run = %path.display(),
+            steps = ?reopened,
+            "committed readings are missing from the run file; measuring those steps again"
+        );
+    }
     let (report, _) = session(
         store,
         &stored.instrument,

@@ -173,9 +173,9 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
 }
 
 /// `gonio sim`: the simulator on two pseudo-terminals, announced by one JSON line on
-/// stdout, served until standard input closes.
+/// stdout, served until a stop signal (SIGINT, SIGTERM, SIGHUP): standard input is
+/// left alone, so that `gonio sim &` and service managers work.
 pub fn sim(a: SimArgs) -> CliResult<()> {
-    use std::io::Read;
     let served = gonio_sim::serve::serve(&gonio_sim::serve::ServeOptions {
         config: a.config,
         seed: a.seed,
@@ -186,12 +186,8 @@ pub fn sim(a: SimArgs) -> CliResult<()> {
         writeln!(out, "{}", served.announcement())?;
         out.flush()
     })())?;
-    let mut sink = [0u8; 256];
-    let mut stdin = std::io::stdin().lock();
-    while stdin
-        .read(&mut sink)
-        .map_err(|e| CliError::Runtime(format!("reading standard input: {e}")))?
-        > 0
-    {}
+    let sig = crate::signals::wait()
+        .map_err(|e| CliError::Runtime(format!("waiting for a stop signal: {e}")))?;
+    tracing::info!(signal = sig, "simulator stopped");
     Ok(())
 }

@@ -16,3 +16,4 @@ pub mod plot;
 pub mod reduce;
 pub mod report;
 pub mod runs;
+pub mod verify;
