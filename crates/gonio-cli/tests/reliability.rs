@@ -182,13 +182,19 @@ fn verify_finds_a_deleted_row_an_altered_value_and_an_edited_config_and_resume_r
     // A deleted reading: verify exits 1 naming the step; show and reduce refuse.
     let step = 7;
     let before = r_mean(&run, step).expect("measured");
-    edit(&run, &format!("DELETE FROM readings WHERE step_id = {step}"));
+    edit(
+        &run,
+        &format!("DELETE FROM readings WHERE step_id = {step}"),
+    );
     let o = gonio(&["verify", &run_s, "--json"]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
     assert_eq!(v["intact"], false);
     assert_eq!(v["missing"], serde_json::json!([step]));
-    for cmd in [&["show", &run_s][..], &["reduce", &run_s, "--out", &s(&d.join("x.csv"))]] {
+    for cmd in [
+        &["show", &run_s][..],
+        &["reduce", &run_s, "--out", &s(&d.join("x.csv"))],
+    ] {
         let o = gonio(cmd);
         assert_eq!(o.status.code(), Some(2), "{cmd:?}: {}", stderr(&o));
         assert!(
@@ -235,7 +241,11 @@ fn verify_finds_a_deleted_row_an_altered_value_and_an_edited_config_and_resume_r
         assert_eq!(o.status.code(), Some(1), "{sql}: {}", stderr(&o));
         let out = String::from_utf8_lossy(&o.stdout);
         assert!(out.contains(&says), "{sql}: {out}");
-        assert!(stderr(&o).contains("damaged (1 fault(s))"), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("damaged (1 fault(s))"),
+            "{}",
+            stderr(&o)
+        );
         // Resume refuses damage it cannot repair.
         let o = gonio(&["resume", &run_s]);
         assert_eq!(o.status.code(), Some(2), "{sql}: {}", stderr(&o));
@@ -252,4 +262,55 @@ fn verify_finds_a_deleted_row_an_altered_value_and_an_edited_config_and_resume_r
         "{}",
         stderr(&o)
     );
+}
+
+#[test]
+fn every_input_is_checked_before_the_run_file_exists() {
+    let d = scratch("validate-first");
+    let inst = config("instrument-sim.toml");
+    let run = d.join("run.gonio");
+    let plan_with = |standard: &str| {
+        let p = d.join("plan.toml");
+        std::fs::write(
+            &p,
+            format!(
+                "[points]\nkind = \"in-plane\"\ntheta_i = [20]\ntheta_o = [-40, 40]\n\
+                 [calibration]\nstandard = {{ model = \"{standard}\", at = [[0, 0, 45, 180]] }}\n"
+            ),
+        )
+        .expect("plan");
+        s(&p)
+    };
+    // The standard's model file missing, then not a model: exit 2, naming it, and
+    // nothing created (no run file, no temporary, no lock).
+    std::fs::write(d.join("bad.toml"), "kind = \"lafortune\"\nrho_d = \"x\"\n").expect("bad");
+    for (standard, says) in [
+        ("absent.toml", "absent.toml"),
+        ("bad.toml", "reference standard model"),
+    ] {
+        let o = gonio(&[
+            "acquire",
+            "--instrument",
+            &inst,
+            "--plan",
+            &plan_with(standard),
+            "--out",
+            &s(&run),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{standard}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{standard}: {}", stderr(&o));
+        assert_eq!(names(&d), ["bad.toml", "plan.toml"], "{standard}");
+    }
+    // An output in a directory that does not exist.
+    let o = gonio(&[
+        "acquire",
+        "--instrument",
+        &inst,
+        "--plan",
+        &config("plan-in-plane.toml"),
+        "--out",
+        &s(&d.join("no/such/run.gonio")),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
 }

@@ -238,9 +238,11 @@ pub(crate) enum Rig {
     Real,
 }
 
-/// Builds the engine for `store` on `instrument` and runs a session.
+/// Connects to `instrument` (and checks the reference standard), then opens the run
+/// with `store` — last, so that nothing is created for a rig that cannot be used —
+/// and runs a session.
 pub(crate) fn session(
-    store: RunStore,
+    store: impl FnOnce() -> CliResult<RunStore>,
     instrument: &InstrumentConfig,
     instrument_name: &str,
     rig: Rig,
@@ -270,6 +272,7 @@ pub(crate) fn session(
                 }
                 None => None,
             };
+            let store = store()?;
             drive(
                 Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
                 quiet,
@@ -279,6 +282,7 @@ pub(crate) fn session(
             let g = Goniometer::open(instrument).map_err(|e| CliError::Runtime(e.to_string()))?;
             let bench =
                 OperatorBench::new(std::io::BufReader::new(std::io::stdin()), std::io::stderr());
+            let store = store()?;
             drive(Engine::new(g, bench, store, mech, cfg), quiet)
         }
     }
@@ -293,6 +297,20 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
         plan_text,
         prepared,
     } = load_and_prepare(&a.instrument, &a.plan)?;
+    if a.out.exists() {
+        return Err(CliError::from(gonio_run::StoreError::Exists(a.out.clone())));
+    }
+    let out_dir = match a.out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !out_dir.is_dir() {
+        return Err(input(format!(
+            "{}: the directory {} does not exist",
+            a.out.display(),
+            out_dir.display()
+        )));
+    }
     let simulated = is_simulated(&inst, &a.instrument)?;
     let mut inputs = Inputs {
         instrument_text: inst_text,
@@ -325,32 +343,34 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
     } else {
         Rig::Real
     };
-    let store = gonio_run::create(&a.out, &plan, &prepared, &inputs).map_err(|e| match e {
-        gonio_run::CreateError::Store(s) => CliError::from(s),
-        other => input(other),
-    })?;
-    let stored = gonio_acquire::stored(&store)?;
-    let s = &prepared.schedule;
-    if !a.json {
-        eprintln!(
-            "gonio: {}: {} steps ({} pairs measurable, {} left out); estimated {} \
-             (motion {}, detector {})",
-            a.out.display(),
-            s.steps.len(),
-            prepared.checked.accepted.len(),
-            prepared.checked.rejected.len(),
-            hms(s.duration_s()),
-            hms(s.motion_s),
-            hms(s.detector_s)
-        );
-    }
+    // Every referenced file read and checked: the run's whole record, before it
+    // exists anywhere.
+    let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).map_err(input)?;
+    let create = || {
+        let store = RunStore::create(&a.out, &meta.to_map(), &prepared.schedule.steps)?;
+        let s = &prepared.schedule;
+        if !a.json {
+            eprintln!(
+                "gonio: {}: {} steps ({} pairs measurable, {} left out); estimated {} \
+                 (motion {}, detector {})",
+                a.out.display(),
+                s.steps.len(),
+                prepared.checked.accepted.len(),
+                prepared.checked.rejected.len(),
+                hms(s.duration_s()),
+                hms(s.motion_s),
+                hms(s.detector_s)
+            );
+        }
+        Ok(store)
+    };
     let (report, _) = session(
-        store,
+        create,
         &inst,
         &a.instrument.display().to_string(),
         rig,
-        stored.standard_model,
-        stored.transmittance,
+        meta.standard_model.clone(),
+        meta.transmittance,
         a.json,
     )?;
     report_session(&a.out, &report, a.json)
@@ -403,7 +423,7 @@ pub fn resume(a: ResumeArgs) -> CliResult<()> {
         );
     }
     let (report, _) = session(
-        store,
+        || Ok(store),
         &stored.instrument,
         &format!("{} (stored instrument config)", path.display()),
         rig,

@@ -483,7 +483,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         .map_or(1.0, |i| i.transmittance);
     let started = std::time::Instant::now();
     let (report, store) = crate::cmd::acquire::session(
-        store,
+        || Ok(store),
         &inst,
         "instrument-sim.toml",
         crate::cmd::acquire::Rig::Sim(Box::new(sim)),
