@@ -193,6 +193,9 @@ fn interrupted_by_any_signal_and_resumed_runs_end_with_the_uninterrupted_reading
                         "{}",
                         stderr(&o)
                     );
+                    // A reader checks the live run as it stood at one commit.
+                    let o = gonio(&["verify", &out_s]);
+                    assert!(o.status.success(), "live: {}", stderr(&o));
                     refused += 1;
                 }
             }

@@ -267,11 +267,19 @@ impl RunStore {
     /// Checks the whole file: SQLite's own check (`full`: the slower
     /// `integrity_check`), every row checksum, the schedule, the required metadata,
     /// readings against steps, and the integrity record.
+    ///
+    /// The checks read one snapshot (a read transaction), so that a run being
+    /// measured by another process checks as it stood at one commit.
     pub fn integrity(&self, full: bool) -> Result<Integrity, StoreError> {
-        integrity::inspect(&self.conn, full).map_err(|e| StoreError::Corrupt {
+        let corrupt = |e: rusqlite::Error| StoreError::Corrupt {
             path: self.path.clone(),
             why: e.to_string(),
-        })
+        };
+        let snapshot = self.conn.unchecked_transaction().map_err(corrupt)?;
+        let found = integrity::inspect(&snapshot, full).map_err(corrupt)?;
+        // Read only: nothing to commit.
+        snapshot.rollback().map_err(corrupt)?;
+        Ok(found)
     }
 
     /// Makes the steps whose committed readings are missing pending again, so that
