@@ -316,13 +316,24 @@ impl RunStore {
     /// Opens a run file after checking only that it is one and that this build
     /// reads its schema: for [`RunStore::integrity`] to say what is wrong with it.
     pub fn open_unverified(path: &Path) -> Result<RunStore, StoreError> {
-        if !path.exists() {
-            return Err(StoreError::Missing(path.to_path_buf()));
-        }
         let not_run = |why: String| StoreError::NotARunFile {
             path: path.to_path_buf(),
             why,
         };
+        // Judged by its metadata before anything opens it: opening a FIFO would block.
+        match std::fs::metadata(path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(StoreError::Missing(path.to_path_buf()));
+            }
+            Err(e) => return Err(not_run(e.to_string())),
+            Ok(m) if m.is_dir() => return Err(not_run("a directory".into())),
+            Ok(m) if !m.is_file() => {
+                return Err(not_run(
+                    "not a regular file (a device, FIFO or socket)".into(),
+                ));
+            }
+            Ok(_) => {}
+        }
         let corrupt = |why: String| StoreError::Corrupt {
             path: path.to_path_buf(),
             why,

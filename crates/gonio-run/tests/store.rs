@@ -191,6 +191,25 @@ fn other_files_are_not_run_files() {
         RunStore::open(&dir.join("missing.gonio")).expect_err("missing"),
         StoreError::Missing(_)
     ));
+    // Judged without being opened: a FIFO (opening it would block for ever), a device
+    // that never ends, a directory.
+    let fifo = dir.join("fifo.gonio");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo runs")
+            .success()
+    );
+    for (p, why) in [
+        (fifo.as_path(), "not a regular file"),
+        (Path::new("/dev/zero"), "not a regular file"),
+        (dir, "a directory"),
+    ] {
+        let e = RunStore::open(p).expect_err("not a run");
+        assert!(matches!(e, StoreError::NotARunFile { .. }), "{e}");
+        assert!(e.to_string().contains(why), "{e}");
+    }
 }
 
 /// Finds the 8 bytes of `x` (big-endian, as SQLite stores a REAL) in the file.
