@@ -345,11 +345,12 @@ fn sh_the_toml_file_round_trips_losslessly() {
     let back = ShBrdf::from_toml(&text, None).expect("reads back");
     assert_eq!(back, sh);
 
-    // Extreme magnitudes survive as well.
+    // Extreme magnitudes survive as well, up to the cap a file may hold
+    // (gonio_process::MAX_MAGNITUDE, 1e100).
     let mut tiny = sh.clone();
     tiny.matrices[1][0] = 1.234_567_890_123_456_7e-300;
-    tiny.matrices[1][1] = -9.87e250;
-    tiny.matrices[1][basis_len(4)] = -9.87e250;
+    tiny.matrices[1][1] = -9.87e99;
+    tiny.matrices[1][basis_len(4)] = -9.87e99;
     let back = ShBrdf::from_toml(&tiny.to_toml(), None).expect("reads back");
     assert_eq!(back, tiny);
 }
@@ -374,4 +375,22 @@ fn sh_a_bad_file_names_its_field() {
     assert!(e.contains("bogus"), "{e}");
     let e = err(&text.replace("l_max = 2\n", ""));
     assert!(e.contains("l_max"), "{e}");
+}
+
+#[test]
+fn sh_a_file_with_an_absurd_coefficient_is_refused_naming_it() {
+    let sh = ShBrdf::project(Channels::Rgb, skewed, &ShOptions::new(2)).expect("projection");
+    let text = sh.to_toml();
+    // The first coefficient of the second channel's matrix made absurd.
+    let at = text.find("channel = \"G\"").expect("G block");
+    let open = at + text[at..].find("[\n").expect("upper") + 2;
+    let end = open + text[open..].find(',').expect("a value");
+    let bad = format!("{} 1e300{}", &text[..open + 1], &text[end..]);
+    let e = ShBrdf::from_toml(&bad, None).expect_err("1e300 refused");
+    assert!(
+        e.to_string().contains(
+            "field `matrices[1].upper`: value 0 (1e300) is larger in magnitude than 1e100"
+        ),
+        "{e}"
+    );
 }
