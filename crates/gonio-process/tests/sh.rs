@@ -378,6 +378,54 @@ fn sh_a_bad_file_names_its_field() {
 }
 
 #[test]
+fn sh_the_closed_form_albedo_is_the_cubature_of_the_representation() {
+    // A representation with every kind of coefficient: the projection of a lobe model
+    // at degree 8 (it rings, and has m ≠ 0 terms that must integrate to nothing).
+    let m = model(LAFORTUNE);
+    let f = |ch: usize, wi: Dir, wo: Dir| {
+        let mut out = [0.0; 3];
+        gonio_brdf::Brdf::eval(&m, wi, wo, &mut out);
+        out[ch]
+    };
+    let sh = ShBrdf::project(Channels::Rgb, f, &ShOptions::new(8)).expect("projection");
+    let (mut exact, mut numeric) = ([0.0; 3], [0.0; 3]);
+    for theta in [0.0f64, 20.0, 45.0, 70.0, 89.0] {
+        for phi in [0.0f64, 100.0] {
+            let wi = Dir::from_angles(theta.to_radians(), phi.to_radians());
+            gonio_brdf::Brdf::albedo(&sh, wi, &mut exact);
+            gonio_brdf::albedo::numerical_into(&sh, wi, &mut numeric);
+            for ch in 0..3 {
+                assert!(
+                    (exact[ch] - numeric[ch]).abs() <= 1e-8 * numeric[ch].abs().max(1e-3),
+                    "θi {theta}, φi {phi}, channel {ch}: {} vs cubature {}",
+                    exact[ch],
+                    numeric[ch]
+                );
+            }
+        }
+    }
+    // Below the horizon there is no albedo.
+    gonio_brdf::Brdf::albedo(&sh, Dir::from_angles(2.0, 0.0), &mut exact);
+    assert_eq!(exact, [0.0; 3]);
+}
+
+#[test]
+fn sh_the_albedo_of_a_lambertian_surface_is_its_rho() {
+    let rho = [0.2, 0.5, 0.8];
+    let f = |ch: usize, _: Dir, _: Dir| rho[ch] / PI;
+    let mut out = [0.0; 3];
+    for l_max in [0, 2, 9] {
+        let sh = ShBrdf::project(Channels::Rgb, f, &ShOptions::new(l_max)).expect("projection");
+        for theta in [0.0f64, 30.0, 60.0, 85.0] {
+            sh.albedo(Dir::from_angles(theta.to_radians(), 0.3), &mut out);
+            for ch in 0..3 {
+                assert!((out[ch] - rho[ch]).abs() < 1e-13, "l_max {l_max}: {out:?}");
+            }
+        }
+    }
+}
+
+#[test]
 fn sh_a_file_with_an_absurd_coefficient_is_refused_naming_it() {
     let sh = ShBrdf::project(Channels::Rgb, skewed, &ShOptions::new(2)).expect("projection");
     let text = sh.to_toml();
