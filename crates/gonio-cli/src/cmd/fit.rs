@@ -74,6 +74,14 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     if a.out.is_none() && !a.compare {
         return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
     }
+    // Checked before the input is read: a bad count is refused at once.
+    if a.lobes > gonio_fit::MAX_LOBES {
+        return Err(CliError::Input(format!(
+            "--lobes: must be at most {}, got {}",
+            gonio_fit::MAX_LOBES,
+            a.lobes
+        )));
+    }
     if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
         return Err(CliError::Input(format!(
             "--cutoff must lie in (0, 90] degrees, got {}",
@@ -120,8 +128,12 @@ pub fn run(a: FitArgs) -> CliResult<()> {
         conserve_energy: a.conserve_energy,
         ..FitOptions::default()
     };
-    let fit = fit_lobes(&data, &opts)
-        .map_err(|e| CliError::Runtime(format!("{}: {e}", a.input.display())))?;
+    let fit = fit_lobes(&data, &opts).map_err(|e| {
+        CliError::classify(
+            matches!(e, gonio_fit::FitError::Options(_)),
+            format!("{}: {e}", a.input.display()),
+        )
+    })?;
     if let Some(out) = &a.out {
         let header = format!(
             "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",
