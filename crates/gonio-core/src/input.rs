@@ -154,10 +154,25 @@ fn open_regular(path: &Path) -> Result<File, InputError> {
     };
     let mut opts = std::fs::OpenOptions::new();
     opts.read(true);
-    #[cfg(any(target_os = "linux", target_os = "android"))]
+    // O_NONBLOCK: `open` of a FIFO returns at once instead of waiting for a writer.
+    // Its value is 0o4000 on Linux on these architectures (not on MIPS, SPARC or
+    // Alpha, which keep only the look before the open).
+    #[cfg(all(
+        any(target_os = "linux", target_os = "android"),
+        any(
+            target_arch = "x86",
+            target_arch = "x86_64",
+            target_arch = "arm",
+            target_arch = "aarch64",
+            target_arch = "riscv64",
+            target_arch = "powerpc",
+            target_arch = "powerpc64",
+            target_arch = "s390x",
+            target_arch = "loongarch64"
+        )
+    ))]
     {
         use std::os::unix::fs::OpenOptionsExt;
-        // O_NONBLOCK: `open` of a FIFO returns at once instead of waiting for a writer.
         opts.custom_flags(0o4000);
     }
     #[cfg(target_os = "macos")]
