@@ -73,7 +73,7 @@ fn too_large(max: u64) -> String {
 
 impl InputError {
     /// The reason alone, without the path (for errors that place the path
-    /// themselves, like [`crate::tomlfile::FileError`]).
+    /// themselves, like the TOML loaders' `FileError`).
     pub fn reason(&self) -> String {
         match self {
             InputError::Io { source, .. } => source.to_string(),
