@@ -58,7 +58,7 @@ impl SimClock {
     pub fn advance(&self, d: Duration) {
         let mut m = self.mode.lock().unwrap_or_else(|p| p.into_inner());
         if let Mode::Driven { now } = &mut *m {
-            *now += d;
+            *now = now.saturating_add(d);
         }
     }
 }
@@ -68,17 +68,17 @@ impl Clock for SimClock {
         let m = self.mode.lock().unwrap_or_else(|p| p.into_inner());
         match &*m {
             Mode::Driven { now } => *now,
-            Mode::FreeRunning { origin } => origin.elapsed().div_f64(self.scale),
+            Mode::FreeRunning { origin } => secs(origin.elapsed().as_secs_f64() / self.scale),
         }
     }
 
     fn sleep(&self, d: Duration) {
-        let wall = d.mul_f64(self.scale);
+        let wall = secs(d.as_secs_f64() * self.scale);
         let driven = {
             let mut m = self.mode.lock().unwrap_or_else(|p| p.into_inner());
             match &mut *m {
                 Mode::Driven { now } => {
-                    *now += d;
+                    *now = now.saturating_add(d);
                     true
                 }
                 Mode::FreeRunning { .. } => false,
@@ -88,4 +88,11 @@ impl Clock for SimClock {
             std::thread::sleep(wall);
         }
     }
+}
+
+/// `s` seconds as a `Duration`, never panicking: negative and NaN become zero, and
+/// anything beyond `Duration::MAX` saturates (the config's limits keep real values
+/// far inside; this only keeps an arithmetic accident from aborting a run).
+pub(crate) fn secs(s: f64) -> Duration {
+    Duration::try_from_secs_f64(s.max(0.0)).unwrap_or(Duration::MAX)
 }

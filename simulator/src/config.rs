@@ -18,6 +18,11 @@ use crate::optics::OpticsConfig;
 /// goniometer (`config/sim-example.toml`).
 pub const DEFAULT_SIM: &str = include_str!("../../config/sim-example.toml");
 
+/// The most bytes a table sample (`[sample] table`) may have: 1 GiB, a 5° × 5° full
+/// 4-D RGB table with its uncertainties about twice over. The simulator holds the
+/// whole table, and a run file keeps its text.
+pub const MAX_TABLE_BYTES: u64 = 1 << 30;
+
 /// The embedded default sample.
 const BLUE_PAINT: &str = include_str!("../../config/models/blue-paint-550nm.toml");
 
@@ -213,6 +218,50 @@ pub struct SimConfig {
     pub prepared: Option<PreparedSample>,
 }
 
+/// The ranges the simulator config's numbers must lie in (documented in
+/// `docs/simulator.md`, "Limits"); lengths use `gonio_core::goniometer::LENGTH`, serial
+/// lines `gonio_driver::config::limits`, the lock-in [`LockInConfig::validate`](crate::lockin::LockInConfig::validate).
+pub mod limits {
+    use gonio_core::limits::Range;
+
+    /// Wall seconds per simulated second: 0 (as fast as possible) up to 1000 (a
+    /// thousand times slower than real time).
+    pub const TIME_SCALE: Range = Range::closed(0.0, 1000.0, "");
+    /// Stage positions, limits, home switch and stalls, in the stage's units.
+    pub const POSITION: Range = Range::closed(-1e6, 1e6, "units");
+    /// Stage velocities (power-up, largest, home search), units/s.
+    pub const VELOCITY: Range = Range::closed(1e-6, 1e6, "units/s");
+    /// Stage accelerations, units/s².
+    pub const ACCELERATION: Range = Range::closed(1e-6, 1e8, "units/s²");
+    /// Motor steps per unit.
+    pub const COUNTS_PER_UNIT: Range = Range::closed(1e-3, 1e9, "");
+    /// Longest home search, s.
+    pub const HOME_TIMEOUT: Range = Range::positive(3600.0, "s");
+    /// A controller's boot time and following-error delay, s.
+    pub const CONTROLLER_DELAY: Range = Range::closed(0.0, 600.0, "s");
+    /// Source power on the sample, W.
+    pub const SOURCE_POWER: Range = Range::positive(1e3, "W");
+    /// Detector responsivity times gain, V/W.
+    pub const RESPONSIVITY: Range = Range::positive(1e12, "V/W");
+    /// Beam divergence half-angle, degrees.
+    pub const DIVERGENCE: Range = Range::closed(0.0, 45.0, "deg");
+    /// Relative source drift per hour.
+    pub const DRIFT_PER_HOUR: Range = Range::closed(-1.0, 1.0, "");
+    /// Relative amplitude of the periodic drift.
+    pub const DRIFT_AMPLITUDE: Range = Range::closed(0.0, 1.0, "");
+    /// Chopper-frequency pickup, V.
+    pub const PICKUP: Range = Range::closed(0.0, 100.0, "V");
+    /// Times on the simulated clock (drift period, fault times and windows), s: up to
+    /// about 30 years.
+    pub const TIME: Range = Range::closed(0.0, 1e9, "s");
+    /// A probability.
+    pub const PROBABILITY: Range = Range::closed(0.0, 1.0, "");
+    /// Extra delay of every reply, s.
+    pub const REPLY_DELAY: Range = Range::closed(0.0, 3600.0, "s");
+    /// A controller's or the lock-in's time to answer, s.
+    pub const LATENCY: Range = Range::closed(0.0, 60.0, "s");
+}
+
 /// A sim config that could not be used, with where and why.
 pub type SimConfigError = gonio_core::tomlfile::FileError;
 
@@ -232,10 +281,10 @@ impl SimConfig {
         Ok(cfg)
     }
 
-    /// Reads a config file.
+    /// Reads a config file: a regular file of at most
+    /// [`MAX_CONFIG_BYTES`](gonio_core::input::MAX_CONFIG_BYTES).
     pub fn load(path: &Path) -> Result<SimConfig, SimConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SimConfigError::whole(KIND, Some(path), e.to_string()))?;
+        let text = gonio_core::tomlfile::read(KIND, path)?;
         Self::from_toml(&text, Some(path))
     }
 
@@ -293,33 +342,64 @@ impl SimConfig {
                     ),
                 ));
             }
-            if !(c.velocity > 0.0
-                && c.acceleration > 0.0
-                && c.home_velocity > 0.0
-                && c.counts_per_unit > 0.0)
-            {
+            let f = |k: &str| format!("controllers[{i}].{k}");
+            for (k, v) in [
+                ("velocity", c.velocity),
+                ("max_velocity", c.max_velocity),
+                ("home_velocity", c.home_velocity),
+            ] {
+                limits::VELOCITY.at(f(k), v)?;
+            }
+            for (k, v) in [
+                ("acceleration", c.acceleration),
+                ("max_acceleration", c.max_acceleration),
+            ] {
+                limits::ACCELERATION.at(f(k), v)?;
+            }
+            for (k, v) in [
+                ("home_position", c.home_position),
+                ("home_switch", c.home_switch),
+                ("negative_limit", c.negative_limit),
+                ("positive_limit", c.positive_limit),
+                ("start_position", c.start_position),
+            ] {
+                limits::POSITION.at(f(k), v)?;
+            }
+            if c.positive_limit <= c.negative_limit {
                 return Err((
-                    format!("controllers[{i}]"),
-                    "velocities, accelerations and counts_per_unit must be positive".into(),
+                    f("positive_limit"),
+                    "must be greater than `negative_limit`".into(),
                 ));
             }
+            limits::COUNTS_PER_UNIT.at(f("counts_per_unit"), c.counts_per_unit)?;
+            limits::HOME_TIMEOUT.at(f("home_timeout_s"), c.home_timeout_s)?;
+            limits::CONTROLLER_DELAY.at(f("boot_time_s"), c.boot_time_s)?;
+            limits::CONTROLLER_DELAY.at(f("following_error_s"), c.following_error_s)?;
         }
         let o = &self.optics;
+        limits::SOURCE_POWER.at("optics.source_power_w", o.source_power_w)?;
         for (f, v) in [
-            ("optics.source_power_w", o.source_power_w),
             ("optics.beam_diameter_m", o.beam_diameter_m),
             ("optics.detector_radius_m", o.detector_radius_m),
             ("optics.detector_distance_m", o.detector_distance_m),
-            ("optics.responsivity_v_per_w", o.responsivity_v_per_w),
             ("optics.sample_length_m", o.sample_length_m),
         ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err((f.into(), "must be positive".into()));
-            }
+            gonio_core::goniometer::LENGTH.at(f, v)?;
         }
-        if !(o.pickup_v.is_finite() && o.pickup_v >= 0.0) {
-            return Err(("optics.pickup_v".into(), "must be ≥ 0".into()));
+        limits::RESPONSIVITY.at("optics.responsivity_v_per_w", o.responsivity_v_per_w)?;
+        limits::DIVERGENCE.at("optics.beam_divergence_deg", o.beam_divergence_deg)?;
+        gonio_core::goniometer::ARM_SEPARATION
+            .at("optics.min_arm_separation_deg", o.min_arm_separation_deg)?;
+        if o.min_arm_separation_deg >= 180.0 {
+            return Err((
+                "optics.min_arm_separation_deg".into(),
+                "must be less than 180 deg".into(),
+            ));
         }
+        limits::DRIFT_PER_HOUR.at("optics.drift_per_hour", o.drift_per_hour)?;
+        limits::DRIFT_AMPLITUDE.at("optics.drift_amplitude", o.drift_amplitude)?;
+        limits::TIME.at("optics.drift_period_s", o.drift_period_s)?;
+        limits::PICKUP.at("optics.pickup_v", o.pickup_v)?;
         self.lockin
             .validate()
             .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
@@ -349,21 +429,70 @@ impl SimConfig {
                     format!("[DTHETA, DPHI] must divide 90° and 360°, got {:?}", m.grid),
                 ));
             }
-            if m.rays < 2 {
-                return Err(("sample.micro.rays".into(), "need at least 2 rays".into()));
-            }
+            // The node cap of a grid (gonio_process::MAX_GRID_NODES).
+            gonio_process::GridStep::new(dt, dp).map_err(|e| ("sample.micro.grid".into(), e))?;
+            gonio_core::limits::count_at(
+                "sample.micro.rays",
+                m.rays as u64,
+                2,
+                gonio_micro::MAX_RAYS as u64,
+                "rays",
+            )?;
         }
-        if !(self.time_scale.is_finite() && self.time_scale >= 0.0) {
-            return Err(("time_scale".into(), "must be ≥ 0".into()));
-        }
+        limits::TIME_SCALE.at("time_scale", self.time_scale)?;
+        let fl = &self.faults;
         for (f, p) in [
-            ("faults.drop_reply", self.faults.drop_reply),
-            ("faults.corrupt_reply", self.faults.corrupt_reply),
+            ("faults.drop_reply", fl.drop_reply),
+            ("faults.corrupt_reply", fl.corrupt_reply),
         ] {
-            if !(0.0..=1.0).contains(&p) {
-                return Err((f.into(), "a probability must be in [0, 1]".into()));
+            limits::PROBABILITY.at(f, p)?;
+        }
+        limits::REPLY_DELAY.at("faults.reply_delay_s", fl.reply_delay_s)?;
+        for (i, p) in fl.power_loss.iter().enumerate() {
+            limits::TIME.at(format!("faults.power_loss[{i}].at_s"), p.at_s)?;
+        }
+        for (i, st) in fl.stall.iter().enumerate() {
+            limits::POSITION.at(format!("faults.stall[{i}].at"), st.at)?;
+        }
+        let windows = fl
+            .overload
+            .iter()
+            .enumerate()
+            .map(|(i, w)| (format!("faults.overload[{i}]"), w))
+            .chain(
+                fl.unlock
+                    .iter()
+                    .enumerate()
+                    .map(|(i, w)| (format!("faults.unlock[{i}]"), w)),
+            )
+            .chain(
+                fl.outage
+                    .iter()
+                    .enumerate()
+                    .map(|(i, o)| (format!("faults.outage[{i}].window"), &o.window)),
+            );
+        for (f, w) in windows {
+            limits::TIME.at(format!("{f}.from_s"), w.from_s)?;
+            limits::TIME.at(format!("{f}.to_s"), w.to_s)?;
+            if w.to_s < w.from_s {
+                return Err((format!("{f}.to_s"), "must not be before `from_s`".into()));
             }
         }
+        let l = &self.link;
+        for (f, b) in [
+            ("link.motion_baud", l.motion_baud),
+            ("link.detector_baud", l.detector_baud),
+        ] {
+            gonio_core::limits::count_at(
+                f,
+                b.into(),
+                gonio_driver::config::limits::MIN_BAUD,
+                gonio_driver::config::limits::MAX_BAUD,
+                "baud",
+            )?;
+        }
+        limits::LATENCY.at("link.motion_latency_s", l.motion_latency_s)?;
+        limits::LATENCY.at("link.detector_latency_s", l.detector_latency_s)?;
         Ok(())
     }
 
@@ -419,16 +548,14 @@ impl SimConfig {
             SampleKind::Table => {
                 let p = self.sample.table.as_deref().unwrap_or(Path::new(""));
                 let path = self.resolve(p);
-                std::fs::read_to_string(&path).map_err(|e| {
-                    self.sample_error("sample.table", format!("{}: {e}", path.display()))
-                })
+                gonio_core::input::read_text(&path, MAX_TABLE_BYTES)
+                    .map_err(|e| self.sample_error("sample.table", e.to_string()))
             }
             SampleKind::Model => match &self.sample.model {
                 Some(p) => {
                     let path = self.resolve(p);
-                    std::fs::read_to_string(&path).map_err(|e| {
-                        self.sample_error("sample.model", format!("{}: {e}", path.display()))
-                    })
+                    gonio_core::input::read_text(&path, gonio_core::input::MAX_CONFIG_BYTES)
+                        .map_err(|e| self.sample_error("sample.model", e.to_string()))
                 }
                 None => Ok(BLUE_PAINT.to_string()),
             },

@@ -163,29 +163,39 @@ impl LockInConfig {
                 reason: reason.to_string(),
             })
         };
-        let positive = [
-            ("chop_gain", self.chop_gain),
-            ("input_overload_v", self.input_overload_v),
+        use gonio_core::limits::Range;
+        // Finite ranges, so that no reading can overflow: a gain or an overload level
+        // of up to 1000, noise densities of up to 1 V/√Hz, a phase within a turn.
+        let ranges = [
+            ("chop_gain", self.chop_gain, Range::positive(1e3, "")),
+            (
+                "input_overload_v",
+                self.input_overload_v,
+                Range::positive(1e3, "V"),
+            ),
+            (
+                "amplifier_noise",
+                self.amplifier_noise,
+                Range::closed(0.0, 1.0, "V/√Hz"),
+            ),
+            (
+                "shot_noise",
+                self.shot_noise,
+                Range::closed(0.0, 1.0, "V/√Hz per √V"),
+            ),
+            (
+                "phase_deg",
+                self.phase_deg,
+                Range::closed(-360.0, 360.0, "deg"),
+            ),
         ];
-        for (field, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(field, "must be finite and positive");
+        for (field, v, r) in ranges {
+            if let Err(m) = r.check(v) {
+                return bad(field, &m);
             }
         }
         if !(0.001..=102_000.0).contains(&self.chopper_hz) {
             return bad("chopper_hz", "must be in 0.001..=102000 Hz");
-        }
-        let non_negative = [
-            ("amplifier_noise", self.amplifier_noise),
-            ("shot_noise", self.shot_noise),
-        ];
-        for (field, v) in non_negative {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(field, "must be finite and not negative");
-            }
-        }
-        if !self.phase_deg.is_finite() {
-            return bad("phase_deg", "must be finite");
         }
         for (field, v) in [("serial", &self.serial), ("firmware", &self.firmware)] {
             if v.is_empty() || !v.bytes().all(|b| b.is_ascii_graphic() && b != b',') {

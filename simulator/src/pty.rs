@@ -76,7 +76,7 @@ fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
                             }
                         };
                         let extra = if r.is_empty() { t } else { t + lat };
-                        s.clock().advance(Duration::from_secs_f64(extra));
+                        s.clock().advance(crate::clock::secs(extra));
                         r
                     };
                     if !reply.is_empty() && master.write_all(&reply).is_err() {

@@ -82,6 +82,9 @@ pub fn serve(opts: &ServeOptions) -> Result<Served, ServeError> {
                 "--time-scale: {t} must be positive (a simulator in its own process follows the wall clock)"
             )));
         }
+        if let Err(m) = crate::config::limits::TIME_SCALE.check(t) {
+            return Err(ServeError::Argument(format!("--time-scale: {m}")));
+        }
         cfg.time_scale = t;
     }
     let scale = if cfg.time_scale > 0.0 {

@@ -76,7 +76,7 @@ impl Transport for SimTransport {
         }
         let out_time = sim.wire_time(self.port, bytes.len());
         drop(sim);
-        self.clock.advance(Duration::from_secs_f64(out_time));
+        self.clock.advance(crate::clock::secs(out_time));
         let mut sim = lock(&self.sim);
         let reply = match self.port {
             Port::Motion => sim.motion_bytes(bytes),
@@ -111,14 +111,14 @@ impl Transport for SimTransport {
                     let (t, bytes) = self.in_flight.pop_front().unwrap_or_default();
                     let now = self.clock.seconds();
                     if t > now {
-                        self.clock.sleep(Duration::from_secs_f64(t - now));
+                        self.clock.sleep(crate::clock::secs(t - now));
                     }
                     self.framer.push(&bytes);
                 }
                 _ => {
                     let now = self.clock.seconds();
                     if deadline > now {
-                        self.clock.sleep(Duration::from_secs_f64(deadline - now));
+                        self.clock.sleep(crate::clock::secs(deadline - now));
                     }
                     return Err(TransportError::Timeout(timeout));
                 }

@@ -47,14 +47,14 @@ pub struct ModelError {
 }
 
 impl ModelError {
-    pub(crate) fn io(path: &Path, e: &std::io::Error) -> Self {
+    pub(crate) fn io(path: &Path, e: &gonio_core::input::InputError) -> Self {
         ModelError {
             path: Some(path.to_path_buf()),
             line: None,
             column: None,
             field: None,
             kind: ModelErrorKind::Io,
-            message: e.to_string(),
+            message: e.reason(),
         }
     }
 }
@@ -127,7 +127,13 @@ impl Ctx<'_> {
     }
 
     /// Places a constructor's [`ParamError`] at the span of the field it names.
-    fn param(&self, e: ParamError, spans: &[(String, Span)], fallback: Span) -> ModelError {
+    fn param(&self, mut e: ParamError, spans: &[(String, Span)], fallback: Span) -> ModelError {
+        // An isotropic `alpha` is both `alpha_x` and `alpha_y` to the constructors: the
+        // error names the key the file has.
+        if (e.field == "alpha_x" || e.field == "alpha_y") && spans.iter().any(|(f, _)| f == "alpha")
+        {
+            e.field = "alpha".into();
+        }
         let span = spans
             .iter()
             .find(|(f, _)| *f == e.field)
@@ -322,7 +328,7 @@ fn roughness(
         (Some(a), None, None) => Ok((
             a.get_ref().clone(),
             a.get_ref().clone(),
-            vec![sp("alpha_x", a), sp("alpha_y", a)],
+            vec![sp("alpha_x", a), sp("alpha_y", a), sp("alpha", a)],
         )),
         (None, Some(x), Some(y)) => Ok((
             x.get_ref().clone(),
@@ -703,9 +709,12 @@ impl Model {
         parse(text, path)
     }
 
-    /// Reads and parses a model file.
+    /// Reads and parses a model file: a regular file of at most
+    /// [`MAX_CONFIG_BYTES`](gonio_core::input::MAX_CONFIG_BYTES) (a FIFO, a device or
+    /// a directory is refused without being read).
     pub fn load(path: &Path) -> Result<Model, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ModelError::io(path, &e))?;
+        let text = gonio_core::input::read_text(path, gonio_core::input::MAX_CONFIG_BYTES)
+            .map_err(|e| ModelError::io(path, &e))?;
         Self::from_toml(&text, Some(path))
     }
 

@@ -131,9 +131,10 @@ alpha_y = [0.2]
     assert_eq!(e.field.as_deref(), Some("alpha"));
     assert_eq!(e.line, Some(4));
 
+    // An isotropic `alpha` is named as the file gives it.
     let e = err("kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.1]\nalpha = [1e-5]\n");
-    assert_eq!(e.field.as_deref(), Some("alpha_x"));
-    assert!(e.message.contains("must be ≥ 1e-4"), "{e}");
+    assert_eq!(e.field.as_deref(), Some("alpha"));
+    assert!(e.message.contains("must be in [1e-4, 10]"), "{e}");
 
     let e = err(r#"kind = "lafortune"
 channels = ["value"]
@@ -204,4 +205,121 @@ fn cy_defaults_to_cx() {
     )
     .expect("valid");
     assert_eq!(a, b);
+}
+
+/// Every numeric parameter has a finite range, and an absurd or non-finite value is
+/// refused with the field, its place and the range (docs/models.md, "Limits").
+#[test]
+fn absurd_and_non_finite_parameters_name_the_field_and_the_limit() {
+    let cases: &[(&str, usize, &str, &str)] = &[
+        (
+            "kind = \"blinn-phong\"\nchannels = [\"value\"]\nrho_s = [0.04]\nn = [1e308]\n",
+            4,
+            "n",
+            "1e308 for channel value must be in [0, 1e6]",
+        ),
+        (
+            "kind = \"cook-torrance\"\nchannels = [\"value\"]\ndistribution = \"ggx\"\n\
+             f0 = [0.5]\nalpha = [1e300]\n",
+            5,
+            "alpha",
+            "1e300 for channel value must be in [1e-4, 10]",
+        ),
+        (
+            "kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.1]\nalpha_x = [0.1]\n\
+             alpha_y = [nan]\n",
+            5,
+            "alpha_y",
+            "NaN for channel value must be in [1e-4, 10]",
+        ),
+        (
+            "kind = \"lambert\"\nchannels = [\"value\"]\nrho = [inf]\n",
+            3,
+            "rho",
+            "inf for channel value must be in [0, 100]",
+        ),
+        (
+            "kind = \"minnaert\"\nchannels = [\"value\"]\nrho = [0.5]\nn = [1e7]\n",
+            4,
+            "n",
+            "1e7 for channel value must be in [0, 1e6]",
+        ),
+        (
+            "kind = \"phong\"\nchannels = [\"value\"]\nrho_s = [1e3]\nn = [10]\n",
+            3,
+            "rho_s",
+            "1000 for channel value must be in [0, 100]",
+        ),
+        (
+            "kind = \"lafortune\"\nchannels = [\"value\"]\n[diffuse]\nrho = [0.5]\nn = [-nan]\n",
+            5,
+            "diffuse.n",
+            "NaN for channel value must be in [0, 1e6]",
+        ),
+        (
+            // |C| = 2 with n = 100: a peak of 2^100 ≈ 1.3e30 1/sr.
+            "kind = \"lafortune\"\nchannels = [\"value\"]\n[[lobes]]\ncx = [-2.0]\n\
+             cz = [1.0]\nn = [100]\n",
+            6,
+            "lobes[0].n",
+            "100 for channel value makes the lobe peak at 2^100 = 1.2676506002282294e30 1/sr, \
+             more than 1e12",
+        ),
+    ];
+    for (text, line, field, message) in cases {
+        let e = err(text);
+        assert_eq!(e.kind, ModelErrorKind::Invalid, "{e}");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "paint.toml:{line}:{}: field `{field}`: {message}",
+                e.column.unwrap_or(0)
+            ),
+            "{text}"
+        );
+        assert_eq!(e.line, Some(*line), "{e}");
+    }
+    // A lobe that peaks within the cap loads: |C| = 1.05, n = 500 peaks at 4e10.
+    Model::from_toml(
+        "kind = \"lafortune\"\nchannels = [\"value\"]\n[[lobes]]\ncx = [-1.05]\ncz = [1.0]\nn = [500]\n",
+        None,
+    )
+    .expect("a sharp lobe within the cap");
+}
+
+#[test]
+fn a_general_lobe_matrix_is_bounded_by_its_largest_eigenvalue() {
+    use gonio_brdf::Sym3;
+    // Eigenvalues 2, −4 and 1 (the first two in a rotated frame): the largest magnitude is 4.
+    let m =
+        Sym3::from_rows([[-1.0, 3.0, 0.0], [3.0, -1.0, 0.0], [0.0, 0.0, 1.0]]).expect("symmetric");
+    assert!(
+        (m.largest_magnitude() - 4.0).abs() < 1e-12,
+        "{}",
+        m.largest_magnitude()
+    );
+    let m =
+        Sym3::from_rows([[2.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 2.0]]).expect("symmetric");
+    assert!(
+        (m.largest_magnitude() - 4.0).abs() < 1e-12,
+        "{}",
+        m.largest_magnitude()
+    );
+    assert_eq!(Sym3::diagonal(0.5, -0.9, 0.7).largest_magnitude(), 0.9);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_device_or_a_directory_named_as_a_model_is_refused_unread() {
+    let e = Model::load(Path::new("/dev/zero")).expect_err("a device");
+    assert_eq!(e.kind, ModelErrorKind::Io);
+    assert_eq!(
+        e.to_string(),
+        "/dev/zero: a character device, not a regular file (Gonio reads its inputs from regular files only)"
+    );
+    let e = Model::load(Path::new(env!("CARGO_MANIFEST_DIR"))).expect_err("a directory");
+    assert!(
+        e.to_string().contains("a directory, not a regular file"),
+        "{e}"
+    );
 }

@@ -45,6 +45,10 @@ fn err(line: usize, column: Option<&str>, message: impl Into<String>) -> DirFile
     }
 }
 
+/// The most bytes a directions file may have: 256 MiB, about four million pairs,
+/// four times what a plan may measure (`gonio_plan::MAX_POINTS`).
+pub const MAX_BYTES: u64 = 256 << 20;
+
 /// Parses a directions file. Blank lines and lines starting with `#` are skipped;
 /// columns after the first four are ignored (so an evaluation result reads back).
 /// θ must lie in [0, 90]; φ may be any finite angle.

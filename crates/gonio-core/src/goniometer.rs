@@ -8,6 +8,7 @@
 
 use crate::DirPair;
 use crate::kinematics::{self, KinematicsError, Layout};
+use crate::limits::{Fault, Range};
 use crate::motion::{AxisMotion, MotionModel};
 
 /// Stage velocity assumed when the instrument config leaves it to the controller,
@@ -68,6 +69,36 @@ pub struct GeometryConfig {
     pub detector_radius_m: f64,
     /// Sample-to-aperture distance, m.
     pub detector_distance_m: f64,
+}
+
+/// The range of every length of the light path (beam, sample, aperture, distance):
+/// from a nanometre to 100 m. Outside it, solid angles and footprints leave the range
+/// where the radiometry means anything.
+pub const LENGTH: Range = Range::closed(1e-9, 100.0, "m");
+
+/// The range of the closest arm separation, degrees: `[0, 180)` in effect (180 is
+/// refused separately, since no pair could then be measured).
+pub const ARM_SEPARATION: Range = Range::closed(0.0, 180.0, "deg");
+
+impl GeometryConfig {
+    /// Checks every length against [`LENGTH`] and the arm separation against
+    /// [`ARM_SEPARATION`]; a fault names the field under `prefix` (`geometry`).
+    pub fn validate(&self, prefix: &str) -> Result<(), Fault> {
+        for (f, v) in [
+            ("beam_diameter_m", self.beam_diameter_m),
+            ("sample_length_m", self.sample_length_m),
+            ("detector_radius_m", self.detector_radius_m),
+            ("detector_distance_m", self.detector_distance_m),
+        ] {
+            LENGTH.at(format!("{prefix}.{f}"), v)?;
+        }
+        let f = format!("{prefix}.min_arm_separation_deg");
+        ARM_SEPARATION.at(f.clone(), self.min_arm_separation_deg)?;
+        if self.min_arm_separation_deg >= 180.0 {
+            return Err((f, "must be less than 180 deg".into()));
+        }
+        Ok(())
+    }
 }
 
 impl Default for GeometryConfig {

@@ -19,6 +19,9 @@
 //! - [`kdtree`] is the k-d tree for exact k-nearest queries under a pluggable metric
 //!   (Euclidean for scattered samples, motion time for plan ordering), with deletion.
 //! - [`rng`] is SplitMix64, the deterministic hash and generator of counters and seeds.
+//! - [`input`] reads input files without trusting them (regular files only, never
+//!   blocking, at most a cap of bytes); [`limits`] holds the sane ranges numbers from
+//!   files are checked against, with messages that name them.
 //!
 //! ```
 //! use gonio_core::{Dir, SphericalDeg};
@@ -36,8 +39,10 @@ pub mod dirfile;
 mod frame;
 mod geometry;
 pub mod goniometer;
+pub mod input;
 pub mod kdtree;
 pub mod kinematics;
+pub mod limits;
 pub mod motion;
 pub mod quad;
 pub mod radiometry;

@@ -134,16 +134,25 @@ fn refine(text: &str, span: Range<usize>, message: &str) -> Range<usize> {
 }
 
 /// Reads the file at `path` and [`parse`]s it; also returns the text (run files keep
-/// configs verbatim).
+/// configs verbatim). Only a regular file of at most
+/// [`MAX_CONFIG_BYTES`](crate::input::MAX_CONFIG_BYTES) is read ([`read`]).
 pub fn load<T: DeserializeOwned>(
     kind: &'static str,
     path: &Path,
     validate: impl FnOnce(&T) -> Result<(), (String, String)>,
 ) -> Result<(T, String), FileError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| FileError::whole(kind, Some(path), e.to_string()))?;
+    let text = read(kind, path)?;
     let value = parse(kind, &text, Some(path), validate)?;
     Ok((value, text))
+}
+
+/// The text of the TOML file at `path` of the given `kind`, read through
+/// [`crate::input::read_text`]: a regular file of at most
+/// [`MAX_CONFIG_BYTES`](crate::input::MAX_CONFIG_BYTES) of UTF-8; a FIFO, a device or
+/// a directory is refused without being read.
+pub fn read(kind: &'static str, path: &Path) -> Result<String, FileError> {
+    crate::input::read_text(path, crate::input::MAX_CONFIG_BYTES)
+        .map_err(|e| FileError::whole(kind, Some(path), e.reason()))
 }
 
 /// The byte range of the value at a dotted `path` (`motion.axes[1].max`) in a TOML

@@ -10,7 +10,6 @@
 //! ([`Dataset::to_samples`]), as a BRDF to evaluate ([`Dataset::brdf`]), or as what
 //! an export format holds ([`Dataset::to_format_data`]).
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
@@ -81,8 +80,11 @@ pub enum DatasetError {
         source: std::io::Error,
     },
     /// Larger than [`MAX_TEXT_BYTES`].
-    #[error("{}: larger than {MAX_TEXT_BYTES} bytes", .0.display())]
+    #[error("{}: larger than {MAX_TEXT_BYTES} bytes, the most an input may have", .0.display())]
     TooLarge(PathBuf),
+    /// Not a regular file (a directory, a FIFO, a device): refused without being read.
+    #[error("{0}")]
+    NotRegular(gonio_core::input::InputError),
     /// Not a format Gonio reads, or malformed in it.
     #[error("{0}")]
     Format(#[from] FormatError),
@@ -130,6 +132,16 @@ impl DatasetError {
             DatasetError::Reduce(ReduceError::Store(e)) => e.is_bad_input(),
             DatasetError::Process { source, .. } => !matches!(source, ProcessError::Numerics(_)),
             _ => true,
+        }
+    }
+
+    /// An input the reading helper refused, as the variant that says why.
+    fn input(e: gonio_core::input::InputError) -> DatasetError {
+        use gonio_core::input::InputError;
+        match e {
+            InputError::Io { path, source } => DatasetError::Io { path, source },
+            InputError::TooLarge { path, .. } => DatasetError::TooLarge(path),
+            other => DatasetError::NotRegular(other),
         }
     }
 
@@ -230,16 +242,10 @@ fn toml_kind(bytes: &[u8]) -> Option<Kind> {
 /// or ASTM file, a separable or harmonics file, or a model file.
 pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
     let _span = tracing::debug_span!("open", path = %path.display()).entered();
-    let io = |source| DatasetError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut head = [0u8; 16];
-    let n = std::fs::File::open(path)
-        .map_err(io)?
-        .read(&mut head)
-        .map_err(io)?;
-    if n == 16 && &head == SQLITE_MAGIC {
+    // Examined before anything is opened: a FIFO, a device or a directory is refused
+    // here, and nothing longer than the cap is read (gonio_core::input).
+    let head = gonio_core::input::read_head(path, 16).map_err(DatasetError::input)?;
+    if head.as_slice() == SQLITE_MAGIC {
         let (data, red) = open_run(path, opts)?;
         tracing::debug!(kind = "run", samples = red.samples.samples.len(), "opened");
         return Ok(Opened {
@@ -249,11 +255,8 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
             reduction: Some(red),
         });
     }
-    let meta = std::fs::metadata(path).map_err(io)?;
-    if meta.len() > MAX_TEXT_BYTES {
-        return Err(DatasetError::TooLarge(path.to_path_buf()));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
+    let bytes =
+        gonio_core::input::read_bounded(path, MAX_TEXT_BYTES).map_err(DatasetError::input)?;
     let (kind, data) = open_bytes(&bytes, path)?;
     tracing::debug!(kind = kind.name(), "opened");
     Ok(Opened {

@@ -214,3 +214,35 @@ fn a_missing_input_is_bad_input_naming_the_file() {
     assert!(e.is_bad_input());
     assert!(e.to_string().starts_with("/no/such/input.csv: "), "{e}");
 }
+
+/// A directory, a device or a FIFO named as an input is refused from its metadata,
+/// as bad input, without being read (a FIFO is never opened): no command can block
+/// on one, and /dev/zero is not read for ever.
+#[cfg(unix)]
+#[test]
+fn an_input_that_is_not_a_regular_file_is_refused_unread() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let fifo = dir.path().join("pipe.csv");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    let mut cases = vec![
+        (dir.path().to_path_buf(), "a directory"),
+        (Path::new("/dev/zero").to_path_buf(), "a character device"),
+    ];
+    if made {
+        cases.push((fifo, "a FIFO (named pipe)"));
+    }
+    for (p, what) in cases {
+        let e = open(&p, &OpenOptions::default()).expect_err("not a regular file");
+        assert!(e.is_bad_input(), "{e}");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: {what}, not a regular file (Gonio reads its inputs from regular files only)",
+                p.display()
+            )
+        );
+    }
+}

@@ -148,6 +148,34 @@ impl DetectorConfig {
     }
 }
 
+/// The ranges the instrument config's numbers must lie in (documented in
+/// `docs/hardware.md`, "Limits"). The lock-in's own are checked by
+/// [`Sr830Config::validate`], the geometry's by [`GeometryConfig::validate`].
+pub mod limits {
+    use gonio_core::limits::Range;
+
+    /// Slowest serial line accepted, baud.
+    pub const MIN_BAUD: u64 = 50;
+    /// Fastest serial line accepted, baud (USB adapters reach a few Mbaud).
+    pub const MAX_BAUD: u64 = 4_000_000;
+    /// Longest reply timeout, polling interval or reconnection delay, ms: a minute.
+    pub const MAX_WAIT_MS: u64 = 60_000;
+    /// Most re-sends of a command after a lost reply.
+    pub const MAX_RETRIES: u64 = 10;
+    /// Most attempts to reopen a vanished port.
+    pub const MAX_RECONNECTS: u64 = 100;
+    /// Stage limits `min`, `max`, in the stage's units (degrees for rotation stages).
+    pub const POSITION: Range = Range::closed(-1e6, 1e6, "units");
+    /// Stage velocity, units/s.
+    pub const VELOCITY: Range = Range::closed(1e-6, 1e6, "units/s");
+    /// Stage acceleration, units/s².
+    pub const ACCELERATION: Range = Range::closed(1e-6, 1e8, "units/s²");
+    /// End-of-move tolerance, units.
+    pub const TOLERANCE: Range = Range::positive(1e3, "units");
+    /// Longest home search, s: an hour.
+    pub const HOME_TIMEOUT: Range = Range::positive(3600.0, "s");
+}
+
 /// An instrument config that could not be used, with where and why.
 pub type ConfigFileError = gonio_core::tomlfile::FileError;
 
@@ -202,24 +230,57 @@ impl InstrumentConfig {
         gonio_core::tomlfile::load(KIND, path, Self::validate)
     }
 
-    /// Checks every value a driver will rely on; the first bad one is named by its path.
+    /// Checks every value a driver will rely on against its range ([`limits`]); the
+    /// first bad one is named by its path.
     pub fn validate(&self) -> Result<(), (String, String)> {
+        use gonio_core::limits::count_at;
         let err = |f: String, m: &str| Err((f, m.to_string()));
         let m = &self.motion;
         if m.port.trim().is_empty() {
             return err("motion.port".into(), "must name a port");
         }
-        if m.baud == 0 {
-            return err("motion.baud".into(), "must be positive");
-        }
-        if m.reply_timeout_ms == 0 || m.poll_interval_ms == 0 {
-            let f = if m.reply_timeout_ms == 0 {
-                "reply_timeout_ms"
-            } else {
-                "poll_interval_ms"
-            };
-            return err(format!("motion.{f}"), "must be positive");
-        }
+        count_at(
+            "motion.baud",
+            m.baud.into(),
+            limits::MIN_BAUD,
+            limits::MAX_BAUD,
+            "baud",
+        )?;
+        count_at(
+            "motion.reply_timeout_ms",
+            m.reply_timeout_ms,
+            1,
+            limits::MAX_WAIT_MS,
+            "ms",
+        )?;
+        count_at(
+            "motion.poll_interval_ms",
+            m.poll_interval_ms,
+            1,
+            limits::MAX_WAIT_MS,
+            "ms",
+        )?;
+        count_at(
+            "motion.retries",
+            m.retries as u64,
+            0,
+            limits::MAX_RETRIES,
+            "",
+        )?;
+        count_at(
+            "motion.reconnect_attempts",
+            m.reconnect_attempts as u64,
+            0,
+            limits::MAX_RECONNECTS,
+            "",
+        )?;
+        count_at(
+            "motion.reconnect_delay_ms",
+            m.reconnect_delay_ms,
+            0,
+            limits::MAX_WAIT_MS,
+            "ms",
+        )?;
         if m.axes.is_empty() {
             return err("motion.axes".into(), "at least one axis is needed");
         }
@@ -231,24 +292,19 @@ impl InstrumentConfig {
             if !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address) {
                 return err(f("address"), "must be in 1..=31");
             }
-            if !a.min.is_finite() {
-                return err(f("min"), "must be finite");
-            }
-            if !(a.max.is_finite() && a.max > a.min) {
+            limits::POSITION.at(f("min"), a.min)?;
+            limits::POSITION.at(f("max"), a.max)?;
+            if a.max <= a.min {
                 return err(f("max"), "must be finite and greater than `min`");
             }
-            if a.velocity.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                return err(f("velocity"), "must be positive");
+            if let Some(v) = a.velocity {
+                limits::VELOCITY.at(f("velocity"), v)?;
             }
-            if a.acceleration.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                return err(f("acceleration"), "must be positive");
+            if let Some(v) = a.acceleration {
+                limits::ACCELERATION.at(f("acceleration"), v)?;
             }
-            if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
-                return err(f("tolerance"), "must be positive");
-            }
-            if !(a.home_timeout_s.is_finite() && a.home_timeout_s > 0.0) {
-                return err(f("home_timeout_s"), "must be positive");
-            }
+            limits::TOLERANCE.at(f("tolerance"), a.tolerance)?;
+            limits::HOME_TIMEOUT.at(f("home_timeout_s"), a.home_timeout_s)?;
             if let Some(j) = m.axes[..i].iter().position(|b| b.name == a.name) {
                 return Err((f("name"), format!("repeats the name of motion.axes[{j}]")));
             }
@@ -280,32 +336,18 @@ impl InstrumentConfig {
                 }
             }
         }
-        let g = &self.geometry;
-        for (f, v) in [
-            ("beam_diameter_m", g.beam_diameter_m),
-            ("sample_length_m", g.sample_length_m),
-            ("detector_radius_m", g.detector_radius_m),
-            ("detector_distance_m", g.detector_distance_m),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return err(format!("geometry.{f}"), "must be positive");
-            }
-        }
-        if !(g.min_arm_separation_deg.is_finite()
-            && (0.0..180.0).contains(&g.min_arm_separation_deg))
-        {
-            return err(
-                "geometry.min_arm_separation_deg".into(),
-                "must be in [0, 180)",
-            );
-        }
+        self.geometry.validate("geometry")?;
         let d = &self.detector;
         if d.port.trim().is_empty() {
             return err("detector.port".into(), "must name a port");
         }
-        if d.baud == 0 {
-            return err("detector.baud".into(), "must be positive");
-        }
+        count_at(
+            "detector.baud",
+            d.baud.into(),
+            limits::MIN_BAUD,
+            limits::MAX_BAUD,
+            "baud",
+        )?;
         d.lockin
             .validate()
             .map_err(|e| (format!("detector.lockin.{}", e.field), e.reason))

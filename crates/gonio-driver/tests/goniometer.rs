@@ -97,6 +97,91 @@ fn config_errors_name_file_line_and_field() {
     assert!(e.to_string().starts_with("/no/such/rig.toml: "), "{e}");
 }
 
+/// Every number of the config has a finite range: a non-finite or absurd value is
+/// refused with its field, line and the limit (docs/hardware.md, "Limits").
+#[test]
+fn config_numbers_outside_their_range_name_the_limit() {
+    let cases: &[(&str, &str, usize, &str, &str)] = &[
+        (
+            "port = \"/dev/ttyUSB0\"",
+            "port = \"/dev/ttyUSB0\"\npoll_interval_ms = 18446744073709551615",
+            3,
+            "motion.poll_interval_ms",
+            "must be at most 60000 ms, got 18446744073709551615",
+        ),
+        (
+            "port = \"/dev/ttyUSB0\"",
+            "port = \"/dev/ttyUSB0\"\nreply_timeout_ms = 0",
+            3,
+            "motion.reply_timeout_ms",
+            "must be at least 1 ms, got 0",
+        ),
+        (
+            "port = \"/dev/ttyUSB0\"",
+            "port = \"/dev/ttyUSB0\"\nretries = 1000000",
+            3,
+            "motion.retries",
+            "must be at most 10, got 1000000",
+        ),
+        (
+            "port = \"/dev/ttyUSB0\"",
+            "port = \"/dev/ttyUSB0\"\nbaud = 1000000000",
+            3,
+            "motion.baud",
+            "must be at most 4000000 baud, got 1000000000",
+        ),
+        (
+            "min = -90.0\nmax = 90.0\n[detector]",
+            "min = nan\nmax = 90.0\n[detector]",
+            11,
+            "motion.axes[1].min",
+            "must be finite, got NaN",
+        ),
+        (
+            "min = -90.0\nmax = 90.0\n[[motion.axes]]",
+            "min = -90.0\nmax = 1e300\n[[motion.axes]]",
+            7,
+            "motion.axes[0].max",
+            "must be at most 1e6 units, got 1e300",
+        ),
+        (
+            "address = 2",
+            "address = 2\nvelocity = inf",
+            11,
+            "motion.axes[1].velocity",
+            "must be finite, got inf",
+        ),
+        (
+            "address = 2",
+            "address = 2\nhome_timeout_s = 1e308",
+            11,
+            "motion.axes[1].home_timeout_s",
+            "must be at most 3600 s, got 1e308",
+        ),
+        (
+            "address = 2",
+            "address = 2\ntolerance = -1.0",
+            11,
+            "motion.axes[1].tolerance",
+            "must be positive, got -1",
+        ),
+        (
+            "[detector]",
+            "[geometry]\ndetector_distance_m = 1e20\n[detector]",
+            14,
+            "geometry.detector_distance_m",
+            "must be at most 100 m, got 1e20",
+        ),
+    ];
+    for (from, to, line, field, message) in cases {
+        let text = BASE.replacen(from, to, 1);
+        let e = err(&text);
+        assert_eq!(e.field.as_deref(), Some(*field), "{e}\n{text}");
+        assert_eq!(e.line, Some(*line), "{e}\n{text}");
+        assert_eq!(e.message, *message, "{text}");
+    }
+}
+
 /// Start-up, homing and one measurement over scripted lines: the bytes of both
 /// protocols in the order the goniometer sends them.
 #[test]

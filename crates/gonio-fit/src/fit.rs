@@ -536,8 +536,19 @@ fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFi
     out
 }
 
+/// The most lobes a fit may place: eight. Lafortune et al. fit at most three; each
+/// further lobe is another greedy round of multi-start searches, so the time grows
+/// with the count, and `--lobes 100000` would never end.
+pub const MAX_LOBES: usize = 8;
+
 /// Fits lobes to `data`.
 pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError> {
+    if opts.shape.lobes > MAX_LOBES {
+        return Err(FitError::Options(format!(
+            "{} lobes: at most {MAX_LOBES} are fitted",
+            opts.shape.lobes
+        )));
+    }
     let started = Instant::now();
     let nc = data.channels.len();
     let shared = opts.share_exponents && nc > 1;

@@ -16,7 +16,7 @@ pub mod lobes;
 pub mod varpro;
 
 pub use data::{DataOptions, FitData, Metric};
-pub use fit::{FitOptions, LobeFit, fit_lobes};
+pub use fit::{FitOptions, LobeFit, MAX_LOBES, fit_lobes};
 pub use lobes::{Diffuse, Shape};
 
 /// Why a fit was refused or failed.
@@ -28,4 +28,7 @@ pub enum FitError {
     /// The numerics failed.
     #[error("{0}")]
     Numerics(String),
+    /// The options cannot be used (more lobes than [`MAX_LOBES`]): bad input.
+    #[error("{0}")]
+    Options(String),
 }

@@ -428,6 +428,22 @@ fn bad_data_is_refused_with_a_reason() {
     };
     let e = FitData::from_samples(&s(vec![one(10.0, 0.1), one(20.0, 0.1)]), &cut).expect_err("cut");
     assert!(e.to_string().contains("cutoff"), "{e}");
+    // More lobes than a fit places: refused before any search, as bad input.
+    let d = FitData::from_samples(&s(vec![one(10.0, 0.1), one(20.0, 0.1)]), &opts).expect("data");
+    let many = FitOptions {
+        shape: Shape {
+            lobes: 100_000,
+            anisotropic: false,
+            diffuse: Diffuse::Lambert,
+        },
+        ..FitOptions::default()
+    };
+    match fit_lobes(&d, &many) {
+        Err(gonio_fit::FitError::Options(m)) => {
+            assert_eq!(m, "100000 lobes: at most 8 are fitted");
+        }
+        other => panic!("{:?}", other.map(|f| f.model_toml)),
+    }
     // The projection's coefficients are never negative.
     let basis = LobeBasis {
         shape: Shape {

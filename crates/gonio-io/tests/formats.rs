@@ -822,6 +822,21 @@ fn files_on_disk_name_themselves() {
         e.to_string().starts_with(&missing.display().to_string()),
         "{e}"
     );
+    // A directory or a device is refused without being read (/dev/zero never ends).
+    let e = formats::read_file(dir).expect_err("a directory");
+    assert!(
+        e.to_string().contains("a directory, not a regular file"),
+        "{e}"
+    );
+    #[cfg(unix)]
+    {
+        let e = formats::read_file(Path::new("/dev/zero")).expect_err("a device");
+        assert_eq!(
+            e.to_string(),
+            "/dev/zero: cannot read: a character device, not a regular file (Gonio reads its \
+             inputs from regular files only)"
+        );
+    }
 }
 
 // ------------------------------------------------------------ fuzz bodies

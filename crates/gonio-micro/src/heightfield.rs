@@ -63,6 +63,24 @@ pub struct GaussianParams {
     pub seed: u64,
 }
 
+/// The steepest facet a height field may have, as rise over run: 10⁴, a wall
+/// 89.994° from the horizontal. Steeper, and the heights' rounding swallows the
+/// tracer's offset off a facet.
+pub const MAX_SLOPE: f64 = 1e4;
+
+/// The most kernel products a Gaussian surface may take to generate (cells × kernel
+/// taps along x and along y): 2³⁴, about ten seconds on one core. A correlation
+/// length of many cells on a large lattice is refused rather than left to run for
+/// hours.
+pub const MAX_GAUSSIAN_WORK: f64 = (1u64 << 34) as f64;
+
+/// The kernel products [`HeightField::gaussian`] takes for `nx × ny` cells with a
+/// correlation length of `l` cells.
+pub fn gaussian_work(nx: usize, ny: usize, l: f64) -> f64 {
+    let taps = |n: usize| (2.0 * (4.0 * l).ceil().min(1e6) + 1.0).min(n as f64);
+    nx as f64 * ny as f64 * (taps(nx) + taps(ny))
+}
+
 impl HeightField {
     /// A height field of `nx × ny` cells with spacings `dx`, `dy` and node heights in
     /// row-major order (`heights[j·nx + i]`); every triangle gets material 0.
@@ -98,6 +116,29 @@ impl HeightField {
                 "heights",
                 format!("height {k} (node {}, {}) is not finite", k % nx, k / nx),
             ));
+        }
+        // The steepest facet: beyond MAX_SLOPE the tracer's self-intersection offset
+        // (a fraction of the spacing) is lost in the heights' rounding, and rays creep
+        // along walls instead of leaving them.
+        let at = |i: usize, j: usize| heights[(j % ny) * nx + (i % nx)];
+        for j in 0..ny {
+            for i in 0..nx {
+                let h = at(i, j);
+                let sx = (at(i + 1, j) - h).abs() / dx;
+                let sy = (at(i, j + 1) - h).abs() / dy;
+                let sd = (at(i + 1, j + 1) - h).abs() / dx.min(dy);
+                let steepest = sx.max(sy).max(sd);
+                if steepest.is_nan() || steepest > MAX_SLOPE {
+                    return Err(MicroError::invalid(
+                        "heights",
+                        format!(
+                            "the facets at node ({i}, {j}) rise {} per unit of spacing, more \
+                             than {MAX_SLOPE:e} (walls steeper than 89.994°)",
+                            gonio_core::limits::num(steepest)
+                        ),
+                    ));
+                }
+            }
         }
         let h_min = heights.iter().copied().fold(f64::INFINITY, f64::min);
         let h_max = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -286,6 +327,16 @@ impl HeightField {
         let (nx, ny) = (p.nx, p.ny);
         if nx.saturating_mul(ny) > (1 << 30) {
             return Err(MicroError::invalid("size", "more than 2^30 cells"));
+        }
+        let work = gaussian_work(nx, ny, p.correlation_length / p.spacing);
+        if work.is_nan() || work > MAX_GAUSSIAN_WORK {
+            return Err(MicroError::invalid(
+                "correlation_length",
+                format!(
+                    "generating {nx} × {ny} cells with it takes {work:.2e} kernel products, \
+                     more than 2^34"
+                ),
+            ));
         }
         let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
         let mut h: Vec<f64> = (0..nx * ny)

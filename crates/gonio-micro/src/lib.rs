@@ -65,7 +65,8 @@ pub use error::MicroError;
 pub use heightfield::{GaussianParams, HeightField, HeightStats};
 pub use material::{Material, fresnel_conductor, fresnel_dielectric};
 pub use sim::{
-    Exits, IncidentAlbedo, MicroResult, ORDERS, ShEstimate, SimOptions, Simulation, TraceStats,
+    Exits, IncidentAlbedo, MAX_BOUNCES, MAX_RAYS, MicroResult, ORDERS, ShEstimate, SimOptions,
+    Simulation, TraceStats,
 };
 pub use surface::Sample;
 pub use trace::{Hit, Method, Ray, Tracer};

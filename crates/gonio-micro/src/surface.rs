@@ -43,6 +43,7 @@ use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
 use gonio_core::Channels;
+use gonio_core::limits::Range;
 use gonio_core::tomlfile::{self, FileError};
 use serde::Deserialize;
 
@@ -50,6 +51,26 @@ use crate::heightfield::GaussianParams;
 use crate::{HeightField, Material, MicroError};
 
 const KIND: &str = "surface file";
+
+/// Lengths of a surface file (`spacing`, `correlation_length`, `period`, `radius`) in
+/// its own unit: only ratios matter in geometric optics, so any unit works, but
+/// nothing beyond nine orders of magnitude either way.
+pub const LENGTH: Range = Range::closed(1e-9, 1e9, "");
+/// The largest continuum RMS slope `2σ/l` of a Gaussian surface: 100, so
+/// `rms_height` is at most 50 × `correlation_length` (facets at 89.4° on average).
+pub const MAX_RMS_SLOPE: f64 = 100.0;
+/// `orientation_deg`: a turn either way.
+pub const ORIENTATION: Range = Range::closed(-360.0, 360.0, "deg");
+/// A height map's `height_scale`.
+pub const HEIGHT_SCALE: Range = Range::closed(-1e6, 1e6, "");
+/// Refractive indices (`n` of a conductor, `eta` of a dielectric).
+pub const INDEX: Range = Range::positive(100.0, "");
+/// A conductor's extinction coefficient `k`.
+pub const EXTINCTION: Range = Range::closed(0.0, 100.0, "");
+
+/// The most bytes a height-map file may have: 1 GiB, a 2^27-node `f64le` map (a
+/// 11 585 × 11 585 lattice) or a CSV map of about 10^8 heights.
+pub const MAX_HEIGHT_MAP_BYTES: u64 = 1 << 30;
 
 /// A microgeometry sample: the height field, the material of each material id, the
 /// channels, and the turn of the patch about the normal.
@@ -100,10 +121,10 @@ impl Sample {
         })
     }
 
-    /// Reads a surface file (see the module docs).
+    /// Reads a surface file (see the module docs): a regular file of at most
+    /// [`MAX_CONFIG_BYTES`](gonio_core::input::MAX_CONFIG_BYTES).
     pub fn load(path: &Path) -> Result<Sample, MicroError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| FileError::whole(KIND, Some(path), e.to_string()))?;
+        let text = tomlfile::read(KIND, path)?;
         Sample::from_toml(&text, Some(path))
     }
 
@@ -175,20 +196,14 @@ impl Sample {
             Ok((used.len() - 1) as u8)
         };
 
-        let positive = |v: f64, field: &str| -> Result<f64, MicroError> {
-            if v.is_finite() && v > 0.0 {
-                Ok(v)
-            } else {
-                Err(at(field, format!("must be finite and positive, got {v}")))
-            }
+        let length = |v: f64, field: &str| -> Result<f64, MicroError> {
+            LENGTH.check(v).map_err(|m| at(field, m))
         };
         let orientation = |o: Option<f64>| -> Result<f64, MicroError> {
-            let o = o.unwrap_or(0.0);
-            if o.is_finite() {
-                Ok(o.to_radians())
-            } else {
-                Err(at("surface.orientation_deg", "must be finite".into()))
-            }
+            ORIENTATION
+                .check(o.unwrap_or(0.0))
+                .map(f64::to_radians)
+                .map_err(|m| at("surface.orientation_deg", m))
         };
         let (surface, orient) = match &doc.surface {
             SurfaceSpec::Gaussian {
@@ -200,20 +215,43 @@ impl Sample {
                 material,
                 orientation_deg,
             } => {
-                let spacing = positive(spacing.unwrap_or(1.0), "surface.spacing")?;
+                let spacing = length(spacing.unwrap_or(1.0), "surface.spacing")?;
                 if size[0] < 2 || size[1] < 2 || size[0].saturating_mul(size[1]) > 1 << 26 {
                     return Err(at(
                         "surface.size",
                         "needs at least 2 × 2 and at most 2^26 cells".into(),
                     ));
                 }
-                if !(rms_height.is_finite() && *rms_height >= 0.0) {
+                let l = length(*correlation_length, "surface.correlation_length")?;
+                let max_rms = 0.5 * MAX_RMS_SLOPE * l;
+                Range::closed(0.0, max_rms, "")
+                    .check(*rms_height)
+                    .map_err(|m| {
+                        let why = if rms_height.is_finite() {
+                            format!(
+                                "{m} (at most {} × correlation_length: an RMS slope 2σ/l of \
+                                 at most {MAX_RMS_SLOPE})",
+                                0.5 * MAX_RMS_SLOPE
+                            )
+                        } else {
+                            m
+                        };
+                        at("surface.rms_height", why)
+                    })?;
+                let work = crate::heightfield::gaussian_work(size[0], size[1], l / spacing);
+                if work.is_nan() || work > crate::heightfield::MAX_GAUSSIAN_WORK {
                     return Err(at(
-                        "surface.rms_height",
-                        format!("must be finite and ≥ 0, got {rms_height}"),
+                        "surface.correlation_length",
+                        format!(
+                            "a correlation of {} cells on {} × {} cells takes {work:.2e} \
+                             kernel products to generate, more than 2^34; shorten it or the \
+                             size",
+                            gonio_core::limits::num(l / spacing),
+                            size[0],
+                            size[1],
+                        ),
                     ));
                 }
-                let l = positive(*correlation_length, "surface.correlation_length")?;
                 pick(material, "surface.material")?;
                 let hf = HeightField::gaussian(&GaussianParams {
                     nx: size[0],
@@ -232,7 +270,7 @@ impl Sample {
                 faces,
                 orientation_deg,
             } => {
-                let period = positive(period.unwrap_or(1.0), "surface.period")?;
+                let period = length(period.unwrap_or(1.0), "surface.period")?;
                 for a in angles_deg {
                     if !(a.is_finite() && (1.0..=89.0).contains(a)) {
                         return Err(at(
@@ -258,8 +296,8 @@ impl Sample {
                 material,
                 orientation_deg,
             } => {
-                let r = positive(*radius, "surface.radius")?;
-                let s = positive(*spacing, "surface.spacing")?;
+                let r = length(*radius, "surface.radius")?;
+                let s = length(*spacing, "surface.spacing")?;
                 let cells = cells_per_period.unwrap_or(64);
                 if !(4..=1 << 20).contains(&cells) {
                     return Err(at(
@@ -281,11 +319,10 @@ impl Sample {
                 material,
                 orientation_deg,
             } => {
-                let spacing = positive(*spacing, "surface.spacing")?;
-                let scale = height_scale.unwrap_or(1.0);
-                if !scale.is_finite() {
-                    return Err(at("surface.height_scale", "must be finite".into()));
-                }
+                let spacing = length(*spacing, "surface.spacing")?;
+                let scale = HEIGHT_SCALE
+                    .check(height_scale.unwrap_or(1.0))
+                    .map_err(|m| at("surface.height_scale", m))?;
                 let fmt = format.as_deref().unwrap_or("csv");
                 if !["csv", "f64le", "f32le"].contains(&fmt) {
                     return Err(at(
@@ -328,7 +365,10 @@ fn check_material(m: &Material, channels: &Channels) -> Result<(), (String, Stri
             ));
         }
         match v.iter().position(|x| !ok(*x)) {
-            Some(i) => Err((name.to_string(), format!("value {i} ({}) {what}", v[i]))),
+            Some(i) => Err((
+                name.to_string(),
+                format!("value {i} ({}) {what}", gonio_core::limits::num(v[i])),
+            )),
             None => Ok(()),
         }
     };
@@ -339,15 +379,12 @@ fn check_material(m: &Material, channels: &Channels) -> Result<(), (String, Stri
         }
         Material::Lambert { albedo } => list("albedo", albedo, &unit, "must be in [0, 1]"),
         Material::Conductor { n, k } => {
-            list("n", n, &|x| x.is_finite() && x > 0.0, "must be positive")?;
-            list("k", k, &|x| x.is_finite() && x >= 0.0, "must be ≥ 0")
+            list("n", n, &|x| INDEX.contains(x), "must be in (0, 100]")?;
+            list("k", k, &|x| EXTINCTION.contains(x), "must be in [0, 100]")
         }
-        Material::Dielectric { eta } => list(
-            "eta",
-            eta,
-            &|x| x.is_finite() && x > 0.0,
-            "must be positive",
-        ),
+        Material::Dielectric { eta } => {
+            list("eta", eta, &|x| INDEX.contains(x), "must be in (0, 100]")
+        }
         Material::Model(m) => {
             if m.channels() == channels {
                 Ok(())
@@ -371,7 +408,8 @@ fn read_height_map(
         line,
         message,
     };
-    let bytes = std::fs::read(path).map_err(|e| err(None, e.to_string()))?;
+    let bytes = gonio_core::input::read_bounded(path, MAX_HEIGHT_MAP_BYTES)
+        .map_err(|e| err(None, e.reason()))?;
     if fmt == "csv" {
         let text = String::from_utf8(bytes).map_err(|_| err(None, "not UTF-8 text".into()))?;
         let mut rows: Vec<Vec<f64>> = Vec::new();

@@ -431,6 +431,106 @@ kind = "mirror"
     );
 }
 
+/// Every number of a surface file has a finite range, and the tracer's counts a cap:
+/// each is refused with its field, line and the limit (docs/micro.md, "Limits").
+#[test]
+fn absurd_surface_numbers_and_counts_name_the_limit() {
+    let g = gaussian_aluminium();
+    let cases: Vec<(String, usize, &str, &str)> = vec![
+        (
+            g.replace("rms_height = 0.6", "rms_height = 1e8"),
+            6,
+            "surface.rms_height",
+            "must be at most 200, got 1e8 (at most 50 × correlation_length: an RMS slope \
+             2σ/l of at most 100)",
+        ),
+        (
+            g.replace("rms_height = 0.6", "rms_height = nan"),
+            6,
+            "surface.rms_height",
+            "must be finite, got NaN",
+        ),
+        (
+            g.replace("correlation_length = 4.0", "correlation_length = 1e300"),
+            7,
+            "surface.correlation_length",
+            "must be at most 1e9, got 1e300",
+        ),
+        (
+            g.replace("size = [128, 128]", "size = [8192, 8192]")
+                .replace("correlation_length = 4.0", "correlation_length = 400.0"),
+            7,
+            "surface.correlation_length",
+            "a correlation of 400 cells on 8192 × 8192 cells takes 4.30e11 kernel products \
+             to generate, more than 2^34; shorten it or the size",
+        ),
+        (
+            g.replace("seed = 2", "seed = 2\norientation_deg = inf"),
+            9,
+            "surface.orientation_deg",
+            "must be finite, got inf",
+        ),
+        (
+            g.replace("k = [6.69]", "k = [1e300]"),
+            13,
+            "materials.aluminium.k",
+            "value 0 (1e300) must be in [0, 100]",
+        ),
+    ];
+    for (text, line, field, message) in cases {
+        let e = match Sample::from_toml(&text, None) {
+            Err(MicroError::File(e)) => e,
+            other => panic!("{text}: {other:?}"),
+        };
+        assert_eq!(e.field.as_deref(), Some(field), "{e}");
+        assert_eq!(e.line, Some(line), "{e}");
+        assert_eq!(e.message, message, "{text}");
+    }
+    // A height map whose relief no tracer can follow: 1e8 over a unit spacing.
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let dir = scratch.path();
+    std::fs::write(dir.join("spike.csv"), "0 0 0\n0 1e8 0\n0 0 0\n").expect("write");
+    let hm = "channels = [\"value\"]\n[surface]\nkind = \"height-map\"\nfile = \"spike.csv\"\n\
+              spacing = 1.0\nmaterial = \"m\"\n[materials.m]\nkind = \"mirror\"\n";
+    let e = load_err(dir, "hm.toml", hm).to_string();
+    assert!(
+        e.contains(
+            "heights: the facets at node (0, 0) rise 1e8 per unit of spacing, more than 1e4"
+        ),
+        "{e}"
+    );
+    // A device named as the height map is refused unread.
+    let e = load_err(dir, "dev.toml", &hm.replace("spike.csv", "/dev/zero")).to_string();
+    assert!(
+        e.contains("/dev/zero: a character device, not a regular file"),
+        "{e}"
+    );
+    // The tracer's counts.
+    let sim = sim_from(g, None);
+    let grid = Grid::hemisphere(1, 1);
+    let e = sim.to_table(&grid, usize::MAX, 1).expect_err("rays");
+    assert_eq!(
+        e.to_string(),
+        format!("rays: must be at most 1000000000 rays, got {}", usize::MAX)
+    );
+    let e = sim.estimate_sh(2, None, usize::MAX, 1).expect_err("rays");
+    assert!(
+        e.to_string()
+            .starts_with("rays: must be at most 1000000000 rays"),
+        "{e}"
+    );
+    let s = Sample::from_toml(g, None).expect("surface");
+    let opts = SimOptions {
+        max_bounces: u32::MAX,
+        ..SimOptions::default()
+    };
+    let e = Simulation::new(s, opts).expect_err("bounces");
+    assert_eq!(
+        e.to_string(),
+        "max_bounces: must be at most 10000 bounces, got 4294967295"
+    );
+}
+
 /// The example surface files in `config/` load and simulate.
 #[test]
 fn config_examples_load() {

@@ -31,6 +31,7 @@
 use std::path::{Path, PathBuf};
 
 use gonio_core::dirfile::{self, PairDeg};
+use gonio_core::limits::Range;
 use gonio_core::tomlfile::{self, FileError};
 use gonio_core::{DirPair, SphericalDeg};
 use serde::{Deserialize, Serialize};
@@ -41,6 +42,18 @@ pub use gonio_core::goniometer::{Mechanics, MechanicsError, Rejection};
 const KIND: &str = "plan";
 /// Most direction pairs a plan may expand to.
 pub const MAX_POINTS: usize = 1_000_000;
+/// Most readings a plan may ask for: its pairs and calibrations, times its repeats,
+/// times its channels. Two million readings are weeks of instrument time at the
+/// fastest the lock-in settles, and keep the schedule (and the run file's steps)
+/// within a few hundred megabytes.
+pub const MAX_READINGS: usize = 2_000_000;
+/// Azimuths (`phi_i`, `phi_o`, `delta_phi`, the φ of `drift.at` and
+/// `calibration.standard.at`), degrees: a turn either way.
+pub const PHI: Range = Range::closed(-360.0, 360.0, "deg");
+/// Incident-beam stage positions (`calibration.incident.stages`), degrees.
+pub const STAGE_POSITION: Range = Range::closed(-1e6, 1e6, "deg");
+/// The ordering's wall-time budget (`order.budget_s`): at most an hour.
+pub const BUDGET: Range = Range::closed(0.0, 3600.0, "s");
 /// Two direction pairs closer than this (component-wise, unit vectors) are the same.
 const SAME_PAIR: f64 = 1e-9;
 pub use gonio_core::goniometer::{ASSUMED_ACCELERATION, ASSUMED_VELOCITY};
@@ -247,7 +260,7 @@ fn one_repeat() -> u32 {
     1
 }
 
-/// The four angles of a pair, checked: θ in [0, 90], everything finite.
+/// The four angles of a pair, checked: θ in [0, 90], φ in [`PHI`], everything finite.
 fn check_pair(p: &[f64; 4]) -> Result<(), String> {
     if p.iter().any(|x| !x.is_finite()) {
         return Err("angles must be finite".into());
@@ -256,6 +269,9 @@ fn check_pair(p: &[f64; 4]) -> Result<(), String> {
         if !(0.0..=90.0).contains(&t) {
             return Err(format!("{name} = {t} is outside [0, 90]"));
         }
+    }
+    for (name, f) in [("phi_i", p[1]), ("phi_o", p[3])] {
+        PHI.check(f).map_err(|m| format!("{name} {m}"))?;
     }
     Ok(())
 }
@@ -339,21 +355,29 @@ impl Plan {
                 "theta_i" => (0.0, 90.0),
                 "theta_o" if matches!(self.points, Points::InPlane { .. }) => (-90.0, 90.0),
                 "theta_o" => (0.0, 90.0),
-                _ => (f64::NEG_INFINITY, f64::INFINITY),
+                _ => (PHI.min, PHI.max),
             };
             if let Some(x) = values.iter().find(|x| !(lo..=hi).contains(*x)) {
+                let num = gonio_core::limits::num;
                 return bad(
                     &format!("points.{name}"),
-                    format!("{x} is outside [{lo}, {hi}]"),
+                    format!("{} is outside [{}, {}]", num(*x), num(lo), num(hi)),
                 );
             }
             total = total.saturating_mul(values.len());
+        }
+        if let Points::Isotropic { phi_i, .. } | Points::InPlane { phi_i, .. } = &self.points {
+            PHI.at("points.phi_i", *phi_i)?;
         }
         if total > MAX_POINTS {
             return bad(
                 "points",
                 format!("expands to {total} pairs, more than {MAX_POINTS}"),
             );
+        }
+        // A list plan's pairs are counted when its file is read (`pairs`).
+        if !matches!(self.points, Points::List { .. }) {
+            self.check_readings(total)?;
         }
         if let Some(d) = &self.drift {
             if d.every == 0 {
@@ -371,13 +395,10 @@ impl Plan {
                     format!("{} is not in (0, 1]", i.transmittance),
                 );
             }
-            if let Some(s) = &i.stages
-                && s.iter().any(|x| !x.is_finite())
-            {
-                return bad(
-                    "calibration.incident.stages",
-                    "positions must be finite".into(),
-                );
+            if let Some(s) = &i.stages {
+                for (k, x) in s.iter().enumerate() {
+                    STAGE_POSITION.at(format!("calibration.incident.stages[{k}]"), *x)?;
+                }
             }
         }
         if let Some(s) = &c.standard {
@@ -388,10 +409,38 @@ impl Plan {
                 check_pair(p).map_err(|m| (format!("calibration.standard.at[{k}]"), m))?;
             }
         }
-        if !(self.order.budget_s.is_finite() && self.order.budget_s >= 0.0) {
-            return bad("order.budget_s", "must be ≥ 0".into());
-        }
+        BUDGET.at("order.budget_s", self.order.budget_s)?;
         Ok(())
+    }
+
+    /// Checks that `pairs` pairs, with the calibrations, repeats and channels, stay
+    /// within [`MAX_READINGS`]; the fault names the field that multiplies them.
+    fn check_readings(&self, pairs: usize) -> Result<(), (String, String)> {
+        let passes = self.channels.as_ref().map_or(1, Vec::len).max(1);
+        let standards = self.calibration.standard.as_ref().map_or(0, |s| s.at.len());
+        // Dark and incident readings, the standard's pairs, and the pairs themselves.
+        let per_pass = pairs.saturating_add(standards).saturating_add(2);
+        let n = per_pass
+            .saturating_mul(self.repeats as usize)
+            .saturating_mul(passes);
+        if n <= MAX_READINGS {
+            return Ok(());
+        }
+        let field = if self.repeats > 1 {
+            "repeats"
+        } else if passes > 1 {
+            "channels"
+        } else {
+            "points"
+        };
+        Err((
+            field.into(),
+            format!(
+                "{pairs} pairs and {standards} standard pairs × {} repeats × {passes} channels \
+                 is about {n} readings, more than the {MAX_READINGS} a plan may take",
+                self.repeats
+            ),
+        ))
     }
 
     /// The plan's direction pairs in its own order (duplicates included), degrees.
@@ -467,14 +516,15 @@ impl Plan {
             }
             Points::List { file } => {
                 let path = self.resolve(file);
-                let text = std::fs::read_to_string(&path).map_err(|e| FileError {
-                    field: Some("points.file".into()),
-                    ..FileError::whole(
-                        KIND,
-                        self.source.as_deref(),
-                        format!("{}: {e}", path.display()),
-                    )
-                })?;
+                // A regular file of bounded size: a FIFO or a device named here is
+                // refused without being read.
+                let text =
+                    gonio_core::input::read_text(&path, dirfile::MAX_BYTES).map_err(|e| {
+                        FileError {
+                            field: Some("points.file".into()),
+                            ..FileError::whole(KIND, self.source.as_deref(), e.to_string())
+                        }
+                    })?;
                 out = dirfile::read_pairs(&text).map_err(|e| FileError {
                     line: Some(e.line),
                     field: e.column.clone(),
@@ -487,6 +537,11 @@ impl Plan {
                         format!("{} pairs, more than {MAX_POINTS}", out.len()),
                     ));
                 }
+                self.check_readings(out.len())
+                    .map_err(|(field, m)| FileError {
+                        field: Some(field),
+                        ..FileError::whole(KIND, self.source.as_deref(), m)
+                    })?;
             }
         }
         Ok(out)

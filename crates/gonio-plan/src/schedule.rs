@@ -179,7 +179,10 @@ pub fn build(
             &mech.motion,
             start,
             &points,
-            Duration::from_secs_f64(plan.order.budget_s),
+            // Validated to [0, 3600] s when read; a plan built in code is held to the
+            // same rather than left to panic on a NaN or a 1e20.
+            Duration::try_from_secs_f64(plan.order.budget_s.clamp(0.0, crate::plan::BUDGET.max))
+                .unwrap_or(Duration::ZERO),
         )
     } else {
         order::raster(points.len())

@@ -219,6 +219,111 @@ fn plan_errors_name_file_line_and_field() {
     );
 }
 
+/// Every number of a plan has a finite range and the plan's size a cap: each is
+/// refused with its field, line and the limit (docs/acquisition.md, "Limits").
+#[test]
+fn plan_numbers_and_sizes_outside_their_limits_name_the_limit() {
+    const IN_PLANE: &str = "[points]\nkind = \"in-plane\"\ntheta_i = [0]\ntheta_o = [30]\n";
+    let cases: &[(String, usize, &str, &str)] = &[
+        (
+            format!("{IN_PLANE}[order]\nbudget_s = 1e20\n"),
+            6,
+            "order.budget_s",
+            "must be at most 3600 s, got 1e20",
+        ),
+        (
+            format!("{IN_PLANE}[order]\nbudget_s = nan\n"),
+            6,
+            "order.budget_s",
+            "must be finite, got NaN",
+        ),
+        (
+            IN_PLANE.replace("theta_i = [0]", "phi_i = nan\ntheta_i = [0]"),
+            3,
+            "points.phi_i",
+            "must be finite, got NaN",
+        ),
+        (
+            "[points]\nkind = \"grid\"\ntheta_i = [0]\nphi_i = [1e300]\ntheta_o = [30]\n\
+             phi_o = [0]\n"
+                .into(),
+            4,
+            "points.phi_i",
+            "1e300 is outside [-360, 360]",
+        ),
+        (
+            format!("{IN_PLANE}[calibration]\nincident = {{ stages = [0, 0, 0, 1e300] }}\n"),
+            6,
+            "calibration.incident.stages[3]",
+            "must be at most 1e6 deg, got 1e300",
+        ),
+        (
+            format!("{IN_PLANE}[drift]\nevery = 5\nat = [30, 1e300, 30, 0]\n"),
+            7,
+            "drift.at",
+            "phi_i must be at most 360 deg, got 1e300",
+        ),
+        (
+            // 8.1 × 10^11 pairs: 900 001 on each of two axes.
+            "[points]\nkind = \"isotropic\"\ntheta_i = { from = 0, to = 90, step = 1e-4 }\n\
+             theta_o = { from = 0, to = 90, step = 1e-4 }\ndelta_phi = [0]\n"
+                .into(),
+            1,
+            "points",
+            "expands to 810001800001 pairs, more than 1000000",
+        ),
+        (
+            // 811 801 pairs, each read 10 000 times: 8 × 10^9 readings.
+            "repeats = 10000\n[points]\nkind = \"isotropic\"\n\
+             theta_i = { from = 0, to = 90, step = 0.1 }\n\
+             theta_o = { from = 0, to = 90, step = 0.1 }\ndelta_phi = [0]\n"
+                .into(),
+            1,
+            "repeats",
+            "811801 pairs and 0 standard pairs × 10000 repeats × 1 channels is about \
+             8118030000 readings, more than the 2000000 a plan may take",
+        ),
+    ];
+    for (text, line, field, message) in cases {
+        let e = Plan::from_toml(text, None).expect_err(text);
+        assert_eq!(e.field.as_deref(), Some(*field), "{e}\n{text}");
+        assert_eq!(e.line, Some(*line), "{e}\n{text}");
+        assert_eq!(e.message, *message, "{text}");
+    }
+    // A directions file is counted when it is read.
+    let scratch = common::scratch();
+    let dir = scratch.path();
+    let mut csv = String::from("theta_i,phi_i,theta_o,phi_o\n");
+    for k in 0..1000 {
+        csv.push_str(&format!("30,0,{},180\n", k % 90));
+    }
+    std::fs::write(dir.join("d.csv"), csv).expect("write");
+    let list = Plan::from_toml(
+        "repeats = 2001\n[points]\nkind = \"list\"\nfile = \"d.csv\"\n",
+        Some(&dir.join("p.toml")),
+    )
+    .expect("parses");
+    let e = list.pairs().expect_err("2 million readings");
+    assert_eq!(e.field.as_deref(), Some("repeats"), "{e}");
+    assert!(
+        e.message.contains("more than the 2000000 a plan may take"),
+        "{e}"
+    );
+    // A directions file that is not a regular file is refused without being read.
+    let dev = Plan::from_toml(
+        "[points]\nkind = \"list\"\nfile = \"/dev/zero\"\n",
+        Some(&dir.join("p.toml")),
+    )
+    .expect("parses");
+    let e = dev.pairs().expect_err("a device");
+    assert_eq!(e.field.as_deref(), Some("points.file"), "{e}");
+    assert!(
+        e.message
+            .contains("/dev/zero: a character device, not a regular file"),
+        "{e}"
+    );
+}
+
 /// The schedule: calibrations first (and last), references every N pairs, repeats
 /// together, channels as passes, every accepted pair exactly once a pass.
 #[test]

@@ -17,6 +17,12 @@ use crate::ProcessError;
 /// conversions.
 const ON_NODE: f64 = 1e-9;
 
+/// The most nodes a grid may have: 2²⁵ (33.5 million), a 2.5° × 2.5° full 4-D grid
+/// with room to spare. A table holds a value (and an uncertainty) per node and
+/// channel, so this keeps an RGB table with uncertainties under about 1.6 GB; a
+/// finer `--grid` is refused before anything is allocated.
+pub const MAX_GRID_NODES: usize = 1 << 25;
+
 /// One axis of a uniform grid: `n` nodes `start + k·step`, radians.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Axis {
@@ -145,6 +151,15 @@ impl Axis {
     /// turn for a single azimuth node.
     pub fn delta(&self) -> f64 {
         if self.n == 1 { TAU } else { self.step }
+    }
+}
+
+/// A node count as messages print it: whole below 10¹⁵, in exponent form above.
+pub(crate) fn fmt_count(n: f64) -> String {
+    if n < 1e15 {
+        format!("{n:.0}")
+    } else {
+        format!("{n:.2e}")
     }
 }
 
@@ -287,6 +302,18 @@ impl Grid {
             if ax.n as f64 * ax.step > TAU + 1e-9 {
                 return Err(ProcessError::grid(name, "spans more than a full turn"));
             }
+        }
+        let nodes = [self.phi_i.n, self.theta_i.n, self.phi_o.n, self.theta_o.n]
+            .iter()
+            .try_fold(1usize, |a, n| a.checked_mul(*n));
+        if nodes.is_none_or(|n| n > MAX_GRID_NODES) {
+            return Err(ProcessError::grid(
+                "nodes",
+                &format!(
+                    "{} nodes, more than the {MAX_GRID_NODES} a grid may have",
+                    nodes.map_or_else(|| "over 2^64".to_string(), |n| n.to_string())
+                ),
+            ));
         }
         for (name, ax) in [("theta_i", &self.theta_i), ("theta_o", &self.theta_o)] {
             let last = ax.node(ax.n - 1);
@@ -595,21 +622,31 @@ pub struct GridStep {
 
 impl GridStep {
     /// The steps, checked: both positive and finite, DTHETA dividing 90° and DPHI
-    /// dividing 360°.
+    /// dividing 360°, and the full 4-D grid within [`MAX_GRID_NODES`] (so that
+    /// neither form of the grid can exhaust memory or overflow its node count).
     pub fn new(dtheta_deg: f64, dphi_deg: f64) -> Result<GridStep, String> {
         let ok = |v: f64, whole: f64| {
             v.is_finite() && v > 0.0 && (whole / v - (whole / v).round()).abs() < 1e-9
         };
-        if ok(dtheta_deg, 90.0) && ok(dphi_deg, 360.0) {
-            Ok(GridStep {
-                dtheta_deg,
-                dphi_deg,
-            })
-        } else {
-            Err(format!(
+        if !(ok(dtheta_deg, 90.0) && ok(dphi_deg, 360.0)) {
+            return Err(format!(
                 "DTHETA must divide 90 and DPHI 360 (degrees, positive), got {dtheta_deg},{dphi_deg}"
-            ))
+            ));
         }
+        let step = GridStep {
+            dtheta_deg,
+            dphi_deg,
+        };
+        // In floating point: 0.0001° steps make 10^25 nodes, past usize.
+        let nodes = (step.n_theta() as f64 * step.n_phi() as f64).powi(2);
+        if nodes > MAX_GRID_NODES as f64 {
+            return Err(format!(
+                "{dtheta_deg},{dphi_deg} makes a grid of {} nodes, more than the {MAX_GRID_NODES} \
+                 a grid may have (the finest is about 2.5,2.5)",
+                crate::grid::fmt_count(nodes)
+            ));
+        }
+        Ok(step)
     }
 
     /// Polar bands.
@@ -643,9 +680,7 @@ impl std::str::FromStr for GridStep {
             .ok_or_else(|| format!("expected DTHETA,DPHI in degrees, got {s:?}"))?;
         let num = |x: &str| x.trim().parse::<f64>().ok();
         match (num(a), num(b)) {
-            (Some(dt), Some(dp)) => GridStep::new(dt, dp).map_err(|_| {
-                format!("DTHETA must divide 90 and DPHI 360 (degrees, positive), got {s:?}")
-            }),
+            (Some(dt), Some(dp)) => GridStep::new(dt, dp),
             _ => Err(format!(
                 "DTHETA must divide 90 and DPHI 360 (degrees, positive), got {s:?}"
             )),

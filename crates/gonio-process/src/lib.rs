@@ -25,7 +25,13 @@ pub mod separable;
 pub mod sh;
 pub mod transform;
 
-pub use grid::{Axis, Grid, GridStep, Table};
+pub use grid::{Axis, Grid, GridStep, MAX_GRID_NODES, Table};
+
+/// The largest magnitude a coefficient of a harmonics file or a factor of a separable
+/// file may have: 10¹⁰⁰. Finite is not enough: two factors of 10²⁰⁰ multiply to
+/// infinity, and a harmonics sum of 10³⁰⁵s overflows; no BRDF needs more than a few
+/// dozen orders of magnitude.
+pub const MAX_MAGNITUDE: f64 = 1e100;
 pub use samples::{Sample, Samples};
 
 /// Why processing refused its input.

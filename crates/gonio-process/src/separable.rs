@@ -386,6 +386,19 @@ impl SepFile {
                         "values must be finite".into(),
                     ));
                 }
+                if t.f_in
+                    .iter()
+                    .chain(&t.f_out)
+                    .any(|x| x.abs() > crate::MAX_MAGNITUDE)
+                {
+                    return Err((
+                        format!("channel[{ch}].term[{j}]"),
+                        format!(
+                            "values must be at most {:e} in magnitude",
+                            crate::MAX_MAGNITUDE
+                        ),
+                    ));
+                }
             }
         }
         Ok(())

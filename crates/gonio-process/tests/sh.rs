@@ -345,11 +345,12 @@ fn sh_the_toml_file_round_trips_losslessly() {
     let back = ShBrdf::from_toml(&text, None).expect("reads back");
     assert_eq!(back, sh);
 
-    // Extreme magnitudes survive as well.
+    // Extreme magnitudes survive as well, up to the cap a file may hold
+    // (gonio_process::MAX_MAGNITUDE, 1e100).
     let mut tiny = sh.clone();
     tiny.matrices[1][0] = 1.234_567_890_123_456_7e-300;
-    tiny.matrices[1][1] = -9.87e250;
-    tiny.matrices[1][basis_len(4)] = -9.87e250;
+    tiny.matrices[1][1] = -9.87e99;
+    tiny.matrices[1][basis_len(4)] = -9.87e99;
     let back = ShBrdf::from_toml(&tiny.to_toml(), None).expect("reads back");
     assert_eq!(back, tiny);
 }
@@ -374,4 +375,70 @@ fn sh_a_bad_file_names_its_field() {
     assert!(e.contains("bogus"), "{e}");
     let e = err(&text.replace("l_max = 2\n", ""));
     assert!(e.contains("l_max"), "{e}");
+}
+
+#[test]
+fn sh_the_closed_form_albedo_is_the_cubature_of_the_representation() {
+    // A representation with every kind of coefficient: the projection of a lobe model
+    // at degree 8 (it rings, and has m ≠ 0 terms that must integrate to nothing).
+    let m = model(LAFORTUNE);
+    let f = |ch: usize, wi: Dir, wo: Dir| {
+        let mut out = [0.0; 3];
+        gonio_brdf::Brdf::eval(&m, wi, wo, &mut out);
+        out[ch]
+    };
+    let sh = ShBrdf::project(Channels::Rgb, f, &ShOptions::new(8)).expect("projection");
+    let (mut exact, mut numeric) = ([0.0; 3], [0.0; 3]);
+    for theta in [0.0f64, 20.0, 45.0, 70.0, 89.0] {
+        for phi in [0.0f64, 100.0] {
+            let wi = Dir::from_angles(theta.to_radians(), phi.to_radians());
+            gonio_brdf::Brdf::albedo(&sh, wi, &mut exact);
+            gonio_brdf::albedo::numerical_into(&sh, wi, &mut numeric);
+            for ch in 0..3 {
+                assert!(
+                    (exact[ch] - numeric[ch]).abs() <= 1e-8 * numeric[ch].abs().max(1e-3),
+                    "θi {theta}, φi {phi}, channel {ch}: {} vs cubature {}",
+                    exact[ch],
+                    numeric[ch]
+                );
+            }
+        }
+    }
+    // Below the horizon there is no albedo.
+    gonio_brdf::Brdf::albedo(&sh, Dir::from_angles(2.0, 0.0), &mut exact);
+    assert_eq!(exact, [0.0; 3]);
+}
+
+#[test]
+fn sh_the_albedo_of_a_lambertian_surface_is_its_rho() {
+    let rho = [0.2, 0.5, 0.8];
+    let f = |ch: usize, _: Dir, _: Dir| rho[ch] / PI;
+    let mut out = [0.0; 3];
+    for l_max in [0, 2, 9] {
+        let sh = ShBrdf::project(Channels::Rgb, f, &ShOptions::new(l_max)).expect("projection");
+        for theta in [0.0f64, 30.0, 60.0, 85.0] {
+            sh.albedo(Dir::from_angles(theta.to_radians(), 0.3), &mut out);
+            for ch in 0..3 {
+                assert!((out[ch] - rho[ch]).abs() < 1e-13, "l_max {l_max}: {out:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn sh_a_file_with_an_absurd_coefficient_is_refused_naming_it() {
+    let sh = ShBrdf::project(Channels::Rgb, skewed, &ShOptions::new(2)).expect("projection");
+    let text = sh.to_toml();
+    // The first coefficient of the second channel's matrix made absurd.
+    let at = text.find("channel = \"G\"").expect("G block");
+    let open = at + text[at..].find("[\n").expect("upper") + 2;
+    let end = open + text[open..].find(',').expect("a value");
+    let bad = format!("{} 1e300{}", &text[..open + 1], &text[end..]);
+    let e = ShBrdf::from_toml(&bad, None).expect_err("1e300 refused");
+    assert!(
+        e.to_string().contains(
+            "field `matrices[1].upper`: value 0 (1e300) is larger in magnitude than 1e100"
+        ),
+        "{e}"
+    );
 }

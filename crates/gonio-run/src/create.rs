@@ -34,9 +34,10 @@ pub struct Inputs {
 /// Why a run file could not be created.
 #[derive(Debug, thiserror::Error)]
 pub enum CreateError {
-    /// A file the plan names could not be read.
-    #[error("{0}: {1}")]
-    Read(PathBuf, #[source] std::io::Error),
+    /// A file the plan names could not be read (missing, not a regular file, too
+    /// large, not UTF-8).
+    #[error("{0}")]
+    Read(#[from] gonio_core::input::InputError),
     /// The run file.
     #[error("{0}")]
     Store(#[from] StoreError),
@@ -45,16 +46,13 @@ pub enum CreateError {
 /// The metadata of a new run of `plan`, prepared as `prepared`, from `inputs`: reads
 /// the files the plan names (a list plan's directions, the standard's model).
 pub fn meta_for(plan: &Plan, prepared: &Prepared, inputs: &Inputs) -> Result<RunMeta, CreateError> {
-    let read = |p: &Path| {
-        let path = plan.resolve(p);
-        std::fs::read_to_string(&path).map_err(|e| CreateError::Read(path.clone(), e))
-    };
+    let read = |p: &Path, max: u64| gonio_core::input::read_text(&plan.resolve(p), max);
     let plan_pairs = match &plan.points {
-        plan::Points::List { file } => Some(read(file)?),
+        plan::Points::List { file } => Some(read(file, gonio_core::dirfile::MAX_BYTES)?),
         _ => None,
     };
     let standard_model = match &plan.calibration.standard {
-        Some(s) => Some(read(&s.model)?),
+        Some(s) => Some(read(&s.model, gonio_core::input::MAX_CONFIG_BYTES)?),
         None => None,
     };
     let m = &prepared.mech;

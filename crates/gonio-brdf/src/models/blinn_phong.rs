@@ -2,7 +2,7 @@ use std::f64::consts::PI;
 
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, non_negative};
+use super::{ALBEDO, Diffuse, EXPONENT, ParamError, albedo, check, exponent};
 use crate::Brdf;
 use crate::proposal::{HalfDensity, Proposal, Weighted};
 
@@ -30,8 +30,8 @@ pub(crate) fn blinn_phong_normalization(n: f64) -> f64 {
 impl BlinnPhong {
     /// `rho_s` ≥ 0 and `n` ≥ 0 per channel.
     pub fn new(channels: Channels, rho_s: Vec<f64>, n: Vec<f64>) -> Result<Self, ParamError> {
-        check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
-        check("n", &n, &channels, "must be ≥ 0", non_negative)?;
+        check("rho_s", &rho_s, &channels, ALBEDO, albedo)?;
+        check("n", &n, &channels, EXPONENT, exponent)?;
         let coef = rho_s
             .iter()
             .zip(&n)

@@ -1,6 +1,6 @@
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, non_negative, roughness, unit_interval};
+use super::{ALBEDO, Diffuse, ParamError, ROUGHNESS, albedo, check, roughness, unit_interval};
 use crate::Brdf;
 use crate::microfacet::Distribution;
 use crate::proposal::{HalfDensity, Proposal, Weighted};
@@ -23,7 +23,7 @@ pub struct CookTorrance {
 }
 
 impl CookTorrance {
-    /// `f0` in [0, 1], `alpha_x`, `alpha_y` ≥ 1e-4 and `rho_s` ≥ 0 per channel.
+    /// `f0` in [0, 1], `alpha_x`, `alpha_y` in [1e-4, 10] and `rho_s` in [0, 100] per channel.
     pub fn new(
         channels: Channels,
         dist: Distribution,
@@ -33,9 +33,9 @@ impl CookTorrance {
         rho_s: Vec<f64>,
     ) -> Result<Self, ParamError> {
         check("f0", &f0, &channels, "must be in [0, 1]", unit_interval)?;
-        check("alpha_x", &alpha_x, &channels, "must be ≥ 1e-4", roughness)?;
-        check("alpha_y", &alpha_y, &channels, "must be ≥ 1e-4", roughness)?;
-        check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
+        check("alpha_x", &alpha_x, &channels, ROUGHNESS, roughness)?;
+        check("alpha_y", &alpha_y, &channels, ROUGHNESS, roughness)?;
+        check("rho_s", &rho_s, &channels, ALBEDO, albedo)?;
         Ok(CookTorrance {
             channels,
             dist,

@@ -2,7 +2,7 @@ use std::f64::consts::TAU;
 
 use gonio_core::{Channels, Dir};
 
-use super::{ParamError, check, non_negative};
+use super::{ALBEDO, EXPONENT, ParamError, albedo, check, exponent};
 use crate::Brdf;
 use crate::proposal::{Proposal, Weighted};
 
@@ -30,8 +30,8 @@ impl Diffuse {
 
     /// Minnaert (Eq. 6): `rho` ≥ 0 and exponent `n` ≥ 0 per channel.
     pub fn minnaert(channels: Channels, rho: Vec<f64>, n: Vec<f64>) -> Result<Self, ParamError> {
-        check("rho", &rho, &channels, "must be ≥ 0", non_negative)?;
-        check("n", &n, &channels, "must be ≥ 0", non_negative)?;
+        check("rho", &rho, &channels, ALBEDO, albedo)?;
+        check("n", &n, &channels, EXPONENT, exponent)?;
         let coef = rho
             .iter()
             .zip(&n)

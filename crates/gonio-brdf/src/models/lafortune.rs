@@ -1,6 +1,6 @@
 use gonio_core::{Channels, Dir, Vec3};
 
-use super::{Diffuse, Mirror, ParamError, check, lobe_weight, non_negative};
+use super::{Diffuse, EXPONENT, MAX_LOBE_PEAK, Mirror, ParamError, check, exponent, lobe_weight};
 use crate::Brdf;
 use crate::lobe::{hemisphere_albedo, sphere_integral};
 use crate::proposal::{Proposal, Weighted};
@@ -88,6 +88,33 @@ impl Sym3 {
         }
     }
 
+    /// The largest `|λ|` over the eigenvalues: the largest `‖M u‖` over unit `u`, so
+    /// that a lobe `[uᵀ M v]ⁿ` never exceeds its `n`-th power. Closed form for a
+    /// symmetric 3×3 matrix (the trigonometric solution of its characteristic cubic).
+    pub fn largest_magnitude(&self) -> f64 {
+        let p1 = self.xy * self.xy + self.xz * self.xz + self.yz * self.yz;
+        if p1 == 0.0 {
+            return self.xx.abs().max(self.yy.abs()).max(self.zz.abs());
+        }
+        let q = (self.xx + self.yy + self.zz) / 3.0;
+        let p2 = (self.xx - q).powi(2) + (self.yy - q).powi(2) + (self.zz - q).powi(2) + 2.0 * p1;
+        let p = (p2 / 6.0).sqrt();
+        let b = Sym3 {
+            xx: (self.xx - q) / p,
+            yy: (self.yy - q) / p,
+            zz: (self.zz - q) / p,
+            xy: self.xy / p,
+            xz: self.xz / p,
+            yz: self.yz / p,
+        };
+        let det = b.xx * (b.yy * b.zz - b.yz * b.yz) - b.xy * (b.xy * b.zz - b.yz * b.xz)
+            + b.xz * (b.xy * b.yz - b.yy * b.xz);
+        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+        let e1 = q + 2.0 * p * phi.cos();
+        let e3 = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+        e1.abs().max(e3.abs())
+    }
+
     fn is_finite(&self) -> bool {
         [self.xx, self.yy, self.zz, self.xy, self.xz, self.yz]
             .iter()
@@ -145,7 +172,22 @@ impl LafortuneLobe {
                 format!("matrix for channel {} is not finite", channels.name(c)),
             ));
         }
-        check("n", &n, channels, "must be ≥ 0", non_negative)?;
+        check("n", &n, channels, EXPONENT, exponent)?;
+        for (c, (m, n)) in m.iter().zip(&n).enumerate() {
+            let sigma = m.largest_magnitude();
+            // σⁿ compared in logarithms, where an absurd peak cannot overflow.
+            if sigma > 1.0 && n * sigma.ln() > MAX_LOBE_PEAK.ln() {
+                return Err(ParamError::new(
+                    "n",
+                    format!(
+                        "{n} for channel {} makes the lobe peak at {sigma}^{n} = {:e} 1/sr, \
+                         more than {MAX_LOBE_PEAK:e}",
+                        channels.name(c),
+                        sigma.powf(*n)
+                    ),
+                ));
+            }
+        }
         Ok(LafortuneLobe { m, n })
     }
 

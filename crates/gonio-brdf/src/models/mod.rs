@@ -70,7 +70,11 @@ pub(crate) fn check(
         if !v.is_finite() || !ok(*v) {
             return Err(ParamError::new(
                 field,
-                format!("{v} for channel {} {what}", channels.name(i)),
+                format!(
+                    "{} for channel {} {what}",
+                    gonio_core::limits::num(*v),
+                    channels.name(i)
+                ),
             ));
         }
     }
@@ -115,15 +119,48 @@ pub(crate) fn same_channels(
 
 /// The smallest roughness accepted: below it `π αx αy` and `tan²θ/α²` leave the range
 /// of `f64` in places that matter, and no real surface is that smooth.
-pub(crate) const MIN_ALPHA: f64 = 1e-4;
+pub const MIN_ALPHA: f64 = 1e-4;
+
+/// The largest roughness accepted (Ward's and Cook–Torrance's `alpha`): an RMS facet
+/// slope of 10, facets at 84° on average; rougher is no longer a surface these models
+/// describe, and `α²` of an absurd value overflows.
+pub const MAX_ALPHA: f64 = 10.0;
+
+/// The largest exponent accepted (Phong, Blinn-Phong, Lafortune lobes, Minnaert):
+/// a lobe of half-width about 0.1°, far narrower than any instrument resolves;
+/// beyond it normalisations like `(n + 2)/(2π)` stop meaning anything.
+pub const MAX_EXPONENT: f64 = 1e6;
+
+/// The largest albedo-like scale accepted (`rho`, `rho_s`): a surface reflects at most
+/// 1; the margin admits fitted models that do not conserve energy.
+pub const MAX_ALBEDO: f64 = 100.0;
+
+/// The largest peak a Lafortune lobe may reach, `σⁿ` with `σ` the largest magnitude
+/// of `Cᵀ u` over unit `u` (the largest `|C|` of an Eq. 4 lobe), in 1/sr: a mirror-like
+/// lobe of exponent 10⁴ peaks near 10³; 10¹² is far beyond any surface and keeps every
+/// value, albedo and sampling weight finite.
+pub const MAX_LOBE_PEAK: f64 = 1e12;
 
 pub(crate) fn roughness(v: f64) -> bool {
-    v >= MIN_ALPHA
+    (MIN_ALPHA..=MAX_ALPHA).contains(&v)
 }
 
-pub(crate) fn non_negative(v: f64) -> bool {
-    v >= 0.0
+/// The message of [`roughness`].
+pub(crate) const ROUGHNESS: &str = "must be in [1e-4, 10]";
+
+pub(crate) fn albedo(v: f64) -> bool {
+    (0.0..=MAX_ALBEDO).contains(&v)
 }
+
+/// The message of [`albedo`].
+pub(crate) const ALBEDO: &str = "must be in [0, 100]";
+
+pub(crate) fn exponent(v: f64) -> bool {
+    (0.0..=MAX_EXPONENT).contains(&v)
+}
+
+/// The message of [`exponent`].
+pub(crate) const EXPONENT: &str = "must be in [0, 1e6]";
 
 pub(crate) fn unit_interval(v: f64) -> bool {
     (0.0..=1.0).contains(&v)

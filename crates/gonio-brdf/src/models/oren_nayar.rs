@@ -2,7 +2,7 @@ use std::f64::consts::{FRAC_1_PI, FRAC_2_PI};
 
 use gonio_core::{Channels, Dir};
 
-use super::{ParamError, check, non_negative};
+use super::{ALBEDO, ParamError, albedo, check};
 use crate::Brdf;
 use crate::proposal::{Proposal, Weighted};
 
@@ -54,7 +54,7 @@ impl OrenNayar {
         sigma_deg: Vec<f64>,
         variant: OrenNayarVariant,
     ) -> Result<Self, ParamError> {
-        check("rho", &rho, &channels, "must be ≥ 0", non_negative)?;
+        check("rho", &rho, &channels, ALBEDO, albedo)?;
         check(
             "sigma_deg",
             &sigma_deg,

@@ -2,7 +2,9 @@ use std::f64::consts::TAU;
 
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, lobe_weight, non_negative, unit_interval};
+use super::{
+    ALBEDO, Diffuse, EXPONENT, ParamError, albedo, check, exponent, lobe_weight, unit_interval,
+};
 use crate::Brdf;
 use crate::lobe::{hemisphere_albedo, sphere_integral};
 use crate::proposal::{Proposal, Weighted};
@@ -101,8 +103,8 @@ impl Phong {
         normalization: PhongNormalization,
         shading: bool,
     ) -> Result<Self, ParamError> {
-        check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
-        check("n", &n, &channels, "must be ≥ 0", non_negative)?;
+        check("rho_s", &rho_s, &channels, ALBEDO, albedo)?;
+        check("n", &n, &channels, EXPONENT, exponent)?;
         let coef = rho_s
             .iter()
             .zip(&n)

@@ -2,7 +2,7 @@ use std::f64::consts::PI;
 
 use gonio_core::{Channels, Dir};
 
-use super::{Diffuse, ParamError, check, non_negative, roughness};
+use super::{ALBEDO, Diffuse, ParamError, ROUGHNESS, albedo, check, roughness};
 use crate::Brdf;
 use crate::microfacet::Distribution;
 use crate::proposal::{HalfDensity, Proposal, Weighted};
@@ -24,16 +24,16 @@ pub struct Ward {
 }
 
 impl Ward {
-    /// `rho_s` ≥ 0, `alpha_x`, `alpha_y` ≥ 1e-4 per channel.
+    /// `rho_s` in [0, 100], `alpha_x`, `alpha_y` in [1e-4, 10] per channel.
     pub fn new(
         channels: Channels,
         rho_s: Vec<f64>,
         alpha_x: Vec<f64>,
         alpha_y: Vec<f64>,
     ) -> Result<Self, ParamError> {
-        check("rho_s", &rho_s, &channels, "must be ≥ 0", non_negative)?;
-        check("alpha_x", &alpha_x, &channels, "must be ≥ 1e-4", roughness)?;
-        check("alpha_y", &alpha_y, &channels, "must be ≥ 1e-4", roughness)?;
+        check("rho_s", &rho_s, &channels, ALBEDO, albedo)?;
+        check("alpha_x", &alpha_x, &channels, ROUGHNESS, roughness)?;
+        check("alpha_y", &alpha_y, &channels, ROUGHNESS, roughness)?;
         Ok(Ward {
             channels,
             rho_s,

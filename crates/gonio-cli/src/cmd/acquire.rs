@@ -328,9 +328,8 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
             s.seed = seed;
         }
         let sim_text = match &a.sim.sim {
-            Some(p) => {
-                std::fs::read_to_string(p).map_err(|e| input(format!("{}: {e}", p.display())))?
-            }
+            Some(p) => gonio_core::input::read_text(p, gonio_core::input::MAX_CONFIG_BYTES)
+                .map_err(input)?,
             None => gonio_sim::config::DEFAULT_SIM.to_string(),
         };
         let sample = s.sample_model_text().map_err(input)?;

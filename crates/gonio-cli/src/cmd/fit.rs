@@ -76,6 +76,14 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     if a.out.is_none() && !a.compare {
         return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
     }
+    // Checked before the input is read: a bad count is refused at once.
+    if a.lobes > gonio_fit::MAX_LOBES {
+        return Err(CliError::Input(format!(
+            "--lobes: must be at most {}, got {}",
+            gonio_fit::MAX_LOBES,
+            a.lobes
+        )));
+    }
     let target = a
         .out
         .as_deref()
@@ -127,8 +135,12 @@ pub fn run(a: FitArgs) -> CliResult<()> {
         conserve_energy: a.conserve_energy,
         ..FitOptions::default()
     };
-    let fit = fit_lobes(&data, &opts)
-        .map_err(|e| CliError::Runtime(format!("{}: {e}", a.input.display())))?;
+    let fit = fit_lobes(&data, &opts).map_err(|e| {
+        CliError::classify(
+            matches!(e, gonio_fit::FitError::Options(_)),
+            format!("{}: {e}", a.input.display()),
+        )
+    })?;
     if let Some(target) = &target {
         let header = format!(
             "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",

@@ -45,6 +45,15 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
         a.out.as_path(),
         a.json.json,
     );
+    // Checked before the input is read: a bad degree is refused at once.
+    let degree = |name: &str, v: usize, max: usize| {
+        gonio_core::limits::count(v as u64, 0, max as u64, "")
+            .map_err(|m| CliError::Input(format!("{name}: {m}")))
+    };
+    degree("--order", order, gonio_process::sh::MAX_L_MAX)?;
+    if let Some(f) = filter {
+        degree("--filter", f, order)?;
+    }
     let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
     let table = opened.data.to_table(a.grid.grid, path)?;

@@ -108,6 +108,36 @@ fn median_relative_error(r: &MicroResult) -> f64 {
     rel[rel.len() / 2]
 }
 
+/// The counts of the flags against the library's caps, before the surface is read:
+/// an absurd `--rays` is refused at once rather than after a surface is generated.
+fn check_counts(a: &MicroArgs) -> CliResult<()> {
+    use gonio_core::limits::count;
+    let flag = |name: &str, r: Result<u64, String>| {
+        r.map(|_| ())
+            .map_err(|m| CliError::Input(format!("{name}: {m}")))
+    };
+    let max_rays = gonio_micro::MAX_RAYS as u64;
+    flag("--rays", count(a.rays as u64, 2, max_rays, "rays"))?;
+    flag(
+        "--max-bounces",
+        count(
+            a.max_bounces.into(),
+            1,
+            gonio_micro::MAX_BOUNCES.into(),
+            "bounces",
+        ),
+    )?;
+    if let Some(l) = a.sh {
+        let max_l = gonio_process::sh::MAX_L_MAX as u64;
+        flag("--sh", count(l as u64, 0, max_l, ""))?;
+        flag("--sh-rays", count(a.sh_rays as u64, 2, max_rays, "rays"))?;
+        if let Some(f) = a.sh_filter {
+            flag("--sh-filter", count(f as u64, 0, l as u64, ""))?;
+        }
+    }
+    Ok(())
+}
+
 /// `gonio micro SURFACE --grid DT,DP --rays N --out TABLE`.
 pub fn run(a: MicroArgs) -> CliResult<()> {
     let sh_request = match (a.sh, &a.sh_out) {
@@ -117,6 +147,7 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
         }
         _ => None,
     };
+    check_counts(&a)?;
     // Every output is checked before the rays are traced.
     let force = a.force.force;
     let out = output::Target::new(&a.out, force)?;

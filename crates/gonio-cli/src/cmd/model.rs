@@ -66,9 +66,17 @@ pub fn run(c: Command) -> CliResult<()> {
                 .transpose()?;
             eval(&a.model, &a.dirs, out, a.json.json)
         }
-        Command::Albedo(a) => albedo(&a.model, &a.theta_i, a.phi_i, a.json.json),
+        Command::Albedo(a) => {
+            PHI_I
+                .check(a.phi_i)
+                .map_err(|m| CliError::Input(format!("--phi-i: {m}")))?;
+            albedo(&a.model, &a.theta_i, a.phi_i, a.json.json)
+        }
     }
 }
+
+/// `--phi-i`: a turn either way, degrees.
+const PHI_I: gonio_core::limits::Range = gonio_core::limits::Range::closed(-360.0, 360.0, "deg");
 
 /// Parses one `--theta-i` value: degrees in [0, 90].
 pub fn parse_theta(s: &str) -> Result<f64, String> {
@@ -84,8 +92,8 @@ pub fn parse_theta(s: &str) -> Result<f64, String> {
 }
 
 fn read_pairs(path: &Path) -> CliResult<Vec<PairDeg>> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
+    let text = gonio_core::input::read_text(path, dirfile::MAX_BYTES)
+        .map_err(|e| CliError::Input(e.to_string()))?;
     dirfile::read_pairs(&text).map_err(|e| {
         let field = e
             .column

@@ -54,11 +54,7 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
     let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
     let data = &opened.data;
     let fit = match &a.fit {
-        Some(p) => Some(Model::from_toml(
-            &std::fs::read_to_string(p)
-                .map_err(|e| CliError::Input(format!("{}: {e}", p.display())))?,
-            Some(p),
-        )?),
+        Some(p) => Some(Model::load(p)?),
         None => None,
     };
     let src =

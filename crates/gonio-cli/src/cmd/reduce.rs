@@ -33,14 +33,10 @@ pub struct ReduceArgs {
     json: JsonFlag,
 }
 
-/// The first bytes of a file, for recognising its kind.
+/// The first bytes of a file, for recognising its kind; a FIFO, a device or a
+/// directory is refused without being opened.
 pub fn head(path: &Path) -> CliResult<Vec<u8>> {
-    use std::io::Read;
-    let mut h = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(64 * 1024).read_to_end(&mut h))
-        .map_err(|e| CliError::Input(format!("{}: {e}", path.display())))?;
-    Ok(h)
+    gonio_core::input::read_head(path, 64 * 1024).map_err(|e| CliError::Input(e.to_string()))
 }
 
 fn reduction_json(r: &Reduction) -> serde_json::Value {

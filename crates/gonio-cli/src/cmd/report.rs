@@ -87,6 +87,8 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
 
 /// The report's contents for a run file.
 pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> {
+    // Examined before SQLite opens it: a FIFO would hold the open forever.
+    gonio_core::input::regular_file(run).map_err(|e| CliError::Input(e.to_string()))?;
     let store = RunStore::open(run)?;
     let meta = store.meta().map_err(|e| CliError::Runtime(e.to_string()))?;
     drop(store);

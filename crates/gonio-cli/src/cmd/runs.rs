@@ -36,6 +36,8 @@ fn input(e: impl std::fmt::Display) -> CliError {
 /// `gonio show RUN [--json]`.
 pub fn show(a: ShowArgs) -> CliResult<()> {
     let (path, json) = (a.run.as_path(), a.json.json);
+    // Examined before SQLite opens it: a FIFO would hold the open forever.
+    gonio_core::input::regular_file(path).map_err(input)?;
     let store = RunStore::open(path)?;
     let s = gonio_run::summary(&store)?;
     if json {
@@ -121,10 +123,19 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
 pub fn runs(a: RunsArgs) -> CliResult<()> {
     let (dir, json) = (a.dir.as_path(), a.json.json);
     let entries = std::fs::read_dir(dir).map_err(|e| input(format!("{}: {e}", dir.display())))?;
+    // Only regular files, told by their metadata before anything is opened: a FIFO
+    // named `x.gonio` would block the open, a device would never end.
     let mut paths: Vec<PathBuf> = entries
         .filter_map(Result::ok)
         .map(|e| e.path())
         .filter(|p| p.extension().is_some_and(|x| x == "gonio"))
+        .filter(|p| match gonio_core::input::regular_file(p) {
+            Ok(_) => true,
+            Err(e) => {
+                tracing::warn!("skipped: {e}");
+                false
+            }
+        })
         .collect();
     paths.sort();
     let mut rows = Vec::new();

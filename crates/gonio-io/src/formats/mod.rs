@@ -434,19 +434,18 @@ pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
     })
 }
 
-/// Reads a file from disk ([`read`]), refusing files larger than [`MAX_FILE_BYTES`]
-/// before reading them.
+/// Reads a file from disk ([`read`]): only a regular file (a FIFO, a device or a
+/// directory is refused without being read), and no more than [`MAX_FILE_BYTES`] of
+/// it (`gonio_core::input::read_bounded`).
 pub fn read_file(path: &Path) -> Result<Data, FormatError> {
-    let io = |e: std::io::Error| FormatError::whole(None, Some(path), format!("cannot read: {e}"));
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > MAX_FILE_BYTES {
-        return Err(FormatError::whole(
+    let bytes = gonio_core::input::read_bounded(path, MAX_FILE_BYTES).map_err(|e| match e {
+        gonio_core::input::InputError::TooLarge { max, .. } => FormatError::whole(
             None,
             Some(path),
-            format!("{len} bytes, more than the {MAX_FILE_BYTES} a BRDF file may have"),
-        ));
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
+            format!("more than the {max} bytes a BRDF file may have"),
+        ),
+        e => FormatError::whole(None, Some(path), format!("cannot read: {}", e.reason())),
+    })?;
     read(&bytes, Some(path))
 }
 

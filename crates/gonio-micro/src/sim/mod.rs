@@ -45,6 +45,23 @@ use crate::{MicroError, Sample};
 pub const BLOCK: usize = 1024;
 /// Blocks traced in parallel before their sums are merged (in block order).
 const ROUND: usize = 64;
+/// The most rays a simulation may trace per incident direction of a table, or in all
+/// for a spherical-harmonic estimate: 10⁹, hours of tracing at the default
+/// hundred thousand's pace of a second or so. More is refused, not left to run for
+/// days (or forever, as 2⁶⁴ − 1 would).
+pub const MAX_RAYS: usize = 1_000_000_000;
+
+/// The most bounces a ray may be followed through (`max_bounces`): 10⁴. The default
+/// 100 already leaves less than 10⁻¹⁰ of the energy on any realistic surface.
+pub const MAX_BOUNCES: u32 = 10_000;
+
+/// Checks a ray count against `2..=MAX_RAYS`.
+pub(crate) fn check_rays(rays: usize) -> Result<(), MicroError> {
+    gonio_core::limits::count(rays as u64, 2, MAX_RAYS as u64, "rays")
+        .map(|_| ())
+        .map_err(|m| MicroError::invalid("rays", m))
+}
+
 /// The bounce orders reported separately: 1, 2 and 3 or more.
 pub const ORDERS: [&str; 3] = ["1", "2", "3+"];
 
@@ -231,9 +248,8 @@ impl Simulation {
     /// Prepares `sample` (checks it again — its fields are public — and builds the
     /// max-mip hierarchy).
     pub fn new(sample: Sample, opts: SimOptions) -> Result<Simulation, MicroError> {
-        if opts.max_bounces == 0 {
-            return Err(MicroError::invalid("max_bounces", "must be at least 1"));
-        }
+        gonio_core::limits::count(opts.max_bounces.into(), 1, MAX_BOUNCES.into(), "bounces")
+            .map_err(|m| MicroError::invalid("max_bounces", m))?;
         let sample = Sample::new(
             sample.channels,
             sample.surface,

@@ -48,9 +48,7 @@ impl Simulation {
         if l_filter > l_max {
             return Err(MicroError::invalid("l_filter", "must not exceed l_max"));
         }
-        if rays < 2 {
-            return Err(MicroError::invalid("rays", "need at least 2 rays"));
-        }
+        super::check_rays(rays)?;
         let nc = self.sample.channels.len();
         let bas = basis(l_max);
         let k = bas.len();

@@ -19,12 +19,7 @@ impl Simulation {
     /// number of threads.
     pub fn to_table(&self, grid: &Grid, rays: usize, seed: u64) -> Result<MicroResult, MicroError> {
         grid.validate()?;
-        if rays < 2 {
-            return Err(MicroError::invalid(
-                "rays",
-                "need at least 2 rays per direction",
-            ));
-        }
+        super::check_rays(rays)?;
         let cells = OutCells::new(&grid.phi_o, &grid.theta_o);
         let nc = self.sample.channels.len();
         let n_out = grid.n_out();

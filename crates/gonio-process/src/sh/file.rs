@@ -172,6 +172,16 @@ impl ShFile {
                     format!("value {j} is not finite ({})", m.upper[j]),
                 );
             }
+            if let Some(j) = m.upper.iter().position(|v| v.abs() > crate::MAX_MAGNITUDE) {
+                return fault(
+                    &format!("matrices[{i}].upper"),
+                    format!(
+                        "value {j} ({:e}) is larger in magnitude than {:e}",
+                        m.upper[j],
+                        crate::MAX_MAGNITUDE
+                    ),
+                );
+            }
         }
         Ok(())
     }
