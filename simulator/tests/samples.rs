@@ -130,7 +130,7 @@ fn the_standalone_simulator_serves_a_microgeometry_sample() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_gonio-sim"))
         .arg("--config")
         .arg(dir.path().join("sim.toml"))
-        .stdin(Stdio::piped())
+        .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -141,6 +141,11 @@ fn the_standalone_simulator_serves_a_microgeometry_sample() {
         .expect("announces");
     let v: serde_json::Value = serde_json::from_str(&line).expect("one JSON line");
     assert!(v["motion"].as_str().is_some_and(|p| Path::new(p).exists()));
-    drop(child.stdin.take());
+    // Served until a stop signal.
+    let sent = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(sent.success());
     assert!(child.wait().expect("exits").success());
 }
