@@ -378,7 +378,7 @@ fn read_height_map(
         let text = String::from_utf8(bytes).map_err(|_| err(None, "not UTF-8 text".into()))?;
         let mut rows: Vec<Vec<f64>> = Vec::new();
         let mut first_line = 0;
-        for (k, line) in text.lines().enumerate() {
+        for (k, line) in gonio_core::text::strip_bom(&text).lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
                 continue;

@@ -413,6 +413,10 @@ kind = "mirror"
 "#;
     let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:") && e.contains("\"x\""), "{e}");
+    // A spreadsheet's byte order mark before the first height is no height.
+    std::fs::write(dir.join("bumps.csv"), "\u{feff}0,1,2\n0,1,2\n").expect("write");
+    let s = Sample::load(&dir.join("hm.toml")).expect("BOM");
+    assert_eq!((s.surface.nx(), s.surface.ny()), (3, 2));
     std::fs::write(dir.join("bumps.csv"), "0 1 2\n0 1\n").expect("write");
     let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:"), "{e}");
