@@ -53,10 +53,17 @@ pub const HOSTILE: &[&str] = &[
 const BOM: &str = "\u{feff}";
 
 /// `text` with one change for each seed, in turn (the same seeds, the same result).
+/// A change that would take the text past twice its first length (plus 1 KiB) is
+/// skipped: repeated lines would otherwise grow it exponentially, and a file's size is
+/// no part of what the changes are for.
 pub fn mutate(text: &str, seeds: &[u64]) -> String {
+    let limit = 2 * text.len() + 1024;
     let mut out = text.to_string();
     for &seed in seeds {
-        out = mutate_once(&out, seed);
+        let next = mutate_once(&out, seed);
+        if next.len() <= limit {
+            out = next;
+        }
     }
     out
 }
@@ -80,12 +87,20 @@ fn mutate_once(text: &str, seed: u64) -> String {
                 lines.remove(i);
             }
         }),
-        6 => edit_lines(text, |lines| {
+        6 => {
+            let mut lines: Vec<String> = text.split_inclusive('\n').map(str::to_string).collect();
             if !lines.is_empty() {
                 let i = pick(lines.len());
-                lines.insert(i, lines[i]);
+                // The last line may lack its newline; its copy must not run into it.
+                let copy = if lines[i].ends_with('\n') {
+                    lines[i].clone()
+                } else {
+                    format!("{}\n", lines[i])
+                };
+                lines.insert(i, copy);
             }
-        }),
+            lines.concat()
+        }
         7 => edit_lines(text, |lines| {
             if !lines.is_empty() {
                 let (i, j) = (pick(lines.len()), pick(lines.len()));
@@ -158,5 +173,24 @@ mod tests {
         }
         // A mutation can undo itself (a line swapped with itself), but rarely.
         assert!(changed > 150, "{changed}");
+    }
+
+    #[test]
+    fn the_text_never_grows_past_twice_its_length() {
+        let t = "a = 1\nb = [2, 3]";
+        for seed in 0..100u64 {
+            let seeds: Vec<u64> = (0..64).map(|k| seed * 64 + k).collect();
+            assert!(mutate(t, &seeds).len() <= 2 * t.len() + 1024);
+        }
+        // A repeated last line keeps its own line.
+        let seed = (0..10_000u64)
+            .find(|s| {
+                let m = mutate(t, &[*s]);
+                m.len() > t.len()
+                    && m.ends_with("b = [2, 3]")
+                    && m.matches("b = [2, 3]").count() == 2
+            })
+            .expect("some seed repeats the last line");
+        assert_eq!(mutate(t, &[seed]), "a = 1\nb = [2, 3]\nb = [2, 3]");
     }
 }
