@@ -293,6 +293,31 @@ impl SimConfig {
                     ),
                 ));
             }
+            // A NaN or infinite position or speed reaches the motion profile's clamp
+            // and panics there (found by fuzzing `start_position = nan`).
+            for (name, v) in [
+                ("velocity", c.velocity),
+                ("acceleration", c.acceleration),
+                ("max_velocity", c.max_velocity),
+                ("max_acceleration", c.max_acceleration),
+                ("home_velocity", c.home_velocity),
+                ("home_position", c.home_position),
+                ("home_switch", c.home_switch),
+                ("home_timeout_s", c.home_timeout_s),
+                ("negative_limit", c.negative_limit),
+                ("positive_limit", c.positive_limit),
+                ("counts_per_unit", c.counts_per_unit),
+                ("start_position", c.start_position),
+                ("boot_time_s", c.boot_time_s),
+                ("following_error_s", c.following_error_s),
+            ] {
+                if !v.is_finite() {
+                    return Err((
+                        format!("controllers[{i}].{name}"),
+                        format!("must be a finite number, got {v}"),
+                    ));
+                }
+            }
             if !(c.velocity > 0.0
                 && c.acceleration > 0.0
                 && c.home_velocity > 0.0

@@ -127,3 +127,32 @@ fn every_sample_kind_loads_with_and_without_a_byte_order_mark() {
         }
     }
 }
+
+/// Found by the `sim_config` fuzz target: a controller's `start_position = nan` was
+/// accepted and panicked in the first move. Every number of a controller must be
+/// finite, and the error names it.
+#[test]
+fn a_controller_number_that_is_not_finite_is_refused_by_name() {
+    let text = gonio_sim::config::DEFAULT_SIM;
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("start_position = 12.5"))
+        .expect("the first controller's start")
+        + 1;
+    for bad in ["nan", "inf", "-inf"] {
+        let t = text.replacen(
+            "start_position = 12.5",
+            &format!("start_position = {bad}"),
+            1,
+        );
+        let e = SimConfig::from_toml(&t, None).expect_err(bad);
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "<sim config>:{line}:18: field `controllers[0].start_position`: must be a \
+                 finite number, got {}",
+                bad.replace("nan", "NaN")
+            )
+        );
+    }
+}
