@@ -202,6 +202,26 @@ fn values_of_the_wrong_type_name_their_field() {
     );
 }
 
+/// Found by the `model_file` fuzz target: a Blinn-Phong exponent of 1e308 was
+/// accepted with a NaN normalisation.
+#[test]
+fn an_exponent_whose_normalisation_overflows_is_refused() {
+    let e = err(
+        "kind = \"blinn-phong\"\nchannels = [\"R\", \"G\", \"B\"]\nrho_s = [0.1, 0.1, 0.1]\nn = [20, 1e308, 20]\n",
+    );
+    assert_eq!(
+        e.to_string(),
+        "paint.toml:4:5: field `n`: 1e308 for channel G is too large: its normalisation overflows"
+    );
+    // Large but representable exponents still read.
+    let m = Model::from_toml(
+        "kind = \"blinn-phong\"\nchannels = [\"value\"]\nrho_s = [0.1]\nn = [1e150]\n",
+        None,
+    )
+    .expect("n = 1e150");
+    assert_eq!(Model::from_toml(&m.to_toml(), None).expect("reads back"), m);
+}
+
 #[test]
 fn a_byte_order_mark_is_ignored() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models");
