@@ -94,7 +94,7 @@ fn load(text: &str) -> Result<(), TestCaseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(128))]
+    #![proptest_config(ProptestConfig::with_cases(512))]
 
     #[test]
     fn sim_configs_from_any_text(text in any::<String>()) {

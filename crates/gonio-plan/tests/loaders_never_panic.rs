@@ -45,7 +45,7 @@ fn load(text: &str, mech: &gonio_plan::Mechanics) -> Result<(), String> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(ProptestConfig::with_cases(512))]
 
     #[test]
     fn plans_from_any_text(text in any::<String>()) {

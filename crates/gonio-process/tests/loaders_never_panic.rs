@@ -97,7 +97,7 @@ fn harmonics(text: &str) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(128))]
+    #![proptest_config(ProptestConfig::with_cases(256))]
 
     #[test]
     fn every_reader_on_any_text(text in any::<String>()) {
