@@ -109,12 +109,8 @@ impl Ctx<'_> {
     }
 
     fn syntax(&self, e: toml::de::Error) -> ModelError {
-        self.error(
-            e.span(),
-            None,
-            ModelErrorKind::Syntax,
-            e.message().trim().to_string(),
-        )
+        let f = gonio_core::tomlfile::Fault::of(self.text, &e);
+        self.error(f.span, f.field, ModelErrorKind::Syntax, f.message)
     }
 
     fn invalid(&self, span: Span, field: &str, message: impl Into<String>) -> ModelError {
@@ -423,6 +419,7 @@ fn lobe(ctx: &Ctx, ch: &Channels, i: usize, l: &S<LobeFile>) -> Result<Lafortune
 }
 
 pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError> {
+    let text = gonio_core::text::strip_bom(text);
     let ctx = Ctx { text, path };
     let head: Head = ctx.de(text)?;
     let Some(kind) = head.kind else {

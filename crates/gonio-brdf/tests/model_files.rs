@@ -183,6 +183,66 @@ n = [3]
 }
 
 #[test]
+fn values_of_the_wrong_type_name_their_field() {
+    let e = err("kind = \"lambert\"\nchannels = [\"value\"]\nrho = [\"half\"]\n");
+    assert_eq!(
+        e.to_string(),
+        "paint.toml:3:8: field `rho[0]`: invalid type: string \"half\", expected f64"
+    );
+    let e = err("kind = \"phong\"\nchannels = [\"value\"]\nrho_s = [0.2]\nn = [20]\nshading = 1\n");
+    assert_eq!(
+        e.to_string(),
+        "paint.toml:5:11: field `shading`: invalid type: integer `1`, expected a boolean"
+    );
+    let e = err(
+        "kind = \"lafortune\"\nchannels = [\"value\"]\n[[lobes]]\ncx = [1.0]\ncz = 1.0\nn = [2]\n",
+    );
+    assert_eq!(
+        e.to_string(),
+        "paint.toml:5:6: field `lobes[0].cz`: invalid type: floating point `1.0`, expected a sequence"
+    );
+}
+
+/// Found by the `model_file` fuzz target: a Blinn-Phong exponent of 1e308 was
+/// accepted with a NaN normalisation.
+#[test]
+fn an_exponent_whose_normalisation_overflows_is_refused() {
+    let e = err(
+        "kind = \"blinn-phong\"\nchannels = [\"R\", \"G\", \"B\"]\nrho_s = [0.1, 0.1, 0.1]\nn = [20, 1e308, 20]\n",
+    );
+    assert_eq!(
+        e.to_string(),
+        "paint.toml:4:5: field `n`: 1e308 for channel G is too large: its normalisation overflows"
+    );
+    // Large but representable exponents still read.
+    let m = Model::from_toml(
+        "kind = \"blinn-phong\"\nchannels = [\"value\"]\nrho_s = [0.1]\nn = [1e150]\n",
+        None,
+    )
+    .expect("n = 1e150");
+    assert_eq!(Model::from_toml(&m.to_toml(), None).expect("reads back"), m);
+}
+
+#[test]
+fn a_byte_order_mark_is_ignored() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/models");
+    for name in [
+        "blue-paint-550nm.toml",
+        "lafortune-fig9.toml",
+        "ward-brushed.toml",
+    ] {
+        let text = std::fs::read_to_string(dir.join(name)).expect("shipped model");
+        assert_eq!(
+            Model::from_toml(&format!("\u{feff}{text}"), None).expect(name),
+            Model::from_toml(&text, None).expect(name),
+        );
+    }
+    // Places on the first line do not count the mark as a column.
+    let e = err("\u{feff}kind = \"gaussian\"\nchannels = [\"value\"]\n");
+    assert_eq!((e.line, e.column), (Some(1), Some(8)));
+}
+
+#[test]
 fn missing_file_is_an_io_error_naming_it() {
     let e = Model::load(Path::new("/nonexistent/model.toml")).expect_err("no such file");
     assert_eq!(e.kind, ModelErrorKind::Io);

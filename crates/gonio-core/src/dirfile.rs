@@ -51,9 +51,10 @@ pub const MAX_BYTES: u64 = 256 << 20;
 
 /// Parses a directions file. Blank lines and lines starting with `#` are skipped;
 /// columns after the first four are ignored (so an evaluation result reads back).
-/// θ must lie in [0, 90]; φ may be any finite angle.
+/// θ must lie in [0, 90]; φ may be any finite angle. A leading byte order mark is
+/// ignored.
 pub fn read_pairs(text: &str) -> Result<Vec<PairDeg>, DirFileError> {
-    let mut lines = text
+    let mut lines = crate::text::strip_bom(text)
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
@@ -167,9 +168,20 @@ mod tests {
         assert_eq!(e.column.as_deref(), Some("theta_i"));
         let e = read_pairs("ti,pi,to,po\n").unwrap_err();
         assert_eq!(e.line, 1);
+        assert_eq!(
+            e.to_string(),
+            "line 1: header must start with theta_i,phi_i,theta_o,phi_o; got \"ti,pi,to,po\""
+        );
         let e = read_pairs("theta_i,phi_i,theta_o,phi_o\n1,2,3\n").unwrap_err();
         assert!(e.message.contains("expected 4 values"));
         assert!(read_pairs("").is_err());
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_header() {
+        let p = read_pairs("\u{feff}theta_i,phi_i,theta_o,phi_o\n10,0,20,180\n").expect("BOM");
+        assert_eq!(p[0].incident, SphericalDeg::new(10.0, 0.0));
+        assert_eq!(p[0].outgoing, SphericalDeg::new(20.0, 180.0));
     }
 
     #[test]

@@ -22,6 +22,7 @@
 //! - [`input`] reads input files without trusting them (regular files only, never
 //!   blocking, at most a cap of bytes); [`limits`] holds the sane ranges numbers from
 //!   files are checked against, with messages that name them.
+//! - [`fuzz`] makes hostile variations of good input files for the loaders' tests.
 //!
 //! ```
 //! use gonio_core::{Dir, SphericalDeg};
@@ -37,6 +38,7 @@
 mod channels;
 pub mod dirfile;
 mod frame;
+pub mod fuzz;
 mod geometry;
 pub mod goniometer;
 pub mod input;
@@ -90,6 +92,18 @@ pub mod text {
         f.write_str(message)
     }
 
+    /// `text` without the UTF-8 byte order mark that Windows editors and spreadsheets
+    /// put at the start of a file ("CSV UTF-8"): every text reader takes it off
+    /// first, so that a header or a first key compares equal to what it says.
+    pub fn strip_bom(text: &str) -> &str {
+        text.strip_prefix('\u{feff}').unwrap_or(text)
+    }
+
+    /// [`strip_bom`] for bytes not yet known to be UTF-8.
+    pub fn strip_bom_bytes(bytes: &[u8]) -> &[u8] {
+        bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes)
+    }
+
     /// The 1-based line and column (in characters) of byte `offset` in `text`.
     pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
         let mut end = offset.min(text.len());
@@ -112,6 +126,15 @@ pub mod text {
             // 'é' is two bytes: the '=' at byte 10 is the 4th character of line 2.
             assert_eq!(super::line_col(t, 10), (2, 4));
             assert_eq!(super::line_col(t, 999), (3, 1));
+        }
+
+        #[test]
+        fn a_byte_order_mark_is_taken_off_once() {
+            assert_eq!(super::strip_bom("\u{feff}a,b"), "a,b");
+            assert_eq!(super::strip_bom("\u{feff}\u{feff}a"), "\u{feff}a");
+            assert_eq!(super::strip_bom("a\u{feff}"), "a\u{feff}");
+            assert_eq!(super::strip_bom_bytes(b"\xef\xbb\xbfkind"), b"kind");
+            assert_eq!(super::strip_bom_bytes(b"\xef\xbb"), b"\xef\xbb");
         }
     }
 }

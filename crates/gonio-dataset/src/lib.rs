@@ -211,9 +211,10 @@ pub fn detect(bytes: &[u8]) -> Option<Kind> {
 }
 
 /// A TOML file's kind: its first line that is neither blank nor a comment starts
-/// with `kind` or a `[table]`; `kind = "separable"` and `kind =
-/// "spherical-harmonics"` name the representations, anything else is a model.
+/// with `kind` or a `[table]` (after any byte order mark); `kind = "separable"` and
+/// `kind = "spherical-harmonics"` name the representations, anything else is a model.
 fn toml_kind(bytes: &[u8]) -> Option<Kind> {
+    let bytes = gonio_core::text::strip_bom_bytes(bytes);
     let text = match std::str::from_utf8(bytes) {
         Ok(t) => t,
         Err(e) => std::str::from_utf8(&bytes[..e.valid_up_to()]).ok()?,

@@ -809,6 +809,51 @@ fn detection_picks_the_format_from_content() {
 }
 
 #[test]
+fn a_wrong_csv_header_names_the_columns_expected() {
+    let e = formats::read(
+        b"# mine\ntheta,phi,theta_o,phi_o,value\n0,0,0,0,1\n",
+        Some(Path::new("w.csv")),
+    )
+    .expect_err("header");
+    assert_eq!((e.format, e.line), (Some(Format::Csv), Some(2)));
+    assert_eq!(
+        e.to_string(),
+        "w.csv:2: not a CSV header Gonio reads: expected the columns theta_i,phi_i,theta_o,\
+         phi_o, then one column a channel (value; R,G,B; or wavelengths like 550nm), then \
+         optionally sigma_<channel> for each channel and flags; found \"theta,phi,theta_o,phi_o,value\""
+    );
+    // The right angles and a wrong channel column: the CSV reader says which.
+    let e =
+        formats::read(b"theta_i,phi_i,theta_o,phi_o,red\n0,0,0,0,1\n", None).expect_err("channel");
+    assert_eq!((e.format, e.line), (Some(Format::Csv), Some(1)));
+    assert!(
+        e.message
+            .contains("expected the columns theta_i,phi_i,theta_o,phi_o, then"),
+        "{e}"
+    );
+    // An ASTM keyword line with a comma after a space is not taken for a CSV header.
+    let e = formats::read(b"SOURCE lab, 2020, x, y\n1 2 3\n", None).expect_err("junk");
+    assert_eq!((e.format, e.line), (None, Some(1)));
+    assert!(e.message.starts_with("not a BRDF file Gonio reads"), "{e}");
+}
+
+#[test]
+fn a_byte_order_mark_is_ignored_by_detection_and_readers() {
+    let s = awkward_samples(Channels::Rgb, 6, 5, false);
+    let csv = gonio_process::file::write_samples(&s);
+    let astm = write_astm(&s);
+    for (text, format) in [(csv, Format::Csv), (astm, Format::Astm)] {
+        let with = format!("\u{feff}{text}");
+        assert_eq!(formats::detect(with.as_bytes()), Some(format));
+        assert_eq!(
+            formats::read(with.as_bytes(), None).expect("BOM"),
+            formats::read(text.as_bytes(), None).expect("plain"),
+            "{format:?}"
+        );
+    }
+}
+
+#[test]
 fn files_on_disk_name_themselves() {
     let scratch = tempfile::tempdir().expect("temp dir");
     let dir = scratch.path();
@@ -868,6 +913,28 @@ fn mutate(text: &str, at: usize, with: &str) -> String {
         end += 1;
     }
     format!("{}{with}{}", &text[..cut], &text[end..])
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// Hostile numbers, lost and repeated lines, a BOM (`gonio_core::fuzz::mutate`)
+    /// in files Gonio wrote: read as any format, never a panic.
+    #[test]
+    fn written_files_with_hostile_changes_never_panic(
+        seeds in prop::collection::vec(any::<u64>(), 1..4),
+        seed in 0u64..100,
+    ) {
+        let s = awkward_samples(Channels::Rgb, 4, seed + 1, seed % 2 == 0);
+        for text in [write_astm(&s), gonio_process::file::write_samples(&s)] {
+            let bad = gonio_core::fuzz::mutate(&text, &seeds);
+            fuzz::astm_read(bad.as_bytes());
+            fuzz::csv_read(bad.as_bytes());
+            if let Err(e) = formats::read(bad.as_bytes(), None) {
+                prop_assert!(e.line.is_none_or(|l| l >= 1), "{e}");
+            }
+        }
+    }
 }
 
 proptest! {

@@ -44,7 +44,7 @@ use std::path::{Path, PathBuf};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::Channels;
 use gonio_core::limits::Range;
-use gonio_core::tomlfile::{self, FileError};
+use gonio_core::tomlfile::{self, FileError, Tagged};
 use serde::Deserialize;
 
 use crate::heightfield::GaussianParams;
@@ -148,18 +148,20 @@ impl Sample {
         for (name, spec) in &doc.materials {
             let f = |k: &str| format!("materials.{name}.{k}");
             let m = match spec {
-                MaterialSpec::Mirror { reflectance } => Material::Mirror {
+                MaterialSpec::Mirror(MirrorSpec { reflectance }) => Material::Mirror {
                     reflectance: reflectance.clone().unwrap_or_else(|| vec![1.0; nc]),
                 },
-                MaterialSpec::Conductor { n, k } => Material::Conductor {
+                MaterialSpec::Conductor(ConductorSpec { n, k }) => Material::Conductor {
                     n: n.clone(),
                     k: k.clone(),
                 },
-                MaterialSpec::Dielectric { eta } => Material::Dielectric { eta: eta.clone() },
-                MaterialSpec::Lambert { albedo } => Material::Lambert {
+                MaterialSpec::Dielectric(DielectricSpec { eta }) => {
+                    Material::Dielectric { eta: eta.clone() }
+                }
+                MaterialSpec::Lambert(LambertSpec { albedo }) => Material::Lambert {
                     albedo: albedo.clone(),
                 },
-                MaterialSpec::Model { file } => {
+                MaterialSpec::Model(ModelSpec { file }) => {
                     let p = dir.join(file);
                     let model = Model::load(&p).map_err(|e| MicroError::Model {
                         surface: path
@@ -206,7 +208,7 @@ impl Sample {
                 .map_err(|m| at("surface.orientation_deg", m))
         };
         let (surface, orient) = match &doc.surface {
-            SurfaceSpec::Gaussian {
+            SurfaceSpec::Gaussian(GaussianSpec {
                 size,
                 spacing,
                 rms_height,
@@ -214,7 +216,7 @@ impl Sample {
                 seed,
                 material,
                 orientation_deg,
-            } => {
+            }) => {
                 let spacing = length(spacing.unwrap_or(1.0), "surface.spacing")?;
                 if size[0] < 2 || size[1] < 2 || size[0].saturating_mul(size[1]) > 1 << 26 {
                     return Err(at(
@@ -264,12 +266,12 @@ impl Sample {
                 .map_err(|e| at("surface", e.to_string()))?;
                 (hf, orientation(*orientation_deg)?)
             }
-            SurfaceSpec::Sawtooth {
+            SurfaceSpec::Sawtooth(SawtoothSpec {
                 period,
                 angles_deg,
                 faces,
                 orientation_deg,
-            } => {
+            }) => {
                 let period = length(period.unwrap_or(1.0), "surface.period")?;
                 for a in angles_deg {
                     if !(a.is_finite() && (1.0..=89.0).contains(a)) {
@@ -289,13 +291,13 @@ impl Sample {
                 .map_err(|e| at("surface", e.to_string()))?;
                 (hf, orientation(*orientation_deg)?)
             }
-            SurfaceSpec::Cylinders {
+            SurfaceSpec::Cylinders(CylindersSpec {
                 radius,
                 spacing,
                 cells_per_period,
                 material,
                 orientation_deg,
-            } => {
+            }) => {
                 let r = length(*radius, "surface.radius")?;
                 let s = length(*spacing, "surface.spacing")?;
                 let cells = cells_per_period.unwrap_or(64);
@@ -310,7 +312,7 @@ impl Sample {
                     .map_err(|e| at("surface", e.to_string()))?;
                 (hf, orientation(*orientation_deg)?)
             }
-            SurfaceSpec::HeightMap {
+            SurfaceSpec::HeightMap(HeightMapSpec {
                 file,
                 spacing,
                 format,
@@ -318,7 +320,7 @@ impl Sample {
                 height_scale,
                 material,
                 orientation_deg,
-            } => {
+            }) => {
                 let spacing = length(*spacing, "surface.spacing")?;
                 let scale = HEIGHT_SCALE
                     .check(height_scale.unwrap_or(1.0))
@@ -414,7 +416,7 @@ fn read_height_map(
         let text = String::from_utf8(bytes).map_err(|_| err(None, "not UTF-8 text".into()))?;
         let mut rows: Vec<Vec<f64>> = Vec::new();
         let mut first_line = 0;
-        for (k, line) in text.lines().enumerate() {
+        for (k, line) in gonio_core::text::strip_bom(&text).lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
                 continue;
@@ -506,49 +508,124 @@ struct Doc {
     materials: BTreeMap<String, MaterialSpec>,
 }
 
-#[derive(Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+/// The `[surface]` table: one struct a kind, read through [`Tagged`] so that an error
+/// in a field names `surface.FIELD` and its line.
 enum SurfaceSpec {
-    Gaussian {
-        size: [usize; 2],
-        spacing: Option<f64>,
-        rms_height: f64,
-        correlation_length: f64,
-        seed: u64,
-        material: String,
-        orientation_deg: Option<f64>,
-    },
-    #[serde(alias = "v-grooves")]
-    Sawtooth {
-        period: Option<f64>,
-        angles_deg: [f64; 2],
-        faces: [String; 2],
-        orientation_deg: Option<f64>,
-    },
-    Cylinders {
-        radius: f64,
-        spacing: f64,
-        cells_per_period: Option<usize>,
-        material: String,
-        orientation_deg: Option<f64>,
-    },
-    HeightMap {
-        file: PathBuf,
-        spacing: f64,
-        format: Option<String>,
-        size: Option<[usize; 2]>,
-        height_scale: Option<f64>,
-        material: String,
-        orientation_deg: Option<f64>,
-    },
+    Gaussian(GaussianSpec),
+    Sawtooth(SawtoothSpec),
+    Cylinders(CylindersSpec),
+    HeightMap(HeightMapSpec),
 }
 
 #[derive(Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(deny_unknown_fields)]
+struct GaussianSpec {
+    size: [usize; 2],
+    spacing: Option<f64>,
+    rms_height: f64,
+    correlation_length: f64,
+    seed: u64,
+    material: String,
+    orientation_deg: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SawtoothSpec {
+    period: Option<f64>,
+    angles_deg: [f64; 2],
+    faces: [String; 2],
+    orientation_deg: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CylindersSpec {
+    radius: f64,
+    spacing: f64,
+    cells_per_period: Option<usize>,
+    material: String,
+    orientation_deg: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HeightMapSpec {
+    file: PathBuf,
+    spacing: f64,
+    format: Option<String>,
+    size: Option<[usize; 2]>,
+    height_scale: Option<f64>,
+    material: String,
+    orientation_deg: Option<f64>,
+}
+
+impl<'de> Deserialize<'de> for SurfaceSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let t = Tagged::read(d, &["gaussian", "sawtooth", "cylinders", "height-map"])?;
+        match t.kind() {
+            "gaussian" => t.fields().map(SurfaceSpec::Gaussian),
+            "sawtooth" | "v-grooves" => t.fields().map(SurfaceSpec::Sawtooth),
+            "cylinders" => t.fields().map(SurfaceSpec::Cylinders),
+            "height-map" => t.fields().map(SurfaceSpec::HeightMap),
+            _ => Err(t.unknown_kind()),
+        }
+    }
+}
+
+/// A `[materials.NAME]` table, read like [`SurfaceSpec`].
 enum MaterialSpec {
-    Mirror { reflectance: Option<Vec<f64>> },
-    Conductor { n: Vec<f64>, k: Vec<f64> },
-    Dielectric { eta: Vec<f64> },
-    Lambert { albedo: Vec<f64> },
-    Model { file: PathBuf },
+    Mirror(MirrorSpec),
+    Conductor(ConductorSpec),
+    Dielectric(DielectricSpec),
+    Lambert(LambertSpec),
+    Model(ModelSpec),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MirrorSpec {
+    reflectance: Option<Vec<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConductorSpec {
+    n: Vec<f64>,
+    k: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DielectricSpec {
+    eta: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LambertSpec {
+    albedo: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModelSpec {
+    file: PathBuf,
+}
+
+impl<'de> Deserialize<'de> for MaterialSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let t = Tagged::read(
+            d,
+            &["mirror", "conductor", "dielectric", "lambert", "model"],
+        )?;
+        match t.kind() {
+            "mirror" => t.fields().map(MaterialSpec::Mirror),
+            "conductor" => t.fields().map(MaterialSpec::Conductor),
+            "dielectric" => t.fields().map(MaterialSpec::Dielectric),
+            "lambert" => t.fields().map(MaterialSpec::Lambert),
+            "model" => t.fields().map(MaterialSpec::Model),
+            _ => Err(t.unknown_kind()),
+        }
+    }
 }

@@ -413,6 +413,10 @@ kind = "mirror"
 "#;
     let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:") && e.contains("\"x\""), "{e}");
+    // A spreadsheet's byte order mark before the first height is no height.
+    std::fs::write(dir.join("bumps.csv"), "\u{feff}0,1,2\n0,1,2\n").expect("write");
+    let s = Sample::load(&dir.join("hm.toml")).expect("BOM");
+    assert_eq!((s.surface.nx(), s.surface.ny()), (3, 2));
     std::fs::write(dir.join("bumps.csv"), "0 1 2\n0 1\n").expect("write");
     let e = load_err(dir, "hm.toml", hm).to_string();
     assert!(e.contains("bumps.csv:2:"), "{e}");
@@ -528,6 +532,52 @@ fn absurd_surface_numbers_and_counts_name_the_limit() {
     assert_eq!(
         e.to_string(),
         "max_bounces: must be at most 10000 bounces, got 4294967295"
+    );
+}
+
+/// A value of the wrong type inside `[surface]` or a `[materials.NAME]` table names
+/// its field and line; an unknown kind lists the kinds there are.
+#[test]
+fn type_errors_in_kind_tables_name_the_field() {
+    let err = |text: String| {
+        Sample::from_toml(&text, Some(Path::new("s.toml")))
+            .expect_err(&text)
+            .to_string()
+    };
+    assert_eq!(
+        err(CYLINDERS.replace("radius = 1.0", "radius = \"wide\"")),
+        "s.toml:5:10: field `surface.radius`: invalid type: string \"wide\", expected f64"
+    );
+    assert_eq!(
+        err(CYLINDERS.replace("cells_per_period = 64", "cells_per_period = -64")),
+        "s.toml:7:20: field `surface.cells_per_period`: invalid value: integer `-64`, \
+         expected usize"
+    );
+    assert_eq!(
+        err(CYLINDERS.replace("n = [0.96]", "n = 0.96")),
+        "s.toml:11:5: field `materials.aluminium.n`: invalid type: floating point `0.96`, \
+         expected a sequence"
+    );
+    assert_eq!(
+        err(CYLINDERS.replace("kind = \"cylinders\"", "kind = \"cylinder\"")),
+        "s.toml:4:8: field `surface.kind`: unknown kind \"cylinder\", expected one of \
+         \"gaussian\", \"sawtooth\", \"cylinders\" or \"height-map\""
+    );
+    assert_eq!(
+        err(CYLINDERS.replace("kind = \"conductor\"", "kind = \"metal\"")),
+        "s.toml:10:8: field `materials.aluminium.kind`: unknown kind \"metal\", expected \
+         one of \"mirror\", \"conductor\", \"dielectric\", \"lambert\" or \"model\""
+    );
+    // The alias still reads, and so does the file with a byte order mark.
+    let sawtooth = SAWTOOTH.replace("kind = \"sawtooth\"", "kind = \"v-grooves\"");
+    assert_ne!(sawtooth, SAWTOOTH);
+    assert_eq!(
+        Sample::from_toml(&sawtooth, None).expect("alias"),
+        Sample::from_toml(SAWTOOTH, None).expect("sawtooth")
+    );
+    assert_eq!(
+        Sample::from_toml(&format!("\u{feff}{CYLINDERS}"), None).expect("BOM"),
+        Sample::from_toml(CYLINDERS, None).expect("plain")
     );
 }
 

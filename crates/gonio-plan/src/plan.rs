@@ -32,8 +32,9 @@ use std::path::{Path, PathBuf};
 
 use gonio_core::dirfile::{self, PairDeg};
 use gonio_core::limits::Range;
-use gonio_core::tomlfile::{self, FileError};
+use gonio_core::tomlfile::{self, FileError, Tagged};
 use gonio_core::{DirPair, SphericalDeg};
+use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 
 pub use gonio_core::goniometer::{Mechanics, MechanicsError, Rejection};
@@ -59,7 +60,11 @@ const SAME_PAIR: f64 = 1e-9;
 pub use gonio_core::goniometer::{ASSUMED_ACCELERATION, ASSUMED_VELOCITY};
 
 /// Values of one angle: a list, or an inclusive range with a step.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// Written untagged (a list, a table or a number); read by hand, so that a value of
+/// none of the three forms is refused with the forms listed rather than serde's
+/// "data did not match any variant of untagged enum".
+#[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Values {
     /// Explicit values, degrees.
@@ -75,6 +80,76 @@ pub enum Values {
     },
     /// A single value, degrees.
     One(f64),
+}
+
+/// What an angle's value may be, for messages.
+const VALUES_FORMS: &str = "a list of angles like [0, 30, 60], one angle like 45, or a range like { from = 0, to = 60, step = 30 }";
+
+impl<'de> Deserialize<'de> for Values {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(ValuesVisitor)
+    }
+}
+
+struct ValuesVisitor;
+
+impl<'de> Visitor<'de> for ValuesVisitor {
+    type Value = Values;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(VALUES_FORMS)
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<Values, E> {
+        Ok(Values::One(v))
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<Values, E> {
+        Ok(Values::One(v as f64))
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Values, E> {
+        Ok(Values::One(v as f64))
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Values, A::Error> {
+        let mut v = Vec::new();
+        while let Some(x) = seq.next_element::<f64>()? {
+            v.push(x);
+        }
+        Ok(Values::List(v))
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Values, A::Error> {
+        let (mut from, mut to, mut step) = (None, None, None);
+        while let Some(key) = map.next_key::<String>()? {
+            let slot = match key.as_str() {
+                "from" => &mut from,
+                "to" => &mut to,
+                "step" => &mut step,
+                _ => {
+                    return Err(de::Error::custom(format!(
+                        "unknown key `{key}` in a range: a range is {{ from = 0, to = 60, step = 30 }}"
+                    )));
+                }
+            };
+            *slot = Some(map.next_value::<f64>()?);
+        }
+        match (from, to, step) {
+            (Some(from), Some(to), Some(step)) => Ok(Values::Range { from, to, step }),
+            _ => {
+                let missing: Vec<&str> = [("from", from), ("to", to), ("step", step)]
+                    .iter()
+                    .filter(|(_, v)| v.is_none())
+                    .map(|(k, _)| *k)
+                    .collect();
+                Err(de::Error::custom(format!(
+                    "a range needs from, to and step (missing {}): {{ from = 0, to = 60, step = 30 }}",
+                    missing.join(", ")
+                )))
+            }
+        }
+    }
 }
 
 impl Values {
@@ -109,8 +184,11 @@ impl Values {
 }
 
 /// Which direction pairs the plan measures.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+///
+/// Written with `kind` as its tag; read through [`Tagged`], so that an error in one of
+/// the table's fields names that field and its line.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum Points {
     /// Every combination of the four angles.
     Grid {
@@ -150,6 +228,81 @@ pub enum Points {
         /// The file.
         file: PathBuf,
     },
+}
+
+/// The kinds of [`Points`], as a plan names them.
+const POINT_KINDS: &[&str] = &["grid", "isotropic", "in-plane", "list"];
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GridFields {
+    theta_i: Values,
+    phi_i: Values,
+    theta_o: Values,
+    phi_o: Values,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IsotropicFields {
+    #[serde(default)]
+    phi_i: f64,
+    theta_i: Values,
+    theta_o: Values,
+    delta_phi: Values,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InPlaneFields {
+    #[serde(default)]
+    phi_i: f64,
+    theta_i: Values,
+    theta_o: Values,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ListFields {
+    file: PathBuf,
+}
+
+impl<'de> Deserialize<'de> for Points {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let t = Tagged::read(d, POINT_KINDS)?;
+        Ok(match t.kind() {
+            "grid" => {
+                let f: GridFields = t.fields()?;
+                Points::Grid {
+                    theta_i: f.theta_i,
+                    phi_i: f.phi_i,
+                    theta_o: f.theta_o,
+                    phi_o: f.phi_o,
+                }
+            }
+            "isotropic" => {
+                let f: IsotropicFields = t.fields()?;
+                Points::Isotropic {
+                    phi_i: f.phi_i,
+                    theta_i: f.theta_i,
+                    theta_o: f.theta_o,
+                    delta_phi: f.delta_phi,
+                }
+            }
+            "in-plane" => {
+                let f: InPlaneFields = t.fields()?;
+                Points::InPlane {
+                    phi_i: f.phi_i,
+                    theta_i: f.theta_i,
+                    theta_o: f.theta_o,
+                }
+            }
+            "list" => Points::List {
+                file: t.fields::<ListFields, _>()?.file,
+            },
+            _ => return Err(t.unknown_kind()),
+        })
+    }
 }
 
 /// Re-measuring a reference point to follow the source's and detector's drift.

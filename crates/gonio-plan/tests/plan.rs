@@ -324,6 +324,85 @@ fn plan_numbers_and_sizes_outside_their_limits_name_the_limit() {
     );
 }
 
+/// An angle's value of none of its forms, and a fault inside the `[points]` table, are
+/// named by their field and place, with what is accepted.
+#[test]
+fn points_errors_name_the_field_and_what_is_accepted() {
+    let plan = |points: &str| {
+        Plan::from_toml(&format!("name = \"p\"\n[points]\n{points}"), None)
+            .expect_err(points)
+            .to_string()
+    };
+    let forms = "a list of angles like [0, 30, 60], one angle like 45, or a range like \
+                 { from = 0, to = 60, step = 30 }";
+    assert_eq!(
+        plan("kind = \"in-plane\"\ntheta_i = [0]\ntheta_o = \"all\"\n"),
+        format!(
+            "<plan>:5:11: field `points.theta_o`: invalid type: string \"all\", expected {forms}"
+        )
+    );
+    assert_eq!(
+        plan("kind = \"grid\"\ntheta_i = true\nphi_i = 0\ntheta_o = 0\nphi_o = 0\n"),
+        format!(
+            "<plan>:4:11: field `points.theta_i`: invalid type: boolean `true`, expected {forms}"
+        )
+    );
+    assert_eq!(
+        plan("kind = \"in-plane\"\ntheta_i = [0]\ntheta_o = { from = -80, to = 80 }\n"),
+        "<plan>:5:11: field `points.theta_o`: a range needs from, to and step (missing step): \
+         { from = 0, to = 60, step = 30 }"
+    );
+    assert_eq!(
+        plan("kind = \"in-plane\"\ntheta_i = [0]\ntheta_o = { from = 0, to = 8, by = 1 }\n"),
+        "<plan>:5:11: field `points.theta_o`: unknown key `by` in a range: a range is \
+         { from = 0, to = 60, step = 30 }"
+    );
+    assert_eq!(
+        plan("kind = \"in-plane\"\ntheta_i = [0, \"x\"]\ntheta_o = [30]\n"),
+        "<plan>:4:11: field `points.theta_i`: invalid type: string \"x\", expected f64"
+    );
+    assert_eq!(
+        plan("kind = \"in-plane\"\nphi_i = [0]\ntheta_i = [0]\ntheta_o = [30]\n"),
+        "<plan>:4:9: field `points.phi_i`: invalid type: sequence, expected f64"
+    );
+    assert_eq!(
+        plan("kind = \"spiral\"\n"),
+        "<plan>:3:8: field `points.kind`: unknown kind \"spiral\", expected one of \"grid\", \
+         \"isotropic\", \"in-plane\" or \"list\""
+    );
+    assert_eq!(
+        plan("theta_i = [0]\n"),
+        "<plan>:2:1: field `points`: missing field `kind` (\"grid\", \"isotropic\", \"in-plane\" \
+         or \"list\")"
+    );
+    let e = Plan::from_toml("points = 5\n", None).expect_err("a number");
+    assert_eq!(
+        e.to_string(),
+        "<plan>:1:10: field `points`: invalid type: integer `5`, expected a table with kind = \
+         one of \"grid\", \"isotropic\", \"in-plane\" or \"list\""
+    );
+    // Every form still reads.
+    let p = Plan::from_toml(
+        "[points]\nkind = \"isotropic\"\nphi_i = 10\ntheta_i = 20\ntheta_o = [30, 40.5]\n\
+         delta_phi = { from = 0, to = 180, step = 90 }\n",
+        None,
+    )
+    .expect("valid");
+    assert_eq!(
+        p.points,
+        plan::Points::Isotropic {
+            phi_i: 10.0,
+            theta_i: plan::Values::One(20.0),
+            theta_o: plan::Values::List(vec![30.0, 40.5]),
+            delta_phi: plan::Values::Range {
+                from: 0.0,
+                to: 180.0,
+                step: 90.0
+            },
+        }
+    );
+}
+
 /// The schedule: calibrations first (and last), references every N pairs, repeats
 /// together, channels as passes, every accepted pair exactly once a pass.
 #[test]

@@ -181,8 +181,15 @@ fn parse_grid(s: &str) -> Result<Grid, String> {
 /// header from asking for more than a workstation has.
 pub const MAX_ROWS: usize = 50_000_000;
 
-/// Reads a table or sample file. `path` only labels errors.
+/// The columns a table or sample file has, for messages about a wrong header.
+pub const EXPECTED_COLUMNS: &str = "theta_i,phi_i,theta_o,phi_o, then one column a channel \
+     (value; R,G,B; or wavelengths like 550nm), then optionally sigma_<channel> for each \
+     channel and flags";
+
+/// Reads a table or sample file. `path` only labels errors; a leading byte order mark
+/// is ignored.
 pub fn read(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
+    let text = gonio_core::text::strip_bom(text);
     let at = |line: usize, field: Option<&str>, msg: String| FileError {
         kind: KIND,
         path: path.map(Path::to_path_buf),
@@ -221,10 +228,7 @@ pub fn read(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
         return Err(at(
             hline,
             None,
-            format!(
-                "the header must start with {} and name at least one channel",
-                HEADER.join(",")
-            ),
+            format!("expected the columns {EXPECTED_COLUMNS}; found {head:?}"),
         ));
     }
     let rest = &cols[4..];
@@ -236,8 +240,13 @@ pub fn read(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
     };
     let n_sigma = rest.iter().filter(|c| c.starts_with("sigma_")).count();
     let names: Vec<&str> = rest[..rest.len() - n_sigma].to_vec();
-    let channels =
-        Channels::from_names(&names).map_err(|e| at(hline, None, format!("channels: {e}")))?;
+    let channels = Channels::from_names(&names).map_err(|e| {
+        at(
+            hline,
+            None,
+            format!("channels: {e} (expected the columns {EXPECTED_COLUMNS})"),
+        )
+    })?;
     let nc = channels.len();
     if n_sigma != 0 {
         let want: Vec<String> = names.iter().map(|n| format!("sigma_{n}")).collect();
@@ -418,6 +427,53 @@ mod tests {
         assert!(
             back.grid.phi_o.same_as(&t.grid.phi_o) && back.grid.theta_o.same_as(&t.grid.theta_o)
         );
+    }
+
+    #[test]
+    fn a_wrong_header_names_the_columns_expected() {
+        let e = read(
+            "# a table\ntheta,phi,theta_o,phi_o,value\n0,0,0,0,1\n",
+            Some(Path::new("t.csv")),
+        )
+        .expect_err("header");
+        assert_eq!(
+            e.to_string(),
+            "t.csv:2: expected the columns theta_i,phi_i,theta_o,phi_o, then one column a \
+             channel (value; R,G,B; or wavelengths like 550nm), then optionally \
+             sigma_<channel> for each channel and flags; found \"theta,phi,theta_o,phi_o,value\""
+        );
+        let e = read("theta_i,phi_i,theta_o,phi_o,red\n0,0,0,0,1\n", None).expect_err("channel");
+        assert_eq!(e.line, Some(1));
+        assert!(
+            e.message.starts_with("channels: ")
+                && e.message
+                    .ends_with(&format!("(expected the columns {EXPECTED_COLUMNS})")),
+            "{e}"
+        );
+        let e = read(
+            "theta_i,phi_i,theta_o,phi_o,R,G,B,sigma_R\n0,0,0,0,1,1,1,0\n",
+            None,
+        )
+        .expect_err("sigma");
+        assert_eq!(
+            e.message,
+            "uncertainty columns must be sigma_R,sigma_G,sigma_B in that order"
+        );
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_ignored() {
+        let text = "# isotropic: true\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,20,180,0.25\n";
+        let plain = read(text, None).expect("plain");
+        assert_eq!(read(&format!("\u{feff}{text}"), None).expect("BOM"), plain);
+        let Content::Samples(s) = plain else {
+            panic!("no grid line: samples");
+        };
+        assert!(s.isotropic);
+        assert_eq!(s.samples[0].value, [0.25]);
+        // A mark before the header itself, with no comment line above it.
+        let text = "\u{feff}theta_i,phi_i,theta_o,phi_o,value\n10,0,20,180,0.25\n";
+        assert!(read(text, None).is_ok());
     }
 
     #[test]

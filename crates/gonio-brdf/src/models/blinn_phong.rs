@@ -32,11 +32,23 @@ impl BlinnPhong {
     pub fn new(channels: Channels, rho_s: Vec<f64>, n: Vec<f64>) -> Result<Self, ParamError> {
         check("rho_s", &rho_s, &channels, ALBEDO, albedo)?;
         check("n", &n, &channels, EXPONENT, exponent)?;
-        let coef = rho_s
+        let coef: Vec<f64> = rho_s
             .iter()
             .zip(&n)
             .map(|(r, n)| r * blinn_phong_normalization(*n))
             .collect();
+        // (n+2)(n+4) overflows past n ≈ 1e154 and C(n) becomes inf/inf (found by
+        // fuzzing `n = 1e308`): such an exponent is refused rather than evaluated as NaN.
+        if let Some(c) = coef.iter().position(|x| !x.is_finite()) {
+            return Err(ParamError::new(
+                "n",
+                format!(
+                    "{:?} for channel {} is too large: its normalisation overflows",
+                    n[c],
+                    channels.name(c)
+                ),
+            ));
+        }
         Ok(BlinnPhong {
             channels,
             rho_s,

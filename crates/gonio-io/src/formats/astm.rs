@@ -152,8 +152,9 @@ fn channels_of(names: &[&str]) -> Result<Channels, String> {
 }
 
 /// Reads ASTM E1392-style text into samples (module docs for what is accepted).
-/// `path` only labels errors.
+/// `path` only labels errors; a leading byte order mark is ignored.
 pub fn read_astm(text: &str, path: Option<&Path>) -> Result<Samples, FormatError> {
+    let text = gonio_core::text::strip_bom(text);
     let at = |line: usize, field: Option<&str>, msg: String| {
         FormatError::at_line(Format::Astm, path, line, field, msg)
     };

@@ -286,21 +286,31 @@ pub fn detect(bytes: &[u8]) -> Option<Format> {
     detect_text(bytes).ok()
 }
 
-/// The text format of `bytes`, or the 1-based line at which recognition failed
-/// (0 for a file that is not text at all).
-fn detect_text(bytes: &[u8]) -> Result<Format, usize> {
+/// Why a text file's format was not recognised.
+enum Unrecognised {
+    /// Not text at all.
+    NotText,
+    /// Recognition failed at this 1-based line.
+    At(usize),
+    /// This 1-based line has commas, so it is most likely a CSV header gone wrong.
+    CsvHeader(usize, String),
+}
+
+/// The text format of `bytes` (after any byte order mark), or why there is none.
+fn detect_text(bytes: &[u8]) -> Result<Format, Unrecognised> {
+    let bytes = gonio_core::text::strip_bom_bytes(bytes);
     let head = &bytes[..bytes.len().min(DETECT_BYTES)];
     // Recognised from the valid UTF-8 prefix: a text file with a bad byte further on
     // is still that format, and its reader names the bad byte.
     let text = match std::str::from_utf8(head) {
         Ok(t) => t,
         Err(e) if e.valid_up_to() > 0 => {
-            std::str::from_utf8(&head[..e.valid_up_to()]).map_err(|_| 0usize)?
+            std::str::from_utf8(&head[..e.valid_up_to()]).map_err(|_| Unrecognised::NotText)?
         }
-        Err(_) => return Err(0),
+        Err(_) => return Err(Unrecognised::NotText),
     };
     if text.contains('\0') {
-        return Err(0);
+        return Err(Unrecognised::NotText);
     }
     let mut last = 0;
     for (i, line) in text.lines().enumerate() {
@@ -319,12 +329,17 @@ fn detect_text(bytes: &[u8]) -> Result<Format, usize> {
         }
         if first.starts_with(|c: char| c.is_ascii_alphabetic()) && !line.contains(',') {
             // Another keyword line of an ASTM header (FORMAT, SOURCE, …): keep looking.
-            // (A comma-separated line here would be a CSV header gone wrong.)
             continue;
         }
-        return Err(i + 1);
+        // Names separated by commas from the first word on: a CSV header gone wrong
+        // (an ASTM keyword line has a space after its keyword).
+        let csv_like = line[first.len()..].trim_start().starts_with(',') && fields.len() >= 4;
+        if csv_like && first.starts_with(|c: char| c.is_alphabetic()) {
+            return Err(Unrecognised::CsvHeader(i + 1, line.to_string()));
+        }
+        return Err(Unrecognised::At(i + 1));
     }
-    Err(last.max(1))
+    Err(Unrecognised::At(last.max(1)))
 }
 
 /// Reads a file of any format, detected from its content ([`detect`]). `path` only
@@ -346,7 +361,7 @@ pub fn read(bytes: &[u8], path: Option<&Path>) -> Result<Data, FormatError> {
     }
     match detect_text(bytes) {
         Ok(f) => read_as(f, bytes, path),
-        Err(0) => Err(FormatError::whole(
+        Err(Unrecognised::NotText) => Err(FormatError::whole(
             None,
             path,
             format!(
@@ -357,7 +372,18 @@ pub fn read(bytes: &[u8], path: Option<&Path>) -> Result<Data, FormatError> {
                 merl::FILE_BYTES
             ),
         )),
-        Err(line) => Err(FormatError {
+        Err(Unrecognised::CsvHeader(line, found)) => Err(FormatError {
+            line: Some(line),
+            ..FormatError::whole(
+                Some(Format::Csv),
+                path,
+                format!(
+                    "not a CSV header Gonio reads: expected the columns {}; found {found:?}",
+                    gonio_process::file::EXPECTED_COLUMNS
+                ),
+            )
+        }),
+        Err(Unrecognised::At(line)) => Err(FormatError {
             line: Some(line),
             ..FormatError::whole(
                 None,

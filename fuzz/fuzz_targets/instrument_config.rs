@@ -1,0 +1,4 @@
+//! An instrument config (TOML): arbitrary text, or a shipped file with hostile changes
+//! (gonio_fuzz::instrument_config).
+#![no_main]
+libfuzzer_sys::fuzz_target!(|data: &[u8]| gonio_fuzz::instrument_config(data));
