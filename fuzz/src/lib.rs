@@ -292,6 +292,13 @@ pub fn run_file(data: &[u8]) {
         let _ = std::fs::remove_file(dir.path().join(format!("run.gonio{extra}")));
     }
     std::fs::write(&path, &bytes).expect("writes the input");
+    // What `gonio verify` does: every check, whatever the damage.
+    if let Ok(s) = gonio_run::RunStore::open_unverified(&path)
+        && let Ok(found) = s.integrity(true)
+    {
+        let _ = (found.faults(), found.is_intact());
+        let _ = s.refuse_unless_intact(&found);
+    }
     match gonio_run::RunStore::open(&path) {
         Ok(s) => {
             let _ = (s.run_meta(), s.meta(), s.steps(), s.readings());

@@ -149,8 +149,8 @@ fn a_controller_number_that_is_not_finite_is_refused_by_name() {
         assert_eq!(
             e.to_string(),
             format!(
-                "<sim config>:{line}:18: field `controllers[0].start_position`: must be a \
-                 finite number, got {}",
+                "<sim config>:{line}:18: field `controllers[0].start_position`: must be \
+                 finite, got {}",
                 bad.replace("nan", "NaN")
             )
         );
