@@ -31,6 +31,20 @@ struct Args {
 }
 
 fn run(a: Args) -> Result<(), ServeError> {
+    use tokio::signal::unix::{SignalKind, signal};
+    // The stop signals are caught before the announcement, so that a signal sent as
+    // soon as it is read stops the simulator cleanly.
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let (mut int, mut term, mut hup) = {
+        let _in_runtime = rt.enter();
+        (
+            signal(SignalKind::interrupt())?,
+            signal(SignalKind::terminate())?,
+            signal(SignalKind::hangup())?,
+        )
+    };
     let served = serve(&ServeOptions {
         config: a.config,
         seed: a.seed,
@@ -40,21 +54,13 @@ fn run(a: Args) -> Result<(), ServeError> {
     writeln!(out, "{}", served.announcement())?;
     out.flush()?;
     drop(out);
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
     rt.block_on(async {
-        use tokio::signal::unix::{SignalKind, signal};
-        let mut int = signal(SignalKind::interrupt())?;
-        let mut term = signal(SignalKind::terminate())?;
-        let mut hup = signal(SignalKind::hangup())?;
         tokio::select! {
             _ = int.recv() => {}
             _ = term.recv() => {}
             _ = hup.recv() => {}
         }
-        Ok::<(), std::io::Error>(())
-    })?;
+    });
     Ok(())
 }
 

@@ -32,13 +32,29 @@ impl StopSignals {
     }
 }
 
-/// Blocks until a stop signal arrives, and names it.
-pub fn wait() -> std::io::Result<&'static str> {
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()?;
-    rt.block_on(async {
-        let mut s = StopSignals::new()?;
-        Ok(s.next().await)
-    })
+/// The stop signals caught on a runtime of their own, for a process with nothing
+/// else to do than wait for them.
+pub struct Waiter {
+    rt: tokio::runtime::Runtime,
+    signals: StopSignals,
+}
+
+impl Waiter {
+    /// Catches the stop signals from now on: made before the process tells anyone
+    /// it is ready, so that a signal sent at once is not fatal.
+    pub fn new() -> std::io::Result<Waiter> {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?;
+        let signals = {
+            let _in_runtime = rt.enter();
+            StopSignals::new()?
+        };
+        Ok(Waiter { rt, signals })
+    }
+
+    /// Blocks until a stop signal arrives, and names it.
+    pub fn wait(mut self) -> &'static str {
+        self.rt.block_on(self.signals.next())
+    }
 }

@@ -176,6 +176,8 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
 /// stdout, served until a stop signal (SIGINT, SIGTERM, SIGHUP): standard input is
 /// left alone, so that `gonio sim &` and service managers work.
 pub fn sim(a: SimArgs) -> CliResult<()> {
+    let waiter = crate::signals::Waiter::new()
+        .map_err(|e| CliError::Runtime(format!("catching the stop signals: {e}")))?;
     let served = gonio_sim::serve::serve(&gonio_sim::serve::ServeOptions {
         config: a.config,
         seed: a.seed,
@@ -186,8 +188,7 @@ pub fn sim(a: SimArgs) -> CliResult<()> {
         writeln!(out, "{}", served.announcement())?;
         out.flush()
     })())?;
-    let sig = crate::signals::wait()
-        .map_err(|e| CliError::Runtime(format!("waiting for a stop signal: {e}")))?;
+    let sig = waiter.wait();
     tracing::info!(signal = sig, "simulator stopped");
     Ok(())
 }
