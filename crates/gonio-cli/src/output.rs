@@ -23,23 +23,6 @@ pub struct ForceFlag {
     pub force: bool,
 }
 
-/// A Gonio run file: SQLite with Gonio's `application_id` (big-endian at byte 68
-/// of the header).
-pub fn is_run_file(path: &Path) -> bool {
-    use std::io::Read;
-    let mut head = [0u8; 72];
-    let Ok(meta) = std::fs::metadata(path) else {
-        return false;
-    };
-    // Only a regular file is opened: a FIFO would block the open.
-    meta.is_file()
-        && File::open(path)
-            .and_then(|mut f| f.read_exact(&mut head))
-            .is_ok()
-        && &head[..16] == b"SQLite format 3\0"
-        && i32::from_be_bytes([head[68], head[69], head[70], head[71]]) == gonio_run::APPLICATION_ID
-}
-
 /// An output file, checked before any work is done, written whole or not at all.
 #[derive(Clone, Debug)]
 pub struct Target {
@@ -67,7 +50,7 @@ impl Target {
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
             Err(e) => return Err(refuse(&format!("cannot use as an output: {e}"))),
             Ok(m) if m.is_dir() => return Err(refuse("is a directory, not an output file")),
-            Ok(_) if is_run_file(path) => {
+            Ok(_) if gonio_run::is_run_file(path) => {
                 return Err(refuse(
                     "is a Gonio run file; an output never replaces a run file \
                      (choose another name)",
@@ -159,7 +142,7 @@ impl Target {
 }
 
 /// The directory `path` is in (`.` for a bare name).
-fn parent(path: &Path) -> &Path {
+pub fn parent(path: &Path) -> &Path {
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

@@ -94,6 +94,8 @@ pub struct Integrity {
     /// Steps committed once whose readings are gone. `gonio resume` measures them
     /// again.
     pub missing: Vec<i64>,
+    /// Required `meta` rows that are gone (also listed in `damage`).
+    pub missing_meta: Vec<&'static str>,
     /// Everything else that is wrong, one sentence each.
     pub damage: Vec<String>,
 }
@@ -213,6 +215,7 @@ pub(crate) fn inspect(conn: &Connection, full: bool) -> rusqlite::Result<Integri
     for key in REQUIRED_META {
         if !meta.contains_key(key) {
             out.damage.push(format!("meta row `{key}` is missing"));
+            out.missing_meta.push(key);
         }
     }
     let steps = count(conn, "SELECT count(*) FROM steps")?;

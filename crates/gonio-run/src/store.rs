@@ -33,6 +33,20 @@ use crate::schema::{
 };
 use crate::time::wall_now;
 
+/// True when `path` is a Gonio run file by its header: SQLite, with Gonio's
+/// `application_id` (big-endian at byte 68). Only a regular file is read: a FIFO
+/// would block the open.
+pub fn is_run_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 72];
+    std::fs::metadata(path).is_ok_and(|m| m.is_file())
+        && std::fs::File::open(path)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok()
+        && &head[..16] == b"SQLite format 3\0"
+        && i32::from_be_bytes([head[68], head[69], head[70], head[71]]) == APPLICATION_ID
+}
+
 /// Sets one `meta` row (inside a transaction).
 fn put_meta(tx: &rusqlite::Transaction<'_>, key: &str, value: &str) -> rusqlite::Result<()> {
     tx.execute(
@@ -245,22 +259,31 @@ impl RunStore {
     /// The error a damaged file gets: a missing required `meta` row by name, else
     /// every fault.
     pub fn refuse_unless_intact(&self, found: &Integrity) -> Result<(), StoreError> {
-        if let Some(key) = found
-            .damage
-            .iter()
-            .find_map(|d| d.strip_prefix("meta row `")?.strip_suffix("` is missing"))
-        {
-            return Err(StoreError::MissingMeta {
-                path: self.path.clone(),
-                key: key.to_string(),
-            });
-        }
-        if found.is_intact() {
+        self.refuse_damage(found)?;
+        if found.missing.is_empty() {
             return Ok(());
         }
         Err(StoreError::Corrupt {
             path: self.path.clone(),
             why: found.faults().join("; "),
+        })
+    }
+
+    /// Like [`RunStore::refuse_unless_intact`], but lets missing readings through:
+    /// a resume measures them again ([`RunStore::reopen_missing`]).
+    pub fn refuse_damage(&self, found: &Integrity) -> Result<(), StoreError> {
+        if let Some(key) = found.missing_meta.first() {
+            return Err(StoreError::MissingMeta {
+                path: self.path.clone(),
+                key: key.to_string(),
+            });
+        }
+        if found.damage.is_empty() {
+            return Ok(());
+        }
+        Err(StoreError::Corrupt {
+            path: self.path.clone(),
+            why: found.damage.join("; "),
         })
     }
 
@@ -575,7 +598,24 @@ impl RunStore {
         let mut v = reading_values(reading, session.unwrap_or(0));
         let crc = row_crc(&v);
         v.push(Value::Integer(crc));
-        let term = reading_term(reading.step_id, crc);
+        // Only the lock holder commits, so the record read here is the one the
+        // transaction updates.
+        let record = integrity::stored_record(&self.conn)
+            .map_err(|e| self.sql(e))?
+            .map(|text| {
+                ReadingsRecord::parse(&text).ok_or_else(|| StoreError::Corrupt {
+                    path: self.path.clone(),
+                    why: format!(
+                        "meta `{}` = {text:?} is unreadable",
+                        keys::INTEGRITY_READINGS
+                    ),
+                })
+            })
+            .transpose()?
+            .map(|mut r| {
+                r.add(reading_term(reading.step_id, crc));
+                r.to_text()
+            });
         let marked = self.in_tx(|tx| {
             let changed = tx
                 .prepare_cached(
@@ -598,16 +638,8 @@ impl RunStore {
                 ins.execute(params![session, e.wall_s, e.kind, e.step_id, e.message])?;
             }
             // The record moves with the reading it counts.
-            if let Some(text) = integrity::stored_record(tx)? {
-                let mut rec = ReadingsRecord::parse(&text).ok_or_else(|| {
-                    rusqlite::Error::InvalidColumnType(
-                        0,
-                        keys::INTEGRITY_READINGS.into(),
-                        rusqlite::types::Type::Text,
-                    )
-                })?;
-                rec.add(term);
-                put_meta(tx, keys::INTEGRITY_READINGS, &rec.to_text())?;
+            if let Some(text) = &record {
+                put_meta(tx, keys::INTEGRITY_READINGS, text)?;
             }
             Ok(true)
         })?;

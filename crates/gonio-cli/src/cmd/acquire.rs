@@ -300,10 +300,7 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
     if a.out.exists() {
         return Err(CliError::from(gonio_run::StoreError::Exists(a.out.clone())));
     }
-    let out_dir = match a.out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+    let out_dir = output::parent(&a.out);
     if !out_dir.is_dir() {
         return Err(input(format!(
             "{}: the directory {} does not exist",
@@ -385,11 +382,7 @@ pub fn resume(a: ResumeArgs) -> CliResult<()> {
     store.lock()?;
     let found = store.integrity(false)?;
     // Missing readings are measured again; any other damage refuses the run.
-    let intact_but_missing = gonio_run::Integrity {
-        missing: Vec::new(),
-        ..found.clone()
-    };
-    store.refuse_unless_intact(&intact_but_missing)?;
+    store.refuse_damage(&found)?;
     let status = store.meta_value("status")?.unwrap_or_default();
     if status == "complete" && found.missing.is_empty() {
         return Err(CliError::Input(format!(
