@@ -110,7 +110,12 @@ fn event(id: i64) -> EventRecord {
 /// A new run file of `n` pending steps with a session begun.
 fn new_store(path: &Path, n: usize) -> RunStore {
     remove(path);
-    let meta = BTreeMap::from([("name".to_string(), "bench".to_string())]);
+    // The rows every run file has (the store refuses a file without them).
+    let meta = BTreeMap::from([
+        ("name".to_string(), "bench".to_string()),
+        ("instrument".to_string(), "name = \"bench\"".to_string()),
+        ("plan".to_string(), "name = \"bench\"".to_string()),
+    ]);
     let mut s = RunStore::create(path, &meta, &steps(n)).expect("creates");
     s.begin_session("bench").expect("session");
     s
