@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::Channels;
 use gonio_io::formats::{self, Data, FormatError, MerlBrdf};
+use gonio_process::hemisphere::{self, Fill, Symmetry};
 use gonio_process::samples::Kernel;
 use gonio_process::separable::SeparableBrdf;
 use gonio_process::sh::ShBrdf;
@@ -109,9 +110,10 @@ pub enum DatasetError {
         #[source]
         source: ProcessError,
     },
-    /// Scattered samples where a table is needed and no grid was given.
+    /// Scattered samples where a table is needed, no grid was given, and the
+    /// samples form no grid of their own.
     #[error(
-        "{}: its {samples} samples do not form a complete uniform grid; pass --grid \
+        "{}: its {samples} samples do not form a grid of their own ({why}); pass --grid \
          DTHETA,DPHI to resample them (nearest-j Gaussian kernel, DeYoung Sec. 3.2.1)",
         .path.display()
     )]
@@ -120,6 +122,8 @@ pub enum DatasetError {
         path: PathBuf,
         /// How many samples.
         samples: usize,
+        /// Why not.
+        why: String,
     },
 }
 
@@ -168,6 +172,20 @@ pub enum Dataset {
     Separable(Box<SeparableBrdf>),
     /// Spherical harmonics.
     Harmonics(Box<ShBrdf>),
+}
+
+/// A table made from an input ([`Dataset::tabulate`]) and what was assumed on the way.
+#[derive(Clone, Debug)]
+pub struct Tabulated {
+    /// The table.
+    pub table: Table,
+    /// The symmetry assumed of measured data (none for analytic inputs).
+    pub symmetry: Symmetry,
+    /// For samples tabulated on their own grid: which nodes were interpolated.
+    pub fill: Option<Fill>,
+    /// The samples a table of measured data was formed from (unfolded when the
+    /// symmetry says so); none for tables and analytic inputs.
+    pub measured: Option<Samples>,
 }
 
 /// An opened input: what it was, its data, and, for a run file, the reduction's
@@ -372,32 +390,89 @@ impl Dataset {
     }
 
     /// The data as a table: a table as it is (resampled onto `step` when one is
-    /// given, with the nearest-j kernel), scattered samples resampled onto `step`
-    /// (refused without one), anything analytic evaluated on `step` (its own grid
+    /// given, with the nearest-j kernel), scattered samples on their own grid or
+    /// resampled onto `step`, anything analytic evaluated on `step` (its own grid
     /// for a separable representation, [`DEFAULT_STEP`] otherwise, when none is
-    /// given). `path` names the input in errors.
+    /// given). Isotropic data measured over a half turn of Δφ are unfolded first
+    /// ([`gonio_process::hemisphere::unfold`]). `path` names the input in errors.
     pub fn to_table(&self, step: Option<GridStep>, path: &Path) -> Result<Table, DatasetError> {
+        Ok(self.tabulate(step, path)?.table)
+    }
+
+    /// [`Dataset::to_table`], with what was assumed and done on the way: the
+    /// symmetry, the nodes of the data's own grid that were interpolated, and the
+    /// (unfolded) samples of measured data, which the energy measure integrates
+    /// where they are ([`gonio_process::measure::report_with`]).
+    pub fn tabulate(&self, step: Option<GridStep>, path: &Path) -> Result<Tabulated, DatasetError> {
         let p = |e| DatasetError::process(path, e);
-        match (self, step) {
-            (Dataset::Table(t), None) => Ok(t.clone()),
-            (Dataset::Table(t), Some(g)) => Samples::from_table(t)
-                .resample(g.grid(), Kernel::default())
-                .map_err(p),
-            (Dataset::Samples(s), Some(g)) => s.resample(g.grid(), Kernel::default()).map_err(p),
-            (Dataset::Samples(s), None) => Err(DatasetError::NotOnGrid {
-                path: path.to_path_buf(),
-                samples: s.samples.len(),
-            }),
-            (Dataset::Separable(s), None) => s.to_table().map_err(p),
-            (d, g) => {
-                let g = g.unwrap_or(DEFAULT_STEP).grid();
+        let analytic = |table| Tabulated {
+            table,
+            symmetry: Symmetry::None,
+            fill: None,
+            measured: None,
+        };
+        match self {
+            Dataset::Table(t) => {
+                let (s, symmetry) = hemisphere::unfold(&Samples::from_table(t));
+                let table = match step {
+                    Some(g) => s.resample(g.grid(), Kernel::default()).map_err(p)?,
+                    None if symmetry == Symmetry::IsotropicBilateral => {
+                        s.to_table().ok_or_else(|| {
+                            p(ProcessError::Unsupported(
+                                "the unfolded half turn forms no complete grid".into(),
+                            ))
+                        })?
+                    }
+                    None => t.clone(),
+                };
+                Ok(Tabulated {
+                    table,
+                    symmetry,
+                    fill: None,
+                    measured: None,
+                })
+            }
+            Dataset::Samples(s) => {
+                let (s, symmetry) = hemisphere::unfold(s);
+                let (table, fill) = match step {
+                    Some(g) => (s.resample(g.grid(), Kernel::default()).map_err(p)?, None),
+                    None => match s.to_table() {
+                        Some(t) => (t, None),
+                        None => {
+                            let (t, f) = hemisphere::own_table(&s, Kernel::default()).map_err(
+                                |e| match e {
+                                    ProcessError::Grid { .. } | ProcessError::Unsupported(_) => {
+                                        DatasetError::NotOnGrid {
+                                            path: path.to_path_buf(),
+                                            samples: s.samples.len(),
+                                            why: e.to_string(),
+                                        }
+                                    }
+                                    e => p(e),
+                                },
+                            )?;
+                            (t, Some(f))
+                        }
+                    },
+                };
+                Ok(Tabulated {
+                    table,
+                    symmetry,
+                    fill,
+                    measured: Some(s),
+                })
+            }
+            Dataset::Separable(s) if step.is_none() => Ok(analytic(s.to_table().map_err(p)?)),
+            d => {
+                let g = step.unwrap_or(DEFAULT_STEP).grid();
                 let Some(b) = d.brdf() else {
                     return Err(DatasetError::NotOnGrid {
                         path: path.to_path_buf(),
                         samples: 0,
+                        why: "nothing to evaluate".into(),
                     });
                 };
-                Table::from_brdf(b, g).map_err(p)
+                Ok(analytic(Table::from_brdf(b, g).map_err(p)?))
             }
         }
     }

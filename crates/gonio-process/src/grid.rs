@@ -164,7 +164,7 @@ pub(crate) fn fmt_count(n: f64) -> String {
 }
 
 /// Degrees rounded to 1e-9° when within that of such a number.
-pub(crate) fn clean_deg(d: f64) -> f64 {
+pub fn clean_deg(d: f64) -> f64 {
     let r = (d * 1e9).round() / 1e9;
     if (d - r).abs() < 1e-9 { r } else { d }
 }

@@ -8,6 +8,8 @@
 //! - [`samples`]: scattered samples, the nearest-j Gaussian kernel of Sec. 3.2.1,
 //!   resampling onto grids.
 //! - [`grid`]: uniform and isotropic grids and quadrilinear interpolation.
+//! - [`hemisphere`]: measured samples over the hemisphere: bilateral unfolding of
+//!   isotropic half turns, the data's own grid, the triangulated albedo.
 //! - [`measure`]: P_r, P_ec, P_i, P_s^(k) (Ch. 4).
 //! - [`transform`]: the δ-transforms of Ch. 5, weighted by the uncertainties.
 //! - [`separable`]: the k-separable representation (Eq. 5.13–5.14).
@@ -18,6 +20,7 @@
 
 pub mod file;
 pub mod grid;
+pub mod hemisphere;
 pub mod measure;
 pub mod reduction;
 pub mod samples;

@@ -8,7 +8,7 @@ use faer::Mat;
 use serde::Serialize;
 
 use crate::grid::interpolate;
-use crate::{Axis, Grid, ProcessError, Table};
+use crate::{Axis, Grid, ProcessError, Samples, Table};
 
 /// Whether the reciprocal angles of a node lie inside the table's axes, so that the
 /// reciprocal value is data, not the held end value of an axis.
@@ -96,18 +96,43 @@ pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
     (out, used)
 }
 
+/// How the directional albedos of the energy measure were formed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EnergyMethod {
+    /// DeYoung's sum over the grid's outgoing nodes, Eq. 4.4 (exact on polar band
+    /// midpoints over the whole hemisphere).
+    Sum,
+    /// The triangulated hemisphere of Sec. 4.2.2 (Nusselt analogue) over the
+    /// samples of each incident direction, the band to the horizon held from the
+    /// data's edge ([`crate::hemisphere`]).
+    Triangulated,
+}
+
 /// Energy conservation of a table, DeYoung Sec. 4.2.2.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Energy {
     /// P_ec per channel, Eq. 4.5.
     pub p_ec: Vec<f64>,
-    /// The directional albedo M/E per channel and incident node (Eq. 4.3 as the sum
-    /// of Eq. 4.4 before the −1), rows in incident-node order (φi, θi).
+    /// How the albedos were formed.
+    pub method: EnergyMethod,
+    /// The incident directions of the albedo rows, (θi°, φi°).
+    pub incident: Vec<(f64, f64)>,
+    /// The directional albedo M/E per channel and incident direction (Eq. 4.3 as the
+    /// sum of Eq. 4.4 before the −1), rows in incident-node order (φi, θi).
     pub albedo: Vec<Vec<f64>>,
-    /// The fraction of the outgoing hemisphere's projected solid angle the outgoing
-    /// axes cover (1 for a full turn of azimuth and polar bands reaching 90°); the
-    /// albedo undercounts by about this fraction when it is below 1.
+    /// Standard uncertainties of the albedos, same layout, when the data carry σ
+    /// (triangulated form only).
+    pub albedo_sigma: Option<Vec<Vec<f64>>>,
+    /// The fraction of the outgoing hemisphere's projected solid angle the data
+    /// cover: the outgoing axes' bands for the sum (the albedo undercounts by about
+    /// this fraction when it is below 1), the smallest convex hull of any incident
+    /// direction's samples for the triangulated form.
     pub coverage: f64,
+    /// The largest fraction of the projected hemisphere, over the incident
+    /// directions, whose values were held from the data's edge to the horizon
+    /// (triangulated form; 0 for the sum).
+    pub extrapolated: f64,
     /// The incident directions with the largest albedo, worst first: (θi°, φi°, the
     /// albedo per channel).
     pub worst: Vec<(f64, f64, Vec<f64>)>,
@@ -184,12 +209,76 @@ pub fn energy(t: &Table, tau: f64, worst: usize) -> Energy {
             )
         })
         .collect();
+    let incident = (0..g.n_in())
+        .map(|r| {
+            let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
+            (g.theta_i.node_deg(b), g.phi_i.node_deg(a))
+        })
+        .collect();
     Energy {
         p_ec,
+        method: EnergyMethod::Sum,
+        incident,
         albedo: alb,
+        albedo_sigma: None,
         coverage: span_phi * span_theta,
+        extrapolated: 0.0,
         worst,
     }
+}
+
+/// The measure of energy conservation of scattered samples, Eq. 4.5 over the
+/// albedos of DeYoung's triangulated hemisphere (Sec. 4.2.2; [`crate::hemisphere`]),
+/// with the threshold τ of Eq. 4.7 as in [`energy`].
+pub fn energy_scattered(s: &Samples, tau: f64, worst: usize) -> Result<Energy, ProcessError> {
+    let rows = crate::hemisphere::albedos(s)?;
+    let nc = s.channels.len();
+    let albedo: Vec<Vec<f64>> = (0..nc)
+        .map(|ch| rows.iter().map(|r| r.albedo[ch]).collect())
+        .collect();
+    let albedo_sigma = rows.iter().all(|r| r.sigma.is_some()).then(|| {
+        (0..nc)
+            .map(|ch| {
+                rows.iter()
+                    .map(|r| r.sigma.as_ref().map_or(0.0, |s| s[ch]))
+                    .collect()
+            })
+            .collect()
+    });
+    let p_ec = albedo
+        .iter()
+        .map(|a| a.iter().map(|x| (x - tau).max(0.0)).sum::<f64>() / a.len() as f64)
+        .collect();
+    let mut order: Vec<usize> = (0..rows.len()).collect();
+    let peak = |r: usize| {
+        rows[r]
+            .albedo
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    order.sort_by(|&a, &b| peak(b).total_cmp(&peak(a)));
+    let worst = order
+        .into_iter()
+        .take(worst)
+        .map(|r| {
+            (
+                rows[r].theta_i_deg,
+                rows[r].phi_i_deg,
+                rows[r].albedo.clone(),
+            )
+        })
+        .collect();
+    Ok(Energy {
+        p_ec,
+        method: EnergyMethod::Triangulated,
+        incident: rows.iter().map(|r| (r.theta_i_deg, r.phi_i_deg)).collect(),
+        albedo,
+        albedo_sigma,
+        coverage: rows.iter().map(|r| r.covered).fold(1.0, f64::min),
+        extrapolated: rows.iter().map(|r| r.extrapolated).fold(0.0, f64::max),
+        worst,
+    })
 }
 
 /// The isotropic mean of a table, μ_i of Eq. 4.8, on the grid (θi, φ+, θo) with φ+
@@ -340,16 +429,43 @@ pub struct Report {
 }
 
 /// Measures a table: P_r, P_ec (with the `worst` incident directions), P_i, and
-/// P_s^(k) for each k of `ks`.
+/// P_s^(k) for each k of `ks`. The energy measure is [`energy`]'s sum when the
+/// outgoing nodes are polar band midpoints over the whole hemisphere, else
+/// [`energy_scattered`] over the table's nodes (a half turn of an isotropic table
+/// unfolded first, [`crate::hemisphere::unfold`]).
 pub fn report(t: &Table, ks: &[usize], worst: usize) -> Result<Report, ProcessError> {
+    report_with(t, None, ks, worst)
+}
+
+/// [`report`], with the energy measure taken from the `measured` samples the table
+/// was formed from when given (triangulated, Sec. 4.2.2): measured data keep their
+/// own directions rather than a grid's.
+pub fn report_with(
+    t: &Table,
+    measured: Option<&Samples>,
+    ks: &[usize],
+    worst: usize,
+) -> Result<Report, ProcessError> {
     let (reciprocity, reciprocity_nodes) = reciprocity(t);
+    let energy = match measured {
+        Some(s) => energy_scattered(s, 1.0, worst)?,
+        None => {
+            let sum = energy(t, 1.0, worst);
+            if sum.coverage >= 0.999 {
+                sum
+            } else {
+                let (s, _) = crate::hemisphere::unfold(&Samples::from_table(t));
+                energy_scattered(&s, 1.0, worst).unwrap_or(sum)
+            }
+        }
+    };
     Ok(Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
         paired: t.grid.is_paired(),
         reciprocity,
         reciprocity_nodes,
-        energy: energy(t, 1.0, worst),
+        energy,
         isotropy: isotropy(t)?,
         separability: separability(t, ks).ok(),
     })

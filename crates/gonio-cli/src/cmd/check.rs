@@ -34,11 +34,21 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
         return Err(CliError::Input("--k: every k must be at least 1".into()));
     }
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let table = opened.data.to_table(a.grid.grid, path)?;
+    let tab = opened.data.tabulate(a.grid.grid, path)?;
+    let table = &tab.table;
     let ks = if ks.is_empty() { vec![1] } else { ks.to_vec() };
-    let r = measure::report(&table, &ks, 5).map_err(|e| CliError::process(path, e))?;
+    let r = measure::report_with(table, tab.measured.as_ref(), &ks, 5)
+        .map_err(|e| CliError::process(path, e))?;
     if json_out {
-        return output::json(&serde_json::to_value(&r).unwrap_or_default());
+        let mut v = serde_json::to_value(&r).unwrap_or_default();
+        if let Some(o) = v.as_object_mut() {
+            o.insert("symmetry".into(), tab.symmetry.name().into());
+            o.insert(
+                "grid".into(),
+                serde_json::to_value(super::grid_json(table, &tab)).unwrap_or_default(),
+            );
+        }
+        return output::json(&v);
     }
     let mut w = output::stdout();
     output::finish((|| {
@@ -55,6 +65,7 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
             g.theta_o.n,
             r.channels.join(",")
         )?;
+        super::write_provenance(&mut w, &tab)?;
         writeln!(
             w,
             "{:<28}{}",
@@ -81,7 +92,15 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
             &r.reciprocity,
         )?;
         row(&mut w, "P_ec (Eq. 4.5)", &r.energy.p_ec)?;
-        row(&mut w, "P_i (Eq. 4.10)", &r.isotropy)?;
+        if g.isotropic {
+            writeln!(
+                w,
+                "{:<28}{}",
+                "P_i (Eq. 4.10)", "not measurable: isotropic data (one φi)"
+            )?;
+        } else {
+            row(&mut w, "P_i (Eq. 4.10)", &r.isotropy)?;
+        }
         if let Some(sep) = &r.separability {
             for (j, k) in ks.iter().enumerate() {
                 let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
@@ -93,22 +112,43 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
                 "P_s: not available (an isotropic table whose φ+ axis is not a full turn)"
             )?;
         }
-        if r.energy.coverage < 0.999 {
-            writeln!(
+        match r.energy.method {
+            measure::EnergyMethod::Sum => {
+                if r.energy.coverage < 0.999 {
+                    writeln!(
+                        w,
+                        "note: the outgoing nodes cover {:.1}% of the projected hemisphere; albedos undercount",
+                        100.0 * r.energy.coverage
+                    )?;
+                }
+            }
+            measure::EnergyMethod::Triangulated => writeln!(
                 w,
-                "note: the outgoing nodes cover {:.1}% of the projected hemisphere; albedos undercount",
-                100.0 * r.energy.coverage
-            )?;
+                "albedos: triangulated hemisphere (DeYoung Sec. 4.2.2) over {} incident \
+                 directions; the data cover at least {:.1}% of the projected hemisphere, \
+                 at most {:.1}% held from the data's edge to the horizon",
+                r.energy.incident.len(),
+                100.0 * r.energy.coverage,
+                100.0 * r.energy.extrapolated
+            )?,
         }
         writeln!(w, "highest directional albedo (θi, φi: per channel):")?;
         for (th, ph, a) in &r.energy.worst {
+            let row = r.energy.incident.iter().position(|i| *i == (*th, *ph));
+            let sigma = row.and_then(|k| {
+                r.energy
+                    .albedo_sigma
+                    .as_ref()
+                    .map(|s| s.iter().map(|c| c[k]).collect::<Vec<_>>())
+            });
+            let cell = |(ch, x): (usize, &f64)| match &sigma {
+                Some(s) => format!("{x:.4} ± {:.1e}", s[ch]),
+                None => format!("{x:.4}"),
+            };
             writeln!(
                 w,
                 "  {th:>6.2}° {ph:>7.2}°: {}",
-                a.iter()
-                    .map(|x| format!("{x:.4}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
+                a.iter().enumerate().map(cell).collect::<Vec<_>>().join(" ")
             )?;
         }
         w.flush()

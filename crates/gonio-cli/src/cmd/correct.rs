@@ -105,7 +105,8 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
     }
     let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let mut table = opened.data.to_table(a.grid.grid, path)?;
+    let tab = opened.data.tabulate(a.grid.grid, path)?;
+    let mut table = tab.table.clone();
     let ks: Vec<usize> = steps
         .iter()
         .filter_map(|s| match s {
@@ -114,7 +115,8 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
         })
         .chain([1])
         .collect();
-    let before = measure::report(&table, &ks, 1).map_err(|e| CliError::process(path, e))?;
+    let before = measure::report_with(&table, tab.measured.as_ref(), &ks, 1)
+        .map_err(|e| CliError::process(path, e))?;
     for s in steps {
         table = s.apply(&table).map_err(|e| CliError::process(path, e))?;
     }
@@ -144,11 +146,14 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
             "before": before,
             "after": after,
             "storage_ratio": ratio,
+            "symmetry": tab.symmetry.name(),
+            "grid": super::grid_json(&tab.table, &tab),
         }));
     }
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: {} step(s) applied", out.display(), steps.len())?;
+        super::write_provenance(&mut w, &tab)?;
         let pair = |name: &str, b: &[f64], a: &[f64]| {
             format!(
                 "{name:<8}{}",

@@ -56,15 +56,16 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
     }
     let target = output::Target::new(out, a.force.force)?;
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let table = opened.data.to_table(a.grid.grid, path)?;
+    let tab = opened.data.tabulate(a.grid.grid, path)?;
+    let table = &tab.table;
     let opts = ShOptions {
         l_max: order,
         l_filter: filter,
         quadrature: None,
     };
-    let sh = ShBrdf::from_table(&table, &opts).map_err(|e| CliError::process(path, e))?;
+    let sh = ShBrdf::from_table(table, &opts).map_err(|e| CliError::process(path, e))?;
     let err = sh
-        .error_against(&table)
+        .error_against(table)
         .map_err(|e| CliError::process(path, e))?;
     target.write(sh.to_toml().as_bytes())?;
     let ratio = sh.coefficient_count() as f64 / table.values.len() as f64;
@@ -77,6 +78,8 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
             "rms": err.rms,
             "relative_rms": err.relative_rms,
             "max_abs": err.max_abs,
+            "symmetry": tab.symmetry.name(),
+            "grid": super::grid_json(table, &tab),
         }));
     }
     let mut w = output::stdout();
@@ -88,6 +91,7 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
             sh.coefficient_count(),
             100.0 * ratio
         )?;
+        super::write_provenance(&mut w, &tab)?;
         for (ch, name) in table.channels.names().iter().enumerate() {
             writeln!(
                 w,

@@ -57,11 +57,20 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
         Some(p) => Some(Model::load(p)?),
         None => None,
     };
+    // A half turn of an isotropic material is unfolded (bilateral symmetry) so that
+    // maps of the whole hemisphere show data on both sides, not extrapolation.
+    let unfolded = match data {
+        Dataset::Samples(s) => Some(gonio_process::hemisphere::unfold(s)),
+        _ => None,
+    };
+    if let Some((_, sym)) = &unfolded {
+        tracing::info!(symmetry = sym.name(), "symmetry assumed");
+    }
     let src =
-        match data {
-            Dataset::Model(m) => Source::Model(m),
-            Dataset::Samples(s) => Source::Samples(s),
-            d => Source::Brdf(d.brdf().ok_or_else(|| {
+        match (data, &unfolded) {
+            (Dataset::Model(m), _) => Source::Model(m),
+            (_, Some((s, _))) => Source::Samples(s),
+            (d, None) => Source::Brdf(d.brdf().ok_or_else(|| {
                 CliError::Input(format!("{}: nothing to plot", a.input.display()))
             })?),
         };
@@ -108,19 +117,9 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
                 },
             ),
             "separability" => {
-                let table = match data {
-                    Dataset::Table(t) => t.clone(),
-                    Dataset::Samples(_) => {
-                        return Err(CliError::Input(format!(
-                            "{}: separability needs a table (these samples are not on a grid)",
-                            a.input.display()
-                        )));
-                    }
-                    // Analytic data on its own grid, or 10° × 10°.
-                    d => d
-                        .to_table(None, &a.input)
-                        .map_err(|e| CliError::Input(e.to_string()))?,
-                };
+                // Measured data on their own grid (a half turn unfolded), analytic
+                // data on their own grid or 10° × 10°.
+                let table = data.to_table(None, &a.input)?;
                 let name = a
                     .input
                     .file_name()

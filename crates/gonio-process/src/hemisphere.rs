@@ -1,0 +1,524 @@
+//! Measured samples over the hemisphere: the symmetry an isotropic half-turn plan
+//! assumes, the grid a run's own plan forms, and the directional albedo of samples
+//! that lie on no complete grid.
+//!
+//! **Symmetry.** An isotropic material measured over Δφ = φo − φi ∈ [0°, 180°] (the
+//! usual half turn) is bilaterally symmetric as well: f(θi, θo, Δφ) = f(θi, θo, −Δφ),
+//! the mirror image of the scattering plane. [`unfold`] adds the mirror image of each
+//! sample off that plane, so that measures and transforms that need the whole
+//! hemisphere get it; anisotropic samples, and isotropic ones that already span more
+//! than a half turn, are never unfolded. What was assumed is returned as a
+//! [`Symmetry`] for outputs to record.
+//!
+//! **The run's own grid.** [`own_table`] tabulates samples on the grid their own
+//! angles form (each axis the distinct values of that angle, uniformly spaced). A
+//! node measured is taken as it is; a node the plan could not measure (the detector
+//! shadowing the source near retro-reflection) is interpolated with the nearest-j
+//! kernel of DeYoung Sec. 3.2.1 only when a sample lies within one and a half polar
+//! steps of it, and reported in [`Fill`]; a node farther from the data refuses the
+//! grid rather than be invented.
+//!
+//! **Directional albedo of scattered samples** (DeYoung Sec. 4.2.2, after Eq. 4.4):
+//! the samples of one incident direction are triangulated in 2-D and each triangle
+//! contributes its differential-to-finite form factor, by the Nusselt analogue the
+//! area of its projection onto the base disk over π. Here the samples are projected
+//! first (x, y) = sin θo (cos φ, sin φ), triangulated there (Delaunay), and the BRDF
+//! taken linear over each projected triangle, so the albedo ∫ f cos θo dω = ∫ f dA
+//! over the unit disk is Σ area × mean of the three vertex values. The band between
+//! the data's convex hull and the horizon (from the last measured θo to 90°) holds
+//! the values of the hull's edge, each hull edge extended radially to the unit
+//! circle; its share of the projected hemisphere is reported, and when the hull does
+//! not surround the normal nothing is extended and the albedo covers the hull only.
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+use gonio_core::SphericalDeg;
+use gonio_core::dirfile::PairDeg;
+use serde::Serialize;
+
+use crate::samples::Kernel;
+use crate::{Axis, Grid, ProcessError, Sample, Samples, Table};
+
+/// Angles keyed in micro-degrees (exact for any grid a plan or file writes).
+fn q(x: f64) -> i64 {
+    (x * 1e6).round() as i64
+}
+
+/// An azimuth keyed in micro-degrees within [0°, 360°).
+fn wrap(x: f64) -> i64 {
+    q(x.rem_euclid(360.0)) % 360_000_000
+}
+
+/// The symmetry assumed of the data before it was measured or transformed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Symmetry {
+    /// None: the samples are taken as measured (anisotropic data).
+    None,
+    /// Isotropic: f depends on φo − φi only (the plan fixed φi).
+    Isotropic,
+    /// Isotropic and bilaterally symmetric: a half turn of Δφ mirrored to −Δφ.
+    IsotropicBilateral,
+}
+
+impl Symmetry {
+    /// The symmetry of samples as they are (before any unfolding).
+    pub fn of(s: &Samples) -> Symmetry {
+        if s.isotropic {
+            Symmetry::Isotropic
+        } else {
+            Symmetry::None
+        }
+    }
+
+    /// How outputs name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Symmetry::None => "none",
+            Symmetry::Isotropic => "isotropic",
+            Symmetry::IsotropicBilateral => "isotropic-bilateral",
+        }
+    }
+
+    /// A sentence for text output.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Symmetry::None => "none assumed (anisotropic data, taken as measured)",
+            Symmetry::Isotropic => "isotropic: f depends on φo − φi only",
+            Symmetry::IsotropicBilateral => {
+                "isotropic and bilateral: Δφ measured over a half turn, \
+                 f(θi, θo, −Δφ) = f(θi, θo, Δφ) supplies the other half"
+            }
+        }
+    }
+}
+
+/// Unfolds isotropic samples measured over a half turn of Δφ = φo − φi (all within
+/// [0°, 180°] or all within [180°, 360°], some strictly inside) by their mirror image
+/// f(θi, θo, −Δφ) = f(θi, θo, Δφ); samples on the mirror plane (Δφ = 0°, 180°) and at
+/// θo = 0 are not repeated. Anything else is returned as it is.
+pub fn unfold(s: &Samples) -> (Samples, Symmetry) {
+    if !s.isotropic {
+        return (s.clone(), Symmetry::None);
+    }
+    let half = 180_000_000;
+    let dphi = |p: &PairDeg| wrap(p.outgoing.phi_deg - p.incident.phi_deg);
+    let on_plane = |d: i64| d == 0 || d == half;
+    let lower = s.samples.iter().all(|x| dphi(&x.pair) <= half);
+    let upper = s
+        .samples
+        .iter()
+        .all(|x| on_plane(dphi(&x.pair)) || dphi(&x.pair) >= half);
+    let inside = s
+        .samples
+        .iter()
+        .any(|x| !on_plane(dphi(&x.pair)) && x.pair.outgoing.theta_deg > 0.0);
+    if !(inside && (lower || upper)) {
+        return (s.clone(), Symmetry::Isotropic);
+    }
+    let mut out = s.samples.clone();
+    for x in &s.samples {
+        let p = &x.pair;
+        if on_plane(dphi(p)) || q(p.outgoing.theta_deg) == 0 {
+            continue;
+        }
+        let mirrored = PairDeg {
+            incident: p.incident,
+            outgoing: SphericalDeg::new(
+                p.outgoing.theta_deg,
+                2.0 * p.incident.phi_deg - p.outgoing.phi_deg,
+            ),
+        };
+        out.push(Sample {
+            pair: mirrored,
+            ..x.clone()
+        });
+    }
+    tracing::debug!(
+        measured = s.samples.len(),
+        unfolded = out.len(),
+        "isotropic half turn unfolded by bilateral symmetry"
+    );
+    (
+        Samples {
+            channels: s.channels.clone(),
+            samples: out,
+            isotropic: true,
+        },
+        Symmetry::IsotropicBilateral,
+    )
+}
+
+/// How a table on the data's own grid was filled.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Fill {
+    /// Nodes of the grid.
+    pub nodes: usize,
+    /// Nodes on a measured direction pair.
+    pub measured: usize,
+    /// Nodes no sample lies on, interpolated from their neighbours (θi°, φi°, θo°,
+    /// φo°; φo − φi for isotropic data).
+    pub interpolated: Vec<[f64; 4]>,
+    /// The R⁶ distance (module docs of [`crate::samples`]) within which a sample must
+    /// lie for a node to be interpolated.
+    pub limit: f64,
+}
+
+/// The uniform axis the distinct keyed values `v` (sorted, micro-degrees) lie on:
+/// from the first to the last in the smallest spacing between neighbours, which must
+/// divide every other spacing (an azimuth axis whose nodes close a full turn wraps,
+/// [`Axis::is_periodic`]).
+fn axis_of(v: &[i64]) -> Option<Axis> {
+    let deg = |k: i64| k as f64 * 1e-6;
+    if v.len() == 1 {
+        return Some(Axis::single(deg(v[0]).to_radians()));
+    }
+    let step = v.windows(2).map(|w| w[1] - w[0]).min()?;
+    if step <= 0 || v.windows(2).any(|w| (w[1] - w[0]) % step != 0) {
+        return None;
+    }
+    let n = ((v[v.len() - 1] - v[0]) / step) as usize + 1;
+    Some(Axis::from_deg(deg(v[0]), deg(step), n))
+}
+
+/// The grid the samples' own angles form: per axis, the distinct values, uniformly
+/// spaced; azimuths that close a full turn form a periodic axis. Isotropic samples
+/// give the form (θi, φo − φi, θo).
+pub fn own_grid(s: &Samples) -> Result<Grid, ProcessError> {
+    let (mut pis, mut tis, mut pos, mut tos) = (
+        BTreeMap::new(),
+        BTreeMap::new(),
+        BTreeMap::new(),
+        BTreeMap::new(),
+    );
+    for x in &s.samples {
+        let p = &x.pair;
+        let (pi, po) = if s.isotropic {
+            (0, wrap(p.outgoing.phi_deg - p.incident.phi_deg))
+        } else {
+            (wrap(p.incident.phi_deg), wrap(p.outgoing.phi_deg))
+        };
+        pis.insert(pi, ());
+        tis.insert(q(p.incident.theta_deg), ());
+        pos.insert(po, ());
+        tos.insert(q(p.outgoing.theta_deg), ());
+    }
+    let keys = |m: &BTreeMap<i64, ()>| m.keys().copied().collect::<Vec<_>>();
+    let named = |name: &'static str, m: &BTreeMap<i64, ()>| {
+        axis_of(&keys(m))
+            .ok_or_else(|| ProcessError::grid(name, "takes values that lie on no uniform axis"))
+    };
+    let grid = Grid {
+        phi_i: named("phi_i", &pis)?,
+        theta_i: named("theta_i", &tis)?,
+        phi_o: named("phi_o", &pos)?,
+        theta_o: named("theta_o", &tos)?,
+        isotropic: s.isotropic,
+    };
+    grid.validate()?;
+    Ok(grid)
+}
+
+/// The chord of an angle: the R⁶ distance of one direction moved by it.
+fn chord(angle: f64) -> f64 {
+    2.0 * (0.5 * angle).sin()
+}
+
+/// The largest fraction of a grid's nodes that may be interpolated for the samples to
+/// count as forming it: past a quarter the data is scattered, not a plan with holes,
+/// and a grid must be asked for (`--grid`).
+pub const MAX_INTERPOLATED: f64 = 0.25;
+
+/// Tabulates samples on their own grid ([`own_grid`]): measured nodes as measured
+/// (repeats averaged), unmeasured ones interpolated with `kernel` when a sample lies
+/// within one and a half polar steps of them (DeYoung Sec. 3.2.1), and reported.
+/// Refused when any node lies farther from the data than that, or when more than
+/// [`MAX_INTERPOLATED`] of the nodes would be interpolated.
+pub fn own_table(s: &Samples, kernel: Kernel) -> Result<(Table, Fill), ProcessError> {
+    let grid = own_grid(s)?;
+    let interp = s.interpolator(kernel)?;
+    let steps = [&grid.theta_i, &grid.theta_o, &grid.phi_o]
+        .iter()
+        .filter(|a| a.n > 1)
+        .map(|a| chord(a.step))
+        .fold(0.0_f64, f64::max);
+    let limit = 1.5 * steps.max(1e-6);
+    let n = grid.len();
+    let nc = s.channels.len();
+    let mut values = vec![0.0; n * nc];
+    let mut sigma = vec![0.0; n * nc];
+    let mut any_sigma = true;
+    let mut interpolated = Vec::new();
+    let mut far = Vec::new();
+    let mut measured = 0;
+    for i in 0..n {
+        let [pi, ti, po, to] = grid.angles(i);
+        let pair = PairDeg {
+            incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
+            outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
+        };
+        let d = interp.nearest_distance(&pair);
+        let node = [
+            crate::grid::clean_deg(ti.to_degrees()),
+            crate::grid::clean_deg(pi.to_degrees()),
+            crate::grid::clean_deg(to.to_degrees()),
+            crate::grid::clean_deg(po.to_degrees()),
+        ];
+        if d < 1e-9 {
+            measured += 1;
+        } else if d <= limit {
+            interpolated.push(node);
+        } else {
+            far.push(node);
+            continue;
+        }
+        let (v, sg) = interp.eval(&pair);
+        for ch in 0..nc {
+            values[ch * n + i] = v[ch];
+        }
+        match sg {
+            Some(sg) => {
+                for ch in 0..nc {
+                    sigma[ch * n + i] = sg[ch];
+                }
+            }
+            None => any_sigma = false,
+        }
+    }
+    if let Some(first) = far.first() {
+        return Err(ProcessError::Unsupported(format!(
+            "{} of the {n} nodes their angles span lie farther than {:.1}° from every \
+             sample, the first at θi {}°, θo {}°, φo {}°",
+            far.len(),
+            (2.0 * (0.5 * limit).asin()).to_degrees(),
+            first[0],
+            first[2],
+            first[3],
+        )));
+    }
+    if interpolated.len() as f64 > MAX_INTERPOLATED * n as f64 {
+        return Err(ProcessError::Unsupported(format!(
+            "{} of the {n} nodes their angles span were not measured",
+            interpolated.len()
+        )));
+    }
+    if !interpolated.is_empty() {
+        tracing::warn!(
+            interpolated = interpolated.len(),
+            nodes = n,
+            "nodes of the samples' own grid were not measured; interpolated from their neighbours"
+        );
+    }
+    let table = Table::new(s.channels.clone(), grid, values, any_sigma.then_some(sigma))?;
+    Ok((
+        table,
+        Fill {
+            nodes: n,
+            measured,
+            interpolated,
+            limit,
+        },
+    ))
+}
+
+/// The directional albedo of one incident direction from scattered samples.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IncidentAlbedo {
+    /// Incident polar angle, degrees.
+    pub theta_i_deg: f64,
+    /// Incident azimuth, degrees (0 for isotropic data).
+    pub phi_i_deg: f64,
+    /// ∫ f cos θo dω per channel.
+    pub albedo: Vec<f64>,
+    /// Its standard uncertainty per channel (the samples' σ through the weights,
+    /// taken independent), when the samples have σ.
+    pub sigma: Option<Vec<f64>>,
+    /// Distinct outgoing directions used.
+    pub directions: usize,
+    /// Fraction of the projected hemisphere inside the data's convex hull.
+    pub covered: f64,
+    /// Fraction held from the hull's edge to the horizon.
+    pub extrapolated: f64,
+}
+
+/// One projected outgoing direction with its values.
+struct Node {
+    x: f64,
+    y: f64,
+    value: Vec<f64>,
+    var: Option<Vec<f64>>,
+}
+
+/// Directional albedos of scattered samples, one per incident direction with at
+/// least three outgoing directions not on a line (module docs). Isotropic samples
+/// are taken in the frame φi = 0 (so all of one θi form one direction).
+pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
+    s.validate()?;
+    let nc = s.channels.len();
+    // Incidence key → outgoing key → (x, y, Σ value, Σ var, count).
+    type Acc = (f64, f64, Vec<f64>, Option<Vec<f64>>, usize);
+    let mut groups: BTreeMap<(i64, i64), BTreeMap<(i64, i64), Acc>> = BTreeMap::new();
+    for x in &s.samples {
+        let p = &x.pair;
+        let ti = q(p.incident.theta_deg);
+        let pi = if s.isotropic || ti == 0 {
+            0
+        } else {
+            wrap(p.incident.phi_deg)
+        };
+        let phi = if s.isotropic {
+            p.outgoing.phi_deg - p.incident.phi_deg
+        } else {
+            p.outgoing.phi_deg
+        }
+        .to_radians();
+        let r = p.outgoing.theta_deg.to_radians().sin();
+        let (px, py) = (r * phi.cos(), r * phi.sin());
+        // Projected points keyed at 1e-9: one key for every azimuth at θo = 0.
+        let k = ((px * 1e9).round() as i64, (py * 1e9).round() as i64);
+        let e = groups
+            .entry((ti, pi))
+            .or_default()
+            .entry(k)
+            .or_insert_with(|| {
+                (
+                    px,
+                    py,
+                    vec![0.0; nc],
+                    x.sigma.as_ref().map(|_| vec![0.0; nc]),
+                    0,
+                )
+            });
+        for (a, v) in e.2.iter_mut().zip(&x.value) {
+            *a += v;
+        }
+        match (&mut e.3, &x.sigma) {
+            (Some(a), Some(sg)) => {
+                for (a, s) in a.iter_mut().zip(sg) {
+                    *a += s * s;
+                }
+            }
+            (a, _) => *a = None,
+        }
+        e.4 += 1;
+    }
+    let mut out = Vec::new();
+    for ((ti, pi), pts) in groups {
+        let nodes: Vec<Node> = pts
+            .into_values()
+            .map(|(x, y, v, var, n)| {
+                let n = n as f64;
+                Node {
+                    x,
+                    y,
+                    value: v.into_iter().map(|a| a / n).collect(),
+                    var: var.map(|a| a.into_iter().map(|s2| s2 / (n * n)).collect()),
+                }
+            })
+            .collect();
+        if let Some(a) = integrate(&nodes, nc) {
+            out.push(IncidentAlbedo {
+                theta_i_deg: ti as f64 * 1e-6,
+                phi_i_deg: pi as f64 * 1e-6,
+                directions: nodes.len(),
+                ..a
+            });
+        }
+    }
+    if out.is_empty() {
+        return Err(ProcessError::Unsupported(
+            "no incident direction has three outgoing directions that span an area of the \
+             hemisphere; the energy measure needs a hemisphere of exitance"
+                .into(),
+        ));
+    }
+    Ok(out)
+}
+
+/// ∫ f dA over the unit disk for one incidence (module docs), or none when the
+/// points span no area.
+fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
+    if nodes.len() < 3 {
+        return None;
+    }
+    let pts: Vec<delaunator::Point> = nodes
+        .iter()
+        .map(|n| delaunator::Point { x: n.x, y: n.y })
+        .collect();
+    let tri = delaunator::triangulate(&pts);
+    // Points on a line (an in-plane scan) span no area; rounding may still leave
+    // slivers, which are not a hemisphere either.
+    if tri.triangles.is_empty() {
+        return None;
+    }
+    // The weight of each node in Σ w_k f_k: a third of each triangle it is a corner of.
+    let mut w = vec![0.0; nodes.len()];
+    let mut hull_area = 0.0;
+    for t in tri.triangles.chunks_exact(3) {
+        let (a, b, c) = (&nodes[t[0]], &nodes[t[1]], &nodes[t[2]]);
+        let area = 0.5 * ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y)).abs();
+        hull_area += area;
+        for &k in t {
+            w[k] += area / 3.0;
+        }
+    }
+    if hull_area < 1e-9 {
+        return None;
+    }
+    // The hull, counter-clockwise in (x, y).
+    let mut hull = tri.hull.clone();
+    let signed: f64 = (0..hull.len())
+        .map(|i| {
+            let (a, b) = (&nodes[hull[i]], &nodes[hull[(i + 1) % hull.len()]]);
+            a.x * b.y - b.x * a.y
+        })
+        .sum();
+    if signed < 0.0 {
+        hull.reverse();
+    }
+    // The band to the horizon, only when the hull surrounds the normal: every edge
+    // then sees the origin on its left, and its sector to the unit circle is the
+    // circular sector less the triangle (origin, a, b).
+    let surrounds = (0..hull.len()).all(|i| {
+        let (a, b) = (&nodes[hull[i]], &nodes[hull[(i + 1) % hull.len()]]);
+        a.x * b.y - b.x * a.y > 1e-12
+    });
+    let mut band = 0.0;
+    if surrounds {
+        for i in 0..hull.len() {
+            let (ia, ib) = (hull[i], hull[(i + 1) % hull.len()]);
+            let (a, b) = (&nodes[ia], &nodes[ib]);
+            let turn = (a.x * b.y - b.x * a.y).atan2(a.x * b.x + a.y * b.y);
+            let sector = 0.5 * turn - 0.5 * (a.x * b.y - b.x * a.y);
+            let sector = sector.max(0.0);
+            band += sector;
+            w[ia] += 0.5 * sector;
+            w[ib] += 0.5 * sector;
+        }
+    }
+    let mut albedo = vec![0.0; nc];
+    let mut var = nodes[0].var.as_ref().map(|_| vec![0.0; nc]);
+    for (n, wk) in nodes.iter().zip(&w) {
+        for ch in 0..nc {
+            albedo[ch] += wk * n.value[ch];
+        }
+        match (&mut var, &n.var) {
+            (Some(v), Some(nv)) => {
+                for ch in 0..nc {
+                    v[ch] += wk * wk * nv[ch];
+                }
+            }
+            (v, _) => *v = None,
+        }
+    }
+    Some(IncidentAlbedo {
+        theta_i_deg: 0.0,
+        phi_i_deg: 0.0,
+        albedo,
+        sigma: var.map(|v| v.into_iter().map(f64::sqrt).collect()),
+        directions: nodes.len(),
+        covered: (hull_area / PI).min(1.0),
+        extrapolated: band / PI,
+    })
+}
