@@ -500,13 +500,13 @@ fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
     let mut albedo = vec![0.0; nc];
     let mut var = nodes[0].var.as_ref().map(|_| vec![0.0; nc]);
     for (n, wk) in nodes.iter().zip(&w) {
-        for ch in 0..nc {
-            albedo[ch] += wk * n.value[ch];
+        for (a, x) in albedo.iter_mut().zip(&n.value) {
+            *a += wk * x;
         }
         match (&mut var, &n.var) {
             (Some(v), Some(nv)) => {
-                for ch in 0..nc {
-                    v[ch] += wk * wk * nv[ch];
+                for (a, x) in v.iter_mut().zip(nv) {
+                    *a += wk * wk * x;
                 }
             }
             (v, _) => *v = None,

@@ -295,6 +295,10 @@ fn a_half_turn_table_measures_the_whole_albedo() {
         let mut a = [0.0];
         m.albedo(Dir::from(SphericalDeg::new(*ti, 0.0)), &mut a);
         let got = r.energy.albedo[0][k];
-        assert!((got - a[0]).abs() < 0.01 * a[0], "θi {ti}: {got} vs {}", a[0]);
+        assert!(
+            (got - a[0]).abs() < 0.01 * a[0],
+            "θi {ti}: {got} vs {}",
+            a[0]
+        );
     }
 }

@@ -95,8 +95,8 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
         if g.isotropic {
             writeln!(
                 w,
-                "{:<28}{}",
-                "P_i (Eq. 4.10)", "not measurable: isotropic data (one φi)"
+                "{:<28}not measurable: isotropic data (one φi)",
+                "P_i (Eq. 4.10)"
             )?;
         } else {
             row(&mut w, "P_i (Eq. 4.10)", &r.isotropy)?;
