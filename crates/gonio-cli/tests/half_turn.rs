@@ -95,9 +95,10 @@ fn shipped_hemisphere_plan_checks_with_no_flags() {
     }
 
     // Energy: the triangulated albedo of every incident direction within 2% of the
-    // model's exact albedo with the horizon band treated alike (at θi = 75° the paint's
-    // off-specular peak lies at θo ≈ 80°, and the band holds 2% of its albedo); so
-    // P_ec, 0 for this paint, is 0.
+    // model's exact albedo with the horizon band treated alike (to 0.1% up to θi = 60°;
+    // at 75° the paint's off-specular peak lies near θo = 80°, between azimuths 15°
+    // apart, and the linear interpolation reads 1.9% high); so P_ec, 0 for this
+    // paint, is 0.
     let m = blue_paint();
     let e = &v["energy"];
     assert_eq!(e["method"], "triangulated");
