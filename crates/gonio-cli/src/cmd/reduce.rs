@@ -121,6 +121,13 @@ pub fn print_reduction(w: &mut dyn Write, red: &Reduction) -> std::io::Result<()
             c.drift_readings,
             100.0 * c.drift_max
         )?;
+        for t in &c.budget {
+            writeln!(
+                w,
+                "  σ {:<11} rel. median {:.2e}, max {:.2e} ({}): {}",
+                t.term, t.rel_median, t.rel_max, t.correlation, t.source
+            )?;
+        }
     }
     for (why, n) in &r.rejected {
         writeln!(w, "left out: {n} ({why})")?;
