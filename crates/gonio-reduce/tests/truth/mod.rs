@@ -155,13 +155,14 @@ pub fn chi2_correlated(red: &Reduction, model: &Model) -> f64 {
 /// elimination.
 fn solve3(mut g: [[f64; 3]; 3], mut b: [f64; 3]) -> [f64; 3] {
     for i in 0..3 {
-        let p = g[i][i];
-        for j in (i + 1)..3 {
-            let f = g[j][i] / p;
-            for k in i..3 {
-                g[j][k] -= f * g[i][k];
+        let (top, rest) = g.split_at_mut(i + 1);
+        let pivot = top[i];
+        for (j, row) in rest.iter_mut().enumerate() {
+            let f = row[i] / pivot[i];
+            for (x, p) in row.iter_mut().zip(pivot).skip(i) {
+                *x -= f * p;
             }
-            b[j] -= f * b[i];
+            b[i + 1 + j] -= f * b[i];
         }
     }
     let mut x = [0.0; 3];
