@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{ISO_PLAN, acquire, ok, ok_json, s, scratch};
+use common::{ISO_PLAN, acquire, gonio, ok, ok_json, s, scratch};
 
 #[test]
 fn reduce_json_gives_every_term_of_the_budget_and_keeps_the_old_fields() {
@@ -62,4 +62,58 @@ fn the_report_shows_the_budget_and_labels_what_each_panel_shows() {
         !html.contains("created s<"),
         "the 'created s' label is back"
     );
+}
+
+/// The standard's own uncertainty enters the budget when the standard calibrates,
+/// and adds in quadrature to every sample's σ; a value outside [0, 1] is refused.
+#[test]
+fn the_standard_s_uncertainty_is_a_term_of_the_budget() {
+    let d = scratch("budget-standard");
+    let plan = format!(
+        "{ISO_PLAN}standard = {{ model = \"{}\", at = [[0, 0, 45, 180]] }}\n",
+        common::config("models/white-reference.toml")
+    );
+    let run = acquire(&d, &plan);
+    let reduce = |sigma: &str, out: &str| {
+        ok_json(&[
+            "reduce",
+            &s(&run),
+            "--out",
+            &s(&d.join(out)),
+            "--calibration",
+            "standard",
+            "--standard-sigma",
+            sigma,
+            "--json",
+        ])
+    };
+    let v = reduce("0.005", "a.csv");
+    let term = &v["reduction"]["channels"][0]["budget"][5];
+    assert_eq!(term["term"], "standard");
+    assert_eq!(term["rel_median"].as_f64(), Some(0.005), "{term}");
+    let sigma_col = |out: &str| -> Vec<f64> {
+        let text = std::fs::read_to_string(d.join(out)).expect("table");
+        text.lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with("theta") && !l.is_empty())
+            .filter_map(|l| l.split(',').next_back()?.trim().parse().ok())
+            .collect()
+    };
+    reduce("0", "b.csv");
+    let (with, without) = (sigma_col("a.csv"), sigma_col("b.csv"));
+    assert!(!with.is_empty() && with.len() == without.len());
+    assert!(
+        with.iter().zip(&without).all(|(a, b)| a > b),
+        "σ grows with the term"
+    );
+    for bad in ["-0.1", "2", "nan"] {
+        let o = gonio(&[
+            "reduce",
+            &s(&run),
+            "--out",
+            &s(&d.join("c.csv")),
+            "--standard-sigma",
+            bad,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+    }
 }
