@@ -180,6 +180,31 @@ pub fn html(c: &Contents) -> String {
             );
         }
         h.push_str("</table>\n");
+        if r.channels.iter().any(|ch| !ch.budget.is_empty()) {
+            h.push_str(
+                "<h3>Uncertainty budget</h3>\n<p>Each sample's σ is the quadrature sum of these \
+                 terms (relative standard uncertainties over the channel's samples).</p>\n\
+                 <table><tr><th class=\"k\">channel</th><th class=\"k\">term</th>\
+                 <th>median rel. σ</th><th>largest rel. σ</th><th class=\"k\">shared</th>\
+                 <th class=\"k\">source</th></tr>\n",
+            );
+            for ch in &r.channels {
+                for t in &ch.budget {
+                    let _ = writeln!(
+                        h,
+                        "<tr><td class=\"k\">{}</td><td class=\"k\">{}</td><td>{}</td><td>{}</td>\
+                         <td class=\"k\">{}</td><td class=\"k\">{}</td></tr>",
+                        escape(&ch.channel),
+                        escape(t.term),
+                        num(t.rel_median),
+                        num(t.rel_max),
+                        escape(t.correlation),
+                        escape(&t.source)
+                    );
+                }
+            }
+            h.push_str("</table>\n");
+        }
         if !r.rejected.is_empty() || r.unmeasured > 0 {
             let mut parts: Vec<String> =
                 r.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();

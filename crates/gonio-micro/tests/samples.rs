@@ -194,7 +194,8 @@ fn sh_estimate_is_bit_reciprocal() {
 
 /// The estimator's normalisation: a flat Lambertian facet of albedo ρ has f = ρ/π,
 /// which is M_00 Y_00² with M_00 = 4ρ and every other coefficient 0. Measured with
-/// 2^18 rays: M_00 = 2.4073 ± 0.0095 for ρ = 0.6.
+/// 2^18 rays: M_00 = 2.4026 ± 0.0030 for ρ = 0.6 (2.4073 ± 0.0095 with the 1/cos θo
+/// weight of Westin et al., whose variance is infinite).
 #[test]
 fn sh_estimate_of_a_lambertian_plane() {
     let scratch = tempfile::tempdir().expect("temp dir");

@@ -6,6 +6,24 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+/// One term of a channel's uncertainty budget: a source of error, how it was
+/// estimated, how it is shared between samples, and its size.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BudgetTerm {
+    /// The term: `noise`, `resolution`, `dark`, `calibration`, `drift` or `standard`.
+    pub term: &'static str,
+    /// Where the error comes from and how its size was estimated.
+    pub source: String,
+    /// How it is shared: `independent` (each sample its own error), `common` (one
+    /// error, scaled per sample, shared by every sample of the channel) or `segment`
+    /// (shared by the samples between the same two drift references).
+    pub correlation: &'static str,
+    /// Its relative standard uncertainty: the median over the channel's samples.
+    pub rel_median: f64,
+    /// Its largest relative standard uncertainty over the channel's samples.
+    pub rel_max: f64,
+}
+
 /// What the reduction did, per channel.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ChannelReport {
@@ -27,6 +45,9 @@ pub struct ChannelReport {
     pub drift_max: f64,
     /// Samples produced.
     pub samples: usize,
+    /// The uncertainty budget: every term that makes up the samples' σ (their
+    /// quadrature sum), with its source.
+    pub budget: Vec<BudgetTerm>,
 }
 
 /// The reduction's account of itself.

@@ -17,17 +17,31 @@
 //! as a vector: S = |(X − X_dark, Y − Y_dark)|.
 //!
 //! **Drift.** The drift reference pair is re-measured every N points. Its readings
-//! define the source's relative level g(t), linear in instrument time between them
-//! (and continued along the first and last segments beyond them). Every calibration
-//! reading k then estimates the same constant C = Φ_k / g(t_k); their inverse-variance
-//! mean C gives Φ(t) = C g(t) for every sample. Without references, calibrations repeated at the end of the run
+//! define the source's relative level g(t): a straight line fitted to them when it
+//! explains their scatter (χ² within three standard deviations of its degrees of
+//! freedom), else linear in instrument time between them (continued along the first
+//! and last segments beyond them). Every calibration reading k then estimates the
+//! same constant C = Φ_k / g(t_k); their inverse-variance mean C gives Φ(t) = C g(t)
+//! for every sample. Without references, calibrations repeated at the end of the run
 //! are interpolated linearly in time instead; a single calibration is held constant.
 //!
-//! **Uncertainty.** A reading's mean has variance c·σ_R²/n, with c = 2.2 because
-//! samples taken one time constant apart correlate (e^−1) — the factor the lock-in's
-//! sampling in `gonio-driver` is set up for. Relative uncertainties of the signal, of
-//! Φ (the calibrations' scatter) and of g(t) add in quadrature; the calibration's
-//! share is common to all samples (a systematic) and is also reported on its own.
+//! **Uncertainty budget.** Each sample's σ is the quadrature sum of the terms of
+//! [`TERMS`], each reported per channel ([`BudgetTerm`]) with its source and how it
+//! is shared between samples:
+//! - `noise`: the lock-in's noise in the sample reading. Per snapshot its variance is
+//!   pooled over the run's readings as a + b·R (amplifier and shot noise) rather
+//!   than taken from each reading's own ten correlated snapshots, whose scatter is
+//!   itself uncertain by a third; the variance of the mean of n snapshots spaced
+//!   one time constant plus [`Options::snapshot_gap_s`] apart is then exact for
+//!   the first-order correlation ρ = e^−(1 + gap/T) ([`variance_factors`]).
+//! - `resolution`: the lock-in's six-digit replies (a rounding step /√12).
+//! - `dark`: the dark vector's own noise, subtracted from every reading: one error
+//!   shared by all samples, larger for weak signals (it is additive).
+//! - `calibration`: the calibration readings' noise (scaled up when they disagree),
+//!   and the drift level at the calibrations' time.
+//! - `drift`: the uncertainty of g(t) relative to the calibrations' g.
+//! - `standard`: the reference standard's own BRDF uncertainty
+//!   ([`Options::standard_rel_sigma`]), when the standard calibrates.
 
 use std::collections::BTreeMap;
 
@@ -35,13 +49,39 @@ use gonio_core::Channels;
 use gonio_core::dirfile::PairDeg;
 use gonio_core::radiometry::Aperture;
 use gonio_plan::StepKind;
-pub use gonio_process::reduction::{ChannelReport, Report};
+pub use gonio_process::reduction::{BudgetTerm, ChannelReport, Report};
 use gonio_process::{Sample, Samples};
 use gonio_run::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
 use serde::Serialize;
 
-/// The variance factor of a lock-in mean over samples one time constant apart.
+/// The variance factor of a lock-in mean over samples one time constant apart, as
+/// the reduction used it before the budget was pooled (kept for callers).
 pub const CORRELATION_FACTOR: f64 = 2.2;
+
+/// The terms of the uncertainty budget, in the order of [`Reduction::budget`].
+pub const TERMS: [&str; 6] = [
+    "noise",
+    "resolution",
+    "dark",
+    "calibration",
+    "drift",
+    "standard",
+];
+
+/// How each term of [`TERMS`] is shared between samples.
+pub const CORRELATIONS: [&str; 6] = [
+    "independent",
+    "independent",
+    "common",
+    "common",
+    "segment",
+    "common",
+];
+
+/// The time between the end of one lock-in snapshot and the start of the next
+/// beyond one time constant, s, by default: the `SNAP?1,2` exchange at the SR830's
+/// 9600 baud (9 characters out, about 27 back, 10 bits each) plus 5 ms of latency.
+pub const SNAPSHOT_GAP_S: f64 = 0.0425;
 
 /// Which calibration gives the incident flux.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -75,6 +115,13 @@ pub struct Options {
     pub drift: Drift,
     /// Readings with any of these flags are left out (their count is reported).
     pub reject_flags: u32,
+    /// The gap between lock-in snapshots beyond one time constant, s (sets their
+    /// correlation; [`SNAPSHOT_GAP_S`] by default).
+    pub snapshot_gap_s: f64,
+    /// The relative standard uncertainty of the reference standard's BRDF (its
+    /// certificate's), carried as the budget's `standard` term when the standard
+    /// calibrates. 0 by default: a model file states none.
+    pub standard_rel_sigma: f64,
 }
 
 impl Default for Options {
@@ -86,6 +133,8 @@ impl Default for Options {
                 | flags::FILTER_OVERLOAD
                 | flags::OUTPUT_OVERLOAD
                 | flags::UNLOCK,
+            snapshot_gap_s: SNAPSHOT_GAP_S,
+            standard_rel_sigma: 0.0,
         }
     }
 }
@@ -113,6 +162,10 @@ pub struct Reduction {
     pub samples: Samples,
     /// What was done.
     pub report: Report,
+    /// Per sample (in the order of `samples.samples`), per channel, the standard
+    /// uncertainty of each term of [`TERMS`], 1/sr: their quadrature sum is the
+    /// sample's σ. Terms of the same kind are correlated as [`CORRELATIONS`] says.
+    pub budget: Vec<Vec<[f64; 6]>>,
 }
 
 /// A value with its standard uncertainty.
@@ -123,30 +176,189 @@ struct Measured {
     s: f64,
 }
 
-fn mean_sigma(r: &ReadingRecord) -> f64 {
-    r.r_std * (CORRELATION_FACTOR / f64::from(r.n.max(1))).sqrt()
+/// The variance factors of n snapshots whose noise correlates as ρ^|i−j|:
+/// `(A, B)` with Var(mean) = σ² A / n and E[s²] = σ² B for the sample variance s²
+/// (n − 1 in the denominator). With S = Σ_{k=1}^{n−1} (1 − k/n) ρ^k,
+/// A = 1 + 2S and B = 1 − 2S/(n − 1).
+pub fn variance_factors(n: u32, rho: f64) -> (f64, f64) {
+    if n < 2 {
+        return (1.0, 1.0);
+    }
+    let nf = f64::from(n);
+    let s: f64 = (1..n)
+        .map(|k| (1.0 - f64::from(k) / nf) * rho.powi(k as i32))
+        .sum();
+    (1.0 + 2.0 * s, 1.0 - 2.0 * s / (nf - 1.0))
 }
 
-/// Inverse-variance mean of values (plain mean when any uncertainty is 0), with its
-/// uncertainty; the scatter's standard error when that is larger (the readings
-/// disagree more than their noise says).
+/// The lock-in's noise per snapshot, pooled over the readings taken with the same
+/// time constant, slope and snapshot count: variance a + b·R.
+#[derive(Clone, Copy, Debug)]
+struct NoiseLine {
+    a: f64,
+    b: f64,
+}
+
+/// The key of readings that share a noise law.
+type NoiseKey = (u64, u8, u32);
+
+fn noise_key(r: &ReadingRecord) -> NoiseKey {
+    (r.time_constant_s.to_bits(), r.slope_db, r.n)
+}
+
+/// The lock-in's noise: pooled lines where enough readings share a setting, and
+/// the snapshot correlation.
+struct Noise {
+    lines: BTreeMap<NoiseKey, NoiseLine>,
+    gap_s: f64,
+}
+
+/// Fewest readings a pooled noise line is fitted to.
+const MIN_POOL: usize = 8;
+
+impl Noise {
+    /// Fits a + b·R to the readings' snapshot variances: bright readings give
+    /// s²/B, dark readings (R pure noise, Rayleigh-distributed) half their mean R²,
+    /// both unbiased for the snapshot variance σ² of X. Weighted least squares,
+    /// re-weighted by the fitted variance (the scatter of a variance estimate
+    /// grows with it).
+    fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64) -> Noise {
+        let mut groups: BTreeMap<NoiseKey, Vec<(f64, f64)>> = BTreeMap::new();
+        for (r, dark) in readings {
+            if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
+                continue;
+            }
+            let point = if *dark {
+                Some((0.0, rayleigh_variance(r)))
+            } else if r.r_mean > 3.0 * r.r_std && r.r_std > 0.0 {
+                let (_, b) = variance_factors(r.n, rho(r, gap_s));
+                Some((r.r_mean, r.r_std * r.r_std / b))
+            } else {
+                None
+            };
+            if let Some(p) = point {
+                groups.entry(noise_key(r)).or_default().push(p);
+            }
+        }
+        let lines = groups
+            .into_iter()
+            .filter(|(_, v)| v.len() >= MIN_POOL)
+            .filter_map(|(k, v)| fit_line(&v).map(|l| (k, l)))
+            .collect();
+        Noise { lines, gap_s }
+    }
+
+    /// The standard deviation of a reading's mean X (or Y), V.
+    fn sigma_mean(&self, r: &ReadingRecord, dark: bool) -> f64 {
+        let var = match self.lines.get(&noise_key(r)) {
+            Some(l) if !dark => l.a + l.b * r.r_mean.max(0.0),
+            _ if dark => rayleigh_variance(r),
+            _ => {
+                let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
+                r.r_std * r.r_std / b
+            }
+        };
+        let (a, _) = variance_factors(r.n, rho(r, self.gap_s));
+        (var.max(0.0) * a / f64::from(r.n.max(1))).sqrt()
+    }
+}
+
+/// The snapshots' correlation ρ = e^−(T + gap)/T.
+fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
+    if r.time_constant_s > 0.0 {
+        (-(r.time_constant_s + gap_s.max(0.0)) / r.time_constant_s).exp()
+    } else {
+        0.0
+    }
+}
+
+/// Half the mean R² of a reading's snapshots, (r̄² + s²(n − 1)/n)/2: for a reading
+/// of noise alone (X, Y zero-mean normals of variance σ²) it is unbiased for σ²,
+/// where R's own scatter is only 0.655 σ.
+fn rayleigh_variance(r: &ReadingRecord) -> f64 {
+    let n = f64::from(r.n.max(1));
+    (r.r_mean * r.r_mean + r.r_std * r.r_std * (n - 1.0) / n) / 2.0
+}
+
+/// Weighted least squares of y = a + b x (a, b ≥ 0), re-weighted by the fit.
+fn fit_line(p: &[(f64, f64)]) -> Option<NoiseLine> {
+    let mut w: Vec<f64> = p.iter().map(|(_, y)| 1.0 / (y * y).max(1e-300)).collect();
+    let mut line = None;
+    for _ in 0..4 {
+        let (mut s, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for ((x, y), w) in p.iter().zip(&w) {
+            s += w;
+            sx += w * x;
+            sy += w * y;
+            sxx += w * x * x;
+            sxy += w * x * y;
+        }
+        let det = s * sxx - sx * sx;
+        let (mut a, mut b) = if det > 0.0 {
+            ((sxx * sy - sx * sxy) / det, (s * sxy - sx * sy) / det)
+        } else {
+            (sy / s, 0.0)
+        };
+        if a < 0.0 {
+            a = 0.0;
+            b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        }
+        if b < 0.0 {
+            b = 0.0;
+            a = sy / s;
+        }
+        if !(a.is_finite() && b.is_finite()) || a + b <= 0.0 {
+            return None;
+        }
+        for ((x, _), w) in p.iter().zip(w.iter_mut()) {
+            let m = a + b * x;
+            *w = 1.0 / (m * m).max(1e-300);
+        }
+        line = Some(NoiseLine { a, b });
+    }
+    line
+}
+
+/// The lock-in's reply rounding, relative: six significant digits, a step of
+/// 10^(⌊log₁₀ v⌋ − 5), uniformly distributed (σ = step/√12). Not averaged down by
+/// the snapshots: without noise they all round alike.
+fn resolution_rel(v: f64) -> f64 {
+    if v > 0.0 {
+        10f64.powf(v.log10().floor() - 5.0) / 12f64.sqrt() / v
+    } else {
+        0.0
+    }
+}
+
+/// Inverse-variance mean of values, with its uncertainty, scaled by the Birge ratio
+/// √(χ²/(n − 1)) when the values disagree beyond their noise (χ² more than three
+/// standard deviations above n − 1): the scatter of two or three readings is too
+/// uncertain to replace their noise unless it is significant. Without
+/// uncertainties (any of them 0), the plain mean and its scatter's standard error.
 fn weighted_mean(m: &[Measured]) -> (f64, f64) {
     let n = m.len() as f64;
-    let (mean, s) = if m.iter().all(|x| x.s > 0.0) {
+    if m.iter().all(|x| x.s > 0.0) {
         let sw: f64 = m.iter().map(|x| x.s.powi(-2)).sum();
-        (
-            m.iter().map(|x| x.v / (x.s * x.s)).sum::<f64>() / sw,
-            sw.sqrt().recip(),
-        )
-    } else {
-        let mean = m.iter().map(|x| x.v).sum::<f64>() / n;
-        (mean, 0.0)
-    };
-    if m.len() < 2 {
+        let mean = m.iter().map(|x| x.v / (x.s * x.s)).sum::<f64>() / sw;
+        let s = sw.sqrt().recip();
+        if m.len() < 2 {
+            return (mean, s);
+        }
+        let chi2: f64 = m.iter().map(|x| ((x.v - mean) / x.s).powi(2)).sum();
+        let dof = n - 1.0;
+        let s = if chi2 > dof + 3.0 * (2.0 * dof).sqrt() {
+            s * (chi2 / dof).sqrt()
+        } else {
+            s
+        };
         return (mean, s);
     }
+    let mean = m.iter().map(|x| x.v).sum::<f64>() / n;
+    if m.len() < 2 {
+        return (mean, 0.0);
+    }
     let scatter = (m.iter().map(|x| (x.v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
-    (mean, s.max(scatter))
+    (mean, scatter)
 }
 
 /// Linear interpolation in time of measured values, with the interpolated
@@ -187,6 +399,115 @@ fn interp(m: &[Measured], t: f64, extend: bool) -> (f64, f64) {
     }
 }
 
+/// The source's relative level g(t) from the drift references.
+enum Level {
+    /// A straight line g = p0 + p1 (t − t̄), fitted by weighted least squares; p0
+    /// and p1 are uncorrelated about the weighted mean time t̄.
+    Line {
+        t_mean: f64,
+        p0: f64,
+        p1: f64,
+        s1: f64,
+    },
+    /// Linear between the references.
+    Piecewise(Vec<Measured>),
+}
+
+impl Level {
+    /// Fits a line to the references, kept when its χ² lies within three standard
+    /// deviations of its degrees of freedom (the references then show nothing a
+    /// line does not); else the references are interpolated.
+    fn from_refs(refs: Vec<Measured>) -> Level {
+        if refs.len() < 3 || refs.iter().any(|m| m.s <= 0.0) {
+            return Level::Piecewise(refs);
+        }
+        let w: Vec<f64> = refs.iter().map(|m| m.s.powi(-2)).collect();
+        let sw: f64 = w.iter().sum();
+        let t_mean = refs.iter().zip(&w).map(|(m, w)| w * m.t).sum::<f64>() / sw;
+        let p0 = refs.iter().zip(&w).map(|(m, w)| w * m.v).sum::<f64>() / sw;
+        let stt: f64 = refs
+            .iter()
+            .zip(&w)
+            .map(|(m, w)| w * (m.t - t_mean).powi(2))
+            .sum();
+        if stt <= 0.0 {
+            return Level::Piecewise(refs);
+        }
+        let p1 = refs
+            .iter()
+            .zip(&w)
+            .map(|(m, w)| w * (m.t - t_mean) * m.v)
+            .sum::<f64>()
+            / stt;
+        let chi2: f64 = refs
+            .iter()
+            .map(|m| ((m.v - p0 - p1 * (m.t - t_mean)) / m.s).powi(2))
+            .sum();
+        let dof = (refs.len() - 2) as f64;
+        if chi2 > dof + 3.0 * (2.0 * dof).sqrt() {
+            return Level::Piecewise(refs);
+        }
+        Level::Line {
+            t_mean,
+            p0,
+            p1,
+            s1: stt.sqrt().recip(),
+        }
+    }
+
+    /// g(t) and its standard uncertainty.
+    fn at(&self, t: f64) -> (f64, f64) {
+        match self {
+            Level::Line { t_mean, p0, p1, .. } => (p0 + p1 * (t - t_mean), 0.0),
+            Level::Piecewise(m) => interp(m, t, true),
+        }
+    }
+
+    /// The relative uncertainty of g(t)/g(t_c), t_c the calibrations' time: the
+    /// budget's `drift` term. A line's offset cancels in the ratio; its slope's
+    /// error does not. Interpolated references carry their own noise.
+    fn ratio_rel(&self, t: f64, t_c: f64) -> f64 {
+        match self {
+            Level::Line { p0, s1, .. } => (t - t_c).abs() * s1 / p0,
+            Level::Piecewise(_) => {
+                let (g, s) = self.at(t);
+                if g > 0.0 { s / g } else { 0.0 }
+            }
+        }
+    }
+
+    /// The relative uncertainty of g at the calibrations' times, shared by every
+    /// sample (0 for a line, whose offset cancels).
+    fn calibration_rel(&self, times: &[f64]) -> f64 {
+        match self {
+            Level::Line { .. } => 0.0,
+            Level::Piecewise(_) => {
+                let n = times.len().max(1) as f64;
+                let v: f64 = times
+                    .iter()
+                    .map(|&t| {
+                        let (g, s) = self.at(t);
+                        if g > 0.0 { (s / g).powi(2) } else { 0.0 }
+                    })
+                    .sum();
+                (v / n / n).sqrt()
+            }
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            Level::Line { .. } => {
+                "a line fitted to the drift references (its slope's uncertainty)".into()
+            }
+            Level::Piecewise(m) => format!(
+                "the {} drift references interpolated in time (their noise)",
+                m.len()
+            ),
+        }
+    }
+}
+
 /// The run's instrument time of every reading, s: the instrument clock, continued
 /// across sessions (each session's clock starts again at 0, so a session's first
 /// reading follows the previous session's last). It is the clock the source drifts
@@ -206,14 +527,14 @@ fn timeline(by_step: &BTreeMap<i64, &ReadingRecord>) -> BTreeMap<i64, f64> {
     out
 }
 
-/// A pair's directions, its (value, σ) per channel as the channels are reduced, and
-/// the union of its readings' flags.
-type PerPair = (PairDeg, Vec<Option<(f64, f64)>>, u32);
+/// A pair's directions, its (value, budget) per channel as the channels are
+/// reduced, and the union of its readings' flags.
+type PerPair = (PairDeg, Vec<Option<(f64, [f64; 6])>>, u32);
 
 /// The incident flux Φ(t) a sample reading is divided by.
 enum Flux {
     /// C g(t), g from the drift references.
-    Drift { c: f64, refs: Vec<Measured> },
+    Drift { c: f64, level: Level, t_c: f64 },
     /// The calibration readings interpolated in time.
     Interpolated(Vec<Measured>),
     /// One level for the whole run.
@@ -221,21 +542,32 @@ enum Flux {
 }
 
 impl Flux {
-    /// Φ at instrument time `t` and the relative uncertainty of its time dependence.
-    fn at(&self, t: f64) -> (f64, f64) {
+    /// Φ at instrument time `t`, the relative uncertainty of its time dependence
+    /// (the `drift` term) and, for interpolated calibrations, of the interpolated
+    /// calibration itself.
+    fn at(&self, t: f64) -> (f64, f64, f64) {
         let rel = |v: f64, s: f64| if v > 0.0 { s / v } else { 0.0 };
         match self {
-            Flux::Drift { c, refs } => {
-                let (g, gs) = interp(refs, t, true);
-                (c * g, rel(g, gs))
+            Flux::Drift { c, level, t_c } => {
+                let (g, _) = level.at(t);
+                (c * g, level.ratio_rel(t, *t_c), 0.0)
             }
             Flux::Interpolated(m) => {
                 let (v, s) = interp(m, t, false);
-                (v, rel(v, s))
+                (v, 0.0, rel(v, s))
             }
-            Flux::Constant(c) => (*c, 0.0),
+            Flux::Constant(c) => (*c, 0.0, 0.0),
         }
     }
+}
+
+/// The median and the largest of values (0 for none).
+fn median_max(mut v: Vec<f64>) -> (f64, f64) {
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    v.sort_by(f64::total_cmp);
+    (v[v.len() / 2], v[v.len() - 1])
 }
 
 /// Reduces a run to BRDF samples.
@@ -263,6 +595,15 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         by_step.insert(r.step_id, r);
     }
     let time = timeline(&by_step);
+    let kind_of: BTreeMap<i64, StepKind> = steps.iter().map(|s| (s.id, s.step.kind)).collect();
+    let noise = {
+        let all: Vec<(&ReadingRecord, bool)> = by_step
+            .values()
+            .filter(|r| r.flags & opts.reject_flags == 0)
+            .map(|r| (*r, kind_of.get(&r.step_id) == Some(&StepKind::Dark)))
+            .collect();
+        Noise::fit(&all, opts.snapshot_gap_s)
+    };
     let channel_names: Vec<Option<String>> = {
         let mut v: Vec<Option<String>> = Vec::new();
         for s in &steps {
@@ -319,19 +660,24 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 darks.iter().map(|(_, r)| r.y_mean).sum::<f64>() / n,
             ]
         };
+        // The σ of each component of the dark vector's mean.
         let dark_sigma = if darks.is_empty() {
             0.0
         } else {
             darks
                 .iter()
-                .map(|(_, r)| mean_sigma(r).powi(2))
+                .map(|(_, r)| noise.sigma_mean(r, true).powi(2))
                 .sum::<f64>()
                 .sqrt()
                 / darks.len() as f64
         };
+        // The signal, its noise σ and its unit vector (the direction a dark error
+        // moves it in).
         let signal = |r: &ReadingRecord| {
-            let s = (r.x_mean - dark[0]).hypot(r.y_mean - dark[1]);
-            (s, mean_sigma(r).hypot(dark_sigma))
+            let (x, y) = (r.x_mean - dark[0], r.y_mean - dark[1]);
+            let s = x.hypot(y);
+            let u = if s > 0.0 { [x / s, y / s] } else { [1.0, 0.0] };
+            (s, noise.sigma_mean(r, false), u)
         };
         let incident = of(StepKind::Incident, ch);
         let standard_readings = of(StepKind::Standard, ch);
@@ -341,42 +687,57 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             Calibration::Auto => incident.is_empty(),
         };
         let mut cal: Vec<Measured> = Vec::new();
+        // The calibration signals' dark sensitivity: Σ u/S over the readings.
+        let mut cal_dark = [0.0f64; 2];
+        let mut cal_res = 0.0f64;
         if use_standard {
             let model = standard.as_ref().ok_or_else(|| {
                 missing(format!("channel {name}: no reference standard in the run"))
             })?;
             let mc = gonio_brdf::Brdf::channels(model);
-            let idx = mc
-                .index_of(&name)
-                .or((mc.len() == 1).then_some(0))
-                .ok_or_else(|| {
-                    missing(format!(
-                        "channel {name}: the standard's model has no such channel"
-                    ))
-                })?;
             let mut out = vec![0.0; mc.len()];
             for (s, r) in &standard_readings {
                 let Some(p) = s.step.pair else { continue };
                 let d = p.to_dirs();
                 gonio_brdf::Brdf::eval(model, d.wi, d.wo, &mut out);
+                // An unnamed channel takes a spectrally flat standard's one value.
+                let idx = match mc.index_of(&name).or((mc.len() == 1).then_some(0)) {
+                    Some(i) => i,
+                    None if ch.is_none() && out.iter().all(|v| *v == out[0]) => 0,
+                    None => {
+                        return Err(missing(format!(
+                            "channel {name}: the standard's model has no such channel"
+                        )));
+                    }
+                };
                 let k = out[idx] * omega * d.wo.z;
                 if k > 0.0 {
-                    let (v, sv) = signal(r);
+                    let (v, sv, u) = signal(r);
                     cal.push(Measured {
                         t: time[&r.step_id],
                         v: v / k,
                         s: sv / k,
                     });
+                    if v > 0.0 {
+                        cal_dark[0] += u[0] / v;
+                        cal_dark[1] += u[1] / v;
+                    }
+                    cal_res += resolution_rel(v).powi(2);
                 }
             }
         } else {
             for (_, r) in &incident {
-                let (v, sv) = signal(r);
+                let (v, sv, u) = signal(r);
                 cal.push(Measured {
                     t: time[&r.step_id],
                     v: v / stored.transmittance,
                     s: sv / stored.transmittance,
                 });
+                if v > 0.0 {
+                    cal_dark[0] += u[0] / v;
+                    cal_dark[1] += u[1] / v;
+                }
+                cal_res += resolution_rel(v).powi(2);
             }
         }
         if cal.is_empty() {
@@ -389,12 +750,15 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 }
             )));
         }
+        let ncal = cal.len() as f64;
+        let cal_dark = [cal_dark[0] / ncal, cal_dark[1] / ncal];
+        let cal_res = cal_res.sqrt() / ncal;
         cal.sort_by(|a, b| a.t.total_cmp(&b.t));
         let mut refs: Vec<Measured> = if opts.drift == Drift::Auto {
             of(StepKind::Reference, ch)
                 .iter()
                 .map(|(_, r)| {
-                    let (v, s) = signal(r);
+                    let (v, s, _) = signal(r);
                     Measured {
                         t: time[&r.step_id],
                         v,
@@ -416,22 +780,33 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             }
         }
         let drift_max = refs.iter().map(|m| (m.v - 1.0).abs()).fold(0.0, f64::max);
-        // Φ(t) and its relative uncertainty.
-        let (flux, c_mean, c_sigma) = if refs.is_empty() {
+        let n_refs = refs.len();
+        // Φ(t), C, the calibration's relative uncertainty, and how drift is followed.
+        let (flux, c_mean, c_rel, drift_source) = if refs.is_empty() {
             let (c, cs) = weighted_mean(&cal);
             let spread =
                 opts.drift != Drift::None && cal.iter().any(|m| (m.t - cal[0].t).abs() > 1.0);
-            let f = if spread {
-                Flux::Interpolated(cal.clone())
+            if spread {
+                (
+                    Flux::Interpolated(cal.clone()),
+                    c,
+                    0.0,
+                    "none: the calibrations, interpolated in time, follow the source".to_string(),
+                )
             } else {
-                Flux::Constant(c)
-            };
-            (f, c, cs)
+                (
+                    Flux::Constant(c),
+                    c,
+                    if c > 0.0 { cs / c } else { 0.0 },
+                    "none: the source's level is held constant".to_string(),
+                )
+            }
         } else {
+            let level = Level::from_refs(refs);
             let per: Vec<Measured> = cal
                 .iter()
                 .map(|m| {
-                    let (g, _) = interp(&refs, m.t, true);
+                    let (g, _) = level.at(m.t);
                     Measured {
                         t: m.t,
                         v: m.v / g,
@@ -440,22 +815,25 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 })
                 .collect();
             let (c, cs) = weighted_mean(&per);
-            (
-                Flux::Drift {
-                    c,
-                    refs: refs.clone(),
-                },
-                c,
-                cs,
-            )
+            let times: Vec<f64> = cal.iter().map(|m| m.t).collect();
+            let rel = if c > 0.0 { cs / c } else { 0.0 };
+            let rel = rel.hypot(level.calibration_rel(&times));
+            let t_c = times.iter().sum::<f64>() / times.len() as f64;
+            let source = level.describe();
+            (Flux::Drift { c, level, t_c }, c, rel, source)
         };
         if c_mean.is_nan() || c_mean <= 0.0 {
             return Err(missing(format!(
                 "channel {name}: the calibration reading is not above the dark"
             )));
         }
-        let c_rel = c_sigma / c_mean;
+        let standard_rel = if use_standard {
+            opts.standard_rel_sigma.max(0.0)
+        } else {
+            0.0
+        };
         let mut count = 0;
+        let mut rels: [Vec<f64>; 6] = Default::default();
         for (s, r) in of(StepKind::Sample, ch) {
             let (Some(pair), Some(index)) = (s.step.pair, s.step.plan_index) else {
                 continue;
@@ -472,24 +850,97 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 *rejected.entry("grazing".into()).or_default() += 1;
                 continue;
             }
-            let (v, sv) = signal(r);
-            let (phi, phi_rel) = flux.at(time[&r.step_id]);
-            let f = v / (phi * omega * cos_o);
-            let rel = (if v > 0.0 { sv / v } else { 0.0 })
-                .hypot(phi_rel)
-                .hypot(c_rel);
-            let sigma = if v > 0.0 {
-                f * rel
+            let (v, sv, u) = signal(r);
+            let (phi, drift_rel, interp_rel) = flux.at(time[&r.step_id]);
+            let scale = phi * omega * cos_o;
+            let f = v / scale;
+            let terms = if v > 0.0 {
+                // A dark error d moves S by −u·d and the calibration by −u_c·d: f by
+                // f (u_c/S_c − u/S)·d.
+                let dk = [cal_dark[0] - u[0] / v, cal_dark[1] - u[1] / v];
+                [
+                    sv / v,
+                    resolution_rel(v),
+                    dark_sigma * dk[0].hypot(dk[1]),
+                    c_rel.hypot(interp_rel).hypot(cal_res),
+                    drift_rel,
+                    standard_rel,
+                ]
             } else {
-                sv / (phi * omega * cos_o)
+                [
+                    sv / scale / f.abs().max(f64::MIN_POSITIVE),
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ]
+            };
+            for (k, t) in terms.iter().enumerate() {
+                rels[k].push(*t);
+            }
+            let abs: [f64; 6] = if v > 0.0 {
+                terms.map(|t| t * f)
+            } else {
+                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0]
             };
             let entry = values
                 .entry((index, s.step.repeat))
                 .or_insert_with(|| (pair, vec![None; nc], 0));
-            entry.1[ci] = Some((f, sigma));
+            entry.1[ci] = Some((f, abs));
             entry.2 |= r.flags;
             count += 1;
         }
+        let sources = [
+            format!(
+                "the lock-in's noise, {} (variance of a mean of correlated snapshots, ρ = e^−(1 + {:.4} s/T))",
+                match noise.lines.values().next() {
+                    None => "each reading's own snapshot scatter".to_string(),
+                    Some(l) => format!(
+                        "pooled over the run's readings as a + b·R per snapshot, a = {:.3e} V², b = {:.3e} V",
+                        l.a, l.b
+                    ),
+                },
+                opts.snapshot_gap_s
+            ),
+            "the lock-in's six-digit replies (step/√12)".into(),
+            format!(
+                "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
+                darks.len(),
+                dark_sigma
+            ),
+            format!(
+                "the {} calibration reading(s)' noise (scaled by their Birge ratio when they disagree), and the source's level at their time",
+                cal.len()
+            ),
+            format!("the source's drift: {drift_source}"),
+            if use_standard {
+                "the reference standard's BRDF (its stated relative uncertainty)".into()
+            } else {
+                "the reference standard: not used (incident-beam calibration)".into()
+            },
+        ];
+        let interpolated = matches!(flux, Flux::Interpolated(_));
+        let c_rel = if interpolated {
+            // The interpolated calibrations' own uncertainty, as the samples carry it.
+            median_max(rels[3].clone()).0
+        } else {
+            c_rel
+        };
+        let budget = sources
+            .into_iter()
+            .enumerate()
+            .map(|(k, source)| {
+                let (rel_median, rel_max) = median_max(std::mem::take(&mut rels[k]));
+                BudgetTerm {
+                    term: TERMS[k],
+                    source,
+                    correlation: CORRELATIONS[k],
+                    rel_median,
+                    rel_max,
+                }
+            })
+            .collect();
         reports.push(ChannelReport {
             channel: name,
             calibration: if use_standard { "standard" } else { "incident" },
@@ -497,9 +948,10 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             incident_v: c_mean,
             incident_rel_sigma: c_rel,
             calibration_readings: cal.len(),
-            drift_readings: refs.len(),
+            drift_readings: n_refs,
             drift_max,
             samples: count,
+            budget,
         });
     }
     let unmeasured = steps
@@ -507,19 +959,25 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         .filter(|s| s.step.kind == StepKind::Sample && !by_step.contains_key(&s.id))
         .count();
     let mut samples = Vec::new();
+    let mut budget = Vec::new();
     let mut incomplete = 0;
     for (pair, v, fl) in values.into_values() {
         if v.iter().any(Option::is_none) {
             incomplete += 1;
             continue;
         }
-        let (value, sigma) = v.into_iter().flatten().unzip();
+        let (value, terms): (Vec<f64>, Vec<[f64; 6]>) = v.into_iter().flatten().unzip();
+        let sigma = terms
+            .iter()
+            .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .collect();
         samples.push(Sample {
             pair,
             value,
             sigma: Some(sigma),
             flags: fl,
         });
+        budget.push(terms);
     }
     if incomplete > 0 {
         rejected.insert("missing-channel".into(), incomplete);
@@ -540,6 +998,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             max_position_error_deg: max_pos,
             unmeasured,
         },
+        budget,
     })
 }
 
@@ -557,5 +1016,55 @@ fn flag_reason(f: u32) -> String {
         "unlock".into()
     } else {
         "overload".into()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variance_factors_match_the_closed_forms() {
+        // Independent snapshots: Var(mean) = σ²/n, E[s²] = σ².
+        assert_eq!(variance_factors(10, 0.0), (1.0, 1.0));
+        // Two snapshots: Var((x1 + x2)/2) = σ²(1 + ρ)/2, E[(x1 − x2)²/2] = σ²(1 − ρ).
+        let (a, b) = variance_factors(2, 0.3);
+        assert!(
+            (a - 1.3).abs() < 1e-15 && (b - 0.7).abs() < 1e-15,
+            "{a} {b}"
+        );
+        // Ten snapshots one time constant apart: A/B = 2.22, the old factor 2.2.
+        let (a, b) = variance_factors(10, (-1.0f64).exp());
+        assert!((a / b - 2.222).abs() < 1e-3, "{}", a / b);
+    }
+
+    #[test]
+    fn a_noise_line_is_recovered_from_exact_variances() {
+        let p: Vec<(f64, f64)> = (0..12)
+            .map(|k| {
+                let x = 1e-4 * f64::from(k);
+                (x, 3e-16 + 3e-12 * x)
+            })
+            .collect();
+        let l = fit_line(&p).expect("fits");
+        assert!((l.a / 3e-16 - 1.0).abs() < 1e-9 && (l.b / 3e-12 - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn disagreeing_readings_scale_the_mean_s_uncertainty_by_the_birge_ratio() {
+        let m = |v: f64| Measured { t: 0.0, v, s: 1.0 };
+        // Within their noise: 1/√2.
+        let (mean, s) = weighted_mean(&[m(0.0), m(1.0)]);
+        assert_eq!(mean, 0.5);
+        assert!((s - 0.5f64.sqrt()).abs() < 1e-15);
+        // 10σ apart: χ² = 50 on one degree of freedom, σ × √50.
+        let (_, s) = weighted_mean(&[m(0.0), m(10.0)]);
+        assert!((s - 0.5f64.sqrt() * 50f64.sqrt()).abs() < 1e-12, "{s}");
+    }
+
+    #[test]
+    fn the_reply_rounding_is_a_sixth_digit_over_root_twelve() {
+        assert!((resolution_rel(1.5e-3) - 1e-8 / 12f64.sqrt() / 1.5e-3).abs() < 1e-18);
+        assert_eq!(resolution_rel(0.0), 0.0);
     }
 }

@@ -31,6 +31,10 @@ pub struct ReduceArgs {
     grid: GridFlag,
     #[command(flatten)]
     json: JsonFlag,
+    /// The reference standard's relative standard uncertainty (its certificate's),
+    /// carried as the budget's `standard` term when the standard calibrates.
+    #[arg(long, value_name = "REL", default_value_t = 0.0)]
+    standard_sigma: f64,
 }
 
 /// The first bytes of a file, for recognising its kind; a FIFO, a device or a
@@ -53,7 +57,15 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             path.display()
         )));
     }
-    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
+    if !(0.0..=1.0).contains(&a.standard_sigma) {
+        return Err(CliError::Input(format!(
+            "--standard-sigma {}: must be a relative uncertainty in [0, 1]",
+            a.standard_sigma
+        )));
+    }
+    let mut options = a.reduction.open_options()?;
+    options.reduce.standard_rel_sigma = a.standard_sigma;
+    let opened = gonio_dataset::open(path, &options)?;
     let Some(red) = opened.reduction else {
         return Err(CliError::Runtime(format!(
             "{}: not reduced",
@@ -121,6 +133,13 @@ pub fn print_reduction(w: &mut dyn Write, red: &Reduction) -> std::io::Result<()
             c.drift_readings,
             100.0 * c.drift_max
         )?;
+        for t in &c.budget {
+            writeln!(
+                w,
+                "  σ {:<11} rel. median {:.2e}, max {:.2e} ({}): {}",
+                t.term, t.rel_median, t.rel_max, t.correlation, t.source
+            )?;
+        }
     }
     for (why, n) in &r.rejected {
         writeln!(w, "left out: {n} ({why})")?;

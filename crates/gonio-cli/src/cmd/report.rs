@@ -105,14 +105,16 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     };
     c.metadata
         .push(("run file".into(), run.display().to_string()));
-    for k in [
-        "status",
-        "software",
-        "seed",
-        "notes",
-        "created_s",
-        "instrument_path",
-        "plan_path",
+    // Each key with a label that says what its value is (a key's own name, such as
+    // `created_s`, is not a label: the value shown is a UTC date, not seconds).
+    for (k, label) in [
+        ("status", "status"),
+        ("software", "software"),
+        ("seed", "random seed"),
+        ("notes", "notes"),
+        ("created_s", "created (UTC)"),
+        ("instrument_path", "instrument config file"),
+        ("plan_path", "plan file"),
     ] {
         if let Some(v) = meta.get(k) {
             let v = if k == "created_s" {
@@ -122,7 +124,7 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
             } else {
                 v.clone()
             };
-            c.metadata.push((k.replace('_', " "), v));
+            c.metadata.push((label.into(), v));
         }
     }
     for (k, name) in [("instrument", "instrument config"), ("plan", "plan")] {
@@ -220,24 +222,49 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
                 &data_src,
                 fit_brdf,
                 &thetas,
-                &plot::PolarOptions::default(),
+                &plot::PolarOptions {
+                    data_label: "measured data".into(),
+                    fit_label: "fitted model".into(),
+                    ..plot::PolarOptions::default()
+                },
             )
         }),
     );
     // The hemisphere, albedo and sphere need the whole hemisphere: the data when it is
     // a table, otherwise the fitted model (said so in the caption).
-    let (hemi_src, hemi_fit, who) = match (table, fit) {
-        (Some(_), _) => (data_src, fit_brdf, "the data (left) and the fit (right)"),
+    // Each panel is labelled with what it shows: the measured table, or the fitted
+    // model standing in for it (the plots' default label "data" would call a model
+    // measured).
+    let (hemi_src, hemi_fit, who, first, shows) = match (table, fit) {
+        (Some(_), _) => (
+            data_src,
+            fit_brdf,
+            "the measured data (left) and the fitted model (right)",
+            "measured data",
+            if fit_brdf.is_some() {
+                "measured data and fitted model"
+            } else {
+                "measured data"
+            },
+        ),
         (None, Some(m)) => (
             Source::Model(m),
             None,
             "the fitted model (the run's pairs do not cover the hemisphere)",
+            "fitted model",
+            "fitted model",
         ),
-        (None, None) => (data_src, None, "the data"),
+        (None, None) => (
+            data_src,
+            None,
+            "the measured data",
+            "measured data",
+            "measured data",
+        ),
     };
     let t0 = thetas.get(thetas.len() / 2).copied().unwrap_or(30.0);
     push(
-        "Hemisphere",
+        &format!("Hemisphere: {shows}"),
         &format!(
             "f_r · cos θo over the outgoing hemisphere at θi = {t0}°, {who} (Lafortune Figs. 12, 14)."
         ),
@@ -247,7 +274,11 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
                 &hemi_src,
                 hemi_fit,
                 t0,
-                &plot::HemisphereOptions::default(),
+                &plot::HemisphereOptions {
+                    data_label: first.into(),
+                    fit_label: "fitted model".into(),
+                    ..plot::HemisphereOptions::default()
+                },
             )
         }),
     );
@@ -259,7 +290,22 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
         "Directional albedo",
         "Directional-hemispherical reflectance against θi, total and per term of the lobe fit \
          (Lafortune Figs. 4b, 7b, 9b).",
-        svg_of(|o| plot::albedo(o, &albedo_src, fit, &plot::AlbedoOptions::default())),
+        svg_of(|o| {
+            plot::albedo(
+                o,
+                &albedo_src,
+                fit,
+                &plot::AlbedoOptions {
+                    data_label: if matches!(albedo_src, Source::Model(_)) {
+                        "fitted model".into()
+                    } else {
+                        "measured data".into()
+                    },
+                    fit_label: "fitted model".into(),
+                    ..plot::AlbedoOptions::default()
+                },
+            )
+        }),
     );
     if let Some(t) = table {
         push(
@@ -276,8 +322,19 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
         );
     }
     push(
-        "Rendered sphere",
+        &format!("Rendered sphere: {shows}"),
         &format!("A sphere under a directional light at 45° from the view, upper left: {who}."),
-        png_of(|o| plot::sphere(o, &hemi_src, hemi_fit, &plot::SphereOptions::default())),
+        png_of(|o| {
+            plot::sphere(
+                o,
+                &hemi_src,
+                hemi_fit,
+                &plot::SphereOptions {
+                    data_label: first.into(),
+                    fit_label: "fitted model".into(),
+                    ..plot::SphereOptions::default()
+                },
+            )
+        }),
     );
 }

@@ -22,15 +22,23 @@ impl Simulation {
     /// In the hemisphere-even basis of [`gonio_process::sh`] the coefficients are
     /// `M_jk = 4 ∫_H ∫_H f_r(wi, wo) Y_j(wi) Y_k(wo) dωi dωo`. Each ray draws its own
     /// `wi` uniformly over the hemisphere (pdf `1/2π`) and a start point; its exit
-    /// `(wo, e)` then has `E[e·g(wo)] = ∫ f_r cos θo g(wo) dωo` for any `g`. So
+    /// `(wo, e)` then has `E[e·g(wo)] = ∫ f_r cos θo g(wo) dωo` for any `g`: the pair
+    /// (wi, wo) comes with density `f_r cos θo / 2π`. For a reciprocal surface the
+    /// pair in the other order is as likely, so the ray stands for the symmetric
+    /// density `f_r (cos θi + cos θo) / 4π`, and
     ///
-    /// `M̂_jk = (1/N) Σ_rays 8π e · ½ (Y_j(wi) Y_k(wo) + Y_k(wi) Y_j(wo)) / cos θo`
+    /// `M̂_jk = (1/N) Σ_rays 16π e · ½ (Y_j(wi) Y_k(wo) + Y_k(wi) Y_j(wo)) / (cos θi + cos θo)`
     ///
-    /// (rays that do not leave contribute 0) is unbiased for the reciprocal part
-    /// `(M + Mᵀ)/2` — the `Y_k(V)/cos θr` weighting Westin et al. describe, symmetrised
-    /// term by term, so `M̂` is symmetric by construction, and exactly reciprocal in
-    /// evaluation. The `1/cos θo` makes the variance grow (logarithmically) with
-    /// grazing exits; `sigma` reports the standard errors.
+    /// (rays that do not leave contribute 0) is unbiased for M, symmetric by
+    /// construction and exactly reciprocal in evaluation. Westin et al.'s
+    /// `Y_k(V)/cos θr` weighting (`8π e … / cos θo`) is unbiased too, but its
+    /// variance is infinite: `∫ f_r / cos θo dωo` diverges at the horizon, so its
+    /// standard error was not a valid σ. Here the weight's square integrates to
+    /// `∫∫ f_r cos θo / (cos θi + cos θo)² ≤ ∫∫ f_r / (cos θi + cos θo)`, which is
+    /// finite (`∫₀¹∫₀¹ dμ dμ' / (μ + μ') = 2 ln 2`) for a bounded f_r: `sigma`, the
+    /// standard error over the rays (before the taper), is an honest σ. The price
+    /// is the assumption of reciprocity, which light transport through a
+    /// microgeometry of reciprocal materials satisfies.
     pub fn estimate_sh(
         &self,
         l_max: usize,
@@ -84,7 +92,7 @@ impl Simulation {
                     eval_basis(l_max, wi, &mut ya);
                     eval_basis(l_max, wo, &mut yb);
                     for (c, v) in wt.iter_mut().enumerate() {
-                        *v = 8.0 * PI * w[c] / wo.z;
+                        *v = 16.0 * PI * w[c] / (wi.z + wo.z);
                     }
                     let mut p = 0;
                     for j in 0..k {
