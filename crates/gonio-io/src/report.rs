@@ -257,14 +257,27 @@ pub fn html(c: &Contents) -> String {
         h.push_str("</table>\n");
         let _ = writeln!(
             h,
-            "<p>{} nodes; reciprocal values {}; the outgoing nodes cover {:.1}% of the projected hemisphere.</p>",
+            "<p>{} nodes; reciprocal values {}; {}.</p>",
             m.nodes,
             if m.paired {
                 "looked up (paired grid)"
             } else {
                 "interpolated"
             },
-            100.0 * m.energy.coverage
+            match m.energy.method {
+                gonio_process::measure::EnergyMethod::Sum => format!(
+                    "albedos by DeYoung's sum (Eq. 4.4); the outgoing nodes cover {:.1}% of \
+                     the projected hemisphere",
+                    100.0 * m.energy.coverage
+                ),
+                gonio_process::measure::EnergyMethod::Triangulated => format!(
+                    "albedos over the triangulated hemisphere of the samples (Sec. 4.2.2); \
+                     the data cover at least {:.1}% of the projected hemisphere, and at most \
+                     {:.1}% (the band to the horizon) is held from the data's edge",
+                    100.0 * m.energy.coverage,
+                    100.0 * m.energy.extrapolated
+                ),
+            }
         );
     }
     if let Some(f) = &c.fit {

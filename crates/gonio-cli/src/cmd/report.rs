@@ -5,7 +5,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
-use gonio_dataset::Dataset;
 use gonio_io::plot::{self, Output, Source};
 use gonio_io::report::{self, Contents, Figure, Image};
 use gonio_process::{Samples, Table, measure};
@@ -136,18 +135,34 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     let samples = opened.data.to_samples(200_000, run)?;
     c.metadata
         .push(("BRDF samples".into(), samples.samples.len().to_string()));
-    let table = match &opened.data {
-        Dataset::Table(t) => Some(t.clone()),
-        _ => None,
+    // The measures take the table every command takes (a half turn unfolded, the
+    // run's own grid), and the energy measure the samples themselves.
+    let table = match opened.data.tabulate(None, run) {
+        Ok(tab) => {
+            c.metadata
+                .push(("symmetry assumed".into(), tab.symmetry.describe().into()));
+            if let Some(f) = &tab.fill
+                && !f.interpolated.is_empty()
+            {
+                c.notes.push(format!(
+                    "The measures use the run's own grid: {} of its {} nodes were not \
+                     measured (the detector shadows the source near retro-reflection) and \
+                     were interpolated from their neighbours.",
+                    f.interpolated.len(),
+                    f.nodes
+                ));
+            }
+            c.measures =
+                measure::report_with(&tab.table, tab.measured.as_ref(), &[1, 2, 5], 5).ok();
+            Some(tab.table)
+        }
+        Err(e) => {
+            c.notes.push(format!(
+                "DeYoung's measures need data over the hemisphere: {e}"
+            ));
+            None
+        }
     };
-    match &table {
-        Some(t) => c.measures = measure::report(t, &[1, 2, 5], 5).ok(),
-        None => c.notes.push(
-            "DeYoung's measures need a table: the run's pairs do not form a complete grid \
-             (an in-plane scan, or pairs the arms could not reach)."
-                .into(),
-        ),
-    }
     // The lobe fit and the comparison models.
     let data = gonio_fit::FitData::from_samples(&samples, &gonio_fit::DataOptions::default());
     let fitted = match data {
