@@ -67,7 +67,25 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
     let err = sh
         .error_against(table)
         .map_err(|e| CliError::process(path, e))?;
-    target.write(sh.to_toml().as_bytes())?;
+    // What was assumed of measured data travels with the coefficients (a comment:
+    // readers of the file need nothing new).
+    let mut text = String::new();
+    if tab.measured.is_some() {
+        text.push_str(&format!(
+            "# symmetry assumed: {} ({})\n",
+            tab.symmetry.name(),
+            tab.symmetry.describe()
+        ));
+        if let Some(f) = &tab.fill {
+            text.push_str(&format!(
+                "# grid: the data's own, {} of {} nodes interpolated (not measured)\n",
+                f.interpolated.len(),
+                f.nodes
+            ));
+        }
+    }
+    text.push_str(&sh.to_toml());
+    target.write(text.as_bytes())?;
     let ratio = sh.coefficient_count() as f64 / table.values.len() as f64;
     if json_out {
         return output::json(&json!({
