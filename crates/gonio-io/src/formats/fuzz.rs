@@ -90,7 +90,8 @@ pub fn csv_read(data: &[u8]) {
             // as 0), so a table with such axes may not read back; when it does, it must
             // hold the same values, never different ones.
             let again = gonio_process::file::write_table(&t);
-            match read_csv(&again, None) {
+            let meta = gonio_process::file::Meta::for_table(&t);
+            match super::read_csv_from(again.as_bytes(), Some(&meta), None) {
                 Ok(Data::Table(back)) => assert_eq!(
                     (back.channels, back.values, back.sigma),
                     (t.channels, t.values, t.sigma),
