@@ -593,6 +593,9 @@ pub fn read_from<R: BufRead>(
     });
     let mut value = vec![0.0; nc];
     let mut sigma = vec![0.0; nc];
+    let mut last_angle: [(String, f64); 4] = Default::default();
+    // The last node found on each axis, by angle: most rows repeat three of them.
+    let mut last_node: [(f64, usize); 4] = [(f64::NAN, 0); 4];
     while next(&mut buf, &mut ln)? {
         let l = std::str::from_utf8(&buf)
             .map_err(|_| at(ln, None, "not UTF-8 text".into()))?
@@ -605,15 +608,14 @@ pub fn read_from<R: BufRead>(
         }
         rows += 1;
         fields.clear();
-        let base = l.as_ptr() as usize - buf.as_ptr() as usize;
         let mut s = 0;
         for (i, b) in l.bytes().enumerate() {
             if b == b',' {
-                fields.push((base + s, base + i));
+                fields.push((s, i));
                 s = i + 1;
             }
         }
-        fields.push((base + s, base + l.len()));
+        fields.push((s, l.len()));
         if fields.len() != width {
             return Err(at(
                 ln,
@@ -621,10 +623,16 @@ pub fn read_from<R: BufRead>(
                 format!("{} fields, the header has {width}", fields.len()),
             ));
         }
-        // Every field lies on char boundaries of a valid UTF-8 line (split at ASCII commas).
+        // Every field lies on char boundaries of the line (split at ASCII commas).
         let field = |k: usize| -> &str {
             let (a, b) = fields[k];
-            std::str::from_utf8(&buf[a..b]).unwrap_or("").trim()
+            let f = l.get(a..b).unwrap_or("");
+            let edge = |c: Option<&u8>| c.is_some_and(|c| c.is_ascii_whitespace() || *c >= 0x80);
+            if edge(f.as_bytes().first()) || edge(f.as_bytes().last()) {
+                f.trim()
+            } else {
+                f
+            }
         };
         let num = |k: usize| -> Result<f64, FileError> {
             let f = field(k);
@@ -639,7 +647,19 @@ pub fn read_from<R: BufRead>(
                     )
                 })
         };
-        let (ti, pi, to, po) = (num(0)?, num(1)?, num(2)?, num(3)?);
+        // The angles repeat from row to row (a table's rows run through the grid):
+        // a field equal to the last row's keeps its parsed value.
+        let mut angle = |k: usize| -> Result<f64, FileError> {
+            let f = field(k);
+            let (text, x) = &mut last_angle[k];
+            if text.as_str() != f {
+                *x = num(k)?;
+                text.clear();
+                text.push_str(f);
+            }
+            Ok(*x)
+        };
+        let (ti, pi, to, po) = (angle(0)?, angle(1)?, angle(2)?, angle(3)?);
         for (k, th) in [(0, ti), (2, to)] {
             if !(0.0..=90.0).contains(&th) {
                 return Err(at(
@@ -693,15 +713,22 @@ pub fn read_from<R: BufRead>(
         } else {
             (pi, po)
         };
-        let node = |ax: &Axis, x: f64, name: &str| {
-            ax.node_at(x.to_radians())
-                .ok_or_else(|| at(ln, Some(name), format!("{x} is not a node of the grid")))
+        let mut node = |slot: usize, ax: &Axis, x: f64, name: &str| {
+            let (lx, li) = &mut last_node[slot];
+            if *lx == x {
+                return Ok(*li);
+            }
+            let i = ax
+                .node_at(x.to_radians())
+                .ok_or_else(|| at(ln, Some(name), format!("{x} is not a node of the grid")))?;
+            (*lx, *li) = (x, i);
+            Ok::<usize, FileError>(i)
         };
         let i = g.index(
-            node(&g.phi_i, pi, "phi_i")?,
-            node(&g.theta_i, ti, "theta_i")?,
-            node(&g.phi_o, po, "phi_o")?,
-            node(&g.theta_o, to, "theta_o")?,
+            node(0, &g.phi_i, pi, "phi_i")?,
+            node(1, &g.theta_i, ti, "theta_i")?,
+            node(2, &g.phi_o, po, "phi_o")?,
+            node(3, &g.theta_o, to, "theta_o")?,
         );
         if std::mem::replace(&mut seen[i], true) {
             return Err(at(ln, None, "this node was already given".into()));
