@@ -155,7 +155,14 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
     )
     .expect("astm");
     let samples = d.join("samples.csv");
-    ok(&["export", &s(&astm), "--format", "csv", "--out", &s(&samples)]);
+    ok(&[
+        "export",
+        &s(&astm),
+        "--format",
+        "csv",
+        "--out",
+        &s(&samples),
+    ]);
     assert_eq!(
         std::fs::read_to_string(&samples).expect("samples"),
         "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,f_r_R_per_sr,f_r_G_per_sr,f_r_B_per_sr\n\
@@ -170,8 +177,7 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
             .expect("sidecar");
     let axis = |n: &str| {
         let a = &side["grid"][n];
-        format!("{}:{}:{}", a["start_deg"], a["step_deg"], a["n"])
-            .replace(".0:", ":")
+        format!("{}:{}:{}", a["start_deg"], a["step_deg"], a["n"]).replace(".0:", ":")
     };
     let old = format!(
         "# gonio-table: 1\n# grid: isotropic=false phi_i={} theta_i={} phi_o={} theta_o={}\n\
@@ -184,13 +190,20 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
     );
     let old_path = d.join("old.csv");
     std::fs::write(&old_path, old).expect("old");
-    let m_new: Value = serde_json::from_slice(&ok(&["check", &s(&table), "--json"]).stdout)
-        .expect("json");
-    let m_old: Value = serde_json::from_slice(&ok(&["check", &s(&old_path), "--json"]).stdout)
-        .expect("json");
+    let m_new: Value =
+        serde_json::from_slice(&ok(&["check", &s(&table), "--json"]).stdout).expect("json");
+    let m_old: Value =
+        serde_json::from_slice(&ok(&["check", &s(&old_path), "--json"]).stdout).expect("json");
     assert_eq!(m_new, m_old);
     let again = d.join("again.csv");
-    ok(&["export", &s(&old_path), "--format", "csv", "--out", &s(&again)]);
+    ok(&[
+        "export",
+        &s(&old_path),
+        "--format",
+        "csv",
+        "--out",
+        &s(&again),
+    ]);
     assert_eq!(std::fs::read_to_string(&again).expect("again"), new);
 
     let python = std::env::var("PYTHON").unwrap_or_else(|_| "/tmp/scipyenv/bin/python".into());
@@ -213,7 +226,13 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
     let rows: Vec<&str> = new.lines().skip(1).collect();
     let sum: f64 = rows
         .iter()
-        .map(|l| l.rsplit(',').next().expect("value").parse::<f64>().expect("f64"))
+        .map(|l| {
+            l.rsplit(',')
+                .next()
+                .expect("value")
+                .parse::<f64>()
+                .expect("f64")
+        })
         .sum();
     let t_line = lines.next().expect("table line");
     assert!(
@@ -223,7 +242,12 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
         )),
         "{t_line}"
     );
-    let py_sum: f64 = t_line.rsplit(' ').next().expect("sum").parse().expect("f64");
+    let py_sum: f64 = t_line
+        .rsplit(' ')
+        .next()
+        .expect("sum")
+        .parse()
+        .expect("f64");
     assert!((py_sum - sum).abs() <= 1e-12 * sum, "{py_sum} vs {sum}");
     assert_eq!(
         lines.next(),

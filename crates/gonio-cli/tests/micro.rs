@@ -30,8 +30,11 @@ albedo = [0.7, 0.5, 0.3]
 fn table(path: &std::path::Path) -> gonio_process::Table {
     use gonio_process::file;
     let side = file::sidecar_path(path);
-    let meta = file::Meta::from_json(&std::fs::read_to_string(&side).expect("sidecar"), Some(&side))
-        .expect("a sidecar");
+    let meta = file::Meta::from_json(
+        &std::fs::read_to_string(&side).expect("sidecar"),
+        Some(&side),
+    )
+    .expect("a sidecar");
     let text = std::fs::read_to_string(path).expect("table");
     match file::read_from(text.as_bytes(), Some(&meta), Some(path)).expect("a table file") {
         gonio_process::file::Content::Table(t) => t,

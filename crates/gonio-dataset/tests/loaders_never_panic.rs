@@ -118,5 +118,8 @@ fn a_wrong_csv_header_names_the_columns_expected() {
             gonio_process::file::EXPECTED_COLUMNS
         )
     );
-    assert!(e.to_string().contains("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg"));
+    assert!(
+        e.to_string()
+            .contains("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg")
+    );
 }

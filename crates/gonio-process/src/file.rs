@@ -197,7 +197,10 @@ impl Meta {
         if !matches!(m.format.as_str(), "gonio-table" | "gonio-samples") {
             return Err(bad(
                 "format",
-                format!("expected gonio-table or gonio-samples, found {:?}", m.format),
+                format!(
+                    "expected gonio-table or gonio-samples, found {:?}",
+                    m.format
+                ),
             ));
         }
         if m.version == 0 || m.version > VERSION {
@@ -209,9 +212,7 @@ impl Meta {
                 ),
             ));
         }
-        m.grid()
-            .transpose()
-            .map_err(|e| bad("grid", e))?;
+        m.grid().transpose().map_err(|e| bad("grid", e))?;
         Ok(m)
     }
 
@@ -220,7 +221,9 @@ impl Meta {
         let gm = self.grid.as_ref()?;
         let ax = |a: &AxisMeta, name: &str| -> Result<Axis, String> {
             if !(a.start_deg.is_finite() && a.step_deg.is_finite()) || a.n == 0 {
-                return Err(format!("axis `{name}` must have a finite start and step and n ≥ 1"));
+                return Err(format!(
+                    "axis `{name}` must have a finite start and step and n ≥ 1"
+                ));
             }
             Ok(Axis::from_deg(a.start_deg, a.step_deg, a.n))
         };
@@ -405,7 +408,10 @@ fn channel_of(col: &str, prefix: &str) -> Option<String> {
     if col == format!("{prefix}_per_sr") {
         return Some("value".into());
     }
-    let c = col.strip_prefix(prefix)?.strip_prefix('_')?.strip_suffix("_per_sr")?;
+    let c = col
+        .strip_prefix(prefix)?
+        .strip_prefix('_')?
+        .strip_suffix("_per_sr")?;
     (!c.is_empty()).then(|| c.to_string())
 }
 
@@ -456,7 +462,9 @@ fn parse_header(head: &str) -> Result<Header, String> {
                 }
             })
             .collect();
-        if n_sigma != names.len() || rest[names.len()..] != want.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+        if n_sigma != names.len()
+            || rest[names.len()..] != want.iter().map(String::as_str).collect::<Vec<_>>()[..]
+        {
             return Err(format!(
                 "uncertainty columns must be {} in that order",
                 want.join(",")
@@ -639,13 +647,7 @@ pub fn read_from<R: BufRead>(
             f.parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        ln,
-                        Some(&cols[k]),
-                        format!("not a finite number: {f:?}"),
-                    )
-                })
+                .ok_or_else(|| at(ln, Some(&cols[k]), format!("not a finite number: {f:?}")))
         };
         // The angles repeat from row to row (a table's rows run through the grid):
         // a field equal to the last row's keeps its parsed value.
@@ -686,9 +688,8 @@ pub fn read_from<R: BufRead>(
         }
         let flags = if h.flags {
             let f = field(width - 1);
-            f.parse::<u32>().map_err(|_| {
-                at(ln, Some("flags"), format!("not a whole number: {f:?}"))
-            })?
+            f.parse::<u32>()
+                .map_err(|_| at(ln, Some("flags"), format!("not a whole number: {f:?}")))?
         } else {
             0
         };
@@ -902,8 +903,8 @@ mod tests {
     }
 
     /// The reader of format 1 as it was before the streaming reader: an independent
-        /// implementation the streaming reader must agree with on format-1 files.
-        fn read_reference(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
+    /// implementation the streaming reader must agree with on format-1 files.
+    fn read_reference(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
         let text = gonio_core::text::strip_bom(text);
         let at = |line: usize, field: Option<&str>, msg: String| FileError {
             kind: KIND,
@@ -965,7 +966,9 @@ mod tests {
         let nc = channels.len();
         if n_sigma != 0 {
             let want: Vec<String> = names.iter().map(|n| format!("sigma_{n}")).collect();
-            if n_sigma != nc || rest[nc..] != want.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+            if n_sigma != nc
+                || rest[nc..] != want.iter().map(String::as_str).collect::<Vec<_>>()[..]
+            {
                 return Err(at(
                     hline,
                     None,
@@ -1189,7 +1192,11 @@ mod tests {
         ] {
             let (a, b) = (read(&bad, None), read_reference(&bad, None));
             let (a, b) = (a.expect_err("bad"), b.expect_err("bad"));
-            assert_eq!((a.line.is_some(), &a.field), (b.line.is_some(), &b.field), "{a} / {b}");
+            assert_eq!(
+                (a.line.is_some(), &a.field),
+                (b.line.is_some(), &b.field),
+                "{a} / {b}"
+            );
         }
     }
 
@@ -1207,7 +1214,11 @@ mod tests {
         let rec = s.to_table().expect("a complete uniform grid");
         // Samples::to_table takes the inverse-variance mean of each node's samples,
         // which for one sample is its value to within rounding.
-        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-15 * y.abs());
+        let close = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-15 * y.abs())
+        };
         assert!(close(&rec.values, &t.values));
         // A node measured once keeps its σ (through 1/√(1/σ²), to the last bit or so).
         let (a, b) = (rec.sigma.expect("σ"), t.sigma.clone().expect("σ"));
@@ -1248,9 +1259,10 @@ mod tests {
             uniq.sort_unstable();
             uniq.dedup();
             assert_eq!(uniq.len(), head.len());
-            assert!(head.iter().all(|c| c
-                .bytes()
-                .all(|b| b.is_ascii_alphanumeric() || b == b'_')));
+            assert!(
+                head.iter()
+                    .all(|c| c.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_'))
+            );
             let mut rows = 0;
             for l in lines {
                 let f: Vec<&str> = l.split(',').collect();
@@ -1297,8 +1309,8 @@ mod tests {
         let text = write_table(&t);
         let mut meta = Meta::for_table(&t);
         meta.columns.pop();
-        let e = read_from(text.as_bytes(), Some(&meta), Some(Path::new("t.csv")))
-            .expect_err("columns");
+        let e =
+            read_from(text.as_bytes(), Some(&meta), Some(Path::new("t.csv"))).expect_err("columns");
         assert_eq!(e.path.as_deref(), Some(Path::new("t.csv.json")));
         assert_eq!(e.field.as_deref(), Some("columns"));
         let short = &text[..text.trim_end().rfind('\n').expect("rows")];
@@ -1316,7 +1328,9 @@ mod tests {
                 m = t.grid.len() - 1
             )
         );
-        let json = Meta::for_table(&t).to_json().replace("\"version\": 2", "\"version\": 9");
+        let json = Meta::for_table(&t)
+            .to_json()
+            .replace("\"version\": 2", "\"version\": 9");
         let e = Meta::from_json(&json, Some(Path::new("t.csv.json"))).expect_err("version");
         assert_eq!(e.field.as_deref(), Some("version"));
         let e = Meta::from_json("{\"format\": ", None).expect_err("json");

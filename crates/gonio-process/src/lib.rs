@@ -22,9 +22,9 @@ pub mod grid;
 pub mod measure;
 pub mod reduction;
 pub mod samples;
-pub mod svd;
 pub mod separable;
 pub mod sh;
+pub mod svd;
 pub mod transform;
 
 pub use grid::{Axis, Grid, GridStep, MAX_GRID_NODES, Table};

@@ -313,10 +313,7 @@ pub fn separability(t: &Table, ks: &[usize]) -> Result<Vec<Separability>, Proces
             // view, not a copy, with A's singular values.
             let at = MatRef::from_column_major_slice(full.channel(ch), q, p);
             let s = svd::spectrum(at, k_max)?;
-            let p_s = ks
-                .iter()
-                .map(|&k| (k, (s.tail_sq(k) / n).sqrt()))
-                .collect();
+            let p_s = ks.iter().map(|&k| (k, (s.tail_sq(k) / n).sqrt())).collect();
             Ok(Separability {
                 singular_values: s.values,
                 p_s,

@@ -132,7 +132,10 @@ fn extend_basis(basis: &mut Vec<f64>, rows: usize, y: &mut [f64], rng: &mut Spli
         let c = k.transpose() * MatRef::from_column_major_slice(&*y, rows, b);
         let kc = k * &c;
         for j in 0..b {
-            for (v, s) in y[j * rows..(j + 1) * rows].iter_mut().zip(kc.col_as_slice(j)) {
+            for (v, s) in y[j * rows..(j + 1) * rows]
+                .iter_mut()
+                .zip(kc.col_as_slice(j))
+            {
                 *v -= s;
             }
         }
@@ -227,7 +230,7 @@ fn truncated(a: MatRef<'_, f64>, k_max: usize, b: usize) -> Option<Spectrum> {
         })
         .fold(0.0, f64::max)
         / if sigma1 > 0.0 { sigma1 } else { 1.0 };
-    if !(residual <= MAX_RESIDUAL) {
+    if residual.is_nan() || residual > MAX_RESIDUAL {
         return None;
     }
     let frob: f64 = (0..q)
@@ -290,7 +293,11 @@ mod tests {
         let mut rng = SplitMix(seed);
         let u = Mat::from_fn(p, rank, |_, _| rng.next());
         let v = Mat::from_fn(q, rank, |_, _| rng.next());
-        let d = Mat::from_fn(rank, rank, |i, j| if i == j { decay.powi(i as i32) } else { 0.0 });
+        let d = Mat::from_fn(
+            rank,
+            rank,
+            |i, j| if i == j { decay.powi(i as i32) } else { 0.0 },
+        );
         let mut a = &u * &d * v.transpose();
         for j in 0..q {
             for i in 0..p {

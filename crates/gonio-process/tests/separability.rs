@@ -61,7 +61,11 @@ fn a_separable_table_has_p_s_zero() {
     let h = |po: f64, to: f64| 0.2 + to.cos().powi(2) + 0.1 * po.cos();
     let t = table(|[pi, ti, po, to]| g(pi, ti) * h(po, to));
     let sep = separability(&t, &[1, 3]).expect("P_s");
-    assert_eq!(sep[0].singular_values.len(), 3, "truncated, not the full SVD");
+    assert_eq!(
+        sep[0].singular_values.len(),
+        3,
+        "truncated, not the full SVD"
+    );
     let rms = (t.values.iter().map(|v| v * v).sum::<f64>() / t.values.len() as f64).sqrt();
     assert!(sep[0].p_s[0].1 <= 1e-12 * rms, "{:?}", sep[0].p_s);
     let t2 = table(|[pi, ti, po, to]| g(pi, ti) * h(po, to) + 0.5 * ti.sin() * to.sin());
