@@ -910,6 +910,9 @@ fn fuzz_bodies_accept_the_real_files() {
     let s = awkward_samples(Channels::Rgb, 50, 11, false);
     fuzz::astm_read(write_astm(&s).as_bytes());
     fuzz::csv_read(gonio_process::file::write_samples(&s).as_bytes());
+    // Format 1 with its `# isotropic:` line: the isotropy survives the round trip
+    // through the sidecar.
+    fuzz::csv_read(b"# isotropic: true\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,20,180,0.25\n");
     let grid = Grid::isotropic(
         Axis::polar_midpoints(3),
         Axis::full_turn(4),

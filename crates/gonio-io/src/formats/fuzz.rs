@@ -81,8 +81,11 @@ pub fn csv_read(data: &[u8]) {
     };
     match read_csv(text, None) {
         Ok(Data::Samples(s)) => {
+            // Read back with its sidecar, which carries what the CSV cannot (isotropy).
             let again = gonio_process::file::write_samples(&s);
-            let back = read_csv(&again, None).expect("Gonio's own CSV output reads");
+            let meta = gonio_process::file::Meta::for_samples(&s);
+            let back = super::read_csv_from(again.as_bytes(), Some(&meta), None)
+                .expect("Gonio's own CSV output reads");
             assert_eq!(back, Data::Samples(s), "CSV samples round trip");
         }
         Ok(Data::Table(t)) => {
