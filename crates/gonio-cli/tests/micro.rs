@@ -36,7 +36,9 @@ fn table(path: &std::path::Path) -> gonio_process::Table {
     )
     .expect("a sidecar");
     let text = std::fs::read_to_string(path).expect("table");
-    match file::read_from(text.as_bytes(), Some(&meta), Some(path)).expect("a table file") {
+    match file::read_from(text.as_bytes(), text.len() as u64, Some(&meta), Some(path))
+        .expect("a table file")
+    {
         gonio_process::file::Content::Table(t) => t,
         gonio_process::file::Content::Samples(_) => panic!("{} is not a table", path.display()),
     }

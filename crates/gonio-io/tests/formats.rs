@@ -725,7 +725,7 @@ fn csv_dispatches_to_the_process_file() {
     assert_eq!(formats::detect(&bytes), Some(Format::Csv));
     let meta = formats::csv_meta(&data);
     assert_eq!(
-        formats::read_csv_from(&bytes[..], Some(&meta), None).expect("reads"),
+        formats::read_csv_from(&bytes[..], bytes.len() as u64, Some(&meta), None).expect("reads"),
         data
     );
     // The CSV alone: the same samples; their isotropy is only in the sidecar.

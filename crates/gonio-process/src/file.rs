@@ -482,7 +482,7 @@ fn parse_header(head: &str) -> Result<Header, String> {
 /// Reads a table or sample file from text (no sidecar). `path` only labels errors; a
 /// leading byte order mark is ignored.
 pub fn read(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
-    read_from(text.as_bytes(), None, path)
+    read_from(text.as_bytes(), text.len() as u64, None, path)
 }
 
 /// Where the grid of a table comes from, for messages.
@@ -491,12 +491,15 @@ enum GridFrom {
     Sidecar,
 }
 
-/// Reads a table or sample file line by line from `r`, with its sidecar when there
-/// is one (`meta`, from [`Meta::from_json`]). A grid line or the sidecar's grid makes
-/// the rows a table's nodes, parsed straight into the table's values; otherwise the
-/// rows are samples. `path` only labels errors; a leading byte order mark is ignored.
+/// Reads a table or sample file line by line from `r`, at most `len` bytes long, with
+/// its sidecar when there is one (`meta`, from [`Meta::from_json`]). A grid line or
+/// the sidecar's grid makes the rows a table's nodes, parsed straight into the
+/// table's values; otherwise the rows are samples. A grid with more nodes than `len`
+/// bytes can hold rows for is refused before its values are allocated. `path` only
+/// labels errors; a leading byte order mark is ignored.
 pub fn read_from<R: BufRead>(
     mut r: R,
+    len: u64,
     meta: Option<&Meta>,
     path: Option<&Path>,
 ) -> Result<Content, FileError> {
@@ -587,11 +590,16 @@ pub fn read_from<R: BufRead>(
     let nc = h.channels.len();
     let width = h.cols.len();
     let cols = &h.cols;
+    // A row has at least one character a field and a separator after each: a grid
+    // with more nodes than that many rows fits in the input cannot match it, and its
+    // values are never allocated (the rows are only checked and counted, and the
+    // count is refused at the end, as for any grid the rows do not fill).
+    let fits = |g: &Grid| g.len() <= (len.saturating_add(1) / (2 * width as u64)) as usize;
     // Positions of the fields of the current line, reused.
     let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
     let mut rows = 0usize;
     let mut samples: Vec<Sample> = Vec::new();
-    let mut table = grid.as_ref().map(|(_, g)| {
+    let mut table = grid.as_ref().filter(|(_, g)| fits(g)).map(|(_, g)| {
         let n = g.len();
         (
             vec![f64::NAN; n * nc],
@@ -693,6 +701,9 @@ pub fn read_from<R: BufRead>(
         } else {
             0
         };
+        if grid.is_some() && table.is_none() {
+            continue;
+        }
         let (Some((from, g)), Some((values, sig, seen))) = (grid.as_ref(), table.as_mut()) else {
             samples.push(Sample {
                 pair: PairDeg {
@@ -745,6 +756,9 @@ pub fn read_from<R: BufRead>(
     }
     if rows == 0 {
         return Err(FileError::whole(KIND, path, "no data rows"));
+    }
+    if let (Some((from, g)), None) = (&grid, &table) {
+        return Err(grid_count(at, side, from, g.len(), rows, 0));
     }
     let (Some((from, g)), Some((values, sig, _))) = (grid, table) else {
         return Ok(Content::Samples(Samples {
@@ -819,7 +833,8 @@ mod tests {
         .expect("table");
         let text = write_table(&t);
         let meta = Meta::from_json(&Meta::for_table(&t).to_json(), None).expect("sidecar");
-        let Content::Table(back) = read_from(text.as_bytes(), Some(&meta), None).expect("read")
+        let Content::Table(back) =
+            read_from(text.as_bytes(), text.len() as u64, Some(&meta), None).expect("read")
         else {
             panic!("not a table");
         };
@@ -1205,7 +1220,8 @@ mod tests {
         let t = small_table();
         let text = write_table(&t);
         let meta = Meta::for_table(&t);
-        let back = read_from(text.as_bytes(), Some(&meta), None).expect("with sidecar");
+        let back =
+            read_from(text.as_bytes(), text.len() as u64, Some(&meta), None).expect("with sidecar");
         assert_eq!(back, Content::Table(t.clone()));
         let Content::Samples(s) = read(&text, None).expect("without") else {
             panic!("no grid without the sidecar: samples");
@@ -1235,8 +1251,10 @@ mod tests {
             None,
         )
         .expect("isotropic");
+        let text = write_table(&iso);
         let back = read_from(
-            write_table(&iso).as_bytes(),
+            text.as_bytes(),
+            text.len() as u64,
             Some(&Meta::for_table(&iso)),
             None,
         )
@@ -1309,13 +1327,19 @@ mod tests {
         let text = write_table(&t);
         let mut meta = Meta::for_table(&t);
         meta.columns.pop();
-        let e =
-            read_from(text.as_bytes(), Some(&meta), Some(Path::new("t.csv"))).expect_err("columns");
+        let e = read_from(
+            text.as_bytes(),
+            text.len() as u64,
+            Some(&meta),
+            Some(Path::new("t.csv")),
+        )
+        .expect_err("columns");
         assert_eq!(e.path.as_deref(), Some(Path::new("t.csv.json")));
         assert_eq!(e.field.as_deref(), Some("columns"));
         let short = &text[..text.trim_end().rfind('\n').expect("rows")];
         let e = read_from(
             short.as_bytes(),
+            short.len() as u64,
             Some(&Meta::for_table(&t)),
             Some(Path::new("t.csv")),
         )
@@ -1326,6 +1350,30 @@ mod tests {
                 "t.csv.json: field `grid`: the grid has {n} nodes, the CSV {m} rows",
                 n = t.grid.len(),
                 m = t.grid.len() - 1
+            )
+        );
+        // A grid of 33 M nodes (near MAX_GRID_NODES) claimed for a few rows: refused
+        // without allocating its values.
+        let mut big = Meta::for_table(&t);
+        if let Some(g) = big.grid.as_mut() {
+            g.phi_i.n = 128;
+            g.phi_i.step_deg = 360.0 / 128.0;
+            g.phi_o = g.phi_i;
+            (g.theta_i.n, g.theta_i.step_deg, g.theta_i.start_deg) = (45, 2.0, 1.0);
+            g.theta_o = g.theta_i;
+        }
+        let e = read_from(
+            text.as_bytes(),
+            text.len() as u64,
+            Some(&big),
+            Some(Path::new("t.csv")),
+        )
+        .expect_err("too many nodes");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "t.csv.json: field `grid`: the grid has 33177600 nodes, the CSV {} rows",
+                t.grid.len()
             )
         );
         let json = Meta::for_table(&t)

@@ -334,7 +334,7 @@ fn sample_files_round_trip_with_flags_and_uncertainties() {
     // Isotropy is in the sidecar: the CSV alone reads as the same samples, not isotropic.
     let meta = file::Meta::for_samples(&s);
     let Content::Samples(back) =
-        file::read_from(text.as_bytes(), Some(&meta), None).expect("reads")
+        file::read_from(text.as_bytes(), text.len() as u64, Some(&meta), None).expect("reads")
     else {
         panic!("samples expected");
     };

@@ -84,8 +84,9 @@ pub fn csv_read(data: &[u8]) {
             // Read back with its sidecar, which carries what the CSV cannot (isotropy).
             let again = gonio_process::file::write_samples(&s);
             let meta = gonio_process::file::Meta::for_samples(&s);
-            let back = super::read_csv_from(again.as_bytes(), Some(&meta), None)
-                .expect("Gonio's own CSV output reads");
+            let back =
+                super::read_csv_from(again.as_bytes(), again.len() as u64, Some(&meta), None)
+                    .expect("Gonio's own CSV output reads");
             assert_eq!(back, Data::Samples(s), "CSV samples round trip");
         }
         Ok(Data::Table(t)) => {
@@ -94,7 +95,7 @@ pub fn csv_read(data: &[u8]) {
             // hold the same values, never different ones.
             let again = gonio_process::file::write_table(&t);
             let meta = gonio_process::file::Meta::for_table(&t);
-            match super::read_csv_from(again.as_bytes(), Some(&meta), None) {
+            match super::read_csv_from(again.as_bytes(), again.len() as u64, Some(&meta), None) {
                 Ok(Data::Table(back)) => assert_eq!(
                     (back.channels, back.values, back.sigma),
                     (t.channels, t.values, t.sigma),

@@ -425,17 +425,18 @@ fn utf8<'a>(format: Format, bytes: &'a [u8], path: Option<&Path>) -> Result<&'a 
 /// without its sidecar, a table of format 2 reads as samples (a table of format 1 has
 /// its grid line).
 pub fn read_csv(text: &str, path: Option<&Path>) -> Result<Data, FormatError> {
-    read_csv_from(text.as_bytes(), None, path)
+    read_csv_from(text.as_bytes(), text.len() as u64, None, path)
 }
 
-/// Reads a CSV sample or table file line by line, with its sidecar when there is one
-/// (`gonio_process::file::read_from`).
+/// Reads a CSV sample or table file of at most `len` bytes line by line, with its
+/// sidecar when there is one (`gonio_process::file::read_from`).
 pub fn read_csv_from(
     r: impl std::io::BufRead,
+    len: u64,
     meta: Option<&Meta>,
     path: Option<&Path>,
 ) -> Result<Data, FormatError> {
-    match gonio_process::file::read_from(r, meta, path) {
+    match gonio_process::file::read_from(r, len, meta, path) {
         Ok(Content::Samples(s)) => Ok(Data::Samples(s)),
         Ok(Content::Table(t)) => Ok(Data::Table(t)),
         Err(e) => Err(FormatError::from_file_error(e)),
@@ -484,7 +485,7 @@ pub fn read_csv_file(path: &Path, max_bytes: u64) -> Result<Data, FormatError> {
         return Err(cannot("cannot read: not a regular file".into()));
     }
     let r = std::io::BufReader::with_capacity(1 << 20, std::io::Read::take(file, max_bytes));
-    read_csv_from(r, meta.as_ref(), Some(path))
+    read_csv_from(r, len, meta.as_ref(), Some(path))
 }
 
 /// Writes data as CSV: a table (`gonio_process::file::write_table`), samples as they
