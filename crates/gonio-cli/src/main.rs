@@ -7,6 +7,7 @@
 //! exchange (or set `RUST_LOG`).
 
 mod cmd;
+mod csvout;
 mod error;
 mod flags;
 mod logging;

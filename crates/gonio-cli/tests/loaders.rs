@@ -117,9 +117,11 @@ fn a_kind_tagged_table_names_the_field_and_the_kinds() {
 #[test]
 fn a_csv_with_a_wrong_header_names_the_columns_expected() {
     let d = scratch("header");
-    let columns = "theta_i,phi_i,theta_o,phi_o, then one column a channel (value; R,G,B; or \
-                   wavelengths like 550nm), then optionally sigma_<channel> for each channel \
-                   and flags";
+    let columns = "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg, then one column a channel \
+                   (f_r_per_sr; f_r_R_per_sr,f_r_G_per_sr,f_r_B_per_sr; or wavelengths like \
+                   f_r_550nm_per_sr), then optionally sigma_<channel>_per_sr for each channel \
+                   and flags (or the older theta_i,phi_i,theta_o,phi_o, channel names and \
+                   sigma_<channel>)";
     let p = put(
         &d,
         "t.csv",

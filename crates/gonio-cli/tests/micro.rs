@@ -26,8 +26,17 @@ kind = "lambert"
 albedo = [0.7, 0.5, 0.3]
 "#;
 
+/// A table file with its sidecar (which carries the grid).
 fn table(path: &std::path::Path) -> gonio_process::Table {
-    match gonio_process::file::read(&std::fs::read_to_string(path).expect("table"), Some(path))
+    use gonio_process::file;
+    let side = file::sidecar_path(path);
+    let meta = file::Meta::from_json(
+        &std::fs::read_to_string(&side).expect("sidecar"),
+        Some(&side),
+    )
+    .expect("a sidecar");
+    let text = std::fs::read_to_string(path).expect("table");
+    match file::read_from(text.as_bytes(), text.len() as u64, Some(&meta), Some(path))
         .expect("a table file")
     {
         gonio_process::file::Content::Table(t) => t,

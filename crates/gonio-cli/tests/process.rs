@@ -27,7 +27,26 @@ fn a_simulated_run_reduces_to_a_reciprocal_isotropic_table() {
     assert_eq!(r["samples"], 36);
     assert_eq!(r["wrote"], "a table of 36 nodes");
     let text = std::fs::read_to_string(&table).expect("table");
-    assert!(text.contains("# grid: isotropic=true phi_i=0:360:1 theta_i=20:25:3 phi_o=45:90:4"));
+    assert!(
+        text.starts_with("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,f_r_per_sr,sigma_per_sr\n")
+    );
+    // The grid is in the sidecar.
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("table.csv.json")).expect("sidecar"))
+            .expect("JSON");
+    assert_eq!(side["format"], "gonio-table");
+    assert_eq!(side["isotropic"], true);
+    let axis = |name: &str| {
+        let a = &side["grid"][name];
+        (
+            a["start_deg"].as_f64(),
+            a["step_deg"].as_f64(),
+            a["n"].as_u64(),
+        )
+    };
+    assert_eq!(axis("phi_i"), (Some(0.0), Some(360.0), Some(1)));
+    assert_eq!(axis("theta_i"), (Some(20.0), Some(25.0), Some(3)));
+    assert_eq!(axis("phi_o"), (Some(45.0), Some(90.0), Some(4)));
     // The simulated paint is reciprocal and the table is isotropic by construction:
     // P_r is at the readings' noise (σ ≈ 1e-5 here), P_i exactly 0.
     let c = ok_json(&["check", &s(&run), "--k", "1,2", "--json"]);

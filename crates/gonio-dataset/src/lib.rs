@@ -274,9 +274,15 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
             reduction: Some(red),
         });
     }
-    let bytes =
-        gonio_core::input::read_bounded(path, MAX_TEXT_BYTES).map_err(DatasetError::input)?;
-    let (kind, data) = open_bytes(&bytes, path)?;
+    let (kind, data) = if is_csv(path)? {
+        // Streamed with its sidecar: a large table is never held as text.
+        let data = formats::read_csv_file(path, MAX_TEXT_BYTES)?;
+        (Kind::Csv, from_data(data, path)?)
+    } else {
+        let bytes =
+            gonio_core::input::read_bounded(path, MAX_TEXT_BYTES).map_err(DatasetError::input)?;
+        open_bytes(&bytes, path)?
+    };
     tracing::debug!(kind = kind.name(), "opened");
     Ok(Opened {
         path: path.to_path_buf(),
@@ -327,7 +333,20 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
         Some(f) => formats::read_as(f, bytes, Some(path)),
         None => formats::read(bytes, Some(path)),
     };
-    let data = match read? {
+    Ok((kind, from_data(read?, path)?))
+}
+
+/// Whether `path` holds Gonio's CSV, from its first 64 KiB.
+fn is_csv(path: &Path) -> Result<bool, DatasetError> {
+    let head = gonio_core::input::read_head(path, 64 << 10).map_err(DatasetError::input)?;
+    Ok(toml_kind(&head).is_none() && formats::detect(&head) == Some(formats::Format::Csv))
+}
+
+/// What a format reader gave, as a dataset: samples that form a complete uniform grid
+/// become its table (`Samples::to_table`), which is how a CSV table without its
+/// sidecar is recognised.
+fn from_data(data: Data, path: &Path) -> Result<Dataset, DatasetError> {
+    Ok(match data {
         Data::Table(t) => Dataset::Table(t),
         Data::Merl(m) => Dataset::Merl(Box::new(m)),
         Data::Samples(s) => {
@@ -337,8 +356,7 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
                 None => Dataset::Samples(s),
             }
         }
-    };
-    Ok((kind, data))
+    })
 }
 
 impl Dataset {

@@ -112,9 +112,14 @@ fn a_wrong_csv_header_names_the_columns_expected() {
     assert!(e.is_bad_input());
     assert_eq!(
         e.to_string(),
-        "t.csv:1: not a CSV header Gonio reads: expected the columns theta_i,phi_i,theta_o,\
-         phi_o, then one column a channel (value; R,G,B; or wavelengths like 550nm), then \
-         optionally sigma_<channel> for each channel and flags; found \
-         \"theta_in,phi_in,theta_out,phi_out,value\""
+        format!(
+            "t.csv:1: not a CSV header Gonio reads: expected the columns {}; found \
+             \"theta_in,phi_in,theta_out,phi_out,value\"",
+            gonio_process::file::EXPECTED_COLUMNS
+        )
+    );
+    assert!(
+        e.to_string()
+            .contains("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg")
     );
 }

@@ -723,7 +723,16 @@ fn csv_dispatches_to_the_process_file() {
     let data = Data::Samples(s.clone());
     let bytes = formats::write(Format::Csv, &data).expect("csv");
     assert_eq!(formats::detect(&bytes), Some(Format::Csv));
-    assert_eq!(formats::read(&bytes, None).expect("reads"), data);
+    let meta = formats::csv_meta(&data);
+    assert_eq!(
+        formats::read_csv_from(&bytes[..], bytes.len() as u64, Some(&meta), None).expect("reads"),
+        data
+    );
+    // The CSV alone: the same samples; their isotropy is only in the sidecar.
+    let Data::Samples(alone) = formats::read(&bytes, None).expect("reads") else {
+        panic!("samples");
+    };
+    assert_eq!((alone.samples, alone.isotropic), (s.samples.clone(), false));
 
     let grid = Grid::isotropic(
         Axis::polar_midpoints(4),
@@ -733,13 +742,21 @@ fn csv_dispatches_to_the_process_file() {
     let t = Table::from_brdf(&lafortune(), grid).expect("table");
     let bytes = formats::write(Format::Csv, &Data::Table(t.clone())).expect("csv");
     assert_eq!(formats::detect(&bytes), Some(Format::Csv));
-    let Data::Table(back) = formats::read(&bytes, None).expect("reads") else {
+    // On disk with its sidecar, an isotropic table reads back as itself.
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("t.csv");
+    formats::write_file(Format::Csv, &Data::Table(t.clone()), &path).expect("writes");
+    assert_eq!(std::fs::read(&path).expect("csv"), bytes);
+    let Data::Table(back) = formats::read_file(&path).expect("reads") else {
         panic!("a table reads as a table");
     };
-    assert_eq!(
-        (back.values, back.channels),
-        (t.values.clone(), t.channels.clone())
-    );
+    assert_eq!(back, t);
+    // Without it, its rows are samples (gonio_dataset recognises their grid).
+    std::fs::remove_file(gonio_process::file::sidecar_path(&path)).expect("rm");
+    let Data::Samples(rows) = formats::read_file(&path).expect("reads") else {
+        panic!("no sidecar: samples");
+    };
+    assert_eq!(rows.samples.len(), t.grid.len());
 
     // Tables and samples to ASTM: their samples.
     let astm = formats::write(Format::Astm, &Data::Table(t.clone())).expect("astm");
@@ -818,9 +835,11 @@ fn a_wrong_csv_header_names_the_columns_expected() {
     assert_eq!((e.format, e.line), (Some(Format::Csv), Some(2)));
     assert_eq!(
         e.to_string(),
-        "w.csv:2: not a CSV header Gonio reads: expected the columns theta_i,phi_i,theta_o,\
-         phi_o, then one column a channel (value; R,G,B; or wavelengths like 550nm), then \
-         optionally sigma_<channel> for each channel and flags; found \"theta,phi,theta_o,phi_o,value\""
+        format!(
+            "w.csv:2: not a CSV header Gonio reads: expected the columns {}; found \
+             \"theta,phi,theta_o,phi_o,value\"",
+            gonio_process::file::EXPECTED_COLUMNS
+        )
     );
     // The right angles and a wrong channel column: the CSV reader says which.
     let e =
@@ -828,7 +847,7 @@ fn a_wrong_csv_header_names_the_columns_expected() {
     assert_eq!((e.format, e.line), (Some(Format::Csv), Some(1)));
     assert!(
         e.message
-            .contains("expected the columns theta_i,phi_i,theta_o,phi_o, then"),
+            .contains("expected the columns theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg, then"),
         "{e}"
     );
     // An ASTM keyword line with a comma after a space is not taken for a CSV header.
@@ -891,6 +910,9 @@ fn fuzz_bodies_accept_the_real_files() {
     let s = awkward_samples(Channels::Rgb, 50, 11, false);
     fuzz::astm_read(write_astm(&s).as_bytes());
     fuzz::csv_read(gonio_process::file::write_samples(&s).as_bytes());
+    // Format 1 with its `# isotropic:` line: the isotropy survives the round trip
+    // through the sidecar.
+    fuzz::csv_read(b"# isotropic: true\ntheta_i,phi_i,theta_o,phi_o,value\n10,0,20,180,0.25\n");
     let grid = Grid::isotropic(
         Axis::polar_midpoints(3),
         Axis::full_turn(4),

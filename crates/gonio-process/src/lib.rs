@@ -16,7 +16,8 @@
 //! - [`sh`]: real spherical harmonics with a symmetric coefficient matrix, exactly
 //!   reciprocal (Westin et al. 1992, Eq. 8–10).
 //! - [`reduction`]: the account a run's reduction gives (written by `gonio-reduce`).
-//! - [`file`](mod@file): the table and sample file (CSV with a grid header).
+//! - [`file`](mod@file): the table and sample file (CSV with a sidecar JSON).
+//! - [`svd`]: the leading singular values and Frobenius tails P_s^(k) needs.
 
 pub mod file;
 pub mod grid;
@@ -26,6 +27,7 @@ pub mod reduction;
 pub mod samples;
 pub mod separable;
 pub mod sh;
+pub mod svd;
 pub mod transform;
 
 pub use grid::{Axis, Grid, GridStep, MAX_GRID_NODES, Table};

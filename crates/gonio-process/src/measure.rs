@@ -4,11 +4,11 @@
 
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-use faer::Mat;
+use faer::{Mat, MatRef};
 use serde::Serialize;
 
 use crate::grid::interpolate;
-use crate::{Axis, Grid, ProcessError, Samples, Table};
+use crate::{Axis, Grid, ProcessError, Samples, Table, svd};
 
 /// Whether the reciprocal angles of a node lie inside the table's axes, so that the
 /// reciprocal value is data, not the held end value of an axis.
@@ -352,7 +352,8 @@ pub fn isotropy(t: &Table) -> Result<Vec<f64>, ProcessError> {
 /// and P_s^(k) of Eq. 4.20 for the k asked.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Separability {
-    /// Singular values, descending.
+    /// Singular values, descending: all of them when A has fewer than 256 rows or
+    /// columns, else the leading max(k) ([`crate::svd::spectrum`]).
     pub singular_values: Vec<f64>,
     /// (k, P_s^(k)); k = 1 is P_s of Eq. 4.16.
     pub p_s: Vec<(usize, f64)>,
@@ -381,25 +382,29 @@ pub(crate) fn full_form(t: &Table) -> Result<Table, ProcessError> {
 }
 
 /// P_s^(k), Eq. 4.16–4.20, per channel. ‖A − A^(k)‖_F² is the sum of the squared
-/// singular values A^(k) drops (Eckart–Young), so no product is formed.
+/// singular values A^(k) drops (Eckart–Young), so no product is formed; a large A
+/// gets only its leading max(k) singular values and ‖A‖_F² ([`crate::svd`]).
 pub fn separability(t: &Table, ks: &[usize]) -> Result<Vec<Separability>, ProcessError> {
-    let full = full_form(t)?;
+    // Only an isotropic table is expanded; a 4D one is measured where it lies.
+    let expanded;
+    let full = if t.grid.isotropic {
+        expanded = full_form(t)?;
+        &expanded
+    } else {
+        t
+    };
     let n = full.grid.len() as f64;
+    let (p, q) = (full.grid.n_in(), full.grid.n_out());
+    let k_max = ks.iter().copied().max().unwrap_or(0);
     (0..full.channels.len())
         .map(|ch| {
-            let a = matrix(&full, ch);
-            let sv = a
-                .singular_values()
-                .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
-            let p_s = ks
-                .iter()
-                .map(|&k| {
-                    let tail: f64 = sv.iter().skip(k).map(|d| d * d).sum();
-                    (k, (tail / n).sqrt())
-                })
-                .collect();
+            // The channel's rows (φi, θi) of q values are Aᵀ in column-major order: a
+            // view, not a copy, with A's singular values.
+            let at = MatRef::from_column_major_slice(full.channel(ch), q, p);
+            let s = svd::spectrum(at, k_max)?;
+            let p_s = ks.iter().map(|&k| (k, (s.tail_sq(k) / n).sqrt())).collect();
             Ok(Separability {
-                singular_values: sv,
+                singular_values: s.values,
                 p_s,
             })
         })

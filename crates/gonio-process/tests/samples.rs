@@ -331,8 +331,16 @@ fn sample_files_round_trip_with_flags_and_uncertainties() {
     }
     s.isotropic = true;
     let text = file::write_samples(&s);
-    let Content::Samples(back) = file::read(&text, None).expect("reads") else {
+    // Isotropy is in the sidecar: the CSV alone reads as the same samples, not isotropic.
+    let meta = file::Meta::for_samples(&s);
+    let Content::Samples(back) =
+        file::read_from(text.as_bytes(), text.len() as u64, Some(&meta), None).expect("reads")
+    else {
         panic!("samples expected");
     };
     assert_eq!(back, s);
+    let Content::Samples(alone) = file::read(&text, None).expect("reads") else {
+        panic!("samples expected");
+    };
+    assert_eq!((alone.samples, alone.isotropic), (s.samples, false));
 }

@@ -9,6 +9,7 @@ use gonio_process::transform::{self, Step};
 use gonio_process::{file, measure};
 use serde_json::json;
 
+use crate::csvout::CsvTarget;
 use crate::error::{CliError, CliResult};
 use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
 use crate::output;
@@ -103,7 +104,14 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
             "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
         ));
     }
-    let target = output::Target::new(out, a.force.force)?;
+    // A TOML output holds the separable factors; anything else is a CSV table with its
+    // sidecar.
+    let toml_out = out.extension().is_some_and(|e| e == "toml");
+    let target = if toml_out {
+        Ok(output::Target::new(out, a.force.force)?)
+    } else {
+        Err(CsvTarget::new(out, a.force.force)?)
+    };
     let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
     let tab = opened.data.tabulate(a.grid.grid, path)?;
     let mut table = tab.table.clone();
@@ -134,9 +142,12 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
         }
         _ => None,
     };
-    match &factors {
-        Some(f) => target.write(f.to_toml().as_bytes())?,
-        None => target.write(file::write_table(&table).as_bytes())?,
+    match (&factors, &target) {
+        (Some(f), Ok(t)) => t.write(f.to_toml().as_bytes())?,
+        (None, Ok(t)) => t.write(file::write_table(&table).as_bytes())?,
+        (_, Err(csv)) => {
+            csv.write_table(&table)?;
+        }
     }
     let ratio = factors.as_ref().map(SeparableBrdf::storage_ratio);
     if json_out {

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use gonio_io::formats::{self, Format};
 use serde_json::json;
 
+use crate::csvout::CsvTarget;
 use crate::error::{CliError, CliResult};
 use crate::flags::{JsonFlag, ReduceFlags};
 use crate::output;
@@ -36,11 +37,18 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
     let format = Format::from_name(&a.format).ok_or_else(|| {
         CliError::Input(format!("--format: merl, astm or csv, got {:?}", a.format))
     })?;
-    let target = output::Target::new(out, a.force.force)?;
+    // A CSV goes with its sidecar (the grid, isotropy), both checked before any work.
+    let target = match format {
+        Format::Csv => Err(CsvTarget::new(out, a.force.force)?),
+        _ => Ok(output::Target::new(out, a.force.force)?),
+    };
     let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
     let data = opened.data.to_format_data(input)?;
     let bytes = formats::write(format, &data).map_err(|e| CliError::Input(e.to_string()))?;
-    target.write(&bytes)?;
+    match &target {
+        Ok(t) => t.write(&bytes)?,
+        Err(csv) => csv.write(&bytes, &formats::csv_meta(&data))?,
+    }
     let bytes = bytes.len();
     if json_out {
         return output::json(&json!({

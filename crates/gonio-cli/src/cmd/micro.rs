@@ -10,6 +10,7 @@ use gonio_micro::{MicroResult, ORDERS, Sample, SimOptions, Simulation};
 use gonio_process::GridStep;
 use serde_json::json;
 
+use crate::csvout::CsvTarget;
 use crate::error::{CliError, CliResult};
 use crate::flags::{JsonFlag, parse_grid};
 use crate::output;
@@ -150,11 +151,11 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
     check_counts(&a)?;
     // Every output is checked before the rays are traced.
     let force = a.force.force;
-    let out = output::Target::new(&a.out, force)?;
+    let out = CsvTarget::new(&a.out, force)?;
     let order_targets = if a.per_order {
         ORDERS
             .iter()
-            .map(|name| output::Target::new(&order_path(&a.out, name), force))
+            .map(|name| CsvTarget::new(&order_path(&a.out, name), force))
             .collect::<CliResult<Vec<_>>>()?
     } else {
         Vec::new()
@@ -178,10 +179,10 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
     let r = sim
         .to_table(&grid, a.rays, a.seed)
         .map_err(|e| input_err(&a.surface, e))?;
-    out.write(gonio_process::file::write_table(&r.table).as_bytes())?;
+    out.write_table(&r.table)?;
     let mut order_files = Vec::new();
     for (t, target) in r.per_order.iter().zip(&order_targets) {
-        target.write(gonio_process::file::write_table(t).as_bytes())?;
+        target.write_table(t)?;
         order_files.push(target.path().to_path_buf());
     }
     let sh = match (&sh_request, &sh_target) {

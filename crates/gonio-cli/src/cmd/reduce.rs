@@ -5,11 +5,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_dataset::Kind;
-use gonio_process::file;
 use gonio_process::samples::Kernel;
 use gonio_reduce::Reduction;
 use serde_json::json;
 
+use crate::csvout::CsvTarget;
 use crate::error::{CliError, CliResult};
 use crate::flags::{GridFlag, JsonFlag, ReduceFlags};
 use crate::output;
@@ -50,7 +50,7 @@ fn reduction_json(r: &Reduction) -> serde_json::Value {
 /// `gonio reduce RUN --out TABLE`.
 pub fn run(a: ReduceArgs) -> CliResult<()> {
     let (path, out, grid, json_out) = (a.run.as_path(), a.out.as_path(), a.grid.grid, a.json.json);
-    let target = output::Target::new(out, a.force.force)?;
+    let target = CsvTarget::new(out, a.force.force)?;
     if gonio_dataset::detect(&head(path)?) != Some(Kind::Run) {
         return Err(CliError::Input(format!(
             "{}: not a run file (.gonio, SQLite)",
@@ -72,27 +72,24 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             path.display()
         )));
     };
-    let (text, what) = match (red.samples.to_table(), grid) {
-        (Some(t), None) => (
-            file::write_table(&t),
-            format!("a table of {} nodes", t.grid.len()),
-        ),
+    let what = match (red.samples.to_table(), grid) {
+        (Some(t), None) => {
+            target.write_table(&t)?;
+            format!("a table of {} nodes", t.grid.len())
+        }
         (_, Some(g)) => {
             let t = red
                 .samples
                 .resample(g.grid(), Kernel::default())
                 .map_err(|e| CliError::process(path, e))?;
-            (
-                file::write_table(&t),
-                format!("a table of {} nodes (resampled)", t.grid.len()),
-            )
+            target.write_table(&t)?;
+            format!("a table of {} nodes (resampled)", t.grid.len())
         }
-        (None, None) => (
-            file::write_samples(&red.samples),
-            format!("{} samples", red.samples.samples.len()),
-        ),
+        (None, None) => {
+            target.write_samples(&red.samples)?;
+            format!("{} samples", red.samples.samples.len())
+        }
     };
-    target.write(text.as_bytes())?;
     if json_out {
         return output::json(&json!({
             "out": out.display().to_string(),

@@ -37,7 +37,7 @@ use std::path::{Path, PathBuf};
 
 use gonio_core::Channels;
 use gonio_core::tomlfile::FileError;
-use gonio_process::file::Content;
+use gonio_process::file::{Content, Meta, sidecar_path};
 use gonio_process::{Samples, Table};
 
 pub mod astm;
@@ -274,7 +274,8 @@ impl std::error::Error for FormatError {}
 /// - **ASTM**: text whose header (before any data row) has a `NUM_POINTS` or `VARS`
 ///   keyword line, after any blank lines, `#` comments and other keyword lines;
 /// - **CSV**: text whose first line that is neither blank nor a `#` line starts with
-///   the `docs/CONVENTIONS.md` header `theta_i,phi_i,theta_o,phi_o`.
+///   the `docs/CONVENTIONS.md` header `theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg`
+///   (or `theta_i,phi_i,theta_o,phi_o`, as files before format 2 have it).
 ///
 /// `None` for anything else, including a MERL file of the wrong length (which
 /// [`read`] still reads as MERL, to say what is wrong with it). Looks at no more
@@ -320,7 +321,10 @@ fn detect_text(bytes: &[u8]) -> Result<Format, Unrecognised> {
             continue;
         }
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() >= 4 && fields[..4] == gonio_core::dirfile::HEADER {
+        if fields.len() >= 4
+            && (fields[..4] == gonio_core::dirfile::HEADER
+                || fields[..4] == gonio_process::file::DIR_COLUMNS)
+        {
             return Ok(Format::Csv);
         }
         let first = astm::first_token(line);
@@ -417,23 +421,91 @@ fn utf8<'a>(format: Format, bytes: &'a [u8], path: Option<&Path>) -> Result<&'a 
     })
 }
 
-/// Reads a CSV sample or table file (`gonio_process::file::read`).
+/// Reads a CSV sample or table file from its text alone (`gonio_process::file::read`):
+/// without its sidecar, a table of format 2 reads as samples (a table of format 1 has
+/// its grid line).
 pub fn read_csv(text: &str, path: Option<&Path>) -> Result<Data, FormatError> {
-    match gonio_process::file::read(text, path) {
+    read_csv_from(text.as_bytes(), text.len() as u64, None, path)
+}
+
+/// Reads a CSV sample or table file of at most `len` bytes line by line, with its
+/// sidecar when there is one (`gonio_process::file::read_from`).
+pub fn read_csv_from(
+    r: impl std::io::BufRead,
+    len: u64,
+    meta: Option<&Meta>,
+    path: Option<&Path>,
+) -> Result<Data, FormatError> {
+    match gonio_process::file::read_from(r, len, meta, path) {
         Ok(Content::Samples(s)) => Ok(Data::Samples(s)),
         Ok(Content::Table(t)) => Ok(Data::Table(t)),
         Err(e) => Err(FormatError::from_file_error(e)),
     }
 }
 
-/// Writes data as CSV: a table with its grid line (`gonio_process::file::write_table`),
-/// samples as they are, a MERL table as the samples of its valid bins
-/// (`gonio_process::file::write_samples`).
+/// The sidecar of the CSV file `csv` (`CSV.json`), when there is one: none when no
+/// such file exists, an error when it cannot be read or does not parse.
+pub fn read_sidecar(csv: &Path) -> Result<Option<Meta>, FormatError> {
+    let side = sidecar_path(csv);
+    if let Err(e) = std::fs::symlink_metadata(&side)
+        && e.kind() == std::io::ErrorKind::NotFound
+    {
+        return Ok(None);
+    }
+    let text = gonio_core::input::read_text(&side, gonio_process::file::MAX_SIDECAR_BYTES)
+        .map_err(|e| {
+            FormatError::whole(
+                Some(Format::Csv),
+                Some(&side),
+                format!("cannot read the sidecar: {}", e.reason()),
+            )
+        })?;
+    Meta::from_json(&text, Some(&side))
+        .map(Some)
+        .map_err(FormatError::from_file_error)
+}
+
+/// Reads the CSV file `path` with its sidecar ([`read_sidecar`]), streaming: a table
+/// goes straight into its array of values, and the file's text is never held whole.
+/// Only a regular file of at most `max_bytes` is read.
+pub fn read_csv_file(path: &Path, max_bytes: u64) -> Result<Data, FormatError> {
+    let meta = read_sidecar(path)?;
+    let cannot = |why: String| FormatError::whole(Some(Format::Csv), Some(path), why);
+    let len = gonio_core::input::regular_file(path)
+        .map_err(|e| cannot(format!("cannot read: {}", e.reason())))?
+        .len();
+    if len > max_bytes {
+        return Err(cannot(format!(
+            "more than the {max_bytes} bytes a BRDF file may have"
+        )));
+    }
+    let file = std::fs::File::open(path).map_err(|e| cannot(format!("cannot read: {e}")))?;
+    // Looked at again through the handle: a FIFO swapped in after the first look.
+    if !file.metadata().is_ok_and(|m| m.is_file()) {
+        return Err(cannot("cannot read: not a regular file".into()));
+    }
+    let r = std::io::BufReader::with_capacity(1 << 20, std::io::Read::take(file, max_bytes));
+    read_csv_from(r, len, meta.as_ref(), Some(path))
+}
+
+/// Writes data as CSV: a table (`gonio_process::file::write_table`), samples as they
+/// are, a MERL table as the samples of its valid bins
+/// (`gonio_process::file::write_samples`). [`csv_meta`] is the sidecar that goes
+/// beside it.
 pub fn write_csv(data: &Data) -> String {
     match data {
         Data::Table(t) => gonio_process::file::write_table(t),
         Data::Samples(s) => gonio_process::file::write_samples(s),
         Data::Merl(m) => gonio_process::file::write_samples(&m.to_samples()),
+    }
+}
+
+/// The sidecar of [`write_csv`]'s file: the kind, channels, isotropy and a table's grid.
+pub fn csv_meta(data: &Data) -> Meta {
+    match data {
+        Data::Table(t) => Meta::for_table(t),
+        Data::Samples(s) => Meta::for_samples(s),
+        Data::Merl(m) => Meta::for_samples(&m.to_samples()),
     }
 }
 
@@ -462,8 +534,15 @@ pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
 
 /// Reads a file from disk ([`read`]): only a regular file (a FIFO, a device or a
 /// directory is refused without being read), and no more than [`MAX_FILE_BYTES`] of
-/// it (`gonio_core::input::read_bounded`).
+/// it (`gonio_core::input::read_bounded`). A CSV file is streamed with its sidecar
+/// ([`read_csv_file`]).
 pub fn read_file(path: &Path) -> Result<Data, FormatError> {
+    let head = gonio_core::input::read_head(path, DETECT_BYTES as u64).map_err(|e| {
+        FormatError::whole(None, Some(path), format!("cannot read: {}", e.reason()))
+    })?;
+    if !merl::looks_like_merl(&head) && matches!(detect_text(&head), Ok(Format::Csv)) {
+        return read_csv_file(path, MAX_FILE_BYTES);
+    }
     let bytes = gonio_core::input::read_bounded(path, MAX_FILE_BYTES).map_err(|e| match e {
         gonio_core::input::InputError::TooLarge { max, .. } => FormatError::whole(
             None,
@@ -475,12 +554,20 @@ pub fn read_file(path: &Path) -> Result<Data, FormatError> {
     read(&bytes, Some(path))
 }
 
-/// Writes data to a file in a format ([`write()`]); errors name the file.
+/// Writes data to a file in a format ([`write()`]), and a CSV file's sidecar beside
+/// it ([`csv_meta`]); errors name the file.
 pub fn write_file(format: Format, data: &Data, path: &Path) -> Result<(), FormatError> {
     let bytes = write(format, data).map_err(|mut e| {
         e.path = Some(path.to_path_buf());
         e
     })?;
-    std::fs::write(path, bytes)
-        .map_err(|e| FormatError::whole(Some(format), Some(path), format!("cannot write: {e}")))
+    let fail = |p: &Path, e: std::io::Error| {
+        FormatError::whole(Some(format), Some(p), format!("cannot write: {e}"))
+    };
+    std::fs::write(path, bytes).map_err(|e| fail(path, e))?;
+    if format == Format::Csv {
+        let side = sidecar_path(path);
+        std::fs::write(&side, csv_meta(data).to_json()).map_err(|e| fail(&side, e))?;
+    }
+    Ok(())
 }
