@@ -59,6 +59,24 @@ impl CsvTarget {
         Ok(text.len())
     }
 
+    /// Writes a table made from an input ([`gonio_dataset::Dataset::tabulate`]), its
+    /// sidecar saying what was assumed: the symmetry, the nodes interpolated.
+    pub fn write_tabulated(&self, t: &Table, how: &gonio_dataset::Tabulated) -> CliResult<usize> {
+        let text = file::write_table(t);
+        let mut meta = Meta::for_table(t);
+        if how.measured.is_some() {
+            meta.symmetry = Some(how.symmetry.name().into());
+            meta.interpolated = Some(
+                how.fill
+                    .as_ref()
+                    .map(|f| f.interpolated.clone())
+                    .unwrap_or_default(),
+            );
+        }
+        self.write(text.as_bytes(), &meta)?;
+        Ok(text.len())
+    }
+
     /// Writes samples ([`file::write_samples`]) and their sidecar; the bytes of the CSV.
     pub fn write_samples(&self, s: &Samples) -> CliResult<usize> {
         let text = file::write_samples(s);

@@ -129,6 +129,14 @@ pub struct Meta {
     /// A table's grid; none for samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grid: Option<GridMeta>,
+    /// The symmetry assumed of measured data to make the table
+    /// ([`crate::hemisphere::Symmetry::name`]); none when nothing was said.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub symmetry: Option<String>,
+    /// The table's nodes that were interpolated, not measured (θi°, φi°, θo°, φo°;
+    /// [`crate::hemisphere::Fill`]); none when nothing was said.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interpolated: Option<Vec<[f64; 4]>>,
 }
 
 fn axis_meta(a: &Axis) -> AxisMeta {
@@ -155,6 +163,8 @@ impl Meta {
                 phi_o: axis_meta(&g.phi_o),
                 theta_o: axis_meta(&g.theta_o),
             }),
+            symmetry: None,
+            interpolated: None,
         }
     }
 
@@ -168,6 +178,8 @@ impl Meta {
             isotropic: s.isotropic,
             columns: columns(&s.channels, sigma, flags),
             grid: None,
+            symmetry: None,
+            interpolated: None,
         }
     }
 

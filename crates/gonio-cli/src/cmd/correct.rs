@@ -146,7 +146,7 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
         (Some(f), Ok(t)) => t.write(f.to_toml().as_bytes())?,
         (None, Ok(t)) => t.write(file::write_table(&table).as_bytes())?,
         (_, Err(csv)) => {
-            csv.write_table(&table)?;
+            csv.write_tabulated(&table, &tab)?;
         }
     }
     let ratio = factors.as_ref().map(SeparableBrdf::storage_ratio);

@@ -43,7 +43,18 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
         _ => Ok(output::Target::new(out, a.force.force)?),
     };
     let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
-    let data = opened.data.to_format_data(input)?;
+    let mut data = opened.data.to_format_data(input)?;
+    // A MERL table fills the whole hemisphere: a half turn of an isotropic material
+    // is unfolded into it (bilateral symmetry). CSV and ASTM keep the samples as
+    // measured.
+    let mut symmetry = None;
+    if matches!(format, Format::Merl)
+        && let formats::Data::Samples(s) = &data
+    {
+        let (u, sym) = gonio_process::hemisphere::unfold(s);
+        symmetry = Some(sym);
+        data = formats::Data::Samples(u);
+    }
     let bytes = formats::write(format, &data).map_err(|e| CliError::Input(e.to_string()))?;
     match &target {
         Ok(t) => t.write(&bytes)?,
@@ -56,6 +67,7 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
             "format": format.name(),
             "from": data.kind(),
             "bytes": bytes,
+            "symmetry": symmetry.map(|s| s.name()),
         }));
     }
     let mut w = output::stdout();
@@ -68,6 +80,9 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
             bytes,
             data.kind()
         )?;
+        if let Some(s) = symmetry {
+            writeln!(w, "symmetry: {}", s.describe())?;
+        }
         w.flush()
     })())
 }
