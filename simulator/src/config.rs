@@ -548,8 +548,34 @@ impl SimConfig {
             SampleKind::Table => {
                 let p = self.sample.table.as_deref().unwrap_or(Path::new(""));
                 let path = self.resolve(p);
-                gonio_core::input::read_text(&path, MAX_TABLE_BYTES)
-                    .map_err(|e| self.sample_error("sample.table", e.to_string()))
+                let text = gonio_core::input::read_text(&path, MAX_TABLE_BYTES)
+                    .map_err(|e| self.sample_error("sample.table", e.to_string()))?;
+                // A table file of format 2 keeps its grid in a sidecar; the run file
+                // keeps one text, so the grid is written into it.
+                let side = gonio_process::file::sidecar_path(&path);
+                if !side.exists() {
+                    return Ok(text);
+                }
+                let err =
+                    |e: &dyn std::fmt::Display| self.sample_error("sample.table", e.to_string());
+                let meta_text =
+                    gonio_core::input::read_text(&side, gonio_core::input::MAX_CONFIG_BYTES)
+                        .map_err(|e| err(&e))?;
+                let meta = gonio_process::file::Meta::from_json(&meta_text, Some(&side))
+                    .map_err(|e| err(&e))?;
+                match gonio_process::file::read_from(
+                    text.as_bytes(),
+                    text.len() as u64,
+                    Some(&meta),
+                    Some(&path),
+                )
+                .map_err(|e| err(&e))?
+                {
+                    gonio_process::file::Content::Table(t) => {
+                        Ok(gonio_process::file::write_table_self_contained(&t))
+                    }
+                    gonio_process::file::Content::Samples(_) => Ok(text),
+                }
             }
             SampleKind::Model => match &self.sample.model {
                 Some(p) => {
@@ -597,18 +623,22 @@ impl SimConfig {
             "tracing the microgeometry sample"
         );
         let r = sim.to_table(&grid, m.rays, m.seed).map_err(|e| err(&e))?;
-        let text = gonio_process::file::write_table(&r.table);
+        // The run file keeps this text alone, with no sidecar: the grid goes in it.
+        let text = gonio_process::file::write_table_self_contained(&r.table);
         Ok((std::sync::Arc::new(r.table), text))
     }
 
-    /// Reads a table sample's text.
+    /// Reads a table sample's text: a table (its grid line), or rows that form a
+    /// complete uniform grid.
     fn table_of(&self, text: &str, field: &str) -> Result<gonio_process::Table, SimConfigError> {
         match gonio_process::file::read(text, None) {
             Ok(gonio_process::file::Content::Table(t)) => Ok(t),
-            Ok(_) => Err(self.sample_error(
-                field,
-                "the sample's text holds scattered samples, not a table".into(),
-            )),
+            Ok(gonio_process::file::Content::Samples(s)) => s.to_table().ok_or_else(|| {
+                self.sample_error(
+                    field,
+                    "the sample's text holds scattered samples, not a table".into(),
+                )
+            }),
             Err(e) => Err(self.sample_error(field, format!("sample table: {e}"))),
         }
     }

@@ -83,6 +83,41 @@ fn a_table_sample_is_the_table() {
         eval(again.as_ref(), 30.0, 10.0, 50.0, 170.0),
         eval(sample.as_ref(), 30.0, 10.0, 50.0, 170.0)
     );
+
+    // An isotropic table with its sidecar: the kept text carries the grid (and its
+    // isotropy), so a resumed run evaluates it as isotropic at any φi.
+    let iso = Table::from_brdf(
+        &paint,
+        GridStep::new(10.0, 10.0).expect("grid").isotropic_grid(),
+    )
+    .expect("table");
+    std::fs::write(
+        dir.path().join("iso.csv"),
+        gonio_process::file::write_table(&iso),
+    )
+    .expect("write");
+    std::fs::write(
+        gonio_process::file::sidecar_path(&dir.path().join("iso.csv")),
+        gonio_process::file::Meta::for_table(&iso).to_json(),
+    )
+    .expect("write");
+    let mut cfg = config_with(dir.path(), "[sample]\ntable = \"iso.csv\"\n");
+    let kept = cfg.sample_model_text().expect("text");
+    assert!(
+        kept.starts_with("# grid: isotropic=true"),
+        "{}",
+        &kept[..60]
+    );
+    cfg.prepare_sample().expect("prepares");
+    let mut resumed = config_with(dir.path(), "[sample]\ntable = \"elsewhere.csv\"\n");
+    resumed.sample_text = Some(kept);
+    let (again, _) = resumed.load_sample().expect("from the kept text");
+    let (a, b) = (
+        eval(again.as_ref(), 25.0, 0.0, 45.0, 180.0),
+        eval(again.as_ref(), 25.0, 70.0, 45.0, 250.0),
+    );
+    assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
+    assert!((a - eval(&paint, 25.0, 0.0, 45.0, 180.0)).abs() <= 1e-12 * a);
 }
 
 #[test]
@@ -102,7 +137,10 @@ fn a_microgeometry_sample_is_traced_by_the_simulator() {
         .expect("simulation");
     let grid = GridStep::new(15.0, 30.0).expect("grid").isotropic_grid();
     let direct = sim.to_table(&grid, 4000, 5).expect("traces");
-    assert_eq!(kept, gonio_process::file::write_table(&direct.table));
+    assert_eq!(
+        kept,
+        gonio_process::file::write_table_self_contained(&direct.table)
+    );
     // A rough white Lambertian surface reflects about diffusely: f ≈ albedo/π near
     // normal incidence and exitance (within the Monte Carlo error and the masking).
     let (b, _) = cfg.load_sample().expect("prepared");

@@ -289,6 +289,14 @@ fn sample_columns(s: &Samples) -> (bool, bool) {
     (sigma, flags)
 }
 
+/// Writes a table as text that needs no sidecar: [`write_table`] below the grid
+/// line of format 1 (`# grid: …`, which the reader still takes). For tables kept
+/// where no file can sit beside them, such as the sample text a run file stores.
+/// pandas reads it with `comment="#"`.
+pub fn write_table_self_contained(t: &Table) -> String {
+    format!("# grid: {}\n{}", grid_line(&t.grid), write_table(t))
+}
+
 /// Writes samples: the header row, then one row a sample. [`Meta::for_samples`] is
 /// its sidecar.
 pub fn write_samples(s: &Samples) -> String {
