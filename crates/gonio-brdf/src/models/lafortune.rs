@@ -231,6 +231,20 @@ pub struct Lafortune {
     lobes: Vec<LafortuneLobe>,
     diffuse: Option<Diffuse>,
     mirror: Option<Mirror>,
+    fit: Option<FitNote>,
+}
+
+/// How a model's parameters were fitted, as `gonio fit` records it in the model file's
+/// optional `[fit]` table. Informational: nothing evaluates it, and files without it
+/// load as before.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FitNote {
+    /// The objective's name (`cosine`, `chi2`, `relative`).
+    pub objective: String,
+    /// The sum minimised, in words.
+    pub minimised: String,
+    /// The energy constraint the fit was held to, in words, when there was one.
+    pub constraint: Option<String>,
 }
 
 impl Lafortune {
@@ -253,7 +267,19 @@ impl Lafortune {
             lobes,
             diffuse: None,
             mirror: None,
+            fit: None,
         })
+    }
+
+    /// Records how the parameters were fitted (the `[fit]` table).
+    pub fn with_fit_note(mut self, note: FitNote) -> Self {
+        self.fit = Some(note);
+        self
+    }
+
+    /// How the parameters were fitted, when the model file says.
+    pub fn fit_note(&self) -> Option<&FitNote> {
+        self.fit.as_ref()
     }
 
     /// Adds a diffuse term, which must have the model's channels.
