@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_fit::compare::{self, Kind};
-use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Shape, fit_lobes};
+use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Objective, Shape, fit_lobes};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
@@ -40,10 +40,17 @@ pub struct FitArgs {
     /// One set of exponents for all channels.
     #[arg(long)]
     share_exponents: bool,
-    /// Scale the model down where its directional albedo exceeds 1.
+    /// Hold the directional albedo ≤ 1 at every incident direction of the data (the
+    /// constrained optimum; its active set and multipliers are reported).
     #[arg(long)]
     conserve_energy: bool,
-    /// Ignore the samples' uncertainties (fit the metric unweighted).
+    /// What is minimised: cosine (Lafortune et al. Sec. 6: the error times the
+    /// metric's cosines), chi2 (the error over σ) or relative (the error over the value,
+    /// floored at 1% of the channel's mean |value|). Default: chi2 when every sample has
+    /// σ > 0, else cosine.
+    #[arg(long)]
+    objective: Option<String>,
+    /// Ignore the samples' uncertainties: the same as --objective cosine.
     #[arg(long)]
     unweighted: bool,
     /// Also fit Ward, Blinn-Phong and Cook–Torrance on the same data and metric.
@@ -58,6 +65,24 @@ pub struct FitArgs {
     reduction: ReduceFlags,
     #[command(flatten)]
     json: JsonFlag,
+}
+
+/// The samples of a sample CSV that reads and validates cleanly, as they are; `None`
+/// for anything else (a run, a table, another format, a file with faults), which goes
+/// through `gonio_dataset::open` and its errors. A fit needs the samples, not a grid:
+/// the dataset's grid recognition (`Samples::to_table`) and the table's samples back
+/// (`Samples::from_table`) were a third of `gonio fit`'s time on a 98 000-row CSV
+/// (BENCHMARKS.md), and give the same samples.
+fn plain_samples(path: &Path) -> Option<gonio_process::Samples> {
+    let bytes = gonio_core::input::read_bounded(path, gonio_dataset::MAX_TEXT_BYTES).ok()?;
+    if gonio_dataset::detect(&bytes) != Some(gonio_dataset::Kind::Csv) {
+        return None;
+    }
+    let text = std::str::from_utf8(&bytes).ok()?;
+    match gonio_process::file::read(text, Some(path)).ok()? {
+        gonio_process::file::Content::Samples(s) => s.validate().is_ok().then_some(s),
+        gonio_process::file::Content::Table(_) => None,
+    }
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -113,15 +138,35 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             )));
         }
     };
-    let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
-    // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
-    let samples = opened.data.to_samples(200_000, &a.input)?;
+    let objective = match a.objective.as_deref() {
+        None => None,
+        Some(x) => Some(Objective::from_name(x).ok_or_else(|| {
+            CliError::Input(format!(
+                "--objective: cosine, chi2 or relative, got {x:?}"
+            ))
+        })?),
+    };
+    if a.unweighted && objective.is_some_and(|o| o != Objective::Cosine) {
+        return Err(CliError::Input(
+            "--unweighted is --objective cosine: it cannot be combined with another objective"
+                .into(),
+        ));
+    }
+    let samples = match plain_samples(&a.input) {
+        Some(s) => s,
+        None => {
+            let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
+            // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
+            opened.data.to_samples(200_000, &a.input)?
+        }
+    };
     let data = FitData::from_samples(
         &samples,
         &DataOptions {
             metric,
             cutoff_deg: a.cutoff,
             use_sigma: !a.unweighted,
+            objective,
         },
     )
     .map_err(|e| input_err(&a.input, e))?;
@@ -143,11 +188,12 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     })?;
     if let Some(target) = &target {
         let header = format!(
-            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",
+            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, objective {}, {} pairs\n",
             a.input.display(),
             a.lobes,
             diffuse,
             metric,
+            data.objective.name(),
             data.len()
         );
         target.write((header + &fit.model_toml).as_bytes())?;
@@ -187,6 +233,11 @@ pub fn run(a: FitArgs) -> CliResult<()> {
                 "unweighted"
             },
             metric
+        )?;
+        writeln!(
+            w,
+            "objective {} ({}): minimises the {}",
+            fit.objective.name, fit.objective.chosen, fit.objective.formula
         )?;
         for c in &fit.channels {
             writeln!(
@@ -233,14 +284,50 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             fit.evaluations,
             fit.seconds,
             fit.max_albedo,
-            if fit.energy_scale < 1.0 {
-                format!(" (scaled by {:.4} to conserve energy)", fit.energy_scale)
-            } else if fit.max_albedo > 1.0 {
-                " — exceeds 1: --conserve-energy scales it down".to_string()
+            if fit.max_albedo > 1.0 && fit.energy.is_none() {
+                " — exceeds 1: --conserve-energy fits under albedo ≤ 1"
             } else {
-                String::new()
+                ""
             }
         )?;
+        if let Some(e) = &fit.energy {
+            writeln!(
+                w,
+                "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
+                e.directions,
+                if e.constrained {
+                    "the constrained optimum"
+                } else {
+                    "the unconstrained optimum already meets it, unchanged"
+                }
+            )?;
+            for c in &e.channels {
+                writeln!(
+                    w,
+                    "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
+                     (unconstrained {:.6e}); active: {}",
+                    c.channel,
+                    c.max_albedo,
+                    c.unconstrained_max_albedo,
+                    c.cost,
+                    c.unconstrained_cost,
+                    if c.active.is_empty() {
+                        "none".to_string()
+                    } else {
+                        c.active
+                            .iter()
+                            .map(|x| {
+                                format!(
+                                    "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
+                                    x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
+                                )
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                )?;
+            }
+        }
         if let Some(out) = &a.out {
             writeln!(w, "model: {}", out.display())?;
         }
