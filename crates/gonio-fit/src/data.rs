@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use gonio_core::Channels;
 use gonio_process::{Samples, Table};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::FitError;
@@ -215,34 +216,20 @@ impl FitData {
         }
         let (objective, objective_rule) = opts.objective_for(s)?;
         let chi_square = objective == Objective::Chi2;
-        let (mut wis, mut wos) = (Vec::new(), Vec::new());
-        let mut d = FitData {
-            channels: s.channels.clone(),
-            wi: Arc::from([]),
-            wo: Arc::from([]),
-            y: vec![Vec::new(); nc],
-            weight: vec![Vec::new(); nc],
-            chi_square,
-            objective,
-            objective_rule,
-            metric: opts.metric,
-            cut: 0,
-        };
+        let kept: Vec<&gonio_process::Sample> = s
+            .samples
+            .iter()
+            .filter(|x| {
+                let p = &x.pair;
+                p.incident.theta_deg <= opts.cutoff_deg
+                    && p.outgoing.theta_deg <= opts.cutoff_deg
+                    && p.incident.theta_deg < 90.0
+                    && p.outgoing.theta_deg < 90.0
+            })
+            .collect();
         let mut incident: Vec<[i64; 2]> = Vec::new();
-        for x in &s.samples {
+        for x in &kept {
             let p = &x.pair;
-            if p.incident.theta_deg > opts.cutoff_deg
-                || p.outgoing.theta_deg > opts.cutoff_deg
-                || p.incident.theta_deg >= 90.0
-                || p.outgoing.theta_deg >= 90.0
-            {
-                d.cut += 1;
-                continue;
-            }
-            let dirs = p.to_dirs();
-            let (wi, wo) = (dirs.wi, dirs.wo);
-            wis.push([wi.x, wi.y, wi.z]);
-            wos.push([wo.x, wo.y, wo.z]);
             // At normal incidence every φi is the same direction.
             let phi = if p.incident.theta_deg == 0.0 {
                 0.0
@@ -253,18 +240,46 @@ impl FitData {
                 (p.incident.theta_deg * 1e6).round() as i64,
                 (phi.rem_euclid(360.0) * 1e6).round() as i64,
             ];
-            if !incident.contains(&key) && incident.len() < 2 {
+            if !incident.contains(&key) {
                 incident.push(key);
-            }
-            let f = opts.metric.factor(wi.z, wo.z);
-            for ch in 0..nc {
-                d.y[ch].push(x.value[ch]);
-                d.weight[ch].push(match (&x.sigma, objective) {
-                    (Some(sg), Objective::Chi2) => 1.0 / sg[ch],
-                    _ => f,
-                });
+                if incident.len() == 2 {
+                    break;
+                }
             }
         }
+        // The directions' trigonometry is most of this function's time on large
+        // inputs: in parallel, in order.
+        let (wis, wos): (Vec<[f64; 3]>, Vec<[f64; 3]>) = kept
+            .par_iter()
+            .map(|x| {
+                let d = x.pair.to_dirs();
+                ([d.wi.x, d.wi.y, d.wi.z], [d.wo.x, d.wo.y, d.wo.z])
+            })
+            .unzip();
+        let mut d = FitData {
+            channels: s.channels.clone(),
+            wi: Arc::from([]),
+            wo: Arc::from([]),
+            y: (0..nc)
+                .map(|ch| kept.iter().map(|x| x.value[ch]).collect())
+                .collect(),
+            weight: (0..nc)
+                .map(|ch| {
+                    kept.iter()
+                        .zip(wis.iter().zip(&wos))
+                        .map(|(x, (wi, wo))| match (&x.sigma, objective) {
+                            (Some(sg), Objective::Chi2) => 1.0 / sg[ch],
+                            _ => opts.metric.factor(wi[2], wo[2]),
+                        })
+                        .collect()
+                })
+                .collect(),
+            chi_square,
+            objective,
+            objective_rule,
+            metric: opts.metric,
+            cut: s.samples.len() - kept.len(),
+        };
         d.wi = wis.into();
         d.wo = wos.into();
         if d.is_empty() {
