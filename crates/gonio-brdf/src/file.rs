@@ -15,8 +15,7 @@ use toml::Spanned;
 use crate::model::{Model, ModelKind};
 use crate::models::{
     BlinnPhong, CookTorrance, Diffuse, Distribution, FitNote, Lafortune, LafortuneLobe, Mirror,
-    OrenNayar,
-    OrenNayarVariant, ParamError, Phong, PhongNormalization, Sym3, Ward,
+    OrenNayar, OrenNayarVariant, ParamError, Phong, PhongNormalization, Sym3, Ward,
 };
 
 /// What kind of failure a [`ModelError`] is.

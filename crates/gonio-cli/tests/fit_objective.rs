@@ -99,7 +99,15 @@ fn a_bad_objective_is_refused_with_exit_2() {
     let out = s(&d.join("x.toml"));
     for args in [
         vec!["fit", &s(&with), "--objective", "l2", "--out", &out],
-        vec!["fit", &s(&with), "--objective", "chi2", "--unweighted", "--out", &out],
+        vec![
+            "fit",
+            &s(&with),
+            "--objective",
+            "chi2",
+            "--unweighted",
+            "--out",
+            &out,
+        ],
         // χ² needs σ on every sample.
         vec!["fit", &s(&plain), "--objective", "chi2", "--out", &out],
     ] {
@@ -155,5 +163,8 @@ fn conserve_energy_reports_the_active_set_and_holds_every_incidence() {
         "--force",
     ]);
     let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(text.contains("the constrained optimum") && text.contains("multiplier"), "{text}");
+    assert!(
+        text.contains("the constrained optimum") && text.contains("multiplier"),
+        "{text}"
+    );
 }

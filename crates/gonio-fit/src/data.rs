@@ -138,10 +138,9 @@ impl DataOptions {
                 Ok((Objective::Chi2, "asked for".into()))
             }
             Some(o) => Ok((o, "asked for".into())),
-            None if self.use_sigma && all_sigma(s) => Ok((
-                Objective::Chi2,
-                "default: every sample has σ > 0".into(),
-            )),
+            None if self.use_sigma && all_sigma(s) => {
+                Ok((Objective::Chi2, "default: every sample has σ > 0".into()))
+            }
             None if self.use_sigma => Ok((
                 Objective::Cosine,
                 "default: not every sample has σ > 0".into(),

@@ -16,8 +16,8 @@
 use std::f64::consts::{FRAC_PI_4, PI};
 use std::time::Instant;
 
-use gonio_brdf::Model;
 use gonio_brdf::FitNote;
+use gonio_brdf::Model;
 use gonio_core::{Channels, Dir};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
@@ -482,14 +482,8 @@ fn fit_group(d: FitData, shape: Shape, shared: bool, opts: &FitOptions) -> Group
             .iter()
             .any(|c| c.albedo.iter().any(|a| *a > 1.0));
         if exceeds {
-            solved = varpro::solve_with(
-                &basis,
-                &d,
-                &solved.theta,
-                200,
-                1e-10,
-                Some(limits.clone()),
-            );
+            solved =
+                varpro::solve_with(&basis, &d, &solved.theta, 200, 1e-10, Some(limits.clone()));
         }
         energy = Some(GroupEnergy {
             limits,
@@ -782,7 +776,12 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
     let groups: Vec<(usize, Vec<Reported>, usize, bool)> = if shared {
         let g = fit_group(data.clone(), opts.shape, true, opts);
         let e = energy_of(&g);
-        vec![(g.solved.evaluations, report(&g, &data.channels, None), e.0, e.1)]
+        vec![(
+            g.solved.evaluations,
+            report(&g, &data.channels, None),
+            e.0,
+            e.1,
+        )]
     } else {
         (0..nc)
             .map(|ch| channel_data(data, ch).map(|d| (ch, d)))
@@ -819,9 +818,9 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
     let note = FitNote {
         objective: objective.name.clone(),
         minimised: objective.formula.clone(),
-        constraint: opts.conserve_energy.then(|| {
-            "directional albedo <= 1 at every incident direction of the data".to_string()
-        }),
+        constraint: opts
+            .conserve_energy
+            .then(|| "directional albedo <= 1 at every incident direction of the data".to_string()),
     };
     let model = to_model_noted(&data.channels, &params, &opts.shape, Some(note))?;
     let alb = max_albedo(&model, opts.shape.anisotropic);

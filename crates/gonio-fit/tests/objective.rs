@@ -107,7 +107,11 @@ fn the_default_rule_is_chi2_with_every_sigma_else_cosine_and_says_so() {
     s.samples[1].sigma = Some(vec![0.0]);
     let d = FitData::from_samples(&s, &DataOptions::default()).expect("data");
     assert_eq!(d.objective, Objective::Cosine);
-    assert!(d.objective_rule.contains("not every sample"), "{}", d.objective_rule);
+    assert!(
+        d.objective_rule.contains("not every sample"),
+        "{}",
+        d.objective_rule
+    );
     // χ² asked for without σ everywhere is refused, naming the sample.
     let e = FitData::from_samples(
         &s,
@@ -147,8 +151,11 @@ fn grid() -> Vec<PairDeg> {
 
 fn fit(model: &str, conserve: bool) -> (LobeFit, FitData, Model) {
     let truth = Model::from_toml(model, None).expect("model");
-    let data = FitData::from_samples(&Samples::from_brdf(&truth, &grid()), &DataOptions::default())
-        .expect("data");
+    let data = FitData::from_samples(
+        &Samples::from_brdf(&truth, &grid()),
+        &DataOptions::default(),
+    )
+    .expect("data");
     let opts = FitOptions {
         shape: Shape {
             lobes: 1,
@@ -211,13 +218,21 @@ fn the_energy_constrained_fit_meets_albedo_one_at_every_incidence_at_a_higher_co
     assert!(max >= 1.0 - 1e-6, "the constraint is active: {alb:?}");
     let c = &e.channels[0];
     assert!(!c.active.is_empty() && c.active.iter().all(|x| x.multiplier > 0.0));
-    assert!((c.max_albedo - max).abs() < 1e-6, "{} vs {max}", c.max_albedo);
+    assert!(
+        (c.max_albedo - max).abs() < 1e-6,
+        "{} vs {max}",
+        c.max_albedo
+    );
     // The constrained optimum costs more than the unconstrained one (both from the
     // model files), and the report's costs are those.
     let (c_free, c_held) = (cost(free_model, &data), cost(model, &data));
     assert!(c_held >= c_free, "{c_held} < {c_free}");
     assert!(c_held > 0.0);
-    assert!((c.cost - c_held).abs() <= 1e-6 * c_held, "{} vs {c_held}", c.cost);
+    assert!(
+        (c.cost - c_held).abs() <= 1e-6 * c_held,
+        "{} vs {c_held}",
+        c.cost
+    );
     assert!((c.unconstrained_cost - c_free).abs() <= 1e-6 * c_held + 1e-20);
     // A constrained optimum: no small move of the non-linear parameters (each with
     // its best feasible strengths) lowers the constrained cost.
@@ -248,7 +263,11 @@ fn the_energy_constrained_fit_meets_albedo_one_at_every_incidence_at_a_higher_co
         for h in [-1e-3, 1e-3] {
             let mut t = theta.clone();
             t[q] += h;
-            assert!(at(&t) >= c0 * (1.0 - 1e-9), "parameter {q} {h:+}: {} < {c0}", at(&t));
+            assert!(
+                at(&t) >= c0 * (1.0 - 1e-9),
+                "parameter {q} {h:+}: {} < {c0}",
+                at(&t)
+            );
         }
     }
 }
@@ -258,8 +277,11 @@ fn the_constrained_gradient_is_the_derivative_of_the_constrained_cost() {
     // 2 Jᵀr from the evaluation (Kaufman's J with the active albedo rows) against
     // central differences of the constrained projected cost, away from the optimum.
     let truth = Model::from_toml(BRIGHT, None).expect("model");
-    let data = FitData::from_samples(&Samples::from_brdf(&truth, &grid()), &DataOptions::default())
-        .expect("data");
+    let data = FitData::from_samples(
+        &Samples::from_brdf(&truth, &grid()),
+        &DataOptions::default(),
+    )
+    .expect("data");
     let basis = LobeBasis {
         shape: Shape {
             lobes: 1,

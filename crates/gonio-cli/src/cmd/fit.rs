@@ -141,9 +141,7 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     let objective = match a.objective.as_deref() {
         None => None,
         Some(x) => Some(Objective::from_name(x).ok_or_else(|| {
-            CliError::Input(format!(
-                "--objective: cosine, chi2 or relative, got {x:?}"
-            ))
+            CliError::Input(format!("--objective: cosine, chi2 or relative, got {x:?}"))
         })?),
     };
     if a.unweighted && objective.is_some_and(|o| o != Objective::Cosine) {

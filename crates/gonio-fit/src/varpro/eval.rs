@@ -79,13 +79,17 @@ fn constrained_normal(
     let gs = DMatrix::from_fn(k, k, |u, v| g[u * k + v] * inv(u) * inv(v));
     let am = DMatrix::from_fn(k, q, |u, bcol| acc[u * q + bcol] * inv(u));
     let mm = DMatrix::from_fn(q, q, |a, bcol| acc[(k + a) * q + bcol]);
-    let free: Vec<usize> = (0..k).filter(|&u| !sol.at_bound[u] && sc[u] > 0.0).collect();
+    let free: Vec<usize> = (0..k)
+        .filter(|&u| !sol.at_bound[u] && sc[u] > 0.0)
+        .collect();
     let rows: Vec<usize> = (0..sol.row_active.len())
         .filter(|&l| sol.row_active[l])
         .collect();
     let nf = free.len();
     // B_R on the free coefficients (equilibrated), and −(∂B_R/∂θ) c.
-    let brf = DMatrix::from_fn(rows.len(), nf, |r, x| b[rows[r] * k + free[x]] * inv(free[x]));
+    let brf = DMatrix::from_fn(rows.len(), nf, |r, x| {
+        b[rows[r] * k + free[x]] * inv(free[x])
+    });
     let e = DMatrix::from_fn(rows.len(), q, |r, a| {
         if a == p {
             return 0.0;

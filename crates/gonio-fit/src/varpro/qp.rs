@@ -46,13 +46,7 @@ pub fn qp(g: &[f64], h: &[f64], k: usize, b: &[f64], rows: usize) -> QpSolution 
             v
         } else {
             let l = ci - k;
-            DVector::from_fn(k, |u, _| {
-                if usable[u] {
-                    b[l * k + u] / d[u]
-                } else {
-                    0.0
-                }
-            })
+            DVector::from_fn(k, |u, _| if usable[u] { b[l * k + u] / d[u] } else { 0.0 })
         }
     };
     let rhs = |ci: usize| if ci < k { 0.0 } else { 1.0 };
@@ -125,7 +119,13 @@ pub fn qp(g: &[f64], h: &[f64], k: usize, b: &[f64], rows: usize) -> QpSolution 
         }
     }
     let c: Vec<f64> = (0..k)
-        .map(|u| if usable[u] { (x[u] / d[u]).max(0.0) } else { 0.0 })
+        .map(|u| {
+            if usable[u] {
+                (x[u] / d[u]).max(0.0)
+            } else {
+                0.0
+            }
+        })
         .collect();
     // Multipliers of the ½-cost; the cost ‖Ac − b‖² has twice them.
     QpSolution {
@@ -145,7 +145,10 @@ mod tests {
         // min (c0 − 2)² + (c1 − 2)² subject to c0 + c1 ≤ 1: c = (½, ½), and the cost
         // 2(c − 2)² at c0 = c1 = t = s/2 falls by 2 (2 − s/2) = 3 per unit of the bound s.
         let s = qp(&[1.0, 0.0, 0.0, 1.0], &[2.0, 2.0], 2, &[1.0, 1.0], 1);
-        assert!((s.c[0] - 0.5).abs() < 1e-12 && (s.c[1] - 0.5).abs() < 1e-12, "{s:?}");
+        assert!(
+            (s.c[0] - 0.5).abs() < 1e-12 && (s.c[1] - 0.5).abs() < 1e-12,
+            "{s:?}"
+        );
         assert!((s.multiplier[0] - 3.0).abs() < 1e-9, "{s:?}");
         assert!(s.row_active[0]);
         // A row the unconstrained optimum satisfies changes nothing.
