@@ -231,7 +231,8 @@ pub struct Lafortune {
     lobes: Vec<LafortuneLobe>,
     diffuse: Option<Diffuse>,
     mirror: Option<Mirror>,
-    fit: Option<FitNote>,
+    /// Boxed: the model is copied and held in enums where its size counts.
+    fit: Option<Box<FitNote>>,
 }
 
 /// How a model's parameters were fitted, as `gonio fit` records it in the model file's
@@ -273,13 +274,13 @@ impl Lafortune {
 
     /// Records how the parameters were fitted (the `[fit]` table).
     pub fn with_fit_note(mut self, note: FitNote) -> Self {
-        self.fit = Some(note);
+        self.fit = Some(Box::new(note));
         self
     }
 
     /// How the parameters were fitted, when the model file says.
     pub fn fit_note(&self) -> Option<&FitNote> {
-        self.fit.as_ref()
+        self.fit.as_deref()
     }
 
     /// Adds a diffuse term, which must have the model's channels.
