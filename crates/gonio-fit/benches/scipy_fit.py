@@ -295,6 +295,20 @@ def generic(names, a, b, ys, sigmas, method, xs):
     print(f"scipy total (generic start): {total:.3f} s")
 
 
+def chi2_of(path, names, a, b, ys, sigmas):
+    """chi2 per channel of an isotropic lafortune model file (Cx = Cy) on the data."""
+    import tomllib
+
+    with open(path, "rb") as fh:
+        m = tomllib.load(fh)
+    for ch, name in enumerate(names):
+        p = [m["diffuse"]["rho"][ch]]
+        for lobe in m["lobes"]:
+            p += [lobe["cx"][ch], lobe["cz"][ch], lobe["n"][ch]]
+        chi2 = float(np.sum(Problem(a, b, ys[ch], sigmas[ch]).fun(np.array(p)) ** 2))
+        print(f"  {name}: chi2 of {os.path.basename(path)} {chi2:.3f}")
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     default = os.path.join(
@@ -308,6 +322,7 @@ def main():
     ap.add_argument("--x-scale", default="jac", help="'jac' or 1.0 (least_squares' x_scale)")
     ap.add_argument("--mode", default="both", choices=["both", "no-start", "truth", "generic"])
     ap.add_argument("--no-pieces", action="store_true", help="skip the fun / fun + jac timings")
+    ap.add_argument("--chi2-of", metavar="FIT.TOML", help="also print chi2 per channel of a Gonio model file")
     args = ap.parse_args()
     names, a, b, ys, sigmas = load(args.csv)
     print(
@@ -325,6 +340,8 @@ def main():
         from_truth(names, a, b, ys, sigmas, args.method, xs)
     if args.mode == "generic":
         generic(names, a, b, ys, sigmas, args.method, xs)
+    if args.chi2_of:
+        chi2_of(args.chi2_of, names, a, b, ys, sigmas)
     if args.no_pieces:
         return
     # The pieces, as in the Rust bench: one residual evaluation and one evaluation of

@@ -10,7 +10,9 @@
 # default objective: χ² as every sample has σ). scipy: `scipy_fit.py DATA.csv --mode
 # generic --no-pieces` (least_squares, method 'lm', the analytic vectorised Jacobian,
 # one channel at a time, from a generic start). PYTHON names an interpreter with
-# numpy and scipy (default /tmp/scipyenv/bin/python).
+# numpy and scipy (default /tmp/scipyenv/bin/python). GONIO_BEFORE names another gonio
+# binary (an earlier build) to time in the same rounds. Last, each side's χ² per
+# channel (Gonio's from its model file, computed by scipy_fit.py).
 set -eu
 
 here=$(cd "$(dirname "$0")" && pwd)
@@ -30,20 +32,29 @@ echo "load before: $(uptime | sed 's/.*load average: //')"
 i=0
 : >"$dir/gonio.t"
 : >"$dir/scipy.t"
+: >"$dir/before.t"
 while [ "$i" -lt "$rounds" ]; do
+    if [ -n "${GONIO_BEFORE:-}" ]; then
+        /usr/bin/time -f %e -a -o "$dir/before.t" "$GONIO_BEFORE" fit "$csv" --out "$dir/before.toml" --force >"$dir/before.txt"
+    fi
     /usr/bin/time -f %e -a -o "$dir/gonio.t" "$gonio" fit "$csv" --out "$dir/fit.toml" --force >"$dir/gonio.txt"
     /usr/bin/time -f %e -a -o "$dir/scipy.t" "$python" "$here/scipy_fit.py" "$csv" --mode generic --no-pieces >"$dir/scipy.txt"
     i=$((i + 1))
 done
 echo "load after: $(uptime | sed 's/.*load average: //')"
-"$python" - "$dir/gonio.t" "$dir/scipy.t" <<'PY'
+"$python" - "$dir/gonio.t" "$dir/scipy.t" "$dir/before.t" <<'PY'
 import statistics, sys
 g = [float(x) for x in open(sys.argv[1])]
 s = [float(x) for x in open(sys.argv[2])]
+b = [float(x) for x in open(sys.argv[3])]
+if b:
+    print("gonio fit BEFORE, whole process, s:", " ".join(f"{x:.3f}" for x in b), f"median {statistics.median(b):.3f}",
+          f"(scipy / before: {statistics.median(s) / statistics.median(b):.1f}x)")
 print("gonio fit, whole process, s:", " ".join(f"{x:.3f}" for x in g), f"median {statistics.median(g):.3f}")
 print("scipy 'lm', whole process, s:", " ".join(f"{x:.3f}" for x in s), f"median {statistics.median(s):.3f}")
 print(f"scipy / gonio: {statistics.median(s) / statistics.median(g):.1f}x (medians); per round:",
       " ".join(f"{b / a:.1f}" for a, b in zip(g, s)))
 PY
-grep -E "^channel|^[0-9]+ evaluations" "$dir/gonio.txt"
+grep -E "^[0-9]+ evaluations" "$dir/gonio.txt"
 grep -E "^  [RGB]:|total" "$dir/scipy.txt"
+"$python" "$here/scipy_fit.py" "$csv" --mode truth --no-pieces --chi2-of "$dir/fit.toml" | grep "chi2 of"
