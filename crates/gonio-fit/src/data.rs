@@ -132,7 +132,7 @@ impl DataOptions {
                 {
                     return Err(FitError::Data(format!(
                         "objective chi2 needs an uncertainty σ > 0 on every sample and channel; \
-                         sample {i} has none"
+                         sample {i} has none or a zero"
                     )));
                 }
                 Ok((Objective::Chi2, "asked for".into()))

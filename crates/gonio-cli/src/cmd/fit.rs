@@ -285,10 +285,12 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             fit.evaluations,
             fit.seconds,
             fit.max_albedo,
-            if fit.max_albedo > 1.0 && fit.energy.is_none() {
-                " — exceeds 1: --conserve-energy fits under albedo ≤ 1"
-            } else {
-                ""
+            match (&fit.energy, fit.max_albedo > 1.0) {
+                (None, true) => " — exceeds 1: --conserve-energy fits under albedo ≤ 1",
+                (Some(_), true) => {
+                    " — above 1 beyond the data's incident directions, which the constraint holds"
+                }
+                _ => "",
             }
         )?;
         if let Some(e) = &fit.energy {
