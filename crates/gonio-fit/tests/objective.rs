@@ -322,6 +322,47 @@ fn the_constrained_gradient_is_the_derivative_of_the_constrained_cost() {
 }
 
 #[test]
+fn with_no_row_active_the_constrained_evaluation_is_the_unconstrained_one() {
+    // Limits where the albedo is far below 1 (a dim model), with and without a lobe
+    // switched off: the same coefficients, cost and normal equations as without them.
+    let truth = Model::from_toml(BRIGHT, None).expect("model");
+    let mut s = Samples::from_brdf(&truth, &grid());
+    for x in &mut s.samples {
+        x.value[0] *= 0.2;
+    }
+    let data = FitData::from_samples(&s, &DataOptions::default()).expect("data");
+    let basis = LobeBasis {
+        shape: Shape {
+            lobes: 2,
+            anisotropic: false,
+            diffuse: Diffuse::Lambert,
+        },
+        channels: 1,
+        shared: false,
+    };
+    for second in [-0.7, 1.2] {
+        let mut theta = vec![0.0; basis.n_params()];
+        basis.set_lobe(&mut theta, 0, 0, -0.78, std::f64::consts::FRAC_PI_4, 10.0);
+        basis.set_lobe(&mut theta, 0, 1, second, std::f64::consts::FRAC_PI_4, 30.0);
+        let free = varpro::evaluate(&basis, &data, &theta, true);
+        let mut prep = varpro::Prepared::new(&data);
+        prep.limits = Some(vec![[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]]);
+        let held = varpro::evaluate_prepared(&basis, &prep, &theta, true);
+        assert!(held.constraints[0].albedo.iter().all(|a| *a < 0.5));
+        assert!(held.constraints[0].multiplier.iter().all(|m| *m == 0.0));
+        let (a, b) = (free.normal.expect("jac"), held.normal.expect("jac"));
+        let scale = a.0.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for (x, y) in a.0.iter().chain(&a.1).zip(b.0.iter().chain(&b.1)) {
+            assert!((x - y).abs() <= 1e-6 * scale, "{x} vs {y}");
+        }
+        assert!((free.cost - held.cost).abs() <= 1e-9 * free.cost);
+        for (x, y) in free.coef[0].iter().zip(&held.coef[0]) {
+            assert!((x - y).abs() <= 1e-8 * x.abs().max(1e-12), "{x} vs {y}");
+        }
+    }
+}
+
+#[test]
 fn a_fit_already_within_albedo_one_is_left_unchanged() {
     // The blue paint's diffuse with a modest lobe: albedo ≤ 0.62 everywhere.
     let text = "kind = \"lafortune\"\nchannels = [\"value\"]\n[diffuse]\nrho = [0.4]\n\
@@ -358,4 +399,72 @@ fn the_model_file_records_the_objective_and_old_files_still_load() {
     // An unknown key in it is an error, as anywhere in a model file.
     let bad = format!("{BRIGHT}[fit]\nobjective = \"chi2\"\nminimised = \"x\"\nseed = 3\n");
     assert!(Model::from_toml(&bad, None).is_err());
+}
+
+#[test]
+fn the_constrained_linear_solution_is_the_best_feasible_point() {
+    // Random convex problems (seeded) with nearly parallel albedo rows, as adjacent
+    // incidences give: the solution is feasible, and no feasible point on a grid of
+    // convex combinations with random feasible points does better.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for case in 0..200 {
+        let k = 2 + case % 4;
+        let m = 30;
+        let a: Vec<f64> = (0..m * k).map(|_| rng.random::<f64>()).collect();
+        let y: Vec<f64> = (0..m).map(|_| 2.0 * rng.random::<f64>()).collect();
+        let rows = 1 + case % 6;
+        let base: Vec<f64> = (0..k).map(|_| 0.2 + rng.random::<f64>()).collect();
+        let b: Vec<f64> = (0..rows * k)
+            .map(|i| base[i % k] * (1.0 + 1e-3 * rng.random::<f64>()))
+            .collect();
+        let mut g = vec![0.0; k * k];
+        let mut h = vec![0.0; k];
+        for r in 0..m {
+            for u in 0..k {
+                h[u] += a[r * k + u] * y[r];
+                for v in 0..k {
+                    g[u * k + v] += a[r * k + u] * a[r * k + v];
+                }
+            }
+        }
+        let cost = |c: &[f64]| -> f64 {
+            (0..m)
+                .map(|r| ((0..k).map(|u| a[r * k + u] * c[u]).sum::<f64>() - y[r]).powi(2))
+                .sum()
+        };
+        let feasible = |c: &[f64]| {
+            c.iter().all(|x| *x >= 0.0)
+                && (0..rows).all(|l| (0..k).map(|u| b[l * k + u] * c[u]).sum::<f64>() <= 1.0)
+        };
+        let s = varpro::qp(&g, &h, k, &b, rows);
+        let tol = 1e-9;
+        assert!(s.c.iter().all(|x| *x >= 0.0));
+        for l in 0..rows {
+            let v: f64 = (0..k).map(|u| b[l * k + u] * s.c[u]).sum();
+            assert!(v <= 1.0 + tol, "case {case}: row {l} at {v}");
+        }
+        let best = cost(&s.c);
+        for _ in 0..200 {
+            // A random feasible point, and points between it and the solution.
+            let mut p: Vec<f64> = (0..k).map(|_| rng.random::<f64>()).collect();
+            let worst = (0..rows)
+                .map(|l| (0..k).map(|u| b[l * k + u] * p[u]).sum::<f64>())
+                .fold(0.0, f64::max);
+            if worst > 1.0 {
+                p.iter_mut().for_each(|x| *x /= worst);
+            }
+            for t in [1.0, 0.1, 0.01, 0.001] {
+                let q: Vec<f64> = s.c.iter().zip(&p).map(|(c, p)| c + t * (p - c)).collect();
+                if feasible(&q) {
+                    assert!(
+                        cost(&q) >= best * (1.0 - 1e-9) - 1e-12,
+                        "case {case}: {} < {best} at {q:?} (solution {:?})",
+                        cost(&q),
+                        s.c
+                    );
+                }
+            }
+        }
+    }
 }

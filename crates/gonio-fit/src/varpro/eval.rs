@@ -44,6 +44,18 @@ pub struct ChannelConstraint {
     pub multiplier: Vec<f64>,
 }
 
+/// The pseudo-inverse (n × m) of an m × n matrix; zeros when it is empty (no active
+/// row, or no free coefficient), which nalgebra's SVD refuses.
+fn pseudo_inverse(m: &DMatrix<f64>, eps: f64) -> DMatrix<f64> {
+    let (r, c) = m.shape();
+    if r == 0 || c == 0 {
+        return DMatrix::zeros(c, r);
+    }
+    m.clone()
+        .pseudo_inverse(eps)
+        .unwrap_or_else(|_| DMatrix::zeros(c, r))
+}
+
 /// Kaufman's JᵀJ and Jᵀr when the albedo rows R of B c ≤ 1 are active (`sol`): the
 /// coefficients then move with θ along ∂c/∂θ = D, the smallest step with
 /// B_R D = −(∂B_R/∂θ) c on the free coefficients, so the residual's derivative is
@@ -98,10 +110,7 @@ fn constrained_normal(
             .map(|u| db[(rows[r] * k + u) * p + a] * sol.c[u])
             .sum::<f64>()
     });
-    let pinv = brf
-        .clone()
-        .pseudo_inverse(1e-12)
-        .unwrap_or_else(|_| DMatrix::zeros(nf, rows.len()));
+    let pinv = pseudo_inverse(&brf, 1e-12);
     let df = &pinv * e;
     let mut d = DMatrix::<f64>::zeros(k, q);
     for (x, &u) in free.iter().enumerate() {
@@ -113,21 +122,21 @@ fn constrained_normal(
     let am2 = &am + &gs * &d;
     let mm2 = &mm + d.transpose() * &am + am.transpose() * &d + d.transpose() * &gs * &d;
     // N: an orthonormal basis of the null space of B_R on the free coefficients.
-    let proj = DMatrix::<f64>::identity(nf, nf) - &pinv * &brf;
-    let eig = proj.symmetric_eigen();
-    let basis: Vec<usize> = (0..nf).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
-    let mut n = DMatrix::<f64>::zeros(k, basis.len());
-    for (col, &i) in basis.iter().enumerate() {
-        for (x, &u) in free.iter().enumerate() {
-            n[(u, col)] = eig.eigenvectors[(x, i)];
+    let mut n = DMatrix::<f64>::zeros(k, 0);
+    if nf > 0 {
+        let proj = DMatrix::<f64>::identity(nf, nf) - &pinv * &brf;
+        let eig = proj.symmetric_eigen();
+        let basis: Vec<usize> = (0..nf).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
+        n = DMatrix::<f64>::zeros(k, basis.len());
+        for (col, &i) in basis.iter().enumerate() {
+            for (x, &u) in free.iter().enumerate() {
+                n[(u, col)] = eig.eigenvectors[(x, i)];
+            }
         }
     }
     let x = n.transpose() * &am2;
     let h = n.transpose() * &gs * &n;
-    let hinv = h
-        .clone()
-        .pseudo_inverse(1e-13)
-        .unwrap_or_else(|_| DMatrix::zeros(h.nrows(), h.ncols()));
+    let hinv = pseudo_inverse(&h, 1e-13);
     let full = mm2 - x.transpose() * hinv * &x;
     let jtj = (0..p * p).map(|i| full[(i / p, i % p)]).collect();
     let jtr = (0..p).map(|a| full[(a, p)]).collect();

@@ -1,9 +1,12 @@
 //! The linear part under the energy constraint: min ‖A c − b‖² subject to c ≥ 0 and
-//! B c ≤ 1, a small convex quadratic programme solved exactly by a primal active-set
-//! method (Nocedal & Wright, *Numerical Optimization*, Algorithm 16.3) on the normal
-//! equations.
+//! B c ≤ 1, a small convex quadratic programme solved exactly as Lawson & Hanson
+//! (*Solving Least Squares Problems*, Ch. 23) do: least squares with inequality
+//! constraints turned into a least-distance problem, solved by non-negative least
+//! squares ([`nnls`]) — robust where adjacent incidences give nearly parallel rows.
 
 use nalgebra::{DMatrix, DVector};
+
+use super::nnls::nnls;
 
 /// The solution of [`qp`] and its active set.
 #[derive(Clone, Debug, PartialEq)]
@@ -16,123 +19,94 @@ pub struct QpSolution {
     /// i.e. how much the cost would fall per unit the bound 1 were raised; 0 where the
     /// row is inactive.
     pub multiplier: Vec<f64>,
-    /// Per row of B: whether it is in the final active set.
+    /// Per row of B: whether it binds with a positive multiplier.
     pub row_active: Vec<bool>,
 }
 
 /// Solves min ½cᵀGc − hᵀc subject to c ≥ 0 and B c ≤ 1 (`b` row-major, `rows` × `k`),
 /// from the normal equations G = AᵀA, h = Aᵀb. Columns are equilibrated as in
-/// [`nnls`](super::nnls) (unit diagonal); a column with a zero diagonal stays at 0. The
-/// start c = 0 is feasible, and every iterate stays feasible.
+/// [`nnls`] (unit diagonal, the same 1e-13 ridge); a column with a zero diagonal stays
+/// at 0. With G = RᵀR and f = R⁻ᵀh the cost is ½‖Rc − f‖² + const; z = Rc − f turns
+/// the constraints C c ≥ d (C = [I; −B], d = [0; −1]) into Ĉ z ≥ d̂ with Ĉ = C R⁻¹,
+/// d̂ = d − Ĉ f, and the least-distance z is Ĉᵀu / (1 − d̂ᵀu) with u ≥ 0 minimising
+/// ‖Ĉᵀu‖² + (d̂ᵀu − 1)² (Lawson & Hanson Alg. 23.27); u / (1 − d̂ᵀu) are the
+/// multipliers.
 pub fn qp(g: &[f64], h: &[f64], k: usize, b: &[f64], rows: usize) -> QpSolution {
     let d: Vec<f64> = (0..k).map(|i| g[i * k + i].max(0.0).sqrt()).collect();
-    let usable: Vec<bool> = d.iter().map(|x| *x > 0.0 && x.is_finite()).collect();
-    let gs = DMatrix::from_fn(k, k, |i, j| {
-        if usable[i] && usable[j] {
-            g[i * k + j] / (d[i] * d[j]) + if i == j { 1e-13 } else { 0.0 }
-        } else if i == j {
-            1.0
+    let idx: Vec<usize> = (0..k).filter(|&i| d[i] > 0.0 && d[i].is_finite()).collect();
+    let n = idx.len();
+    let zero = QpSolution {
+        c: vec![0.0; k],
+        at_bound: vec![true; k],
+        multiplier: vec![0.0; rows],
+        row_active: vec![false; rows],
+    };
+    if n == 0 {
+        return zero;
+    }
+    let gs = DMatrix::from_fn(n, n, |x, y| {
+        g[idx[x] * k + idx[y]] / (d[idx[x]] * d[idx[y]]) + if x == y { 1e-13 } else { 0.0 }
+    });
+    let hs = DVector::from_fn(n, |x, _| h[idx[x]] / d[idx[x]]);
+    let Some(chol) = gs.cholesky() else {
+        return zero;
+    };
+    let l = chol.l();
+    // R = Lᵀ; f = R⁻ᵀ h = L⁻¹ h; R⁻¹ = (Lᵀ)⁻¹.
+    let Some(f) = l.solve_lower_triangular(&hs) else {
+        return zero;
+    };
+    let Some(rinv) = l
+        .transpose()
+        .solve_upper_triangular(&DMatrix::identity(n, n))
+    else {
+        return zero;
+    };
+    let m = n + rows;
+    let con = DMatrix::from_fn(m, n, |r, x| {
+        if r < n {
+            if r == x { 1.0 } else { 0.0 }
         } else {
-            0.0
+            -b[(r - n) * k + idx[x]] / d[idx[x]]
         }
     });
-    let hs = DVector::from_fn(k, |i, _| if usable[i] { h[i] / d[i] } else { 0.0 });
-    // Constraint i < k: −x_i ≤ 0; constraint k + l: (B D⁻¹)_l x ≤ 1.
-    let n_con = k + rows;
-    let a_row = |ci: usize| -> DVector<f64> {
-        if ci < k {
-            let mut v = DVector::zeros(k);
-            v[ci] = -1.0;
-            v
-        } else {
-            let l = ci - k;
-            DVector::from_fn(k, |u, _| if usable[u] { b[l * k + u] / d[u] } else { 0.0 })
-        }
-    };
-    let rhs = |ci: usize| if ci < k { 0.0 } else { 1.0 };
-    let mut x = DVector::<f64>::zeros(k);
-    let mut work: Vec<usize> = (0..k).collect();
-    let mut lambda = vec![0.0; n_con];
-    for _ in 0..100 + 10 * n_con {
-        // min ½pᵀGp + gᵀp subject to a_iᵀp = 0 on the working set: the KKT system.
-        let grad = &gs * &x - &hs;
-        let m = work.len();
-        let mut kkt = DMatrix::<f64>::zeros(k + m, k + m);
-        let mut r = DVector::<f64>::zeros(k + m);
-        kkt.view_mut((0, 0), (k, k)).copy_from(&gs);
-        for (wi, &ci) in work.iter().enumerate() {
-            let a = a_row(ci);
-            for u in 0..k {
-                kkt[(k + wi, u)] = a[u];
-                kkt[(u, k + wi)] = a[u];
-            }
-        }
-        for u in 0..k {
-            r[u] = -grad[u];
-        }
-        let Some(sol) = kkt.lu().solve(&r) else {
-            break;
-        };
-        let p = sol.rows(0, k).into_owned();
-        let scale = 1.0 + x.amax();
-        if p.amax() <= 1e-13 * scale {
-            lambda.fill(0.0);
-            for (wi, &ci) in work.iter().enumerate() {
-                lambda[ci] = sol[k + wi];
-            }
-            // The most negative multiplier leaves the working set; none: optimal.
-            let worst = work
-                .iter()
-                .enumerate()
-                .filter(|(_, ci)| usable.get(**ci).is_none_or(|u| *u))
-                .map(|(wi, &ci)| (wi, lambda[ci]))
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            match worst {
-                Some((wi, l)) if l < -1e-12 * (1.0 + hs.amax()) => {
-                    lambda[work[wi]] = 0.0;
-                    work.remove(wi);
-                }
-                _ => break,
-            }
-            continue;
-        }
-        // The longest step along p that keeps every constraint satisfied.
-        let mut alpha = 1.0;
-        let mut blocking = None;
-        for ci in 0..n_con {
-            if work.contains(&ci) {
-                continue;
-            }
-            let a = a_row(ci);
-            let ap = a.dot(&p);
-            if ap > 1e-300 {
-                let step = (rhs(ci) - a.dot(&x)) / ap;
-                if step < alpha {
-                    alpha = step.max(0.0);
-                    blocking = Some(ci);
-                }
-            }
-        }
-        x += alpha * &p;
-        if let Some(ci) = blocking {
-            work.push(ci);
-        }
+    let rhs = DVector::from_fn(m, |r, _| if r < n { 0.0 } else { -1.0 });
+    let ch = &con * &rinv;
+    let dh = rhs - &ch * &f;
+    // The normal equations of min ‖[Ĉᵀ; d̂ᵀ] u − e‖, u ≥ 0.
+    let gram = &ch * ch.transpose() + &dh * dh.transpose();
+    let gv: Vec<f64> = (0..m * m).map(|i| gram[(i / m, i % m)]).collect();
+    let hv: Vec<f64> = dh.iter().copied().collect();
+    let u = DVector::from_vec(nnls(&gv, &hv, m));
+    let denom = 1.0 - dh.dot(&u);
+    if denom <= 1e-300 || !denom.is_finite() {
+        // Infeasible, which c = 0 never is: numerics; 0 is safe.
+        return zero;
     }
-    let c: Vec<f64> = (0..k)
-        .map(|u| {
-            if usable[u] {
-                (x[u] / d[u]).max(0.0)
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    // Multipliers of the ½-cost; the cost ‖Ac − b‖² has twice them.
+    let z = ch.transpose() * &u / denom;
+    let x = &rinv * (z + f);
+    let mut c = vec![0.0; k];
+    for (j, &i) in idx.iter().enumerate() {
+        c[i] = (x[j] / d[i]).max(0.0);
+    }
+    // Rounding can leave a row a few ulp above 1: scale back onto it.
+    let worst = (0..rows)
+        .map(|r| (0..k).map(|i| b[r * k + i] * c[i]).sum::<f64>())
+        .fold(0.0, f64::max);
+    if worst > 1.0 {
+        c.iter_mut().for_each(|v| *v /= worst);
+    }
+    let mu: Vec<f64> = u.iter().map(|v| v / denom).collect();
+    let mut at_bound = vec![true; k];
+    for (j, &i) in idx.iter().enumerate() {
+        at_bound[i] = mu[j] > 0.0 || c[i] == 0.0;
+    }
     QpSolution {
-        at_bound: (0..k).map(|u| work.contains(&u) || c[u] == 0.0).collect(),
-        multiplier: (0..rows).map(|l| 2.0 * lambda[k + l].max(0.0)).collect(),
-        row_active: (0..rows).map(|l| work.contains(&(k + l))).collect(),
         c,
+        at_bound,
+        // Multipliers of the ½-cost; the cost ‖Ac − b‖² has twice them.
+        multiplier: (0..rows).map(|r| 2.0 * mu[n + r]).collect(),
+        row_active: (0..rows).map(|r| mu[n + r] > 0.0).collect(),
     }
 }
 
