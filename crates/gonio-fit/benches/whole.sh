@@ -1,7 +1,7 @@
 #!/bin/sh
 # Whole-process `gonio fit` against a scipy fit, as a user would time them: each run is
-# a fresh process (start-up, reading the CSV, the fit, the report), timed by
-# /usr/bin/time, the two alternating so that both see the same machine.
+# a fresh process (start-up, reading the CSV, the fit, the report), timed from its
+# parent, the two alternating so that both see the same machine.
 #
 #   crates/gonio-fit/benches/whole.sh [ROUNDS]        (default 7)
 #
@@ -29,32 +29,35 @@ cargo build --release -p gonio-cli >&2
 [ -f "$csv" ] || "$python" "$here/fit_data.py" "$csv"
 gonio=$target/release/gonio
 echo "load before: $(uptime | sed 's/.*load average: //')"
-i=0
-: >"$dir/gonio.t"
-: >"$dir/scipy.t"
-: >"$dir/before.t"
-while [ "$i" -lt "$rounds" ]; do
-    if [ -n "${GONIO_BEFORE:-}" ]; then
-        /usr/bin/time -f %e -a -o "$dir/before.t" "$GONIO_BEFORE" fit "$csv" --out "$dir/before.toml" --force >"$dir/before.txt"
-    fi
-    /usr/bin/time -f %e -a -o "$dir/gonio.t" "$gonio" fit "$csv" --out "$dir/fit.toml" --force >"$dir/gonio.txt"
-    /usr/bin/time -f %e -a -o "$dir/scipy.t" "$python" "$here/scipy_fit.py" "$csv" --mode generic --no-pieces >"$dir/scipy.txt"
-    i=$((i + 1))
-done
-echo "load after: $(uptime | sed 's/.*load average: //')"
-"$python" - "$dir/gonio.t" "$dir/scipy.t" "$dir/before.t" <<'PY'
-import statistics, sys
-g = [float(x) for x in open(sys.argv[1])]
-s = [float(x) for x in open(sys.argv[2])]
-b = [float(x) for x in open(sys.argv[3])]
-if b:
-    print("gonio fit BEFORE, whole process, s:", " ".join(f"{x:.3f}" for x in b), f"median {statistics.median(b):.3f}",
-          f"(scipy / before: {statistics.median(s) / statistics.median(b):.1f}x)")
-print("gonio fit, whole process, s:", " ".join(f"{x:.3f}" for x in g), f"median {statistics.median(g):.3f}")
-print("scipy 'lm', whole process, s:", " ".join(f"{x:.3f}" for x in s), f"median {statistics.median(s):.3f}")
-print(f"scipy / gonio: {statistics.median(s) / statistics.median(g):.1f}x (medians); per round:",
-      " ".join(f"{b / a:.1f}" for a, b in zip(g, s)))
+# Each process is timed by the parent's clock (time.perf_counter around the child's
+# whole life, to the millisecond; /usr/bin/time rounds to 10 ms).
+"$python" - "$rounds" "$gonio" "${GONIO_BEFORE:-}" "$python" "$here/scipy_fit.py" "$csv" "$dir" <<'PY'
+import statistics, subprocess, sys, time
+rounds, gonio, before, python, script, csv, d = sys.argv[1:]
+runs = {"before": [], "gonio": [], "scipy": []}
+cmds = {
+    "before": [before, "fit", csv, "--out", f"{d}/before.toml", "--force"],
+    "gonio": [gonio, "fit", csv, "--out", f"{d}/fit.toml", "--force"],
+    "scipy": [python, script, csv, "--mode", "generic", "--no-pieces"],
+}
+for _ in range(int(rounds)):
+    for name in ("before", "gonio", "scipy"):
+        if name == "before" and not before:
+            continue
+        with open(f"{d}/{name}.txt", "w") as out:
+            t0 = time.perf_counter()
+            subprocess.run(cmds[name], stdout=out, check=True)
+            runs[name].append(time.perf_counter() - t0)
+med = {k: statistics.median(v) for k, v in runs.items() if v}
+for k, label in [("before", "gonio fit BEFORE"), ("gonio", "gonio fit"), ("scipy", "scipy 'lm'")]:
+    if runs[k]:
+        print(f"{label}, whole process, s:", " ".join(f"{x:.3f}" for x in runs[k]), f"median {med[k]:.3f}")
+if runs["before"]:
+    print(f"scipy / before: {med['scipy'] / med['before']:.1f}x (medians)")
+print(f"scipy / gonio: {med['scipy'] / med['gonio']:.1f}x (medians); per round:",
+      " ".join(f"{b / a:.1f}" for a, b in zip(runs["gonio"], runs["scipy"])))
 PY
+echo "load after: $(uptime | sed 's/.*load average: //')"
 grep -E "^[0-9]+ evaluations" "$dir/gonio.txt"
 grep -E "^  [RGB]:|total" "$dir/scipy.txt"
 "$python" "$here/scipy_fit.py" "$csv" --mode truth --no-pieces --chi2-of "$dir/fit.toml" | grep "chi2 of"
