@@ -14,8 +14,8 @@ use toml::Spanned;
 
 use crate::model::{Model, ModelKind};
 use crate::models::{
-    BlinnPhong, CookTorrance, Diffuse, Distribution, Lafortune, LafortuneLobe, Mirror, OrenNayar,
-    OrenNayarVariant, ParamError, Phong, PhongNormalization, Sym3, Ward,
+    BlinnPhong, CookTorrance, Diffuse, Distribution, FitNote, Lafortune, LafortuneLobe, Mirror,
+    OrenNayar, OrenNayarVariant, ParamError, Phong, PhongNormalization, Sym3, Ward,
 };
 
 /// What kind of failure a [`ModelError`] is.
@@ -272,6 +272,16 @@ struct LafortuneFile {
     lobes: Vec<S<LobeFile>>,
     diffuse: Option<S<DiffuseFile>>,
     mirror: Option<S<MirrorFile>>,
+    fit: Option<FitNoteFile>,
+}
+
+/// The optional `[fit]` table of a fitted lafortune model (what `gonio fit` minimised).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FitNoteFile {
+    objective: String,
+    minimised: String,
+    constraint: Option<String>,
 }
 
 /// The `[diffuse]` table, with its span for errors about the term as a whole.
@@ -582,6 +592,13 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
             if let Some((r, span)) = mirror(&ctx, &ch, &f.mirror)? {
                 m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
             }
+            if let Some(n) = f.fit {
+                m = m.with_fit_note(FitNote {
+                    objective: n.objective,
+                    minimised: n.minimised,
+                    constraint: n.constraint,
+                });
+            }
             Model::Lafortune(m)
         }
     })
@@ -685,6 +702,17 @@ pub(crate) fn write(model: &Model) -> String {
                     let _ = writeln!(s, "m = [{}]", mats.join(", "));
                 }
                 let _ = writeln!(s, "n = {}", list(lobe.n()));
+            }
+            if let Some(n) = l.fit_note() {
+                // Debug formatting quotes and escapes a string as TOML reads it.
+                let _ = writeln!(
+                    s,
+                    "\n[fit]\nobjective = {:?}\nminimised = {:?}",
+                    n.objective, n.minimised
+                );
+                if let Some(c) = &n.constraint {
+                    let _ = writeln!(s, "constraint = {c:?}");
+                }
             }
         }
     }

@@ -66,7 +66,7 @@ pub use brdf::{Brdf, BrdfSample, IncidentSampler};
 pub use file::{ModelError, ModelErrorKind};
 pub use model::{Model, ModelKind};
 pub use models::{
-    BlinnPhong, CookTorrance, Diffuse, Distribution, Lafortune, LafortuneLobe, MAX_ALBEDO,
+    BlinnPhong, CookTorrance, Diffuse, Distribution, FitNote, Lafortune, LafortuneLobe, MAX_ALBEDO,
     MAX_ALPHA, MAX_EXPONENT, MAX_LOBE_PEAK, MIN_ALPHA, Mirror, OrenNayar, OrenNayarVariant,
     ParamError, Phong, PhongNormalization, Sym3, Ward,
 };

@@ -208,6 +208,8 @@ fn channel(d: &FitData, ch: usize) -> FitData {
         y: vec![d.y[ch].clone()],
         weight: vec![d.weight[ch].clone()],
         chi_square: d.chi_square,
+        objective: d.objective,
+        objective_rule: d.objective_rule.clone(),
         metric: d.metric,
         cut: d.cut,
     }
@@ -225,6 +227,8 @@ fn thin(d: &FitData, max: usize) -> FitData {
         y: d.y.iter().map(pick).collect(),
         weight: d.weight.iter().map(pick).collect(),
         chi_square: d.chi_square,
+        objective: d.objective,
+        objective_rule: d.objective_rule.clone(),
         metric: d.metric,
         cut: d.cut,
     }

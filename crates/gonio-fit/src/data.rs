@@ -1,10 +1,11 @@
 //! The data a fit sees: pairs of directions, values per channel, and the weight of
-//! each residual under the chosen metric.
+//! each residual under the chosen objective.
 
 use std::sync::Arc;
 
 use gonio_core::Channels;
 use gonio_process::{Samples, Table};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::FitError;
@@ -29,16 +30,73 @@ impl Metric {
     }
 }
 
+/// What a fit minimises: Σ (w · (f_model − f_data))² with the weight w of this objective.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Objective {
+    /// Lafortune et al. 1997, Sec. 6 ("the mean-square error of the reflectance
+    /// functions multiplied by the cosines of the incidence and exitance angles"):
+    /// w = the [`Metric`]'s cosines.
+    Cosine,
+    /// χ²: w = 1/σ, the sample's own uncertainty (the maximum-likelihood fit under
+    /// Gaussian noise); needs σ > 0 on every sample and channel.
+    Chi2,
+    /// The relative error: w = 1/max(|f_data|, floor), the floor
+    /// [`RELATIVE_FLOOR`] × the channel's mean |f_data|, so that values near 0 (noise
+    /// about a dark BRDF) do not take over the fit.
+    Relative,
+}
+
+/// The relative objective's floor, as a fraction of the channel's mean |f_data|.
+pub const RELATIVE_FLOOR: f64 = 0.01;
+
+impl Objective {
+    /// Every objective, in the order `--objective` lists them.
+    pub const ALL: [Objective; 3] = [Objective::Cosine, Objective::Chi2, Objective::Relative];
+
+    /// The name `--objective` takes and reports print.
+    pub fn name(self) -> &'static str {
+        match self {
+            Objective::Cosine => "cosine",
+            Objective::Chi2 => "chi2",
+            Objective::Relative => "relative",
+        }
+    }
+
+    /// The objective named `name`.
+    pub fn from_name(name: &str) -> Option<Objective> {
+        Objective::ALL.into_iter().find(|o| o.name() == name)
+    }
+
+    /// The sum minimised, in words.
+    pub fn formula(self, metric: Metric) -> String {
+        match (self, metric) {
+            (Objective::Cosine, Metric::Lafortune) => {
+                "sum of ((f_model - f_data) cos θi cos θo)² (Lafortune et al. 1997, Sec. 6)".into()
+            }
+            (Objective::Cosine, Metric::Ngan) => {
+                "sum of ((f_model - f_data) cos θi)² (Ngan et al. 2005)".into()
+            }
+            (Objective::Chi2, _) => "sum of ((f_model - f_data) / σ)² (χ²)".into(),
+            (Objective::Relative, _) => format!(
+                "sum of ((f_model - f_data) / max(|f_data|, {RELATIVE_FLOOR} × the channel's \
+                 mean |f_data|))² (relative error)"
+            ),
+        }
+    }
+}
+
 /// Options that shape the data.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DataOptions {
-    /// The metric.
+    /// The metric (the cosines of the cosine objective).
     pub metric: Metric,
     /// Leave out pairs with θi or θo above this, degrees (grazing data).
     pub cutoff_deg: f64,
-    /// Divide each residual by the sample's uncertainty where known (a χ² fit); the
-    /// metric's factor then cancels, as it scales the value and its σ alike.
+    /// Whether the default rule may choose χ² (false: `--unweighted`).
     pub use_sigma: bool,
+    /// The objective; `None` chooses by the default rule ([`DataOptions::objective_for`]).
+    pub objective: Option<Objective>,
 }
 
 impl Default for DataOptions {
@@ -47,6 +105,47 @@ impl Default for DataOptions {
             metric: Metric::Lafortune,
             cutoff_deg: 90.0,
             use_sigma: true,
+            objective: None,
+        }
+    }
+}
+
+/// Whether every sample has σ > 0 on every channel.
+fn all_sigma(s: &Samples) -> bool {
+    s.samples
+        .iter()
+        .all(|x| x.sigma.as_ref().is_some_and(|v| v.iter().all(|s| *s > 0.0)))
+}
+
+impl DataOptions {
+    /// The objective for samples `s`, and why it was chosen. The default rule: χ² when
+    /// every sample has σ > 0 (it is then the maximum-likelihood fit, and its standard
+    /// errors rest on the measurement's own uncertainty) unless `use_sigma` is off,
+    /// else the cosine objective. An explicit χ² without σ > 0 everywhere is refused.
+    pub fn objective_for(&self, s: &Samples) -> Result<(Objective, String), FitError> {
+        match self.objective {
+            Some(Objective::Chi2) => {
+                if let Some(i) = s
+                    .samples
+                    .iter()
+                    .position(|x| !x.sigma.as_ref().is_some_and(|v| v.iter().all(|s| *s > 0.0)))
+                {
+                    return Err(FitError::Data(format!(
+                        "objective chi2 needs an uncertainty σ > 0 on every sample and channel; \
+                         sample {i} has none or a zero"
+                    )));
+                }
+                Ok((Objective::Chi2, "asked for".into()))
+            }
+            Some(o) => Ok((o, "asked for".into())),
+            None if self.use_sigma && all_sigma(s) => {
+                Ok((Objective::Chi2, "default: every sample has σ > 0".into()))
+            }
+            None if self.use_sigma => Ok((
+                Objective::Cosine,
+                "default: not every sample has σ > 0".into(),
+            )),
+            None => Ok((Objective::Cosine, "default with --unweighted".into())),
         }
     }
 }
@@ -65,8 +164,12 @@ pub struct FitData {
     pub y: Vec<Vec<f64>>,
     /// Residual weights per channel.
     pub weight: Vec<Vec<f64>>,
-    /// Whether the weights are 1/σ (a χ² fit).
+    /// Whether the weights are 1/σ (a χ² fit): `objective == Objective::Chi2`.
     pub chi_square: bool,
+    /// The objective the weights are those of.
+    pub objective: Objective,
+    /// Why that objective (asked for, or which branch of the default rule).
+    pub objective_rule: String,
     /// The metric.
     pub metric: Metric,
     /// Samples left out by the cutoff.
@@ -110,36 +213,22 @@ impl FitData {
                 )));
             }
         }
-        let chi_square = opts.use_sigma
-            && s.samples
-                .iter()
-                .all(|x| x.sigma.as_ref().is_some_and(|v| v.iter().all(|s| *s > 0.0)));
-        let (mut wis, mut wos) = (Vec::new(), Vec::new());
-        let mut d = FitData {
-            channels: s.channels.clone(),
-            wi: Arc::from([]),
-            wo: Arc::from([]),
-            y: vec![Vec::new(); nc],
-            weight: vec![Vec::new(); nc],
-            chi_square,
-            metric: opts.metric,
-            cut: 0,
-        };
+        let (objective, objective_rule) = opts.objective_for(s)?;
+        let chi_square = objective == Objective::Chi2;
+        let kept: Vec<&gonio_process::Sample> = s
+            .samples
+            .iter()
+            .filter(|x| {
+                let p = &x.pair;
+                p.incident.theta_deg <= opts.cutoff_deg
+                    && p.outgoing.theta_deg <= opts.cutoff_deg
+                    && p.incident.theta_deg < 90.0
+                    && p.outgoing.theta_deg < 90.0
+            })
+            .collect();
         let mut incident: Vec<[i64; 2]> = Vec::new();
-        for x in &s.samples {
+        for x in &kept {
             let p = &x.pair;
-            if p.incident.theta_deg > opts.cutoff_deg
-                || p.outgoing.theta_deg > opts.cutoff_deg
-                || p.incident.theta_deg >= 90.0
-                || p.outgoing.theta_deg >= 90.0
-            {
-                d.cut += 1;
-                continue;
-            }
-            let dirs = p.to_dirs();
-            let (wi, wo) = (dirs.wi, dirs.wo);
-            wis.push([wi.x, wi.y, wi.z]);
-            wos.push([wo.x, wo.y, wo.z]);
             // At normal incidence every φi is the same direction.
             let phi = if p.incident.theta_deg == 0.0 {
                 0.0
@@ -150,18 +239,46 @@ impl FitData {
                 (p.incident.theta_deg * 1e6).round() as i64,
                 (phi.rem_euclid(360.0) * 1e6).round() as i64,
             ];
-            if !incident.contains(&key) && incident.len() < 2 {
+            if !incident.contains(&key) {
                 incident.push(key);
-            }
-            let f = opts.metric.factor(wi.z, wo.z);
-            for ch in 0..nc {
-                d.y[ch].push(x.value[ch]);
-                d.weight[ch].push(match (&x.sigma, chi_square) {
-                    (Some(sg), true) => 1.0 / sg[ch],
-                    _ => f,
-                });
+                if incident.len() == 2 {
+                    break;
+                }
             }
         }
+        // The directions' trigonometry is most of this function's time on large
+        // inputs: in parallel, in order.
+        let (wis, wos): (Vec<[f64; 3]>, Vec<[f64; 3]>) = kept
+            .par_iter()
+            .map(|x| {
+                let d = x.pair.to_dirs();
+                ([d.wi.x, d.wi.y, d.wi.z], [d.wo.x, d.wo.y, d.wo.z])
+            })
+            .unzip();
+        let mut d = FitData {
+            channels: s.channels.clone(),
+            wi: Arc::from([]),
+            wo: Arc::from([]),
+            y: (0..nc)
+                .map(|ch| kept.iter().map(|x| x.value[ch]).collect())
+                .collect(),
+            weight: (0..nc)
+                .map(|ch| {
+                    kept.iter()
+                        .zip(wis.iter().zip(&wos))
+                        .map(|(x, (wi, wo))| match (&x.sigma, objective) {
+                            (Some(sg), Objective::Chi2) => 1.0 / sg[ch],
+                            _ => opts.metric.factor(wi[2], wo[2]),
+                        })
+                        .collect()
+                })
+                .collect(),
+            chi_square,
+            objective,
+            objective_rule,
+            metric: opts.metric,
+            cut: s.samples.len() - kept.len(),
+        };
         d.wi = wis.into();
         d.wo = wos.into();
         if d.is_empty() {
@@ -169,6 +286,21 @@ impl FitData {
                 "no sample below the {}° cutoff",
                 opts.cutoff_deg
             )));
+        }
+        if objective == Objective::Relative {
+            for ch in 0..nc {
+                let mean = d.y[ch].iter().map(|v| v.abs()).sum::<f64>() / d.len() as f64;
+                if mean <= 0.0 {
+                    return Err(FitError::Data(format!(
+                        "objective relative: every value of channel {} is 0",
+                        d.channels.name(ch)
+                    )));
+                }
+                let floor = RELATIVE_FLOOR * mean;
+                for (w, y) in d.weight[ch].iter_mut().zip(&d.y[ch]) {
+                    *w = 1.0 / y.abs().max(floor);
+                }
+            }
         }
         if incident.len() < 2 {
             return Err(FitError::Data(

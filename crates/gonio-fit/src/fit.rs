@@ -16,6 +16,7 @@
 use std::f64::consts::{FRAC_PI_4, PI};
 use std::time::Instant;
 
+use gonio_brdf::FitNote;
 use gonio_brdf::Model;
 use gonio_core::{Channels, Dir};
 use nalgebra::DMatrix;
@@ -37,7 +38,8 @@ pub struct FitOptions {
     pub share_exponents: bool,
     /// Pairs the start search uses at most.
     pub search_samples: usize,
-    /// Scale the fitted model down where its directional albedo exceeds 1.
+    /// Hold the directional albedo ≤ 1 at every incident direction of the data: the
+    /// constrained optimum (see [`EnergyReport`]).
     pub conserve_energy: bool,
 }
 
@@ -76,6 +78,64 @@ pub struct ChannelFit {
     pub reduced_chi2: f64,
 }
 
+/// What was minimised: the objective's name, the sum in words, and why it was chosen.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ObjectiveReport {
+    /// `cosine`, `chi2` or `relative`.
+    pub name: String,
+    /// The sum minimised, in words.
+    pub formula: String,
+    /// Asked for, or which branch of the default rule chose it.
+    pub chosen: String,
+}
+
+/// An energy constraint at one incident direction.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ActiveConstraint {
+    /// Incident polar angle, degrees.
+    pub theta_i_deg: f64,
+    /// Incident azimuth, degrees.
+    pub phi_i_deg: f64,
+    /// The fitted model's directional albedo there.
+    pub albedo: f64,
+    /// Its Lagrange multiplier: how much the channel's objective would fall per unit
+    /// the bound 1 were raised there.
+    pub multiplier: f64,
+}
+
+/// One channel under the energy constraint.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EnergyChannel {
+    /// The channel.
+    pub channel: String,
+    /// The objective (Σ of squared weighted residuals) at the unconstrained optimum.
+    pub unconstrained_cost: f64,
+    /// The objective at the result (equal when no constraint was needed).
+    pub cost: f64,
+    /// The unconstrained optimum's largest albedo over the data's incident directions.
+    pub unconstrained_max_albedo: f64,
+    /// The result's largest albedo over them.
+    pub max_albedo: f64,
+    /// The active set: the directions where albedo ≤ 1 binds, with multipliers.
+    pub active: Vec<ActiveConstraint>,
+}
+
+/// The energy-constrained fit (`conserve_energy`): directional albedo ≤ 1 at each of
+/// the data's incident directions, per channel. When the unconstrained optimum already
+/// satisfies it, it is the result unchanged; otherwise Levenberg–Marquardt continues
+/// from it on the constrained problem, in which each θ's linear coefficients (ρd and
+/// the lobes' strengths, in which every albedo is linear) solve the constrained least
+/// squares exactly.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EnergyReport {
+    /// Incident directions constrained (isotropic fits: one a distinct θi).
+    pub directions: usize,
+    /// Whether the constraint changed the result.
+    pub constrained: bool,
+    /// Per channel.
+    pub channels: Vec<EnergyChannel>,
+}
+
 /// A lobe fit.
 #[derive(Clone, Debug, Serialize)]
 pub struct LobeFit {
@@ -96,10 +156,15 @@ pub struct LobeFit {
     /// Largest directional albedo of the fitted model (θi from 0 to 89°, any
     /// channel), and the factor it was scaled by when energy was conserved.
     pub max_albedo: f64,
-    /// The factor applied by `conserve_energy` (1 when none was needed).
+    /// Kept for readers of older reports: always 1 (energy is conserved by the
+    /// constrained fit, [`LobeFit::energy`], never by rescaling).
     pub energy_scale: f64,
     /// Whether every residual weight was 1/σ.
     pub chi_square: bool,
+    /// What was minimised.
+    pub objective: ObjectiveReport,
+    /// The energy constraint's outcome, when asked for.
+    pub energy: Option<EnergyReport>,
     /// The fitted model.
     #[serde(skip)]
     pub model: Option<Model>,
@@ -126,6 +191,8 @@ fn thin(d: &FitData, max: usize) -> FitData {
             .map(|v| keep.iter().map(|&i| v[i]).collect())
             .collect(),
         chi_square: d.chi_square,
+        objective: d.objective,
+        objective_rule: d.objective_rule.clone(),
         metric: d.metric,
         cut: d.cut,
     }
@@ -143,6 +210,8 @@ fn channel_data(d: &FitData, ch: usize) -> Result<FitData, FitError> {
         y: vec![d.y[ch].clone()],
         weight: vec![d.weight[ch].clone()],
         chi_square: d.chi_square,
+        objective: d.objective,
+        objective_rule: d.objective_rule.clone(),
         metric: d.metric,
         cut: d.cut,
     })
@@ -324,6 +393,59 @@ struct Group {
     basis: LobeBasis,
     data: FitData,
     solved: varpro::Solved,
+    /// Under `conserve_energy`: the limit directions, the unconstrained solution's
+    /// per-channel cost and constraint state, and whether the result is constrained.
+    energy: Option<GroupEnergy>,
+}
+
+struct GroupEnergy {
+    limits: Vec<[f64; 3]>,
+    unconstrained_cost: Vec<f64>,
+    unconstrained: Vec<varpro::ChannelConstraint>,
+    constrained: bool,
+}
+
+/// The distinct incident directions of the data: for an isotropic model (whose albedo
+/// does not depend on φi) one a distinct θi, at φi = 0.
+fn incident_directions(d: &FitData, anisotropic: bool) -> Vec<[f64; 3]> {
+    let key = |w: &[f64; 3]| -> [i64; 3] {
+        if anisotropic {
+            w.map(|x| (x * 1e9).round() as i64)
+        } else {
+            [0, 0, (w[2] * 1e9).round() as i64]
+        }
+    };
+    let mut seen = std::collections::BTreeMap::new();
+    let mut last = None;
+    for w in d.wi.iter() {
+        // Pairs come in runs of one incident direction.
+        if last == Some(*w) {
+            continue;
+        }
+        last = Some(*w);
+        seen.entry(key(w)).or_insert_with(|| {
+            if anisotropic {
+                *w
+            } else {
+                let z = w[2].clamp(-1.0, 1.0);
+                [(1.0 - z * z).max(0.0).sqrt(), 0.0, z]
+            }
+        });
+    }
+    seen.into_values().collect()
+}
+
+/// Σr² of each channel of a group from its residuals.
+fn channel_costs(full: &varpro::Full, channels: usize) -> Vec<f64> {
+    let m = full.residuals.len() / channels.max(1);
+    (0..channels)
+        .map(|ch| {
+            full.residuals[ch * m..(ch + 1) * m]
+                .iter()
+                .map(|r| r * r)
+                .sum()
+        })
+        .collect()
 }
 
 fn fit_group(d: FitData, shape: Shape, shared: bool, opts: &FitOptions) -> Group {
@@ -335,10 +457,46 @@ fn fit_group(d: FitData, shape: Shape, shared: bool, opts: &FitOptions) -> Group
         shared,
     };
     let solved = varpro::solve(&basis, &d, &theta0, 200);
+    let mut energy = None;
+    let mut solved = solved;
+    if opts.conserve_energy {
+        let limits = incident_directions(&d, shape.anisotropic);
+        // The unconstrained optimum's albedos: the constrained problem at the same θ
+        // with no row active reproduces them, so evaluate them directly.
+        let nl = limits.len();
+        let k = varpro::Basis::n_cols(&basis);
+        let unconstrained: Vec<varpro::ChannelConstraint> = (0..d.channels.len())
+            .map(|ch| {
+                let mut b = vec![0.0; nl * k];
+                varpro::Basis::albedo_rows(&basis, &solved.theta, ch, &limits, &mut b, None);
+                varpro::ChannelConstraint {
+                    albedo: (0..nl)
+                        .map(|l| (0..k).map(|u| b[l * k + u] * solved.coef[ch][u]).sum())
+                        .collect(),
+                    multiplier: vec![0.0; nl],
+                }
+            })
+            .collect();
+        let unconstrained_cost = channel_costs(&solved.full, d.channels.len());
+        let exceeds = unconstrained
+            .iter()
+            .any(|c| c.albedo.iter().any(|a| *a > 1.0));
+        if exceeds {
+            solved =
+                varpro::solve_with(&basis, &d, &solved.theta, 200, 1e-10, Some(limits.clone()));
+        }
+        energy = Some(GroupEnergy {
+            limits,
+            unconstrained_cost,
+            unconstrained,
+            constrained: exceeds,
+        });
+    }
     Group {
         basis,
         data: d,
         solved,
+        energy,
     }
 }
 
@@ -392,6 +550,16 @@ fn std_errors(
 
 /// The model file of the fitted parameters.
 pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Result<Model, FitError> {
+    to_model_noted(channels, params, shape, None)
+}
+
+/// [`to_model`] with the model file's `[fit]` table (what was minimised).
+pub fn to_model_noted(
+    channels: &Channels,
+    params: &[Natural],
+    shape: &Shape,
+    note: Option<FitNote>,
+) -> Result<Model, FitError> {
     let names = channels.names();
     let list = |f: &dyn Fn(&Natural) -> f64| -> String {
         let v: Vec<String> = params.iter().map(|p| format!("{:?}", f(p))).collect();
@@ -418,7 +586,12 @@ pub fn to_model(channels: &Channels, params: &[Natural], shape: &Shape) -> Resul
             list(&|p| p.lobes[j][3].max(0.0)),
         ));
     }
-    Model::from_toml(&s, None).map_err(|e| FitError::Numerics(format!("fitted model: {e}")))
+    let model =
+        Model::from_toml(&s, None).map_err(|e| FitError::Numerics(format!("fitted model: {e}")))?;
+    Ok(match (model, note) {
+        (Model::Lafortune(l), Some(n)) => Model::Lafortune(l.with_fit_note(n)),
+        (m, _) => m,
+    })
 }
 
 /// The largest directional albedo of a model over θi ∈ [0, 89°] by 1°, at φi = 0
@@ -458,9 +631,53 @@ fn max_albedo(model: &Model, anisotropic: bool) -> f64 {
     at(&near).into_iter().map(|x| x.1).fold(best, f64::max)
 }
 
+/// One channel's statistics, parameters and energy constraint.
+type Reported = (ChannelFit, Natural, Option<EnergyChannel>);
+
+/// A channel's energy constraint from its group's.
+fn energy_channel(g: &Group, ch: usize, name: String) -> Option<EnergyChannel> {
+    let e = g.energy.as_ref()?;
+    let after = if e.constrained {
+        g.solved.constraints.get(ch)?
+    } else {
+        &e.unconstrained[ch]
+    };
+    let m = g.data.len();
+    let cost = if e.constrained {
+        g.solved
+            .full
+            .residuals
+            .get(ch * m..(ch + 1) * m)
+            .map_or(f64::NAN, |r| r.iter().map(|x| x * x).sum())
+    } else {
+        e.unconstrained_cost[ch]
+    };
+    let max = |a: &[f64]| a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let active = e
+        .limits
+        .iter()
+        .zip(after.albedo.iter().zip(&after.multiplier))
+        .filter(|(_, (a, mu))| e.constrained && (**mu > 0.0 || **a >= 1.0 - 1e-9))
+        .map(|(w, (a, mu))| ActiveConstraint {
+            theta_i_deg: w[2].clamp(-1.0, 1.0).acos().to_degrees(),
+            phi_i_deg: w[1].atan2(w[0]).to_degrees().rem_euclid(360.0),
+            albedo: *a,
+            multiplier: *mu,
+        })
+        .collect();
+    Some(EnergyChannel {
+        channel: name,
+        unconstrained_cost: e.unconstrained_cost[ch],
+        cost,
+        unconstrained_max_albedo: max(&e.unconstrained[ch].albedo),
+        max_albedo: max(&after.albedo),
+        active,
+    })
+}
+
 /// The fitted parameters and statistics of a group's channels; `channel` is the
 /// group's index in `names` when it holds one channel of several.
-fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFit, Natural)> {
+fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<Reported> {
     let m = g.data.len();
     let theta = &g.solved.theta;
     let coef = &g.solved.coef;
@@ -520,9 +737,10 @@ fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFi
             })
             .collect();
         let std_err = std_errors(&g.basis, theta, &coef[ch], &cov, ch);
+        let name = names.name(channel.unwrap_or(ch));
         out.push((
             ChannelFit {
-                channel: names.name(channel.unwrap_or(ch)),
+                channel: name.clone(),
                 params: p.clone(),
                 std_err,
                 rms,
@@ -531,6 +749,7 @@ fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec<(ChannelFi
                 reduced_chi2: s2,
             },
             p,
+            energy_channel(g, ch, name),
         ));
     }
     out
@@ -554,9 +773,15 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
     let shared = opts.share_exponents && nc > 1;
     // Each group is fitted and reported in one parallel task, so a channel that
     // finishes early computes its statistics while the others still fit.
-    let groups: Vec<(usize, Vec<(ChannelFit, Natural)>)> = if shared {
+    let groups: Vec<(usize, Vec<Reported>, usize, bool)> = if shared {
         let g = fit_group(data.clone(), opts.shape, true, opts);
-        vec![(g.solved.evaluations, report(&g, &data.channels, None))]
+        let e = energy_of(&g);
+        vec![(
+            g.solved.evaluations,
+            report(&g, &data.channels, None),
+            e.0,
+            e.1,
+        )]
     } else {
         (0..nc)
             .map(|ch| channel_data(data, ch).map(|d| (ch, d)))
@@ -564,33 +789,41 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
             .into_par_iter()
             .map(|(ch, d)| {
                 let g = fit_group(d, opts.shape, false, opts);
-                (g.solved.evaluations, report(&g, &data.channels, Some(ch)))
+                let e = energy_of(&g);
+                (
+                    g.solved.evaluations,
+                    report(&g, &data.channels, Some(ch)),
+                    e.0,
+                    e.1,
+                )
             })
             .collect()
     };
     let evaluations = groups.iter().map(|g| g.0).sum();
-    let (mut channels, mut params): (Vec<ChannelFit>, Vec<Natural>) =
-        groups.into_iter().flat_map(|g| g.1).unzip();
-    let mut model = to_model(&data.channels, &params, &opts.shape)?;
-    let alb = max_albedo(&model, opts.shape.anisotropic);
-    let mut energy_scale = 1.0;
-    if opts.conserve_energy && alb > 1.0 {
-        // DeYoung Eq. 5.6 applied to the model: one factor, the worst direction's.
-        energy_scale = 1.0 / alb;
-        for p in &mut params {
-            p.rho_d *= energy_scale;
-            for l in &mut p.lobes {
-                let r = energy_scale.powf(1.0 / l[3]);
-                l[0] *= r;
-                l[1] *= r;
-                l[2] *= r;
-            }
-        }
-        for (c, p) in channels.iter_mut().zip(&params) {
-            c.params = p.clone();
-        }
-        model = to_model(&data.channels, &params, &opts.shape)?;
+    let directions = groups.iter().map(|g| g.2).max().unwrap_or(0);
+    let constrained = groups.iter().any(|g| g.3);
+    let mut channels = Vec::new();
+    let mut params = Vec::new();
+    let mut energy_channels = Vec::new();
+    for (c, p, e) in groups.into_iter().flat_map(|g| g.1) {
+        channels.push(c);
+        params.push(p);
+        energy_channels.extend(e);
     }
+    let objective = ObjectiveReport {
+        name: data.objective.name().into(),
+        formula: data.objective.formula(data.metric),
+        chosen: data.objective_rule.clone(),
+    };
+    let note = FitNote {
+        objective: objective.name.clone(),
+        minimised: objective.formula.clone(),
+        constraint: opts
+            .conserve_energy
+            .then(|| "directional albedo <= 1 at every incident direction of the data".to_string()),
+    };
+    let model = to_model_noted(&data.channels, &params, &opts.shape, Some(note))?;
+    let alb = max_albedo(&model, opts.shape.anisotropic);
     Ok(LobeFit {
         model_toml: model.to_toml(),
         channels,
@@ -600,10 +833,23 @@ pub fn fit_lobes(data: &FitData, opts: &FitOptions) -> Result<LobeFit, FitError>
         evaluations,
         seconds: started.elapsed().as_secs_f64(),
         max_albedo: alb,
-        energy_scale,
+        energy_scale: 1.0,
         chi_square: data.chi_square,
+        objective,
+        energy: opts.conserve_energy.then_some(EnergyReport {
+            directions,
+            constrained,
+            channels: energy_channels,
+        }),
         model: Some(model),
     })
+}
+
+/// A group's constrained directions and whether the constraint changed it.
+fn energy_of(g: &Group) -> (usize, bool) {
+    g.energy
+        .as_ref()
+        .map_or((0, false), |e| (e.limits.len(), e.constrained))
 }
 
 #[cfg(test)]

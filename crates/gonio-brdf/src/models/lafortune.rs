@@ -231,6 +231,21 @@ pub struct Lafortune {
     lobes: Vec<LafortuneLobe>,
     diffuse: Option<Diffuse>,
     mirror: Option<Mirror>,
+    /// Boxed: the model is copied and held in enums where its size counts.
+    fit: Option<Box<FitNote>>,
+}
+
+/// How a model's parameters were fitted, as `gonio fit` records it in the model file's
+/// optional `[fit]` table. Informational: nothing evaluates it, and files without it
+/// load as before.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FitNote {
+    /// The objective's name (`cosine`, `chi2`, `relative`).
+    pub objective: String,
+    /// The sum minimised, in words.
+    pub minimised: String,
+    /// The energy constraint the fit was held to, in words, when there was one.
+    pub constraint: Option<String>,
 }
 
 impl Lafortune {
@@ -253,7 +268,19 @@ impl Lafortune {
             lobes,
             diffuse: None,
             mirror: None,
+            fit: None,
         })
+    }
+
+    /// Records how the parameters were fitted (the `[fit]` table).
+    pub fn with_fit_note(mut self, note: FitNote) -> Self {
+        self.fit = Some(Box::new(note));
+        self
+    }
+
+    /// How the parameters were fitted, when the model file says.
+    pub fn fit_note(&self) -> Option<&FitNote> {
+        self.fit.as_deref()
     }
 
     /// Adds a diffuse term, which must have the model's channels.

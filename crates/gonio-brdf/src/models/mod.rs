@@ -12,7 +12,7 @@ pub use crate::microfacet::Distribution;
 pub use blinn_phong::BlinnPhong;
 pub use cook_torrance::CookTorrance;
 pub use diffuse::Diffuse;
-pub use lafortune::{Lafortune, LafortuneLobe, Sym3};
+pub use lafortune::{FitNote, Lafortune, LafortuneLobe, Sym3};
 pub use oren_nayar::{OrenNayar, OrenNayarVariant};
 pub use phong::{Mirror, Phong, PhongNormalization};
 pub use ward::Ward;

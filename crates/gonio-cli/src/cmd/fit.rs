@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_fit::compare::{self, Kind};
-use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Shape, fit_lobes};
+use gonio_fit::{DataOptions, Diffuse, FitData, FitOptions, Metric, Objective, Shape, fit_lobes};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
@@ -40,10 +40,17 @@ pub struct FitArgs {
     /// One set of exponents for all channels.
     #[arg(long)]
     share_exponents: bool,
-    /// Scale the model down where its directional albedo exceeds 1.
+    /// Hold the directional albedo ≤ 1 at every incident direction of the data (the
+    /// constrained optimum; its active set and multipliers are reported).
     #[arg(long)]
     conserve_energy: bool,
-    /// Ignore the samples' uncertainties (fit the metric unweighted).
+    /// What is minimised: cosine (Lafortune et al. Sec. 6: the error times the
+    /// metric's cosines), chi2 (the error over σ) or relative (the error over the value,
+    /// floored at 1% of the channel's mean |value|). Default: chi2 when every sample has
+    /// σ > 0, else cosine.
+    #[arg(long)]
+    objective: Option<String>,
+    /// Ignore the samples' uncertainties: the same as --objective cosine.
     #[arg(long)]
     unweighted: bool,
     /// Also fit Ward, Blinn-Phong and Cook–Torrance on the same data and metric.
@@ -58,6 +65,74 @@ pub struct FitArgs {
     reduction: ReduceFlags,
     #[command(flatten)]
     json: JsonFlag,
+}
+
+/// The samples of a sample CSV that reads and validates cleanly, as they are; `None`
+/// for anything else (a run, a table, another format, a file with faults), which goes
+/// through `gonio_dataset::open` and its errors. A fit needs the samples, not a grid:
+/// the dataset's grid recognition (`Samples::to_table`) and the table's samples back
+/// (`Samples::from_table`) were a third of `gonio fit`'s time on a 98 000-row CSV
+/// (BENCHMARKS.md), and give the same samples.
+fn plain_samples(path: &Path) -> Option<gonio_process::Samples> {
+    let bytes = gonio_core::input::read_bounded(path, gonio_dataset::MAX_TEXT_BYTES).ok()?;
+    if gonio_dataset::detect(&bytes) != Some(gonio_dataset::Kind::Csv) {
+        return None;
+    }
+    let text = std::str::from_utf8(&bytes).ok()?;
+    let s = read_halves(text, path)?;
+    (s.samples.len() <= gonio_process::file::MAX_ROWS && s.validate().is_ok()).then_some(s)
+}
+
+/// Rows at which a sample file is worth reading in two halves.
+const SPLIT_ROWS: usize = 20_000;
+
+/// A sample file read by `gonio_process::file::read` in two halves at once, each the
+/// file's header lines and half of its rows, joined in order: the reader's work is a
+/// row at a time, so the halves give the file's samples, on two cores in about half
+/// the time (52 → 28 ms on a 98 000-row file, quiet machine; BENCHMARKS.md). A table
+/// (`# grid:`), a small file or any fault in either half is `None`, left to the
+/// whole-file reading that reports it.
+fn read_halves(text: &str, path: &Path) -> Option<gonio_process::Samples> {
+    use gonio_process::file::{Content, read};
+    let whole = || match read(text, Some(path)).ok()? {
+        Content::Samples(s) => Some(s),
+        Content::Table(_) => None,
+    };
+    // The header: every line up to the first that is neither blank nor a comment.
+    let mut end = 0;
+    for line in text.split_inclusive('\n') {
+        end += line.len();
+        let l = gonio_core::text::strip_bom(line).trim();
+        if let Some(c) = l.strip_prefix('#') {
+            if c.split_once(':').is_some_and(|(k, _)| k.trim() == "grid") {
+                return None;
+            }
+        } else if !l.is_empty() {
+            break;
+        }
+    }
+    let (head, body) = text.split_at(end);
+    if body.len() < SPLIT_ROWS * 16 {
+        return whole();
+    }
+    let mid = body.len() / 2;
+    let cut = mid + body[mid..].find('\n')? + 1;
+    let second = format!("{head}{}", &body[cut..]);
+    let first = &text[..end + cut];
+    let (a, b) = std::thread::scope(|sc| {
+        let h = sc.spawn(|| read(&second, Some(path)).ok());
+        let a = read(first, Some(path)).ok();
+        (a, h.join().ok().flatten())
+    });
+    match (a?, b?) {
+        (Content::Samples(mut a), Content::Samples(b))
+            if a.channels == b.channels && a.isotropic == b.isotropic =>
+        {
+            a.samples.extend(b.samples);
+            Some(a)
+        }
+        _ => None,
+    }
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -113,18 +188,39 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             )));
         }
     };
-    let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
-    // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
-    let samples = opened.data.to_samples(200_000, &a.input)?;
+    let objective = match a.objective.as_deref() {
+        None => None,
+        Some(x) => Some(Objective::from_name(x).ok_or_else(|| {
+            CliError::Input(format!("--objective: cosine, chi2 or relative, got {x:?}"))
+        })?),
+    };
+    if a.unweighted && objective.is_some_and(|o| o != Objective::Cosine) {
+        return Err(CliError::Input(
+            "--unweighted is --objective cosine: it cannot be combined with another objective"
+                .into(),
+        ));
+    }
+    let samples = match plain_samples(&a.input) {
+        Some(s) => s,
+        None => {
+            let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
+            // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
+            opened.data.to_samples(200_000, &a.input)?
+        }
+    };
     let data = FitData::from_samples(
         &samples,
         &DataOptions {
             metric,
             cutoff_deg: a.cutoff,
             use_sigma: !a.unweighted,
+            objective,
         },
     )
     .map_err(|e| input_err(&a.input, e))?;
+    // Not needed again, and the process ends with this command: freeing a sample's
+    // two small allocations one by one is milliseconds on a 100 000-row input.
+    std::mem::forget(samples);
     let opts = FitOptions {
         shape: Shape {
             lobes: a.lobes,
@@ -143,11 +239,12 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     })?;
     if let Some(target) = &target {
         let header = format!(
-            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, {} pairs\n",
+            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, objective {}, {} pairs\n",
             a.input.display(),
             a.lobes,
             diffuse,
             metric,
+            data.objective.name(),
             data.len()
         );
         target.write((header + &fit.model_toml).as_bytes())?;
@@ -187,6 +284,11 @@ pub fn run(a: FitArgs) -> CliResult<()> {
                 "unweighted"
             },
             metric
+        )?;
+        writeln!(
+            w,
+            "objective {} ({}): minimises the {}",
+            fit.objective.name, fit.objective.chosen, fit.objective.formula
         )?;
         for c in &fit.channels {
             writeln!(
@@ -233,14 +335,52 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             fit.evaluations,
             fit.seconds,
             fit.max_albedo,
-            if fit.energy_scale < 1.0 {
-                format!(" (scaled by {:.4} to conserve energy)", fit.energy_scale)
-            } else if fit.max_albedo > 1.0 {
-                " — exceeds 1: --conserve-energy scales it down".to_string()
-            } else {
-                String::new()
+            match (&fit.energy, fit.max_albedo > 1.0) {
+                (None, true) => " — exceeds 1: --conserve-energy fits under albedo ≤ 1",
+                (Some(_), true) => {
+                    " — above 1 beyond the data's incident directions, which the constraint holds"
+                }
+                _ => "",
             }
         )?;
+        if let Some(e) = &fit.energy {
+            writeln!(
+                w,
+                "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
+                e.directions,
+                if e.constrained {
+                    "the constrained optimum"
+                } else {
+                    "the unconstrained optimum already meets it, unchanged"
+                }
+            )?;
+            for c in &e.channels {
+                writeln!(
+                    w,
+                    "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
+                     (unconstrained {:.6e}); active: {}",
+                    c.channel,
+                    c.max_albedo,
+                    c.unconstrained_max_albedo,
+                    c.cost,
+                    c.unconstrained_cost,
+                    if c.active.is_empty() {
+                        "none".to_string()
+                    } else {
+                        c.active
+                            .iter()
+                            .map(|x| {
+                                format!(
+                                    "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
+                                    x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
+                                )
+                            })
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                )?;
+            }
+        }
         if let Some(out) = &a.out {
             writeln!(w, "model: {}", out.display())?;
         }
@@ -278,4 +418,61 @@ pub fn run(a: FitArgs) -> CliResult<()> {
         }
         w.flush()
     })())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sample file of `rows` rows with comments in its header and in its body.
+    fn text(rows: usize, newline: &str) -> String {
+        let mut t = format!(
+            "# isotropic: true{newline}# note: x{newline}\
+             theta_i,phi_i,theta_o,phi_o,R,G,B,sigma_R,sigma_G,sigma_B{newline}"
+        );
+        for i in 0..rows {
+            if i == rows / 2 {
+                t.push_str(&format!("# a comment in the body{newline}"));
+            }
+            t.push_str(&format!(
+                "{},0,{},{},{},{},0.3,0.01,0.02,0.03{newline}",
+                (i % 80) as f64,
+                (i / 80 % 89) as f64,
+                (i % 360) as f64,
+                0.1 + i as f64 * 1e-6,
+                0.2 - i as f64 * 1e-6
+            ));
+        }
+        t
+    }
+
+    #[test]
+    fn the_halves_read_the_same_samples_as_the_whole_file() {
+        let path = Path::new("test.csv");
+        for nl in ["\n", "\r\n"] {
+            for rows in [30_000, 30_001, 100] {
+                let t = text(rows, nl);
+                let whole = match gonio_process::file::read(&t, Some(path)).expect("reads") {
+                    gonio_process::file::Content::Samples(s) => s,
+                    gonio_process::file::Content::Table(_) => panic!("samples"),
+                };
+                let halves = read_halves(&t, path).expect("halves");
+                assert_eq!(halves, whole, "{rows} rows");
+                assert!(halves.isotropic && halves.samples.len() == rows);
+            }
+        }
+        // A fault in either half is left to the whole-file reading.
+        for at in [100, 29_000] {
+            let mut t = text(30_000, "\n");
+            let line = t.lines().nth(3 + at).expect("a row").to_string();
+            t = t.replacen(&line, &line.replace("0.03", "x"), 1);
+            assert!(read_halves(&t, path).is_none(), "row {at}");
+        }
+        // A table is not read as samples.
+        let grid = format!(
+            "# grid: isotropic=false phi_i=0:90:1 theta_i=0:45:1 phi_o=0:90:1 theta_o=0:45:2\n{}",
+            text(30_000, "\n")
+        );
+        assert!(read_halves(&grid, path).is_none());
+    }
 }

@@ -8,6 +8,7 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use super::nnls::nnls;
+use super::qp::{QpSolution, qp};
 use super::{Basis, Prepared};
 use crate::data::FitData;
 use crate::fastmath::dot;
@@ -28,6 +29,118 @@ pub struct Evaluation {
     /// With the Jacobian asked for: the residuals and the Gram matrices of the full
     /// (unprojected) problem, for the standard errors.
     pub full: Option<Full>,
+    /// Under the energy constraint ([`Prepared::limits`]), per channel: the albedo and
+    /// the multiplier at each limit direction; empty without it.
+    pub constraints: Vec<ChannelConstraint>,
+}
+
+/// One channel's energy constraint at the evaluated θ.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ChannelConstraint {
+    /// Directional albedo B c at each limit direction.
+    pub albedo: Vec<f64>,
+    /// Lagrange multiplier of albedo ≤ 1 at each: the fall of Σr² per unit the bound
+    /// were raised (0 where the constraint is inactive).
+    pub multiplier: Vec<f64>,
+}
+
+/// The pseudo-inverse (n × m) of an m × n matrix; zeros when it is empty (no active
+/// row, or no free coefficient), which nalgebra's SVD refuses.
+fn pseudo_inverse(m: &DMatrix<f64>, eps: f64) -> DMatrix<f64> {
+    let (r, c) = m.shape();
+    if r == 0 || c == 0 {
+        return DMatrix::zeros(c, r);
+    }
+    m.clone()
+        .pseudo_inverse(eps)
+        .unwrap_or_else(|_| DMatrix::zeros(c, r))
+}
+
+/// Kaufman's JᵀJ and Jᵀr when the albedo rows R of B c ≤ 1 are active (`sol`): the
+/// coefficients then move with θ along ∂c/∂θ = D, the smallest step with
+/// B_R D = −(∂B_R/∂θ) c on the free coefficients, so the residual's derivative is
+/// V' = V + W A D, projected off the columns W A N that the free coefficients still
+/// span within the active rows (N: the null space of B_R on them). With the
+/// multipliers μ this gives the exact gradient of the projected cost,
+/// 2 Jᵀr = 2 Vᵀr + μᵀ(∂B/∂θ)c (Danskin). `acc` holds (WA)ᵀ[V | r] then
+/// [V | r]ᵀ[V | r] as [`evaluate_prepared`] accumulates them. Returns JᵀJ (p × p,
+/// row-major) and Jᵀr.
+#[allow(clippy::too_many_arguments)]
+fn constrained_normal(
+    acc: &[f64],
+    g: &[f64],
+    k: usize,
+    p: usize,
+    sol: &QpSolution,
+    b: &[f64],
+    db: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
+    let q = p + 1;
+    // Equilibrated coordinates (unit Gram diagonal): c̃ = s ∘ c.
+    let sc: Vec<f64> = (0..k)
+        .map(|u| {
+            let x = g[u * k + u];
+            if x > 0.0 && x.is_finite() {
+                x.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let inv = |u: usize| if sc[u] > 0.0 { 1.0 / sc[u] } else { 0.0 };
+    let gs = DMatrix::from_fn(k, k, |u, v| g[u * k + v] * inv(u) * inv(v));
+    let am = DMatrix::from_fn(k, q, |u, bcol| acc[u * q + bcol] * inv(u));
+    let mm = DMatrix::from_fn(q, q, |a, bcol| acc[(k + a) * q + bcol]);
+    let free: Vec<usize> = (0..k)
+        .filter(|&u| !sol.at_bound[u] && sc[u] > 0.0)
+        .collect();
+    let rows: Vec<usize> = (0..sol.row_active.len())
+        .filter(|&l| sol.row_active[l])
+        .collect();
+    let nf = free.len();
+    // B_R on the free coefficients (equilibrated), and −(∂B_R/∂θ) c.
+    let brf = DMatrix::from_fn(rows.len(), nf, |r, x| {
+        b[rows[r] * k + free[x]] * inv(free[x])
+    });
+    let e = DMatrix::from_fn(rows.len(), q, |r, a| {
+        if a == p {
+            return 0.0;
+        }
+        -(0..k)
+            .map(|u| db[(rows[r] * k + u) * p + a] * sol.c[u])
+            .sum::<f64>()
+    });
+    let pinv = pseudo_inverse(&brf, 1e-12);
+    let df = &pinv * e;
+    let mut d = DMatrix::<f64>::zeros(k, q);
+    for (x, &u) in free.iter().enumerate() {
+        for a in 0..q {
+            d[(u, a)] = df[(x, a)];
+        }
+    }
+    // [V' | r] = [V | r] + W A D.
+    let am2 = &am + &gs * &d;
+    let mm2 = &mm + d.transpose() * &am + am.transpose() * &d + d.transpose() * &gs * &d;
+    // N: an orthonormal basis of the null space of B_R on the free coefficients.
+    let mut n = DMatrix::<f64>::zeros(k, 0);
+    if nf > 0 {
+        let proj = DMatrix::<f64>::identity(nf, nf) - &pinv * &brf;
+        let eig = proj.symmetric_eigen();
+        let basis: Vec<usize> = (0..nf).filter(|&i| eig.eigenvalues[i] > 0.5).collect();
+        n = DMatrix::<f64>::zeros(k, basis.len());
+        for (col, &i) in basis.iter().enumerate() {
+            for (x, &u) in free.iter().enumerate() {
+                n[(u, col)] = eig.eigenvectors[(x, i)];
+            }
+        }
+    }
+    let x = n.transpose() * &am2;
+    let h = n.transpose() * &gs * &n;
+    let hinv = pseudo_inverse(&h, 1e-13);
+    let full = mm2 - x.transpose() * hinv * &x;
+    let jtj = (0..p * p).map(|i| full[(i / p, i % p)]).collect();
+    let jtr = (0..p).map(|a| full[(a, p)]).collect();
+    (jtj, jtr)
 }
 
 /// What the covariance of all parameters (θ and every channel's c) needs: the Gram
@@ -272,11 +385,32 @@ pub fn evaluate_prepared(
         residuals: Vec::with_capacity(nc * prep.data.len()),
         grams: Vec::with_capacity(nc),
     });
+    let limits = prep.limits.as_deref().filter(|l| !l.is_empty());
+    let mut constraints = Vec::new();
     for ch in 0..nc {
         let q = if jac { p + 1 } else { 0 };
         let stride = k + q;
         let mut cl = columns(basis, prep, theta, ch, q);
-        let c = nnls(&cl.g, &cl.h, k);
+        let mut bounded = None;
+        let c = match limits {
+            None => nnls(&cl.g, &cl.h, k),
+            Some(lim) => {
+                let nl = lim.len();
+                let mut bm = vec![0.0; nl * k];
+                let mut dbm = vec![0.0; if jac { nl * k * p } else { 0 }];
+                basis.albedo_rows(theta, ch, lim, &mut bm, jac.then_some(&mut dbm[..]));
+                let sol = qp(&cl.g, &cl.h, k, &bm, nl);
+                constraints.push(ChannelConstraint {
+                    albedo: (0..nl)
+                        .map(|l| (0..k).map(|u| bm[l * k + u] * sol.c[u]).sum())
+                        .collect(),
+                    multiplier: sol.multiplier.clone(),
+                });
+                let c = sol.c.clone();
+                bounded = Some((sol, bm, dbm));
+                c
+            }
+        };
         let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
         let nf = free.len();
         let wy = &prep.wy[ch];
@@ -334,6 +468,25 @@ pub fn evaluate_prepared(
             let am = |u: usize, b: usize| acc[u * q + b];
             let mm = |a: usize, b: usize| acc[(k + a) * q + b];
             cost += mm(p, p);
+            if let Some((sol, bm, dbm)) = &bounded {
+                let (a2, r2) = constrained_normal(&acc, &cl.g, k, p, sol, bm, dbm);
+                for (x, y) in jtj.iter_mut().zip(&a2) {
+                    *x += y;
+                }
+                for (x, y) in jtr.iter_mut().zip(&r2) {
+                    *x += y;
+                }
+                if let Some(f) = full.as_mut() {
+                    let vv = (0..p * p).map(|i| mm(i / p, i % p)).collect();
+                    let av = (0..k * p).map(|i| am(i / p, i % p)).collect();
+                    f.grams.push([vv, av, cl.g.clone()]);
+                }
+                coef.push(c);
+                if let Ok(mut b) = prep.buffers.lock() {
+                    *b = Some((cl.cols, cl.scratch));
+                }
+                continue;
+            }
             // JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr:
             // J = (I − A_F G_F⁻¹ A_Fᵀ) V. (A_Fᵀr vanishes at the projection's optimum
             // up to rounding; it is kept rather than assumed.)
@@ -380,6 +533,7 @@ pub fn evaluate_prepared(
         cost,
         normal: jac.then_some((jtj, jtr)),
         full,
+        constraints,
     }
 }
 

@@ -4,7 +4,7 @@
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 
-use super::eval::{Evaluation, Full, evaluate, evaluate_prepared};
+use super::eval::{ChannelConstraint, Evaluation, Full, evaluate_prepared};
 use super::{Basis, Prepared};
 use crate::data::FitData;
 
@@ -154,6 +154,9 @@ pub struct Solved {
     pub termination: TerminationReason,
     /// Residuals and Gram matrices at θ (for the standard errors).
     pub full: Full,
+    /// Under the energy constraint: per channel, the albedo and multiplier at each
+    /// limit direction at θ (empty without it).
+    pub constraints: Vec<ChannelConstraint>,
 }
 
 /// Minimises the projected problem from `theta` to full precision (relative cost
@@ -173,9 +176,26 @@ pub fn solve_to(
     patience: usize,
     ftol: f64,
 ) -> Solved {
+    solve_with(basis, data, theta, patience, ftol, None)
+}
+
+/// [`solve_to`] with the directional albedo held ≤ 1 at the incident directions
+/// `limits` (every θ's linear coefficients then solve the constrained problem exactly,
+/// [`qp`](super::qp), and Levenberg–Marquardt searches θ on the constrained projected
+/// cost); `None` is [`solve_to`].
+pub fn solve_with(
+    basis: &dyn Basis,
+    data: &FitData,
+    theta: &[f64],
+    patience: usize,
+    ftol: f64,
+    limits: Option<Vec<[f64; 3]>>,
+) -> Solved {
     if basis.n_params() == 0 {
         // Nothing non-linear (a Lambertian fit): the projection is the whole answer.
-        let e = evaluate(basis, data, theta, true);
+        let mut prep = Prepared::new(data);
+        prep.limits = limits;
+        let e = evaluate_prepared(basis, &prep, theta, true);
         return Solved {
             theta: theta.to_vec(),
             coef: e.coef,
@@ -189,6 +209,7 @@ pub fn solve_to(
                 residuals: Vec::new(),
                 grams: Vec::new(),
             }),
+            constraints: e.constraints,
         };
     }
     let lm = LevenbergMarquardt::new()
@@ -196,7 +217,9 @@ pub fn solve_to(
         .with_ftol(ftol)
         .with_xtol((100.0 * ftol).max(1e-10))
         .with_gtol(1e-12);
-    let (problem, report) = lm.minimize(Projected::new(basis, data, theta));
+    let mut start = Projected::new(basis, data, theta);
+    start.prep.limits = limits;
+    let (problem, report) = lm.minimize(start);
     let theta = problem.theta.as_slice().to_vec();
     // The crate leaves θ at an accepted point, whose evaluation is usually kept.
     let kept = problem
@@ -217,5 +240,6 @@ pub fn solve_to(
             residuals: Vec::new(),
             grams: Vec::new(),
         }),
+        constraints: e.constraints,
     }
 }

@@ -17,12 +17,16 @@
 mod eval;
 mod lm;
 mod nnls;
+mod qp;
 
 use crate::data::FitData;
 
-pub use eval::{Evaluation, Full, column_vectors, evaluate, evaluate_prepared, residuals};
-pub use lm::{Projected, Solved, solve, solve_to};
+pub use eval::{
+    ChannelConstraint, Evaluation, Full, column_vectors, evaluate, evaluate_prepared, residuals,
+};
+pub use lm::{Projected, Solved, solve, solve_to, solve_with};
 pub use nnls::nnls;
+pub use qp::{QpSolution, qp};
 
 /// Columns of a separable model and their derivatives.
 pub trait Basis: Sync {
@@ -58,6 +62,25 @@ pub trait Basis: Sync {
         for i in 0..wi.len() {
             let di = d.as_deref_mut().map(|d| &mut d[i * k * p..(i + 1) * k * p]);
             self.eval(theta, ch, wi[i], wo[i], &mut cols[i * k..(i + 1) * k], di);
+        }
+    }
+
+    /// The directional albedo of each column of channel `ch` (unit coefficient) at
+    /// incident directions `wi`: `b[l * K + u]`; with `db`, also ∂b/∂θ_q into
+    /// `db[(l * K + u) * P + q]`. An energy-constrained fit holds B c ≤ 1. The default
+    /// has no albedo (all 0: no constraint).
+    fn albedo_rows(
+        &self,
+        theta: &[f64],
+        ch: usize,
+        wi: &[[f64; 3]],
+        b: &mut [f64],
+        db: Option<&mut [f64]>,
+    ) {
+        let _ = (theta, ch, wi);
+        b.fill(0.0);
+        if let Some(db) = db {
+            db.fill(0.0);
         }
     }
 
@@ -153,6 +176,9 @@ pub struct Prepared<'a> {
     /// The columns' and scratch buffers of the last evaluation, reused: allocating
     /// megabytes anew each time costs page faults and zeroing.
     buffers: std::sync::Mutex<Option<(Vec<f64>, Vec<f64>)>>,
+    /// Incident directions at which the directional albedo is held ≤ 1 (the energy
+    /// constraint), if any.
+    pub limits: Option<Vec<[f64; 3]>>,
 }
 
 impl<'a> Prepared<'a> {
@@ -176,6 +202,7 @@ impl<'a> Prepared<'a> {
             uv,
             wy,
             buffers: std::sync::Mutex::new(None),
+            limits: None,
         }
     }
 
