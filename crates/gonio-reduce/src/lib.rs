@@ -177,7 +177,7 @@ struct Measured {
 }
 
 /// The variance factors of n snapshots whose noise correlates as ρ^|i−j|:
-/// `(A, B)` with Var(mean) = σ² A / n and E[s²] = σ² B for the sample variance s²
+/// `(A, B)` with Var(mean) = σ² A / n and E\[s²\] = σ² B for the sample variance s²
 /// (n − 1 in the denominator). With S = Σ_{k=1}^{n−1} (1 − k/n) ρ^k,
 /// A = 1 + 2S and B = 1 − 2S/(n − 1).
 pub fn variance_factors(n: u32, rho: f64) -> (f64, f64) {
