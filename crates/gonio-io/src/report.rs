@@ -284,16 +284,14 @@ pub fn html(c: &Contents) -> String {
         h.push_str("<h2>Lobe fit (Lafortune et al. 1997)</h2>\n");
         let _ = writeln!(
             h,
-            "<p>{} lobe(s), {:?} diffuse, {} pairs, {} fit; {} evaluations in {:.3} s; largest \
-             directional albedo {:.4}{}.</p>",
+            "<p>{} lobe(s), {:?} diffuse, {} pairs; objective {} (minimised: {}; {}); {} \
+             evaluations in {:.3} s; largest directional albedo {:.4}{}.</p>",
             f.shape.lobes,
             f.shape.diffuse,
             f.samples,
-            if f.chi_square {
-                "χ² (1/σ weights)"
-            } else {
-                "metric-weighted"
-            },
+            escape(&f.objective.name),
+            escape(&f.objective.formula),
+            escape(&f.objective.chosen),
             f.evaluations,
             f.seconds,
             f.max_albedo,
