@@ -246,34 +246,62 @@ pub fn own_table(s: &Samples, kernel: Kernel) -> Result<(Table, Fill), ProcessEr
     let limit = 1.5 * steps.max(1e-6);
     let n = grid.len();
     let nc = s.channels.len();
+    let pair_of = |i: usize| {
+        let [pi, ti, po, to] = grid.angles(i);
+        PairDeg {
+            incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
+            outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
+        }
+    };
+    let node_of = |p: &PairDeg| {
+        let c = crate::grid::clean_deg;
+        [
+            c(p.incident.theta_deg),
+            c(p.incident.phi_deg),
+            c(p.outgoing.theta_deg),
+            c(p.outgoing.phi_deg),
+        ]
+    };
+    // First where each node stands against the data, stopping as soon as the grid is
+    // past use (a sparse scatter can span millions of nodes): nothing is allocated
+    // per node before that is known.
+    let allowed = (MAX_INTERPOLATED * n as f64) as usize;
+    let mut interpolated = Vec::new();
+    let (mut far, mut first_far) = (0usize, None);
+    for i in 0..n {
+        let pair = pair_of(i);
+        let d = interp.nearest_distance(&pair);
+        if d < 1e-9 {
+            continue;
+        }
+        if d <= limit {
+            interpolated.push(node_of(&pair));
+        } else {
+            far += 1;
+            first_far.get_or_insert(node_of(&pair));
+        }
+        if interpolated.len() + far > allowed {
+            return Err(ProcessError::Unsupported(format!(
+                "more than {allowed} of the {n} nodes their angles span were not measured"
+            )));
+        }
+    }
+    if let Some(first) = first_far {
+        return Err(ProcessError::Unsupported(format!(
+            "{far} of the {n} nodes their angles span lie farther than {:.1}° from every \
+             sample, the first at θi {}°, θo {}°, φo {}°",
+            (2.0 * (0.5 * limit).asin()).to_degrees(),
+            first[0],
+            first[2],
+            first[3],
+        )));
+    }
+    let measured = n - interpolated.len();
     let mut values = vec![0.0; n * nc];
     let mut sigma = vec![0.0; n * nc];
     let mut any_sigma = true;
-    let mut interpolated = Vec::new();
-    let mut far = Vec::new();
-    let mut measured = 0;
     for i in 0..n {
-        let [pi, ti, po, to] = grid.angles(i);
-        let pair = PairDeg {
-            incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
-            outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
-        };
-        let d = interp.nearest_distance(&pair);
-        let node = [
-            crate::grid::clean_deg(ti.to_degrees()),
-            crate::grid::clean_deg(pi.to_degrees()),
-            crate::grid::clean_deg(to.to_degrees()),
-            crate::grid::clean_deg(po.to_degrees()),
-        ];
-        if d < 1e-9 {
-            measured += 1;
-        } else if d <= limit {
-            interpolated.push(node);
-        } else {
-            far.push(node);
-            continue;
-        }
-        let (v, sg) = interp.eval(&pair);
+        let (v, sg) = interp.eval(&pair_of(i));
         for ch in 0..nc {
             values[ch * n + i] = v[ch];
         }
@@ -285,23 +313,6 @@ pub fn own_table(s: &Samples, kernel: Kernel) -> Result<(Table, Fill), ProcessEr
             }
             None => any_sigma = false,
         }
-    }
-    if let Some(first) = far.first() {
-        return Err(ProcessError::Unsupported(format!(
-            "{} of the {n} nodes their angles span lie farther than {:.1}° from every \
-             sample, the first at θi {}°, θo {}°, φo {}°",
-            far.len(),
-            (2.0 * (0.5 * limit).asin()).to_degrees(),
-            first[0],
-            first[2],
-            first[3],
-        )));
-    }
-    if interpolated.len() as f64 > MAX_INTERPOLATED * n as f64 {
-        return Err(ProcessError::Unsupported(format!(
-            "{} of the {n} nodes their angles span were not measured",
-            interpolated.len()
-        )));
     }
     if !interpolated.is_empty() {
         tracing::warn!(

@@ -137,18 +137,29 @@ fn own_grid_reports_its_holes_and_refuses_to_invent() {
     );
     assert!((v - f(30.0, 50.0, 90.0)).abs() < 1e-12);
 
-    // A whole ring missing in the middle is far from the data: refused.
-    let mut gap = s.clone();
+    // A band of rings missing in the middle: its edges are interpolated, its middle
+    // (10° from the data, past 1.5 steps of 5°) is far, and refused.
+    let fine = iso(
+        &[30.0],
+        &steps(0.0, 85.0, 5.0),
+        &steps(0.0, 355.0, 5.0),
+        f,
+        1e-3,
+    );
+    let mut gap = fine.clone();
     gap.samples
-        .retain(|x| !(x.pair.outgoing.theta_deg > 15.0 && x.pair.outgoing.theta_deg < 75.0));
-    gap.samples.push(Sample {
-        pair: pair(0.0, 0.0, 40.0, 0.0),
-        value: vec![1.0],
-        sigma: Some(vec![1e-3]),
-        flags: 0,
-    });
+        .retain(|x| !(x.pair.outgoing.theta_deg > 37.5 && x.pair.outgoing.theta_deg < 52.5));
     let e = hemisphere::own_table(&gap, Kernel::default()).expect_err("refused");
-    assert!(e.to_string().contains("farther than"), "{e}");
+    assert!(e.to_string().contains("72 of the 1296 nodes"), "{e}");
+    assert!(e.to_string().contains("farther than 7.5°"), "{e}");
+    // More than a quarter of the span unmeasured: refused at once, however near.
+    let mut sparse = fine.clone();
+    sparse.samples.retain(|x| {
+        let d = x.pair.outgoing.phi_deg - x.pair.incident.phi_deg;
+        ((x.pair.outgoing.theta_deg + d) / 5.0).round() as i64 % 2 == 0
+    });
+    let e = hemisphere::own_table(&sparse, Kernel::default()).expect_err("refused");
+    assert!(e.to_string().contains("were not measured"), "{e}");
     // Axes on no uniform spacing: refused, naming the axis.
     let mut odd = s.clone();
     odd.samples[0].pair.outgoing.theta_deg = 3.0;
