@@ -447,6 +447,94 @@ pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
     Ok(out)
 }
 
+/// Directional albedos of a table's incident rows over the triangulated hemisphere
+/// of its outgoing nodes ([`albedos`] without forming a sample a node: one row's
+/// nodes at a time, so a large table costs no more memory than one row). An
+/// isotropic table whose φ+ axis spans a half turn is unfolded row by row (module
+/// docs, bilateral symmetry).
+pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> {
+    let g = &t.grid;
+    let (n, q, nc) = (g.len(), g.n_out(), t.channels.len());
+    let p = &g.phi_o;
+    let last = p.node(p.n - 1).to_degrees();
+    let first = p.start.to_degrees();
+    let half = g.isotropic
+        && !p.is_periodic()
+        && p.n > 1
+        && first >= -1e-9
+        && last <= 180.0 + 1e-9
+        && last > 1e-9;
+    let on_plane = |phi: f64| phi.abs() < 1e-9 || (phi - 180.0).abs() < 1e-9;
+    let mut out = Vec::new();
+    for r in 0..g.n_in() {
+        let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
+        // Projected points keyed at 1e-9, as in [`albedos`].
+        let mut pts: BTreeMap<(i64, i64), (f64, f64, Vec<f64>, Option<Vec<f64>>, usize)> =
+            BTreeMap::new();
+        for k in 0..q {
+            let (c, d) = (k / g.theta_o.n, k % g.theta_o.n);
+            let phi = p.node(c).to_degrees();
+            let rad = g.theta_o.node(d).sin();
+            let i = r * q + k;
+            let v: Vec<f64> = (0..nc).map(|ch| t.values[ch * n + i]).collect();
+            let var: Option<Vec<f64>> = t
+                .sigma
+                .as_ref()
+                .map(|s| (0..nc).map(|ch| s[ch * n + i].powi(2)).collect());
+            let mirrors: &[f64] = if half && !on_plane(phi) && rad > 0.0 {
+                &[1.0, -1.0]
+            } else {
+                &[1.0]
+            };
+            for m in mirrors {
+                let ph = (m * phi).to_radians();
+                let (x, y) = (rad * ph.cos(), rad * ph.sin());
+                let key = ((x * 1e9).round() as i64, (y * 1e9).round() as i64);
+                let e = pts.entry(key).or_insert_with(|| {
+                    (x, y, vec![0.0; nc], var.as_ref().map(|_| vec![0.0; nc]), 0)
+                });
+                for (acc, x) in e.2.iter_mut().zip(&v) {
+                    *acc += x;
+                }
+                if let (Some(acc), Some(v2)) = (&mut e.3, &var) {
+                    for (acc, x) in acc.iter_mut().zip(v2) {
+                        *acc += x;
+                    }
+                }
+                e.4 += 1;
+            }
+        }
+        let nodes: Vec<Node> = pts
+            .into_values()
+            .map(|(x, y, v, var, cnt)| {
+                let cnt = cnt as f64;
+                Node {
+                    x,
+                    y,
+                    value: v.into_iter().map(|a| a / cnt).collect(),
+                    var: var.map(|a| a.into_iter().map(|s2| s2 / (cnt * cnt)).collect()),
+                }
+            })
+            .collect();
+        if let Some(al) = integrate(&nodes, nc) {
+            out.push(IncidentAlbedo {
+                theta_i_deg: g.theta_i.node_deg(b),
+                phi_i_deg: g.phi_i.node_deg(a),
+                directions: nodes.len(),
+                ..al
+            });
+        }
+    }
+    if out.is_empty() {
+        return Err(ProcessError::Unsupported(
+            "no incident direction has three outgoing nodes that span an area of the \
+             hemisphere; the energy measure needs a hemisphere of exitance"
+                .into(),
+        ));
+    }
+    Ok(out)
+}
+
 /// ∫ f dA over the unit disk for one incidence (module docs), or none when the
 /// points span no area.
 fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {

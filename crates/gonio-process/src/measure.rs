@@ -231,8 +231,32 @@ pub fn energy(t: &Table, tau: f64, worst: usize) -> Energy {
 /// albedos of DeYoung's triangulated hemisphere (Sec. 4.2.2; [`crate::hemisphere`]),
 /// with the threshold τ of Eq. 4.7 as in [`energy`].
 pub fn energy_scattered(s: &Samples, tau: f64, worst: usize) -> Result<Energy, ProcessError> {
-    let rows = crate::hemisphere::albedos(s)?;
-    let nc = s.channels.len();
+    Ok(energy_of_rows(
+        &crate::hemisphere::albedos(s)?,
+        s.channels.len(),
+        tau,
+        worst,
+    ))
+}
+
+/// The triangulated measure of a table's nodes ([`crate::hemisphere::albedos_of_table`]),
+/// as [`energy_scattered`] would give for the table's samples, a row at a time.
+pub fn energy_triangulated(t: &Table, tau: f64, worst: usize) -> Result<Energy, ProcessError> {
+    Ok(energy_of_rows(
+        &crate::hemisphere::albedos_of_table(t)?,
+        t.channels.len(),
+        tau,
+        worst,
+    ))
+}
+
+/// Eq. 4.5 over directional albedos of the triangulated form.
+fn energy_of_rows(
+    rows: &[crate::hemisphere::IncidentAlbedo],
+    nc: usize,
+    tau: f64,
+    worst: usize,
+) -> Energy {
     let albedo: Vec<Vec<f64>> = (0..nc)
         .map(|ch| rows.iter().map(|r| r.albedo[ch]).collect())
         .collect();
@@ -269,7 +293,7 @@ pub fn energy_scattered(s: &Samples, tau: f64, worst: usize) -> Result<Energy, P
             )
         })
         .collect();
-    Ok(Energy {
+    Energy {
         p_ec,
         method: EnergyMethod::Triangulated,
         incident: rows.iter().map(|r| (r.theta_i_deg, r.phi_i_deg)).collect(),
@@ -278,7 +302,7 @@ pub fn energy_scattered(s: &Samples, tau: f64, worst: usize) -> Result<Energy, P
         coverage: rows.iter().map(|r| r.covered).fold(1.0, f64::min),
         extrapolated: rows.iter().map(|r| r.extrapolated).fold(0.0, f64::max),
         worst,
-    })
+    }
 }
 
 /// The isotropic mean of a table, μ_i of Eq. 4.8, on the grid (θi, φ+, θo) with φ+
@@ -459,8 +483,7 @@ pub fn report_with(
             if sum.coverage >= 0.999 {
                 sum
             } else {
-                let (s, _) = crate::hemisphere::unfold(&Samples::from_table(t));
-                energy_scattered(&s, 1.0, worst).unwrap_or(sum)
+                energy_triangulated(t, 1.0, worst).unwrap_or(sum)
             }
         }
     };
