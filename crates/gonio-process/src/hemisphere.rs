@@ -361,15 +361,66 @@ struct Node {
     var: Option<Vec<f64>>,
 }
 
+/// The outgoing directions of one incidence projected onto the base disk, repeats of
+/// a point (every azimuth at θo = 0, a sample measured twice) averaged.
+#[derive(Default)]
+struct Disk {
+    /// Point keyed at 1e-9 → its sums.
+    pts: BTreeMap<(i64, i64), Sums>,
+}
+
+/// (x, y, Σ value, Σ σ² when every repeat has σ, count) of one projected point.
+type Sums = (f64, f64, Vec<f64>, Option<Vec<f64>>, usize);
+
+impl Disk {
+    /// Adds the values (and squared uncertainties) at polar radius `r` = sin θo,
+    /// azimuth `phi` (radians).
+    fn add(&mut self, r: f64, phi: f64, value: &[f64], var: Option<&[f64]>) {
+        let (x, y) = (r * phi.cos(), r * phi.sin());
+        let key = ((x * 1e9).round() as i64, (y * 1e9).round() as i64);
+        let nc = value.len();
+        let e = self
+            .pts
+            .entry(key)
+            .or_insert_with(|| (x, y, vec![0.0; nc], var.map(|_| vec![0.0; nc]), 0));
+        for (a, v) in e.2.iter_mut().zip(value) {
+            *a += v;
+        }
+        match (&mut e.3, var) {
+            (Some(a), Some(v2)) => {
+                for (a, s2) in a.iter_mut().zip(v2) {
+                    *a += s2;
+                }
+            }
+            (a, _) => *a = None,
+        }
+        e.4 += 1;
+    }
+
+    /// The averaged points.
+    fn nodes(self) -> Vec<Node> {
+        self.pts
+            .into_values()
+            .map(|(x, y, v, var, n)| {
+                let n = n as f64;
+                Node {
+                    x,
+                    y,
+                    value: v.into_iter().map(|a| a / n).collect(),
+                    var: var.map(|a| a.into_iter().map(|s2| s2 / (n * n)).collect()),
+                }
+            })
+            .collect()
+    }
+}
+
 /// Directional albedos of scattered samples, one per incident direction with at
 /// least three outgoing directions not on a line (module docs). Isotropic samples
 /// are taken in the frame φi = 0 (so all of one θi form one direction).
 pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
     s.validate()?;
     let nc = s.channels.len();
-    // Incidence key → outgoing key → (x, y, Σ value, Σ var, count).
-    type Acc = (f64, f64, Vec<f64>, Option<Vec<f64>>, usize);
-    let mut groups: BTreeMap<(i64, i64), BTreeMap<(i64, i64), Acc>> = BTreeMap::new();
+    let mut groups: BTreeMap<(i64, i64), Disk> = BTreeMap::new();
     for x in &s.samples {
         let p = &x.pair;
         let ti = q(p.incident.theta_deg);
@@ -382,52 +433,18 @@ pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
             p.outgoing.phi_deg - p.incident.phi_deg
         } else {
             p.outgoing.phi_deg
-        }
-        .to_radians();
-        let r = p.outgoing.theta_deg.to_radians().sin();
-        let (px, py) = (r * phi.cos(), r * phi.sin());
-        // Projected points keyed at 1e-9: one key for every azimuth at θo = 0.
-        let k = ((px * 1e9).round() as i64, (py * 1e9).round() as i64);
-        let e = groups
-            .entry((ti, pi))
-            .or_default()
-            .entry(k)
-            .or_insert_with(|| {
-                (
-                    px,
-                    py,
-                    vec![0.0; nc],
-                    x.sigma.as_ref().map(|_| vec![0.0; nc]),
-                    0,
-                )
-            });
-        for (a, v) in e.2.iter_mut().zip(&x.value) {
-            *a += v;
-        }
-        match (&mut e.3, &x.sigma) {
-            (Some(a), Some(sg)) => {
-                for (a, s) in a.iter_mut().zip(sg) {
-                    *a += s * s;
-                }
-            }
-            (a, _) => *a = None,
-        }
-        e.4 += 1;
+        };
+        let var: Option<Vec<f64>> = x.sigma.as_ref().map(|v| v.iter().map(|s| s * s).collect());
+        groups.entry((ti, pi)).or_default().add(
+            p.outgoing.theta_deg.to_radians().sin(),
+            phi.to_radians(),
+            &x.value,
+            var.as_deref(),
+        );
     }
     let mut out = Vec::new();
-    for ((ti, pi), pts) in groups {
-        let nodes: Vec<Node> = pts
-            .into_values()
-            .map(|(x, y, v, var, n)| {
-                let n = n as f64;
-                Node {
-                    x,
-                    y,
-                    value: v.into_iter().map(|a| a / n).collect(),
-                    var: var.map(|a| a.into_iter().map(|s2| s2 / (n * n)).collect()),
-                }
-            })
-            .collect();
+    for ((ti, pi), disk) in groups {
+        let nodes = disk.nodes();
         if let Some(a) = integrate(&nodes, nc) {
             out.push(IncidentAlbedo {
                 theta_i_deg: ti as f64 * 1e-6,
@@ -468,9 +485,7 @@ pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> 
     let mut out = Vec::new();
     for r in 0..g.n_in() {
         let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
-        // Projected points keyed at 1e-9, as in [`albedos`].
-        let mut pts: BTreeMap<(i64, i64), (f64, f64, Vec<f64>, Option<Vec<f64>>, usize)> =
-            BTreeMap::new();
+        let mut disk = Disk::default();
         for k in 0..q {
             let (c, d) = (k / g.theta_o.n, k % g.theta_o.n);
             let phi = p.node(c).to_degrees();
@@ -481,41 +496,12 @@ pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> 
                 .sigma
                 .as_ref()
                 .map(|s| (0..nc).map(|ch| s[ch * n + i].powi(2)).collect());
-            let mirrors: &[f64] = if half && !on_plane(phi) && rad > 0.0 {
-                &[1.0, -1.0]
-            } else {
-                &[1.0]
-            };
-            for m in mirrors {
-                let ph = (m * phi).to_radians();
-                let (x, y) = (rad * ph.cos(), rad * ph.sin());
-                let key = ((x * 1e9).round() as i64, (y * 1e9).round() as i64);
-                let e = pts.entry(key).or_insert_with(|| {
-                    (x, y, vec![0.0; nc], var.as_ref().map(|_| vec![0.0; nc]), 0)
-                });
-                for (acc, x) in e.2.iter_mut().zip(&v) {
-                    *acc += x;
-                }
-                if let (Some(acc), Some(v2)) = (&mut e.3, &var) {
-                    for (acc, x) in acc.iter_mut().zip(v2) {
-                        *acc += x;
-                    }
-                }
-                e.4 += 1;
+            disk.add(rad, phi.to_radians(), &v, var.as_deref());
+            if half && !on_plane(phi) && rad > 0.0 {
+                disk.add(rad, (-phi).to_radians(), &v, var.as_deref());
             }
         }
-        let nodes: Vec<Node> = pts
-            .into_values()
-            .map(|(x, y, v, var, cnt)| {
-                let cnt = cnt as f64;
-                Node {
-                    x,
-                    y,
-                    value: v.into_iter().map(|a| a / cnt).collect(),
-                    var: var.map(|a| a.into_iter().map(|s2| s2 / (cnt * cnt)).collect()),
-                }
-            })
-            .collect();
+        let nodes = disk.nodes();
         if let Some(al) = integrate(&nodes, nc) {
             out.push(IncidentAlbedo {
                 theta_i_deg: g.theta_i.node_deg(b),
