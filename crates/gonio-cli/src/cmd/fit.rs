@@ -78,8 +78,7 @@ fn plain_samples(path: &Path) -> Option<gonio_process::Samples> {
     if gonio_dataset::detect(&bytes) != Some(gonio_dataset::Kind::Csv) {
         return None;
     }
-    let text = std::str::from_utf8(&bytes).ok()?;
-    let s = read_halves(text, path)?;
+    let s = read_halves(&bytes, path)?;
     (s.samples.len() <= gonio_process::file::MAX_ROWS && s.validate().is_ok()).then_some(s)
 }
 
@@ -92,47 +91,55 @@ const SPLIT_ROWS: usize = 20_000;
 /// the time (52 → 28 ms on a 98 000-row file, quiet machine; BENCHMARKS.md). A table
 /// (`# grid:`), a small file or any fault in either half is `None`, left to the
 /// whole-file reading that reports it.
-fn read_halves(text: &str, path: &Path) -> Option<gonio_process::Samples> {
-    use gonio_process::file::{Content, read};
-    let whole = || match read(text, Some(path)).ok()? {
+fn read_halves(bytes: &[u8], path: &Path) -> Option<gonio_process::Samples> {
+    use gonio_process::file::{Content, read_from};
+    use std::io::Read;
+    // The reader checks each line's UTF-8 itself; both halves are read in place, the
+    // second behind a copy of the header lines only.
+    let samples = |c: Option<Content>| match c? {
         Content::Samples(s) => Some(s),
         Content::Table(_) => None,
     };
+    let whole = || samples(read_from(bytes, bytes.len() as u64, None, Some(path)).ok());
     // The header: every line up to the first that is neither blank nor a comment.
     let mut end = 0;
-    for line in text.split_inclusive('\n') {
+    for line in bytes.split_inclusive(|b| *b == b'\n') {
         end += line.len();
-        let l = gonio_core::text::strip_bom(line).trim();
-        if let Some(c) = l.strip_prefix('#') {
-            if c.split_once(':').is_some_and(|(k, _)| k.trim() == "grid") {
+        let l = gonio_core::text::strip_bom_bytes(line).trim_ascii();
+        if let Some(c) = l.strip_prefix(b"#") {
+            let key = c
+                .split(|b| *b == b':')
+                .next()
+                .unwrap_or_default()
+                .trim_ascii();
+            if c.contains(&b':') && key == b"grid" {
                 return None;
             }
         } else if !l.is_empty() {
             break;
         }
     }
-    let (head, body) = text.split_at(end);
+    let (head, body) = bytes.split_at(end);
     if body.len() < SPLIT_ROWS * 16 {
         return whole();
     }
     let mid = body.len() / 2;
-    let cut = mid + body[mid..].find('\n')? + 1;
-    let second = format!("{head}{}", &body[cut..]);
-    let first = &text[..end + cut];
+    let cut = mid + body[mid..].iter().position(|b| *b == b'\n')? + 1;
+    let (first, rest) = bytes.split_at(end + cut);
     let (a, b) = std::thread::scope(|sc| {
-        let h = sc.spawn(|| read(&second, Some(path)).ok());
-        let a = read(first, Some(path)).ok();
+        let h = sc.spawn(|| {
+            let len = (head.len() + rest.len()) as u64;
+            samples(read_from(head.chain(rest), len, None, Some(path)).ok())
+        });
+        let a = samples(read_from(first, first.len() as u64, None, Some(path)).ok());
         (a, h.join().ok().flatten())
     });
-    match (a?, b?) {
-        (Content::Samples(mut a), Content::Samples(b))
-            if a.channels == b.channels && a.isotropic == b.isotropic =>
-        {
-            a.samples.extend(b.samples);
-            Some(a)
-        }
-        _ => None,
+    let (mut a, b) = (a?, b?);
+    if a.channels != b.channels || a.isotropic != b.isotropic {
+        return None;
     }
+    a.samples.extend(b.samples);
+    Some(a)
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -456,7 +463,7 @@ mod tests {
                     gonio_process::file::Content::Samples(s) => s,
                     gonio_process::file::Content::Table(_) => panic!("samples"),
                 };
-                let halves = read_halves(&t, path).expect("halves");
+                let halves = read_halves(t.as_bytes(), path).expect("halves");
                 assert_eq!(halves, whole, "{rows} rows");
                 assert!(halves.isotropic && halves.samples.len() == rows);
             }
@@ -466,13 +473,13 @@ mod tests {
             let mut t = text(30_000, "\n");
             let line = t.lines().nth(3 + at).expect("a row").to_string();
             t = t.replacen(&line, &line.replace("0.03", "x"), 1);
-            assert!(read_halves(&t, path).is_none(), "row {at}");
+            assert!(read_halves(t.as_bytes(), path).is_none(), "row {at}");
         }
         // A table is not read as samples.
         let grid = format!(
             "# grid: isotropic=false phi_i=0:90:1 theta_i=0:45:1 phi_o=0:90:1 theta_o=0:45:2\n{}",
             text(30_000, "\n")
         );
-        assert!(read_halves(&grid, path).is_none());
+        assert!(read_halves(grid.as_bytes(), path).is_none());
     }
 }
