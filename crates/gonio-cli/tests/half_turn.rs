@@ -180,3 +180,27 @@ fn model_on_own_grid_reciprocity(m: &Model) -> f64 {
     let t = Table::from_brdf(m, g).expect("table");
     measure::reciprocity(&t).0[0]
 }
+
+#[test]
+fn an_in_plane_run_is_told_what_no_grid_can_fix() {
+    let dir = scratch("in-plane");
+    let run = dir.join("run.gonio");
+    ok(&[
+        "acquire",
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--plan",
+        &config("plan-in-plane.toml"),
+        "--out",
+        &s(&run),
+        "--json",
+    ]);
+    let o = common::gonio(&["check", &s(&run)]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = common::stderr(&o);
+    assert!(
+        e.contains("cover no area of the outgoing hemisphere"),
+        "{e}"
+    );
+    assert!(e.contains("in-plane scan"), "{e}");
+}

@@ -110,6 +110,20 @@ pub enum DatasetError {
         #[source]
         source: ProcessError,
     },
+    /// Samples that cover no area of the outgoing hemisphere at any incidence (an
+    /// in-plane scan) where a table is needed: no grid can be made of them.
+    #[error(
+        "{}: its {samples} samples cover no area of the outgoing hemisphere at any incident \
+         direction (an in-plane scan): DeYoung's measures and transforms need data over the \
+         hemisphere; fit, export and the polar plot take the samples as they are",
+        .path.display()
+    )]
+    NotHemisphere {
+        /// The input.
+        path: PathBuf,
+        /// How many samples.
+        samples: usize,
+    },
     /// Scattered samples where a table is needed, no grid was given, and the
     /// samples form no grid of their own.
     #[error(
@@ -459,6 +473,15 @@ impl Dataset {
                         None => {
                             let (t, f) = hemisphere::own_table(&s, Kernel::default()).map_err(
                                 |e| match e {
+                                    // Say what no grid can fix: a scan in a plane.
+                                    ProcessError::Grid { .. } | ProcessError::Unsupported(_)
+                                        if hemisphere::albedos(&s).is_err() =>
+                                    {
+                                        DatasetError::NotHemisphere {
+                                            path: path.to_path_buf(),
+                                            samples: s.samples.len(),
+                                        }
+                                    }
                                     ProcessError::Grid { .. } | ProcessError::Unsupported(_) => {
                                         DatasetError::NotOnGrid {
                                             path: path.to_path_buf(),
