@@ -185,8 +185,18 @@ fn bad_input_exits_2_naming_the_file_line_and_field() {
         assert!(err.contains(want), "{name}: {err}");
         assert_eq!(err.lines().count(), 1, "{name}: one line: {err}");
     }
-    // Scattered samples without a grid to resample onto.
+    // Scattered samples over the hemisphere, on no grid of their own: resample them.
     let f = d.join("scattered.csv");
+    std::fs::write(
+        &f,
+        "theta_i,phi_i,theta_o,phi_o,value\n10,0,20,0,0.1\n10,0,25,90,0.2\n\
+         10,0,33,180,0.2\n10,0,41,270,0.2\n",
+    )
+    .expect("write");
+    let o = gonio(&["check", &s(&f)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--grid"));
+    // Two samples at two incidences cover no area: no grid can fix that, and it says so.
     std::fs::write(
         &f,
         "theta_i,phi_i,theta_o,phi_o,value\n10,0,20,0,0.1\n30,0,20,90,0.2\n",
@@ -194,7 +204,7 @@ fn bad_input_exits_2_naming_the_file_line_and_field() {
     .expect("write");
     let o = gonio(&["check", &s(&f)]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--grid"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cover no area"));
     // Bad δ and a bad grid.
     for args in [
         vec!["correct", "x.csv", "--isotropy", "1.5", "--out", "y.csv"],
