@@ -10,6 +10,22 @@ use common::{config, ok, ok_json, s, scratch};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::{Dir, SphericalDeg};
 
+/// Measures a shipped plan on the simulated instrument into `dir/run.gonio`.
+fn acquire_shipped(dir: &std::path::Path, plan: &str) -> std::path::PathBuf {
+    let run = dir.join("run.gonio");
+    ok(&[
+        "acquire",
+        "--instrument",
+        &config("instrument-sim.toml"),
+        "--plan",
+        &config(plan),
+        "--out",
+        &s(&run),
+        "--json",
+    ]);
+    run
+}
+
 /// The simulator's embedded sample: the Lafortune blue paint of Table 1.
 fn blue_paint() -> Model {
     Model::load(std::path::Path::new(&config(
@@ -52,17 +68,7 @@ fn albedo(m: &Model, theta_i: f64) -> f64 {
 #[test]
 fn shipped_hemisphere_plan_checks_with_no_flags() {
     let dir = scratch("half-turn");
-    let run = dir.join("run.gonio");
-    ok(&[
-        "acquire",
-        "--instrument",
-        &config("instrument-sim.toml"),
-        "--plan",
-        &config("plan-hemisphere.toml"),
-        "--out",
-        &s(&run),
-        "--json",
-    ]);
+    let run = acquire_shipped(&dir, "plan-hemisphere.toml");
     let v = ok_json(&["check", &s(&run), "--k", "1,2", "--json"]);
     assert_eq!(v["symmetry"], "isotropic-bilateral");
     // The plan's own axes: θi 0…75 by 15, Δφ unfolded to a full turn by 15, θo 0…80
@@ -184,17 +190,7 @@ fn model_on_own_grid_reciprocity(m: &Model) -> f64 {
 #[test]
 fn an_in_plane_run_is_told_what_no_grid_can_fix() {
     let dir = scratch("in-plane");
-    let run = dir.join("run.gonio");
-    ok(&[
-        "acquire",
-        "--instrument",
-        &config("instrument-sim.toml"),
-        "--plan",
-        &config("plan-in-plane.toml"),
-        "--out",
-        &s(&run),
-        "--json",
-    ]);
+    let run = acquire_shipped(&dir, "plan-in-plane.toml");
     let o = common::gonio(&["check", &s(&run)]);
     assert_eq!(o.status.code(), Some(2));
     let e = common::stderr(&o);

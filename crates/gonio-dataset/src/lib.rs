@@ -445,16 +445,22 @@ impl Dataset {
         };
         match self {
             Dataset::Table(t) => {
-                let (s, symmetry) = hemisphere::unfold(&Samples::from_table(t));
+                // Told from the axes: a table is turned into samples only when it
+                // must be (unfolded or resampled), never for a table used as it is.
+                let half = hemisphere::half_turn(&t.grid);
+                let symmetry = match (half, t.grid.isotropic) {
+                    (true, _) => Symmetry::IsotropicBilateral,
+                    (false, true) => Symmetry::Isotropic,
+                    (false, false) => Symmetry::None,
+                };
+                let samples = || hemisphere::unfold(&Samples::from_table(t)).0;
                 let table = match step {
-                    Some(g) => s.resample(g.grid(), Kernel::default()).map_err(p)?,
-                    None if symmetry == Symmetry::IsotropicBilateral => {
-                        s.to_table().ok_or_else(|| {
-                            p(ProcessError::Unsupported(
-                                "the unfolded half turn forms no complete grid".into(),
-                            ))
-                        })?
-                    }
+                    Some(g) => samples().resample(g.grid(), Kernel::default()).map_err(p)?,
+                    None if half => samples().to_table().ok_or_else(|| {
+                        p(ProcessError::Unsupported(
+                            "the unfolded half turn forms no complete grid".into(),
+                        ))
+                    })?,
                     None => t.clone(),
                 };
                 Ok(Tabulated {

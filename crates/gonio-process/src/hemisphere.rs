@@ -150,6 +150,22 @@ pub fn unfold(s: &Samples) -> (Samples, Symmetry) {
     )
 }
 
+/// Whether a grid is the isotropic form over a half turn of φ+ (all nodes within
+/// [0°, 180°] or all within [180°, 360°], some off the plane of incidence, some θo
+/// above 0): what [`unfold`] would mirror, told from the axes alone.
+pub fn half_turn(g: &Grid) -> bool {
+    let p = &g.phi_o;
+    let deg = |c: usize| p.node(c).to_degrees();
+    let (lo, hi) = (deg(0), deg(p.n - 1));
+    let within = |a: f64, b: f64| lo >= a - 1e-9 && hi <= b + 1e-9;
+    let off_plane = |d: f64| [0.0, 180.0, 360.0].iter().all(|x| (d - x).abs() > 1e-9);
+    g.isotropic
+        && !p.is_periodic()
+        && (within(0.0, 180.0) || within(180.0, 360.0))
+        && (0..p.n).any(|c| off_plane(deg(c)))
+        && g.theta_o.node(g.theta_o.n - 1) > 0.0
+}
+
 /// How a table on the data's own grid was filled.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Fill {
@@ -454,14 +470,7 @@ pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
             });
         }
     }
-    if out.is_empty() {
-        return Err(ProcessError::Unsupported(
-            "no incident direction has three outgoing directions that span an area of the \
-             hemisphere; the energy measure needs a hemisphere of exitance"
-                .into(),
-        ));
-    }
-    Ok(out)
+    some_area(out)
 }
 
 /// Directional albedos of a table's incident rows over the triangulated hemisphere
@@ -473,15 +482,8 @@ pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> 
     let g = &t.grid;
     let (n, q, nc) = (g.len(), g.n_out(), t.channels.len());
     let p = &g.phi_o;
-    let last = p.node(p.n - 1).to_degrees();
-    let first = p.start.to_degrees();
-    let half = g.isotropic
-        && !p.is_periodic()
-        && p.n > 1
-        && first >= -1e-9
-        && last <= 180.0 + 1e-9
-        && last > 1e-9;
-    let on_plane = |phi: f64| phi.abs() < 1e-9 || (phi - 180.0).abs() < 1e-9;
+    let half = half_turn(g);
+    let on_plane = |phi: f64| [0.0, 180.0, 360.0].iter().any(|x| (phi - x).abs() < 1e-9);
     let mut out = Vec::new();
     for r in 0..g.n_in() {
         let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
@@ -511,9 +513,14 @@ pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> 
             });
         }
     }
+    some_area(out)
+}
+
+/// The albedos, or why there are none: no incidence spans an area.
+fn some_area(out: Vec<IncidentAlbedo>) -> Result<Vec<IncidentAlbedo>, ProcessError> {
     if out.is_empty() {
         return Err(ProcessError::Unsupported(
-            "no incident direction has three outgoing nodes that span an area of the \
+            "no incident direction has three outgoing directions that span an area of the \
              hemisphere; the energy measure needs a hemisphere of exitance"
                 .into(),
         ));

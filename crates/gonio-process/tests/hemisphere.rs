@@ -361,3 +361,30 @@ fn a_tables_rows_integrate_as_its_samples_do() {
         assert!((rows.extrapolated - samples.extrapolated).abs() < 1e-12);
     }
 }
+
+#[test]
+fn half_turn_tells_from_the_axes_what_unfold_would_mirror() {
+    use gonio_process::{Axis, Grid, Table};
+    let t = Axis::from_deg(0.0, 15.0, 5);
+    let c = |_: gonio_core::Dir, _: gonio_core::Dir, out: &mut [f64]| out[0] = 1.0;
+    for (g, want) in [
+        (Grid::isotropic(t, Axis::from_deg(0.0, 30.0, 7), t), true),
+        (Grid::isotropic(t, Axis::from_deg(180.0, 30.0, 7), t), true),
+        (Grid::isotropic(t, Axis::from_deg(90.0, 30.0, 7), t), false),
+        (Grid::isotropic(t, Axis::full_turn(12), t), false),
+        (Grid::isotropic(t, Axis::from_deg(0.0, 180.0, 2), t), false),
+        (
+            Grid::isotropic(t, Axis::from_deg(0.0, 30.0, 7), Axis::single(0.0)),
+            false,
+        ),
+        (
+            Grid::full(Axis::full_turn(4), t, Axis::from_deg(0.0, 30.0, 7), t),
+            false,
+        ),
+    ] {
+        let table = Table::from_fn(Channels::Single, g, c).expect("table");
+        let (_, sym) = hemisphere::unfold(&gonio_process::Samples::from_table(&table));
+        assert_eq!(hemisphere::half_turn(&g), want, "{g:?}");
+        assert_eq!(sym == Symmetry::IsotropicBilateral, want, "{g:?}");
+    }
+}

@@ -2,19 +2,10 @@
 //! raw lock-in readings within the propagated uncertainties, with and without a
 //! drifting source.
 
-use std::path::{Path, PathBuf};
+mod truth;
 
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
-use gonio_brdf::{Brdf, Model};
-use gonio_driver::InstrumentConfig;
-use gonio_plan::Plan;
+use gonio_brdf::Model;
 use gonio_reduce::{self as reduce, Drift, Options};
-use gonio_run::{Inputs, RunStore};
-use gonio_sim::{SimBench, SimConfig};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
 
 const PLAN: &str = r#"
 name = "reduction test"
@@ -32,61 +23,16 @@ incident = { transmittance = 1e-3 }
 repeat_at_end = true
 "#;
 
-/// Measures PLAN on the simulator with a source drifting by `drift_per_hour`.
-fn measure(name: &str, drift_per_hour: f64) -> (RunStore, Model) {
-    // Kept: the returned run file stays open in it.
-    let dir = tempfile::Builder::new()
-        .prefix(&format!("gonio-reduce-{name}-"))
-        .tempdir()
-        .expect("temp dir")
-        .keep();
-    let (inst, inst_text) =
-        InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml")).expect("inst");
-    let plan = Plan::from_toml(PLAN, Some(&root().join("config/test.toml"))).expect("plan");
-    let mech = inst.mechanics().expect("mechanics");
-    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
-    let mut sim = SimConfig::default_config().expect("sim");
-    sim.seed = 7;
-    sim.optics.drift_per_hour = drift_per_hour;
-    let sample_text = sim.sample_model_text().expect("sample");
-    let inputs = Inputs {
-        instrument_text: inst_text,
-        plan_text: PLAN.into(),
-        sim: Some((gonio_sim::config::DEFAULT_SIM.into(), sample_text.clone())),
-        seed: Some(7),
-        software: "test".into(),
-        ..Inputs::default()
-    };
-    let store =
-        gonio_run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
-    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let cfg = EngineConfig {
-        incident_transmittance: 1e-3,
-        ..EngineConfig::default()
-    };
-    let engine = Engine::new(g, SimBench::new(shared, None), store, mech, cfg);
-    let (report, store) = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(engine.run())
-        .expect("runs");
-    assert_eq!(report.outcome, Outcome::Complete);
-    (store, Model::from_toml(&sample_text, None).expect("model"))
+/// Measures PLAN on the simulator (seed 7) with a source drifting by `drift_per_hour`.
+fn measure(name: &str, drift_per_hour: f64) -> (gonio_run::RunStore, Model) {
+    truth::measure(name, PLAN, None, 7, |sim| {
+        sim.optics.drift_per_hour = drift_per_hour;
+    })
 }
 
 /// Normalised residuals (f − model)/σ and relative errors of a reduction.
 fn residuals(red: &reduce::Reduction, model: &Model) -> (Vec<f64>, Vec<f64>) {
-    let mut out = vec![0.0; 1];
-    let (mut z, mut rel) = (Vec::new(), Vec::new());
-    for s in &red.samples.samples {
-        let d = s.pair.to_dirs();
-        model.eval(d.wi, d.wo, &mut out);
-        let sigma = s.sigma.as_ref().expect("sigma")[0];
-        z.push((s.value[0] - out[0]) / sigma);
-        rel.push((s.value[0] - out[0]) / out[0]);
-    }
-    (z, rel)
+    truth::residuals(red, model).into_iter().unzip()
 }
 
 #[test]
