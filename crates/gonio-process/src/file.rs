@@ -38,7 +38,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::{Axis, Grid, Sample, Samples, Table};
 
-const KIND: &str = "BRDF table";
+pub(crate) const KIND: &str = "BRDF table";
 const SIDECAR_KIND: &str = "BRDF table sidecar";
 
 /// The direction columns (degrees) of the current format.
@@ -270,7 +270,7 @@ pub fn grid_line(g: &Grid) -> String {
     )
 }
 
-fn columns(channels: &Channels, sigma: bool, flags: bool) -> Vec<String> {
+pub(crate) fn columns(channels: &Channels, sigma: bool, flags: bool) -> Vec<String> {
     let mut c: Vec<String> = DIR_COLUMNS.iter().map(|s| s.to_string()).collect();
     let names = channels.names();
     c.extend(names.iter().map(|n| value_column(n)));
@@ -283,7 +283,7 @@ fn columns(channels: &Channels, sigma: bool, flags: bool) -> Vec<String> {
     c
 }
 
-fn sample_columns(s: &Samples) -> (bool, bool) {
+pub(crate) fn sample_columns(s: &Samples) -> (bool, bool) {
     let sigma = s.samples.iter().all(|x| x.sigma.is_some()) && !s.samples.is_empty();
     let flags = s.samples.iter().any(|x| x.flags != 0);
     (sigma, flags)
@@ -353,7 +353,7 @@ pub fn write_table(t: &Table) -> String {
 }
 
 /// Degrees of a node angle, as [`crate::Axis::node_deg`] prints them.
-fn deg(x: f64) -> f64 {
+pub(crate) fn deg(x: f64) -> f64 {
     crate::grid::clean_deg(x.to_degrees())
 }
 
@@ -416,11 +416,11 @@ pub const EXPECTED_COLUMNS: &str = "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,
      flags (or the older theta_i,phi_i,theta_o,phi_o, channel names and sigma_<channel>)";
 
 /// What a header row says.
-struct Header {
-    cols: Vec<String>,
-    channels: Channels,
-    sigma: bool,
-    flags: bool,
+pub(crate) struct Header {
+    pub(crate) cols: Vec<String>,
+    pub(crate) channels: Channels,
+    pub(crate) sigma: bool,
+    pub(crate) flags: bool,
 }
 
 /// The channel a column of the current format names (`f_r_R_per_sr` → `R`).
@@ -435,7 +435,7 @@ fn channel_of(col: &str, prefix: &str) -> Option<String> {
     (!c.is_empty()).then(|| c.to_string())
 }
 
-fn parse_header(head: &str) -> Result<Header, String> {
+pub(crate) fn parse_header(head: &str) -> Result<Header, String> {
     let cols: Vec<&str> = head.split(',').map(str::trim).collect();
     let wrong = || format!("expected the columns {EXPECTED_COLUMNS}; found {head:?}");
     if cols.len() < 5 {

@@ -26,6 +26,6 @@ pub use integrity::Integrity;
 pub use meta::{Estimate, RunMeta, RunStatus, keys};
 pub use records::{EventRecord, ReadingRecord, SessionRow, StoredStep};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION, flags};
-pub use store::{RunStore, is_run_file};
+pub use store::{ColumnValues, RunStore, is_run_file};
 pub use summary::{SessionSummary, Summary, summary};
 pub use time::{utc, wall_now};

@@ -66,6 +66,17 @@ fn write_record(tx: &rusqlite::Transaction<'_>) -> rusqlite::Result<()> {
     put_meta(tx, keys::INTEGRITY_META, &format!("{digest:016x}"))
 }
 
+/// One column of a table of the run file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColumnValues {
+    /// A REAL column (NULL as NaN).
+    Real(Vec<f64>),
+    /// An INTEGER column.
+    Integer(Vec<Option<i64>>),
+    /// A TEXT column.
+    Text(Vec<Option<String>>),
+}
+
 /// An open run file.
 pub struct RunStore {
     conn: Connection,
@@ -786,6 +797,79 @@ impl RunStore {
                 })
             },
         )
+    }
+
+    /// The readings as columns, in step order: every column of the `readings` table
+    /// but its row checksum, under the run file's own names, then the step each
+    /// measures (`kind`, `channel`, `repeat`, `plan_index`, and the planned
+    /// directions as `planned_theta_i` … `planned_phi_o`). A REAL column's NULL is
+    /// NaN; an INTEGER column's NULL is `None`.
+    pub fn reading_columns(&self) -> Result<Vec<(String, ColumnValues)>, StoreError> {
+        let declared: Vec<(String, String)> = self.rows(
+            "SELECT name, type FROM pragma_table_info('readings') ORDER BY cid",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?;
+        let mut names: Vec<(String, String)> = declared
+            .into_iter()
+            .filter(|(n, _)| n != "crc")
+            .map(|(n, t)| (format!("r.{n}"), t))
+            .collect();
+        for (n, t) in [
+            ("kind", "TEXT"),
+            ("channel", "TEXT"),
+            ("repeat", "INTEGER"),
+            ("plan_index", "INTEGER"),
+            ("theta_i", "REAL"),
+            ("phi_i", "REAL"),
+            ("theta_o", "REAL"),
+            ("phi_o", "REAL"),
+        ] {
+            names.push((format!("s.{n}"), t.into()));
+        }
+        let select: Vec<&str> = names.iter().map(|(n, _)| n.as_str()).collect();
+        let mut cols: Vec<ColumnValues> = names
+            .iter()
+            .map(|(_, t)| match t.to_ascii_uppercase().as_str() {
+                "REAL" => ColumnValues::Real(Vec::new()),
+                "INTEGER" => ColumnValues::Integer(Vec::new()),
+                _ => ColumnValues::Text(Vec::new()),
+            })
+            .collect();
+        let query = format!(
+            "SELECT {} FROM readings r JOIN steps s ON s.id = r.step_id ORDER BY r.step_id",
+            select.join(", ")
+        );
+        let mut stmt = self.conn.prepare(&query).map_err(|e| self.sql(e))?;
+        let mut rows = stmt.query([]).map_err(|e| self.sql(e))?;
+        while let Some(row) = rows.next().map_err(|e| self.sql(e))? {
+            for (j, c) in cols.iter_mut().enumerate() {
+                match c {
+                    ColumnValues::Real(v) => v.push(
+                        row.get::<_, Option<f64>>(j)
+                            .map_err(|e| self.sql(e))?
+                            .unwrap_or(f64::NAN),
+                    ),
+                    ColumnValues::Integer(v) => {
+                        v.push(row.get::<_, Option<i64>>(j).map_err(|e| self.sql(e))?)
+                    }
+                    ColumnValues::Text(v) => {
+                        v.push(row.get::<_, Option<String>>(j).map_err(|e| self.sql(e))?)
+                    }
+                }
+            }
+        }
+        Ok(names
+            .into_iter()
+            .map(|(n, _)| match n.strip_prefix("s.") {
+                Some(step) if step.starts_with("theta") || step.starts_with("phi") => {
+                    format!("planned_{step}")
+                }
+                Some(step) => step.to_string(),
+                None => n.trim_start_matches("r.").to_string(),
+            })
+            .zip(cols)
+            .collect())
     }
 
     /// Counts of steps by state.

@@ -2,6 +2,8 @@
 //! continued where it stopped.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use gonio_acquire::engine::{Engine, EngineConfig, Event, Outcome, SessionReport};
@@ -68,6 +70,11 @@ pub struct LogFlag {
 }
 
 impl AcquireArgs {
+    /// The run file to create.
+    pub fn out_path(&self) -> &Path {
+        &self.out
+    }
+
     /// Where the log file goes, if any.
     pub fn log_file(&self) -> Option<&Path> {
         self.log.log.as_deref()
@@ -88,14 +95,7 @@ fn input(e: impl std::fmt::Display) -> CliError {
 /// What `acquire` and `resume` print at the end.
 fn report_session(path: &Path, r: &SessionReport, json: bool) -> CliResult<()> {
     if json {
-        output::json(&json!({
-            "run": path.display().to_string(),
-            "status": r.outcome.status(),
-            "fault": match &r.outcome { Outcome::Faulted(m) => Some(m.clone()), _ => None },
-            "measured": r.measured, "skipped": r.skipped,
-            "finished": r.finished, "total": r.total,
-            "physical_s": r.physical_s,
-        }))?;
+        output::json(&session_json(path, r))?;
     } else {
         eprintln!(
             "gonio: {}: {} — {} of {} steps finished ({} measured, {} skipped this session, \
@@ -109,6 +109,23 @@ fn report_session(path: &Path, r: &SessionReport, json: bool) -> CliResult<()> {
             hms(r.physical_s)
         );
     }
+    session_result(path, r)
+}
+
+/// The `--json` object of a session.
+pub(crate) fn session_json(path: &Path, r: &SessionReport) -> serde_json::Value {
+    json!({
+        "run": path.display().to_string(),
+        "status": r.outcome.status(),
+        "fault": match &r.outcome { Outcome::Faulted(m) => Some(m.clone()), _ => None },
+        "measured": r.measured, "skipped": r.skipped,
+        "finished": r.finished, "total": r.total,
+        "physical_s": r.physical_s,
+    })
+}
+
+/// A session's end as a result: an error unless it completed.
+pub(crate) fn session_result(path: &Path, r: &SessionReport) -> CliResult<()> {
     match &r.outcome {
         Outcome::Complete => Ok(()),
         Outcome::Interrupted => Err(CliError::Interrupted(format!(
@@ -191,6 +208,7 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
 fn drive<M, D, C, B>(
     engine: Engine<M, D, C, B>,
     quiet: bool,
+    stop: &StopBy,
 ) -> CliResult<(SessionReport, RunStore)>
 where
     M: Transport + Send + 'static,
@@ -205,23 +223,43 @@ where
         .map_err(|e| CliError::Runtime(format!("starting the runtime: {e}")))?;
     let stopper = engine.stopper();
     let rx = engine.subscribe();
-    let mut signals = {
-        let _in_runtime = rt.enter();
-        crate::signals::StopSignals::new()
-            .map_err(|e| CliError::Runtime(format!("catching the stop signals: {e}")))?
+    let signals = match stop {
+        StopBy::Signals => {
+            let _in_runtime = rt.enter();
+            Some(
+                crate::signals::StopSignals::new()
+                    .map_err(|e| CliError::Runtime(format!("catching the stop signals: {e}")))?,
+            )
+        }
+        StopBy::Flag(_) => None,
+    };
+    let flag = match stop {
+        StopBy::Flag(f) => Some(f.clone()),
+        StopBy::Signals => None,
     };
     rt.block_on(async move {
-        tokio::spawn(async move {
-            let sig = signals.next().await;
-            eprintln!("\ngonio: {sig}: stopping the stages (again to quit at once)");
-            stopper.stop();
-            signals.next().await;
-            stopper.stop();
-            // The abort flag stops the stages at the driver's next poll.
-            tokio::time::sleep(Duration::from_millis(300)).await;
-            eprintln!("gonio: aborted");
-            std::process::exit(130);
-        });
+        if let Some(mut signals) = signals {
+            tokio::spawn(async move {
+                let sig = signals.next().await;
+                eprintln!("\ngonio: {sig}: stopping the stages (again to quit at once)");
+                stopper.stop();
+                signals.next().await;
+                stopper.stop();
+                // The abort flag stops the stages at the driver's next poll.
+                tokio::time::sleep(Duration::from_millis(300)).await;
+                eprintln!("gonio: aborted");
+                std::process::exit(130);
+            });
+        } else if let Some(flag) = flag {
+            // Another thread owns the interrupt (Python's KeyboardInterrupt): it
+            // raises the flag, and the stop is the same as a signal's.
+            tokio::spawn(async move {
+                while !flag.load(Ordering::Relaxed) {
+                    tokio::time::sleep(Duration::from_millis(20)).await;
+                }
+                stopper.stop();
+            });
+        }
         let listener = tokio::spawn(progress(rx, quiet));
         let r = engine.run().await;
         let _ = listener.await;
@@ -231,6 +269,16 @@ where
 }
 
 /// Where a run's instrument lives.
+/// What stops a session safely: the process's stop signals (the command), or a flag
+/// another thread raises (the Python package, whose interpreter owns SIGINT).
+#[derive(Clone, Debug)]
+pub enum StopBy {
+    /// SIGINT, SIGTERM, SIGHUP; a second one quits at once.
+    Signals,
+    /// The flag, polled every 20 ms.
+    Flag(Arc<AtomicBool>),
+}
+
 pub(crate) enum Rig {
     /// The in-process simulator, built from these configs.
     Sim(Box<gonio_sim::SimConfig>),
@@ -249,6 +297,7 @@ pub(crate) fn session(
     standard: Option<String>,
     transmittance: f64,
     quiet: bool,
+    stop: &StopBy,
 ) -> CliResult<(SessionReport, RunStore)> {
     let mech = instrument
         .mechanics()
@@ -276,6 +325,7 @@ pub(crate) fn session(
             drive(
                 Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
                 quiet,
+                stop,
             )
         }
         Rig::Real => {
@@ -283,13 +333,23 @@ pub(crate) fn session(
             let bench =
                 OperatorBench::new(std::io::BufReader::new(std::io::stdin()), std::io::stderr());
             let store = store()?;
-            drive(Engine::new(g, bench, store, mech, cfg), quiet)
+            drive(Engine::new(g, bench, store, mech, cfg), quiet, stop)
         }
     }
 }
 
 /// `gonio acquire --instrument INSTR --plan PLAN --out RUN [--sim SIM] [--seed N]`.
 pub fn acquire(a: AcquireArgs) -> CliResult<()> {
+    let report = acquire_with(&a, a.json, &StopBy::Signals)?;
+    report_session(&a.out, &report, a.json)
+}
+
+/// Creates the run file and measures it; `quiet` prints nothing (no progress bar).
+pub(crate) fn acquire_with(
+    a: &AcquireArgs,
+    quiet: bool,
+    stop: &StopBy,
+) -> CliResult<SessionReport> {
     let Loaded {
         instrument: inst,
         instrument_text: inst_text,
@@ -345,7 +405,7 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
     let create = || {
         let store = RunStore::create(&a.out, &meta.to_map(), &prepared.schedule.steps)?;
         let s = &prepared.schedule;
-        if !a.json {
+        if !quiet {
             eprintln!(
                 "gonio: {}: {} steps ({} pairs measurable, {} left out); estimated {} \
                  (motion {}, detector {})",
@@ -367,15 +427,21 @@ pub fn acquire(a: AcquireArgs) -> CliResult<()> {
         rig,
         meta.standard_model.clone(),
         meta.transmittance,
-        a.json,
+        quiet,
+        stop,
     )?;
-    report_session(&a.out, &report, a.json)
+    Ok(report)
 }
 
 /// `gonio resume RUN [--json]`: continues a run where it stopped, with the
 /// instrument (and simulator) its file records.
 pub fn resume(a: ResumeArgs) -> CliResult<()> {
-    let (path, json) = (a.run.as_path(), a.json);
+    let report = resume_with(&a.run, a.json, &StopBy::Signals)?;
+    report_session(&a.run, &report, a.json)
+}
+
+/// Continues the run at `path`; `quiet` prints nothing (no progress bar).
+pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<SessionReport> {
     let mut store = RunStore::open_unverified(path)?;
     // Before anything is checked further, let alone a port opened or an axis homed:
     // one process at a time.
@@ -421,7 +487,8 @@ pub fn resume(a: ResumeArgs) -> CliResult<()> {
         rig,
         stored.standard_model.clone(),
         stored.transmittance,
-        json,
+        quiet,
+        stop,
     )?;
-    report_session(path, &report, json)
+    Ok(report)
 }

@@ -4,6 +4,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use gonio_dataset::Dataset;
 use gonio_process::measure;
 
 use crate::error::{CliError, CliResult};
@@ -27,29 +28,54 @@ pub struct CheckArgs {
     json: JsonFlag,
 }
 
-/// `gonio check INPUT [--k 1,2,5] [--json]`.
-pub fn run(a: CheckArgs) -> CliResult<()> {
-    let (path, ks, json_out) = (a.input.as_path(), a.k.as_slice(), a.json.json);
+/// What `gonio check` measures, and the table it measured.
+pub(crate) struct Checked {
+    /// The table made from the input.
+    pub tab: gonio_dataset::Tabulated,
+    /// DeYoung's measures.
+    pub report: measure::Report,
+    /// The k of P_s^(k).
+    pub ks: Vec<usize>,
+}
+
+impl Checked {
+    /// The `--json` object.
+    pub fn json(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(&self.report).unwrap_or_default();
+        if let Some(o) = v.as_object_mut() {
+            o.insert("symmetry".into(), self.tab.symmetry.name().into());
+            o.insert(
+                "grid".into(),
+                serde_json::to_value(super::grid_json(&self.tab.table, &self.tab))
+                    .unwrap_or_default(),
+            );
+        }
+        v
+    }
+}
+
+/// Measures the input (or `given`, data already in memory that `a.input` names).
+pub(crate) fn compute(a: &CheckArgs, given: Option<Dataset>) -> CliResult<Checked> {
+    let (path, ks) = (a.input.as_path(), a.k.as_slice());
     if ks.contains(&0) {
         return Err(CliError::Input("--k: every k must be at least 1".into()));
     }
-    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let tab = opened.data.tabulate(a.grid.grid, path)?;
-    let table = &tab.table;
+    let data = super::open_data(path, &a.reduction, given)?;
+    let tab = data.tabulate(a.grid.grid, path)?;
     let ks = if ks.is_empty() { vec![1] } else { ks.to_vec() };
-    let r = measure::report_with(table, tab.measured.as_ref(), &ks, 5)
+    let report = measure::report_with(&tab.table, tab.measured.as_ref(), &ks, 5)
         .map_err(|e| CliError::process(path, e))?;
-    if json_out {
-        let mut v = serde_json::to_value(&r).unwrap_or_default();
-        if let Some(o) = v.as_object_mut() {
-            o.insert("symmetry".into(), tab.symmetry.name().into());
-            o.insert(
-                "grid".into(),
-                serde_json::to_value(super::grid_json(table, &tab)).unwrap_or_default(),
-            );
-        }
-        return output::json(&v);
+    Ok(Checked { tab, report, ks })
+}
+
+/// `gonio check INPUT [--k 1,2,5] [--json]`.
+pub fn run(a: CheckArgs) -> CliResult<()> {
+    let checked = compute(&a, None)?;
+    if a.json.json {
+        return output::json(&checked.json());
     }
+    let Checked { tab, report: r, ks } = &checked;
+    let (path, table) = (a.input.as_path(), &tab.table);
     let mut w = output::stdout();
     output::finish((|| {
         let g = &table.grid;
@@ -65,7 +91,7 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
             g.theta_o.n,
             r.channels.join(",")
         )?;
-        super::write_provenance(&mut w, &tab)?;
+        super::write_provenance(&mut w, tab)?;
         writeln!(
             w,
             "{:<28}{}",

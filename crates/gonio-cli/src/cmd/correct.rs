@@ -59,7 +59,7 @@ impl CorrectArgs {
     /// The steps in the order their flags appear on the command line: clap keeps
     /// each flag's values in order, and `matches` (the subcommand's) says where on
     /// the line each value stood. Without `matches`, the flags' own order.
-    fn steps(&self, matches: Option<&clap::ArgMatches>) -> CliResult<Vec<Step>> {
+    pub(crate) fn steps(&self, matches: Option<&clap::ArgMatches>) -> CliResult<Vec<Step>> {
         let lists = [
             &self.reciprocity,
             &self.energy,
@@ -98,12 +98,7 @@ impl CorrectArgs {
 pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> {
     let steps = a.steps(matches)?;
     let steps = steps.as_slice();
-    let (path, out, json_out) = (a.input.as_path(), a.out.as_path(), a.json.json);
-    if steps.is_empty() {
-        return Err(CliError::Input(
-            "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
-        ));
-    }
+    let (out, json_out) = (a.out.as_path(), a.json.json);
     // A TOML output holds the separable factors; anything else is a CSV table with its
     // sidecar.
     let toml_out = out.extension().is_some_and(|e| e == "toml");
@@ -112,59 +107,30 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
     } else {
         Err(CsvTarget::new(out, a.force.force)?)
     };
-    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let tab = opened.data.tabulate(a.grid.grid, path)?;
-    let mut table = tab.table.clone();
-    let ks: Vec<usize> = steps
-        .iter()
-        .filter_map(|s| match s {
-            Step::Separable(k, _) => Some(*k),
-            _ => None,
-        })
-        .chain([1])
-        .collect();
-    let before = measure::report_with(&table, tab.measured.as_ref(), &ks, 1)
-        .map_err(|e| CliError::process(path, e))?;
-    for s in steps {
-        table = s.apply(&table).map_err(|e| CliError::process(path, e))?;
-    }
-    let after = measure::report(&table, &ks, 1).map_err(|e| CliError::process(path, e))?;
-    // A last separable step with δ = 1 writes its factors when the output is TOML:
-    // the compressed representation.
-    let factors = match steps.last() {
-        Some(Step::Separable(k, d))
-            if *d == 1.0 && out.extension().is_some_and(|e| e == "toml") =>
-        {
-            Some(
-                SeparableBrdf::from_table(&table, *k, true)
-                    .map_err(|e| CliError::process(path, e))?,
-            )
-        }
-        _ => None,
-    };
-    match (&factors, &target) {
+    let corrected = compute(&a, steps, None, toml_out)?;
+    let Corrected {
+        tab,
+        table,
+        before,
+        after,
+        factors,
+        ks,
+    } = &corrected;
+    match (factors, &target) {
         (Some(f), Ok(t)) => t.write(f.to_toml().as_bytes())?,
-        (None, Ok(t)) => t.write(file::write_table(&table).as_bytes())?,
+        (None, Ok(t)) => t.write(file::write_table(table).as_bytes())?,
         (_, Err(csv)) => {
-            csv.write_tabulated(&table, &tab)?;
+            csv.write_tabulated(table, tab)?;
         }
     }
     let ratio = factors.as_ref().map(SeparableBrdf::storage_ratio);
     if json_out {
-        return output::json(&json!({
-            "out": out.display().to_string(),
-            "steps": steps,
-            "before": before,
-            "after": after,
-            "storage_ratio": ratio,
-            "symmetry": tab.symmetry.name(),
-            "grid": super::grid_json(&tab.table, &tab),
-        }));
+        return output::json(&corrected.json(steps, out));
     }
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: {} step(s) applied", out.display(), steps.len())?;
-        super::write_provenance(&mut w, &tab)?;
+        super::write_provenance(&mut w, tab)?;
         let pair = |name: &str, b: &[f64], a: &[f64]| {
             format!(
                 "{name:<8}{}",
@@ -202,4 +168,87 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
         }
         w.flush()
     })())
+}
+
+/// What `gonio correct` made: the table transformed, and the measures before and
+/// after.
+pub(crate) struct Corrected {
+    /// The input's table and what was assumed to make it.
+    pub tab: gonio_dataset::Tabulated,
+    /// The table after the steps.
+    pub table: gonio_process::Table,
+    /// The measures before.
+    pub before: measure::Report,
+    /// The measures after.
+    pub after: measure::Report,
+    /// The separable factors, when the last step is k-separable with δ = 1 and they
+    /// were asked for.
+    pub factors: Option<SeparableBrdf>,
+    /// The k of P_s^(k) measured (the steps' k, then 1).
+    pub ks: Vec<usize>,
+}
+
+impl Corrected {
+    /// The `--json` object (`out` names the output).
+    pub fn json(&self, steps: &[Step], out: &std::path::Path) -> serde_json::Value {
+        json!({
+            "out": out.display().to_string(),
+            "steps": steps,
+            "before": self.before,
+            "after": self.after,
+            "storage_ratio": self.factors.as_ref().map(SeparableBrdf::storage_ratio),
+            "symmetry": self.tab.symmetry.name(),
+            "grid": super::grid_json(&self.tab.table, &self.tab),
+        })
+    }
+}
+
+/// Applies `steps` to the input's table (or to `given`, data already in memory that
+/// `path` names); writes nothing. `factors_wanted`: a last separable step with δ = 1
+/// also gives its factors.
+pub(crate) fn compute(
+    a: &CorrectArgs,
+    steps: &[Step],
+    given: Option<gonio_dataset::Dataset>,
+    factors_wanted: bool,
+) -> CliResult<Corrected> {
+    let path = a.input.as_path();
+    if steps.is_empty() {
+        return Err(CliError::Input(
+            "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
+        ));
+    }
+    let data = super::open_data(path, &a.reduction, given)?;
+    let tab = data.tabulate(a.grid.grid, path)?;
+    let mut table = tab.table.clone();
+    let ks: Vec<usize> = steps
+        .iter()
+        .filter_map(|s| match s {
+            Step::Separable(k, _) => Some(*k),
+            _ => None,
+        })
+        .chain([1])
+        .collect();
+    let before = measure::report_with(&table, tab.measured.as_ref(), &ks, 1)
+        .map_err(|e| CliError::process(path, e))?;
+    for s in steps {
+        table = s.apply(&table).map_err(|e| CliError::process(path, e))?;
+    }
+    let after = measure::report(&table, &ks, 1).map_err(|e| CliError::process(path, e))?;
+    // A last separable step with δ = 1 writes its factors when the output is TOML:
+    // the compressed representation.
+    let factors = match steps.last() {
+        Some(Step::Separable(k, d)) if *d == 1.0 && factors_wanted => Some(
+            SeparableBrdf::from_table(&table, *k, true).map_err(|e| CliError::process(path, e))?,
+        ),
+        _ => None,
+    };
+    Ok(Corrected {
+        tab,
+        table,
+        before,
+        after,
+        factors,
+        ks,
+    })
 }

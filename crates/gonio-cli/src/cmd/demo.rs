@@ -490,6 +490,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         None,
         transmittance,
         true,
+        &crate::cmd::acquire::StopBy::Signals,
     )?;
     let wall_s = started.elapsed().as_secs_f64();
     if report.outcome != gonio_acquire::engine::Outcome::Complete {

@@ -146,17 +146,57 @@ fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::Input(format!("{}: {e}", path.display()))
 }
 
-/// `gonio fit INPUT --model lafortune --lobes 3 … --out FIT.toml`.
-pub fn run(a: FitArgs) -> CliResult<()> {
+/// A fit as `gonio fit` makes it: the data fitted, the lobes, and the comparison
+/// models when asked for.
+pub(crate) struct Fitted {
+    /// The data, as fitted.
+    pub data: FitData,
+    /// The lobes.
+    pub fit: gonio_fit::LobeFit,
+    /// Ward, Blinn-Phong and Cook–Torrance on the same data (`--compare`).
+    pub comparison: Option<Vec<compare::Compared>>,
+    /// The diffuse term.
+    pub diffuse: Diffuse,
+    /// The error measured.
+    pub metric: Metric,
+}
+
+impl Fitted {
+    /// The model file `--out` receives: a comment line saying how it was made, then
+    /// the model.
+    pub fn model_file(&self, a: &FitArgs) -> String {
+        format!(
+            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, objective {}, {} pairs\n{}",
+            a.input.display(),
+            a.lobes,
+            self.diffuse,
+            self.metric,
+            self.data.objective.name(),
+            self.data.len(),
+            self.fit.model_toml
+        )
+    }
+
+    /// The `--json` object.
+    pub fn json(&self, a: &FitArgs) -> serde_json::Value {
+        json!({
+            "out": a.out.as_ref().map(|p| p.display().to_string()),
+            "fit": self.fit,
+            "comparison": self.comparison,
+            "cut_by_angle": self.data.cut,
+        })
+    }
+}
+
+/// Fits the input (or `given`, samples already in memory that `a.input` names), as
+/// `a` says; writes nothing.
+pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> CliResult<Fitted> {
     if a.model != "lafortune" {
         return Err(CliError::Input(format!(
             "--model: only `lafortune` lobes are fitted as the result (got {:?}); use --compare \
              for Ward, Blinn-Phong and Cook-Torrance",
             a.model
         )));
-    }
-    if a.out.is_none() && !a.compare {
-        return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
     }
     // Checked before the input is read: a bad count is refused at once.
     if a.lobes > gonio_fit::MAX_LOBES {
@@ -166,11 +206,6 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             a.lobes
         )));
     }
-    let target = a
-        .out
-        .as_deref()
-        .map(|p| output::Target::new(p, a.force.force))
-        .transpose()?;
     if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
         return Err(CliError::Input(format!(
             "--cutoff must lie in (0, 90] degrees, got {}",
@@ -207,7 +242,7 @@ pub fn run(a: FitArgs) -> CliResult<()> {
                 .into(),
         ));
     }
-    let samples = match plain_samples(&a.input) {
+    let samples = match given.or_else(|| plain_samples(&a.input)) {
         Some(s) => s,
         None => {
             let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
@@ -244,18 +279,6 @@ pub fn run(a: FitArgs) -> CliResult<()> {
             format!("{}: {e}", a.input.display()),
         )
     })?;
-    if let Some(target) = &target {
-        let header = format!(
-            "# gonio fit {}: {} lobe(s), {:?} diffuse, metric {:?}, objective {}, {} pairs\n",
-            a.input.display(),
-            a.lobes,
-            diffuse,
-            metric,
-            data.objective.name(),
-            data.len()
-        );
-        target.write((header + &fit.model_toml).as_bytes())?;
-    }
     let comparison = if a.compare {
         let mut rows = Vec::new();
         for k in Kind::ALL {
@@ -268,163 +291,192 @@ pub fn run(a: FitArgs) -> CliResult<()> {
     } else {
         None
     };
+    Ok(Fitted {
+        data,
+        fit,
+        comparison,
+        diffuse,
+        metric,
+    })
+}
+
+/// `gonio fit INPUT --model lafortune --lobes 3 … --out FIT.toml`.
+pub fn run(a: FitArgs) -> CliResult<()> {
+    if a.out.is_none() && !a.compare {
+        return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
+    }
+    let target = a
+        .out
+        .as_deref()
+        .map(|p| output::Target::new(p, a.force.force))
+        .transpose()?;
+    let fitted = compute(&a, None)?;
+    if let Some(target) = &target {
+        target.write(fitted.model_file(&a).as_bytes())?;
+    }
     if a.json.json {
-        return output::json(&json!({
-            "out": a.out.as_ref().map(|p| p.display().to_string()),
-            "fit": fit,
-            "comparison": comparison,
-            "cut_by_angle": data.cut,
-        }));
+        return output::json(&fitted.json(&a));
     }
     let mut w = output::stdout();
-    output::finish((|| {
+    output::finish(write_report(&mut w, &a, &fitted))
+}
+
+/// The text `gonio fit` prints.
+pub(crate) fn write_report(w: &mut dyn Write, a: &FitArgs, f: &Fitted) -> std::io::Result<()> {
+    let Fitted {
+        data,
+        fit,
+        comparison,
+        diffuse,
+        metric,
+    } = f;
+    let (diffuse, metric) = (*diffuse, *metric);
+    writeln!(
+        w,
+        "{}: {} pairs ({} above the {}° cutoff left out), {} fit, metric {:?}",
+        a.input.display(),
+        data.len(),
+        data.cut,
+        a.cutoff,
+        if data.chi_square {
+            "χ² (1/σ weights)"
+        } else {
+            "unweighted"
+        },
+        metric
+    )?;
+    writeln!(
+        w,
+        "objective {} ({}): minimises the {}",
+        fit.objective.name, fit.objective.chosen, fit.objective.formula
+    )?;
+    for c in &fit.channels {
         writeln!(
             w,
-            "{}: {} pairs ({} above the {}° cutoff left out), {} fit, metric {:?}",
-            a.input.display(),
-            data.len(),
-            data.cut,
-            a.cutoff,
-            if data.chi_square {
-                "χ² (1/σ weights)"
+            "channel {}: RMS {:.4e} 1/sr ({:.3}% of the data's RMS), reduced χ² {:.3}",
+            c.channel,
+            c.rms,
+            100.0 * c.relative_rms,
+            c.reduced_chi2
+        )?;
+        writeln!(
+            w,
+            "  diffuse ρd = {:.6} ± {:.2e}",
+            c.params.rho_d, c.std_err.rho_d
+        )?;
+        if diffuse == Diffuse::Minnaert {
+            writeln!(w, "  Minnaert m = {:.4} ± {:.2e}", c.params.m, c.std_err.m)?;
+        }
+        for (j, (l, s)) in c.params.lobes.iter().zip(&c.std_err.lobes).enumerate() {
+            writeln!(
+                w,
+                "  lobe {}: Cx {:+.5} ± {:.1e}  Cy {:+.5} ± {:.1e}  Cz {:+.5} ± {:.1e}  n {:.4} ± {:.1e}",
+                j + 1,
+                l[0],
+                s[0],
+                l[1],
+                s[1],
+                l[2],
+                s[2],
+                l[3],
+                s[3]
+            )?;
+        }
+        let per: Vec<String> = c
+            .per_theta_i
+            .iter()
+            .map(|(t, _, rel)| format!("{t:.0}°: {:.2}%", 100.0 * rel))
+            .collect();
+        writeln!(w, "  relative error by θi: {}", per.join(", "))?;
+    }
+    writeln!(
+        w,
+        "{} evaluations, {:.3} s; largest directional albedo {:.4}{}",
+        fit.evaluations,
+        fit.seconds,
+        fit.max_albedo,
+        match (&fit.energy, fit.max_albedo > 1.0) {
+            (None, true) => " — exceeds 1: --conserve-energy fits under albedo ≤ 1",
+            (Some(_), true) => {
+                " — above 1 beyond the data's incident directions, which the constraint holds"
+            }
+            _ => "",
+        }
+    )?;
+    if let Some(e) = &fit.energy {
+        writeln!(
+            w,
+            "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
+            e.directions,
+            if e.constrained {
+                "the constrained optimum"
             } else {
-                "unweighted"
-            },
-            metric
-        )?;
-        writeln!(
-            w,
-            "objective {} ({}): minimises the {}",
-            fit.objective.name, fit.objective.chosen, fit.objective.formula
-        )?;
-        for c in &fit.channels {
-            writeln!(
-                w,
-                "channel {}: RMS {:.4e} 1/sr ({:.3}% of the data's RMS), reduced χ² {:.3}",
-                c.channel,
-                c.rms,
-                100.0 * c.relative_rms,
-                c.reduced_chi2
-            )?;
-            writeln!(
-                w,
-                "  diffuse ρd = {:.6} ± {:.2e}",
-                c.params.rho_d, c.std_err.rho_d
-            )?;
-            if diffuse == Diffuse::Minnaert {
-                writeln!(w, "  Minnaert m = {:.4} ± {:.2e}", c.params.m, c.std_err.m)?;
-            }
-            for (j, (l, s)) in c.params.lobes.iter().zip(&c.std_err.lobes).enumerate() {
-                writeln!(
-                    w,
-                    "  lobe {}: Cx {:+.5} ± {:.1e}  Cy {:+.5} ± {:.1e}  Cz {:+.5} ± {:.1e}  n {:.4} ± {:.1e}",
-                    j + 1,
-                    l[0],
-                    s[0],
-                    l[1],
-                    s[1],
-                    l[2],
-                    s[2],
-                    l[3],
-                    s[3]
-                )?;
-            }
-            let per: Vec<String> = c
-                .per_theta_i
-                .iter()
-                .map(|(t, _, rel)| format!("{t:.0}°: {:.2}%", 100.0 * rel))
-                .collect();
-            writeln!(w, "  relative error by θi: {}", per.join(", "))?;
-        }
-        writeln!(
-            w,
-            "{} evaluations, {:.3} s; largest directional albedo {:.4}{}",
-            fit.evaluations,
-            fit.seconds,
-            fit.max_albedo,
-            match (&fit.energy, fit.max_albedo > 1.0) {
-                (None, true) => " — exceeds 1: --conserve-energy fits under albedo ≤ 1",
-                (Some(_), true) => {
-                    " — above 1 beyond the data's incident directions, which the constraint holds"
-                }
-                _ => "",
+                "the unconstrained optimum already meets it, unchanged"
             }
         )?;
-        if let Some(e) = &fit.energy {
+        for c in &e.channels {
             writeln!(
                 w,
-                "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
-                e.directions,
-                if e.constrained {
-                    "the constrained optimum"
-                } else {
-                    "the unconstrained optimum already meets it, unchanged"
-                }
-            )?;
-            for c in &e.channels {
-                writeln!(
-                    w,
-                    "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
+                "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
                      (unconstrained {:.6e}); active: {}",
-                    c.channel,
-                    c.max_albedo,
-                    c.unconstrained_max_albedo,
-                    c.cost,
-                    c.unconstrained_cost,
-                    if c.active.is_empty() {
-                        "none".to_string()
-                    } else {
-                        c.active
-                            .iter()
-                            .map(|x| {
-                                format!(
-                                    "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
-                                    x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
-                                )
-                            })
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    }
-                )?;
-            }
-        }
-        if let Some(out) = &a.out {
-            writeln!(w, "model: {}", out.display())?;
-        }
-        if let Some(rows) = &comparison {
-            writeln!(
-                w,
-                "\nthe same data, the same metric (relative RMS per channel):"
+                c.channel,
+                c.max_albedo,
+                c.unconstrained_max_albedo,
+                c.cost,
+                c.unconstrained_cost,
+                if c.active.is_empty() {
+                    "none".to_string()
+                } else {
+                    c.active
+                        .iter()
+                        .map(|x| {
+                            format!(
+                                "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
+                                x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
             )?;
-            writeln!(
-                w,
-                "{:<28}{}",
-                "model",
-                fit.channels
-                    .iter()
-                    .map(|c| format!("{:>12}", c.channel))
-                    .collect::<String>()
-            )?;
-            writeln!(
-                w,
-                "{:<28}{}",
-                format!("Lafortune, {} lobe(s)", a.lobes),
-                fit.channels
-                    .iter()
-                    .map(|c| format!("{:>11.3}%", 100.0 * c.relative_rms))
-                    .collect::<String>()
-            )?;
-            for k in Kind::ALL {
-                let v: String = rows
-                    .iter()
-                    .filter(|r| r.model == k.name())
-                    .map(|r| format!("{:>11.3}%", 100.0 * r.relative_rms))
-                    .collect();
-                writeln!(w, "{:<28}{v}", k.name())?;
-            }
         }
-        w.flush()
-    })())
+    }
+    if let Some(out) = &a.out {
+        writeln!(w, "model: {}", out.display())?;
+    }
+    if let Some(rows) = &comparison {
+        writeln!(
+            w,
+            "\nthe same data, the same metric (relative RMS per channel):"
+        )?;
+        writeln!(
+            w,
+            "{:<28}{}",
+            "model",
+            fit.channels
+                .iter()
+                .map(|c| format!("{:>12}", c.channel))
+                .collect::<String>()
+        )?;
+        writeln!(
+            w,
+            "{:<28}{}",
+            format!("Lafortune, {} lobe(s)", a.lobes),
+            fit.channels
+                .iter()
+                .map(|c| format!("{:>11.3}%", 100.0 * c.relative_rms))
+                .collect::<String>()
+        )?;
+        for k in Kind::ALL {
+            let v: String = rows
+                .iter()
+                .filter(|r| r.model == k.name())
+                .map(|r| format!("{:>11.3}%", 100.0 * r.relative_rms))
+                .collect();
+            writeln!(w, "{:<28}{v}", k.name())?;
+        }
+    }
+    w.flush()
 }
 
 #[cfg(test)]

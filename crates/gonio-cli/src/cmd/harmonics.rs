@@ -38,13 +38,82 @@ pub struct HarmonicsArgs {
 
 /// `gonio harmonics INPUT --order L [--filter LF] --out SH.toml`.
 pub fn run(a: HarmonicsArgs) -> CliResult<()> {
-    let (path, order, filter, out, json_out) = (
-        a.input.as_path(),
-        a.order,
-        a.filter,
-        a.out.as_path(),
-        a.json.json,
-    );
+    let (order, out, json_out) = (a.order, a.out.as_path(), a.json.json);
+    let target = output::Target::new(out, a.force.force)?;
+    let h = compute(&a, None)?;
+    target.write(h.file.as_bytes())?;
+    let (tab, sh, err) = (&h.tab, &h.sh, &h.error);
+    let table = &tab.table;
+    let ratio = h.storage_ratio();
+    if json_out {
+        return output::json(&h.json(order, out));
+    }
+    let mut w = output::stdout();
+    output::finish((|| {
+        writeln!(
+            w,
+            "{}: spherical harmonics to order {order}, {} coefficients ({:.2}% of the table), exactly reciprocal",
+            out.display(),
+            sh.coefficient_count(),
+            100.0 * ratio
+        )?;
+        super::write_provenance(&mut w, tab)?;
+        for (ch, name) in table.channels.names().iter().enumerate() {
+            writeln!(
+                w,
+                "channel {name}: RMS error {:.4e} 1/sr ({:.2}% of the RMS value), max {:.4e} 1/sr",
+                err.rms[ch],
+                100.0 * err.relative_rms[ch],
+                err.max_abs[ch]
+            )?;
+        }
+        w.flush()
+    })())
+}
+
+/// A table as harmonics, as `gonio harmonics` makes it.
+pub(crate) struct Harmonics {
+    /// The input's table and what was assumed to make it.
+    pub tab: gonio_dataset::Tabulated,
+    /// The representation.
+    pub sh: ShBrdf,
+    /// Its error against the table.
+    pub error: gonio_process::sh::ShError,
+    /// The file `--out` receives: comments on what was assumed, then the
+    /// coefficients.
+    pub file: String,
+}
+
+impl Harmonics {
+    /// Coefficients over table values.
+    pub fn storage_ratio(&self) -> f64 {
+        self.sh.coefficient_count() as f64 / self.tab.table.values.len() as f64
+    }
+
+    /// The `--json` object (`out` names the output).
+    pub fn json(&self, order: usize, out: &std::path::Path) -> serde_json::Value {
+        let err = &self.error;
+        json!({
+            "out": out.display().to_string(),
+            "order": order,
+            "coefficients": self.sh.coefficient_count(),
+            "storage_ratio": self.storage_ratio(),
+            "rms": err.rms,
+            "relative_rms": err.relative_rms,
+            "max_abs": err.max_abs,
+            "symmetry": self.tab.symmetry.name(),
+            "grid": super::grid_json(&self.tab.table, &self.tab),
+        })
+    }
+}
+
+/// Represents the input's table (or `given`, data already in memory that
+/// `a.input` names); writes nothing.
+pub(crate) fn compute(
+    a: &HarmonicsArgs,
+    given: Option<gonio_dataset::Dataset>,
+) -> CliResult<Harmonics> {
+    let (path, order, filter) = (a.input.as_path(), a.order, a.filter);
     // Checked before the input is read: a bad degree is refused at once.
     let degree = |name: &str, v: usize, max: usize| {
         gonio_core::limits::count(v as u64, 0, max as u64, "")
@@ -54,9 +123,8 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
     if let Some(f) = filter {
         degree("--filter", f, order)?;
     }
-    let target = output::Target::new(out, a.force.force)?;
-    let opened = gonio_dataset::open(path, &a.reduction.open_options()?)?;
-    let tab = opened.data.tabulate(a.grid.grid, path)?;
+    let data = super::open_data(path, &a.reduction, given)?;
+    let tab = data.tabulate(a.grid.grid, path)?;
     let table = &tab.table;
     let opts = ShOptions {
         l_max: order,
@@ -85,40 +153,10 @@ pub fn run(a: HarmonicsArgs) -> CliResult<()> {
         }
     }
     text.push_str(&sh.to_toml());
-    target.write(text.as_bytes())?;
-    let ratio = sh.coefficient_count() as f64 / table.values.len() as f64;
-    if json_out {
-        return output::json(&json!({
-            "out": out.display().to_string(),
-            "order": order,
-            "coefficients": sh.coefficient_count(),
-            "storage_ratio": ratio,
-            "rms": err.rms,
-            "relative_rms": err.relative_rms,
-            "max_abs": err.max_abs,
-            "symmetry": tab.symmetry.name(),
-            "grid": super::grid_json(table, &tab),
-        }));
-    }
-    let mut w = output::stdout();
-    output::finish((|| {
-        writeln!(
-            w,
-            "{}: spherical harmonics to order {order}, {} coefficients ({:.2}% of the table), exactly reciprocal",
-            out.display(),
-            sh.coefficient_count(),
-            100.0 * ratio
-        )?;
-        super::write_provenance(&mut w, &tab)?;
-        for (ch, name) in table.channels.names().iter().enumerate() {
-            writeln!(
-                w,
-                "channel {name}: RMS error {:.4e} 1/sr ({:.2}% of the RMS value), max {:.4e} 1/sr",
-                err.rms[ch],
-                100.0 * err.relative_rms[ch],
-                err.max_abs[ch]
-            )?;
-        }
-        w.flush()
-    })())
+    Ok(Harmonics {
+        tab,
+        sh,
+        error: err,
+        file: text,
+    })
 }

@@ -165,20 +165,8 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
         None => None,
     };
     let started = Instant::now();
-    let sample = Sample::load(&a.surface).map_err(|e| input_err(&a.surface, e))?;
-    let opts = SimOptions {
-        max_bounces: a.max_bounces,
-        ..SimOptions::default()
-    };
-    let sim = Simulation::new(sample, opts).map_err(|e| input_err(&a.surface, e))?;
-    let grid = if a.isotropic {
-        a.grid.isotropic_grid()
-    } else {
-        a.grid.grid()
-    };
-    let r = sim
-        .to_table(&grid, a.rays, a.seed)
-        .map_err(|e| input_err(&a.surface, e))?;
+    let (sim, grid) = load(&a)?;
+    let r = trace(&a, &sim, &grid)?;
     out.write_table(&r.table)?;
     let mut order_files = Vec::new();
     for (t, target) in r.per_order.iter().zip(&order_targets) {
@@ -200,47 +188,7 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
     let s = &r.stats;
     let mc = median_relative_error(&r);
     if a.json.json {
-        let albedo: Vec<_> = r
-            .albedo
-            .iter()
-            .map(|x| {
-                json!({
-                    "phi_i_deg": x.phi_i.to_degrees(),
-                    "theta_i_deg": x.theta_i.to_degrees(),
-                    "albedo": x.albedo,
-                    "sigma": x.sigma,
-                    "per_order": x.per_order,
-                    "in_table": x.in_table,
-                })
-            })
-            .collect();
-        return output::json(&json!({
-            "out": a.out.display().to_string(),
-            "order_files": order_files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
-            "channels": channels,
-            "nodes": r.table.grid.len(),
-            "rays_per_direction": a.rays,
-            "seed": a.seed,
-            "rays": s.rays,
-            "exits": s.exits,
-            "absorbed": s.absorbed,
-            "capped": s.capped,
-            "capped_energy_fraction": s.capped_fraction(),
-            "leaked": s.leaked,
-            "horizon": s.horizon,
-            "hits": s.hits,
-            "max_order": s.max_order,
-            "median_relative_error": mc,
-            "albedo": albedo,
-            "sh": sh.as_ref().map(|(p, e)| json!({
-                "out": p.display().to_string(),
-                "l_max": e.sh.l_max,
-                "l_filter": e.sh.l_filter,
-                "coefficients": e.sh.coefficient_count(),
-                "rays": e.stats.rays,
-            })),
-            "seconds": seconds,
-        }));
+        return output::json(&json(&a, &r, &order_files, sh.as_ref(), seconds));
     }
     let mut w = output::stdout();
     output::finish((|| {
@@ -319,4 +267,85 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
         writeln!(w, "{seconds:.2} s")?;
         w.flush()
     })())
+}
+
+/// The surface's simulation and the grid `a` asks for; nothing traced yet.
+pub(crate) fn load(a: &MicroArgs) -> CliResult<(Simulation, gonio_process::Grid)> {
+    check_counts(a)?;
+    let sample = Sample::load(&a.surface).map_err(|e| input_err(&a.surface, e))?;
+    let opts = SimOptions {
+        max_bounces: a.max_bounces,
+        ..SimOptions::default()
+    };
+    let sim = Simulation::new(sample, opts).map_err(|e| input_err(&a.surface, e))?;
+    let grid = if a.isotropic {
+        a.grid.isotropic_grid()
+    } else {
+        a.grid.grid()
+    };
+    Ok((sim, grid))
+}
+
+/// Traces `a.rays` rays an incident node of `grid`.
+pub(crate) fn trace(
+    a: &MicroArgs,
+    sim: &Simulation,
+    grid: &gonio_process::Grid,
+) -> CliResult<MicroResult> {
+    sim.to_table(grid, a.rays, a.seed)
+        .map_err(|e| input_err(&a.surface, e))
+}
+
+/// The `--json` object.
+pub(crate) fn json(
+    a: &MicroArgs,
+    r: &MicroResult,
+    order_files: &[PathBuf],
+    sh: Option<&(PathBuf, gonio_micro::ShEstimate)>,
+    seconds: f64,
+) -> serde_json::Value {
+    let channels = r.table.channels.names();
+    let s = &r.stats;
+    let mc = median_relative_error(r);
+    let albedo: Vec<_> = r
+        .albedo
+        .iter()
+        .map(|x| {
+            json!({
+                "phi_i_deg": x.phi_i.to_degrees(),
+                "theta_i_deg": x.theta_i.to_degrees(),
+                "albedo": x.albedo,
+                "sigma": x.sigma,
+                "per_order": x.per_order,
+                "in_table": x.in_table,
+            })
+        })
+        .collect();
+    json!({
+        "out": a.out.display().to_string(),
+        "order_files": order_files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "channels": channels,
+        "nodes": r.table.grid.len(),
+        "rays_per_direction": a.rays,
+        "seed": a.seed,
+        "rays": s.rays,
+        "exits": s.exits,
+        "absorbed": s.absorbed,
+        "capped": s.capped,
+        "capped_energy_fraction": s.capped_fraction(),
+        "leaked": s.leaked,
+        "horizon": s.horizon,
+        "hits": s.hits,
+        "max_order": s.max_order,
+        "median_relative_error": mc,
+        "albedo": albedo,
+        "sh": sh.as_ref().map(|(p, e)| json!({
+            "out": p.display().to_string(),
+            "l_max": e.sh.l_max,
+            "l_filter": e.sh.l_filter,
+            "coefficients": e.sh.coefficient_count(),
+            "rays": e.stats.rays,
+        })),
+        "seconds": seconds,
+    })
 }

@@ -18,6 +18,19 @@ pub mod report;
 pub mod runs;
 pub mod verify;
 
+/// The data of `path`, opened as the reduction flags say, or `given`: data already in
+/// memory (from the Python package) that `path` names in messages.
+pub(crate) fn open_data(
+    path: &std::path::Path,
+    reduction: &crate::flags::ReduceFlags,
+    given: Option<gonio_dataset::Dataset>,
+) -> crate::error::CliResult<gonio_dataset::Dataset> {
+    match given {
+        Some(d) => Ok(d),
+        None => Ok(gonio_dataset::open(path, &reduction.open_options()?)?.data),
+    }
+}
+
 /// Writes what a command assumed to make a table of its input: the symmetry, and
 /// the nodes of the data's own grid that were interpolated rather than measured.
 pub(crate) fn write_provenance(

@@ -5,6 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_dataset::Kind;
+use gonio_process::file::Content;
 use gonio_process::samples::Kernel;
 use gonio_reduce::Reduction;
 use serde_json::json;
@@ -43,14 +44,14 @@ pub fn head(path: &Path) -> CliResult<Vec<u8>> {
     gonio_core::input::read_head(path, 64 * 1024).map_err(|e| CliError::Input(e.to_string()))
 }
 
-fn reduction_json(r: &Reduction) -> serde_json::Value {
+pub(crate) fn reduction_json(r: &Reduction) -> serde_json::Value {
     serde_json::to_value(&r.report).unwrap_or_default()
 }
 
-/// `gonio reduce RUN --out TABLE`.
-pub fn run(a: ReduceArgs) -> CliResult<()> {
-    let (path, out, grid, json_out) = (a.run.as_path(), a.out.as_path(), a.grid.grid, a.json.json);
-    let target = CsvTarget::new(out, a.force.force)?;
+/// A run reduced as `gonio reduce` reduces it: the reduction, and what it writes (a
+/// table when the samples form a grid or `--grid` asks for one, else the samples).
+pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
+    let (path, grid) = (a.run.as_path(), a.grid.grid);
     if gonio_dataset::detect(&head(path)?) != Some(Kind::Run) {
         return Err(CliError::Input(format!(
             "{}: not a run file (.gonio, SQLite)",
@@ -72,22 +73,35 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             path.display()
         )));
     };
-    let what = match (red.samples.to_table(), grid) {
-        (Some(t), None) => {
-            target.write_table(&t)?;
+    let content = match (red.samples.to_table(), grid) {
+        (Some(t), None) => Content::Table(t),
+        (_, Some(g)) => Content::Table(
+            red.samples
+                .resample(g.grid(), Kernel::default())
+                .map_err(|e| CliError::process(path, e))?,
+        ),
+        (None, None) => Content::Samples(red.samples.clone()),
+    };
+    Ok((red, content))
+}
+
+/// `gonio reduce RUN --out TABLE`.
+pub fn run(a: ReduceArgs) -> CliResult<()> {
+    let (out, grid, json_out) = (a.out.as_path(), a.grid.grid, a.json.json);
+    let target = CsvTarget::new(out, a.force.force)?;
+    let (red, content) = compute(&a)?;
+    let what = match (&content, grid) {
+        (Content::Table(t), None) => {
+            target.write_table(t)?;
             format!("a table of {} nodes", t.grid.len())
         }
-        (_, Some(g)) => {
-            let t = red
-                .samples
-                .resample(g.grid(), Kernel::default())
-                .map_err(|e| CliError::process(path, e))?;
-            target.write_table(&t)?;
+        (Content::Table(t), Some(_)) => {
+            target.write_table(t)?;
             format!("a table of {} nodes (resampled)", t.grid.len())
         }
-        (None, None) => {
-            target.write_samples(&red.samples)?;
-            format!("{} samples", red.samples.samples.len())
+        (Content::Samples(s), _) => {
+            target.write_samples(s)?;
+            format!("{} samples", s.samples.len())
         }
     };
     if json_out {

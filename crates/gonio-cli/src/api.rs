@@ -1,0 +1,185 @@
+//! What the Python package (`gonio-py`) calls: the commands' own computations, on
+//! the command's own arguments, without printing.
+//!
+//! Each function takes the words a command line would (`["check", "run.gonio",
+//! "--k", "1,5"]`, without `gonio`), parsed by the command's own parser, so a value
+//! is checked and refused with the command's message. Data already in memory (a
+//! DataFrame's samples, a model) is `given`: the input word then only names it in
+//! messages. Nothing here writes a file the command would write: the caller gets the
+//! values the command would have written, and the `--json` object it would have
+//! printed.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use clap::{CommandFactory, FromArgMatches};
+use gonio_dataset::Dataset;
+use gonio_process::file::Content;
+use gonio_process::{Samples, Table};
+use serde_json::Value;
+
+use crate::cmd;
+pub use crate::error::{CliError, CliResult};
+use crate::{Cli, Command};
+
+/// The words parsed as `gonio WORDS…`.
+fn parse(words: &[String]) -> CliResult<(Command, clap::ArgMatches)> {
+    let argv = std::iter::once("gonio".to_string()).chain(words.iter().cloned());
+    let matches = Cli::command()
+        .try_get_matches_from(argv)
+        .map_err(clap_error)?;
+    let cli = Cli::from_arg_matches(&matches).map_err(clap_error)?;
+    Ok((cli.command, matches))
+}
+
+/// A parse failure as one line: clap's first, without its `error: ` prefix.
+fn clap_error(e: clap::Error) -> CliError {
+    let text = e.render().to_string();
+    let line = text.lines().next().unwrap_or_default();
+    CliError::Input(line.trim_start_matches("error: ").to_string())
+}
+
+/// The words were not the command expected: a caller's mistake.
+fn wrong(words: &[String]) -> CliError {
+    CliError::Runtime(format!("api: not the expected command: {words:?}"))
+}
+
+/// Removes `out` from a `--json` object, for a result that was not written.
+fn without_out(mut v: Value) -> Value {
+    if let Some(o) = v.as_object_mut() {
+        o.remove("out");
+    }
+    v
+}
+
+/// Logs to stderr as `-v` (1) or `-vv` (2) would, `RUST_LOG` overriding; once a
+/// process (later calls change nothing).
+pub fn init_logging(verbose: u8) {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        if let Err(e) = crate::logging::init(verbose, None) {
+            eprintln!("gonio: logging: {e}");
+        }
+    });
+}
+
+/// `gonio check`: the `--json` object.
+pub fn check(words: &[String], given: Option<Dataset>) -> CliResult<Value> {
+    match parse(words)?.0 {
+        Command::Check(a) => Ok(cmd::check::compute(&a, given)?.json()),
+        _ => Err(wrong(words)),
+    }
+}
+
+/// `gonio correct`: the corrected table and the `--json` object (without `out`).
+/// The words still need an `--out`, which is not written.
+pub fn correct(words: &[String], given: Option<Dataset>) -> CliResult<(Table, Value)> {
+    let (command, matches) = parse(words)?;
+    let Command::Correct(a) = command else {
+        return Err(wrong(words));
+    };
+    let steps = a.steps(matches.subcommand_matches("correct"))?;
+    let c = cmd::correct::compute(&a, &steps, given, false)?;
+    let json = without_out(c.json(&steps, Path::new("")));
+    Ok((c.table, json))
+}
+
+/// `gonio harmonics`: the file `--out` would receive (TOML) and the `--json`
+/// object (without `out`).
+pub fn harmonics(words: &[String], given: Option<Dataset>) -> CliResult<(String, Value)> {
+    match parse(words)?.0 {
+        Command::Harmonics(a) => {
+            let h = cmd::harmonics::compute(&a, given)?;
+            let json = without_out(h.json(h.sh.l_max, Path::new("")));
+            Ok((h.file, json))
+        }
+        _ => Err(wrong(words)),
+    }
+}
+
+/// What `gonio fit` gives.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    /// The model file `--out` would receive (TOML).
+    pub model_file: String,
+    /// The `--json` object.
+    pub json: Value,
+    /// The text the command prints.
+    pub report: String,
+}
+
+/// `gonio fit` (no `--out` needed; none is written).
+pub fn fit(words: &[String], given: Option<Samples>) -> CliResult<Fit> {
+    let Command::Fit(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let f = cmd::fit::compute(&a, given)?;
+    let mut report = Vec::new();
+    cmd::fit::write_report(&mut report, &a, &f)
+        .map_err(|e| CliError::Runtime(format!("fit report: {e}")))?;
+    Ok(Fit {
+        model_file: f.model_file(&a),
+        json: f.json(&a),
+        report: String::from_utf8_lossy(&report).into_owned(),
+    })
+}
+
+/// `gonio micro`: the table and the `--json` object (without `out`). `theta_i`
+/// replaces the grid's incident polar axis (degrees: first node, step, count).
+/// The words still need an `--out`, which is not written.
+pub fn micro(words: &[String], theta_i: Option<(f64, f64, usize)>) -> CliResult<(Table, Value)> {
+    let Command::Micro(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let started = std::time::Instant::now();
+    let (sim, mut grid) = cmd::micro::load(&a)?;
+    if let Some((start, step, n)) = theta_i {
+        grid.theta_i = gonio_process::Axis::from_deg(start, step, n);
+        grid.validate()
+            .map_err(|e| CliError::Input(format!("theta_i: {e}")))?;
+    }
+    let r = cmd::micro::trace(&a, &sim, &grid)?;
+    let json = cmd::micro::json(&a, &r, &[], None, started.elapsed().as_secs_f64());
+    Ok((r.table, without_out(json)))
+}
+
+/// `gonio reduce`: what it writes (a table, or the samples) and its `--json`
+/// reduction account. The words still need an `--out`, which is not written.
+pub fn reduce(words: &[String]) -> CliResult<(Content, Value)> {
+    let Command::Reduce(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let (red, content) = cmd::reduce::compute(&a)?;
+    Ok((content, cmd::reduce::reduction_json(&red)))
+}
+
+/// How a run's readings are reduced, from the values of `--calibration` and
+/// `--drift`.
+pub fn open_options(calibration: &str, drift: &str) -> CliResult<gonio_dataset::OpenOptions> {
+    crate::flags::ReduceFlags {
+        calibration: calibration.into(),
+        drift: drift.into(),
+    }
+    .open_options()
+}
+
+/// `gonio acquire`: measures a plan into a new run file, quietly, until done or
+/// `stop` is raised (then the stages stop and the run is left resumable). The
+/// session's `--json` object; an error unless the run completed.
+pub fn acquire(words: &[String], stop: Arc<AtomicBool>, progress: bool) -> CliResult<Value> {
+    let Command::Acquire(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let out = a.out_path().to_path_buf();
+    let r = cmd::acquire::acquire_with(&a, !progress, &cmd::acquire::StopBy::Flag(stop))?;
+    cmd::acquire::session_result(&out, &r)?;
+    Ok(cmd::acquire::session_json(&out, &r))
+}
+
+/// `gonio resume`: as [`acquire`], continuing the run at `path`.
+pub fn resume(path: &Path, stop: Arc<AtomicBool>, progress: bool) -> CliResult<Value> {
+    let r = cmd::acquire::resume_with(path, !progress, &cmd::acquire::StopBy::Flag(stop))?;
+    cmd::acquire::session_result(path, &r)?;
+    Ok(cmd::acquire::session_json(path, &r))
+}

@@ -1,0 +1,1 @@
+from gonio._native import version

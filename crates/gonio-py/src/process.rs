@@ -1,0 +1,158 @@
+//! `check`, `correct`, `harmonics`, `fit` and `micro`: the commands' own
+//! computations (`gonio_cli::api`) on a file, a model or a DataFrame's columns.
+
+use std::path::PathBuf;
+
+use gonio_dataset::Dataset;
+use numpy::PyReadonlyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyList;
+
+use crate::columns::{self, Source};
+use crate::errors::{self, Domain};
+use crate::interrupt::{self, OnInterrupt};
+use crate::model::NativeModel;
+
+/// Registers the functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(correct, m)?)?;
+    m.add_function(wrap_pyfunction!(harmonics, m)?)?;
+    m.add_function(wrap_pyfunction!(fit, m)?)?;
+    m.add_function(wrap_pyfunction!(micro, m)?)?;
+    Ok(())
+}
+
+/// A DataFrame's columns as Python hands them over: `(columns, isotropic, label)`.
+type Frame<'py> = (Vec<(String, PyReadonlyArray1<'py, f64>)>, bool, PathBuf);
+
+/// The data `source` is: a path (str or os.PathLike), a `NativeModel`, or a
+/// DataFrame's columns.
+fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
+    if let Ok(m) = obj.cast::<NativeModel>() {
+        let model = m.get().model.clone();
+        return Ok(Source::Data(
+            Dataset::Model(Box::new(model)),
+            PathBuf::from("<model>"),
+        ));
+    }
+    if let Ok((cols, isotropic, label)) = obj.extract::<Frame<'_>>() {
+        let s = columns::samples_from_py(cols, isotropic, &label)?;
+        return Ok(Source::Data(columns::samples_dataset(s), label));
+    }
+    match obj.extract::<PathBuf>() {
+        Ok(p) => Ok(Source::Path(p)),
+        Err(_) => Err(errors::input(
+            "the input: a path, a Run, a Model or a DataFrame of samples",
+        )),
+    }
+}
+
+/// `[command, input, flags…]` from `[command, flags…]`.
+fn with_input(mut words: Vec<String>, input: String) -> Vec<String> {
+    words.insert(1.min(words.len()), input);
+    words
+}
+
+/// `gonio check`: the `--json` object (JSON text).
+#[pyfunction]
+fn check(py: Python<'_>, input: &Bound<'_, PyAny>, words: Vec<String>) -> PyResult<String> {
+    let src = source(input)?;
+    let words = with_input(words, src.word());
+    let given = src.take();
+    interrupt::run(py, None, OnInterrupt::Abandon, move || {
+        gonio_cli::api::check(&words, given)
+    })?
+    .map(|v| v.to_string())
+    .map_err(|e| errors::to_py(e, Domain::Data, None))
+}
+
+/// `gonio correct`: `(columns, sidecar, --json object)` of the corrected table.
+#[pyfunction]
+fn correct<'py>(
+    py: Python<'py>,
+    input: &Bound<'py, PyAny>,
+    words: Vec<String>,
+) -> PyResult<(Bound<'py, PyList>, String, String)> {
+    let src = source(input)?;
+    let words = with_input(words, src.word());
+    let given = src.take();
+    let (table, json) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
+        gonio_cli::api::correct(&words, given)
+    })?
+    .map_err(|e| errors::to_py(e, Domain::Data, None))?;
+    let (cols, sidecar) = columns::table_to_py(py, &table)?;
+    Ok((cols, sidecar, json.to_string()))
+}
+
+/// `gonio harmonics`: `(file text, --json object)`.
+#[pyfunction]
+fn harmonics(
+    py: Python<'_>,
+    input: &Bound<'_, PyAny>,
+    words: Vec<String>,
+) -> PyResult<(String, String)> {
+    let src = source(input)?;
+    let words = with_input(words, src.word());
+    let given = src.take();
+    interrupt::run(py, None, OnInterrupt::Abandon, move || {
+        gonio_cli::api::harmonics(&words, given)
+    })?
+    .map(|(text, json)| (text, json.to_string()))
+    .map_err(|e| errors::to_py(e, Domain::Data, None))
+}
+
+/// `gonio fit`: `(model file, --json object, report text)`; the work on `threads`
+/// threads (none: one a core).
+#[pyfunction]
+#[pyo3(signature = (input, words, threads = None))]
+fn fit(
+    py: Python<'_>,
+    input: &Bound<'_, PyAny>,
+    words: Vec<String>,
+    threads: Option<usize>,
+) -> PyResult<(String, String, String)> {
+    let src = source(input)?;
+    let label = src.word();
+    let words = with_input(words, label.clone());
+    let given = match src.take() {
+        None => None,
+        Some(Dataset::Samples(s)) => Some(s),
+        Some(d) => Some(
+            d.to_samples(200_000, std::path::Path::new(&label))
+                .map_err(|e| errors::to_py(e.into(), Domain::Data, None))?,
+        ),
+    };
+    interrupt::run(py, threads, OnInterrupt::Abandon, move || {
+        gonio_cli::api::fit(&words, given)
+    })?
+    .map(|f| (f.model_file, f.json.to_string(), f.report))
+    .map_err(|e| errors::to_py(e, Domain::Data, None))
+}
+
+/// `gonio micro SURFACE …`: `(columns, sidecar, --json object)` of the table;
+/// `theta_i` = (first, step, count) in degrees replaces the incident polar axis.
+#[pyfunction]
+#[pyo3(signature = (words, theta_i = None, threads = None))]
+fn micro(
+    py: Python<'_>,
+    words: Vec<String>,
+    theta_i: Option<(f64, f64, usize)>,
+    threads: Option<usize>,
+) -> PyResult<(Bound<'_, PyList>, String, String)> {
+    let surface = words.get(1).cloned();
+    let (table, json) = interrupt::run(py, threads, OnInterrupt::Abandon, move || {
+        gonio_cli::api::micro(&words, theta_i)
+    })?
+    .map_err(|e| {
+        let domain = match (&e, &surface) {
+            (gonio_cli::api::CliError::Input(m), Some(s)) if m.starts_with(s.as_str()) => {
+                Domain::Config
+            }
+            _ => Domain::Data,
+        };
+        errors::to_py(e, domain, None)
+    })?;
+    let (cols, sidecar) = columns::table_to_py(py, &table)?;
+    Ok((cols, sidecar, json.to_string()))
+}

@@ -1,0 +1,99 @@
+//! Run files: opened with their integrity check, read as columns, reduced as
+//! `gonio reduce` reduces them.
+
+use std::path::PathBuf;
+
+use gonio_run::RunStore;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::columns;
+use crate::errors::{self, Domain};
+use crate::interrupt::{self, OnInterrupt};
+
+/// Registers the functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(run_open, m)?)?;
+    m.add_function(wrap_pyfunction!(run_readings, m)?)?;
+    m.add_function(wrap_pyfunction!(run_events, m)?)?;
+    m.add_function(wrap_pyfunction!(run_reduce, m)?)?;
+    m.add_function(wrap_pyfunction!(toml_to_json, m)?)?;
+    Ok(())
+}
+
+fn store_err(e: gonio_run::StoreError) -> PyErr {
+    errors::to_py(
+        gonio_cli::api::CliError::classify(e.is_bad_input(), e),
+        Domain::RunFile,
+        None,
+    )
+}
+
+/// Opens a run file the way `gonio show` does: refused unless it is an intact run
+/// file (SQLite's check, row checksums, the integrity record). Returns the summary
+/// (`gonio show --json`, as JSON text) and every `meta` row.
+#[pyfunction]
+fn run_open(py: Python<'_>, path: PathBuf) -> PyResult<(String, Bound<'_, PyDict>)> {
+    let (summary, meta) = py
+        .detach(|| -> Result<_, gonio_run::StoreError> {
+            let store = RunStore::open(&path)?;
+            let s = gonio_run::summary(&store)?;
+            Ok((s, store.meta()?))
+        })
+        .map_err(store_err)?;
+    let json = serde_json::to_string(&summary).map_err(|e| {
+        errors::to_py(
+            gonio_cli::api::CliError::Runtime(e.to_string()),
+            Domain::RunFile,
+            None,
+        )
+    })?;
+    let d = PyDict::new(py);
+    for (k, v) in meta {
+        d.set_item(k, v)?;
+    }
+    Ok((json, d))
+}
+
+/// The readings as columns (`RunStore::reading_columns`).
+#[pyfunction]
+fn run_readings(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyList>> {
+    let cols = py
+        .detach(|| RunStore::open(&path)?.reading_columns())
+        .map_err(store_err)?;
+    columns::run_columns_to_py(py, cols)
+}
+
+/// The events: `[(wall_s, kind, step_id or None, message)]`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn run_events(py: Python<'_>, path: PathBuf) -> PyResult<Vec<(f64, String, Option<i64>, String)>> {
+    let events = py
+        .detach(|| RunStore::open(&path)?.events())
+        .map_err(store_err)?;
+    Ok(events
+        .into_iter()
+        .map(|e| (e.wall_s, e.kind, e.step_id, e.message))
+        .collect())
+}
+
+/// `gonio reduce WORDS…` (the words name the run and carry the flags; their `--out`
+/// is not written): `(columns, sidecar JSON, reduction JSON)`.
+#[pyfunction]
+fn run_reduce(py: Python<'_>, words: Vec<String>) -> PyResult<(Bound<'_, PyList>, String, String)> {
+    let run = words.get(1).cloned();
+    let (content, report) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
+        gonio_cli::api::reduce(&words)
+    })?
+    .map_err(|e| errors::to_py(e, Domain::Data, run.as_deref()))?;
+    let (cols, sidecar) = columns::content_to_py(py, &content)?;
+    Ok((cols, sidecar, report.to_string()))
+}
+
+/// TOML text (a config the run file keeps) as JSON text, for `json.loads`: every
+/// Python reads it, tomllib or not.
+#[pyfunction]
+fn toml_to_json(text: &str) -> PyResult<String> {
+    let v: toml::Value = toml::from_str(text).map_err(|e| errors::input(e.to_string()))?;
+    serde_json::to_string(&v).map_err(|e| errors::input(e.to_string()))
+}
