@@ -18,6 +18,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_events, m)?)?;
     m.add_function(wrap_pyfunction!(run_reduce, m)?)?;
     m.add_function(wrap_pyfunction!(toml_to_json, m)?)?;
+    m.add_function(wrap_pyfunction!(json_to_toml, m)?)?;
     Ok(())
 }
 
@@ -96,4 +97,11 @@ fn run_reduce(py: Python<'_>, words: Vec<String>) -> PyResult<(Bound<'_, PyList>
 fn toml_to_json(text: &str) -> PyResult<String> {
     let v: toml::Value = toml::from_str(text).map_err(|e| errors::input(e.to_string()))?;
     serde_json::to_string(&v).map_err(|e| errors::input(e.to_string()))
+}
+
+/// JSON text (a dict from Python) as TOML text, for a model file from a dict.
+#[pyfunction]
+fn json_to_toml(text: &str) -> PyResult<String> {
+    let v: toml::Value = serde_json::from_str(text).map_err(|e| errors::input(e.to_string()))?;
+    toml::to_string(&v).map_err(|e| errors::input(e.to_string()))
 }
