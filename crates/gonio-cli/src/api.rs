@@ -15,7 +15,7 @@ use std::sync::atomic::AtomicBool;
 
 use clap::{CommandFactory, FromArgMatches};
 use gonio_dataset::Dataset;
-use gonio_process::file::Content;
+use gonio_process::file::{Content, Meta};
 use gonio_process::{Samples, Table};
 use serde_json::Value;
 
@@ -72,9 +72,10 @@ pub fn check(words: &[String], given: Option<Dataset>) -> CliResult<Value> {
     }
 }
 
-/// `gonio correct`: the corrected table and the `--json` object (without `out`).
-/// The words still need an `--out`, which is not written.
-pub fn correct(words: &[String], given: Option<Dataset>) -> CliResult<(Table, Value)> {
+/// `gonio correct`: the corrected table, the sidecar its CSV would have, and the
+/// `--json` object (without `out`). The words still need an `--out`, which is not
+/// written.
+pub fn correct(words: &[String], given: Option<Dataset>) -> CliResult<(Table, Meta, Value)> {
     let (command, matches) = parse(words)?;
     let Command::Correct(a) = command else {
         return Err(wrong(words));
@@ -82,7 +83,8 @@ pub fn correct(words: &[String], given: Option<Dataset>) -> CliResult<(Table, Va
     let steps = a.steps(matches.subcommand_matches("correct"))?;
     let c = cmd::correct::compute(&a, &steps, given, false)?;
     let json = without_out(c.json(&steps, Path::new("")));
-    Ok((c.table, json))
+    let meta = crate::csvout::tabulated_meta(&c.table, &c.tab);
+    Ok((c.table, meta, json))
 }
 
 /// `gonio harmonics`: the file `--out` would receive (TOML) and the `--json`

@@ -63,17 +63,7 @@ impl CsvTarget {
     /// sidecar saying what was assumed: the symmetry, the nodes interpolated.
     pub fn write_tabulated(&self, t: &Table, how: &gonio_dataset::Tabulated) -> CliResult<usize> {
         let text = file::write_table(t);
-        let mut meta = Meta::for_table(t);
-        if how.measured.is_some() {
-            meta.symmetry = Some(how.symmetry.name().into());
-            meta.interpolated = Some(
-                how.fill
-                    .as_ref()
-                    .map(|f| f.interpolated.clone())
-                    .unwrap_or_default(),
-            );
-        }
-        self.write(text.as_bytes(), &meta)?;
+        self.write(text.as_bytes(), &tabulated_meta(t, how))?;
         Ok(text.len())
     }
 
@@ -83,4 +73,21 @@ impl CsvTarget {
         self.write(text.as_bytes(), &Meta::for_samples(s))?;
         Ok(text.len())
     }
+}
+
+/// The sidecar of a table made from an input ([`gonio_dataset::Dataset::tabulate`]):
+/// its grid, and what was assumed of measured data — the symmetry, the nodes
+/// interpolated.
+pub(crate) fn tabulated_meta(t: &Table, how: &gonio_dataset::Tabulated) -> Meta {
+    let mut meta = Meta::for_table(t);
+    if how.measured.is_some() {
+        meta.symmetry = Some(how.symmetry.name().into());
+        meta.interpolated = Some(
+            how.fill
+                .as_ref()
+                .map(|f| f.interpolated.clone())
+                .unwrap_or_default(),
+        );
+    }
+    meta
 }

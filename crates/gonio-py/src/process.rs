@@ -77,12 +77,12 @@ fn correct<'py>(
     let src = source(input)?;
     let words = with_input(words, src.word());
     let given = src.take();
-    let (table, json) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
+    let (table, meta, json) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
         gonio_cli::api::correct(&words, given)
     })?
     .map_err(|e| errors::to_py(e, Domain::Data, None))?;
-    let (cols, sidecar) = columns::table_to_py(py, &table)?;
-    Ok((cols, sidecar, json.to_string()))
+    let cols = columns::to_py(py, gonio_process::columns::of_table(&table))?;
+    Ok((cols, meta.to_json(), json.to_string()))
 }
 
 /// `gonio harmonics`: `(file text, --json object)`.

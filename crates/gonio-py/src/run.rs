@@ -22,6 +22,19 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
+/// Opens a run file as `gonio show` does: examined before SQLite opens it (a FIFO
+/// would hold the open forever), then checked whole.
+fn open(path: &std::path::Path) -> Result<RunStore, PyErr> {
+    gonio_core::input::regular_file(path).map_err(|e| {
+        errors::to_py(
+            gonio_cli::api::CliError::Input(e.to_string()),
+            Domain::RunFile,
+            None,
+        )
+    })?;
+    RunStore::open(path).map_err(store_err)
+}
+
 fn store_err(e: gonio_run::StoreError) -> PyErr {
     errors::to_py(
         gonio_cli::api::CliError::classify(e.is_bad_input(), e),
@@ -35,13 +48,12 @@ fn store_err(e: gonio_run::StoreError) -> PyErr {
 /// (`gonio show --json`, as JSON text) and every `meta` row.
 #[pyfunction]
 fn run_open(py: Python<'_>, path: PathBuf) -> PyResult<(String, Bound<'_, PyDict>)> {
-    let (summary, meta) = py
-        .detach(|| -> Result<_, gonio_run::StoreError> {
-            let store = RunStore::open(&path)?;
-            let s = gonio_run::summary(&store)?;
-            Ok((s, store.meta()?))
-        })
-        .map_err(store_err)?;
+    let (summary, meta) = py.detach(|| -> Result<_, PyErr> {
+        let store = open(&path)?;
+        let s = gonio_run::summary(&store).map_err(store_err)?;
+        let meta = store.meta().map_err(store_err)?;
+        Ok((s, meta))
+    })?;
     let json = serde_json::to_string(&summary).map_err(|e| {
         errors::to_py(
             gonio_cli::api::CliError::Runtime(e.to_string()),
@@ -59,9 +71,7 @@ fn run_open(py: Python<'_>, path: PathBuf) -> PyResult<(String, Bound<'_, PyDict
 /// The readings as columns (`RunStore::reading_columns`).
 #[pyfunction]
 fn run_readings(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyList>> {
-    let cols = py
-        .detach(|| RunStore::open(&path)?.reading_columns())
-        .map_err(store_err)?;
+    let cols = py.detach(|| open(&path)?.reading_columns().map_err(store_err))?;
     columns::run_columns_to_py(py, cols)
 }
 
@@ -69,9 +79,7 @@ fn run_readings(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyList>> {
 #[pyfunction]
 #[allow(clippy::type_complexity)]
 fn run_events(py: Python<'_>, path: PathBuf) -> PyResult<Vec<(f64, String, Option<i64>, String)>> {
-    let events = py
-        .detach(|| RunStore::open(&path)?.events())
-        .map_err(store_err)?;
+    let events = py.detach(|| open(&path)?.events().map_err(store_err))?;
     Ok(events
         .into_iter()
         .map(|e| (e.wall_s, e.kind, e.step_id, e.message))
@@ -82,11 +90,16 @@ fn run_events(py: Python<'_>, path: PathBuf) -> PyResult<Vec<(f64, String, Optio
 /// is not written): `(columns, sidecar JSON, reduction JSON)`.
 #[pyfunction]
 fn run_reduce(py: Python<'_>, words: Vec<String>) -> PyResult<(Bound<'_, PyList>, String, String)> {
-    let run = words.get(1).cloned();
+    // The file is checked first, so that what the reduction refuses afterwards is
+    // the data (or the options), not the file.
+    if let Some(run) = words.get(1) {
+        let path = PathBuf::from(run);
+        py.detach(|| open(&path).map(drop))?;
+    }
     let (content, report) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
         gonio_cli::api::reduce(&words)
     })?
-    .map_err(|e| errors::to_py(e, Domain::Data, run.as_deref()))?;
+    .map_err(|e| errors::to_py(e, Domain::Data, None))?;
     let (cols, sidecar) = columns::content_to_py(py, &content)?;
     Ok((cols, sidecar, report.to_string()))
 }

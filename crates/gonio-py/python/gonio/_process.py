@@ -125,7 +125,7 @@ class FitResult:
         for c in self.json["fit"]["channels"]:
             p, s = c["params"], c["std_err"]
             rows.append((c["channel"], "diffuse", "rho_d", p["rho_d"], s["rho_d"]))
-            if "m" in p:
+            if self.json["fit"]["shape"]["diffuse"] == "Minnaert":
                 rows.append((c["channel"], "diffuse", "m", p["m"], s["m"]))
             for j, (lobe, err) in enumerate(zip(p["lobes"], s["lobes"])):
                 for name, v, e in zip(("Cx", "Cy", "Cz", "n"), lobe, err):
