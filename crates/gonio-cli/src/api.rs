@@ -129,13 +129,19 @@ pub fn fit(words: &[String], given: Option<Samples>) -> CliResult<Fit> {
 
 /// `gonio micro`: the table and the `--json` object (without `out`). `theta_i`
 /// replaces the grid's incident polar axis (degrees: first node, step, count).
+/// Raising `cancel` stops the tracing within a round of blocks (an error then).
 /// The words still need an `--out`, which is not written.
-pub fn micro(words: &[String], theta_i: Option<(f64, f64, usize)>) -> CliResult<(Table, Value)> {
+pub fn micro(
+    words: &[String],
+    theta_i: Option<(f64, f64, usize)>,
+    cancel: Arc<AtomicBool>,
+) -> CliResult<(Table, Value)> {
     let Command::Micro(a) = parse(words)?.0 else {
         return Err(wrong(words));
     };
     let started = std::time::Instant::now();
-    let (sim, mut grid) = cmd::micro::load(&a)?;
+    let (mut sim, mut grid) = cmd::micro::load(&a)?;
+    sim.cancel_on(cancel);
     if let Some((start, step, n)) = theta_i {
         grid.theta_i = gonio_process::Axis::from_deg(start, step, n);
         grid.validate()

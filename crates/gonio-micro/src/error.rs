@@ -7,6 +7,9 @@ use gonio_core::tomlfile::FileError;
 /// Why a surface, a material or a simulation request was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MicroError {
+    /// Stopped by its cancel flag (`Simulation::cancel_on`).
+    #[error("cancelled")]
+    Cancelled,
     /// A surface file that could not be used: `FILE:LINE:COL: field `NAME`: why`.
     #[error("{0}")]
     File(Box<FileError>),

@@ -13,7 +13,7 @@ use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
-use crate::errors;
+use gonio_cli::api::CliError;
 
 /// Named columns as a list of `(name, ndarray)`.
 pub fn to_py<'py>(py: Python<'py>, cols: Vec<(String, Column)>) -> PyResult<Bound<'py, PyList>> {
@@ -86,37 +86,61 @@ pub enum Source {
     Path(PathBuf),
     /// Data in memory, and the label that names it in messages.
     Data(Dataset, PathBuf),
+    /// A DataFrame's columns (copied out of numpy), whether the samples are
+    /// isotropic, and the label.
+    Frame(Vec<(String, Vec<f64>)>, bool, PathBuf),
 }
 
 impl Source {
     /// The path the command's words name: the file, or the label.
     pub fn word(&self) -> String {
         match self {
-            Source::Path(p) | Source::Data(_, p) => p.display().to_string(),
+            Source::Path(p) | Source::Data(_, p) | Source::Frame(_, _, p) => {
+                p.display().to_string()
+            }
         }
     }
 
-    /// The data in memory, if any (moved out).
-    pub fn take(self) -> Option<Dataset> {
-        match self {
+    /// The data in memory, if any; a frame's samples are read here, as a sample
+    /// file's rows are (so off the interpreter's lock when called there).
+    pub fn into_data(self) -> Result<Option<Dataset>, CliError> {
+        Ok(match self {
             Source::Path(_) => None,
             Source::Data(d, _) => Some(d),
-        }
+            Source::Frame(cols, isotropic, label) => {
+                Some(samples_dataset(frame_samples(&cols, isotropic, &label)?))
+            }
+        })
+    }
+
+    /// The samples in memory, if any (a model is sampled as `gonio fit` samples a
+    /// model file).
+    pub fn into_samples(self) -> Result<Option<Samples>, CliError> {
+        let label = PathBuf::from(self.word());
+        Ok(match self {
+            Source::Path(_) => None,
+            Source::Frame(cols, isotropic, label) => Some(frame_samples(&cols, isotropic, &label)?),
+            Source::Data(Dataset::Samples(s), _) => Some(s),
+            Source::Data(d, _) => Some(d.to_samples(200_000, &label)?),
+        })
     }
 }
 
-/// Samples from a DataFrame's columns (`[(name, float64 array)]`), as a sample
-/// file's rows are read; `label` names them in errors.
-pub fn samples_from_py(
-    cols: Vec<(String, PyReadonlyArray1<'_, f64>)>,
+/// Samples from a frame's columns, refused as a sample file's would be (bad input).
+fn frame_samples(
+    cols: &[(String, Vec<f64>)],
     isotropic: bool,
     label: &Path,
-) -> PyResult<Samples> {
-    let owned: Vec<(String, Vec<f64>)> = cols
-        .into_iter()
+) -> Result<Samples, CliError> {
+    columns::to_samples(cols, isotropic, label).map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// A DataFrame's columns (`[(name, float64 array)]`) copied out of numpy: one copy
+/// a column, no Python object per element.
+pub fn frame_from_py(cols: Vec<(String, PyReadonlyArray1<'_, f64>)>) -> Vec<(String, Vec<f64>)> {
+    cols.into_iter()
         .map(|(n, a)| (n, a.as_array().to_vec()))
-        .collect();
-    columns::to_samples(&owned, isotropic, label).map_err(|e| errors::input(e.to_string()))
+        .collect()
 }
 
 /// Samples as the dataset a file of them opens as: a table when they form a grid

@@ -69,12 +69,14 @@ pub fn register(py: Python<'_>, m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// The exception for `e` in `domain`. `run` is the run file concerned, if any: a
-/// message about it is a run-file error whatever the domain.
+/// The exception for `e` in `domain`. `run` is the run file concerned, if any: bad
+/// input about it is a run-file error whatever the domain.
 pub fn to_py(e: CliError, domain: Domain, run: Option<&str>) -> PyErr {
     let code = e.exit_code();
     let msg = e.to_string();
-    let about_run = run.is_some_and(|r| msg.starts_with(r));
+    // Bad input about the run file itself (it exists, it is locked, it is damaged)
+    // is the file's fault; a failure while measuring into it is the instrument's.
+    let about_run = matches!(e, CliError::Input(_)) && run.is_some_and(|r| msg.starts_with(r));
     let err = match (e, domain) {
         (CliError::Interrupted(m), _) => return PyKeyboardInterrupt::new_err(m),
         _ if about_run || domain == Domain::RunFile => RunFileError::new_err(msg),

@@ -2,6 +2,8 @@
 //! computations (`gonio_cli::api`) on a file, a model or a DataFrame's columns.
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use gonio_dataset::Dataset;
 use numpy::PyReadonlyArray1;
@@ -37,8 +39,11 @@ fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
         ));
     }
     if let Ok((cols, isotropic, label)) = obj.extract::<Frame<'_>>() {
-        let s = columns::samples_from_py(cols, isotropic, &label)?;
-        return Ok(Source::Data(columns::samples_dataset(s), label));
+        return Ok(Source::Frame(
+            columns::frame_from_py(cols),
+            isotropic,
+            label,
+        ));
     }
     match obj.extract::<PathBuf>() {
         Ok(p) => Ok(Source::Path(p)),
@@ -59,9 +64,8 @@ fn with_input(mut words: Vec<String>, input: String) -> Vec<String> {
 fn check(py: Python<'_>, input: &Bound<'_, PyAny>, words: Vec<String>) -> PyResult<String> {
     let src = source(input)?;
     let words = with_input(words, src.word());
-    let given = src.take();
     interrupt::run(py, None, OnInterrupt::Abandon, move || {
-        gonio_cli::api::check(&words, given)
+        gonio_cli::api::check(&words, src.into_data()?)
     })?
     .map(|v| v.to_string())
     .map_err(|e| errors::to_py(e, Domain::Data, None))
@@ -76,9 +80,8 @@ fn correct<'py>(
 ) -> PyResult<(Bound<'py, PyList>, String, String)> {
     let src = source(input)?;
     let words = with_input(words, src.word());
-    let given = src.take();
     let (table, meta, json) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
-        gonio_cli::api::correct(&words, given)
+        gonio_cli::api::correct(&words, src.into_data()?)
     })?
     .map_err(|e| errors::to_py(e, Domain::Data, None))?;
     let cols = columns::to_py(py, gonio_process::columns::of_table(&table))?;
@@ -94,9 +97,8 @@ fn harmonics(
 ) -> PyResult<(String, String)> {
     let src = source(input)?;
     let words = with_input(words, src.word());
-    let given = src.take();
     interrupt::run(py, None, OnInterrupt::Abandon, move || {
-        gonio_cli::api::harmonics(&words, given)
+        gonio_cli::api::harmonics(&words, src.into_data()?)
     })?
     .map(|(text, json)| (text, json.to_string()))
     .map_err(|e| errors::to_py(e, Domain::Data, None))
@@ -113,18 +115,9 @@ fn fit(
     threads: Option<usize>,
 ) -> PyResult<(String, String, String)> {
     let src = source(input)?;
-    let label = src.word();
-    let words = with_input(words, label.clone());
-    let given = match src.take() {
-        None => None,
-        Some(Dataset::Samples(s)) => Some(s),
-        Some(d) => Some(
-            d.to_samples(200_000, std::path::Path::new(&label))
-                .map_err(|e| errors::to_py(e.into(), Domain::Data, None))?,
-        ),
-    };
+    let words = with_input(words, src.word());
     interrupt::run(py, threads, OnInterrupt::Abandon, move || {
-        gonio_cli::api::fit(&words, given)
+        gonio_cli::api::fit(&words, src.into_samples()?)
     })?
     .map(|f| (f.model_file, f.json.to_string(), f.report))
     .map_err(|e| errors::to_py(e, Domain::Data, None))
@@ -141,8 +134,10 @@ fn micro(
     threads: Option<usize>,
 ) -> PyResult<(Bound<'_, PyList>, String, String)> {
     let surface = words.get(1).cloned();
-    let (table, json) = interrupt::run(py, threads, OnInterrupt::Abandon, move || {
-        gonio_cli::api::micro(&words, theta_i)
+    let cancel = Arc::new(AtomicBool::new(false));
+    let flag = cancel.clone();
+    let (table, json) = interrupt::run(py, threads, OnInterrupt::Stop(cancel), move || {
+        gonio_cli::api::micro(&words, theta_i, flag)
     })?
     .map_err(|e| {
         let domain = match (&e, &surface) {

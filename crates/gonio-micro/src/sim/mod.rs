@@ -35,6 +35,8 @@ use gonio_process::sh::ShBrdf;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::material::{Scratch, uniform};
 use crate::trace::{Method, Ray, Tracer};
@@ -78,14 +80,19 @@ fn block_rng(seed: u64, purpose: u64, incident: usize, block: usize) -> ChaCha8R
 }
 
 /// Runs `task(k)` for `k` in `0..n` in parallel rounds and hands the results to
-/// `merge` in order of `k`, whatever the number of threads.
+/// `merge` in order of `k`, whatever the number of threads. Between rounds (tens
+/// of milliseconds) a raised `cancel` flag stops it: [`MicroError::Cancelled`].
 fn run_ordered<A: Send>(
     n: usize,
+    cancel: Option<&AtomicBool>,
     task: impl Fn(usize) -> A + Sync,
     mut merge: impl FnMut(usize, A),
-) {
+) -> Result<(), MicroError> {
     let mut start = 0;
     while start < n {
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(MicroError::Cancelled);
+        }
         let end = (start + ROUND).min(n);
         let out: Vec<A> = (start..end).into_par_iter().map(&task).collect();
         for (k, a) in out.into_iter().enumerate() {
@@ -93,6 +100,7 @@ fn run_ordered<A: Send>(
         }
         start = end;
     }
+    Ok(())
 }
 
 /// Options of a [`Simulation`].
@@ -242,6 +250,7 @@ pub struct Simulation {
     sample: Sample,
     opts: SimOptions,
     eps: f64,
+    cancel: Option<Arc<AtomicBool>>,
 }
 
 impl Simulation {
@@ -263,7 +272,20 @@ impl Simulation {
             sample,
             opts,
             eps,
+            cancel: None,
         })
+    }
+
+    /// Stops any tracing of this simulation, between rounds of blocks, once `flag`
+    /// is raised (another thread's Ctrl-C): it then fails with
+    /// [`MicroError::Cancelled`].
+    pub fn cancel_on(&mut self, flag: Arc<AtomicBool>) {
+        self.cancel = Some(flag);
+    }
+
+    /// The cancel flag, if any.
+    fn cancel_flag(&self) -> Option<&AtomicBool> {
+        self.cancel.as_deref()
     }
 
     /// The sample.
@@ -410,6 +432,7 @@ impl Simulation {
         };
         run_ordered(
             n_blocks,
+            self.cancel_flag(),
             |b| {
                 let mut rng = block_rng(seed, PURPOSE_TRACE, 0, b);
                 let rays = BLOCK.min(n_rays - b * BLOCK);
@@ -433,7 +456,7 @@ impl Simulation {
                 ex.energy.extend(energy);
                 ex.stats.merge(&stats);
             },
-        );
+        )?;
         Ok(ex)
     }
 }

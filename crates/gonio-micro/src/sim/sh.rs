@@ -67,6 +67,7 @@ impl Simulation {
         let mut stats = TraceStats::default();
         run_ordered(
             n_blocks,
+            self.cancel_flag(),
             |b| {
                 let mut rng = block_rng(seed, PURPOSE_SH, 0, b);
                 let n = BLOCK.min(rays - b * BLOCK);
@@ -114,7 +115,7 @@ impl Simulation {
                 sq.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
                 stats.merge(&st);
             },
-        );
+        )?;
         let nr = rays as f64;
         let mut matrices = Vec::with_capacity(nc);
         let mut sigma = Vec::with_capacity(nc);

@@ -32,6 +32,7 @@ impl Simulation {
         let mut accs: Vec<TableAcc> = (0..n_in).map(|_| TableAcc::new(nc, n_out)).collect();
         run_ordered(
             n_in * n_blocks,
+            self.cancel_flag(),
             |task| {
                 let (inc, b) = (task / n_blocks, task % n_blocks);
                 let mut acc = TableAcc::new(nc, n_out);
@@ -72,7 +73,7 @@ impl Simulation {
                 acc
             },
             |task, acc| accs[task / n_blocks].merge(&acc),
-        );
+        )?;
 
         // Tables.
         let n = grid.len();
