@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The crates, ground floor first: each may depend only on crates before it.
-const MAP: [&str; 16] = [
+const MAP: [&str; 17] = [
     "gonio-core",
     "gonio-brdf",
     "gonio-proto",
@@ -28,6 +28,7 @@ const MAP: [&str; 16] = [
     "gonio-dataset",
     "gonio-sim",
     "gonio-cli",
+    "gonio-py",
     "gonio-e2e",
 ];
 

@@ -44,9 +44,7 @@ class Cli:
         self.bin = gonio_bin()
 
     def run(self, *args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-        p = subprocess.run(
-            [self.bin, *map(str, args)], capture_output=True, text=True, cwd=ROOT
-        )
+        p = subprocess.run([self.bin, *map(str, args)], capture_output=True, text=True, cwd=ROOT)
         if check and p.returncode != 0:
             raise AssertionError(f"gonio {' '.join(map(str, args))}: {p.returncode}\n{p.stderr}")
         return p
@@ -74,12 +72,20 @@ def runs(tmp_path_factory: pytest.TempPathFactory, cli: Cli) -> dict[str, pathli
     d = tmp_path_factory.mktemp("runs")
     inst, plan = CONFIG / "instrument-sim.toml", CONFIG / "plan-hemisphere.toml"
     gonio.acquire(inst, plan, d / "py.gonio", seed=3, progress=False)
-    cli.run("acquire", "--instrument", inst, "--plan", plan, "--out", d / "cli.gonio",
-            "--seed", "3", "--json")
-    gonio.acquire(inst, CONFIG / "plan-in-plane.toml", d / "inplane.gonio", seed=5,
-                  progress=False)
-    return {"py": d / "py.gonio", "cli": d / "cli.gonio", "inplane": d / "inplane.gonio",
-            "dir": d}
+    cli.run(
+        "acquire",
+        "--instrument",
+        inst,
+        "--plan",
+        plan,
+        "--out",
+        d / "cli.gonio",
+        "--seed",
+        "3",
+        "--json",
+    )
+    gonio.acquire(inst, CONFIG / "plan-in-plane.toml", d / "inplane.gonio", seed=5, progress=False)
+    return {"py": d / "py.gonio", "cli": d / "cli.gonio", "inplane": d / "inplane.gonio", "dir": d}
 
 
 @pytest.fixture

@@ -98,8 +98,9 @@ def test_acquisition_faults_and_bad_inputs(cli, tmp_path, runs):
     # An existing run file is never written onto.
     with pytest.raises(gonio.RunFileError) as e:
         gonio.acquire(INSTRUMENT, PLAN, runs["py"], progress=False)
-    code, line = cli.error("acquire", "--instrument", INSTRUMENT, "--plan", PLAN,
-                           "--out", runs["py"])
+    code, line = cli.error(
+        "acquire", "--instrument", INSTRUMENT, "--plan", PLAN, "--out", runs["py"]
+    )
     assert (str(e.value), e.value.exit_code) == (line, code)
     # A bad plan is refused before anything is created.
     plan = tmp_path / "plan.toml"
@@ -107,8 +108,10 @@ def test_acquisition_faults_and_bad_inputs(cli, tmp_path, runs):
     out = tmp_path / "x.gonio"
     with pytest.raises(gonio.ConfigError) as e:
         gonio.acquire(INSTRUMENT, plan, out, progress=False)
-    assert str(e.value) == cli.error("acquire", "--instrument", INSTRUMENT, "--plan", plan,
-                                     "--out", out)[1]
+    assert (
+        str(e.value)
+        == cli.error("acquire", "--instrument", INSTRUMENT, "--plan", plan, "--out", out)[1]
+    )
     assert not out.exists()
     # A controller that never answers a position query: a fault, the run resumable.
     sim = tmp_path / "deaf.toml"

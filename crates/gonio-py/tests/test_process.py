@@ -82,6 +82,7 @@ def test_fit_is_gonio_fit(runs, cli, tmp_path):
         d["fit"].pop("seconds")
         d.pop("out")
     assert r.json == want
+
     def lines(report):
         # All but the time taken and the model file written.
         return [x for x in report.splitlines() if " s; " not in x and not x.startswith("model:")]
@@ -111,12 +112,17 @@ def test_fit_refuses_as_the_command_does(runs, cli, tmp_path):
 
 def test_dataframes_are_checked_as_files_are():
     df = pd.DataFrame(
-        {"theta_i_deg": [0.0, 10.0], "phi_i_deg": [0.0, 0.0], "theta_o_deg": [5.0, np.nan],
-         "phi_o_deg": [0.0, 0.0], "f_r_per_sr": [0.1, 0.2]}
+        {
+            "theta_i_deg": [0.0, 10.0],
+            "phi_i_deg": [0.0, 0.0],
+            "theta_o_deg": [5.0, np.nan],
+            "phi_o_deg": [0.0, 0.0],
+            "f_r_per_sr": [0.1, 0.2],
+        }
     )
     with pytest.raises(gonio.DataError) as e:
         gonio.check(df)
-    assert "theta_o_deg" in str(e.value) and "row 2" in str(e.value) or ":2" in str(e.value)
+    assert str(e.value) == "DataFrame:2: field `theta_o_deg`: NaN is not a finite number"
     with pytest.raises(gonio.DataError, match="columns"):
         gonio.check(df.rename(columns={"f_r_per_sr": "brightness"}))
     with pytest.raises(TypeError):
@@ -126,8 +132,9 @@ def test_dataframes_are_checked_as_files_are():
 def test_micro_is_gonio_micro(cli, tmp_path):
     surface = CONFIG / "micro-gaussian-gold.toml"
     out = tmp_path / "m.csv"
-    want = cli.json("micro", surface, "--grid", "15,45", "--rays", "2000", "--seed", "7",
-                    "--out", out)
+    want = cli.json(
+        "micro", surface, "--grid", "15,45", "--rays", "2000", "--seed", "7", "--out", out
+    )
     got = gonio.micro.simulate(surface, grid=(15, 45), rays=2000, seed=7)
     pd.testing.assert_frame_equal(got, pd.read_csv(out), check_exact=True, check_dtype=False)
     got.attrs["micro"].pop("seconds")

@@ -53,7 +53,8 @@ def test_readings_are_every_column_of_the_file(runs):
     assert list(df["channel"]) == [s[1] for s in steps]
     assert [None if pd.isna(x) else int(x) for x in df["plan_index"]] == [s[3] for s in steps]
     np.testing.assert_array_equal(
-        df["planned_theta_o"].to_numpy(), np.array([np.nan if s[4] is None else s[4] for s in steps])
+        df["planned_theta_o"].to_numpy(),
+        np.array([np.nan if s[4] is None else s[4] for s in steps]),
     )
     # Dark and calibration readings carry no plan index; samples do.
     assert df.loc[df["kind"] == "sample", "plan_index"].notna().all()
@@ -99,7 +100,9 @@ def test_reduce_options_are_the_commands(runs, cli, tmp_path):
     assert (str(e.value), e.value.exit_code) == (line, code)
     with pytest.raises(gonio.InputError) as e:
         gonio.open_run(runs["py"]).reduce(calibration="moon")
-    code, line = cli.error("reduce", runs["py"], "--out", tmp_path / "x.csv", "--calibration", "moon")
+    code, line = cli.error(
+        "reduce", runs["py"], "--out", tmp_path / "x.csv", "--calibration", "moon"
+    )
     assert str(e.value) == line and e.value.exit_code == code == 2
 
 
@@ -120,8 +123,10 @@ def test_missing_foreign_and_damaged_files_are_refused_as_the_command_does(
 
     damaged = copy_run()
     con = sqlite3.connect(damaged)
-    con.execute("UPDATE readings SET r_mean = r_mean * 1.01 WHERE step_id = "
-                "(SELECT min(step_id) FROM readings WHERE r_mean > 0)")
+    con.execute(
+        "UPDATE readings SET r_mean = r_mean * 1.01 WHERE step_id = "
+        "(SELECT min(step_id) FROM readings WHERE r_mean > 0)"
+    )
     con.commit()
     con.close()
     with pytest.raises(gonio.RunFileError) as e:

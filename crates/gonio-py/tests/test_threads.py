@@ -23,15 +23,23 @@ def dense() -> pd.DataFrame:
     ti, to, po = (
         a.ravel()
         for a in np.meshgrid(
-            np.arange(0.0, 80.0, 1.25), np.arange(1.0, 88.0, 1.0), np.arange(0.0, 360.0, 5.0),
+            np.arange(0.0, 80.0, 1.25),
+            np.arange(1.0, 88.0, 1.0),
+            np.arange(0.0, 360.0, 5.0),
             indexing="ij",
         )
     )
     f = m.eval(ti, 0.0, to, po)[:, 0]
     noise = 1.0 + 0.01 * np.random.default_rng(1).standard_normal(f.size)
     return pd.DataFrame(
-        {"theta_i_deg": ti, "phi_i_deg": 0.0, "theta_o_deg": to, "phi_o_deg": po,
-         "f_r_550nm_per_sr": f * noise, "sigma_550nm_per_sr": 0.01 * f}
+        {
+            "theta_i_deg": ti,
+            "phi_i_deg": 0.0,
+            "theta_o_deg": to,
+            "phi_o_deg": po,
+            "f_r_550nm_per_sr": f * noise,
+            "sigma_550nm_per_sr": 0.01 * f,
+        }
     )
 
 

@@ -279,6 +279,15 @@ pub enum StopBy {
     Flag(Arc<AtomicBool>),
 }
 
+/// How a session runs: quietly (no progress bar) or not, and what stops it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Driving<'a> {
+    /// No progress bar.
+    pub quiet: bool,
+    /// What stops it.
+    pub stop: &'a StopBy,
+}
+
 pub(crate) enum Rig {
     /// The in-process simulator, built from these configs.
     Sim(Box<gonio_sim::SimConfig>),
@@ -296,8 +305,7 @@ pub(crate) fn session(
     rig: Rig,
     standard: Option<String>,
     transmittance: f64,
-    quiet: bool,
-    stop: &StopBy,
+    how: Driving<'_>,
 ) -> CliResult<(SessionReport, RunStore)> {
     let mech = instrument
         .mechanics()
@@ -324,8 +332,8 @@ pub(crate) fn session(
             let store = store()?;
             drive(
                 Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
-                quiet,
-                stop,
+                how.quiet,
+                how.stop,
             )
         }
         Rig::Real => {
@@ -333,7 +341,7 @@ pub(crate) fn session(
             let bench =
                 OperatorBench::new(std::io::BufReader::new(std::io::stdin()), std::io::stderr());
             let store = store()?;
-            drive(Engine::new(g, bench, store, mech, cfg), quiet, stop)
+            drive(Engine::new(g, bench, store, mech, cfg), how.quiet, how.stop)
         }
     }
 }
@@ -427,8 +435,7 @@ pub(crate) fn acquire_with(
         rig,
         meta.standard_model.clone(),
         meta.transmittance,
-        quiet,
-        stop,
+        Driving { quiet, stop },
     )?;
     Ok(report)
 }
@@ -487,8 +494,7 @@ pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<
         rig,
         stored.standard_model.clone(),
         stored.transmittance,
-        quiet,
-        stop,
+        Driving { quiet, stop },
     )?;
     Ok(report)
 }

@@ -489,8 +489,10 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         crate::cmd::acquire::Rig::Sim(Box::new(sim)),
         None,
         transmittance,
-        true,
-        &crate::cmd::acquire::StopBy::Signals,
+        crate::cmd::acquire::Driving {
+            quiet: true,
+            stop: &crate::cmd::acquire::StopBy::Signals,
+        },
     )?;
     let wall_s = started.elapsed().as_secs_f64();
     if report.outcome != gonio_acquire::engine::Outcome::Complete {

@@ -73,9 +73,7 @@ class Run:
         for name, value in _native.run_readings(self.path):
             if isinstance(value, tuple):
                 values, mask = value
-                cols[name] = (
-                    values if mask is None else pd.arrays.IntegerArray(values, mask)
-                )
+                cols[name] = values if mask is None else pd.arrays.IntegerArray(values, mask)
             else:
                 cols[name] = value
         return pd.DataFrame(cols, copy=False)

@@ -61,7 +61,11 @@ def polar(
     else:
         df = _samples(data)
         cols = _value_columns(df)
-        col = channel if isinstance(channel, str) and channel in cols else cols[int(channel) if not isinstance(channel, str) else 0]
+        col = (
+            channel
+            if isinstance(channel, str) and channel in cols
+            else cols[int(channel) if not isinstance(channel, str) else 0]
+        )
         sigma = col.replace("f_r", "sigma", 1)
         dphi = np.mod(df["phi_o_deg"] - df["phi_i_deg"], 360.0)
         for ti in thetas:
@@ -70,11 +74,7 @@ def polar(
             back = near & ((dphi < 1.0) | (dphi > 359.0))
             x = np.concatenate([df["theta_o_deg"][spec], -df["theta_o_deg"][back]])
             y = np.concatenate([df[col][spec], df[col][back]])
-            e = (
-                np.concatenate([df[sigma][spec], df[sigma][back]])
-                if sigma in df.columns
-                else None
-            )
+            e = np.concatenate([df[sigma][spec], df[sigma][back]]) if sigma in df.columns else None
             order = np.argsort(x)
             ax.errorbar(
                 x[order],
@@ -128,7 +128,11 @@ def hemisphere(
     else:
         df = _samples(data)
         cols = _value_columns(df)
-        col = channel if isinstance(channel, str) and channel in cols else cols[int(channel) if not isinstance(channel, str) else 0]
+        col = (
+            channel
+            if isinstance(channel, str) and channel in cols
+            else cols[int(channel) if not isinstance(channel, str) else 0]
+        )
         near = np.abs(df["theta_i_deg"] - theta_i) < 1.0
         s = np.sin(np.radians(df["theta_o_deg"][near]))
         p = np.radians(df["phi_o_deg"][near] - df["phi_i_deg"][near] + phi_i)
