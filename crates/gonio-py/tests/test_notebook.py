@@ -138,7 +138,5 @@ def test_cells_show_what_they_say(executed):
     evaluated = text(by_tag(nb, "eval"))
     assert "(90, 180)" in evaluated
     # The albedo summed over the grid is the model's own, to the grid's precision.
-    grid, exact = map(
-        float, re.search(r"grid ([\d.]+), model.albedo ([\d.]+)", evaluated).groups()
-    )
+    grid, exact = map(float, re.search(r"grid ([\d.]+), model.albedo ([\d.]+)", evaluated).groups())
     assert grid == pytest.approx(exact, rel=1e-3)

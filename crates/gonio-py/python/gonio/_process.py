@@ -155,7 +155,7 @@ def fit(
     drift: str = "auto",
     threads: int | None = None,
 ) -> FitResult:
-    """Sums of generalized cosine lobes (Lafortune et al. 1997, Eq. 4–5) fitted by
+    """Sums of generalized cosine lobes (Lafortune et al. 1997, Eq. 8) fitted by
     Levenberg–Marquardt to ``samples``: a DataFrame like ``Run.reduce()`` returns,
     a ``Run``, a ``Model`` or a path. The options are ``gonio fit``'s flags;
     ``threads`` bounds the threads the fit uses (default: one a core). The

@@ -31,7 +31,7 @@ class Run:
 
     @property
     def status(self) -> str:
-        """``pending``, ``running``, ``interrupted``, ``faulted`` or ``complete``
+        """``created``, ``running``, ``interrupted``, ``faulted`` or ``complete``
         (as when opened)."""
         return str(self._summary["status"])
 

@@ -30,8 +30,31 @@ def _samples(data: Any) -> Any:
     return data
 
 
-def _value_columns(df: Any) -> list[str]:
-    return [c for c in df.columns if c.startswith("f_r")]
+def _column(df: Any, channel: int | str) -> tuple[str, str]:
+    """The value column of ``channel`` (its index, or its name) and the channel's
+    name: ``f_r_R_per_sr`` is channel ``R``, ``f_r_per_sr`` channel ``value``."""
+    cols = [c for c in df.columns if c.startswith("f_r")]
+    names = [
+        "value" if c == "f_r_per_sr" else c.removeprefix("f_r_").removesuffix("_per_sr")
+        for c in cols
+    ]
+    k = names.index(channel) if isinstance(channel, str) else int(channel)
+    return cols[k], names[k]
+
+
+def _colour(theta_i: float) -> Any:
+    """One colour an incident angle, the same on every plot (model or data)."""
+    import matplotlib
+
+    return matplotlib.colormaps["viridis"](min(max(theta_i / 90.0, 0.0), 1.0) * 0.9)
+
+
+def _figure(plt: Any, ax: Any, size: tuple[float, float]) -> tuple[Any, Any]:
+    """The axes to draw on: ``ax``, or those of a new figure."""
+    if ax is not None:
+        return ax.figure, ax
+    fig = plt.figure(figsize=size, layout="constrained")
+    return fig, fig.add_subplot(1, 1, 1)
 
 
 def polar(
@@ -48,24 +71,18 @@ def polar(
     1° of the plane and of each ``theta_i``), with error bars where the samples
     have σ. Returns the figure."""
     plt = _pyplot()
-    fig = ax.figure if ax is not None else plt.figure(figsize=(6.4, 4.4))
-    ax = ax if ax is not None else fig.add_subplot(1, 1, 1)
+    fig, ax = _figure(plt, ax, (6.4, 4.4))
     thetas = np.atleast_1d(np.asarray(theta_i, dtype=np.float64))
     if isinstance(data, Model):
         k = data.channels.index(channel) if isinstance(channel, str) else int(channel)
         t = np.linspace(-89.5, 89.5, 359)
         for ti in thetas:
             f = data.eval(ti, 0.0, np.abs(t), np.where(t >= 0, 180.0, 0.0))[..., k]
-            ax.plot(t, f, label=f"θi = {ti:g}°")
+            ax.plot(t, f, color=_colour(ti), label=f"θi = {ti:g}° (model)")
         name = data.channels[k]
     else:
         df = _samples(data)
-        cols = _value_columns(df)
-        col = (
-            channel
-            if isinstance(channel, str) and channel in cols
-            else cols[int(channel) if not isinstance(channel, str) else 0]
-        )
+        col, name = _column(df, channel)
         sigma = col.replace("f_r", "sigma", 1)
         dphi = np.mod(df["phi_o_deg"] - df["phi_i_deg"], 360.0)
         for ti in thetas:
@@ -80,13 +97,12 @@ def polar(
                 x[order],
                 y[order],
                 yerr=None if e is None else e[order],
-                fmt="o-",
+                fmt="o",
                 ms=3,
-                lw=0.8,
                 capsize=2,
+                color=_colour(ti),
                 label=f"θi = {ti:g}°",
             )
-        name = col
     ax.set_xlabel("θo (°), specular side positive")
     ax.set_ylabel(f"f_r ({name}), 1/sr")
     if log:
@@ -111,8 +127,7 @@ def hemisphere(
     projected solid angle). A model is drawn as an image; samples as coloured
     points (those within 1° of ``theta_i``). Returns the figure."""
     plt = _pyplot()
-    fig = ax.figure if ax is not None else plt.figure(figsize=(5.2, 4.6))
-    ax = ax if ax is not None else fig.add_subplot(1, 1, 1)
+    fig, ax = _figure(plt, ax, (5.2, 4.6))
     if isinstance(data, Model):
         k = data.channels.index(channel) if isinstance(channel, str) else int(channel)
         u = np.linspace(-1.0, 1.0, resolution)
@@ -127,17 +142,11 @@ def hemisphere(
         name = data.channels[k]
     else:
         df = _samples(data)
-        cols = _value_columns(df)
-        col = (
-            channel
-            if isinstance(channel, str) and channel in cols
-            else cols[int(channel) if not isinstance(channel, str) else 0]
-        )
+        col, name = _column(df, channel)
         near = np.abs(df["theta_i_deg"] - theta_i) < 1.0
         s = np.sin(np.radians(df["theta_o_deg"][near]))
         p = np.radians(df["phi_o_deg"][near] - df["phi_i_deg"][near] + phi_i)
         im = ax.scatter(s * np.cos(p), s * np.sin(p), c=df[col][near], cmap="magma", s=12)
-        name = col
     ax.add_patch(plt.Circle((0, 0), 1.0, fill=False, lw=0.8, color="0.4"))
     ax.set_aspect("equal")
     ax.set_xlim(-1.05, 1.05)
