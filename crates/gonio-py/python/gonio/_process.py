@@ -21,7 +21,7 @@ STEPS = ("reciprocity", "energy", "isotropy", "separable")
 
 def check(
     data: Any,
-    k: int | Iterable[int] = (1,),
+    k: int | Iterable[int] = (1, 5, 10),
     *,
     grid: tuple[float, float] | None = None,
     calibration: str = "auto",
