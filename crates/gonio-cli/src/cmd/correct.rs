@@ -99,6 +99,7 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
     let steps = a.steps(matches)?;
     let steps = steps.as_slice();
     let (out, json_out) = (a.out.as_path(), a.json.json);
+    require_steps(steps)?;
     // A TOML output holds the separable factors; anything else is a CSV table with its
     // sidecar.
     let toml_out = out.extension().is_some_and(|e| e == "toml");
@@ -170,6 +171,16 @@ pub fn run(a: CorrectArgs, matches: Option<&clap::ArgMatches>) -> CliResult<()> 
     })())
 }
 
+/// At least one step is asked for (checked before anything else).
+fn require_steps(steps: &[Step]) -> CliResult<()> {
+    if steps.is_empty() {
+        return Err(CliError::Input(
+            "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// What `gonio correct` made: the table transformed, and the measures before and
 /// after.
 pub(crate) struct Corrected {
@@ -213,11 +224,7 @@ pub(crate) fn compute(
     factors_wanted: bool,
 ) -> CliResult<Corrected> {
     let path = a.input.as_path();
-    if steps.is_empty() {
-        return Err(CliError::Input(
-            "give at least one of --reciprocity, --energy, --isotropy, --separable".into(),
-        ));
-    }
+    require_steps(steps)?;
     let data = super::open_data(path, &a.reduction, given)?;
     let tab = data.tabulate(a.grid.grid, path)?;
     let mut table = tab.table.clone();

@@ -188,9 +188,9 @@ impl Fitted {
     }
 }
 
-/// Fits the input (or `given`, samples already in memory that `a.input` names), as
-/// `a` says; writes nothing.
-pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> CliResult<Fitted> {
+/// The model and the lobe count, checked before anything else (the output, the
+/// input).
+fn check_model(a: &FitArgs) -> CliResult<()> {
     if a.model != "lafortune" {
         return Err(CliError::Input(format!(
             "--model: only `lafortune` lobes are fitted as the result (got {:?}); use --compare \
@@ -206,6 +206,13 @@ pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> Cli
             a.lobes
         )));
     }
+    Ok(())
+}
+
+/// Fits the input (or `given`, samples already in memory that `a.input` names), as
+/// `a` says; writes nothing.
+pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> CliResult<Fitted> {
+    check_model(a)?;
     if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
         return Err(CliError::Input(format!(
             "--cutoff must lie in (0, 90] degrees, got {}",
@@ -302,6 +309,7 @@ pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> Cli
 
 /// `gonio fit INPUT --model lafortune --lobes 3 … --out FIT.toml`.
 pub fn run(a: FitArgs) -> CliResult<()> {
+    check_model(&a)?;
     if a.out.is_none() && !a.compare {
         return Err(CliError::Input("give --out FIT.toml (or --compare)".into()));
     }

@@ -39,6 +39,7 @@ pub struct HarmonicsArgs {
 /// `gonio harmonics INPUT --order L [--filter LF] --out SH.toml`.
 pub fn run(a: HarmonicsArgs) -> CliResult<()> {
     let (order, out, json_out) = (a.order, a.out.as_path(), a.json.json);
+    check_degrees(&a)?;
     let target = output::Target::new(out, a.force.force)?;
     let h = compute(&a, None)?;
     target.write(h.file.as_bytes())?;
@@ -107,6 +108,20 @@ impl Harmonics {
     }
 }
 
+/// The degrees, checked before the input is read: a bad one is refused at once.
+fn check_degrees(a: &HarmonicsArgs) -> CliResult<()> {
+    let degree = |name: &str, v: usize, max: usize| {
+        gonio_core::limits::count(v as u64, 0, max as u64, "")
+            .map(|_| ())
+            .map_err(|m| CliError::Input(format!("{name}: {m}")))
+    };
+    degree("--order", a.order, gonio_process::sh::MAX_L_MAX)?;
+    if let Some(f) = a.filter {
+        degree("--filter", f, a.order)?;
+    }
+    Ok(())
+}
+
 /// Represents the input's table (or `given`, data already in memory that
 /// `a.input` names); writes nothing.
 pub(crate) fn compute(
@@ -114,15 +129,7 @@ pub(crate) fn compute(
     given: Option<gonio_dataset::Dataset>,
 ) -> CliResult<Harmonics> {
     let (path, order, filter) = (a.input.as_path(), a.order, a.filter);
-    // Checked before the input is read: a bad degree is refused at once.
-    let degree = |name: &str, v: usize, max: usize| {
-        gonio_core::limits::count(v as u64, 0, max as u64, "")
-            .map_err(|m| CliError::Input(format!("{name}: {m}")))
-    };
-    degree("--order", order, gonio_process::sh::MAX_L_MAX)?;
-    if let Some(f) = filter {
-        degree("--filter", f, order)?;
-    }
+    check_degrees(a)?;
     let data = super::open_data(path, &a.reduction, given)?;
     let tab = data.tabulate(a.grid.grid, path)?;
     let table = &tab.table;
