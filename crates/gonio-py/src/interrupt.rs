@@ -42,17 +42,24 @@ where
         None => None,
     };
     let (tx, rx) = mpsc::channel();
-    std::thread::Builder::new()
-        .name("gonio-work".into())
-        .spawn(move || {
-            let r = match pool {
-                Some(p) => p.install(work),
-                None => work(),
-            };
+    // The work runs on a worker of the pool its parallel parts use: handed to a pool
+    // from a thread outside it, each parallel step would wait on a cross-thread
+    // wake-up (twice the time of a small fit, BENCHMARKS.md).
+    let job = move || {
+        // A panic must not unwind into the pool (rayon aborts the process then): it
+        // drops the sender instead, and the caller reports it.
+        if let Ok(r) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)) {
             // The receiver is gone only when the caller abandoned the work.
             let _ = tx.send(r);
-        })
-        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        }
+    };
+    match pool {
+        Some(p) => {
+            // The pool lives until its last job ends, then its threads exit.
+            p.spawn(job);
+        }
+        None => rayon::spawn(job),
+    }
     let mut interrupted: Option<PyErr> = None;
     let mut rx = rx;
     loop {
