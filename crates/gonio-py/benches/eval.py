@@ -28,8 +28,9 @@ import platform
 import statistics
 import time
 
-import gonio
 import numpy as np
+
+import gonio
 
 TOL = 1e-12
 
@@ -65,9 +66,7 @@ def lafortune_numpy(params: dict, ti, pi, to, po, dirs=dirs_exact) -> np.ndarray
     if params["kind"] != "lafortune":
         raise ValueError(f"not a lafortune model: {params['kind']}")
     if "mirror" in params:
-        raise ValueError(
-            "the numpy reference has no mirror term (eval leaves it out anyway)"
-        )
+        raise ValueError("the numpy reference has no mirror term (eval leaves it out anyway)")
     xi, yi, zi = dirs(ti, pi)
     xo, yo, zo = dirs(to, po)
     above = (zi > 0.0) & (zo > 0.0)
@@ -137,9 +136,7 @@ def main() -> None:
     args = ap.parse_args()
 
     model = gonio.load_model(args.model)
-    lambert = gonio.Model.from_dict(
-        {"kind": "lambert", "channels": ["value"], "rho": [0.5]}
-    )
+    lambert = gonio.Model.from_dict({"kind": "lambert", "channels": ["value"], "rho": [0.5]})
     params = model.to_dict()
     ti, pi, to, po = pairs(args.pairs, args.seed)
 
@@ -149,9 +146,7 @@ def main() -> None:
     ref = lafortune_numpy(params, ti, pi, to, po)
     plain = lafortune_numpy(params, ti, pi, to, po, dirs=dirs_plain)
     assert ours.shape == ref.shape, (ours.shape, ref.shape)
-    assert np.array_equal(ours, ours_all), (
-        "threads=1 and the default thread count differ"
-    )
+    assert np.array_equal(ours, ours_all), "threads=1 and the default thread count differ"
     rel, zmis = max_rel_diff(ours, ref)
     zeros = int(np.count_nonzero(ours == 0.0))
     assert zmis == 0, f"{zmis} values are zero on one side only"
@@ -188,9 +183,7 @@ def main() -> None:
     results = []
     for name, fn in cases:
         med, times = median_time(fn, args.repeats)
-        results.append(
-            {"what": name, "median_s": med, "min_s": min(times), "max_s": max(times)}
-        )
+        results.append({"what": name, "median_s": med, "min_s": min(times), "max_s": max(times)})
 
     base = results[3]["median_s"]
     nlobes = len(params.get("lobes", []))
@@ -199,9 +192,7 @@ def main() -> None:
         f"{len(params['channels'])} channel(s); {n} pairs, seed {args.seed}, "
         f"median of {args.repeats} (after one warm-up); {os.cpu_count()} CPUs"
     )
-    print(
-        f"{'what':44s} {'median':>9s} {'range':>19s} {'M pairs/s':>10s} {'vs numpy':>9s}"
-    )
+    print(f"{'what':44s} {'median':>9s} {'range':>19s} {'M pairs/s':>10s} {'vs numpy':>9s}")
     for r in results:
         print(
             f"{r['what']:44s} {r['median_s'] * 1e3:7.1f}ms "

@@ -34,11 +34,12 @@ import tempfile
 import time
 from pathlib import Path
 
-import gonio
 import numpy as np
 import pandas as pd
 import scipy
 from scipy.optimize import least_squares
+
+import gonio
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -200,16 +201,12 @@ print(r.x)
 """
 
 
-def time_processes(
-    workdir: Path, csv: Path, lobes: int, x0: np.ndarray, runs: int
-) -> list[dict]:
+def time_processes(workdir: Path, csv: Path, lobes: int, x0: np.ndarray, runs: int) -> list[dict]:
     """Whole processes: the two user scripts and the imports alone."""
     py = sys.executable
     scripts = {
         "gonio_fit.py": GONIO_SCRIPT.format(csv=str(csv), lobes=lobes),
-        "scipy_fit.py": SCIPY_SCRIPT.format(
-            csv=str(csv), lobes=lobes, x0=list(map(float, x0))
-        ),
+        "scipy_fit.py": SCIPY_SCRIPT.format(csv=str(csv), lobes=lobes, x0=list(map(float, x0))),
     }
     for name, text in scripts.items():
         (workdir / name).write_text(text)
@@ -278,9 +275,7 @@ def time_processes(
 
 def fmt_params(x: np.ndarray) -> str:
     rho, lobes = unpack(x)
-    parts = [f"rho_d={rho:.5f}"] + [
-        f"(C={c:.4f}, Cz={cz:.4f}, n={n:.2f})" for c, cz, n in lobes
-    ]
+    parts = [f"rho_d={rho:.5f}"] + [f"(C={c:.4f}, Cz={cz:.4f}, n={n:.2f})" for c, cz, n in lobes]
     return " ".join(parts)
 
 
@@ -290,9 +285,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--workdir", default=str(ROOT / "target" / "bench-fit"))
-    ap.add_argument(
-        "--process-runs", type=int, default=10, help="0: skip the process timing"
-    )
+    ap.add_argument("--process-runs", type=int, default=10, help="0: skip the process timing")
     args = ap.parse_args()
 
     workdir = Path(args.workdir).resolve()
@@ -344,11 +337,7 @@ def main() -> None:
     def add(name, fn, x_of):
         med, lo, hi, out = median_time(fn, args.repeats)
         x = x_of(out)
-        extra = (
-            {"nfev": int(out.nfev), "status": int(out.status)}
-            if hasattr(out, "nfev")
-            else {}
-        )
+        extra = {"nfev": int(out.nfev), "status": int(out.status)} if hasattr(out, "nfev") else {}
         rows.append(
             {
                 "what": name,
@@ -395,12 +384,8 @@ def main() -> None:
         f"analytic Jacobian vs central differences {jac_err:.1e}"
     )
     print(f"simple start for scipy: {fmt_params(x0)}, cost {cost(x0, d):.6g}")
-    print(
-        f"\nin-process, median of {args.repeats} (after one warm-up), {os.cpu_count()} CPUs"
-    )
-    print(
-        f"{'what':46s} {'median':>9s} {'range':>19s} {'cost':>12s} {'/best-1':>9s} nfev"
-    )
+    print(f"\nin-process, median of {args.repeats} (after one warm-up), {os.cpu_count()} CPUs")
+    print(f"{'what':46s} {'median':>9s} {'range':>19s} {'cost':>12s} {'/best-1':>9s} nfev")
     for r in rows:
         print(
             f"{r['what']:46s} {r['median_s'] * 1e3:7.1f}ms {r['min_s'] * 1e3:8.1f}–"
@@ -413,9 +398,7 @@ def main() -> None:
     procs = []
     if args.process_runs > 0:
         procs = time_processes(workdir, csv, lobes, x0, args.process_runs)
-        print(
-            f"\nwhole processes ({procs[0]['tool']}, {args.process_runs} runs, 2 warm-up)"
-        )
+        print(f"\nwhole processes ({procs[0]['tool']}, {args.process_runs} runs, 2 warm-up)")
         for r in procs:
             print(
                 f"{r['what']:46s} {r['median_s'] * 1e3:7.0f}ms "
