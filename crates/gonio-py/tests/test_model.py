@@ -85,7 +85,7 @@ def test_bad_model_files_are_refused_as_the_command_does(cli, tmp_path):
         gonio.load_model(bad)
     code, line = cli.error("model", "albedo", bad)
     assert (str(e.value), e.value.exit_code) == (line, code) == (line, 2)
-    assert "lobes[0].n" in str(e.value) or "n" in str(e.value)
+    assert str(e.value).startswith(f"{bad}:18:5: field `lobes[0].n`: -18.6")
     with pytest.raises(gonio.ConfigError, match="kind"):
         gonio.Model.from_dict({"kind": "teapot", "channels": ["value"]})
     with pytest.raises(gonio.InputError):

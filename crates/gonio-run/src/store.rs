@@ -813,7 +813,8 @@ impl RunStore {
         let mut names: Vec<(String, String)> = declared
             .into_iter()
             .filter(|(n, _)| n != "crc")
-            .map(|(n, t)| (format!("r.{n}"), t))
+            // Quoted: the names are read from the file, not from this build.
+            .map(|(n, t)| (format!("r.\"{}\"", n.replace('"', "\"\"")), t))
             .collect();
         for (n, t) in [
             ("kind", "TEXT"),
@@ -866,7 +867,10 @@ impl RunStore {
                     format!("planned_{step}")
                 }
                 Some(step) => step.to_string(),
-                None => n.trim_start_matches("r.").to_string(),
+                None => n
+                    .trim_start_matches("r.")
+                    .trim_matches('"')
+                    .replace("\"\"", "\""),
             })
             .zip(cols)
             .collect())
