@@ -308,7 +308,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
 
 /// Reduces a run file into samples (a table when they form a grid).
 fn open_run(path: &Path, opts: &OpenOptions) -> Result<(Dataset, Reduction), DatasetError> {
-    let store = RunStore::open(path)?;
+    let store = RunStore::open_read_only(path)?;
     let red = gonio_reduce::reduce(&store, &opts.reduce)?;
     let data = match red.samples.to_table() {
         Some(t) => Dataset::Table(t),

@@ -32,7 +32,7 @@ fn open(path: &std::path::Path) -> Result<RunStore, PyErr> {
             None,
         )
     })?;
-    RunStore::open(path).map_err(store_err)
+    RunStore::open_read_only(path).map_err(store_err)
 }
 
 fn store_err(e: gonio_run::StoreError) -> PyErr {

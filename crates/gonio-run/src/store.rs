@@ -47,6 +47,38 @@ pub fn is_run_file(path: &Path) -> bool {
         && i32::from_be_bytes([head[68], head[69], head[70], head[71]]) == APPLICATION_ID
 }
 
+/// A read-only connection to `path` (see [`RunStore::open_read_only`]).
+fn open_read_only(path: &Path) -> rusqlite::Result<Connection> {
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY
+        | OpenFlags::SQLITE_OPEN_NO_MUTEX
+        | OpenFlags::SQLITE_OPEN_URI;
+    let mut wal = path.as_os_str().to_owned();
+    wal.push("-wal");
+    let immutable = !Path::new(&wal).exists();
+    let uri = format!(
+        "file:{}?mode=ro{}",
+        uri_path(path),
+        if immutable { "&immutable=1" } else { "" }
+    );
+    Connection::open_with_flags(uri, flags)
+}
+
+/// `path` as the path of an SQLite `file:` URI: absolute, with every byte outside
+/// the unreserved set and `/` percent-encoded (`?`, `#` and `%` would otherwise
+/// end or escape it).
+fn uri_path(path: &Path) -> String {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = String::new();
+    for &b in abs.as_os_str().as_encoded_bytes() {
+        if b.is_ascii_alphanumeric() || b"/-_.~".contains(&b) {
+            out.push(char::from(b));
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
+}
+
 /// Sets one `meta` row (inside a transaction).
 fn put_meta(tx: &rusqlite::Transaction<'_>, key: &str, value: &str) -> rusqlite::Result<()> {
     tx.execute(
@@ -347,9 +379,30 @@ impl RunStore {
         Ok(missing)
     }
 
+    /// Opens an existing run file for reading only, after the checks of
+    /// [`RunStore::open`]: nothing is ever written into the file or beside it.
+    ///
+    /// A file with no write-ahead log beside it (a finished or archived run) is
+    /// opened `immutable`: SQLite then creates no `-wal` or `-shm` file, so an
+    /// archive on read-only storage reads too. A file with one (a run being
+    /// measured, or one whose writer was killed) is read through it, as it stands
+    /// at its last commit. A file of an older schema is refused (it needs one
+    /// read-write open to be migrated).
+    pub fn open_read_only(path: &Path) -> Result<RunStore, StoreError> {
+        let store = Self::open_checked(path, true)?;
+        let found = store.integrity(false)?;
+        store.refuse_unless_intact(&found)?;
+        Ok(store)
+    }
+
     /// Opens a run file after checking only that it is one and that this build
     /// reads its schema: for [`RunStore::integrity`] to say what is wrong with it.
     pub fn open_unverified(path: &Path) -> Result<RunStore, StoreError> {
+        Self::open_checked(path, false)
+    }
+
+    /// [`RunStore::open_unverified`], read-write or read-only.
+    fn open_checked(path: &Path, read_only: bool) -> Result<RunStore, StoreError> {
         let not_run = |why: String| StoreError::NotARunFile {
             path: path.to_path_buf(),
             why,
@@ -382,10 +435,14 @@ impl RunStore {
         if &head != b"SQLite format 3\0" {
             return Err(not_run("no SQLite header".into()));
         }
-        let conn = Connection::open_with_flags(
-            path,
-            OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
-        )
+        let conn = if read_only {
+            open_read_only(path)
+        } else {
+            Connection::open_with_flags(
+                path,
+                OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+            )
+        }
         .map_err(|e| corrupt(e.to_string()))?;
         let read_i32 = |name: &str| -> Result<i32, StoreError> {
             conn.pragma_query_value(None, name, |r| r.get(0))
@@ -405,7 +462,18 @@ impl RunStore {
                 supported: SCHEMA_VERSION,
             });
         }
-        Self::pragmas(&conn).map_err(|e| corrupt(e.to_string()))?;
+        if read_only {
+            if version < SCHEMA_VERSION {
+                return Err(not_run(format!(
+                    "schema version {version}: open it once with a command that writes \
+                     (gonio resume) to bring it to version {SCHEMA_VERSION}"
+                )));
+            }
+            conn.busy_timeout(std::time::Duration::from_secs(5))
+                .map_err(|e| corrupt(e.to_string()))?;
+        } else {
+            Self::pragmas(&conn).map_err(|e| corrupt(e.to_string()))?;
+        }
         let mut store = RunStore {
             conn,
             path: path.to_path_buf(),

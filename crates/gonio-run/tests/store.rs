@@ -451,3 +451,52 @@ fn one_process_at_a_time_holds_a_run_and_a_dead_one_holds_nothing() {
     let mut third = RunStore::open(&p).expect("opens");
     third.lock().expect("a stale lock file does not block");
 }
+
+/// The names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .expect("lists")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_read_only_open_writes_nothing_into_the_file_or_beside_it() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    // A name an SQLite URI would misread unless encoded.
+    let dir = scratch.path().join("a ?#%dir");
+    std::fs::create_dir(&dir).expect("dir");
+    let p = dir.join("r?x#1%.gonio");
+    make(&p, 5, 3);
+    let before = std::fs::read(&p).expect("reads");
+    let listed = names(&dir);
+    assert_eq!(listed, ["r?x#1%.gonio"], "a closed run leaves no log");
+    {
+        let mut s = RunStore::open_read_only(&p).expect("opens read-only");
+        assert_eq!(s.readings().expect("readings").len(), 3);
+        let found = s.integrity(true).expect("checks");
+        assert!(found.is_intact(), "{found:?}");
+        let e = s.begin_session("test");
+        assert!(e.is_err(), "a read-only store cannot write");
+    }
+    assert_eq!(std::fs::read(&p).expect("reads"), before, "bytes unchanged");
+    assert_eq!(names(&dir), listed, "no -wal, -shm or lock file made");
+}
+
+#[test]
+fn a_read_only_open_sees_a_live_run_at_its_last_commit() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("live.gonio");
+    make(&p, 6, 2);
+    let mut writer = RunStore::open(&p).expect("opens");
+    writer.lock().expect("locks");
+    writer.begin_session("test").expect("session");
+    writer.commit(&reading(2, 3e-3), &[]).expect("commit");
+    // The writer's log holds the third reading.
+    let r = RunStore::open_read_only(&p).expect("a reader opens");
+    assert_eq!(r.readings().expect("readings").len(), 3);
+    writer.commit(&reading(3, 4e-3), &[]).expect("commit");
+    assert_eq!(r.readings().expect("readings").len(), 4, "and the next");
+}

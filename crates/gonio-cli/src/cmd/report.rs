@@ -88,7 +88,7 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
 pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> {
     // Examined before SQLite opens it: a FIFO would hold the open forever.
     gonio_core::input::regular_file(run).map_err(|e| CliError::Input(e.to_string()))?;
-    let store = RunStore::open(run)?;
+    let store = RunStore::open_read_only(run)?;
     let meta = store.meta().map_err(|e| CliError::Runtime(e.to_string()))?;
     drop(store);
     let opened = gonio_dataset::open(run, &reduction.open_options()?)?;

@@ -38,7 +38,7 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
     let (path, json) = (a.run.as_path(), a.json.json);
     // Examined before SQLite opens it: a FIFO would hold the open forever.
     gonio_core::input::regular_file(path).map_err(input)?;
-    let store = RunStore::open(path)?;
+    let store = RunStore::open_read_only(path)?;
     let s = gonio_run::summary(&store)?;
     if json {
         return output::json(
@@ -140,7 +140,7 @@ pub fn runs(a: RunsArgs) -> CliResult<()> {
     paths.sort();
     let mut rows = Vec::new();
     for p in &paths {
-        let row = match RunStore::open(p).and_then(|s| gonio_run::summary(&s)) {
+        let row = match RunStore::open_read_only(p).and_then(|s| gonio_run::summary(&s)) {
             Ok(s) => json!({
                 "path": p.display().to_string(), "name": s.name, "status": s.status,
                 "steps": s.steps,
