@@ -162,6 +162,32 @@ pub fn reduce(words: &[String]) -> CliResult<(Content, Value)> {
     Ok((content, cmd::reduce::reduction_json(&red)))
 }
 
+/// Runs an offline command (`reduce`, `check`, `correct`, `harmonics`, `fit`,
+/// `micro`, `export`, `plot`, `report`, `model`, `plan`, `show`, `runs`,
+/// `verify`) in this process exactly as `gonio WORDS…` would: the same files,
+/// written the same way, and what it would print on stdout returned as text.
+/// Commands that drive an instrument or wait for signals (`acquire`, `resume`,
+/// `sim`, `instrument`, `demo`) are refused: they have their own functions.
+pub fn run(words: &[String]) -> CliResult<String> {
+    let (command, matches) = parse(words)?;
+    if matches!(
+        command,
+        Command::Acquire(_)
+            | Command::Resume(_)
+            | Command::Sim(_)
+            | Command::Instrument(_)
+            | Command::Demo(_)
+    ) {
+        return Err(CliError::Input(format!(
+            "{}: not run in-process (it drives an instrument); use its own function",
+            words.first().map_or("", String::as_str)
+        )));
+    }
+    let (result, out) = crate::output::captured(|| crate::dispatch(command, &matches));
+    result?;
+    Ok(String::from_utf8_lossy(&out).into_owned())
+}
+
 /// How a run's readings are reduced, from the values of `--calibration` and
 /// `--drift`.
 pub fn open_options(calibration: &str, drift: &str) -> CliResult<gonio_dataset::OpenOptions> {

@@ -117,7 +117,7 @@ fn run(cli: Cli, matches: &clap::ArgMatches) -> Result<(), CliError> {
 }
 
 /// Runs one command.
-fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(), CliError> {
+pub(crate) fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(), CliError> {
     match command {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Model(c) => cmd::model::run(c),

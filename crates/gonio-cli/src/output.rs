@@ -7,6 +7,7 @@
 //! synced, and renamed into place: a kill or a full disk leaves the old file whole
 //! or no file, never half of one.
 
+use std::cell::RefCell;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -164,11 +165,54 @@ fn temp_name(path: &Path) -> PathBuf {
     ))
 }
 
+thread_local! {
+    /// What a command running under [`captured`] on this thread printed so far.
+    static CAPTURE: RefCell<Option<Vec<u8>>> = const { RefCell::new(None) };
+}
+
+/// Runs `f` with what it prints on stdout (through [`stdout`], [`json`] and
+/// [`Sink`]) collected instead, on this thread: a command run in-process by
+/// another program (`api::run`) returns its output instead of printing it.
+pub fn captured<T>(f: impl FnOnce() -> T) -> (T, Vec<u8>) {
+    /// Puts the previous capture back, even when `f` panics.
+    struct Restore(Option<Vec<u8>>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            let prev = self.0.take();
+            CAPTURE.with(|c| *c.borrow_mut() = prev);
+        }
+    }
+    let mut restore = Restore(CAPTURE.with(|c| c.replace(Some(Vec::new()))));
+    let out = f();
+    let bytes = CAPTURE.with(|c| c.replace(restore.0.take()));
+    drop(restore);
+    (out, bytes.unwrap_or_default())
+}
+
+/// Stdout, or the capture when one is on.
+struct CapturedOut;
+
+impl Write for CapturedOut {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        CAPTURE.with(|c| match c.borrow_mut().as_mut() {
+            Some(v) => {
+                v.extend_from_slice(buf);
+                Ok(buf.len())
+            }
+            None => io::stdout().write(buf),
+        })
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
 /// Where a command's text goes: stdout, or a [`Target`] written whole at
 /// [`Sink::finish`].
 pub enum Sink {
     /// Standard output.
-    Stdout(BufWriter<io::StdoutLock<'static>>),
+    Stdout(Box<dyn Write>),
     /// A file, collected in memory and written atomically at the end.
     File(Target, Vec<u8>),
 }
@@ -194,7 +238,7 @@ impl Sink {
     pub fn new(target: Option<Target>) -> Sink {
         match target {
             Some(t) => Sink::File(t, Vec::new()),
-            None => Sink::Stdout(BufWriter::new(io::stdout().lock())),
+            None => Sink::Stdout(stdout()),
         }
     }
 
@@ -211,7 +255,11 @@ impl Sink {
 
 /// A buffered writer to stdout.
 pub fn stdout() -> Box<dyn Write> {
-    Box::new(BufWriter::new(io::stdout().lock()))
+    if CAPTURE.with(|c| c.borrow().is_some()) {
+        Box::new(CapturedOut)
+    } else {
+        Box::new(BufWriter::new(io::stdout().lock()))
+    }
 }
 
 /// Maps the outcome of writing results: a broken pipe is success, anything else a

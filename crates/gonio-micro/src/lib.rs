@@ -66,7 +66,7 @@ pub use heightfield::{GaussianParams, HeightField, HeightStats};
 pub use material::{Material, fresnel_conductor, fresnel_dielectric};
 pub use sim::{
     Exits, IncidentAlbedo, MAX_BOUNCES, MAX_RAYS, MicroResult, ORDERS, ShEstimate, SimOptions,
-    Simulation, TraceStats,
+    SEGMENT_RAYS, Simulation, TablePart, TraceStats,
 };
 pub use surface::Sample;
 pub use trace::{Hit, Method, Ray, Tracer};

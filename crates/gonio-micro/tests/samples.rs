@@ -601,3 +601,52 @@ fn config_examples_load() {
         assert_eq!(ex.stats.leaked, 0, "{name}");
     }
 }
+
+/// A table traced in chunks (parts of whole segments, in another order, through
+/// bytes as they cross processes) is bit for bit the table traced at once.
+#[test]
+fn a_table_merged_from_parts_is_the_table_traced_at_once() {
+    use gonio_micro::{SEGMENT_RAYS, TablePart};
+    let sim = sim_from(
+        &std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/micro-sawtooth-deyoung.toml"),
+        )
+        .expect("shipped surface"),
+        None,
+    );
+    let grid = gonio_process::GridStep::new(30.0, 90.0)
+        .expect("steps")
+        .isotropic_grid();
+    // Three segments, the last short.
+    let rays = 2 * SEGMENT_RAYS + 5000;
+    let whole = sim.to_table(&grid, rays, 11).expect("table");
+    let mut parts = Vec::new();
+    for inc in (0..grid.n_in()).rev() {
+        for segs in [2..3, 0..2] {
+            let p = sim.table_part(&grid, rays, 11, inc, segs).expect("part");
+            let back = TablePart::from_bytes(&p.to_bytes()).expect("reads back");
+            assert_eq!(back, p);
+            parts.push(back);
+        }
+    }
+    let merged = sim.table_from_parts(&grid, rays, &parts).expect("merged");
+    assert_eq!(table_bits(&merged.table), table_bits(&whole.table));
+    assert_eq!(merged.stats, whole.stats);
+    assert_eq!(merged.albedo, whole.albedo);
+    assert_eq!(merged.stats.rays, (rays * grid.n_in()) as u64);
+
+    // A missing or doubled segment is refused, as are damaged bytes.
+    let e = sim
+        .table_from_parts(&grid, rays, &parts[1..])
+        .expect_err("missing");
+    assert!(e.to_string().contains("segment"), "{e}");
+    let mut doubled = parts.clone();
+    doubled.push(parts[0].clone());
+    assert!(sim.table_from_parts(&grid, rays, &doubled).is_err());
+    let bytes = parts[0].to_bytes();
+    assert!(TablePart::from_bytes(&bytes[..bytes.len() - 8]).is_err());
+    let mut huge = bytes.clone();
+    huge[8 + 24..8 + 32].copy_from_slice(&u64::MAX.to_le_bytes());
+    assert!(TablePart::from_bytes(&huge).is_err());
+    assert!(sim.table_part(&grid, rays, 11, 0, 3..4).is_err(), "past the end");
+}

@@ -29,6 +29,8 @@
 mod sh;
 mod table;
 
+pub use table::{SEGMENT_BLOCKS, SEGMENT_RAYS, TablePart, segments};
+
 use gonio_core::{Dir, Vec3};
 use gonio_process::Table;
 use gonio_process::sh::ShBrdf;

@@ -13,77 +13,264 @@ use super::{
 use crate::MicroError;
 use crate::material::{Scratch, uniform};
 
+/// Blocks a segment: the unit a table's sums are kept in, merged in segment order.
+/// A chunk of a simulation traced apart ([`Simulation::table_part`]) is whole
+/// segments, so a table merged from chunks is bit for bit the one traced at once.
+pub const SEGMENT_BLOCKS: usize = 256;
+
+/// Rays a segment: 262 144.
+pub const SEGMENT_RAYS: usize = SEGMENT_BLOCKS * BLOCK;
+
+/// The segments of a simulation of `rays` rays an incident node.
+pub fn segments(rays: usize) -> usize {
+    rays.div_ceil(SEGMENT_RAYS)
+}
+
+/// The estimator's sums (per-ray energy and its square per bin, albedos, ray
+/// counts) over consecutive segments of one incident node of a table: a chunk of a
+/// simulation traced apart — in another process, on another machine — and merged
+/// by [`Simulation::table_from_parts`]. Sums, not means and errors, cross: the
+/// merged mean and standard error are those of one simulation of all the rays
+/// (module docs), not an approximation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TablePart {
+    /// The incident node (grid order, φi-major).
+    pub incident: usize,
+    /// The first segment.
+    pub first: usize,
+    segments: Vec<TableAcc>,
+}
+
+/// What a table's blocks share: the grid, its outgoing cells, the rays, the seed.
+struct TableJob<'a> {
+    grid: &'a Grid,
+    cells: OutCells,
+    rays: usize,
+    seed: u64,
+    nc: usize,
+}
+
+impl TableJob<'_> {
+    /// Incident node `inc`: (φi, θi), radians.
+    fn incident(&self, inc: usize) -> (f64, f64) {
+        let g = self.grid;
+        let (a, b) = (inc / g.theta_i.n, inc % g.theta_i.n);
+        (g.phi_i.node(a), g.theta_i.node(b))
+    }
+}
+
 impl Simulation {
     /// Simulates the BRDF at the nodes of `grid` with `rays` rays per incident node
     /// (see the module docs for the estimator). Deterministic in `seed` whatever the
     /// number of threads.
     pub fn to_table(&self, grid: &Grid, rays: usize, seed: u64) -> Result<MicroResult, MicroError> {
+        let job = self.table_job(grid, rays, seed)?;
+        let n_blocks = rays.div_ceil(BLOCK);
+        let mut parts: Vec<TablePart> = (0..grid.n_in())
+            .map(|incident| TablePart {
+                incident,
+                first: 0,
+                segments: Vec::new(),
+            })
+            .collect();
+        run_ordered(
+            grid.n_in() * n_blocks,
+            self.cancel_flag(),
+            |task| self.table_block(&job, task / n_blocks, task % n_blocks),
+            |task, acc| parts[task / n_blocks].add_block(task % n_blocks, acc),
+        )?;
+        self.finish_table(&job, &parts)
+    }
+
+    /// Traces segments `segs` of incident node `incident` of the simulation
+    /// [`Simulation::to_table`] would run with the same `grid`, `rays` and `seed`
+    /// (the same random streams): a chunk of it, for [`Simulation::table_from_parts`].
+    pub fn table_part(
+        &self,
+        grid: &Grid,
+        rays: usize,
+        seed: u64,
+        incident: usize,
+        segs: std::ops::Range<usize>,
+    ) -> Result<TablePart, MicroError> {
+        let job = self.table_job(grid, rays, seed)?;
+        if incident >= grid.n_in() {
+            return Err(MicroError::invalid(
+                "incident",
+                format!("node {incident} of a grid of {}", grid.n_in()),
+            ));
+        }
+        if segs.is_empty() || segs.end > segments(rays) {
+            return Err(MicroError::invalid(
+                "segments",
+                format!(
+                    "{}..{} is not within the {} segment(s) of {rays} rays",
+                    segs.start,
+                    segs.end,
+                    segments(rays)
+                ),
+            ));
+        }
+        let first_block = segs.start * SEGMENT_BLOCKS;
+        let end_block = (segs.end * SEGMENT_BLOCKS).min(rays.div_ceil(BLOCK));
+        let mut part = TablePart {
+            incident,
+            first: segs.start,
+            segments: Vec::new(),
+        };
+        run_ordered(
+            end_block - first_block,
+            self.cancel_flag(),
+            |k| self.table_block(&job, incident, first_block + k),
+            |k, acc| part.add_block(k, acc),
+        )?;
+        Ok(part)
+    }
+
+    /// The table of [`Simulation::to_table`] from its parts: for every incident node,
+    /// parts that cover its segments once each (in any order). Bit for bit the
+    /// table traced at once with the same `grid`, `rays` and seed.
+    pub fn table_from_parts(
+        &self,
+        grid: &Grid,
+        rays: usize,
+        parts: &[TablePart],
+    ) -> Result<MicroResult, MicroError> {
+        let job = self.table_job(grid, rays, 0)?;
+        let n_out = grid.n_out();
+        let mut sorted: Vec<&TablePart> = parts.iter().collect();
+        sorted.sort_by_key(|p| (p.incident, p.first));
+        let mut merged = Vec::with_capacity(grid.n_in());
+        let mut it = sorted.into_iter().peekable();
+        for incident in 0..grid.n_in() {
+            let mut whole = TablePart {
+                incident,
+                first: 0,
+                segments: Vec::new(),
+            };
+            while let Some(p) = it.next_if(|p| p.incident == incident) {
+                if p.first != whole.segments.len() {
+                    return Err(MicroError::invalid(
+                        "parts",
+                        format!(
+                            "incident node {incident}: a part starts at segment {} where {} was expected",
+                            p.first,
+                            whole.segments.len()
+                        ),
+                    ));
+                }
+                if p.segments.iter().any(|a| a.nc != job.nc || a.n_out != n_out) {
+                    return Err(MicroError::invalid(
+                        "parts",
+                        "a part of another grid or surface (channels or cells differ)",
+                    ));
+                }
+                whole.segments.extend(p.segments.iter().cloned());
+            }
+            if whole.segments.len() != segments(rays) {
+                return Err(MicroError::invalid(
+                    "parts",
+                    format!(
+                        "incident node {incident}: {} of its {} segments",
+                        whole.segments.len(),
+                        segments(rays)
+                    ),
+                ));
+            }
+            merged.push(whole);
+        }
+        if let Some(p) = it.next() {
+            return Err(MicroError::invalid(
+                "parts",
+                format!("incident node {} of a grid of {}", p.incident, grid.n_in()),
+            ));
+        }
+        self.finish_table(&job, &merged)
+    }
+
+    /// Checks the arguments of a table simulation.
+    fn table_job<'a>(
+        &self,
+        grid: &'a Grid,
+        rays: usize,
+        seed: u64,
+    ) -> Result<TableJob<'a>, MicroError> {
         grid.validate()?;
         super::check_rays(rays)?;
-        let cells = OutCells::new(&grid.phi_o, &grid.theta_o);
-        let nc = self.sample.channels.len();
-        let n_out = grid.n_out();
-        let n_in = grid.n_in();
-        let n_blocks = rays.div_ceil(BLOCK);
-        let incident = |inc: usize| -> (f64, f64) {
-            let (a, b) = (inc / grid.theta_i.n, inc % grid.theta_i.n);
-            (grid.phi_i.node(a), grid.theta_i.node(b))
-        };
-        let mut accs: Vec<TableAcc> = (0..n_in).map(|_| TableAcc::new(nc, n_out)).collect();
-        run_ordered(
-            n_in * n_blocks,
-            self.cancel_flag(),
-            |task| {
-                let (inc, b) = (task / n_blocks, task % n_blocks);
-                let mut acc = TableAcc::new(nc, n_out);
-                let (phi_i, theta_i) = incident(inc);
-                let wi = Dir::from_angles(theta_i, phi_i);
-                if wi.z <= 1e-12 {
-                    return acc;
-                }
-                let mut rng = block_rng(seed, PURPOSE_TABLE, inc, b);
-                let n = BLOCK.min(rays - b * BLOCK);
-                let mut w = vec![0.0; nc];
-                let mut scratch = Scratch::new(nc);
-                for _ in 0..n {
-                    let turn = if grid.isotropic {
-                        TAU * uniform(&mut rng)
-                    } else {
-                        0.0
-                    };
-                    let wi_r = if grid.isotropic {
-                        wi.rotate_about_normal(turn)
-                    } else {
-                        wi
-                    };
-                    let (end, k, d) =
-                        self.path(self.to_surface(wi_r.vec()), &mut rng, &mut w, &mut scratch);
-                    self.count(&mut acc.stats, end, k, &w);
-                    if end != End::Exit {
-                        continue;
-                    }
-                    let wo = self.to_sample(d);
-                    let slot = (k.min(3)) as usize; // 1, 2, 3+
-                    let cell = cells.locate(
-                        wo.theta(),
-                        wo.phi() - if grid.isotropic { turn } else { 0.0 },
-                    );
-                    acc.add(slot, cell, &w);
-                }
-                acc
-            },
-            |task, acc| accs[task / n_blocks].merge(&acc),
-        )?;
+        Ok(TableJob {
+            grid,
+            cells: OutCells::new(&grid.phi_o, &grid.theta_o),
+            rays,
+            seed,
+            nc: self.sample.channels.len(),
+        })
+    }
 
-        // Tables.
+    /// Traces block `b` of incident node `inc`: its sums.
+    fn table_block(&self, job: &TableJob<'_>, inc: usize, b: usize) -> TableAcc {
+        let grid = job.grid;
+        let mut acc = TableAcc::new(job.nc, grid.n_out());
+        let (phi_i, theta_i) = job.incident(inc);
+        let wi = Dir::from_angles(theta_i, phi_i);
+        if wi.z <= 1e-12 {
+            return acc;
+        }
+        let mut rng = block_rng(job.seed, PURPOSE_TABLE, inc, b);
+        let n = BLOCK.min(job.rays - b * BLOCK);
+        let mut w = vec![0.0; job.nc];
+        let mut scratch = Scratch::new(job.nc);
+        for _ in 0..n {
+            let turn = if grid.isotropic {
+                TAU * uniform(&mut rng)
+            } else {
+                0.0
+            };
+            let wi_r = if grid.isotropic {
+                wi.rotate_about_normal(turn)
+            } else {
+                wi
+            };
+            let (end, k, d) =
+                self.path(self.to_surface(wi_r.vec()), &mut rng, &mut w, &mut scratch);
+            self.count(&mut acc.stats, end, k, &w);
+            if end != End::Exit {
+                continue;
+            }
+            let wo = self.to_sample(d);
+            let slot = (k.min(3)) as usize; // 1, 2, 3+
+            let cell = job.cells.locate(
+                wo.theta(),
+                wo.phi() - if grid.isotropic { turn } else { 0.0 },
+            );
+            acc.add(slot, cell, &w);
+        }
+        acc
+    }
+
+    /// The tables, albedos and statistics of every incident node's segments.
+    fn finish_table(
+        &self,
+        job: &TableJob<'_>,
+        parts: &[TablePart],
+    ) -> Result<MicroResult, MicroError> {
+        let (grid, nc, cells) = (job.grid, job.nc, &job.cells);
+        let n_out = grid.n_out();
+        let accs: Vec<TableAcc> = parts
+            .iter()
+            .map(|p| {
+                let mut total = TableAcc::new(nc, n_out);
+                p.segments.iter().for_each(|s| total.merge(s));
+                total
+            })
+            .collect();
         let n = grid.len();
         let mut values = vec![vec![0.0; n * nc]; 4];
         let mut sigmas = vec![vec![0.0; n * nc]; 4];
-        let mut albedo = Vec::with_capacity(n_in);
+        let mut albedo = Vec::with_capacity(grid.n_in());
         let mut stats = TraceStats::default();
         for (inc, acc) in accs.iter().enumerate() {
             stats.merge(&acc.stats);
-            let (phi_i, theta_i) = incident(inc);
+            let (phi_i, theta_i) = job.incident(inc);
             let rays_here = acc.stats.rays as f64;
             let (a, b) = (inc / grid.theta_i.n, inc % grid.theta_i.n);
             for slot in 0..4 {
@@ -145,6 +332,7 @@ impl Simulation {
 
 /// Per-incident-node sums: energy and its square per (slot, channel, outgoing cell);
 /// slot 0 is all orders, 1–3 the orders of [`ORDERS`].
+#[derive(Clone, Debug, PartialEq)]
 struct TableAcc {
     nc: usize,
     n_out: usize,
@@ -205,6 +393,130 @@ impl TableAcc {
             a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
         }
         self.stats.merge(&o.stats);
+    }
+}
+
+/// The leading bytes of a serialised [`TablePart`], with its format's version.
+const PART_MAGIC: &[u8; 8] = b"GMTPART1";
+
+impl TablePart {
+    /// The segments it covers.
+    pub fn segments(&self) -> std::ops::Range<usize> {
+        self.first..self.first + self.segments.len()
+    }
+
+    /// The rays it traced.
+    pub fn rays(&self) -> u64 {
+        self.segments.iter().map(|s| s.stats.rays).sum()
+    }
+
+    /// The part as bytes (little-endian, exact: every sum keeps its bits), to
+    /// cross processes and machines; [`TablePart::from_bytes`] reads them back.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = PART_MAGIC.to_vec();
+        let (nc, n_out) = self.segments.first().map_or((0, 0), |a| (a.nc, a.n_out));
+        for v in [self.incident, self.first, self.segments.len(), nc, n_out] {
+            out.extend_from_slice(&(v as u64).to_le_bytes());
+        }
+        for a in &self.segments {
+            let st = &a.stats;
+            for v in [
+                st.rays,
+                st.exits,
+                st.absorbed,
+                st.capped,
+                st.leaked,
+                st.horizon,
+                st.hits,
+                u64::from(st.max_order),
+            ] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            for v in [st.capped_energy, st.lost_energy] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            for xs in [&a.sum, &a.sq, &a.alb, &a.alb_sq, &a.binned] {
+                xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+            }
+        }
+        out
+    }
+
+    /// Reads [`TablePart::to_bytes`]'s bytes, checking their length against the
+    /// header before anything is allocated.
+    pub fn from_bytes(bytes: &[u8]) -> Result<TablePart, MicroError> {
+        let bad = |why: &str| MicroError::invalid("part", why.to_string());
+        let body = bytes
+            .strip_prefix(PART_MAGIC.as_slice())
+            .ok_or_else(|| bad("not a table part (or one of another format)"))?;
+        let mut words = body.chunks_exact(8).map(|c| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(c);
+            b
+        });
+        if body.len() % 8 != 0 || body.len() < 40 {
+            return Err(bad("truncated"));
+        }
+        let mut int = || -> Result<usize, MicroError> {
+            let w = words.next().ok_or_else(|| bad("truncated"))?;
+            usize::try_from(u64::from_le_bytes(w)).map_err(|_| bad("a count out of range"))
+        };
+        let (incident, first, n_seg, nc, n_out) = (int()?, int()?, int()?, int()?, int()?);
+        // Words a segment: 8 counts, 2 energies, then the sums (`TableAcc`).
+        let (c, o, k) = (nc as u128, n_out as u128, n_seg as u128);
+        let expected = (8 * c)
+            .checked_mul(o)
+            .and_then(|x| x.checked_add(9 * c + 10))
+            .and_then(|x| x.checked_mul(k));
+        if expected != Some((body.len() / 8 - 5) as u128) || nc == 0 {
+            return Err(bad("its length does not match its header"));
+        }
+        let mut f64s = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|_| words.next().map_or(0.0, f64::from_le_bytes))
+                .collect()
+        };
+        let mut segments = Vec::with_capacity(n_seg);
+        for _ in 0..n_seg {
+            let head: Vec<u64> = f64s(8).into_iter().map(f64::to_bits).collect();
+            let energies = f64s(2);
+            let stats = TraceStats {
+                rays: head[0],
+                exits: head[1],
+                absorbed: head[2],
+                capped: head[3],
+                leaked: head[4],
+                horizon: head[5],
+                hits: head[6],
+                max_order: u32::try_from(head[7]).map_err(|_| bad("a bounce order out of range"))?,
+                capped_energy: energies[0],
+                lost_energy: energies[1],
+            };
+            segments.push(TableAcc {
+                nc,
+                n_out,
+                sum: f64s(4 * nc * n_out),
+                sq: f64s(4 * nc * n_out),
+                alb: f64s(4 * nc),
+                alb_sq: f64s(4 * nc),
+                binned: f64s(nc),
+                stats,
+            });
+        }
+        Ok(TablePart {
+            incident,
+            first,
+            segments,
+        })
+    }
+
+    /// Merges block `k` (counted from the part's first block) in block order.
+    fn add_block(&mut self, k: usize, acc: TableAcc) {
+        if k % SEGMENT_BLOCKS == 0 {
+            self.segments.push(acc);
+        } else if let Some(last) = self.segments.last_mut() {
+            last.merge(&acc);
+        }
     }
 }
 
