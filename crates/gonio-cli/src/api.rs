@@ -136,20 +136,96 @@ pub fn micro(
     theta_i: Option<(f64, f64, usize)>,
     cancel: Arc<AtomicBool>,
 ) -> CliResult<(Table, Value)> {
+    let started = std::time::Instant::now();
+    let (a, mut sim, grid) = micro_setup(words, theta_i, None)?;
+    sim.cancel_on(cancel);
+    let r = cmd::micro::trace(&a, &sim, &grid)?;
+    let json = cmd::micro::json(&a, &r, &[], None, started.elapsed().as_secs_f64());
+    Ok((r.table, without_out(json)))
+}
+
+/// The words of `gonio micro` parsed, the surface loaded (from `surface`, the
+/// file's text as a sweep edited it, when given) and the grid made, `theta_i`
+/// replacing its incident polar axis.
+fn micro_setup(
+    words: &[String],
+    theta_i: Option<(f64, f64, usize)>,
+    surface: Option<&str>,
+) -> CliResult<(
+    cmd::micro::MicroArgs,
+    gonio_micro::Simulation,
+    gonio_process::Grid,
+)> {
     let Command::Micro(a) = parse(words)?.0 else {
         return Err(wrong(words));
     };
-    let started = std::time::Instant::now();
-    let (mut sim, mut grid) = cmd::micro::load(&a)?;
-    sim.cancel_on(cancel);
+    let (sim, mut grid) = cmd::micro::load_from(&a, surface)?;
     if let Some((start, step, n)) = theta_i {
         grid.theta_i = gonio_process::Axis::from_deg(start, step, n);
         grid.validate()
             .map_err(|e| CliError::Input(format!("theta_i: {e}")))?;
     }
-    let r = cmd::micro::trace(&a, &sim, &grid)?;
-    let json = cmd::micro::json(&a, &r, &[], None, started.elapsed().as_secs_f64());
-    Ok((r.table, without_out(json)))
+    Ok((a, sim, grid))
+}
+
+/// The incident nodes of `gonio micro`'s table and the segments of rays each is
+/// traced in: what a sweep splits into chunks. Loads the surface, so a bad surface
+/// or option fails here, before any chunk is traced.
+pub fn micro_plan(
+    words: &[String],
+    theta_i: Option<(f64, f64, usize)>,
+    surface: Option<&str>,
+) -> CliResult<(usize, usize)> {
+    let (a, _, grid) = micro_setup(words, theta_i, surface)?;
+    Ok((grid.n_in(), gonio_micro::sim::segments(a.rays())))
+}
+
+/// Writes `table` as `gonio micro --out` (and every command writing a table)
+/// does: the CSV and its sidecar, each atomically; an existing file is refused
+/// unless `force`.
+pub fn write_table(table: &Table, out: &Path, force: bool) -> CliResult<()> {
+    crate::csvout::CsvTarget::new(out, force)?.write_table(table)?;
+    Ok(())
+}
+
+/// Checks `gonio WORDS…` as the command's parser would, running nothing: a batch
+/// refuses bad options before it starts any task.
+pub fn validate(words: &[String]) -> CliResult<()> {
+    parse(words).map(|_| ())
+}
+
+/// A chunk of `gonio micro`'s table: segments `segs` (of
+/// [`gonio_micro::SEGMENT_RAYS`] rays) of incident node `incident`, traced with
+/// the same random streams as the whole table. `surface` is the surface file's
+/// text when a sweep edited it. [`micro_merge`] puts the chunks together.
+pub fn micro_part(
+    words: &[String],
+    theta_i: Option<(f64, f64, usize)>,
+    surface: Option<&str>,
+    incident: usize,
+    segs: std::ops::Range<usize>,
+    cancel: Arc<AtomicBool>,
+) -> CliResult<gonio_micro::TablePart> {
+    let (a, mut sim, grid) = micro_setup(words, theta_i, surface)?;
+    sim.cancel_on(cancel);
+    cmd::micro::part(&a, &sim, &grid, incident, segs)
+}
+
+/// `gonio micro`'s table and `--json` object (without `out` and `seconds`) from
+/// its chunks ([`micro_part`]): bit for bit the table traced at once.
+pub fn micro_merge(
+    words: &[String],
+    theta_i: Option<(f64, f64, usize)>,
+    surface: Option<&str>,
+    parts: &[gonio_micro::TablePart],
+) -> CliResult<(Table, Value)> {
+    let (a, sim, grid) = micro_setup(words, theta_i, surface)?;
+    let r = cmd::micro::merge(&a, &sim, &grid, parts)?;
+    let mut json = without_out(cmd::micro::json(&a, &r, &[], None, 0.0));
+    if let Some(o) = json.as_object_mut() {
+        o.remove("seconds");
+    }
+    Ok((r.table, json))
 }
 
 /// `gonio reduce`: what it writes (a table, or the samples) and its `--json`

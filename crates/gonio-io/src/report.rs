@@ -284,8 +284,10 @@ pub fn html(c: &Contents) -> String {
         h.push_str("<h2>Lobe fit (Lafortune et al. 1997)</h2>\n");
         let _ = writeln!(
             h,
+            // No wall time: the same run gives the same report, byte for byte (an
+            // archive reprocessed twice, a retried batch task).
             "<p>{} lobe(s), {:?} diffuse, {} pairs; objective {} (minimised: {}; {}); {} \
-             evaluations in {:.3} s; largest directional albedo {:.4}{}.</p>",
+             evaluations; largest directional albedo {:.4}{}.</p>",
             f.shape.lobes,
             f.shape.diffuse,
             f.samples,
@@ -293,7 +295,6 @@ pub fn html(c: &Contents) -> String {
             escape(&f.objective.formula),
             escape(&f.objective.chosen),
             f.evaluations,
-            f.seconds,
             f.max_albedo,
             if f.energy_scale < 1.0 {
                 format!(", scaled by {:.4} to conserve energy", f.energy_scale)

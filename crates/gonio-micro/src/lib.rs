@@ -65,8 +65,8 @@ pub use error::MicroError;
 pub use heightfield::{GaussianParams, HeightField, HeightStats};
 pub use material::{Material, fresnel_conductor, fresnel_dielectric};
 pub use sim::{
-    Exits, IncidentAlbedo, MAX_BOUNCES, MAX_RAYS, MicroResult, ORDERS, ShEstimate, SimOptions,
-    SEGMENT_RAYS, Simulation, TablePart, TraceStats,
+    Exits, IncidentAlbedo, MAX_BOUNCES, MAX_RAYS, MicroResult, ORDERS, SEGMENT_RAYS, ShEstimate,
+    SimOptions, Simulation, TablePart, TraceStats,
 };
 pub use surface::Sample;
 pub use trace::{Hit, Method, Ray, Tracer};

@@ -648,5 +648,8 @@ fn a_table_merged_from_parts_is_the_table_traced_at_once() {
     let mut huge = bytes.clone();
     huge[8 + 24..8 + 32].copy_from_slice(&u64::MAX.to_le_bytes());
     assert!(TablePart::from_bytes(&huge).is_err());
-    assert!(sim.table_part(&grid, rays, 11, 0, 3..4).is_err(), "past the end");
+    assert!(
+        sim.table_part(&grid, rays, 11, 0, 3..4).is_err(),
+        "past the end"
+    );
 }

@@ -8,6 +8,7 @@
 //! (`interrupt`). The pure-Python side (`python/gonio/`) shapes the results into
 //! DataFrames and objects.
 
+mod batch;
 mod columns;
 mod errors;
 mod instrument;
@@ -29,6 +30,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     model::register(m)?;
     process::register(m)?;
     instrument::register(m)?;
+    batch::register(m)?;
     Ok(())
 }
 

@@ -269,10 +269,31 @@ pub fn run(a: MicroArgs) -> CliResult<()> {
     })())
 }
 
+impl MicroArgs {
+    /// Rays per incident direction.
+    pub(crate) fn rays(&self) -> usize {
+        self.rays
+    }
+}
+
 /// The surface's simulation and the grid `a` asks for; nothing traced yet.
 pub(crate) fn load(a: &MicroArgs) -> CliResult<(Simulation, gonio_process::Grid)> {
+    load_from(a, None)
+}
+
+/// [`load`], the surface file's text given as `text` when it is (a sweep's edited
+/// copy: the file's path still names it in messages and anchors its relative
+/// files).
+pub(crate) fn load_from(
+    a: &MicroArgs,
+    text: Option<&str>,
+) -> CliResult<(Simulation, gonio_process::Grid)> {
     check_counts(a)?;
-    let sample = Sample::load(&a.surface).map_err(|e| input_err(&a.surface, e))?;
+    let sample = match text {
+        Some(t) => Sample::from_toml(t, Some(&a.surface)),
+        None => Sample::load(&a.surface),
+    }
+    .map_err(|e| input_err(&a.surface, e))?;
     let opts = SimOptions {
         max_bounces: a.max_bounces,
         ..SimOptions::default()
@@ -294,6 +315,29 @@ pub(crate) fn trace(
 ) -> CliResult<MicroResult> {
     sim.to_table(grid, a.rays, a.seed)
         .map_err(|e| input_err(&a.surface, e))
+}
+
+/// Segments `segs` of incident node `incident` of the table [`trace`] makes.
+pub(crate) fn part(
+    a: &MicroArgs,
+    sim: &Simulation,
+    grid: &gonio_process::Grid,
+    incident: usize,
+    segs: std::ops::Range<usize>,
+) -> CliResult<gonio_micro::TablePart> {
+    sim.table_part(grid, a.rays, a.seed, incident, segs)
+        .map_err(|e| input_err(&a.surface, e))
+}
+
+/// The table [`trace`] makes, from its parts.
+pub(crate) fn merge(
+    a: &MicroArgs,
+    sim: &Simulation,
+    grid: &gonio_process::Grid,
+    parts: &[gonio_micro::TablePart],
+) -> CliResult<MicroResult> {
+    sim.table_from_parts(grid, a.rays, parts)
+        .map_err(|e| CliError::Input(format!("{}: {e}", a.surface.display())))
 }
 
 /// The `--json` object.

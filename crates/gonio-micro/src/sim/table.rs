@@ -159,7 +159,10 @@ impl Simulation {
                         ),
                     ));
                 }
-                if p.segments.iter().any(|a| a.nc != job.nc || a.n_out != n_out) {
+                if p.segments
+                    .iter()
+                    .any(|a| a.nc != job.nc || a.n_out != n_out)
+                {
                     return Err(MicroError::invalid(
                         "parts",
                         "a part of another grid or surface (channels or cells differ)",
@@ -436,7 +439,8 @@ impl TablePart {
                 out.extend_from_slice(&v.to_le_bytes());
             }
             for xs in [&a.sum, &a.sq, &a.alb, &a.alb_sq, &a.binned] {
-                xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+                xs.iter()
+                    .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
             }
         }
         out
@@ -488,7 +492,8 @@ impl TablePart {
                 leaked: head[4],
                 horizon: head[5],
                 hits: head[6],
-                max_order: u32::try_from(head[7]).map_err(|_| bad("a bounce order out of range"))?,
+                max_order: u32::try_from(head[7])
+                    .map_err(|_| bad("a bounce order out of range"))?,
                 capped_energy: energies[0],
                 lost_energy: energies[1],
             };
