@@ -1,0 +1,362 @@
+"""gonio.batch on a real Dask cluster: LocalCluster(processes=True) on 127.0.0.1.
+Every output is held against the ``gonio`` command run on the same input, byte
+for byte where the command writes a file."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+import gonio
+from conftest import CONFIG, ROOT, Cli
+from gonio import batch
+
+distributed = pytest.importorskip("distributed")
+
+SAWTOOTH = CONFIG / "micro-sawtooth-deyoung.toml"
+SEG = batch.SEGMENT_RAYS
+
+
+def cluster(n: int) -> Any:
+    return distributed.LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+        silence_logs=40,
+    )
+
+
+@pytest.fixture(scope="module")
+def client2() -> Iterator[Any]:
+    with cluster(2) as c, distributed.Client(c) as cl:
+        yield cl
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory: pytest.TempPathFactory, cli: Cli) -> pathlib.Path:
+    """Hemisphere runs of three seeds, in-plane runs of two, and a damaged copy."""
+    d = tmp_path_factory.mktemp("archive")
+    inst = CONFIG / "instrument-sim.toml"
+    for seed in (3, 4, 6):
+        plan = CONFIG / "plan-hemisphere.toml"
+        cli.run(
+            "acquire",
+            "--instrument",
+            inst,
+            "--plan",
+            plan,
+            "--out",
+            d / f"h{seed}.gonio",
+            "--seed",
+            seed,
+        )
+    for seed in (5, 7):
+        plan = CONFIG / "plan-in-plane.toml"
+        cli.run(
+            "acquire",
+            "--instrument",
+            inst,
+            "--plan",
+            plan,
+            "--out",
+            d / f"p{seed}.gonio",
+            "--seed",
+            seed,
+        )
+    data = (d / "h3.gonio").read_bytes()
+    (d / "bad").mkdir()
+    (d / "bad" / "damaged.gonio").write_bytes(data[:8192])
+    return d
+
+
+def digests(d: pathlib.Path) -> dict[str, str]:
+    """Name → SHA-256 of every file below ``d``."""
+    return {
+        str(p.relative_to(d)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(d.rglob("*"))
+        if p.is_file()
+    }
+
+
+def cli_json(cli: Cli, *args: Any) -> Any:
+    drop = {"out", "seconds"}
+    return batch._common.strip(cli.json(*args), frozenset(drop))
+
+
+def test_reprocess_gives_the_commands_numbers_and_a_damaged_run_its_row(
+    archive: pathlib.Path, client2: Any, cli: Cli, tmp_path: pathlib.Path
+) -> None:
+    runs = sorted(str(p) for p in archive.glob("h*.gonio")) + [
+        str(archive / "bad" / "damaged.gonio")
+    ]
+    before = digests(archive)
+    out = tmp_path / "out"
+    df = batch.reprocess(runs, out, client2, steps=("reduce", "check", "fit"), lobes=2)
+    assert list(df["run"]) == runs
+    assert list(df["status"]) == ["done", "done", "done", "failed"]
+    # The damaged run: the command's message and exit status; the others went on.
+    code, line = cli.error("reduce", runs[-1], "--out", tmp_path / "x.csv")
+    bad = df.iloc[-1]
+    assert bad["error"] == line and bad["exit_code"] == code == 2
+    for _, row in df.iloc[:-1].iterrows():
+        d = pathlib.Path(row["dir"])
+        ref = tmp_path / f"ref-{d.name}"
+        ref.mkdir()
+        cli.run("reduce", row["run"], "--out", ref / "reduced.csv")
+        cli.run("fit", row["run"], "--lobes", "2", "--out", ref / "model.toml")
+        for name in ("reduced.csv", "reduced.csv.json", "model.toml"):
+            assert (d / name).read_bytes() == (ref / name).read_bytes(), name
+        check = cli_json(cli, "check", row["run"])
+        assert json.loads((d / "check.json").read_text()) == check
+        fit = cli_json(cli, "fit", row["run"], "--lobes", "2", "--out", ref / "m2.toml")
+        assert json.loads((d / "fit.json").read_text()) == fit
+        assert row["P_r"] == max(check["reciprocity"])
+        chi2 = {c["channel"]: c["reduced_chi2"] for c in fit["fit"]["channels"]}
+        assert row["chi2"] == chi2 and row["samples"] == fit["fit"]["samples"]
+    # Inputs are only read: same bytes, and nothing made beside them.
+    assert digests(archive) == before
+    # Nothing half-made is left in the output directory.
+    assert sorted(p.name for p in out.iterdir()) == sorted(df["key"][:-1])
+
+
+def test_a_rerun_skips_what_is_done_and_force_writes_the_same_bytes(
+    archive: pathlib.Path, client2: Any, cli: Cli, tmp_path: pathlib.Path
+) -> None:
+    runs = [archive / "p5.gonio", archive / "p7.gonio"]
+    out = tmp_path / "out"
+    steps = ("reduce", "fit", "report")
+    first = batch.reprocess(runs, out, client2, steps=steps)
+    assert list(first["status"]) == ["done", "done"], first["error"].tolist()
+    for _, row in first.iterrows():
+        ref = tmp_path / f"ref-{row['key']}"
+        cli.run("report", row["run"], "--out", ref)
+        assert (pathlib.Path(row["dir"]) / "report.html").read_bytes() == (
+            ref / "report.html"
+        ).read_bytes()
+    files = digests(out)
+    stamps = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
+    again = batch.reprocess(runs, out, client2, steps=steps)
+    assert list(again["status"]) == ["skipped", "skipped"]
+    keep = ["run", "key", "dir", "samples", "chi2", "fit", "files"]
+    assert again[keep].equals(first[keep])
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps, "nothing rewritten"
+    forced = batch.reprocess(runs, out, client2, steps=steps, force=True)
+    assert list(forced["status"]) == ["done", "done"]
+    assert digests(out) == files
+    # Other options are other outputs, beside the first.
+    other = batch.reprocess(runs[:1], out, client2, steps=("fit",), lobes=1)
+    assert other["key"][0] not in set(first["key"])
+
+
+def test_bad_options_are_refused_before_anything_is_made(
+    archive: pathlib.Path, client2: Any, cli: Cli, tmp_path: pathlib.Path
+) -> None:
+    out = tmp_path / "never"
+    with pytest.raises(TypeError, match="lobez"):
+        batch.reprocess([archive / "p5.gonio"], out, client2, lobez=2)
+    p = cli.run(
+        "fit", archive / "p5.gonio", "--lobes", "many", "--out", tmp_path / "m", check=False
+    )
+    with pytest.raises(gonio.InputError) as e:
+        batch.reprocess([archive / "p5.gonio"], out, client2, lobes="many")
+    # clap's first line, as the package's every parse error.
+    assert str(e.value) == p.stderr.splitlines()[0].removeprefix("error: ")
+    assert e.value.exit_code == p.returncode == 2
+    with pytest.raises(ValueError, match="steps"):
+        batch.reprocess([archive / "p5.gonio"], out, client2, steps=("plot",))
+    with pytest.raises(ValueError, match="sh_out"):
+        batch.micro_sweep(SAWTOOTH, {"sh_out": "x"}, client2)
+    with pytest.raises(gonio.ConfigError, match="params\\[0\\]"):
+        batch.micro_sweep(SAWTOOTH, {"period": -1.0}, client2, out_dir=out)
+    assert not out.exists()
+
+
+#: Two parameter sets of the sawtooth: three segments of rays in chunks of one
+#: (its own seed), and a surface edit with a derived seed.
+PARAMS = [
+    {"rays": 2 * SEG + 1000, "grid": (30, 90), "isotropic": True, "seed": 5},
+    {"rays": 20_000, "grid": (30, 45), "theta_i": [20, 50], "angles_deg": [30.0, 30.0]},
+]
+
+
+def sweep(n_workers: int, out: pathlib.Path) -> Any:
+    with cluster(n_workers) as c, distributed.Client(c) as cl:
+        return batch.micro_sweep(SAWTOOTH, PARAMS, cl, seed=9, out_dir=out, chunk_rays=SEG)
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Any, pathlib.Path]]:
+    d = tmp_path_factory.mktemp("sweeps")
+    return {n: (sweep(n, d / f"w{n}"), d / f"w{n}") for n in (1, 2)}
+
+
+def test_a_sweep_is_the_same_bytes_on_one_and_two_workers_and_as_gonio_micro(
+    swept: dict[int, tuple[Any, pathlib.Path]], cli: Cli, tmp_path: pathlib.Path
+) -> None:
+    (df1, out1), (df2, out2) = swept[1], swept[2]
+    assert digests(out1) == digests(out2)
+    assert df1.equals(df2)
+    tables = df1.attrs["tables"]
+    assert [t["set"] for t in tables] == [0, 1] and tables[0]["seed"] == 5
+    # The first table is gonio micro's with the same seed, byte for byte, though
+    # it was traced in nine chunks on two machines' worth of processes.
+    ref = tmp_path / "ref.csv"
+    cli.run(
+        "micro",
+        SAWTOOTH,
+        "--rays",
+        PARAMS[0]["rays"],
+        "--grid",
+        "30,90",
+        "--isotropic",
+        "--seed",
+        "5",
+        "--out",
+        ref,
+    )
+    name = tables[0]["name"]
+    assert (out1 / f"{name}.csv").read_bytes() == ref.read_bytes()
+    assert (out1 / f"{name}.csv.json").read_bytes() == (tmp_path / "ref.csv.json").read_bytes()
+    # The second: the edited surface, as a file, with the derived seed.
+    text = SAWTOOTH.read_text().replace("angles_deg = [45.0, 45.0]", "angles_deg = [30.0, 30.0]")
+    assert text != SAWTOOTH.read_text()
+    edited = tmp_path / "edited.toml"
+    edited.write_text(text)
+    seed = tables[1]["seed"]
+    assert seed != 9 and 0 <= seed < 2**63
+    ref2 = tmp_path / "ref2.csv"
+    cli.run("micro", edited, "--rays", "20000", "--grid", "30,45", "--seed", seed, "--out", ref2)
+    got = gonio.read_csv(out1 / f"{tables[1]['name']}.csv")
+    want = gonio.read_csv(ref2)
+    # theta_i [20, 50] replaces the grid's incident angles (15, 45, 75): the nodes
+    # differ, the random streams of the same node index do not.
+    assert sorted(set(got["theta_i_deg"])) == [20.0, 50.0]
+    assert len(got) == len(want[want["theta_i_deg"] < 60])
+    # Rows of the returned frame are the tables, one below the other.
+    assert len(df1) == sum(len(gonio.read_csv(out1 / f"{t['name']}.csv")) for t in tables)
+
+
+def test_a_sweep_done_before_is_read_back(
+    swept: dict[int, tuple[Any, pathlib.Path]], client2: Any
+) -> None:
+    df1, out1 = swept[1]
+    stamps = {p: p.stat().st_mtime_ns for p in out1.iterdir()}
+    again = batch.micro_sweep(SAWTOOTH, PARAMS, client2, seed=9, out_dir=out1, chunk_rays=SEG)
+    assert again.equals(df1)
+    assert {p: p.stat().st_mtime_ns for p in out1.iterdir()} == stamps
+
+
+def test_a_worker_killed_mid_sweep_changes_no_byte(
+    swept: dict[int, tuple[Any, pathlib.Path]], tmp_path: pathlib.Path
+) -> None:
+    _, reference = swept[1]
+    out = tmp_path / "killed"
+    with cluster(2) as c, distributed.Client(c) as cl:
+        pids = cl.run(os.getpid)
+        result: dict[str, Any] = {}
+
+        def go() -> None:
+            try:
+                result["df"] = batch.micro_sweep(
+                    SAWTOOTH, PARAMS, cl, seed=9, out_dir=out, chunk_rays=SEG
+                )
+            except BaseException as e:  # reported by the assertion below
+                result["error"] = e
+
+        t = threading.Thread(target=go)
+        t.start()
+        parts = out / ".tmp-parts"
+        deadline = time.monotonic() + 60
+        # Once a chunk is done, the workers are busy with the next ones.
+        while not any(parts.rglob("*.part")) and time.monotonic() < deadline:
+            time.sleep(0.005)
+        victim = sorted(pids.values())[0]
+        os.kill(victim, signal.SIGKILL)
+        t.join(180)
+        assert not t.is_alive(), "the sweep finished"
+        assert "error" not in result, result.get("error")
+        assert victim not in cl.run(os.getpid).values(), "a worker was killed and replaced"
+    assert digests(out) == digests(reference)
+
+
+def test_the_command_line(archive: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    py = [sys.executable, "-m", "gonio.batch"]
+    sweep_file = tmp_path / "sweep.toml"
+    sweep_file.write_text(
+        f'surfaces = ["{SAWTOOTH}"]\nseed = 9\n\n[[params]]\nrays = 5000\ngrid = [30, 90]\n'
+        "isotropic = true\n"
+    )
+    out = tmp_path / "micro"
+    p = subprocess.run(
+        [*py, "micro", sweep_file, "--out", out, "--workers", "1"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert p.returncode == 0, p.stderr
+    assert "dashboard http://127.0.0.1:" in p.stderr
+    index = gonio.read_csv(out / "sweep.csv")
+    assert list(index["theta_i"]) == pytest.approx([15.0, 45.0, 75.0], abs=1e-12)
+    assert {"albedo_R", "albedo_sigma_B"} <= set(index.columns)
+    # A reprocess with a damaged run: the others done, exit status 1.
+    runs = [archive / "p5.gonio", archive / "bad" / "damaged.gonio"]
+    out = tmp_path / "re"
+    p = subprocess.run(
+        [
+            *py,
+            "reprocess",
+            *runs,
+            "--out",
+            out,
+            "--workers",
+            "1",
+            "--steps",
+            "reduce,fit",
+            "--set",
+            "lobes=1",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert p.returncode == 1, p.stderr
+    assert "1 done, 0 done before, 1 failed" in p.stdout
+    rows = gonio.read_csv(out / "reprocess.csv")
+    assert list(rows["status"]) == ["done", "failed"]
+    # Bad input: exit status 2, nothing started.
+    p = subprocess.run(
+        [*py, "reprocess", runs[0], "--out", tmp_path / "no", "--set", "lobez=1"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert p.returncode == 2 and "lobez" in p.stderr
+    bad = tmp_path / "bad.toml"
+    bad.write_text('surfaces = ["x.toml"]\nsead = 1\n[[params]]\nrays = 10\n')
+    p = subprocess.run(
+        [*py, "micro", bad, "--out", tmp_path / "no"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert p.returncode == 2 and "bad.toml" in p.stderr and "sead" in p.stderr
+    assert not (tmp_path / "no").exists()
+    shutil.rmtree(tmp_path / "micro")
