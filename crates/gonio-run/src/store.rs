@@ -389,7 +389,7 @@ impl RunStore {
     /// at its last commit. A file of an older schema is refused (it needs one
     /// read-write open to be migrated).
     pub fn open_read_only(path: &Path) -> Result<RunStore, StoreError> {
-        let store = Self::open_checked(path, true)?;
+        let store = Self::open_unverified_read_only(path)?;
         let found = store.integrity(false)?;
         store.refuse_unless_intact(&found)?;
         Ok(store)
@@ -399,6 +399,12 @@ impl RunStore {
     /// reads its schema: for [`RunStore::integrity`] to say what is wrong with it.
     pub fn open_unverified(path: &Path) -> Result<RunStore, StoreError> {
         Self::open_checked(path, false)
+    }
+
+    /// [`RunStore::open_unverified`], for reading only (as
+    /// [`RunStore::open_read_only`]).
+    pub fn open_unverified_read_only(path: &Path) -> Result<RunStore, StoreError> {
+        Self::open_checked(path, true)
     }
 
     /// [`RunStore::open_unverified`], read-write or read-only.

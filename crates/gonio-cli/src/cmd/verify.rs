@@ -22,7 +22,8 @@ pub struct VerifyArgs {
 /// `gonio verify RUN [--json]`: exit 0 when intact, 1 with every fault when not.
 pub fn run(a: VerifyArgs) -> CliResult<()> {
     let path = a.run.as_path();
-    let store = RunStore::open_unverified(path)?;
+    // Read only: a check never changes what it checks.
+    let store = RunStore::open_unverified_read_only(path)?;
     let found = store.integrity(true)?;
     let faults = found.faults();
     if a.json.json {

@@ -113,3 +113,39 @@ class NativeSimulator:
     @property
     def serving(self) -> bool: ...
     def close(self) -> None: ...
+
+SEGMENT_RAYS: int
+
+def run_command(words: list[str], threads: int | None = None) -> str:
+    """``gonio WORDS…`` (an offline command) in this process: writes what it writes,
+    returns what it prints."""
+
+def validate(words: list[str]) -> None:
+    """Checks ``gonio WORDS…`` as the command's parser would, running nothing."""
+
+def micro_plan(
+    words: list[str], theta_i: tuple[float, float, int] | None, surface: str | None
+) -> tuple[int, int]:
+    """``(incident nodes, segments a node)`` of ``gonio micro``'s table."""
+
+def micro_part(
+    words: list[str],
+    theta_i: tuple[float, float, int] | None,
+    surface: str | None,
+    incident: int,
+    first: int,
+    end: int,
+    threads: int | None = None,
+) -> bytes:
+    """Segments ``first..end`` of one incident node of the table, as bytes."""
+
+def micro_merge(
+    words: list[str],
+    theta_i: tuple[float, float, int] | None,
+    surface: str | None,
+    parts: list[bytes],
+    out: str | None = None,
+    force: bool = False,
+) -> tuple[Columns, str, str]:
+    """The table from its parts (bit for bit the table traced at once), written to
+    ``out`` as ``gonio micro --out`` does when given."""

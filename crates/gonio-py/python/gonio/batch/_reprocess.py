@@ -43,7 +43,7 @@ def find_runs(runs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]]) -
         p = os.fspath(item)
         if os.path.isdir(p):
             found = sorted(glob.glob(os.path.join(p, "**", "*.gonio"), recursive=True))
-        elif glob.has_magic(p):
+        elif any(ch in p for ch in "*?["):
             found = sorted(glob.glob(p, recursive=True))
         else:
             found = [p]

@@ -200,13 +200,13 @@ def micro_sweep(
     if int(chunk_rays) < 1:
         raise ValueError(f"chunk_rays: at least 1, got {chunk_rays}")
     per_chunk = max(1, math.ceil(int(chunk_rays) / SEGMENT_RAYS))
-    todo = [t for t in tables if force or not _done(out, t)]
+    todo = {ti for ti, t in enumerate(tables) if force or not _done(out, t)}
     parts: dict[tuple[int, int, int], Any] = {}
     if todo:
         with c.client_for(client) as cl:
             futures = {}
             for ti, t in enumerate(tables):
-                if t not in todo:
+                if ti not in todo:
                     continue
                 cache_dir = None
                 if out is not None:
