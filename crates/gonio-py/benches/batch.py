@@ -14,9 +14,10 @@ What is timed, whole processes as a user times them (cluster start-up included):
    each into a fresh directory; beside it the serial loop of ``gonio reduce``,
    ``check``, ``fit`` and ``report`` per run.
 2. micro sweep: ``python -m gonio.batch micro SWEEP.toml`` (the Gaussian gold
-   surface, 4 incident angles × 2²⁰ rays, chunks of one segment: 16 tasks) on 1 and
-   2 workers; beside it ``gonio micro`` with the same seed and rays in one process
-   (both cores), whose table must be the same bytes.
+   surface, 4 incident angles × ``--sweep-rays`` (2²⁵) rays, chunks of
+   ``--chunk-rays`` (2²²): 32 tasks) on 1 and 2 workers; beside it ``gonio micro``
+   with the same seed and rays in one process (both cores), whose table must be the
+   same bytes.
 3. Dask's own cost per task: 400 no-op tasks through a 1-worker LocalCluster
    (client round trip, scheduling, serialisation), beside the tasks' own times.
 """
@@ -49,6 +50,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--workdir", default=str(ROOT / "target" / "bench-batch"))
     ap.add_argument("--skip-report", action="store_true", help="reduce, check, fit only")
+    ap.add_argument("--sweep-rays", type=int, default=1 << 25, help="rays an incident angle")
+    ap.add_argument("--chunk-rays", type=int, default=1 << 22)
     a = ap.parse_args()
     subprocess.run(["cargo", "build", "--release", "-p", "gonio-cli"], cwd=ROOT, check=True)
     work = Path(a.workdir)
@@ -114,38 +117,28 @@ def main() -> None:
     )
     out["reprocess_efficiency_2w"] = out["reprocess_1w_s"] / (2 * out["reprocess_2w_s"])
 
-    # 2. The micro sweep.
+    # 2. The micro sweep: 4 incident angles (the grid 22.5°, 90°: θi 11.25° … 78.75°),
+    # which `gonio micro` also traces, in one process on both cores.
     sweep = work / "sweep.toml"
-    rays = 4 * 262144
+    rays = a.sweep_rays
+    gold = ROOT / "config" / "micro-gaussian-gold.toml"
     sweep.write_text(
-        f'surfaces = ["{ROOT / "config" / "micro-gaussian-gold.toml"}"]\nseed = 0\n'
-        f"chunk_rays = 262144\n\n[[params]]\nrays = {rays}\nseed = 11\n"
-        "grid = [15, 90]\nisotropic = true\ntheta_i = [0, 20, 40, 60]\n"
+        f'surfaces = ["{gold}"]\nseed = 0\n'
+        f"chunk_rays = {a.chunk_rays}\n\n[[params]]\nrays = {rays}\nseed = 11\n"
+        "grid = [22.5, 90]\nisotropic = true\n"
     )
+    out["sweep_rays"] = 4 * rays
     for n in (1, 2):
         out[f"sweep_{n}w_s"] = timed(
             [*PY, "micro", sweep, "--out", work / f"sw{n}", "--workers", n]
         )
     out["sweep_efficiency_2w"] = out["sweep_1w_s"] / (2 * out["sweep_2w_s"])
-    # gonio micro has no theta_i flag: its grid 15,90 has θi 7.5..82.5 (6 nodes), so
-    # it is timed on the sweep's own 4 nodes through a grid of 4: --grid 22.5,90.
-    sweep.write_text(
-        sweep.read_text()
-        .replace("theta_i = [0, 20, 40, 60]\n", "")
-        .replace("grid = [15, 90]", "grid = [22.5, 90]")
-    )
-    out["sweep_cli_grid_1w_s"] = timed(
-        [*PY, "micro", sweep, "--out", work / "sw1g", "--workers", 1]
-    )
-    out["sweep_cli_grid_2w_s"] = timed(
-        [*PY, "micro", sweep, "--out", work / "sw2g", "--workers", 2]
-    )
     ref = work / "micro-cli.csv"
     out["micro_cli_s"] = timed(
         [
             GONIO,
             "micro",
-            ROOT / "config" / "micro-gaussian-gold.toml",
+            gold,
             "--rays",
             rays,
             "--seed",
@@ -157,8 +150,11 @@ def main() -> None:
             ref,
         ]
     )
-    (table,) = [p for p in (work / "sw2g").glob("*.csv") if p.name != "sweep.csv"]
-    out["micro_sweep_equals_cli"] = table.read_bytes() == ref.read_bytes()
+    tables = [p for p in (work / "sw2").glob("*.csv") if p.name != "sweep.csv"]
+    out["micro_sweep_equals_cli"] = [p.read_bytes() == ref.read_bytes() for p in tables] == [True]
+    tasks = json.loads(next((work / "sw1").glob("*.json")).read_text())
+    out["sweep_tasks"] = 4 * -(-rays // a.chunk_rays)
+    out["sweep_rays_traced"] = tasks["rays"]
 
     # 3. Dask's cost per task.
     from distributed import Client, LocalCluster
