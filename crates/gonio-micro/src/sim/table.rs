@@ -517,7 +517,7 @@ impl TablePart {
 
     /// Merges block `k` (counted from the part's first block) in block order.
     fn add_block(&mut self, k: usize, acc: TableAcc) {
-        if k % SEGMENT_BLOCKS == 0 {
+        if k.is_multiple_of(SEGMENT_BLOCKS) {
             self.segments.push(acc);
         } else if let Some(last) = self.segments.last_mut() {
             last.merge(&acc);
