@@ -49,6 +49,13 @@ class Cli:
             raise AssertionError(f"gonio {' '.join(map(str, args))}: {p.returncode}\n{p.stderr}")
         return p
 
+    def acquire(self, plan: str, out: Any, seed: int) -> Any:
+        """``gonio acquire`` of the simulated instrument with ``plan`` (a name in
+        ``config/``) into ``out``: its ``--json`` object."""
+        inst = CONFIG / "instrument-sim.toml"
+        args = ("--instrument", inst, "--plan", CONFIG / plan, "--out", out, "--seed", seed)
+        return self.json("acquire", *args)
+
     def json(self, *args: str) -> Any:
         return json.loads(self.run(*args, "--json").stdout)
 
@@ -72,18 +79,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory, cli: Cli) -> dict[str, pathli
     d = tmp_path_factory.mktemp("runs")
     inst, plan = CONFIG / "instrument-sim.toml", CONFIG / "plan-hemisphere.toml"
     gonio.acquire(inst, plan, d / "py.gonio", seed=3, progress=False)
-    cli.run(
-        "acquire",
-        "--instrument",
-        inst,
-        "--plan",
-        plan,
-        "--out",
-        d / "cli.gonio",
-        "--seed",
-        "3",
-        "--json",
-    )
+    cli.acquire("plan-hemisphere.toml", d / "cli.gonio", 3)
     gonio.acquire(inst, CONFIG / "plan-in-plane.toml", d / "inplane.gonio", seed=5, progress=False)
     return {"py": d / "py.gonio", "cli": d / "cli.gonio", "inplane": d / "inplane.gonio", "dir": d}
 

@@ -50,33 +50,10 @@ def client2() -> Iterator[Any]:
 def archive(tmp_path_factory: pytest.TempPathFactory, cli: Cli) -> pathlib.Path:
     """Hemisphere runs of three seeds, in-plane runs of two, and a damaged copy."""
     d = tmp_path_factory.mktemp("archive")
-    inst = CONFIG / "instrument-sim.toml"
     for seed in (3, 4, 6):
-        plan = CONFIG / "plan-hemisphere.toml"
-        cli.run(
-            "acquire",
-            "--instrument",
-            inst,
-            "--plan",
-            plan,
-            "--out",
-            d / f"h{seed}.gonio",
-            "--seed",
-            seed,
-        )
+        cli.acquire("plan-hemisphere.toml", d / f"h{seed}.gonio", seed)
     for seed in (5, 7):
-        plan = CONFIG / "plan-in-plane.toml"
-        cli.run(
-            "acquire",
-            "--instrument",
-            inst,
-            "--plan",
-            plan,
-            "--out",
-            d / f"p{seed}.gonio",
-            "--seed",
-            seed,
-        )
+        cli.acquire("plan-in-plane.toml", d / f"p{seed}.gonio", seed)
     data = (d / "h3.gonio").read_bytes()
     (d / "bad").mkdir()
     (d / "bad" / "damaged.gonio").write_bytes(data[:8192])
@@ -293,21 +270,20 @@ def test_a_worker_killed_mid_sweep_changes_no_byte(
     assert digests(out) == digests(reference)
 
 
+def batch_cli(*args: Any) -> subprocess.CompletedProcess[str]:
+    """``python -m gonio.batch ARGS`` in this interpreter."""
+    argv = [sys.executable, "-m", "gonio.batch", *map(str, args)]
+    return subprocess.run(argv, capture_output=True, text=True, cwd=ROOT, timeout=300)
+
+
 def test_the_command_line(archive: pathlib.Path, tmp_path: pathlib.Path) -> None:
-    py = [sys.executable, "-m", "gonio.batch"]
     sweep_file = tmp_path / "sweep.toml"
     sweep_file.write_text(
         f'surfaces = ["{SAWTOOTH}"]\nseed = 9\n\n[[params]]\nrays = 5000\ngrid = [30, 90]\n'
         "isotropic = true\n"
     )
     out = tmp_path / "micro"
-    p = subprocess.run(
-        [*py, "micro", sweep_file, "--out", out, "--workers", "1"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-    )
+    p = batch_cli("micro", sweep_file, "--out", out, "--workers", "1")
     assert p.returncode == 0, p.stderr
     assert "dashboard http://127.0.0.1:" in p.stderr
     index = gonio.read_csv(out / "sweep.csv")
@@ -316,47 +292,28 @@ def test_the_command_line(archive: pathlib.Path, tmp_path: pathlib.Path) -> None
     # A reprocess with a damaged run: the others done, exit status 1.
     runs = [archive / "p5.gonio", archive / "bad" / "damaged.gonio"]
     out = tmp_path / "re"
-    p = subprocess.run(
-        [
-            *py,
-            "reprocess",
-            *runs,
-            "--out",
-            out,
-            "--workers",
-            "1",
-            "--steps",
-            "reduce,fit",
-            "--set",
-            "lobes=1",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
+    p = batch_cli(
+        "reprocess",
+        *runs,
+        "--out",
+        out,
+        "--workers",
+        "1",
+        "--steps",
+        "reduce,fit",
+        "--set",
+        "lobes=1",
     )
     assert p.returncode == 1, p.stderr
     assert "1 done, 0 done before, 1 failed" in p.stdout
     rows = gonio.read_csv(out / "reprocess.csv")
     assert list(rows["status"]) == ["done", "failed"]
     # Bad input: exit status 2, nothing started.
-    p = subprocess.run(
-        [*py, "reprocess", runs[0], "--out", tmp_path / "no", "--set", "lobez=1"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-    )
+    p = batch_cli("reprocess", runs[0], "--out", tmp_path / "no", "--set", "lobez=1")
     assert p.returncode == 2 and "lobez" in p.stderr
     bad = tmp_path / "bad.toml"
     bad.write_text('surfaces = ["x.toml"]\nsead = 1\n[[params]]\nrays = 10\n')
-    p = subprocess.run(
-        [*py, "micro", bad, "--out", tmp_path / "no"],
-        capture_output=True,
-        text=True,
-        cwd=ROOT,
-        timeout=300,
-    )
+    p = batch_cli("micro", bad, "--out", tmp_path / "no")
     assert p.returncode == 2 and "bad.toml" in p.stderr and "sead" in p.stderr
     assert not (tmp_path / "no").exists()
     shutil.rmtree(tmp_path / "micro")
