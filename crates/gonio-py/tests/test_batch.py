@@ -237,37 +237,61 @@ def test_a_sweep_done_before_is_read_back(
     assert {p: p.stat().st_mtime_ns for p in out1.iterdir()} == stamps
 
 
-def test_a_worker_killed_mid_sweep_changes_no_byte(
-    swept: dict[int, tuple[Any, pathlib.Path]], tmp_path: pathlib.Path
-) -> None:
-    _, reference = swept[1]
-    out = tmp_path / "killed"
+def kill_a_busy_worker(work: Any) -> tuple[Any, int]:
+    """Runs ``work(client)`` on a fresh 2-worker cluster in a thread and, as soon
+    as a worker process is running a task, kills it (SIGKILL). Returns what
+    ``work`` returned and the killed process's id, once the nanny has replaced it."""
     with cluster(2) as c, distributed.Client(c) as cl:
         pids = cl.run(os.getpid)
         result: dict[str, Any] = {}
 
         def go() -> None:
             try:
-                result["df"] = batch.micro_sweep(
-                    SAWTOOTH, PARAMS, cl, seed=9, out_dir=out, chunk_rays=SEG
-                )
+                result["value"] = work(cl)
             except BaseException as e:  # reported by the assertion below
                 result["error"] = e
 
         t = threading.Thread(target=go)
         t.start()
-        parts = out / ".tmp-parts"
+        victim = None
         deadline = time.monotonic() + 60
-        # Once a chunk is done, the workers are busy with the next ones.
-        while not any(parts.rglob("*.part")) and time.monotonic() < deadline:
-            time.sleep(0.005)
-        victim = sorted(pids.values())[0]
-        os.kill(victim, signal.SIGKILL)
+        while victim is None and t.is_alive() and time.monotonic() < deadline:
+            busy = [addr for addr, keys in cl.processing().items() if keys and addr in pids]
+            if busy:
+                victim = pids[busy[0]]
+                os.kill(victim, signal.SIGKILL)
+            else:
+                time.sleep(0.001)
         t.join(180)
-        assert not t.is_alive(), "the sweep finished"
+        assert victim is not None, "a worker was running a task"
+        assert not t.is_alive(), "the work finished"
         assert "error" not in result, result.get("error")
-        assert victim not in cl.run(os.getpid).values(), "a worker was killed and replaced"
+        assert victim not in cl.run(os.getpid).values(), "the killed worker was replaced"
+        return result["value"], victim
+
+
+def test_a_worker_killed_mid_sweep_changes_no_byte(
+    swept: dict[int, tuple[Any, pathlib.Path]], tmp_path: pathlib.Path
+) -> None:
+    df1, reference = swept[1]
+    out = tmp_path / "killed"
+    df, _ = kill_a_busy_worker(
+        lambda cl: batch.micro_sweep(SAWTOOTH, PARAMS, cl, seed=9, out_dir=out, chunk_rays=SEG)
+    )
     assert digests(out) == digests(reference)
+    assert df.equals(df1)
+
+
+def test_a_worker_killed_mid_reprocess_changes_no_byte(
+    archive: pathlib.Path, client2: Any, tmp_path: pathlib.Path
+) -> None:
+    runs = sorted(archive.glob("h*.gonio"))
+    first = batch.reprocess(runs, tmp_path / "first", client2)
+    assert set(first["status"]) == {"done"}
+    out = tmp_path / "killed"
+    df, _ = kill_a_busy_worker(lambda cl: batch.reprocess(runs, out, cl))
+    assert set(df["status"]) == {"done"}, df["error"].tolist()
+    assert digests(out) == digests(tmp_path / "first")
 
 
 def batch_cli(*args: Any) -> subprocess.CompletedProcess[str]:

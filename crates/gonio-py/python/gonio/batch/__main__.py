@@ -2,7 +2,9 @@
 a Dask cluster (the embedded ``LocalCluster``, or ``--scheduler ADDR``).
 
 Exit status: 0 when everything was done, 1 when some run or chunk failed (the
-others are done; the summary says which), 2 for bad input (nothing was started).
+others are done; the summary says which), 2 for bad input (nothing was started),
+130 when stopped by SIGINT, SIGTERM or SIGHUP (finished outputs are kept; the same
+command continues from them).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 from typing import Any
 
@@ -77,9 +80,18 @@ def _dashboard(client: Any) -> None:
         print(f"gonio.batch: dashboard {link}", file=sys.stderr)
 
 
+def _stop(signum: int, _frame: Any) -> None:
+    # SIGTERM and SIGHUP stop as Ctrl-C does: the cluster is closed, and what was
+    # finished stays (every output is whole or absent).
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def main(argv: list[str] | None = None) -> int:
     a = _parser().parse_args(argv)
     _native.init_logging(a.verbose)
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is not None:
+            signal.signal(sig, _stop)
     try:
         out = os.path.abspath(a.out)
         if os.path.exists(out) and not os.path.isdir(out):
@@ -132,6 +144,14 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as e:
         print(f"gonio.batch: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt as e:
+        why = str(e) or "SIGINT"
+        print(
+            f"gonio.batch: {why}: stopped; finished outputs are kept, and the same "
+            "command continues from them",
+            file=sys.stderr,
+        )
+        return 130
 
 
 if __name__ == "__main__":

@@ -38,7 +38,13 @@ def client_for(
     if client is not None:
         yield client
         return
-    from distributed import Client, LocalCluster
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise ImportError(
+            "gonio.batch needs Dask distributed: pip install 'gonio[batch]' "
+            "(dask[distributed] and bokeh)"
+        ) from None
 
     if scheduler:
         c = Client(scheduler)

@@ -262,6 +262,8 @@ def reprocess(
     for col in COLUMNS + ["error", "exit_code", "seconds"]:
         if col not in df.columns:
             df[col] = None
+    # A failed run has no count: a nullable integer, not a float.
+    df["samples"] = df["samples"].astype("Int64")
     extra = sorted(col for col in df.columns if col.startswith("P_s"))
     rest = [col for col in df.columns if col not in COLUMNS + extra]
     return df[COLUMNS[:6] + extra + COLUMNS[6:] + rest]
