@@ -66,6 +66,11 @@ pub fn register(py: Python<'_>, m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DataError", py.get_type::<DataError>())?;
     m.add("RunFileError", py.get_type::<RunFileError>())?;
     m.add("InstrumentError", py.get_type::<InstrumentError>())?;
+    // Class defaults, for errors raised by the package's Python side (the native
+    // side sets each instance's own): bad input 2, anything else 1, as `gonio`.
+    py.get_type::<GonioError>().setattr("exit_code", 1)?;
+    py.get_type::<InputError>().setattr("exit_code", 2)?;
+    py.get_type::<RunFileError>().setattr("exit_code", 2)?;
     Ok(())
 }
 

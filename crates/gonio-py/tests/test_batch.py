@@ -17,6 +17,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+import pandas as pd
 import pytest
 
 import gonio
@@ -78,18 +79,22 @@ def test_reprocess_gives_the_commands_numbers_and_a_damaged_run_its_row(
     archive: pathlib.Path, client2: Any, cli: Cli, tmp_path: pathlib.Path
 ) -> None:
     runs = sorted(str(p) for p in archive.glob("h*.gonio")) + [
-        str(archive / "bad" / "damaged.gonio")
+        str(archive / "bad" / "damaged.gonio"),
+        str(archive / "bad" / "missing.gonio"),
     ]
     before = digests(archive)
     out = tmp_path / "out"
     df = batch.reprocess(runs, out, client2, steps=("reduce", "check", "fit"), lobes=2)
     assert list(df["run"]) == runs
-    assert list(df["status"]) == ["done", "done", "done", "failed"]
-    # The damaged run: the command's message and exit status; the others went on.
-    code, line = cli.error("reduce", runs[-1], "--out", tmp_path / "x.csv")
-    bad = df.iloc[-1]
-    assert bad["error"] == line and bad["exit_code"] == code == 2
-    for _, row in df.iloc[:-1].iterrows():
+    assert list(df["status"]) == ["done", "done", "done", "failed", "failed"]
+    # The damaged and the missing run: the command's message and exit status; the
+    # others went on.
+    for i in (-2, -1):
+        code, line = cli.error("reduce", runs[i], "--out", tmp_path / "x.csv")
+        bad = df.iloc[i]
+        assert bad["error"] == line and bad["exit_code"] == code == 2
+        assert pd.isna(bad["samples"]) and pd.isna(bad["dir"])
+    for _, row in df.iloc[:-2].iterrows():
         d = pathlib.Path(row["dir"])
         ref = tmp_path / f"ref-{d.name}"
         ref.mkdir()
@@ -107,7 +112,7 @@ def test_reprocess_gives_the_commands_numbers_and_a_damaged_run_its_row(
     # Inputs are only read: same bytes, and nothing made beside them.
     assert digests(archive) == before
     # Nothing half-made is left in the output directory.
-    assert sorted(p.name for p in out.iterdir()) == sorted(df["key"][:-1])
+    assert sorted(p.name for p in out.iterdir()) == sorted(df["key"][:-2])
 
 
 def test_a_rerun_skips_what_is_done_and_force_writes_the_same_bytes(
@@ -155,6 +160,9 @@ def test_bad_options_are_refused_before_anything_is_made(
     assert e.value.exit_code == p.returncode == 2
     with pytest.raises(ValueError, match="steps"):
         batch.reprocess([archive / "p5.gonio"], out, client2, steps=("plot",))
+    with pytest.raises(gonio.ConfigError) as e:
+        batch.micro_sweep(tmp_path / "missing.toml", {"rays": 10}, client2)
+    assert e.value.exit_code == 2 and "missing.toml" in str(e.value)
     with pytest.raises(ValueError, match="sh_out"):
         batch.micro_sweep(SAWTOOTH, {"sh_out": "x"}, client2)
     with pytest.raises(gonio.ConfigError, match="params\\[0\\]"):

@@ -122,7 +122,8 @@ def reprocess_one(
     row: dict[str, Any] = {"run": path, "status": "failed", "key": None, "dir": None}
     try:
         if not os.path.isfile(path):
-            raise _native.RunFileError(f"{path}: no such run file")
+            # The command's own words for it.
+            raise _native.RunFileError(f"{path}: No such file or directory (os error 2)")
         key = f"{stem}-{c.short_hash(c.run_digest(path), options_key)}"
         final = os.path.join(out_dir, key)
         row["key"] = key
