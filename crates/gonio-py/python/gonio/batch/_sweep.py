@@ -86,7 +86,10 @@ def plan(
                 text0 = f.read()
         except OSError as e:
             raise _native.ConfigError(f"{path}: {e.strerror or e}") from None
-        doc0 = json.loads(_native.toml_to_json(text0))
+        try:
+            doc0 = json.loads(_native.toml_to_json(text0))
+        except _native.GonioError as e:
+            raise _native.ConfigError(f"{path}: {e}") from None
         for j, p in enumerate(params):
             if not isinstance(p, dict):
                 raise TypeError(f"params[{j}]: a dict of gonio micro options, got {p!r}")
@@ -100,7 +103,9 @@ def plan(
                 if name == "theta_i":
                     axis = _axis(value)
                 elif name == "seed":
-                    table_seed = int(value)
+                    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                        raise ValueError(f"params[{j}]: seed: a whole number ≥ 0, got {value!r}")
+                    table_seed = value
                 elif c.takes(micro, c.flag_words(name, True if isinstance(value, bool) else value)):
                     flags += c.flag_words(name, value)
                 else:
