@@ -188,10 +188,18 @@ pub fn write_table(table: &Table, out: &Path, force: bool) -> CliResult<()> {
     Ok(())
 }
 
-/// Checks `gonio WORDS…` as the command's parser would, running nothing: a batch
-/// refuses bad options before it starts any task.
+/// Checks `gonio WORDS…` as the command would before reading its input (the
+/// parser, and every flag's value for `reduce`, `check`, `fit`, `report` and
+/// `micro`), running nothing: a batch refuses bad options before it starts any task.
 pub fn validate(words: &[String]) -> CliResult<()> {
-    parse(words).map(|_| ())
+    match parse(words)?.0 {
+        Command::Reduce(a) => cmd::reduce::check_values(&a),
+        Command::Check(a) => a.check_values(),
+        Command::Fit(a) => cmd::fit::check_values(&a),
+        Command::Report(a) => a.check_values(),
+        Command::Micro(a) => cmd::micro::check_counts(&a),
+        _ => Ok(()),
+    }
 }
 
 /// A chunk of `gonio micro`'s table: segments `segs` (of

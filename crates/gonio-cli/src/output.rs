@@ -182,9 +182,10 @@ pub fn captured<T>(f: impl FnOnce() -> T) -> (T, Vec<u8>) {
             CAPTURE.with(|c| *c.borrow_mut() = prev);
         }
     }
-    let mut restore = Restore(CAPTURE.with(|c| c.replace(Some(Vec::new()))));
+    let restore = Restore(CAPTURE.with(|c| c.replace(Some(Vec::new()))));
     let out = f();
-    let bytes = CAPTURE.with(|c| c.replace(restore.0.take()));
+    // Ours taken; the guard then puts the previous capture (if any) back.
+    let bytes = CAPTURE.with(|c| c.take());
     drop(restore);
     (out, bytes.unwrap_or_default())
 }
@@ -280,4 +281,25 @@ pub fn json(v: &serde_json::Value) -> CliResult<()> {
         writeln!(w)?;
         w.flush()
     })())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn captures_nest_and_each_gets_its_own_output() {
+        let (inner, outer) = captured(|| {
+            let _ = write!(stdout(), "outer 1;");
+            let inner = captured(|| {
+                let _ = write!(stdout(), "inner;");
+            });
+            let _ = json(&serde_json::json!({"k": 1}));
+            inner.1
+        });
+        assert_eq!(inner, b"inner;");
+        assert_eq!(String::from_utf8_lossy(&outer), "outer 1;{\"k\":1}\n");
+        // And none is left on afterwards.
+        assert!(CAPTURE.with(|c| c.borrow().is_none()));
+    }
 }

@@ -629,7 +629,9 @@ fn a_table_merged_from_parts_is_the_table_traced_at_once() {
             parts.push(back);
         }
     }
-    let merged = sim.table_from_parts(&grid, rays, &parts).expect("merged");
+    let merged = sim
+        .table_from_parts(&grid, rays, 11, &parts)
+        .expect("merged");
     assert_eq!(table_bits(&merged.table), table_bits(&whole.table));
     assert_eq!(merged.stats, whole.stats);
     assert_eq!(merged.albedo, whole.albedo);
@@ -637,16 +639,28 @@ fn a_table_merged_from_parts_is_the_table_traced_at_once() {
 
     // A missing or doubled segment is refused, as are damaged bytes.
     let e = sim
-        .table_from_parts(&grid, rays, &parts[1..])
+        .table_from_parts(&grid, rays, 11, &parts[1..])
         .expect_err("missing");
     assert!(e.to_string().contains("segment"), "{e}");
     let mut doubled = parts.clone();
     doubled.push(parts[0].clone());
-    assert!(sim.table_from_parts(&grid, rays, &doubled).is_err());
+    assert!(sim.table_from_parts(&grid, rays, 11, &doubled).is_err());
+    // Parts of another seed, or of another ray count with as many segments.
+    let e = sim
+        .table_from_parts(&grid, rays, 12, &parts)
+        .expect_err("another seed");
+    assert!(e.to_string().contains("another simulation"), "{e}");
+    assert!(sim.table_from_parts(&grid, rays + 1, 11, &parts).is_err());
+    // A segment's counts that do not add up are refused as bytes.
+    let mut bytes = parts[0].to_bytes();
+    let exits_at = 8 + 7 * 8 + 8;
+    bytes[exits_at..exits_at + 8].copy_from_slice(&u64::MAX.to_le_bytes());
+    assert!(TablePart::from_bytes(&bytes).is_err());
     let bytes = parts[0].to_bytes();
     assert!(TablePart::from_bytes(&bytes[..bytes.len() - 8]).is_err());
     let mut huge = bytes.clone();
-    huge[8 + 24..8 + 32].copy_from_slice(&u64::MAX.to_le_bytes());
+    // The segment count (after seed, rays, incident and first).
+    huge[8 + 32..8 + 40].copy_from_slice(&u64::MAX.to_le_bytes());
     assert!(TablePart::from_bytes(&huge).is_err());
     assert!(
         sim.table_part(&grid, rays, 11, 0, 3..4).is_err(),

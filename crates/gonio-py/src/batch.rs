@@ -21,6 +21,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(micro_plan, m)?)?;
     m.add_function(wrap_pyfunction!(micro_part, m)?)?;
     m.add_function(wrap_pyfunction!(micro_merge, m)?)?;
+    m.add_function(wrap_pyfunction!(micro_part_info, m)?)?;
     Ok(())
 }
 
@@ -37,7 +38,8 @@ fn run_command(py: Python<'_>, words: Vec<String>, threads: Option<usize>) -> Py
     .map_err(|e| errors::to_py(e, Domain::Data, input.as_deref()))
 }
 
-/// Checks `gonio WORDS…` as the command's parser would, running nothing.
+/// Checks `gonio WORDS…` as the command would before reading its input (its
+/// parser, and every flag's value), running nothing.
 #[pyfunction]
 fn validate(words: Vec<String>) -> PyResult<()> {
     gonio_cli::api::validate(&words).map_err(|e| errors::to_py(e, Domain::Data, None))
@@ -135,4 +137,13 @@ fn micro_merge<'py>(
     .map_err(|e| micro_err(e, name.as_deref()))?;
     let (cols, sidecar) = columns::table_to_py(py, &table)?;
     Ok((cols, sidecar, json.to_string()))
+}
+
+/// `(seed, rays, incident, first, end)` of a part's bytes (checked whole): what a
+/// kept chunk is, before it is used again.
+#[pyfunction]
+fn micro_part_info(part: &[u8]) -> PyResult<(u64, usize, usize, usize, usize)> {
+    let p = TablePart::from_bytes(part).map_err(|e| errors::input(format!("micro part: {e}")))?;
+    let segs = p.segments();
+    Ok((p.seed, p.rays, p.incident, segs.start, segs.end))
 }

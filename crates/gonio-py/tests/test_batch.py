@@ -158,6 +158,15 @@ def test_bad_options_are_refused_before_anything_is_made(
     # clap's first line, as the package's every parse error.
     assert str(e.value) == p.stderr.splitlines()[0].removeprefix("error: ")
     assert e.value.exit_code == p.returncode == 2
+    # A value the command checks before reading its input: refused up front too.
+    p = cli.run("check", archive / "p5.gonio", "--calibration", "none", check=False)
+    with pytest.raises(gonio.InputError) as e:
+        batch.reprocess([archive / "p5.gonio"], out, client2, calibration="none")
+    assert f"gonio: {e.value}" == p.stderr.strip().splitlines()[-1] and p.returncode == 2
+    with pytest.raises(gonio.InputError, match="unexpected argument '1'"):
+        batch.micro_sweep(SAWTOOTH, {"isotropic": 1}, client2, out_dir=out)
+    with pytest.raises(ValueError, match="no run files"):
+        batch.reprocess(tmp_path / "*.gonio", out, client2)
     with pytest.raises(ValueError, match="steps"):
         batch.reprocess([archive / "p5.gonio"], out, client2, steps=("plot",))
     with pytest.raises(gonio.ConfigError) as e:
@@ -235,6 +244,18 @@ def test_a_sweep_is_the_same_bytes_on_one_and_two_workers_and_as_gonio_micro(
     assert len(df1) == sum(len(gonio.read_csv(out1 / f"{t['name']}.csv")) for t in tables)
 
 
+def test_run_names_with_glob_characters_are_taken_as_they_are(
+    archive: pathlib.Path, tmp_path: pathlib.Path
+) -> None:
+    d = tmp_path / "arch[2024]"
+    d.mkdir()
+    shutil.copy(archive / "p5.gonio", d / "run[1].gonio")
+    (d / "run1.gonio").write_bytes(b"not this one")
+    assert batch.find_runs(d) == sorted([str(d / "run[1].gonio"), str(d / "run1.gonio")])
+    assert batch.find_runs([d / "run[1].gonio"]) == [str(d / "run[1].gonio")]
+    assert batch.find_runs(str(d / "run?.gonio")) == []
+
+
 def test_a_sweep_done_before_is_read_back(
     swept: dict[int, tuple[Any, pathlib.Path]], client2: Any
 ) -> None:
@@ -242,7 +263,27 @@ def test_a_sweep_done_before_is_read_back(
     stamps = {p: p.stat().st_mtime_ns for p in out1.iterdir()}
     again = batch.micro_sweep(SAWTOOTH, PARAMS, client2, seed=9, out_dir=out1, chunk_rays=SEG)
     assert again.equals(df1)
+    assert again.attrs["tables"] == df1.attrs["tables"]
+    # Asked for in another order: read back under this call's set numbers.
+    swapped = batch.micro_sweep(SAWTOOTH, PARAMS[::-1], client2, seed=9, out_dir=out1)
+    assert [t["set"] for t in swapped.attrs["tables"]] == [0, 1]
+    assert [t["name"] for t in swapped.attrs["tables"]] == [
+        t["name"] for t in df1.attrs["tables"][::-1]
+    ]
     assert {p: p.stat().st_mtime_ns for p in out1.iterdir()} == stamps
+
+
+def test_a_damaged_kept_chunk_is_traced_again(
+    swept: dict[int, tuple[Any, pathlib.Path]], client2: Any, tmp_path: pathlib.Path
+) -> None:
+    _, reference = swept[1]
+    out = tmp_path / "resumed"
+    tables = batch._sweep.plan([SAWTOOTH], PARAMS, 9)
+    kept = out / ".tmp-parts" / tables[0].name
+    kept.mkdir(parents=True)
+    (kept / "0-0-1.part").write_bytes(b"GMTPART2 damaged")
+    batch.micro_sweep(SAWTOOTH, PARAMS, client2, seed=9, out_dir=out, chunk_rays=SEG)
+    assert digests(out) == digests(reference)
 
 
 def kill_a_busy_worker(work: Any) -> tuple[Any, int]:

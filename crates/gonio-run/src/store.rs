@@ -380,13 +380,15 @@ impl RunStore {
     }
 
     /// Opens an existing run file for reading only, after the checks of
-    /// [`RunStore::open`]: nothing is ever written into the file or beside it.
+    /// [`RunStore::open`]: nothing is ever written into the file.
     ///
     /// A file with no write-ahead log beside it (a finished or archived run) is
     /// opened `immutable`: SQLite then creates no `-wal` or `-shm` file, so an
-    /// archive on read-only storage reads too. A file with one (a run being
-    /// measured, or one whose writer was killed) is read through it, as it stands
-    /// at its last commit. A file of an older schema is refused (it needs one
+    /// archive on read-only storage reads too (a writer that starts on the file
+    /// after this open is not seen). A file with one (a run being measured, or one
+    /// whose writer was killed) is read through it, as it stands at its last
+    /// commit; SQLite may then create the `-shm` index beside it, as every reader
+    /// of a live database does. A file of an older schema is refused (it needs one
     /// read-write open to be migrated).
     pub fn open_read_only(path: &Path) -> Result<RunStore, StoreError> {
         let store = Self::open_unverified_read_only(path)?;

@@ -28,6 +28,14 @@ pub struct CheckArgs {
     json: JsonFlag,
 }
 
+impl CheckArgs {
+    /// Checks every flag's value without reading the input: what a batch does
+    /// before it starts any task.
+    pub(crate) fn check_values(&self) -> CliResult<()> {
+        self.reduction.options().map(drop)
+    }
+}
+
 /// What `gonio check` measures, and the table it measured.
 pub(crate) struct Checked {
     /// The table made from the input.

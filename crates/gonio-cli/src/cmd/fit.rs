@@ -211,7 +211,15 @@ fn check_model(a: &FitArgs) -> CliResult<()> {
 
 /// Fits the input (or `given`, samples already in memory that `a.input` names), as
 /// `a` says; writes nothing.
-pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> CliResult<Fitted> {
+/// What the flags choose, checked: the diffuse term, the metric, the objective.
+struct Settings {
+    diffuse: Diffuse,
+    metric: Metric,
+    objective: Option<Objective>,
+}
+
+/// Every flag checked (the input not read): a bad value is refused at once.
+fn settings(a: &FitArgs) -> CliResult<Settings> {
     check_model(a)?;
     if !(a.cutoff > 0.0 && a.cutoff <= 90.0) {
         return Err(CliError::Input(format!(
@@ -249,6 +257,26 @@ pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> Cli
                 .into(),
         ));
     }
+    Ok(Settings {
+        diffuse,
+        metric,
+        objective,
+    })
+}
+
+/// Checks every flag's value, the reduction's included, without reading the input:
+/// what a batch does before it starts any task.
+pub(crate) fn check_values(a: &FitArgs) -> CliResult<()> {
+    settings(a)?;
+    a.reduction.options().map(drop)
+}
+
+pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> CliResult<Fitted> {
+    let Settings {
+        diffuse,
+        metric,
+        objective,
+    } = settings(a)?;
     let samples = match given.or_else(|| plain_samples(&a.input)) {
         Some(s) => s,
         None => {

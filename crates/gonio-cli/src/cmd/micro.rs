@@ -111,7 +111,7 @@ fn median_relative_error(r: &MicroResult) -> f64 {
 
 /// The counts of the flags against the library's caps, before the surface is read:
 /// an absurd `--rays` is refused at once rather than after a surface is generated.
-fn check_counts(a: &MicroArgs) -> CliResult<()> {
+pub(crate) fn check_counts(a: &MicroArgs) -> CliResult<()> {
     use gonio_core::limits::count;
     let flag = |name: &str, r: Result<u64, String>| {
         r.map(|_| ())
@@ -336,7 +336,7 @@ pub(crate) fn merge(
     grid: &gonio_process::Grid,
     parts: &[gonio_micro::TablePart],
 ) -> CliResult<MicroResult> {
-    sim.table_from_parts(grid, a.rays, parts)
+    sim.table_from_parts(grid, a.rays, a.seed, parts)
         .map_err(|e| CliError::Input(format!("{}: {e}", a.surface.display())))
 }
 

@@ -48,6 +48,18 @@ pub(crate) fn reduction_json(r: &Reduction) -> serde_json::Value {
     serde_json::to_value(&r.report).unwrap_or_default()
 }
 
+/// Checks every flag's value without reading the run: what a batch does before it
+/// starts any task.
+pub(crate) fn check_values(a: &ReduceArgs) -> CliResult<()> {
+    if !(0.0..=1.0).contains(&a.standard_sigma) {
+        return Err(CliError::Input(format!(
+            "--standard-sigma {}: must be a relative uncertainty in [0, 1]",
+            a.standard_sigma
+        )));
+    }
+    a.reduction.options().map(drop)
+}
+
 /// A run reduced as `gonio reduce` reduces it: the reduction, and what it writes (a
 /// table when the samples form a grid or `--grid` asks for one, else the samples).
 pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
@@ -58,12 +70,7 @@ pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
             path.display()
         )));
     }
-    if !(0.0..=1.0).contains(&a.standard_sigma) {
-        return Err(CliError::Input(format!(
-            "--standard-sigma {}: must be a relative uncertainty in [0, 1]",
-            a.standard_sigma
-        )));
-    }
+    check_values(a)?;
     let mut options = a.reduction.open_options()?;
     options.reduce.standard_rel_sigma = a.standard_sigma;
     let opened = gonio_dataset::open(path, &options)?;

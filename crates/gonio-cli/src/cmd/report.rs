@@ -31,6 +31,14 @@ pub struct ReportArgs {
     json: JsonFlag,
 }
 
+impl ReportArgs {
+    /// Checks every flag's value without reading the input: what a batch does
+    /// before it starts any task.
+    pub(crate) fn check_values(&self) -> CliResult<()> {
+        self.reduction.options().map(drop)
+    }
+}
+
 fn svg_of(
     f: impl FnOnce(Output<'_>) -> Result<plot::Drawn, plot::PlotError>,
 ) -> Result<Image, String> {

@@ -34,11 +34,55 @@ pub fn segments(rays: usize) -> usize {
 /// (module docs), not an approximation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TablePart {
+    /// The seed of the simulation it is part of.
+    pub seed: u64,
+    /// The rays an incident node of that simulation.
+    pub rays: usize,
     /// The incident node (grid order, φi-major).
     pub incident: usize,
     /// The first segment.
     pub first: usize,
     segments: Vec<TableAcc>,
+}
+
+/// The sums of one incident node folded segment by segment as its blocks arrive
+/// (in order): one segment open, the closed ones added to the total. The memory is
+/// two accumulators whatever the ray count, and the order of additions is that of
+/// [`Simulation::table_from_parts`], so both give the same bits.
+struct Fold {
+    total: TableAcc,
+    open: Option<TableAcc>,
+}
+
+impl Fold {
+    fn new(nc: usize, n_out: usize) -> Fold {
+        Fold {
+            total: TableAcc::new(nc, n_out),
+            open: None,
+        }
+    }
+
+    /// Block `k` of the node, in order.
+    fn add_block(&mut self, k: usize, acc: TableAcc) {
+        if k.is_multiple_of(SEGMENT_BLOCKS) {
+            self.close();
+            self.open = Some(acc);
+        } else if let Some(open) = &mut self.open {
+            open.merge(&acc);
+        }
+    }
+
+    /// Adds the open segment, if any, to the total.
+    fn close(&mut self) {
+        if let Some(done) = self.open.take() {
+            self.total.merge(&done);
+        }
+    }
+
+    fn finish(mut self) -> TableAcc {
+        self.close();
+        self.total
+    }
 }
 
 /// What a table's blocks share: the grid, its outgoing cells, the rays, the seed.
@@ -66,20 +110,17 @@ impl Simulation {
     pub fn to_table(&self, grid: &Grid, rays: usize, seed: u64) -> Result<MicroResult, MicroError> {
         let job = self.table_job(grid, rays, seed)?;
         let n_blocks = rays.div_ceil(BLOCK);
-        let mut parts: Vec<TablePart> = (0..grid.n_in())
-            .map(|incident| TablePart {
-                incident,
-                first: 0,
-                segments: Vec::new(),
-            })
+        let mut folds: Vec<Fold> = (0..grid.n_in())
+            .map(|_| Fold::new(job.nc, grid.n_out()))
             .collect();
         run_ordered(
             grid.n_in() * n_blocks,
             self.cancel_flag(),
             |task| self.table_block(&job, task / n_blocks, task % n_blocks),
-            |task, acc| parts[task / n_blocks].add_block(task % n_blocks, acc),
+            |task, acc| folds[task / n_blocks].add_block(task % n_blocks, acc),
         )?;
-        self.finish_table(&job, &parts)
+        let accs: Vec<TableAcc> = folds.into_iter().map(Fold::finish).collect();
+        self.finish_table(&job, &accs)
     }
 
     /// Traces segments `segs` of incident node `incident` of the simulation
@@ -114,6 +155,8 @@ impl Simulation {
         let first_block = segs.start * SEGMENT_BLOCKS;
         let end_block = (segs.end * SEGMENT_BLOCKS).min(rays.div_ceil(BLOCK));
         let mut part = TablePart {
+            seed,
+            rays,
             incident,
             first: segs.start,
             segments: Vec::new(),
@@ -128,67 +171,71 @@ impl Simulation {
     }
 
     /// The table of [`Simulation::to_table`] from its parts: for every incident node,
-    /// parts that cover its segments once each (in any order). Bit for bit the
-    /// table traced at once with the same `grid`, `rays` and seed.
+    /// parts of this `seed` and `rays` that cover its segments once each (in any
+    /// order). Bit for bit the table traced at once with the same `grid`, `rays`
+    /// and `seed`.
     pub fn table_from_parts(
         &self,
         grid: &Grid,
         rays: usize,
+        seed: u64,
         parts: &[TablePart],
     ) -> Result<MicroResult, MicroError> {
-        let job = self.table_job(grid, rays, 0)?;
+        let job = self.table_job(grid, rays, seed)?;
         let n_out = grid.n_out();
+        let n_seg = segments(rays);
+        let bad = |why: String| MicroError::invalid("parts", why);
         let mut sorted: Vec<&TablePart> = parts.iter().collect();
         sorted.sort_by_key(|p| (p.incident, p.first));
-        let mut merged = Vec::with_capacity(grid.n_in());
+        let mut accs = Vec::with_capacity(grid.n_in());
         let mut it = sorted.into_iter().peekable();
         for incident in 0..grid.n_in() {
-            let mut whole = TablePart {
-                incident,
-                first: 0,
-                segments: Vec::new(),
-            };
+            let mut total = TableAcc::new(job.nc, n_out);
+            let mut next = 0;
             while let Some(p) = it.next_if(|p| p.incident == incident) {
-                if p.first != whole.segments.len() {
-                    return Err(MicroError::invalid(
-                        "parts",
-                        format!(
-                            "incident node {incident}: a part starts at segment {} where {} was expected",
-                            p.first,
-                            whole.segments.len()
-                        ),
-                    ));
+                if p.seed != seed || p.rays != rays {
+                    return Err(bad(format!(
+                        "a part of another simulation (seed {}, {} rays; this one: seed {seed}, {rays} rays)",
+                        p.seed, p.rays
+                    )));
                 }
-                if p.segments
-                    .iter()
-                    .any(|a| a.nc != job.nc || a.n_out != n_out)
-                {
-                    return Err(MicroError::invalid(
-                        "parts",
-                        "a part of another grid or surface (channels or cells differ)",
-                    ));
+                if p.first != next {
+                    return Err(bad(format!(
+                        "incident node {incident}: a part starts at segment {} where {next} was expected",
+                        p.first
+                    )));
                 }
-                whole.segments.extend(p.segments.iter().cloned());
+                for (k, a) in p.segments.iter().enumerate() {
+                    let s = p.first + k;
+                    let expected = SEGMENT_RAYS.min(rays.saturating_sub(s * SEGMENT_RAYS)) as u64;
+                    // A node at the horizon traces nothing.
+                    if a.nc != job.nc
+                        || a.n_out != n_out
+                        || !(a.stats.rays == expected || a.stats.rays == 0)
+                    {
+                        return Err(bad(format!(
+                            "incident node {incident}, segment {s}: not a segment of this grid, surface and ray count"
+                        )));
+                    }
+                    total.merge(a);
+                }
+                next = p.first + p.segments.len();
             }
-            if whole.segments.len() != segments(rays) {
-                return Err(MicroError::invalid(
-                    "parts",
-                    format!(
-                        "incident node {incident}: {} of its {} segments",
-                        whole.segments.len(),
-                        segments(rays)
-                    ),
-                ));
+            if next != n_seg {
+                return Err(bad(format!(
+                    "incident node {incident}: {next} of its {n_seg} segments"
+                )));
             }
-            merged.push(whole);
+            accs.push(total);
         }
         if let Some(p) = it.next() {
-            return Err(MicroError::invalid(
-                "parts",
-                format!("incident node {} of a grid of {}", p.incident, grid.n_in()),
-            ));
+            return Err(bad(format!(
+                "incident node {} of a grid of {}",
+                p.incident,
+                grid.n_in()
+            )));
         }
-        self.finish_table(&job, &merged)
+        self.finish_table(&job, &accs)
     }
 
     /// Checks the arguments of a table simulation.
@@ -250,22 +297,14 @@ impl Simulation {
         acc
     }
 
-    /// The tables, albedos and statistics of every incident node's segments.
+    /// The tables, albedos and statistics of every incident node's sums.
     fn finish_table(
         &self,
         job: &TableJob<'_>,
-        parts: &[TablePart],
+        accs: &[TableAcc],
     ) -> Result<MicroResult, MicroError> {
         let (grid, nc, cells) = (job.grid, job.nc, &job.cells);
         let n_out = grid.n_out();
-        let accs: Vec<TableAcc> = parts
-            .iter()
-            .map(|p| {
-                let mut total = TableAcc::new(nc, n_out);
-                p.segments.iter().for_each(|s| total.merge(s));
-                total
-            })
-            .collect();
         let n = grid.len();
         let mut values = vec![vec![0.0; n * nc]; 4];
         let mut sigmas = vec![vec![0.0; n * nc]; 4];
@@ -400,7 +439,7 @@ impl TableAcc {
 }
 
 /// The leading bytes of a serialised [`TablePart`], with its format's version.
-const PART_MAGIC: &[u8; 8] = b"GMTPART1";
+const PART_MAGIC: &[u8; 8] = b"GMTPART2";
 
 impl TablePart {
     /// The segments it covers.
@@ -409,7 +448,7 @@ impl TablePart {
     }
 
     /// The rays it traced.
-    pub fn rays(&self) -> u64 {
+    pub fn rays_traced(&self) -> u64 {
         self.segments.iter().map(|s| s.stats.rays).sum()
     }
 
@@ -418,7 +457,15 @@ impl TablePart {
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = PART_MAGIC.to_vec();
         let (nc, n_out) = self.segments.first().map_or((0, 0), |a| (a.nc, a.n_out));
-        for v in [self.incident, self.first, self.segments.len(), nc, n_out] {
+        out.extend_from_slice(&self.seed.to_le_bytes());
+        for v in [
+            self.rays,
+            self.incident,
+            self.first,
+            self.segments.len(),
+            nc,
+            n_out,
+        ] {
             out.extend_from_slice(&(v as u64).to_le_bytes());
         }
         for a in &self.segments {
@@ -458,22 +505,29 @@ impl TablePart {
             b.copy_from_slice(c);
             b
         });
-        if body.len() % 8 != 0 || body.len() < 40 {
+        const HEADER: usize = 7;
+        if !body.len().is_multiple_of(8) || body.len() < 8 * HEADER {
             return Err(bad("truncated"));
         }
+        let seed = words.next().map_or(0, u64::from_le_bytes);
         let mut int = || -> Result<usize, MicroError> {
             let w = words.next().ok_or_else(|| bad("truncated"))?;
             usize::try_from(u64::from_le_bytes(w)).map_err(|_| bad("a count out of range"))
         };
-        let (incident, first, n_seg, nc, n_out) = (int()?, int()?, int()?, int()?, int()?);
+        let (rays, incident, first, n_seg, nc, n_out) =
+            (int()?, int()?, int()?, int()?, int()?, int()?);
         // Words a segment: 8 counts, 2 energies, then the sums (`TableAcc`).
         let (c, o, k) = (nc as u128, n_out as u128, n_seg as u128);
         let expected = (8 * c)
             .checked_mul(o)
             .and_then(|x| x.checked_add(9 * c + 10))
             .and_then(|x| x.checked_mul(k));
-        if expected != Some((body.len() / 8 - 5) as u128) || nc == 0 {
+        if expected != Some((body.len() / 8 - HEADER) as u128) || nc == 0 {
             return Err(bad("its length does not match its header"));
+        }
+        // Past this point every count is bounded by the bytes there are.
+        if rays > super::MAX_RAYS || first.saturating_add(n_seg) > segments(rays) {
+            return Err(bad("its segments are not those of its ray count"));
         }
         let mut f64s = |n: usize| -> Vec<f64> {
             (0..n)
@@ -484,6 +538,18 @@ impl TablePart {
         for _ in 0..n_seg {
             let head: Vec<u64> = f64s(8).into_iter().map(f64::to_bits).collect();
             let energies = f64s(2);
+            // Counts a segment can hold: at most its rays, each ended one way, each
+            // with at most `MAX_BOUNCES` hits; so no sum of them can overflow.
+            let ends = head[1..6].iter().try_fold(0u64, |a, b| a.checked_add(*b));
+            let max_bounces = u64::from(super::MAX_BOUNCES);
+            if head[0] > SEGMENT_RAYS as u64
+                || ends != Some(head[0])
+                || head[6] > head[0] * max_bounces
+                || head[7] > max_bounces
+                || energies.iter().any(|e| !e.is_finite())
+            {
+                return Err(bad("a segment's ray counts are inconsistent"));
+            }
             let stats = TraceStats {
                 rays: head[0],
                 exits: head[1],
@@ -492,8 +558,7 @@ impl TablePart {
                 leaked: head[4],
                 horizon: head[5],
                 hits: head[6],
-                max_order: u32::try_from(head[7])
-                    .map_err(|_| bad("a bounce order out of range"))?,
+                max_order: head[7] as u32,
                 capped_energy: energies[0],
                 lost_energy: energies[1],
             };
@@ -509,6 +574,8 @@ impl TablePart {
             });
         }
         Ok(TablePart {
+            seed,
+            rays,
             incident,
             first,
             segments,

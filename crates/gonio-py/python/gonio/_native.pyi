@@ -121,7 +121,7 @@ def run_command(words: list[str], threads: int | None = None) -> str:
     returns what it prints."""
 
 def validate(words: list[str]) -> None:
-    """Checks ``gonio WORDS…`` as the command's parser would, running nothing."""
+    """Checks ``gonio WORDS…`` as the command would before reading its input."""
 
 def micro_plan(
     words: list[str], theta_i: tuple[float, float, int] | None, surface: str | None
@@ -149,3 +149,6 @@ def micro_merge(
 ) -> tuple[Columns, str, str]:
     """The table from its parts (bit for bit the table traced at once), written to
     ``out`` as ``gonio micro --out`` does when given."""
+
+def micro_part_info(part: bytes) -> tuple[int, int, int, int, int]:
+    """``(seed, rays, incident, first, end)`` of a part's bytes, checked whole."""

@@ -18,12 +18,20 @@ from __future__ import annotations
 
 from gonio.batch._common import client_for
 from gonio.batch._reprocess import STEPS, find_runs, reprocess
-from gonio.batch._sweep import CHUNK_RAYS, SEGMENT_RAYS, incidents, load_sweep, micro_sweep
+from gonio.batch._sweep import (
+    CHUNK_RAYS,
+    SEGMENT_RAYS,
+    SweepError,
+    incidents,
+    load_sweep,
+    micro_sweep,
+)
 
 __all__ = [
     "CHUNK_RAYS",
     "SEGMENT_RAYS",
     "STEPS",
+    "SweepError",
     "client_for",
     "find_runs",
     "incidents",

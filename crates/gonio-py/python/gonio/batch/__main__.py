@@ -18,8 +18,8 @@ from typing import Any
 
 from gonio import _native
 from gonio.batch import _common as c
-from gonio.batch._reprocess import STEPS, find_runs, reprocess
-from gonio.batch._sweep import incidents, load_sweep, micro_sweep
+from gonio.batch._reprocess import STEPS, find_runs, reprocess, step_words
+from gonio.batch._sweep import SweepError, incidents, load_sweep, micro_sweep, plan
 
 
 def _value(text: str) -> Any:
@@ -41,6 +41,13 @@ def _options(pairs: list[str]) -> dict[str, Any]:
     return out
 
 
+def _positive(text: str) -> int:
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"at least 1, got {n}")
+    return n
+
+
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m gonio.batch", description=__doc__)
     ap.add_argument("-v", "--verbose", action="count", default=0, help="log more (-vv: trace)")
@@ -51,7 +58,9 @@ def _parser() -> argparse.ArgumentParser:
         "--scheduler", help="a Dask scheduler's address (tcp://host:8786); default: a local cluster"
     )
     cluster.add_argument(
-        "--workers", type=int, help="worker processes of the local cluster (default: one a core)"
+        "--workers",
+        type=_positive,
+        help="worker processes of the local cluster (default: one a core)",
     )
     cluster.add_argument("--force", action="store_true", help="redo outputs that exist")
     r = sub.add_parser(
@@ -66,7 +75,7 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="a flag of the steps' commands (lobes=2, calibration=none, k=[1,5]); repeatable",
+        help="a flag of the steps' commands (lobes=2, drift=none, k=[1,5]); repeatable",
     )
     m = sub.add_parser("micro", parents=[cluster], help="a microgeometry sweep (SWEEP.toml)")
     m.add_argument("sweep", help="the sweep file: surfaces, seed, chunk_rays, [[params]]")
@@ -103,6 +112,10 @@ def main(argv: list[str] | None = None) -> int:
             missing = [p for p in runs if not os.path.exists(p)]
             if missing:
                 raise _native.InputError(f"{missing[0]}: no such run file")
+            if not runs:
+                raise _native.InputError(f"{' '.join(a.runs)}: no run files (*.gonio)")
+            # Checked before any cluster starts (and again by reprocess).
+            step_words(steps, options)
             with c.client_for(None, a.scheduler, a.workers) as cl:
                 _dashboard(cl)
                 df = reprocess(runs, out, cl, steps, force=a.force, progress=True, **options)
@@ -119,23 +132,38 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"failed: {row['run']}: {row['error']}", file=sys.stderr)
             return 1 if len(failed) else 0
         sweep = load_sweep(a.sweep)
+        plan(sweep["surfaces"], sweep["params"], sweep["seed"])
+        failed: list[dict[str, Any]] = []
         with c.client_for(None, a.scheduler, a.workers) as cl:
             _dashboard(cl)
-            df = micro_sweep(
-                sweep["surfaces"],
-                sweep["params"],
-                cl,
-                sweep["seed"],
-                out_dir=out,
-                chunk_rays=sweep["chunk_rays"],
-                force=a.force,
-                progress=True,
-            )
+            try:
+                df = micro_sweep(
+                    sweep["surfaces"],
+                    sweep["params"],
+                    cl,
+                    sweep["seed"],
+                    out_dir=out,
+                    chunk_rays=sweep["chunk_rays"],
+                    force=a.force,
+                    progress=True,
+                )
+            except SweepError as e:
+                df, failed = e.result, e.failed
         index = os.path.join(out, "sweep.csv")
         c.write_atomic(index, incidents(df).to_csv(index=False).encode())
         print(f"{len(df.attrs['tables'])} table(s) in {out}; albedos by incidence: {index}")
-        return 0
+        for f in failed:
+            print(
+                f"failed: {f['table']} incident node {f['incident']}, segment {f['segment']}: "
+                f"{f['error']}",
+                file=sys.stderr,
+            )
+        return 1 if failed else 0
     except (_native.InputError, ValueError, TypeError) as e:
+        print(f"gonio.batch: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        # An output directory that cannot be made, a scheduler that cannot be reached.
         print(f"gonio.batch: {e}", file=sys.stderr)
         return 2
     except _native.GonioError as e:

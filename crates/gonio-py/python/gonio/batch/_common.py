@@ -125,7 +125,8 @@ def takes(words: list[str], flag: list[str]) -> bool:
     try:
         _native.validate(words + flag)
     except _native.InputError as e:
-        if "unexpected argument" in str(e):
+        # Only the option itself unknown: a value it refuses is the value's error.
+        if f"unexpected argument '{flag[0]}'" in str(e):
             return False
         raise
     return True
@@ -167,38 +168,65 @@ def write_atomic(path: str, data: bytes) -> None:
             os.remove(tmp)
 
 
-def work_dir(out_dir: str, name: str) -> str:
+def new_token() -> str:
+    """A call's own mark on its hidden working names, so that it cleans up only
+    after itself (another batch may be writing to the same directory)."""
+    return uuid.uuid4().hex[:12]
+
+
+def work_dir(out_dir: str, token: str, name: str) -> str:
     """A fresh hidden directory in ``out_dir`` for one attempt at ``name``: a
     retried task (its worker killed) never meets the files of the first attempt."""
-    d = os.path.join(out_dir, f"{TMP_PREFIX}{name}-{uuid.uuid4().hex}")
+    d = os.path.join(out_dir, f"{TMP_PREFIX}{token}-{name}-{uuid.uuid4().hex[:12]}")
     os.mkdir(d)
     return d
 
 
-def publish(tmp: str, final: str) -> bool:
-    """Renames the finished directory ``tmp`` to ``final`` (atomic: a reader sees
-    all of it or none). False when ``final`` is there already (another attempt at
-    the same work finished first; its files are the same): ``tmp`` is removed."""
-    try:
-        os.rename(tmp, final)
-    except OSError:
-        if os.path.isdir(final):
-            shutil.rmtree(tmp, ignore_errors=True)
-            return False
-        raise
+def _fsync_dir(path: str) -> None:
+    """Makes a directory's entries durable (best effort: not every platform can)."""
     with contextlib.suppress(OSError):
-        fd = os.open(os.path.dirname(final) or ".", os.O_RDONLY)
+        fd = os.open(path, os.O_RDONLY)
         try:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+def publish(tmp: str, final: str, complete: str, replace: bool = False) -> bool:
+    """Renames the finished directory ``tmp`` to ``final``: atomic, a reader sees all
+    of it or none. ``complete`` names the file that marks a directory whole.
+
+    False when a whole ``final`` is there already (another attempt at the same
+    work finished first; its files are the same): ``tmp`` is then removed. A
+    ``final`` without its ``complete`` file (left by a crash before its files
+    were durable), or any ``final`` when ``replace``, is moved aside first and
+    removed after the new one is in place."""
+    _fsync_dir(tmp)
+    parent = os.path.dirname(final) or "."
+    old = None
+    if os.path.isdir(final) and (replace or not os.path.exists(os.path.join(final, complete))):
+        old = f"{tmp}-old"
+        with contextlib.suppress(FileNotFoundError):
+            os.rename(final, old)
+    try:
+        os.rename(tmp, final)
+    except OSError:
+        if os.path.exists(os.path.join(final, complete)):
+            shutil.rmtree(tmp, ignore_errors=True)
+            return False
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    _fsync_dir(parent)
     return True
 
 
-def clean_work(out_dir: str) -> None:
-    """Removes what attempts left behind in ``out_dir`` (a worker killed mid-task)."""
+def clean_work(out_dir: str, token: str) -> None:
+    """Removes what this call's attempts left behind in ``out_dir`` (a worker
+    killed mid-task)."""
     for entry in os.scandir(out_dir):
-        if entry.name.startswith(TMP_PREFIX):
+        if entry.name.startswith(f"{TMP_PREFIX}{token}-"):
             if entry.is_dir(follow_symlinks=False):
                 shutil.rmtree(entry.path, ignore_errors=True)
             else:
@@ -206,14 +234,33 @@ def clean_work(out_dir: str) -> None:
                     os.remove(entry.path)
 
 
+def safe_stem(path: str) -> str:
+    """The file's name without its extension, as the start of an output's name:
+    never hidden (so never taken for a working name)."""
+    stem = os.path.splitext(os.path.basename(path))[0].lstrip(".")
+    return stem or "run"
+
+
+def show_progress(futures: list[Any]) -> None:
+    """Dask's progress bar of ``futures`` on the terminal, drawn by a thread of its
+    own while the caller collects the results as they come."""
+    import threading
+
+    from distributed import progress
+
+    if futures:
+        threading.Thread(
+            target=progress, args=(futures,), kwargs={"notebook": False}, daemon=True
+        ).start()
+
+
 def gather(client: Any, futures: Mapping[Any, Any], progress: bool) -> dict[Any, Any]:
     """Waits for ``futures`` (label → future) and returns label → result, or the
     exception of one that failed (a worker lost more often than Dask retries):
     a failure never stops the others. ``progress`` shows Dask's progress bar."""
     from distributed import as_completed
-    from distributed import progress as show_progress
 
-    if progress and futures:
+    if progress:
         show_progress(list(futures.values()))
     by_future = {f: label for label, f in futures.items()}
     out: dict[Any, Any] = {}

@@ -36,14 +36,16 @@ ROW = "row.json"
 
 def find_runs(runs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]]) -> list[str]:
     """The run files ``runs`` names: paths, directories (every ``*.gonio`` below
-    them, sorted) and glob patterns; each once, in the order given."""
+    them, sorted) and glob patterns; each once, in the order given. A name that
+    exists is taken as it is, even with ``[`` or ``*`` in it."""
     items = [runs] if isinstance(runs, (str, os.PathLike)) else list(runs)
     out: list[str] = []
     for item in items:
         p = os.fspath(item)
         if os.path.isdir(p):
-            found = sorted(glob.glob(os.path.join(p, "**", "*.gonio"), recursive=True))
-        elif any(ch in p for ch in "*?["):
+            pattern = os.path.join(glob.escape(p), "**", "*.gonio")
+            found = sorted(glob.glob(pattern, recursive=True))
+        elif not os.path.exists(p) and any(ch in p for ch in "*?["):
             found = sorted(glob.glob(p, recursive=True))
         else:
             found = [p]
@@ -53,7 +55,7 @@ def find_runs(runs: str | os.PathLike[str] | Iterable[str | os.PathLike[str]]) -
 
 def step_words(steps: Sequence[str], options: dict[str, Any]) -> dict[str, list[str]]:
     """The flags each step gets from ``options`` (keywords of the commands' flags:
-    ``lobes=2``, ``calibration="none"``): each option goes to every step whose
+    ``lobes=2``, ``drift="none"``): each option goes to every step whose
     command takes it, as its parser says. An option no step takes is a
     ``TypeError``, a bad value the command's ``InputError``: both before any work."""
     unknown = [s for s in steps if s not in STEPS]
@@ -93,8 +95,9 @@ def _summary(outputs: dict[str, Any]) -> dict[str, Any]:
         row["P_i"] = _worst(chk.get("isotropy"))
         for ch in chk.get("separability") or []:
             for k, p in ch.get("p_s", []):
-                key = f"P_s{k}"
-                row[key] = max(row.get(key, p), p)
+                if isinstance(p, (int, float)):
+                    key = f"P_s{k}"
+                    row[key] = max(row.get(key, p), p)
     fit = outputs.get("fit")
     if fit is not None:
         f = fit["fit"]
@@ -110,6 +113,7 @@ def reprocess_one(
     steps: Sequence[str],
     words: dict[str, list[str]],
     options_key: str,
+    token: str,
     force: bool = False,
 ) -> dict[str, Any]:
     """One run: the task a worker runs. Its outputs go to ``out_dir/NAME-KEY/``
@@ -118,7 +122,7 @@ def reprocess_one(
     read back, not redone. The run file is only read. Never raises: a failure is
     the row's ``error``."""
     started = time.perf_counter()
-    stem = os.path.splitext(os.path.basename(path))[0]
+    stem = c.safe_stem(path)
     row: dict[str, Any] = {"run": path, "status": "failed", "key": None, "dir": None}
     try:
         if not os.path.isfile(path):
@@ -130,7 +134,8 @@ def reprocess_one(
         if os.path.exists(os.path.join(final, ROW)) and not force:
             row.update(_read_row(final), status="skipped")
         else:
-            row.update(_compute(path, out_dir, key, final, steps, words, force), status="done")
+            outputs = _compute(path, out_dir, token, key, final, steps, words, force)
+            row.update(outputs, status="done")
         row["dir"] = final
     except _native.GonioError as e:
         row.update(error=str(e), exit_code=e.exit_code)
@@ -148,13 +153,14 @@ def _read_row(final: str) -> dict[str, Any]:
 def _compute(
     path: str,
     out_dir: str,
+    token: str,
     key: str,
     final: str,
     steps: Sequence[str],
     words: dict[str, list[str]],
     force: bool,
 ) -> dict[str, Any]:
-    tmp = c.work_dir(out_dir, key)
+    tmp = c.work_dir(out_dir, token, key)
     try:
         outputs: dict[str, Any] = {}
         for step in STEPS:
@@ -180,9 +186,7 @@ def _compute(
             files.append("reduced.csv.json")
         row["files"] = sorted(files)
         c.write_json(os.path.join(tmp, ROW), row)
-        if force and os.path.isdir(final):
-            shutil.rmtree(final)
-        if not c.publish(tmp, final):
+        if not c.publish(tmp, final, ROW, replace=force):
             return _read_row(final)
         return row
     finally:
@@ -208,16 +212,16 @@ def reprocess(
     ``gonio reduce``, ``check``, ``fit`` and ``report`` (``steps``) in its worker
     and writes their outputs to ``out_dir/NAME-KEY/``: ``reduced.csv`` (+ sidecar)
     and ``reduction.json``, ``check.json``, ``model.toml`` and ``fit.json``,
-    ``report.html``, and ``row.json``. ``KEY`` hashes the run's content and the
-    options, so a rerun skips every run already done (``force`` redoes them), and a
-    run copied under another name is done once.
+    ``report.html``, and ``row.json``. ``NAME`` is the run's file name and ``KEY``
+    hashes its content and the options, so a rerun skips every run already done
+    (``force`` redoes them), and a run changed since is done again.
 
     ``runs``: paths, directories (their ``*.gonio``, recursively) or glob patterns.
-    ``client``: a ``distributed.Client`` (a ``LocalCluster``, a scheduler's
-    address, a dask-jobqueue cluster); ``None`` starts a ``LocalCluster`` on the
+    ``client``: a ``distributed.Client`` (of a ``LocalCluster``, of a scheduler's
+    address, of a dask-jobqueue cluster); ``None`` starts a ``LocalCluster`` on the
     loopback interface, one worker process a core, for this call. ``options``:
     the commands' flags by keyword, each given to the steps that take it
-    (``calibration="none"``, ``lobes=2``, ``k=[1, 5]``, ``grid=(10, 15)``).
+    (``drift="none"``, ``lobes=2``, ``k=[1, 5]``, ``grid=(10, 15)``).
     Workers must see ``runs`` and ``out_dir`` at the same paths (a shared file
     system, as on any cluster); run files are opened read-only.
 
@@ -228,9 +232,12 @@ def reprocess(
     a run that failed (which never stops the others), and the task's ``seconds``.
     """
     paths = find_runs(runs)
+    if not paths:
+        raise ValueError(f"reprocess: no run files in {runs!r}")
     out = os.path.abspath(os.fspath(out_dir))
     steps = tuple(steps)
     words = step_words(steps, options)
+    token = c.new_token()
     if not os.path.isdir(out):
         os.makedirs(out)
     options_key = c.canonical(
@@ -246,6 +253,7 @@ def reprocess(
                 steps,
                 words,
                 options_key,
+                token,
                 force,
                 key=f"gonio-run-{os.path.basename(p)}-{uuid.uuid4().hex[:12]}",
             )
@@ -258,7 +266,7 @@ def reprocess(
             r = {"run": p, "status": "failed", "error": f"{type(r).__name__}: {r}"}
         rows.append(r)
     with contextlib.suppress(OSError):
-        c.clean_work(out)
+        c.clean_work(out, token)
     df = pd.DataFrame(rows)
     for col in COLUMNS + ["error", "exit_code", "seconds"]:
         if col not in df.columns:

@@ -148,7 +148,14 @@ def part_task(
     runs), kept in ``cache`` when given so that a rerun does not trace it again."""
     if cache is not None and os.path.exists(cache):
         with open(cache, "rb") as f:
-            return f.read()
+            kept = f.read()
+        try:
+            if _native.micro_part_info(kept)[2:] == (incident, first, end):
+                return kept
+        except _native.GonioError:
+            pass
+        # Damaged, or of another build: traced again.
+        os.remove(cache)
     part = _native.micro_part(words, axis, text, incident, first, end, threads=1)
     if cache is not None:
         c.write_atomic(cache, part)
@@ -184,8 +191,9 @@ def micro_sweep(
     from ``seed`` and its key (the surface's content, the set), so the tables are
     the same bytes on any number of workers, in any order of completion.
 
-    Each incident direction of each table is one task, split into chunks of
-    ``chunk_rays`` (rounded up to whole segments of ``SEGMENT_RAYS``). Chunks
+    Each incident direction of each table is traced in chunks of ``chunk_rays``
+    (rounded up to whole segments of ``SEGMENT_RAYS``), each chunk a Dask task; a
+    table is merged as soon as its last chunk is in. Chunks
     return the estimator's sums, not means, so the merged table and its errors
     are exactly those of one simulation of all the rays: bit for bit the table of
     ``gonio micro SURFACE --seed S`` with the same options.
@@ -193,101 +201,176 @@ def micro_sweep(
     ``out_dir`` also writes each table as ``NAME-KEY.csv`` (+ sidecar) and
     ``NAME-KEY.json`` (ray statistics, albedos): named by the surface's content
     and the options, so a rerun reads finished tables back and traces only what
-    is missing (chunks already traced are kept under ``.tmp-parts``).
-    ``client``: as ``reprocess``. ``df.attrs["tables"]`` describes each table.
+    is missing (chunks already traced are kept under ``.tmp-parts``). A height
+    map's data file is not part of the name: a table of an edited height map needs
+    ``force``. ``client``: as ``reprocess``. ``df.attrs["tables"]`` describes each
+    table. A failed chunk raises ``SweepError`` once the other tables are done.
     """
     surface_list = [surfaces] if isinstance(surfaces, (str, os.PathLike)) else list(surfaces)
     param_list = [params] if isinstance(params, dict) else list(params)
     tables = plan(surface_list, param_list, int(seed))
+    if int(chunk_rays) < 1:
+        raise ValueError(f"chunk_rays: at least 1, got {chunk_rays}")
     out = None if out_dir is None else os.path.abspath(os.fspath(out_dir))
     if out is not None and not os.path.isdir(out):
         os.makedirs(out)
-    if int(chunk_rays) < 1:
-        raise ValueError(f"chunk_rays: at least 1, got {chunk_rays}")
     per_chunk = max(1, math.ceil(int(chunk_rays) / SEGMENT_RAYS))
-    todo = {ti for ti, t in enumerate(tables) if force or not _done(out, t)}
-    parts: dict[tuple[int, int, int], Any] = {}
+    results: dict[int, tuple[pd.DataFrame, dict[str, Any]]] = {}
+    todo = []
+    for ti, t in enumerate(tables):
+        if out is not None and not force and _done(out, t):
+            results[ti] = _read_back(t, out)
+        else:
+            todo.append(ti)
+    failed: list[dict[str, Any]] = []
     if todo:
         with c.client_for(client) as cl:
-            futures = {}
-            for ti, t in enumerate(tables):
-                if ti not in todo:
-                    continue
-                cache_dir = None
-                if out is not None:
-                    cache_dir = os.path.join(out, f"{c.TMP_PREFIX}parts", t.name)
-                    os.makedirs(cache_dir, exist_ok=True)
-                for inc in range(t.incidents):
-                    for first in range(0, t.segments, per_chunk):
-                        end = min(first + per_chunk, t.segments)
-                        cache = (
-                            None
-                            if cache_dir is None or force
-                            else os.path.join(cache_dir, f"{inc}-{first}-{end}.part")
-                        )
-                        futures[(ti, inc, first)] = cl.submit(
-                            part_task,
-                            t.words,
-                            t.axis,
-                            t.text,
-                            inc,
-                            first,
-                            end,
-                            cache,
-                            key=f"gonio-micro-{t.name}-{inc}-{first}",
-                        )
-            parts = c.gather(cl, futures, progress)
-    failed = {k: v for k, v in parts.items() if isinstance(v, BaseException)}
-    if failed:
-        (ti, inc, first), e = next(iter(failed.items()))
-        raise RuntimeError(
-            f"micro_sweep: {len(failed)} chunk(s) failed; {tables[ti].name} incident node "
-            f"{inc}, segment {first}: {type(e).__name__}: {e}"
-        )
+            _trace(cl, tables, todo, out, per_chunk, force, progress, results, failed)
     frames = []
-    described = []
     for ti, t in enumerate(tables):
-        df, report = _table(t, ti, parts, out, force)
-        df.insert(0, "set", t.set)
-        df.insert(0, "surface", t.surface)
-        frames.append(df)
-        described.append(report)
-    if out is not None:
-        with contextlib.suppress(OSError):
-            shutil.rmtree(os.path.join(out, f"{c.TMP_PREFIX}parts"))
-    result = pd.concat(frames, ignore_index=True)
-    result.attrs["tables"] = described
+        if ti in results:
+            df, _ = results[ti]
+            df = df.copy()
+            df.insert(0, "set", t.set)
+            df.insert(0, "surface", t.surface)
+            frames.append(df)
+    result = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    result.attrs["tables"] = [results[ti][1] for ti in range(len(tables)) if ti in results]
+    if failed:
+        raise SweepError(failed, result)
     return result
 
 
-def _table(
-    t: Table, ti: int, parts: dict[tuple[int, int, int], Any], out: str | None, force: bool
+class SweepError(RuntimeError):
+    """Chunks of some tables failed (their workers died more often than Dask
+    retries, or the tracing failed). The other tables are done (and written);
+    ``result`` holds them as ``micro_sweep`` would return them, ``failed`` says
+    which chunk of which table failed and why. A rerun traces only what is
+    missing."""
+
+    def __init__(self, failed: list[dict[str, Any]], result: pd.DataFrame) -> None:
+        first = failed[0]
+        super().__init__(
+            f"micro_sweep: {len(failed)} chunk(s) failed; {first['table']} incident node "
+            f"{first['incident']}, segment {first['segment']}: {first['error']}"
+        )
+        self.failed = failed
+        self.result = result
+
+
+def _trace(
+    cl: Any,
+    tables: list[Table],
+    todo: list[int],
+    out: str | None,
+    per_chunk: int,
+    force: bool,
+    progress: bool,
+    results: dict[int, tuple[pd.DataFrame, dict[str, Any]]],
+    failed: list[dict[str, Any]],
+) -> None:
+    """Submits every chunk of the tables ``todo`` and merges each table as soon as
+    its last chunk is in (its chunks then leave the workers' and this process's
+    memory)."""
+    from distributed import as_completed
+
+    futures: dict[Any, tuple[int, int, int]] = {}
+    missing: dict[int, int] = {}
+    for ti in todo:
+        t = tables[ti]
+        parts_dir = None if out is None else _parts_dir(out, t)
+        if parts_dir is not None:
+            os.makedirs(parts_dir, exist_ok=True)
+        for inc in range(t.incidents):
+            for first in range(0, t.segments, per_chunk):
+                end = min(first + per_chunk, t.segments)
+                cache = (
+                    None
+                    if parts_dir is None or force
+                    else os.path.join(parts_dir, f"{inc}-{first}-{end}.part")
+                )
+                f = cl.submit(
+                    part_task,
+                    t.words,
+                    t.axis,
+                    t.text,
+                    inc,
+                    first,
+                    end,
+                    cache,
+                    key=f"gonio-micro-{t.name}-{inc}-{first}",
+                )
+                futures[f] = (ti, inc, first)
+                missing[ti] = missing.get(ti, 0) + 1
+    if progress:
+        c.show_progress(list(futures))
+    parts: dict[int, list[bytes]] = {ti: [] for ti in todo}
+    broken: set[int] = set()
+    for f in as_completed(list(futures)):
+        ti, inc, first = futures.pop(f)
+        try:
+            part = f.result()
+        except Exception as e:  # a worker lost too often, or the chunk's own failure
+            failed.append(
+                {
+                    "table": tables[ti].name,
+                    "incident": inc,
+                    "segment": first,
+                    "error": f"{type(e).__name__}: {e}",
+                }
+            )
+            broken.add(ti)
+            parts.pop(ti, None)
+            continue
+        finally:
+            f.release()
+        if ti in broken:
+            continue
+        parts[ti].append(part)
+        missing[ti] -= 1
+        if missing[ti] == 0:
+            results[ti] = _merge(tables[ti], parts.pop(ti), out, force)
+            if out is not None:
+                shutil.rmtree(_parts_dir(out, tables[ti]), ignore_errors=True)
+    if out is not None:
+        # Gone once empty (another sweep into the same directory may still use it).
+        with contextlib.suppress(OSError):
+            os.rmdir(os.path.join(out, f"{c.TMP_PREFIX}parts"))
+
+
+def _parts_dir(out: str, t: Table) -> str:
+    """Where the chunks of ``t`` are kept until it is written."""
+    return os.path.join(out, f"{c.TMP_PREFIX}parts", t.name)
+
+
+def _describe(t: Table) -> dict[str, Any]:
+    """What names a table in its record: this call's surface path, set and seed."""
+    return {"name": t.name, "surface": t.surface, "set": t.set, "params": t.params, "seed": t.seed}
+
+
+def _read_back(t: Table, out: str) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """A table done before, as the merge returned it."""
+    # Every column of a table is a float; the CSV's whole-degree angles read as
+    # integers otherwise.
+    df = read_csv(os.path.join(out, t.name + ".csv")).astype("float64")
+    with open(os.path.join(out, t.name + ".json"), encoding="utf-8") as f:
+        report = json.load(f)
+    # The same table may be asked for under another path or set index.
+    return df, {**report, **_describe(t)}
+
+
+def _merge(
+    t: Table, parts: list[bytes], out: str | None, force: bool
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """The table ``t``: read back when done before, else merged from its parts
-    (and written)."""
-    desc = {
-        "name": t.name,
-        "surface": t.surface,
-        "set": t.set,
-        "params": t.params,
-        "seed": t.seed,
-    }
-    if out is not None and not force and _done(out, t):
-        # Every column of a table is a float; the CSV's whole-degree angles read as
-        # integers otherwise.
-        df = read_csv(os.path.join(out, t.name + ".csv")).astype("float64")
-        with open(os.path.join(out, t.name + ".json"), encoding="utf-8") as f:
-            report = json.load(f)
-        return df, report
-    mine = [v for (i, _, _), v in sorted(parts.items()) if i == ti]
+    """The table ``t`` from its parts (and written, with ``out``)."""
     csv = None if out is None else os.path.join(out, t.name + ".csv")
-    # A CSV without its report is this sweep's own, from a run stopped between
-    # the two writes: the same name holds the same bytes, so it is replaced.
+    # A CSV without its record is this sweep's own, from a run stopped between the
+    # two writes: the same name holds the same bytes, so it is replaced.
     cols, sidecar, text = _native.micro_merge(
-        t.words, t.axis, t.text, mine, out=csv, force=force or csv is not None
+        t.words, t.axis, t.text, parts, out=csv, force=force or csv is not None
     )
-    report = {**desc, **json.loads(text)}
-    if csv is not None:
+    report = {**_describe(t), **json.loads(text)}
+    if csv is not None and out is not None:
         report["file"] = os.path.basename(csv)
         c.write_atomic(
             os.path.join(out, t.name + ".json"),
@@ -359,4 +442,12 @@ def incidents(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-__all__ = ["CHUNK_RAYS", "SEGMENT_RAYS", "incidents", "load_sweep", "micro_sweep", "plan"]
+__all__ = [
+    "CHUNK_RAYS",
+    "SEGMENT_RAYS",
+    "SweepError",
+    "incidents",
+    "load_sweep",
+    "micro_sweep",
+    "plan",
+]
