@@ -444,7 +444,7 @@ const PART_MAGIC: &[u8; 8] = b"GMTPART2";
 impl TablePart {
     /// The segments it covers.
     pub fn segments(&self) -> std::ops::Range<usize> {
-        self.first..self.first + self.segments.len()
+        self.first..self.first.saturating_add(self.segments.len())
     }
 
     /// The rays it traced.

@@ -70,6 +70,20 @@ def _derived_seed(seed: int, surface_sha: str, params: dict[str, Any]) -> int:
     return int.from_bytes(hashlib.sha256(text.encode()).digest()[:8], "little") >> 1
 
 
+def _read_toml(path: str) -> tuple[str, dict[str, Any]]:
+    """A TOML file's text and contents; a file that cannot be read or parsed is a
+    ``ConfigError`` naming it."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        raise _native.ConfigError(f"{path}: {e.strerror or e}") from None
+    try:
+        return text, json.loads(_native.toml_to_json(text))
+    except _native.GonioError as e:
+        raise _native.ConfigError(f"{path}: {e}") from None
+
+
 def plan(
     surfaces: Sequence[str | os.PathLike[str]], params: Sequence[dict[str, Any]], seed: int = 0
 ) -> list[Table]:
@@ -81,15 +95,7 @@ def plan(
     tables = []
     for s in surfaces:
         path = os.path.abspath(os.fspath(s))
-        try:
-            with open(path, encoding="utf-8") as f:
-                text0 = f.read()
-        except OSError as e:
-            raise _native.ConfigError(f"{path}: {e.strerror or e}") from None
-        try:
-            doc0 = json.loads(_native.toml_to_json(text0))
-        except _native.GonioError as e:
-            raise _native.ConfigError(f"{path}: {e}") from None
+        text0, doc0 = _read_toml(path)
         for j, p in enumerate(params):
             if not isinstance(p, dict):
                 raise TypeError(f"params[{j}]: a dict of gonio micro options, got {p!r}")
@@ -384,15 +390,7 @@ def load_sweep(path: str | os.PathLike[str]) -> dict[str, Any]:
     ``chunk_rays`` and ``[[params]]`` tables; every other key is an error naming
     the file."""
     path = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-    except OSError as e:
-        raise _native.ConfigError(f"{path}: {e.strerror or e}") from None
-    try:
-        doc = json.loads(_native.toml_to_json(text))
-    except _native.GonioError as e:
-        raise _native.ConfigError(f"{path}: {e}") from None
+    _, doc = _read_toml(path)
     allowed = {"surfaces", "seed", "chunk_rays", "params"}
     for key in doc:
         if key not in allowed:
