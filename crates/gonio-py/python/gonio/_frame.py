@@ -63,6 +63,23 @@ def reduce_words(calibration: str, drift: str) -> list[str]:
     return ["--calibration", str(calibration), "--drift", str(drift)]
 
 
+def write_atomic(path: str, data: bytes) -> None:
+    """Writes ``path`` whole or not at all: a unique temporary name beside it (hidden,
+    ``.tmp-…``), synced, renamed over it."""
+    import uuid
+
+    tmp = os.path.join(os.path.dirname(path), f".tmp-{uuid.uuid4().hex}-{os.path.basename(path)}")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
 def write_new(path: str | os.PathLike[str], data: str | bytes, force: bool) -> None:
     """Writes ``path`` whole or not at all (a temporary file renamed over it);
     an existing file is replaced only with ``force``."""
@@ -74,17 +91,10 @@ def write_new(path: str | os.PathLike[str], data: str | bytes, force: bool) -> N
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
         raise InputError(f"{path}: the directory {directory} does not exist")
-    tmp = os.path.join(directory, f".{os.path.basename(path)}.{os.getpid()}.tmp")
-    mode = "wb" if isinstance(data, bytes) else "w"
-    try:
-        with open(tmp, mode) as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    write_atomic(
+        os.path.join(directory, os.path.basename(path)),
+        data if isinstance(data, bytes) else data.encode(),
+    )
 
 
 def read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
@@ -99,4 +109,4 @@ def read_csv(path: str | os.PathLike[str]) -> pd.DataFrame:
     return df
 
 
-__all__ = ["SIDECAR", "read_csv", "to_frame", "to_input", "write_new"]
+__all__ = ["SIDECAR", "read_csv", "to_frame", "to_input", "write_atomic", "write_new"]

@@ -132,7 +132,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"failed: {row['run']}: {row['error']}", file=sys.stderr)
             return 1 if len(failed) else 0
         sweep = load_sweep(a.sweep)
-        plan(sweep["surfaces"], sweep["params"], sweep["seed"])
+        try:
+            plan(sweep["surfaces"], sweep["params"], sweep["seed"])
+        except (_native.GonioError, ValueError, TypeError) as e:
+            # The sweep file's tables are what `params[N]` counts.
+            raise _native.ConfigError(f"{a.sweep}: {e}") from None
         failed: list[dict[str, Any]] = []
         with c.client_for(None, a.scheduler, a.workers) as cl:
             _dashboard(cl)

@@ -13,6 +13,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 from gonio import _native
+from gonio._frame import write_atomic
 
 #: Hidden working names in an output directory: a task's files before they are
 #: published, and the chunks of a sweep kept for a rerun.
@@ -151,23 +152,6 @@ def write_json(path: str, value: Any) -> None:
         os.fsync(f.fileno())
 
 
-def write_atomic(path: str, data: bytes) -> None:
-    """Writes ``path`` whole or not at all: a unique temporary name beside it,
-    synced, renamed over it."""
-    tmp = os.path.join(
-        os.path.dirname(path), f"{TMP_PREFIX}{uuid.uuid4().hex}-{os.path.basename(path)}"
-    )
-    try:
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
-
-
 def new_token() -> str:
     """A call's own mark on its hidden working names, so that it cleans up only
     after itself (another batch may be writing to the same directory)."""
@@ -273,4 +257,4 @@ def gather(client: Any, futures: Mapping[Any, Any], progress: bool) -> dict[Any,
     return out
 
 
-__all__: list[str] = []
+__all__ = ["write_atomic"]

@@ -84,6 +84,15 @@ def _read_toml(path: str) -> tuple[str, dict[str, Any]]:
         raise _native.ConfigError(f"{path}: {e}") from None
 
 
+def _micro_flag(micro: list[str], j: int, name: str, value: Any) -> bool:
+    """Whether ``name`` is a flag of ``gonio micro``; a flag's bad value is refused
+    naming the parameter set."""
+    try:
+        return c.takes(micro, c.flag_words(name, True if isinstance(value, bool) else value))
+    except _native.GonioError as e:
+        raise type(e)(f"params[{j}]: {e}") from None
+
+
 def plan(
     surfaces: Sequence[str | os.PathLike[str]], params: Sequence[dict[str, Any]], seed: int = 0
 ) -> list[Table]:
@@ -112,7 +121,7 @@ def plan(
                     if not isinstance(value, int) or isinstance(value, bool) or value < 0:
                         raise ValueError(f"params[{j}]: seed: a whole number ≥ 0, got {value!r}")
                     table_seed = value
-                elif c.takes(micro, c.flag_words(name, True if isinstance(value, bool) else value)):
+                elif _micro_flag(micro, j, name, value):
                     flags += c.flag_words(name, value)
                 else:
                     overrides[name] = value
