@@ -13,6 +13,34 @@ pub enum FrameError {
     /// dropped up to the next terminator.
     #[error("line longer than {0} bytes without a terminator")]
     TooLong(usize),
+    /// Bytes that cannot start a frame of a binary protocol (a header no message has):
+    /// the framer lost step with the stream and dropped them to find it again.
+    #[error("bytes that start no frame (lost synchronisation): {0}")]
+    Desync(&'static str),
+}
+
+/// Cuts a received byte stream into frames: lines for the text protocols
+/// ([`LineFramer`]), messages for binary ones (`apt::AptFramer`). Transports are built
+/// on one, so the same transport carries every protocol.
+pub trait Framer: Send + std::fmt::Debug {
+    /// Adds received bytes.
+    fn push(&mut self, bytes: &[u8]);
+    /// The next complete frame, or an error for bytes that make no frame.
+    fn next_frame(&mut self) -> Option<Result<Vec<u8>, FrameError>>;
+    /// Forgets everything buffered.
+    fn clear(&mut self);
+}
+
+impl Framer for LineFramer {
+    fn push(&mut self, bytes: &[u8]) {
+        LineFramer::push(self, bytes);
+    }
+    fn next_frame(&mut self) -> Option<Result<Vec<u8>, FrameError>> {
+        self.next_line()
+    }
+    fn clear(&mut self) {
+        LineFramer::clear(self);
+    }
 }
 
 /// Splits a byte stream into lines ending in a terminator byte.

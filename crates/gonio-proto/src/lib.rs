@@ -43,9 +43,15 @@
 mod framing;
 pub mod link;
 mod machine;
+/// The errors every motion family's session returns: [`motion::AxisError`] on one
+/// axis, [`motion::MotionError`] naming it. They began as the SMC100's, whose
+/// controller-specific variants they keep.
+pub mod motion {
+    pub use crate::smc100::{AxisError, MotionError};
+}
 mod number;
 pub mod smc100;
 pub mod sr830;
 
-pub use framing::{FrameError, LineFramer};
+pub use framing::{FrameError, Framer, LineFramer};
 pub use link::TransportError;

@@ -21,6 +21,9 @@ pub enum TransportError {
     /// A line longer than the protocol allows, without a terminator.
     #[error("reply line too long (garbage on the line?)")]
     LineTooLong,
+    /// Bytes that make no frame of a binary protocol (line noise, a lost byte).
+    #[error("garbled bytes on the line: {0}")]
+    Garbled(&'static str),
     /// The port is gone (unplugged adapter, closed pseudo-terminal) or cannot be opened.
     #[error("port {port} unavailable: {reason}")]
     Disconnected {
@@ -39,6 +42,7 @@ impl From<FrameError> for TransportError {
         match e {
             FrameError::Nul => TransportError::Nul,
             FrameError::TooLong(_) => TransportError::LineTooLong,
+            FrameError::Desync(why) => TransportError::Garbled(why),
         }
     }
 }

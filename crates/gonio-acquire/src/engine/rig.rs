@@ -361,7 +361,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                     .event("interrupt", Some(id), "stop requested; stages stopped")?;
                 Ok(StepOutcome::Stop(Outcome::Interrupted))
             }
-            AxisError::ControllerReset | AxisError::NotReferenced { .. } => {
+            AxisError::ControllerReset | AxisError::NotReferenced { .. } | AxisError::NotHomed => {
                 self.fault(Some(id), &m, true)?;
                 let _ = self.gonio.motion.stop_all();
                 match self.rehome_lost() {

@@ -1,4 +1,5 @@
-//! What a chain operation returns: its typed errors and what start-up learns.
+//! What a motion operation returns: its typed errors (shared by every motion family,
+//! see `crate::motion`) and what an SMC100's start-up learns.
 
 use std::time::Duration;
 
@@ -106,6 +107,19 @@ pub enum AxisError {
     Ambiguous {
         /// The command line.
         command: String,
+    },
+    /// The stage has no reference (a family whose status says so with a bit, such as
+    /// Thorlabs APT's "homed"): home it again.
+    #[error("stage is not homed; home it again")]
+    NotHomed,
+    /// The controller reported a fault in its own terms (an APT error response, a
+    /// limit switch hit, a motor error bit).
+    #[error("controller fault after `{command}`: {reason}")]
+    Device {
+        /// What was sent, by name.
+        command: String,
+        /// What the controller reported.
+        reason: String,
     },
     /// The operation was aborted; the stages were stopped.
     #[error("aborted; stages stopped")]

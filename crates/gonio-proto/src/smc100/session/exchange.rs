@@ -162,7 +162,9 @@ impl Machine<Smc100Session> for Query {
                     return Step::Done(Err(AxisError::ControllerReset));
                 }
                 Event::LinkError(
-                    e @ (TransportError::Timeout(_) | TransportError::LineTooLong),
+                    e @ (TransportError::Timeout(_)
+                    | TransportError::LineTooLong
+                    | TransportError::Garbled(_)),
                 ) => AxisError::Transport(e),
                 Event::LinkError(e) => return Step::Done(Err(AxisError::Transport(e))),
                 _ => return Step::Wait(Pending::Reply(deadline)),
@@ -287,7 +289,9 @@ impl Machine<Smc100Session> for Checked {
                     }
                     Err(
                         e @ (AxisError::Transport(
-                            TransportError::Timeout(_) | TransportError::LineTooLong,
+                            TransportError::Timeout(_)
+                            | TransportError::LineTooLong
+                            | TransportError::Garbled(_),
                         )
                         | AxisError::Protocol { .. }),
                     ) => {

@@ -290,6 +290,7 @@ fn is_transient(e: &Sr830Error) -> bool {
             | Sr830Error::Transport {
                 source: TransportError::Timeout(_)
                     | TransportError::LineTooLong
+                    | TransportError::Garbled(_)
                     | TransportError::Nul,
                 ..
             }
