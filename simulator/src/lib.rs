@@ -77,7 +77,7 @@ pub fn check_compatible(instrument: &InstrumentConfig, sim: &SimConfig) -> Resul
 
 /// A goniometer driving an in-process simulator over in-memory lines, on the
 /// simulator's clock; and the handle to the simulator (faults, stats, clock).
-pub type SimGoniometer = Goniometer<SimTransport, SimTransport, SimClock>;
+pub type SimGoniometer = Goniometer<SimClock>;
 
 /// Builds a simulator from `sim` and a goniometer from `instrument` that drives it.
 pub fn connect(

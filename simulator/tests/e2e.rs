@@ -72,10 +72,10 @@ fn measures_the_brdf_in_memory() {
             s.optics().sample().eval(wi, wo, &mut f);
             f[0]
         };
-        let f = brdf_from(&scfg, omega, reading.r_mean, wo);
+        let f = brdf_from(&scfg, omega, reading.columns().mean, wo);
         // Samples are spaced by one time constant, so neighbours correlate (e^-1):
         // the variance of their mean is (1+ρ)/(1−ρ) ≈ 2.2 times σ²/n.
-        let sigma = reading.r_std * (2.2 / reading.n as f64).sqrt();
+        let sigma = reading.columns().std * (2.2 / reading.columns().n as f64).sqrt();
         let sigma_f = brdf_from(&scfg, omega, sigma, wo);
         assert!(
             (f - truth).abs() < 5.0 * sigma_f + 1e-6 * truth,
@@ -115,11 +115,11 @@ fn measures_through_real_pseudo_terminals() {
         s.optics().sample().eval(wi, wo, &mut f);
         f[0]
     };
-    let f = brdf_from(&scfg, omega, reading.r_mean, wo);
+    let f = brdf_from(&scfg, omega, reading.columns().mean, wo);
     let sigma_f = brdf_from(
         &scfg,
         omega,
-        reading.r_std * (2.2 / reading.n as f64).sqrt(),
+        reading.columns().std * (2.2 / reading.columns().n as f64).sqrt(),
         wo,
     );
     assert!(
@@ -199,7 +199,7 @@ fn pty_port_closes_and_reopens() {
     let mut chain = gonio_driver::smc100::Smc100Chain::new(
         mt,
         clock.clone(),
-        icfg.motion.axes.clone(),
+        icfg.motion.smc100_axes(),
         icfg.motion.policy(),
     )
     .expect("chain");

@@ -50,7 +50,7 @@ fn a_driver_in_another_process_measures() {
             .expect("measures");
         assert!((pos[0] + 35.0).abs() < 0.01 && (pos[1] - 35.0).abs() < 0.01);
         assert!(reading.is_valid(), "{reading:?}");
-        assert!(reading.r_mean > 0.0);
+        assert!(reading.columns().mean > 0.0);
     }
     assert!(child.try_wait().expect("polls").is_none(), "still serving");
     let sent = Command::new("kill")

@@ -25,7 +25,7 @@ use gonio_driver::InstrumentConfig;
 use gonio_driver::bench::Bench;
 use gonio_plan::{Plan, Prepared, Step};
 use gonio_run::Inputs;
-use gonio_sim::{SimBench, SimClock, SimConfig, SimTransport};
+use gonio_sim::{SimBench, SimClock, SimConfig};
 
 /// 3 incidence angles × 7 polar × 13 azimuthal outgoing angles, with a drift reference
 /// every 50 pairs, a dark and an incident-beam reading: a few hundred steps.
@@ -63,7 +63,7 @@ incident = { transmittance = 1e-3 }
 
 const SEED: u64 = 7;
 
-type SimEngine = Engine<SimTransport, SimTransport, SimClock, SimBench>;
+type SimEngine = Engine<SimClock, SimBench>;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

@@ -95,7 +95,7 @@ fn at(step: i64, f: impl FnOnce(&mut SimInstrument) + Send + 'static) -> (i64, H
     (step, Box::new(f))
 }
 
-type FaultEngine = Engine<SimTransport, SimTransport, SimClock, FaultBench>;
+type FaultEngine = Engine<SimClock, FaultBench>;
 
 /// A new simulator (powered up, nothing homed) with the test seed.
 fn fresh_sim(tweak: impl FnOnce(&mut gonio_sim::SimConfig)) -> SharedSim {

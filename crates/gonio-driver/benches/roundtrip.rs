@@ -48,8 +48,10 @@ fn roundtrip(c: &mut Criterion) {
         path,
         baud: 57600,
         flow: FlowControl::Software,
-        terminator: b'\n',
-        max_line: 128,
+        framing: gonio_driver::Framing::Lines {
+            terminator: b'\n',
+            max_line: 128,
+        },
     };
     let mut g = c.benchmark_group("smc100-roundtrip-pty");
     {

@@ -12,7 +12,7 @@ use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
 
 use crate::smc100::{AxisConfig, ChainPolicy};
 use crate::sr830::Sr830Config;
-use crate::transport::{FlowControl, SerialSettings};
+use crate::transport::{FlowControl, Framing, SerialSettings};
 
 /// A goniometer: its motion chain and its detector.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -33,11 +33,13 @@ pub struct InstrumentConfig {
     pub geometry: GeometryConfig,
 }
 
-/// The serial line of the SMC100 chain and its axes.
+/// The motion axes, their controllers and the timing and retry policy they share.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionConfig {
-    /// Port path (`/dev/ttyUSB0`, a udev name, or a pseudo-terminal).
+    /// The port of the axes that name none (`/dev/ttyUSB0`, `usb:SERIAL`, a udev
+    /// name, or a pseudo-terminal); may be left out when every axis names its own.
+    #[serde(default)]
     pub port: String,
     /// Baud rate: the SMC100's is fixed at 57600.
     #[serde(default = "default_motion_baud")]
@@ -61,7 +63,113 @@ pub struct MotionConfig {
     #[serde(default = "default_reconnect_delay_ms")]
     pub reconnect_delay_ms: u64,
     /// The stages.
-    pub axes: Vec<AxisConfig>,
+    pub axes: Vec<AxisSpec>,
+}
+
+/// The controller family an axis is driven by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ControllerKind {
+    /// A Newport SMC100 on an RS-485 chain (addresses 1–31) behind one serial line.
+    #[default]
+    Smc100,
+}
+
+impl ControllerKind {
+    /// The name configs use.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ControllerKind::Smc100 => "smc100",
+        }
+    }
+}
+
+/// One axis of `[[motion.axes]]`: its name, controller, port, limits and speeds.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisSpec {
+    /// The axis' name in plans and configs (`source`, `detector`, `sample_rot`).
+    pub name: String,
+    /// Its controller family (default `smc100`).
+    #[serde(default)]
+    pub kind: ControllerKind,
+    /// Its port, when not `motion.port`. SMC100 axes on one port form a chain.
+    #[serde(default)]
+    pub port: Option<String>,
+    /// SMC100 address on the chain, 1–31 (SMC100 axes only).
+    #[serde(default)]
+    pub address: u8,
+    /// Position units (`deg` for rotation stages; the only units of the APT stages).
+    #[serde(default = "default_units")]
+    pub units: String,
+    /// Lowest position the driver will ever command, units.
+    pub min: f64,
+    /// Highest position the driver will ever command, units.
+    pub max: f64,
+    /// Velocity applied after homing, units/s; the controller's own otherwise.
+    #[serde(default)]
+    pub velocity: Option<f64>,
+    /// Acceleration applied after homing, units/s².
+    #[serde(default)]
+    pub acceleration: Option<f64>,
+    /// Largest |position − target| accepted at the end of a move, units.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Longest a home search may take, s.
+    #[serde(default = "default_home_timeout")]
+    pub home_timeout_s: f64,
+}
+
+fn default_units() -> String {
+    "deg".into()
+}
+fn default_tolerance() -> f64 {
+    0.01
+}
+fn default_home_timeout() -> f64 {
+    120.0
+}
+
+impl AxisSpec {
+    /// The axis as an SMC100 chain's session takes it.
+    pub fn smc100(&self) -> AxisConfig {
+        AxisConfig {
+            name: self.name.clone(),
+            address: self.address,
+            units: self.units.clone(),
+            min: self.min,
+            max: self.max,
+            velocity: self.velocity,
+            acceleration: self.acceleration,
+            tolerance: self.tolerance,
+            home_timeout_s: self.home_timeout_s,
+        }
+    }
+}
+
+/// One serial line of the motion system, and what is on it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionLine {
+    /// The configured port name.
+    pub port: String,
+    /// The controllers on it.
+    pub kind: LineKind,
+}
+
+/// What a motion line carries.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LineKind {
+    /// A chain of SMC100 controllers, in config order.
+    Smc100(Vec<AxisConfig>),
+}
+
+impl MotionLine {
+    /// The names of the axes on the line.
+    pub fn axis_names(&self) -> Vec<String> {
+        match &self.kind {
+            LineKind::Smc100(axes) => axes.iter().map(|a| a.name.clone()).collect(),
+        }
+    }
 }
 
 fn default_motion_baud() -> u32 {
@@ -111,6 +219,57 @@ fn default_detector_flow() -> FlowControl {
 }
 
 impl MotionConfig {
+    /// The port an axis is on: its own, else `motion.port`.
+    pub fn port_of<'a>(&'a self, axis: &'a AxisSpec) -> &'a str {
+        axis.port.as_deref().unwrap_or(&self.port)
+    }
+
+    /// The serial lines and what each carries, in the order their first axis appears.
+    pub fn lines(&self) -> Vec<MotionLine> {
+        let mut lines: Vec<MotionLine> = Vec::new();
+        for a in &self.axes {
+            let port = self.port_of(a);
+            match a.kind {
+                ControllerKind::Smc100 => {
+                    if let Some(LineKind::Smc100(axes)) = lines
+                        .iter_mut()
+                        .find(|l| l.port == port)
+                        .map(|l| &mut l.kind)
+                    {
+                        axes.push(a.smc100());
+                    } else {
+                        lines.push(MotionLine {
+                            port: port.to_string(),
+                            kind: LineKind::Smc100(vec![a.smc100()]),
+                        });
+                    }
+                }
+            }
+        }
+        lines
+    }
+
+    /// The SMC100 axes, as one chain's session takes them (the config of an
+    /// instrument whose axes are all SMC100s on one line).
+    pub fn smc100_axes(&self) -> Vec<AxisConfig> {
+        self.axes
+            .iter()
+            .filter(|a| a.kind == ControllerKind::Smc100)
+            .map(AxisSpec::smc100)
+            .collect()
+    }
+
+    /// The serial settings of a line: the family's framing, `motion.baud` and
+    /// `motion.flow` for SMC100 chains.
+    pub fn line_serial(&self, line: &MotionLine) -> SerialSettings {
+        match line.kind {
+            LineKind::Smc100(_) => SerialSettings {
+                path: line.port.clone(),
+                ..self.serial()
+            },
+        }
+    }
+
     /// The chain's timing and retry policy.
     pub fn policy(&self) -> ChainPolicy {
         ChainPolicy {
@@ -129,8 +288,10 @@ impl MotionConfig {
             path: self.port.clone(),
             baud: self.baud,
             flow: self.flow,
-            terminator: b'\n',
-            max_line: gonio_proto::smc100::MAX_LINE,
+            framing: Framing::Lines {
+                terminator: b'\n',
+                max_line: gonio_proto::smc100::MAX_LINE,
+            },
         }
     }
 }
@@ -142,8 +303,10 @@ impl DetectorConfig {
             path: self.port.clone(),
             baud: self.baud,
             flow: self.flow,
-            terminator: gonio_proto::sr830::REPLY_TERMINATOR,
-            max_line: gonio_proto::sr830::MAX_LINE,
+            framing: Framing::Lines {
+                terminator: gonio_proto::sr830::REPLY_TERMINATOR,
+                max_line: gonio_proto::sr830::MAX_LINE,
+            },
         }
     }
 }
@@ -236,7 +399,7 @@ impl InstrumentConfig {
         use gonio_core::limits::count_at;
         let err = |f: String, m: &str| Err((f, m.to_string()));
         let m = &self.motion;
-        if m.port.trim().is_empty() {
+        if m.port.trim().is_empty() && m.axes.iter().all(|a| a.port.is_none()) {
             return err("motion.port".into(), "must name a port");
         }
         count_at(
@@ -289,7 +452,16 @@ impl InstrumentConfig {
             if a.name.trim().is_empty() {
                 return err(f("name"), "must not be empty");
             }
-            if !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address) {
+            match &a.port {
+                Some(p) if p.trim().is_empty() => return err(f("port"), "must name a port"),
+                None if m.port.trim().is_empty() => {
+                    return err(f("port"), "must name a port (there is no `motion.port`)");
+                }
+                _ => {}
+            }
+            if a.kind == ControllerKind::Smc100
+                && !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address)
+            {
                 return err(f("address"), "must be in 1..=31");
             }
             limits::POSITION.at(f("min"), a.min)?;
@@ -308,7 +480,9 @@ impl InstrumentConfig {
             if let Some(j) = m.axes[..i].iter().position(|b| b.name == a.name) {
                 return Err((f("name"), format!("repeats the name of motion.axes[{j}]")));
             }
-            if let Some(j) = m.axes[..i].iter().position(|b| b.address == a.address) {
+            if let Some(j) = m.axes[..i].iter().position(|b| {
+                b.kind == a.kind && m.port_of(b) == m.port_of(a) && b.address == a.address
+            }) {
                 return Err((
                     f("address"),
                     format!("repeats the address of motion.axes[{j}]"),

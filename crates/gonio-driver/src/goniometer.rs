@@ -1,10 +1,12 @@
-//! A goniometer: named axes on an SMC100 chain and an SR830 detector.
+//! A goniometer: named axes on whatever controllers the lab owns, and a detector.
 
 use crate::clock::{Clock, SystemClock};
-use crate::config::InstrumentConfig;
-use crate::smc100::{ControllerInfo, MotionError, Smc100Chain};
-use crate::sr830::{Reading, Sr830, Sr830Error};
-use crate::transport::{SerialTransport, Transport, TransportError};
+use crate::config::{DetectorConfig, InstrumentConfig, LineKind, MotionLine};
+use crate::detector::{Detector, DetectorError, Reading};
+use crate::motion::{AxisInfo, Line, Motion};
+use crate::smc100::{MotionError, Smc100Chain};
+use crate::sr830::Sr830;
+use crate::transport::{SerialSettings, SerialTransport, Transport, TransportError};
 
 /// Why a goniometer operation failed.
 #[derive(Debug, thiserror::Error)]
@@ -18,84 +20,143 @@ pub enum GoniometerError {
         #[source]
         source: TransportError,
     },
-    /// The motion chain failed.
+    /// The motion system failed.
     #[error("motion: {0}")]
     Motion(#[from] MotionError),
     /// The detector failed.
     #[error("detector: {0}")]
-    Detector(#[from] Sr830Error),
+    Detector(#[from] DetectorError),
+    /// Transports given do not match the config's lines.
+    #[error("{0}")]
+    Lines(String),
 }
 
 /// What the instrument said about itself at start-up.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StartupReport {
     /// Each axis' name and controller.
-    pub axes: Vec<(String, ControllerInfo)>,
-    /// The lock-in's `*IDN?` reply.
+    pub axes: Vec<(String, AxisInfo)>,
+    /// The detector's identity.
     pub detector: String,
 }
 
-/// The stages and the detector of one instrument, each on its own serial line.
-pub struct Goniometer<M: Transport, D: Transport, C: Clock> {
-    /// The SMC100 chain.
-    pub motion: Smc100Chain<M, C>,
-    /// The SR830.
-    pub detector: Sr830<D, C>,
+/// What a port is opened for: handed to the opener of [`Goniometer::from_ports`].
+#[derive(Clone, Copy, Debug)]
+pub enum PortUse<'a> {
+    /// A motion line and what it carries.
+    Motion(&'a MotionLine),
+    /// The detector.
+    Detector(&'a DetectorConfig),
 }
 
-impl Goniometer<SerialTransport, SerialTransport, SystemClock> {
+/// The stages and the detector of one instrument, each line its own transport.
+#[derive(Debug)]
+pub struct Goniometer<C: Clock + Clone> {
+    /// Every motion axis.
+    pub motion: Motion<C>,
+    /// The detector.
+    pub detector: Detector<C>,
+}
+
+impl Goniometer<SystemClock> {
     /// Opens the ports a validated config names.
     pub fn open(cfg: &InstrumentConfig) -> Result<Self, GoniometerError> {
-        let m =
-            SerialTransport::open(cfg.motion.serial()).map_err(|source| GoniometerError::Open {
-                role: "motion",
-                source,
-            })?;
-        let d = SerialTransport::open(cfg.detector.serial()).map_err(|source| {
-            GoniometerError::Open {
-                role: "detector",
-                source,
-            }
-        })?;
-        Self::from_transports(cfg, m, d, SystemClock::new(), SystemClock::new())
+        Self::from_ports(
+            cfg,
+            |_, settings| Ok(Box::new(SerialTransport::open(settings)?)),
+            SystemClock::new(),
+        )
     }
 }
 
-impl<M: Transport, D: Transport, C: Clock> Goniometer<M, D, C> {
-    /// Builds the instrument over given transports (a simulator, a script).
-    pub fn from_transports(
+impl<C: Clock + Clone> Goniometer<C> {
+    /// Builds the instrument, opening each line with `open` (given what the line is
+    /// for and the settings a serial port would need).
+    pub fn from_ports(
+        cfg: &InstrumentConfig,
+        mut open: impl FnMut(PortUse<'_>, SerialSettings) -> Result<Box<dyn Transport>, TransportError>,
+        clock: C,
+    ) -> Result<Self, GoniometerError> {
+        let mut lines = Vec::new();
+        for line in cfg.motion.lines() {
+            let t =
+                open(PortUse::Motion(&line), cfg.motion.line_serial(&line)).map_err(|source| {
+                    GoniometerError::Open {
+                        role: "motion",
+                        source,
+                    }
+                })?;
+            lines.push(Self::line(cfg, &line, t, clock.clone())?);
+        }
+        let d =
+            open(PortUse::Detector(&cfg.detector), cfg.detector.serial()).map_err(|source| {
+                GoniometerError::Open {
+                    role: "detector",
+                    source,
+                }
+            })?;
+        let detector = Self::detector(cfg, d, clock.clone())?;
+        Ok(Goniometer {
+            motion: Motion::new(lines, clock)?,
+            detector,
+        })
+    }
+
+    /// Builds the instrument over given transports (a simulator, a script), for a
+    /// config whose axes are all on one line.
+    pub fn from_transports<M: Transport + 'static, D: Transport + 'static>(
         cfg: &InstrumentConfig,
         motion: M,
         detector: D,
         motion_clock: C,
         detector_clock: C,
     ) -> Result<Self, GoniometerError> {
-        let motion = Smc100Chain::new(
-            motion,
-            motion_clock,
-            cfg.motion.axes.clone(),
-            cfg.motion.policy(),
-        )?;
-        let detector = Sr830::new(detector, detector_clock, cfg.detector.lockin.clone())?;
-        Ok(Goniometer { motion, detector })
+        let lines = cfg.motion.lines();
+        let [line] = lines.as_slice() else {
+            return Err(GoniometerError::Lines(format!(
+                "the config has {} motion lines; one transport was given",
+                lines.len()
+            )));
+        };
+        let line = Self::line(cfg, line, Box::new(motion), motion_clock.clone())?;
+        let detector = Self::detector(cfg, Box::new(detector), detector_clock)?;
+        Ok(Goniometer {
+            motion: Motion::new(vec![line], motion_clock)?,
+            detector,
+        })
     }
 
-    /// Identifies every controller and sets the lock-in up: what runs before anything
+    fn line(
+        cfg: &InstrumentConfig,
+        line: &MotionLine,
+        t: Box<dyn Transport>,
+        clock: C,
+    ) -> Result<Line<C>, GoniometerError> {
+        Ok(match &line.kind {
+            LineKind::Smc100(axes) => Line::Smc100(Smc100Chain::new(
+                t,
+                clock,
+                axes.clone(),
+                cfg.motion.policy(),
+            )?),
+        })
+    }
+
+    fn detector(
+        cfg: &InstrumentConfig,
+        t: Box<dyn Transport>,
+        clock: C,
+    ) -> Result<Detector<C>, GoniometerError> {
+        let d = Sr830::new(t, clock, cfg.detector.lockin.clone()).map_err(DetectorError::from)?;
+        Ok(Detector::Sr830(d))
+    }
+
+    /// Identifies every controller and sets the detector up: what runs before anything
     /// moves.
     pub fn start(&mut self) -> Result<StartupReport, GoniometerError> {
-        let infos = self.motion.identify()?;
-        let axes = self
-            .motion
-            .axes()
-            .iter()
-            .map(|a| a.name.clone())
-            .zip(infos)
-            .collect();
-        let id = self.detector.setup()?;
-        Ok(StartupReport {
-            axes,
-            detector: id.to_string(),
-        })
+        let axes = self.motion.identify()?;
+        let detector = self.detector.setup()?;
+        Ok(StartupReport { axes, detector })
     }
 
     /// Homes every axis.
@@ -104,7 +165,7 @@ impl<M: Transport, D: Transport, C: Clock> Goniometer<M, D, C> {
     }
 
     /// Moves the named axes (concurrently) and takes a detector reading there, after
-    /// the lock-in's filters have settled on the new signal.
+    /// the detector has settled on the new signal.
     pub fn measure_at(
         &mut self,
         targets: &[(&str, f64)],

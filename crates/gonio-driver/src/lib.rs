@@ -24,7 +24,10 @@
 pub mod bench;
 pub mod clock;
 pub mod config;
+pub mod detector;
 mod goniometer;
+pub mod motion;
+pub mod ports;
 mod pump;
 pub mod script;
 pub mod smc100;
@@ -34,6 +37,10 @@ mod transport;
 pub use bench::{Bench, BenchError, OperatorBench, Setup};
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use config::{ConfigFileError, InstrumentConfig};
-pub use goniometer::{Goniometer, GoniometerError, StartupReport};
+pub use detector::{Detector, DetectorError};
+pub use goniometer::{Goniometer, GoniometerError, PortUse, StartupReport};
+pub use motion::Motion;
 pub use script::ScriptedTransport;
-pub use transport::{FlowControl, SerialSettings, SerialTransport, Transport, TransportError};
+pub use transport::{
+    FlowControl, Framing, SerialSettings, SerialTransport, Transport, TransportError,
+};

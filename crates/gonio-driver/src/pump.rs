@@ -55,28 +55,7 @@ pub(crate) fn pump<O: Operation>(
     mut op: O,
 ) -> O::Output {
     loop {
-        while let Some(io) = op.poll_io() {
-            match io {
-                Io::Transmit(bytes) => {
-                    trace!(target: "gonio_driver::wire", port, dir = "tx", line = %Escaped(bytes));
-                    let r = link.send(bytes);
-                    if let Err(e) = &r {
-                        debug!(port, error = %e, "send failed");
-                    }
-                    op.handle_sent(clock.now(), r);
-                }
-                Io::ClearInput => {
-                    // A failure to flush changes nothing the next exchange relies on:
-                    // a vanished port shows on the next send.
-                    let _ = link.clear_input();
-                }
-                Io::Reconnect => {
-                    let r = link.reconnect();
-                    debug!(port, ok = r.is_ok(), "reconnect attempted");
-                    op.handle_reconnected(clock.now(), r);
-                }
-            }
-        }
+        do_io(link, clock, port, &mut op);
         if let Some(out) = op.poll_output() {
             return out;
         }
@@ -84,33 +63,146 @@ pub(crate) fn pump<O: Operation>(
         let Some(deadline) = op.poll_timeout() else {
             continue;
         };
-        match deadline {
-            Deadline::Reply(at) => {
-                let r = link.receive_line(at.saturating_sub(clock.now()));
-                let now = clock.now();
-                match r {
-                    Ok(line) => {
-                        trace!(
-                            target: "gonio_driver::wire",
-                            port,
-                            dir = "rx",
-                            line = %Escaped(&line),
-                        );
-                        op.handle_line(now, &line);
-                    }
-                    Err(e) => {
-                        trace!(target: "gonio_driver::wire", port, dir = "rx", error = %e);
-                        op.handle_link_error(now, e);
-                    }
+        let aborting = abort.is_some_and(AbortFlag::is_raised);
+        wait(link, clock, port, &mut op, deadline, aborting);
+    }
+}
+
+/// One operation of [`pump_many`]: the line it runs on, the line's name, the
+/// operation.
+pub(crate) type Slot<'a, T> = (
+    &'a mut dyn Transport,
+    &'a str,
+    Box<dyn Operation<Output = T> + 'a>,
+);
+
+/// Runs several operations, each on its own line, to their ends together on one
+/// thread: the way a move of stages on different controllers runs concurrently.
+///
+/// An operation waiting for a reply is served first (replies take milliseconds);
+/// otherwise the earliest pause or sleep is waited out. Once the `abort` flag is
+/// raised, or one operation has ended in `failed`, every other operation is aborted at
+/// its next abort point, so that a fault on one line stops the stages on every line.
+/// With one operation this is [`pump`], event for event.
+pub(crate) fn pump_many<T>(
+    mut slots: Vec<Slot<'_, T>>,
+    clock: &impl Clock,
+    abort: Option<&AbortFlag>,
+    failed: impl Fn(&T) -> bool,
+) -> Vec<T> {
+    let mut out: Vec<Option<T>> = slots.iter().map(|_| None).collect();
+    let mut peer_failed = false;
+    loop {
+        for (slot, done) in slots.iter_mut().zip(out.iter_mut()) {
+            if done.is_some() {
+                continue;
+            }
+            let (link, port, op) = slot;
+            do_io(&mut **link, clock, port, op.as_mut());
+            if let Some(o) = op.poll_output() {
+                peer_failed |= failed(&o);
+                *done = Some(o);
+            }
+        }
+        if out.iter().all(Option::is_some) {
+            return out.into_iter().flatten().collect();
+        }
+        let deadlines: Vec<(usize, Deadline)> = slots
+            .iter()
+            .zip(&out)
+            .enumerate()
+            .filter(|(_, (_, done))| done.is_none())
+            .filter_map(|(i, ((_, _, op), _))| Some((i, op.poll_timeout()?)))
+            .collect();
+        let aborting = peer_failed || abort.is_some_and(AbortFlag::is_raised);
+        let polls: Vec<usize> = deadlines
+            .iter()
+            .filter(|(_, d)| matches!(d, Deadline::Poll(_)))
+            .map(|(i, _)| *i)
+            .collect();
+        if aborting && !polls.is_empty() {
+            for i in polls {
+                slots[i].2.handle_abort(clock.now());
+            }
+            continue;
+        }
+        let next = deadlines
+            .iter()
+            .find(|(_, d)| matches!(d, Deadline::Reply(_)))
+            .or_else(|| deadlines.iter().min_by_key(|(_, d)| d.at()));
+        let Some(&(i, deadline)) = next else {
+            continue;
+        };
+        let (link, port, op) = &mut slots[i];
+        wait(&mut **link, clock, port, op.as_mut(), deadline, aborting);
+    }
+}
+
+/// Does every I/O the operation asks for, until it asks for none.
+fn do_io<L: Transport + ?Sized, O: Operation + ?Sized>(
+    link: &mut L,
+    clock: &impl Clock,
+    port: &str,
+    op: &mut O,
+) {
+    while let Some(io) = op.poll_io() {
+        match io {
+            Io::Transmit(bytes) => {
+                trace!(target: "gonio_driver::wire", port, dir = "tx", line = %Escaped(bytes));
+                let r = link.send(bytes);
+                if let Err(e) = &r {
+                    debug!(port, error = %e, "send failed");
+                }
+                op.handle_sent(clock.now(), r);
+            }
+            Io::ClearInput => {
+                // A failure to flush changes nothing the next exchange relies on:
+                // a vanished port shows on the next send.
+                let _ = link.clear_input();
+            }
+            Io::Reconnect => {
+                let r = link.reconnect();
+                debug!(port, ok = r.is_ok(), "reconnect attempted");
+                op.handle_reconnected(clock.now(), r);
+            }
+        }
+    }
+}
+
+/// Waits as `deadline` says and hands in what happened; at an abort point with
+/// `aborting`, hands in the abort instead.
+fn wait<L: Transport + ?Sized, O: Operation + ?Sized>(
+    link: &mut L,
+    clock: &impl Clock,
+    port: &str,
+    op: &mut O,
+    deadline: Deadline,
+    aborting: bool,
+) {
+    match deadline {
+        Deadline::Reply(at) => {
+            let r = link.receive_line(at.saturating_sub(clock.now()));
+            let now = clock.now();
+            match r {
+                Ok(line) => {
+                    trace!(
+                        target: "gonio_driver::wire",
+                        port,
+                        dir = "rx",
+                        line = %Escaped(&line),
+                    );
+                    op.handle_line(now, &line);
+                }
+                Err(e) => {
+                    trace!(target: "gonio_driver::wire", port, dir = "rx", error = %e);
+                    op.handle_link_error(now, e);
                 }
             }
-            Deadline::Poll(_) if abort.is_some_and(AbortFlag::is_raised) => {
-                op.handle_abort(clock.now());
-            }
-            Deadline::Poll(at) | Deadline::Sleep(at) => {
-                clock.sleep(at.saturating_sub(clock.now()));
-                op.handle_timeout(clock.now());
-            }
+        }
+        Deadline::Poll(_) if aborting => op.handle_abort(clock.now()),
+        Deadline::Poll(at) | Deadline::Sleep(at) => {
+            clock.sleep(at.saturating_sub(clock.now()));
+            op.handle_timeout(clock.now());
         }
     }
 }

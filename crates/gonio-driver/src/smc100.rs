@@ -23,7 +23,7 @@ use tracing::debug_span;
 
 use crate::clock::Clock;
 pub use crate::pump::AbortFlag;
-use crate::pump::pump;
+use crate::pump::{Slot, pump};
 use crate::transport::Transport;
 
 /// A chain of SMC100 controllers sharing one serial line.
@@ -78,6 +78,24 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     /// The flag that aborts waits; clone it to raise it from elsewhere.
     pub fn abort_flag(&self) -> AbortFlag {
         self.abort.clone()
+    }
+
+    /// The chain with `flag` as its abort flag: a motion system of several lines
+    /// shares one.
+    pub fn with_abort_flag(mut self, flag: AbortFlag) -> Self {
+        self.abort = flag;
+        self
+    }
+
+    /// A move of the chain's axes among `targets`, started but not pumped: one slot of
+    /// a concurrent move over several lines.
+    pub(crate) fn move_slot<'a>(
+        &'a mut self,
+        targets: &[(&str, f64)],
+    ) -> Slot<'a, Result<Vec<f64>, MotionError>> {
+        let now = self.clock.now();
+        let op = self.session.start_move(targets, now);
+        (&mut self.transport, self.port.as_str(), Box::new(op))
     }
 
     /// Exchanges sent again after a lost, late or garbled reply since the chain was

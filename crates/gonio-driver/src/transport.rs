@@ -3,18 +3,21 @@
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use gonio_proto::LineFramer;
 pub use gonio_proto::TransportError;
+use gonio_proto::{Framer, LineFramer};
 
-/// A byte link to an instrument, framed into lines.
+use crate::ports;
+
+/// A byte link to an instrument, framed into lines (the text protocols) or messages
+/// (binary ones): a "line" below is one frame of the link's [`Framing`].
 ///
 /// Implemented by [`SerialTransport`] (a real port or pseudo-terminal) and by
 /// [`ScriptedTransport`](crate::ScriptedTransport) (tests).
 pub trait Transport: Send {
-    /// Sends `bytes` (one command line, terminator included).
+    /// Sends `bytes` (one command line, terminator included, or one message).
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError>;
-    /// The next line the instrument sends, terminator removed, waiting at most
-    /// `timeout`.
+    /// The next line (or message) the instrument sends, terminator removed, waiting
+    /// at most `timeout`.
     fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError>;
     /// Discards everything received and not yet read (stale replies after a timeout).
     fn clear_input(&mut self) -> Result<(), TransportError>;
@@ -22,6 +25,51 @@ pub trait Transport: Send {
     fn reconnect(&mut self) -> Result<(), TransportError>;
     /// The port's name, for error messages.
     fn name(&self) -> String;
+}
+
+/// A boxed transport is one: an instrument with several lines of different kinds
+/// holds them all as `Box<dyn Transport>`.
+impl Transport for Box<dyn Transport> {
+    fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        (**self).send(bytes)
+    }
+    fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError> {
+        (**self).receive_line(timeout)
+    }
+    fn clear_input(&mut self) -> Result<(), TransportError> {
+        (**self).clear_input()
+    }
+    fn reconnect(&mut self) -> Result<(), TransportError> {
+        (**self).reconnect()
+    }
+    fn name(&self) -> String {
+        (**self).name()
+    }
+}
+
+/// How a link's byte stream is cut into frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Framing {
+    /// Lines ending in `terminator` (a CR before an LF terminator is dropped), at most
+    /// `max_line` bytes: the SMC100, the SR830, SCPI instruments.
+    Lines {
+        /// The byte that ends a received line.
+        terminator: u8,
+        /// The longest line accepted.
+        max_line: usize,
+    },
+}
+
+impl Framing {
+    /// A framer for this framing.
+    pub fn framer(self) -> Box<dyn Framer> {
+        match self {
+            Framing::Lines {
+                terminator,
+                max_line,
+            } => Box::new(LineFramer::new(terminator, max_line)),
+        }
+    }
 }
 
 /// Software (Xon/Xoff) or hardware (RTS/CTS) flow control.
@@ -39,23 +87,23 @@ pub enum FlowControl {
 /// How to open a serial port: 8 data bits, no parity, 1 stop bit, and these.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SerialSettings {
-    /// Port path (`/dev/ttyUSB0`, `/dev/pts/3`).
+    /// Port path (`/dev/ttyUSB0`, `/dev/pts/3`), or `usb:SERIAL`: the USB serial
+    /// device with that serial number, found again at every (re)connection, since
+    /// paths reorder when adapters are replugged or the machine reboots.
     pub path: String,
     /// Baud rate.
     pub baud: u32,
     /// Flow control.
     pub flow: FlowControl,
-    /// The byte that ends a received line.
-    pub terminator: u8,
-    /// The longest line accepted.
-    pub max_line: usize,
+    /// How received bytes are cut into frames.
+    pub framing: Framing,
 }
 
-/// A serial port (or pseudo-terminal) at a path, with line framing.
+/// A serial port (or pseudo-terminal) at a path, with its protocol's framing.
 pub struct SerialTransport {
     settings: SerialSettings,
     port: Option<Box<dyn serialport::SerialPort>>,
-    framer: LineFramer,
+    framer: Box<dyn Framer>,
 }
 
 impl std::fmt::Debug for SerialTransport {
@@ -73,7 +121,7 @@ const POLL: Duration = Duration::from_millis(5);
 impl SerialTransport {
     /// Opens the port.
     pub fn open(settings: SerialSettings) -> Result<Self, TransportError> {
-        let framer = LineFramer::new(settings.terminator, settings.max_line);
+        let framer = settings.framing.framer();
         let mut t = SerialTransport {
             settings,
             port: None,
@@ -113,7 +161,7 @@ impl Transport for SerialTransport {
         let deadline = Instant::now() + timeout;
         let mut buf = [0u8; 256];
         loop {
-            if let Some(line) = self.framer.next_line() {
+            if let Some(line) = self.framer.next_frame() {
                 return line.map_err(TransportError::from);
             }
             let now = Instant::now();
@@ -152,7 +200,11 @@ impl Transport for SerialTransport {
             FlowControl::Software => serialport::FlowControl::Software,
             FlowControl::Hardware => serialport::FlowControl::Hardware,
         };
-        let port = serialport::new(&s.path, s.baud)
+        let path = ports::resolve(&s.path).map_err(|reason| TransportError::Disconnected {
+            port: s.path.clone(),
+            reason,
+        })?;
+        let port = serialport::new(&path, s.baud)
             .data_bits(serialport::DataBits::Eight)
             .parity(serialport::Parity::None)
             .stop_bits(serialport::StopBits::One)

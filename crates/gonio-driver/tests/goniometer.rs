@@ -247,18 +247,14 @@ fn start_home_and_measure() {
     assert_eq!(pos, vec![30.0, -45.0]);
     assert!(reading.is_valid());
     assert!(
-        (reading.r_mean - 0.0075).abs() < 1e-15,
+        (reading.columns().mean - 0.0075).abs() < 1e-15,
         "{}",
-        reading.r_mean
+        reading.columns().mean
     );
     finish(g, &m, &d);
 }
 
-fn finish(
-    g: Goniometer<ScriptedTransport, ScriptedTransport, ManualClock>,
-    m: &ScriptHandle,
-    d: &ScriptHandle,
-) {
+fn finish(g: Goniometer<ManualClock>, m: &ScriptHandle, d: &ScriptHandle) {
     m.send("ST\r\n");
     drop(g);
     m.finish().expect("motion transcript");

@@ -21,8 +21,10 @@ fn smc100_identifies() {
         path: port("GONIO_SMC100_PORT"),
         baud: 57600,
         flow: FlowControl::Software,
-        terminator: b'\n',
-        max_line: gonio_proto::smc100::MAX_LINE,
+        framing: gonio_driver::Framing::Lines {
+            terminator: b'\n',
+            max_line: gonio_proto::smc100::MAX_LINE,
+        },
     })
     .expect("port opens");
     let axis = AxisConfig {
@@ -52,8 +54,10 @@ fn sr830_reads() {
         path: port("GONIO_SR830_PORT"),
         baud: 9600,
         flow: FlowControl::None,
-        terminator: b'\r',
-        max_line: gonio_proto::sr830::MAX_LINE,
+        framing: gonio_driver::Framing::Lines {
+            terminator: b'\r',
+            max_line: gonio_proto::sr830::MAX_LINE,
+        },
     })
     .expect("port opens");
     let cfg = Sr830Config {

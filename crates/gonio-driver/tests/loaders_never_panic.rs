@@ -40,7 +40,7 @@ fn load(text: &str) -> Result<(), TestCaseError> {
     // The drivers accept what the config accepted: nothing is sent until set-up.
     let clock = ManualClock::new();
     let (t, _) = ScriptedTransport::new(b'\r', 64, clock.clone());
-    let chain = Smc100Chain::new(t, clock.clone(), c.motion.axes.clone(), c.motion.policy());
+    let chain = Smc100Chain::new(t, clock.clone(), c.motion.smc100_axes(), c.motion.policy());
     prop_assert!(chain.is_ok(), "{:?}", chain.err());
     let (t, _) = ScriptedTransport::new(b'\r', 64, clock.clone());
     let lockin = Sr830::new(t, clock, c.detector.lockin.clone());

@@ -15,8 +15,10 @@ fn settings(path: &str) -> SerialSettings {
         path: path.to_string(),
         baud: 57600,
         flow: FlowControl::None,
-        terminator: b'\n',
-        max_line: 128,
+        framing: gonio_driver::Framing::Lines {
+            terminator: b'\n',
+            max_line: 128,
+        },
     }
 }
 

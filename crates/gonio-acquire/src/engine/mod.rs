@@ -25,7 +25,7 @@
 use gonio_core::goniometer::Mechanics;
 use gonio_driver::bench::{Bench, Setup};
 use gonio_driver::smc100::AbortFlag;
-use gonio_driver::{Clock, Goniometer, Transport};
+use gonio_driver::{Clock, Goniometer};
 use gonio_plan::StepKind;
 use gonio_run::{RunStore, StoreError};
 use tokio::sync::broadcast;
@@ -191,22 +191,20 @@ pub struct SessionReport {
 }
 
 /// A run in progress: the goniometer, the bench and the run file.
-pub struct Engine<M: Transport, D: Transport, C: Clock, B: Bench> {
-    rig: Rig<M, D, C, B>,
+pub struct Engine<C: Clock + Clone, B: Bench> {
+    rig: Rig<C, B>,
     stopper: Stopper,
 }
 
-impl<M, D, C, B> Engine<M, D, C, B>
+impl<C, B> Engine<C, B>
 where
-    M: Transport + Send + 'static,
-    D: Transport + Send + 'static,
-    C: Clock + Send + 'static,
+    C: Clock + Clone + Send + 'static,
     B: Bench + 'static,
 {
     /// An engine that will take `store`'s pending steps on `gonio`, whose stages play
     /// the roles of `mech`.
     pub fn new(
-        gonio: Goniometer<M, D, C>,
+        gonio: Goniometer<C>,
         bench: B,
         store: RunStore,
         mech: Mechanics,
@@ -324,17 +322,12 @@ where
 }
 
 /// Runs `f` on the blocking pool with the rig, and hands the rig back.
-async fn blocking<M, D, C, B, T, F>(
-    rig: Rig<M, D, C, B>,
-    f: F,
-) -> Result<(Rig<M, D, C, B>, T), EngineError>
+async fn blocking<C, B, T, F>(rig: Rig<C, B>, f: F) -> Result<(Rig<C, B>, T), EngineError>
 where
-    M: Transport + Send + 'static,
-    D: Transport + Send + 'static,
-    C: Clock + Send + 'static,
+    C: Clock + Clone + Send + 'static,
     B: Bench + 'static,
     T: Send + 'static,
-    F: FnOnce(&mut Rig<M, D, C, B>) -> T + Send + 'static,
+    F: FnOnce(&mut Rig<C, B>) -> T + Send + 'static,
 {
     let mut rig = rig;
     tokio::task::spawn_blocking(move || {

@@ -6,10 +6,10 @@ use std::time::Duration;
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
 use gonio_core::kinematics;
+use gonio_driver::detector::{DetectorError, Disposition, Reading};
+use gonio_driver::motion::AxisState;
 use gonio_driver::smc100::{AxisError, MotionError};
-use gonio_driver::sr830::{Reading, Sr830Error};
-use gonio_driver::{Clock, Goniometer, Transport, TransportError};
-use gonio_proto::sr830::Sensitivity;
+use gonio_driver::{Clock, Goniometer, TransportError};
 use tokio::sync::broadcast;
 
 use gonio_core::goniometer::Mechanics;
@@ -29,8 +29,8 @@ pub(super) enum StepOutcome {
 }
 
 /// The instrument, the bench and the store: what travels into each step.
-pub(super) struct Rig<M: Transport, D: Transport, C: Clock, B: Bench> {
-    pub(super) gonio: Goniometer<M, D, C>,
+pub(super) struct Rig<C: Clock + Clone, B: Bench> {
+    pub(super) gonio: Goniometer<C>,
     pub(super) bench: B,
     pub(super) store: RunStore,
     pub(super) mech: Mechanics,
@@ -74,7 +74,7 @@ fn axis_fault(e: &MotionError) -> Option<(&str, &AxisError)> {
     }
 }
 
-impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
+impl<C: Clock + Clone, B: Bench> Rig<C, B> {
     fn physical_s(&self) -> f64 {
         self.gonio
             .motion
@@ -153,7 +153,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
                 report
                     .axes
                     .iter()
-                    .map(|(n, i)| format!("{n}: {} ({})", i.stage, i.state))
+                    .map(|(n, i)| format!("{n}: {}", i.description()))
                     .collect::<Vec<_>>()
                     .join(", ")
             ),
@@ -161,7 +161,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
         let unreferenced: Vec<String> = report
             .axes
             .iter()
-            .filter(|(_, i)| !i.state.is_ready())
+            .filter(|(_, i)| !i.referenced)
             .map(|(n, _)| n.clone())
             .collect();
         if !unreferenced.is_empty() {
@@ -185,16 +185,21 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
         // same path as it would have without the interruption.
         if let Some(first) = pending.first()
             && let Some(last) = self.store.last_reading_before(first.id)?
-            && let Some(sens) = Sensitivity::new(last.sensitivity)
-            && sens != self.gonio.detector.sensitivity()
+            && last.sensitivity != self.gonio.detector.range()
         {
-            if let Err(e) = self.gonio.detector.set_sensitivity(sens) {
-                let m = format!("restoring the sensitivity failed: {e}");
-                self.fault(None, &m, false)?;
-                return Ok(Err(Outcome::Faulted(m)));
+            match self.gonio.detector.restore_range(last.sensitivity) {
+                Ok(Some(range)) => self.store.event(
+                    "detector",
+                    None,
+                    &format!("sensitivity restored to {range}"),
+                )?,
+                Ok(None) => {}
+                Err(e) => {
+                    let m = format!("restoring the sensitivity failed: {e}");
+                    self.fault(None, &m, false)?;
+                    return Ok(Err(Outcome::Faulted(m)));
+                }
             }
-            self.store
-                .event("detector", None, &format!("sensitivity restored to {sens}"))?;
         }
         Ok(Ok(Start {
             pending,
@@ -264,7 +269,7 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             self.store.event(
                 "flagged",
                 Some(id),
-                &format!("reading flagged {:?}; reading again", reading.flags),
+                &format!("reading flagged {}; reading again", reading.flags_text()),
             )?;
             // What flagged it (an unlock: nothing demodulated; an overload) upset the
             // filters: the next reading waits a full settling time, as after a move.
@@ -304,7 +309,8 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     ) -> ReadingRecord {
         let dirs = self.mech.layout.forward(position);
         let g = &self.mech.geometry;
-        let mut bits = u32::from(r.status.0) & 0x0F;
+        let c = r.columns();
+        let mut bits = u32::from(c.status) & 0x0F;
         let sample_lit = matches!(
             s.step.kind,
             StepKind::Sample | StepKind::Reference | StepKind::Standard
@@ -320,18 +326,18 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
             commanded: s.step.stages,
             position,
             read_pair: pair_deg(dirs),
-            sensitivity: r.sensitivity.index(),
-            sensitivity_v: r.sensitivity.volts(),
-            time_constant: r.time_constant.index(),
-            time_constant_s: r.time_constant.seconds(),
-            slope_db: r.slope.db_per_octave(),
-            r_mean: r.r_mean,
-            r_std: r.r_std,
-            x_mean: r.x_mean,
-            y_mean: r.y_mean,
-            n: r.n as u32,
-            autorange_steps: r.autorange_steps as u32,
-            lias: r.status.0,
+            sensitivity: c.range,
+            sensitivity_v: c.full_scale,
+            time_constant: c.integration,
+            time_constant_s: c.integration_s,
+            slope_db: c.slope_db,
+            r_mean: c.mean,
+            r_std: c.std,
+            x_mean: c.x,
+            y_mean: c.y,
+            n: c.n as u32,
+            autorange_steps: c.autorange_steps as u32,
+            lias: c.status,
             flags: bits,
             retries: self.retried() - retried_before,
             physical_s: self.physical_s(),
@@ -405,24 +411,18 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
     /// which one rebooted. Returns the axes homed.
     fn rehome_lost(&mut self) -> Result<Vec<String>, MotionError> {
         const BOOT: Duration = Duration::from_secs(10);
-        let names: Vec<String> = self
-            .gonio
-            .motion
-            .axes()
-            .iter()
-            .map(|a| a.name.clone())
-            .collect();
+        let names: Vec<String> = self.gonio.motion.axis_names();
         let start = self.gonio.motion.clock().now();
         let mut lost = Vec::new();
         for name in &names {
             loop {
-                let waiting = match self.gonio.motion.status(name) {
-                    Ok(s) if s.state.is_moving() => AxisError::WrongState {
-                        state: s.state,
-                        operation: "homing",
+                let waiting = match self.gonio.motion.state(name) {
+                    Ok(AxisState::Moving) => AxisError::Device {
+                        command: "homing".into(),
+                        reason: "the stage is still moving".into(),
                     },
                     Ok(s) => {
-                        if !s.state.is_ready() {
+                        if s == AxisState::Unreferenced {
                             lost.push(name.clone());
                         }
                         break;
@@ -447,19 +447,17 @@ impl<M: Transport, D: Transport, C: Clock, B: Bench> Rig<M, D, C, B> {
         Ok(lost)
     }
 
-    fn detector_failed(&mut self, id: i64, e: Sr830Error) -> Result<StepOutcome, StoreError> {
+    fn detector_failed(&mut self, id: i64, e: DetectorError) -> Result<StepOutcome, StoreError> {
         let m = e.to_string();
-        match e {
-            Sr830Error::Autorange { .. } => Ok(StepOutcome::Skip(m)),
-            Sr830Error::Transport { .. }
-            | Sr830Error::Protocol { .. }
-            | Sr830Error::Interrupted { .. } => {
+        match e.disposition() {
+            Disposition::Skip => Ok(StepOutcome::Skip(m)),
+            Disposition::Again => {
                 // Survived the driver's own retries: measure the step again, within
                 // the engine's attempts.
                 self.fault(Some(id), &m, true)?;
                 Ok(StepOutcome::Again(m))
             }
-            _ => {
+            Disposition::Stop => {
                 self.fault(Some(id), &m, false)?;
                 Ok(StepOutcome::Stop(Outcome::Faulted(m)))
             }

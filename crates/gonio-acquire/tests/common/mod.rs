@@ -65,10 +65,7 @@ pub fn engine(
     store: RunStore,
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
-) -> (
-    Engine<gonio_sim::SimTransport, gonio_sim::SimTransport, gonio_sim::SimClock, SimBench>,
-    SharedSim,
-) {
+) -> (Engine<gonio_sim::SimClock, SimBench>, SharedSim) {
     let (inst, _) = instrument();
     let mut s = sim(seed);
     tweak(&mut s);
@@ -84,9 +81,7 @@ pub fn engine(
 }
 
 /// Runs one session to its end.
-pub fn run_session(
-    engine: Engine<gonio_sim::SimTransport, gonio_sim::SimTransport, gonio_sim::SimClock, SimBench>,
-) -> (SessionReport, RunStore) {
+pub fn run_session(engine: Engine<gonio_sim::SimClock, SimBench>) -> (SessionReport, RunStore) {
     tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

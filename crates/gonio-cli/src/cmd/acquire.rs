@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use gonio_acquire::engine::{Engine, EngineConfig, Event, Outcome, SessionReport};
-use gonio_driver::{Bench, Clock, Goniometer, InstrumentConfig, OperatorBench, Transport};
+use gonio_driver::{Bench, Clock, Goniometer, InstrumentConfig, OperatorBench};
 use gonio_run::{Inputs, RunStore};
 use gonio_sim::SimBench;
 use serde_json::json;
@@ -205,15 +205,13 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
 /// Runs one session of `engine`, with the stop signals (Ctrl-C, SIGTERM, SIGHUP): the
 /// first stops the stages and ends the session `interrupted`; a second exits at once,
 /// after a moment for the stop to reach the stages.
-fn drive<M, D, C, B>(
-    engine: Engine<M, D, C, B>,
+fn drive<C, B>(
+    engine: Engine<C, B>,
     quiet: bool,
     stop: &StopBy,
 ) -> CliResult<(SessionReport, RunStore)>
 where
-    M: Transport + Send + 'static,
-    D: Transport + Send + 'static,
-    C: Clock + Send + 'static,
+    C: Clock + Clone + Send + 'static,
     B: Bench + 'static,
 {
     let rt = tokio::runtime::Builder::new_multi_thread()

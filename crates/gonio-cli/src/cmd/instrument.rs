@@ -130,7 +130,7 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
         report["connected"] = json!({
             "controllers": start.axes.iter().map(|(n, i)| json!({
                 "axis": n, "version": i.version, "stage": i.stage,
-                "state": format!("{:02X}", i.state.code()),
+                "state": i.state_code, "family": i.family,
             })).collect::<Vec<_>>(),
             "detector": start.detector,
         });

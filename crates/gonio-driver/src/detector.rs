@@ -1,0 +1,192 @@
+//! The instrument's detector, whatever it is: [`Detector`].
+//!
+//! A lock-in (the SR830, reading a chopped signal in volts) or a DC instrument reads
+//! the light. The run engine takes readings, restores a range after a resume, and
+//! decides how to react to a fault, through this one type; what a reading is stays
+//! the family's own ([`Reading`]), and [`Reading::columns`] puts it into the run
+//! file's reading row.
+
+use crate::clock::Clock;
+use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
+use crate::transport::Transport;
+use gonio_proto::sr830::Sensitivity;
+
+/// A detector on its serial line.
+pub enum Detector<C: Clock> {
+    /// An SR830 lock-in amplifier.
+    Sr830(Sr830<Box<dyn Transport>, C>),
+}
+
+impl<C: Clock> std::fmt::Debug for Detector<C> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Detector::Sr830(d) => write!(f, "Sr830({:?})", d.config()),
+        }
+    }
+}
+
+/// One reading, in the detector's own terms.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reading {
+    /// A lock-in reading (volts).
+    Lockin(LockinReading),
+}
+
+/// A reading as the run file's `readings` row stores it (see `docs/run-file.md`): the
+/// lock-in's columns, which a DC detector fills with its own range and integration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Columns {
+    /// Range index (`sensitivity`).
+    pub range: u8,
+    /// Full scale of the range, in the reading's unit (`sensitivity_v`).
+    pub full_scale: f64,
+    /// Integration setting index (`time_constant`).
+    pub integration: u8,
+    /// Integration time, s (`time_constant_s`).
+    pub integration_s: f64,
+    /// Filter slope, dB/octave (`slope_db`; 0 for a DC detector).
+    pub slope_db: u8,
+    /// Mean signal (`r_mean`).
+    pub mean: f64,
+    /// Standard deviation of the samples (`r_std`).
+    pub std: f64,
+    /// In-phase mean (`x_mean`; the signal itself for a DC detector).
+    pub x: f64,
+    /// Quadrature mean (`y_mean`; 0 for a DC detector).
+    pub y: f64,
+    /// Samples averaged.
+    pub n: usize,
+    /// Range changes made while reading.
+    pub autorange_steps: usize,
+    /// The instrument's status byte as read (`lias`).
+    pub status: u8,
+}
+
+impl Reading {
+    /// The lock-in reading, when it is one.
+    pub fn lockin(&self) -> Option<&LockinReading> {
+        match self {
+            Reading::Lockin(r) => Some(r),
+        }
+    }
+
+    /// True when nothing flagged it and every number is finite.
+    pub fn is_valid(&self) -> bool {
+        match self {
+            Reading::Lockin(r) => r.is_valid(),
+        }
+    }
+
+    /// What flagged it, for the run log.
+    pub fn flags_text(&self) -> String {
+        match self {
+            Reading::Lockin(r) => format!("{:?}", r.flags),
+        }
+    }
+
+    /// The run file's columns.
+    pub fn columns(&self) -> Columns {
+        match self {
+            Reading::Lockin(r) => Columns {
+                range: r.sensitivity.index(),
+                full_scale: r.sensitivity.volts(),
+                integration: r.time_constant.index(),
+                integration_s: r.time_constant.seconds(),
+                slope_db: r.slope.db_per_octave(),
+                mean: r.r_mean,
+                std: r.r_std,
+                x: r.x_mean,
+                y: r.y_mean,
+                n: r.n,
+                autorange_steps: r.autorange_steps,
+                status: r.status.0,
+            },
+        }
+    }
+}
+
+/// Why a detector operation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DetectorError {
+    /// The SR830 failed.
+    #[error(transparent)]
+    Sr830(#[from] Sr830Error),
+}
+
+/// What the run engine should do after a detector error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Disposition {
+    /// The point cannot be read (no range fits): skip it.
+    Skip,
+    /// A link fault that survived the driver's retries: measure the step again.
+    Again,
+    /// Anything else: stop the session.
+    Stop,
+}
+
+impl DetectorError {
+    /// How the engine should react.
+    pub fn disposition(&self) -> Disposition {
+        match self {
+            DetectorError::Sr830(Sr830Error::Autorange { .. }) => Disposition::Skip,
+            DetectorError::Sr830(
+                Sr830Error::Transport { .. }
+                | Sr830Error::Protocol { .. }
+                | Sr830Error::Interrupted { .. },
+            ) => Disposition::Again,
+            DetectorError::Sr830(_) => Disposition::Stop,
+        }
+    }
+}
+
+impl<C: Clock> Detector<C> {
+    /// Sets the detector up; returns its identity, for the run log.
+    pub fn setup(&mut self) -> Result<String, DetectorError> {
+        match self {
+            Detector::Sr830(d) => Ok(d.setup()?.to_string()),
+        }
+    }
+
+    /// One reading.
+    pub fn read(&mut self) -> Result<Reading, DetectorError> {
+        match self {
+            Detector::Sr830(d) => Ok(Reading::Lockin(d.read()?)),
+        }
+    }
+
+    /// The light changed (a stage moved): the next reading waits for it to settle.
+    pub fn input_changed(&mut self) {
+        match self {
+            Detector::Sr830(d) => d.input_changed(),
+        }
+    }
+
+    /// The range index in force ([`Columns::range`]).
+    pub fn range(&self) -> u8 {
+        match self {
+            Detector::Sr830(d) => d.sensitivity().index(),
+        }
+    }
+
+    /// Sets the range by its index ([`Columns::range`]): after a resume, the range the
+    /// run left it at, so that autoranging takes the same path. Returns its name, or
+    /// `None` for an index the detector does not have.
+    pub fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
+        match self {
+            Detector::Sr830(d) => match Sensitivity::new(index) {
+                Some(s) => {
+                    d.set_sensitivity(s)?;
+                    Ok(Some(s.to_string()))
+                }
+                None => Ok(None),
+            },
+        }
+    }
+
+    /// Exchanges re-sent after a lost, late or garbled reply.
+    pub fn retried(&self) -> u64 {
+        match self {
+            Detector::Sr830(d) => d.retried(),
+        }
+    }
+}

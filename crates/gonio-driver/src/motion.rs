@@ -1,0 +1,370 @@
+//! Every motion axis of an instrument, whatever drives it: [`Motion`].
+//!
+//! An instrument's axes sit on one or more serial lines (a chain of SMC100s on one
+//! RS-232 line, each Thorlabs K-Cube on its own USB line). [`Motion`] holds them all
+//! behind one set of operations that the run engine, plans and safety rules use
+//! without knowing the families: identify, home, move several axes at once, read a
+//! position, stop. Each line's session keeps its own policy (soft limits before any
+//! byte, retries, reconnections); a move over several lines runs the lines' operations
+//! together on one thread (`pump_many`), and a fault on one line stops the stages on
+//! every line.
+
+use crate::clock::Clock;
+use crate::pump::{AbortFlag, pump_many};
+use crate::smc100::{AxisError, MotionError, Smc100Chain};
+use crate::transport::Transport;
+
+/// One serial line of the motion system.
+pub enum Line<C: Clock> {
+    /// A chain of SMC100 controllers.
+    Smc100(Smc100Chain<Box<dyn Transport>, C>),
+}
+
+impl<C: Clock> Line<C> {
+    fn axis_names(&self) -> Vec<String> {
+        match self {
+            Line::Smc100(c) => c.axes().iter().map(|a| a.name.clone()).collect(),
+        }
+    }
+
+    fn retried(&self) -> u64 {
+        match self {
+            Line::Smc100(c) => c.retried(),
+        }
+    }
+}
+
+impl<C: Clock> std::fmt::Debug for Line<C> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Line::Smc100(c) => c.fmt(f),
+        }
+    }
+}
+
+/// What start-up learnt about an axis' controller.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisInfo {
+    /// The controller family (`smc100`, `kdc101`, `k10cr1`).
+    pub family: &'static str,
+    /// The controller's firmware version as it reports it (an SMC100's `VE` text).
+    pub version: String,
+    /// The stage as the controller names it (an SMC100's `ID?`; an APT model).
+    pub stage: String,
+    /// The controller's state code (an SMC100's two hex digits).
+    pub state_code: String,
+    /// The state, for people (`32 (ReadyFromHoming)`, `homed`).
+    pub state: String,
+    /// Whether the axis has its reference (homed) already.
+    pub referenced: bool,
+}
+
+impl AxisInfo {
+    /// `stage (state)`, for the run log.
+    pub fn description(&self) -> String {
+        format!("{} ({})", self.stage, self.state)
+    }
+}
+
+/// Where an axis stands, as the engine's recovery needs to know it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisState {
+    /// Still moving (stopping after a fault, or homing).
+    Moving,
+    /// At rest, with its reference.
+    Referenced,
+    /// At rest, without a reference: it must be homed.
+    Unreferenced,
+}
+
+/// Every motion axis of an instrument, on however many lines of whichever families.
+#[derive(Debug)]
+pub struct Motion<C: Clock + Clone> {
+    lines: Vec<Line<C>>,
+    /// Each axis' name and line, in config order.
+    axes: Vec<(String, usize)>,
+    clock: C,
+    abort: AbortFlag,
+}
+
+impl<C: Clock + Clone> Motion<C> {
+    /// The motion system of `lines`, waiting on `clock`. Every line takes the one abort
+    /// flag. Axis names must be distinct across lines.
+    pub fn new(lines: Vec<Line<C>>, clock: C) -> Result<Self, MotionError> {
+        let abort = AbortFlag::new();
+        let lines: Vec<Line<C>> = lines
+            .into_iter()
+            .map(|l| match l {
+                Line::Smc100(c) => Line::Smc100(c.with_abort_flag(abort.clone())),
+            })
+            .collect();
+        let mut axes: Vec<(String, usize)> = Vec::new();
+        for (i, l) in lines.iter().enumerate() {
+            for name in l.axis_names() {
+                if axes.iter().any(|(n, _)| *n == name) {
+                    return Err(MotionError::Config(format!("two axes are named {name:?}")));
+                }
+                axes.push((name, i));
+            }
+        }
+        Ok(Motion {
+            lines,
+            axes,
+            clock,
+            abort,
+        })
+    }
+
+    /// The flag that aborts waits on every line; clone it to raise it from elsewhere.
+    pub fn abort_flag(&self) -> AbortFlag {
+        self.abort.clone()
+    }
+
+    /// The clock the lines wait on.
+    pub fn clock(&self) -> &C {
+        &self.clock
+    }
+
+    /// The axes' names, in config order.
+    pub fn axis_names(&self) -> Vec<String> {
+        self.axes.iter().map(|(n, _)| n.clone()).collect()
+    }
+
+    /// The lines.
+    pub fn lines(&self) -> &[Line<C>] {
+        &self.lines
+    }
+
+    /// The lines, to reach a family's own operations (an SMC100's configuration).
+    pub fn lines_mut(&mut self) -> &mut [Line<C>] {
+        &mut self.lines
+    }
+
+    /// Exchanges re-sent after a lost, late or garbled reply, on every line.
+    pub fn retried(&self) -> u64 {
+        self.lines.iter().map(Line::retried).sum()
+    }
+
+    fn line_of(&mut self, name: &str) -> Result<&mut Line<C>, MotionError> {
+        let i = self
+            .axes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, i)| *i)
+            .ok_or_else(|| MotionError::UnknownAxis(name.to_string()))?;
+        Ok(&mut self.lines[i])
+    }
+
+    /// Identifies every controller: what runs before anything moves. Proves each one
+    /// answers, and says which axes need homing.
+    pub fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
+        let mut out = Vec::new();
+        for line in &mut self.lines {
+            match line {
+                Line::Smc100(chain) => {
+                    let infos = chain.identify()?;
+                    for (a, i) in chain.axes().iter().zip(infos) {
+                        out.push((
+                            a.name.clone(),
+                            AxisInfo {
+                                family: "smc100",
+                                version: i.version.clone(),
+                                stage: i.stage.clone(),
+                                state_code: format!("{:02X}", i.state.code()),
+                                state: i.state.to_string(),
+                                referenced: i.state.is_ready(),
+                            },
+                        ));
+                    }
+                }
+            }
+        }
+        // Config order, whatever the lines' order.
+        out.sort_by_key(|(n, _)| self.axes.iter().position(|(m, _)| m == n));
+        Ok(out)
+    }
+
+    /// Where the named axis stands: moving, referenced or not.
+    pub fn state(&mut self, name: &str) -> Result<AxisState, MotionError> {
+        match self.line_of(name)? {
+            Line::Smc100(c) => {
+                let s = c.status(name)?;
+                Ok(if s.state.is_moving() {
+                    AxisState::Moving
+                } else if s.state.is_ready() {
+                    AxisState::Referenced
+                } else {
+                    AxisState::Unreferenced
+                })
+            }
+        }
+    }
+
+    /// The named axis' position, units.
+    pub fn position(&mut self, name: &str) -> Result<f64, MotionError> {
+        match self.line_of(name)? {
+            Line::Smc100(c) => c.position(name),
+        }
+    }
+
+    /// Homes the named axes, line by line (concurrently within an SMC100 chain).
+    pub fn home(&mut self, names: &[&str]) -> Result<(), MotionError> {
+        for i in 0..self.lines.len() {
+            let here: Vec<&str> = names
+                .iter()
+                .copied()
+                .filter(|n| self.axes.iter().any(|(m, l)| m == n && *l == i))
+                .collect();
+            if here.is_empty() {
+                continue;
+            }
+            match &mut self.lines[i] {
+                Line::Smc100(c) => c.home(&here)?,
+            }
+        }
+        if let Some(n) = names
+            .iter()
+            .find(|n| !self.axes.iter().any(|(m, _)| m == *n))
+        {
+            return Err(MotionError::UnknownAxis(n.to_string()));
+        }
+        Ok(())
+    }
+
+    /// Homes every axis.
+    pub fn home_all(&mut self) -> Result<(), MotionError> {
+        let names = self.axis_names();
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        self.home(&refs)
+    }
+
+    /// Moves the named axes to their targets, all at once, and returns where each
+    /// ended, in `targets` order. Every target is checked against its axis' limits
+    /// before any byte goes out on any line. A fault on one line stops every stage and
+    /// is the error returned.
+    pub fn move_to(&mut self, targets: &[(&str, f64)]) -> Result<Vec<f64>, MotionError> {
+        let mut per_line: Vec<Vec<(&str, f64)>> = vec![Vec::new(); self.lines.len()];
+        for &(name, target) in targets {
+            let line = self
+                .axes
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, i)| *i)
+                .ok_or_else(|| MotionError::UnknownAxis(name.to_string()))?;
+            per_line[line].push((name, target));
+        }
+        self.check_limits(targets)?;
+        let used: Vec<usize> = (0..self.lines.len())
+            .filter(|i| !per_line[*i].is_empty())
+            .collect();
+        let mut ended: Vec<(String, f64)> = Vec::new();
+        if let [only] = used.as_slice() {
+            // One line: its own pump, exchange for exchange as a chain alone.
+            let got = match &mut self.lines[*only] {
+                Line::Smc100(c) => c.move_to(&per_line[*only])?,
+            };
+            ended.extend(per_line[*only].iter().map(|(n, _)| n.to_string()).zip(got));
+        } else {
+            let mut slots = Vec::new();
+            let mut names = Vec::new();
+            for (i, line) in self.lines.iter_mut().enumerate() {
+                if per_line[i].is_empty() {
+                    continue;
+                }
+                names.push(
+                    per_line[i]
+                        .iter()
+                        .map(|(n, _)| n.to_string())
+                        .collect::<Vec<_>>(),
+                );
+                slots.push(match line {
+                    Line::Smc100(c) => c.move_slot(&per_line[i]),
+                });
+            }
+            let results = pump_many(slots, &self.clock, Some(&self.abort), Result::is_err);
+            let mut errors = Vec::new();
+            for (names, r) in names.into_iter().zip(results) {
+                match r {
+                    Ok(got) => ended.extend(names.into_iter().zip(got)),
+                    Err(e) => errors.push(e),
+                }
+            }
+            // A line aborted because another failed reports the other's fault, not
+            // its own abort.
+            let raised = self.abort.is_raised();
+            let induced = |e: &MotionError| {
+                !raised
+                    && matches!(
+                        e,
+                        MotionError::AtAxis {
+                            source: AxisError::Aborted,
+                            ..
+                        }
+                    )
+            };
+            if let Some(k) =
+                (!errors.is_empty()).then(|| errors.iter().position(|e| !induced(e)).unwrap_or(0))
+            {
+                return Err(errors.swap_remove(k));
+            }
+        }
+        Ok(targets
+            .iter()
+            .map(|(n, t)| ended.iter().find(|(m, _)| m == n).map_or(*t, |(_, p)| *p))
+            .collect())
+    }
+
+    /// Refuses the whole move if any target is outside its axis' limits, before any
+    /// line sends a byte.
+    fn check_limits(&self, targets: &[(&str, f64)]) -> Result<(), MotionError> {
+        for &(name, target) in targets {
+            for line in &self.lines {
+                let Line::Smc100(c) = line;
+                if let Some(a) = c.axes().iter().find(|a| a.name == name)
+                    && !(target.is_finite() && target >= a.min && target <= a.max)
+                {
+                    return Err(MotionError::AtAxis {
+                        axis: name.to_string(),
+                        source: AxisError::OutOfLimits {
+                            target,
+                            min: a.min,
+                            max: a.max,
+                            units: a.units.clone(),
+                        },
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Moves one axis by `delta` from its current target; never re-sent.
+    pub fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
+        match self.line_of(name)? {
+            Line::Smc100(c) => c.move_by(name, delta),
+        }
+    }
+
+    /// Stops every stage on every line. Every line gets its stop; the first error is
+    /// returned.
+    pub fn stop_all(&mut self) -> Result<(), MotionError> {
+        let mut first = None;
+        for line in &mut self.lines {
+            let r = match line {
+                Line::Smc100(c) => c.stop_all(),
+            };
+            if let Err(e) = r {
+                first.get_or_insert(e);
+            }
+        }
+        first.map_or(Ok(()), Err)
+    }
+
+    /// Resets the named axis' controller where the family can (an SMC100's `RS`),
+    /// waits for it, and homes it.
+    pub fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError> {
+        match self.line_of(name)? {
+            Line::Smc100(c) => c.reset_and_home(name),
+        }
+    }
+}
