@@ -58,7 +58,8 @@ impl Op for ReadConfig {
 /// The configure operation. Phases: every change checked before any byte; the state
 /// (`TS`): NOT REFERENCED → `PW1` (checked with `TE`), CONFIGURATION → straight on,
 /// anything else refused; each set, checked with `TE`; `PW0`, sent without `TE` since
-/// the controller is silent while it saves; `TS` every 500 ms until NOT REFERENCED;
+/// the controller is silent while it saves; `TS` every 500 ms, each asked once (the
+/// silence is expected, not a retry), until NOT REFERENCED;
 /// `TE` for the save's own error (`U`, EEPROM).
 #[derive(Debug)]
 pub(super) struct Configure {
@@ -241,7 +242,11 @@ impl Configure {
         _: &mut Cx,
         _: Result<(), Aborted>,
     ) -> Next<Self> {
-        Next::query(self.axis.axis, Command::TellStatus, Self::save_status)
+        Next::Probe {
+            axis: self.axis.axis,
+            command: Command::TellStatus,
+            then: Self::save_status,
+        }
     }
 
     fn save_status(

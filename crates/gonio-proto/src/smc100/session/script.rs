@@ -37,6 +37,13 @@ pub(super) enum Next<O: Op> {
         command: Command,
         then: Then<O, Result<ReplyBody, AxisError>>,
     },
+    /// A query to an axis asked once: silence is the step's to judge (a controller
+    /// that is saving or booting), not a retry.
+    Probe {
+        axis: usize,
+        command: Command,
+        then: Then<O, Result<ReplyBody, AxisError>>,
+    },
     /// A set or action command to an axis, checked with `TE`.
     Command {
         axis: usize,
@@ -234,6 +241,11 @@ impl<O: Op> Machine<Smc100Session> for Exec<O> {
                     command,
                     then,
                 } => Current::Query(Query::new(s, axis, command, true), then),
+                Next::Probe {
+                    axis,
+                    command,
+                    then,
+                } => Current::Query(Query::new(s, axis, command, false), then),
                 Next::Command {
                     axis,
                     command,
