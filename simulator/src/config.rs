@@ -375,6 +375,7 @@ impl SimConfig {
             limits::HOME_TIMEOUT.at(f("home_timeout_s"), c.home_timeout_s)?;
             limits::CONTROLLER_DELAY.at(f("boot_time_s"), c.boot_time_s)?;
             limits::CONTROLLER_DELAY.at(f("following_error_s"), c.following_error_s)?;
+            limits::CONTROLLER_DELAY.at(f("save_time_s"), c.save_time_s)?;
         }
         let o = &self.optics;
         limits::SOURCE_POWER.at("optics.source_power_w", o.source_power_w)?;

@@ -8,9 +8,16 @@
 //! *counter* (what `TP` reports). At power-up the counter reads 0 wherever the stage
 //! is; a home search drives the stage to its home switch and sets the counter to the
 //! home position. So positions mean something only after homing, as on real hardware.
+//!
+//! Each controller keeps its configuration as the manual's PW and ZT commands describe:
+//! a saved copy (the controller's memory), loaded at power-up and `RS`, and the copy in
+//! force, which `PW1` (CONFIGURATION, from NOT REFERENCED only) lets the configuration
+//! commands change, `PW0` saves (silent meanwhile, then NOT REFERENCED from
+//! CONFIGURATION), and `ZT` lists. Changes not saved are lost at the next boot.
 
 use gonio_proto::smc100::{
-    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody, Status,
+    Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody,
+    Smc100Parameters, Status,
 };
 
 /// How one simulated controller and stage behave.
@@ -52,6 +59,9 @@ pub struct ControllerConfig {
     /// How long a stalled stage lags its set-point before the controller disables
     /// (following error), s.
     pub following_error_s: f64,
+    /// How long `PW0` keeps the controller silent while it saves, s: the manual's
+    /// "up to 10 s" (PW command), taken whole.
+    pub save_time_s: f64,
 }
 
 impl Default for ControllerConfig {
@@ -76,6 +86,51 @@ impl Default for ControllerConfig {
             start_position: 0.0,
             boot_time_s: 3.0,
             following_error_s: 0.5,
+            save_time_s: 10.0,
+        }
+    }
+}
+
+/// Micro-steps per full step of the factory configuration (`FRM`); UNCONFIRMED: the
+/// manual's default for a given stage is not known here.
+const MICRO_STEPS: f64 = 100.0;
+
+impl ControllerConfig {
+    /// The configuration a controller holds before anything was saved: an SMC100PP
+    /// with this rotation stage. Its `VA` and `AC` are the maxima (what the manual's
+    /// CONFIGURATION values are), the limits and home search those of this config, the
+    /// home type 2 (MZ switch only, which is the search the twin makes), the full step
+    /// `FRS` what `counts_per_unit` and `FRM` imply. No backlash, hysteresis or base
+    /// velocity; the current limits and jerk time are nominal values (UNCONFIRMED).
+    pub fn factory_parameters(&self) -> Smc100Parameters {
+        let values = Param::CONFIGURATION
+            .iter()
+            .map(|p| {
+                let v = match p {
+                    Param::Acceleration => self.max_acceleration,
+                    Param::MicroSteps => MICRO_STEPS,
+                    Param::FullStep => MICRO_STEPS / self.counts_per_unit,
+                    Param::HomeType => 2.0,
+                    Param::JerkTime => 0.04,
+                    Param::HomeVelocity => self.home_velocity,
+                    Param::HomeTimeout => self.home_timeout_s,
+                    Param::PeakCurrent => 1.0,
+                    Param::RmsCurrent => 0.5,
+                    Param::RmsTime => 1.0,
+                    Param::RsAddress => f64::from(self.address),
+                    Param::NegativeLimit => self.negative_limit,
+                    Param::PositiveLimit => self.positive_limit,
+                    Param::Velocity => self.max_velocity,
+                    Param::StageCheck => 3.0,
+                    _ => 0.0,
+                };
+                (*p, v)
+            })
+            .collect();
+        Smc100Parameters {
+            stage: self.stage.clone(),
+            values,
+            other: Vec::new(),
         }
     }
 }
@@ -189,6 +244,10 @@ pub struct Controller {
     booting_until: f64,
     /// Fault: the stage sticks at this mechanical angle.
     stall_at: Option<f64>,
+    /// The configuration in the controller's memory (what boots load).
+    saved: Smc100Parameters,
+    /// The configuration in force (what `ZT` lists; CONFIGURATION changes it).
+    params: Smc100Parameters,
 }
 
 impl Controller {
@@ -210,6 +269,8 @@ impl Controller {
             latched: 0,
             booting_until: 0.0,
             stall_at: None,
+            saved: cfg.factory_parameters(),
+            params: cfg.factory_parameters(),
             cfg,
         };
         c.boot(0.0, 0.0);
@@ -224,13 +285,35 @@ impl Controller {
         // An unreferenced counter starts at 0 wherever the stage stands.
         self.offset = -m;
         self.target = 0.0;
-        self.velocity = self.cfg.velocity;
-        self.acceleration = self.cfg.acceleration;
-        self.sl = self.cfg.negative_limit;
-        self.sr = self.cfg.positive_limit;
+        self.params = self.saved.clone();
+        self.load_working();
         self.last_error = ErrorCode::None;
         self.latched = 0;
         self.booting_until = now + boot_time;
+    }
+
+    /// The working values from the configuration in force: the limits, and the
+    /// config's start-up velocity and acceleration held under the configured maxima.
+    fn load_working(&mut self) {
+        self.velocity = self.cfg.velocity.min(self.param(Param::Velocity));
+        self.acceleration = self.cfg.acceleration.min(self.param(Param::Acceleration));
+        self.sl = self.param(Param::NegativeLimit);
+        self.sr = self.param(Param::PositiveLimit);
+    }
+
+    /// A configuration value in force (every one is there from the factory set).
+    fn param(&self, p: Param) -> f64 {
+        self.params.get(p).unwrap_or(0.0)
+    }
+
+    /// The configuration in force: what `ZT` lists.
+    pub fn parameters(&self) -> &Smc100Parameters {
+        &self.params
+    }
+
+    /// The configuration in the controller's memory: what the next boot loads.
+    pub fn saved_parameters(&self) -> &Smc100Parameters {
+        &self.saved
     }
 
     /// The configuration.
@@ -249,7 +332,8 @@ impl Controller {
         self.state
     }
 
-    /// True while booting: the controller does not answer.
+    /// True while booting or saving its configuration: the controller does not
+    /// answer.
     pub fn is_booting(&self, now: f64) -> bool {
         now < self.booting_until
     }
@@ -336,7 +420,7 @@ impl Controller {
                 if now >= p.end() {
                     self.activity = Activity::Idle;
                     self.at_rest = p.to - self.offset;
-                    if p.duration > self.cfg.home_timeout_s {
+                    if p.duration > self.param(Param::HomeTimeout) {
                         self.state = ControllerState::NotReferencedFromHoming;
                         self.latched |= PositionerErrors::HOMING_TIMEOUT;
                     } else {
@@ -345,7 +429,7 @@ impl Controller {
                         self.target = self.cfg.home_position;
                         self.state = ControllerState::ReadyFromHoming;
                     }
-                } else if now - p.t0 > self.cfg.home_timeout_s {
+                } else if now - p.t0 > self.param(Param::HomeTimeout) {
                     // The search gives up where it is.
                     self.at_rest = p.position(now) - self.offset;
                     self.activity = Activity::Idle;
@@ -386,9 +470,31 @@ impl Controller {
         self.state = ControllerState::Moving;
     }
 
+    /// Executes a command addressed to this controller at `now`, as
+    /// [`handle`](Self::handle) does, and returns every reply line, terminators
+    /// included: the many lines of a `ZT` dump (manual, ZT command: `PW1`, `ID`, one
+    /// line a parameter in alphabetical order of its command, reals with six decimals,
+    /// `PW0`), or the one line of a query.
+    pub fn respond(&mut self, now: f64, command: &Command) -> Vec<Vec<u8>> {
+        if *command == Command::DumpConfiguration {
+            self.update(now);
+            let mut bytes = Vec::new();
+            self.params.encode_dump(self.cfg.address, &mut bytes);
+            return bytes
+                .split_inclusive(|b| *b == b'\n')
+                .map(<[u8]>::to_vec)
+                .collect();
+        }
+        self.handle(now, command)
+            .map(|r| r.to_bytes())
+            .into_iter()
+            .collect()
+    }
+
     /// Executes a command addressed to this controller at `now` (the caller filters by
     /// address and checks [`is_booting`](Self::is_booting)); returns the reply, if the
-    /// command has one. Refused commands store their error letter for `TE`.
+    /// command has one line (`ZT` has many: see [`respond`](Self::respond)). Refused
+    /// commands store their error letter for `TE`.
     pub fn handle(&mut self, now: f64, command: &Command) -> Option<Reply> {
         self.update(now);
         let a = self.cfg.address;
@@ -413,9 +519,10 @@ impl Controller {
                 return reply(ReplyBody::Error(e));
             }
             Command::Version => return reply(ReplyBody::Version(self.cfg.version.clone())),
+            Command::DumpConfiguration => return None,
             Command::Query(p) => {
                 let v = match p {
-                    Param::StageId => return reply(ReplyBody::StageId(self.cfg.stage.clone())),
+                    Param::StageId => return reply(ReplyBody::StageId(self.params.stage.clone())),
                     Param::Acceleration => self.acceleration,
                     Param::Velocity => self.velocity,
                     Param::NegativeLimit => self.sl,
@@ -429,6 +536,14 @@ impl Controller {
                             1.0
                         }
                     }
+                    Param::ConfigurationMode => {
+                        if s.is_configuration() {
+                            1.0
+                        } else {
+                            0.0
+                        }
+                    }
+                    other => self.param(*other),
                 };
                 return reply(ReplyBody::Value(*p, v));
             }
@@ -464,10 +579,18 @@ impl Controller {
                 if !s.is_not_referenced() {
                     return Err(self.refused());
                 }
+                if self.param(Param::HomeType) == 1.0 {
+                    // HT1: the current position is home, at once.
+                    self.offset = self.cfg.home_position - self.at_rest;
+                    self.target = self.cfg.home_position;
+                    self.state = ControllerState::ReadyFromHoming;
+                    return Ok(());
+                }
                 let from = self.counter(now);
                 // Drive to the switch at the home velocity, counted in the current counter.
                 let to = self.cfg.home_switch + self.offset;
-                let p = Profile::new(from, to, now, self.cfg.home_velocity, self.acceleration);
+                let oh = self.param(Param::HomeVelocity);
+                let p = Profile::new(from, to, now, oh, self.acceleration);
                 self.activity = Activity::Homing(p);
                 self.state = ControllerState::HomingRemote;
                 Ok(())
@@ -549,14 +672,19 @@ impl Controller {
             },
             Command::SetVelocity(v) | Command::SetAcceleration(v) => {
                 let vel = matches!(command, Command::SetVelocity(_));
+                let param = if vel {
+                    Param::Velocity
+                } else {
+                    Param::Acceleration
+                };
+                if s.is_configuration() {
+                    // In CONFIGURATION, `VA` and `AC` set the maxima (saved by PW0).
+                    return self.configure(param, *v);
+                }
                 if !(s.is_ready() || s.is_disabled()) {
                     return Err(self.refused());
                 }
-                let max = if vel {
-                    self.cfg.max_velocity
-                } else {
-                    self.cfg.max_acceleration
-                };
+                let max = self.param(param);
                 if !(*v > 1e-6 && *v <= max) {
                     return Err(ErrorCode::BadParameter);
                 }
@@ -568,10 +696,18 @@ impl Controller {
                 Ok(())
             }
             Command::SetNegativeLimit(v) | Command::SetPositiveLimit(v) => {
+                let neg = matches!(command, Command::SetNegativeLimit(_));
+                if s.is_configuration() {
+                    let param = if neg {
+                        Param::NegativeLimit
+                    } else {
+                        Param::PositiveLimit
+                    };
+                    return self.configure(param, *v);
+                }
                 if !(s.is_ready() || s.is_disabled()) {
                     return Err(self.refused());
                 }
-                let neg = matches!(command, Command::SetNegativeLimit(_));
                 // A working limit must bracket the set-point.
                 let ok = if neg {
                     *v <= self.target
@@ -588,8 +724,49 @@ impl Controller {
                 }
                 Ok(())
             }
+            Command::Set(p, v) => {
+                if !s.is_configuration() {
+                    return Err(self.refused());
+                }
+                self.configure(*p, *v)
+            }
+            Command::SetStageId(name) => {
+                if !s.is_configuration() {
+                    return Err(self.refused());
+                }
+                self.params.stage = name.clone();
+                Ok(())
+            }
+            Command::ConfigurationMode(true) => {
+                // PW1: NOT REFERENCED to CONFIGURATION, from nowhere else.
+                if !s.is_not_referenced() {
+                    return Err(self.refused());
+                }
+                self.state = ControllerState::Configuration;
+                Ok(())
+            }
+            Command::ConfigurationMode(false) => {
+                // PW0: save, silent meanwhile, then NOT REFERENCED from CONFIGURATION.
+                if !s.is_configuration() {
+                    return Err(self.refused());
+                }
+                self.saved = self.params.clone();
+                self.load_working();
+                self.state = ControllerState::NotReferencedFromConfiguration;
+                self.booting_until = now + self.cfg.save_time_s;
+                Ok(())
+            }
             _ => Err(ErrorCode::UnknownCommand),
         }
+    }
+
+    /// A configuration parameter set in CONFIGURATION: `C` outside the manual's range.
+    fn configure(&mut self, p: Param, v: f64) -> Result<(), ErrorCode> {
+        if !(p.is_configuration() && p.accepts(v)) {
+            return Err(ErrorCode::BadParameter);
+        }
+        self.params.set(p, v);
+        Ok(())
     }
 }
 

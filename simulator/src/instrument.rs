@@ -302,11 +302,9 @@ impl SimInstrument {
                 Ok(frame) => {
                     let mut replies = Vec::new();
                     for c in self.controllers.iter_mut() {
-                        if addressed_to(&frame, c.address())
-                            && !c.is_booting(now)
-                            && let Some(r) = c.handle(now, &frame.command)
-                        {
-                            replies.push(r.to_bytes());
+                        if addressed_to(&frame, c.address()) && !c.is_booting(now) {
+                            // One line a reply; a `ZT` dump is many, each its own.
+                            replies.extend(c.respond(now, &frame.command));
                         }
                     }
                     for r in replies {

@@ -13,10 +13,13 @@
 //!   a relative move never (its fate is reported as [`AxisError::Ambiguous`]);
 //! - a reply line with a NUL byte means the controller lost power; the state `0A`
 //!   mid-run means it was reset; both are errors, and [`Smc100Chain::home`] recovers;
-//! - dropping the chain, or raising its [`AbortFlag`], stops every stage.
+//! - dropping the chain, or raising its [`AbortFlag`], stops every stage;
+//! - the configuration is read with `ZT` ([`Smc100Chain::read_config`]) and changed in
+//!   CONFIGURATION, from NOT REFERENCED only ([`Smc100Chain::configure`]).
 
 pub use gonio_proto::smc100::{
-    AxisConfig, AxisError, ChainPolicy, ControllerInfo, MotionError, describe_errors,
+    AxisConfig, AxisError, ChainPolicy, ControllerInfo, MotionError, Param, Smc100Parameters,
+    describe_errors,
 };
 use gonio_proto::smc100::{Smc100Session, Status};
 use tracing::debug_span;
@@ -174,6 +177,28 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
     pub fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
         let _span = debug_span!("smc100.move_by", port = %self.port, axis = name, delta).entered();
         run!(self, start_move_by(name, delta))
+    }
+
+    /// Reads the named controller's configuration (`ZT`, its dump up to `PW0`): the
+    /// stage name and every parameter, in the dump's order.
+    pub fn read_config(&mut self, name: &str) -> Result<Smc100Parameters, MotionError> {
+        let _span = debug_span!("smc100.read_config", port = %self.port, axis = name).entered();
+        run!(self, start_read_config(name))
+    }
+
+    /// Changes and saves the named controller's configuration: `PW1`, each change set
+    /// and checked with `TE`, `PW0`, and the wait while the controller saves (up to
+    /// 10 s, silent). Only from NOT REFERENCED (a READY controller is
+    /// [`AxisError::WrongState`]: the manual needs `RS` first, which loses the
+    /// reference); a change the controller would refuse is
+    /// [`AxisError::InvalidSetting`] before any byte. The stage is NOT REFERENCED
+    /// afterwards: home it before moving. See
+    /// [`Smc100Session::start_configure`](gonio_proto::smc100::Smc100Session::start_configure).
+    pub fn configure(&mut self, name: &str, changes: &[(Param, f64)]) -> Result<(), MotionError> {
+        let _span =
+            debug_span!("smc100.configure", port = %self.port, axis = name, changes = ?changes)
+                .entered();
+        run!(self, start_configure(name, changes))
     }
 
     /// Resets the named controller (`RS`), waits for it to come back NOT REFERENCED

@@ -514,3 +514,51 @@ fn reset_and_home_recovers_a_controller() {
     assert_eq!(clock.now(), Duration::from_millis(1350));
     finish(c, &h);
 }
+
+/// The configuration (manual, ZT and PW commands): the dump read whole, then a change
+/// made from NOT REFERENCED, saved with `PW0`, waited out through the controller's
+/// silence, confirmed NOT REFERENCED from CONFIGURATION and by `TE`.
+#[test]
+fn configuration_read_and_changed() {
+    use gonio_driver::smc100::Param;
+    let (mut c, h, clock) = chain(vec![axis("source", 1)]);
+    h.exchange(
+        "1ZT\r\n",
+        "1PW1\r\n1IDURS100PP\r\n1AC160.000000\r\n1BA0.000000\r\n1HT2\r\n1PW0\r\n",
+    );
+    let p = c.read_config("source").expect("a dump");
+    assert_eq!(p.stage, "URS100PP");
+    assert_eq!(
+        p.values,
+        vec![
+            (Param::Acceleration, 160.0),
+            (Param::Backlash, 0.0),
+            (Param::HomeType, 2.0)
+        ]
+    );
+    h.exchange("1TS\r\n", "1TS00000A\r\n")
+        .send("1PW1\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .send("1BA0.01\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n")
+        .send("1PW0\r\n")
+        // Saving: silent twice, then NOT REFERENCED from CONFIGURATION.
+        .send("1TS\r\n")
+        .send("1TS\r\n")
+        .exchange("1TS\r\n", "1TS00000C\r\n")
+        .exchange("1TE\r\n", "1TE@\r\n");
+    let t0 = clock.now();
+    c.configure("source", &[(Param::Backlash, 0.01)])
+        .expect("saved");
+    // Three 500 ms pauses and two 100 ms silences at least.
+    assert!(clock.now() - t0 >= Duration::from_millis(1700));
+    // A change the controller would refuse: not a byte.
+    let e = c
+        .configure("source", &[(Param::HomeType, 9.0)])
+        .expect_err("out of range");
+    assert!(matches!(
+        axis_err(e),
+        AxisError::InvalidSetting { code: "HT", .. }
+    ));
+    finish(c, &h);
+}

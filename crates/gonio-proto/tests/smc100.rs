@@ -288,7 +288,27 @@ fn any_command() -> impl Strategy<Value = Command> {
             Just(Param::StageId),
         ]
         .prop_map(Command::Query),
+        (0usize..23, any::<bool>()).prop_map(|(k, _)| Command::Query(any_param(k))),
+        Just(Command::DumpConfiguration),
+        any::<bool>().prop_map(Command::ConfigurationMode),
+        "[A-Z0-9_.-]{1,31}".prop_map(Command::SetStageId),
+        (0usize..18, -1e6..1e6f64).prop_map(|(k, v)| Command::set(Param::CONFIGURATION[k], v)),
     ]
+}
+
+/// Every parameter, by index.
+fn any_param(k: usize) -> Param {
+    let others = [
+        Param::AbsoluteTarget,
+        Param::RelativeTarget,
+        Param::Enabled,
+        Param::StageId,
+        Param::ConfigurationMode,
+    ];
+    Param::CONFIGURATION
+        .get(k)
+        .copied()
+        .unwrap_or_else(|| others[(k - 18) % others.len()])
 }
 
 fn any_reply_body() -> impl Strategy<Value = ReplyBody> {
@@ -307,8 +327,27 @@ fn any_reply_body() -> impl Strategy<Value = ReplyBody> {
         "[A-Za-z0-9_.-][ A-Za-z0-9_.-]{0,40}[A-Za-z0-9_.-]".prop_map(ReplyBody::Version),
         "[A-Z0-9]{1,31}".prop_map(ReplyBody::StageId),
         v.clone().prop_map(ReplyBody::MotionTime),
-        v.prop_map(|x| ReplyBody::Value(Param::Velocity, x)),
+        (0usize..23, v).prop_map(|(k, x)| match any_param(k) {
+            Param::StageId => ReplyBody::Value(Param::Velocity, x),
+            p => ReplyBody::Value(p, x),
+        }),
     ]
+}
+
+fn any_parameters() -> impl Strategy<Value = Smc100Parameters> {
+    (
+        "[A-Z0-9]{1,31}",
+        proptest::collection::vec((0usize..18, -1e6..1e6f64), 0..20),
+        proptest::collection::vec("(KP|KI|SC|SU)[0-9.]{1,8}", 0..3),
+    )
+        .prop_map(|(stage, values, other)| Smc100Parameters {
+            stage,
+            values: values
+                .into_iter()
+                .map(|(k, v)| (Param::CONFIGURATION[k], v))
+                .collect(),
+            other,
+        })
 }
 
 proptest! {
@@ -328,6 +367,14 @@ proptest! {
     }
 
     #[test]
+    fn dump_round_trip(p in any_parameters(), a in 1u8..=31) {
+        let mut b = Vec::new();
+        p.encode_dump(a, &mut b);
+        let text = String::from_utf8(b).expect("ascii");
+        prop_assert_eq!(Smc100Parameters::parse_dump(a, lines(&text)), Ok(p));
+    }
+
+    #[test]
     fn parsers_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..160)) {
         fuzz::command_line(&bytes);
         fuzz::reply_line(&bytes);
@@ -339,4 +386,400 @@ proptest! {
         fuzz::command_line(s.as_bytes());
         fuzz::reply_line(s.as_bytes());
     }
+}
+
+// ---------------------------------------------------------------------------------
+// Configuration: `ZT`, `PW`, and the configuration parameters (manual, ZT and PW
+// commands and the pages of each parameter).
+
+use gonio_proto::link::{Deadline, Io, Operation};
+use gonio_proto::smc100::{
+    AxisConfig, AxisError, ChainPolicy, DumpError, MotionError, Smc100Parameters, Smc100Session,
+};
+use std::collections::VecDeque;
+use std::time::Duration;
+
+#[test]
+fn configuration_commands_encode_byte_for_byte() {
+    let cases: Vec<(Command, &[u8])> = vec![
+        (Command::DumpConfiguration, b"1ZT\r\n"),
+        (Command::ConfigurationMode(true), b"1PW1\r\n"),
+        (Command::ConfigurationMode(false), b"1PW0\r\n"),
+        (Command::Query(Param::ConfigurationMode), b"1PW?\r\n"),
+        (Command::Set(Param::Backlash, 0.01), b"1BA0.01\r\n"),
+        (Command::Set(Param::Hysteresis, 0.0), b"1BH0\r\n"),
+        (Command::Set(Param::MicroSteps, 100.0), b"1FRM100\r\n"),
+        (Command::Set(Param::FullStep, 0.05), b"1FRS0.05\r\n"),
+        (Command::Set(Param::HomeType, 1.0), b"1HT1\r\n"),
+        (Command::Set(Param::JerkTime, 0.04), b"1JR0.04\r\n"),
+        (Command::Set(Param::HomeVelocity, 5.0), b"1OH5\r\n"),
+        (Command::Set(Param::HomeTimeout, 30.0), b"1OT30\r\n"),
+        (Command::Set(Param::PeakCurrent, 1.2), b"1QIL1.2\r\n"),
+        (Command::Set(Param::RmsCurrent, 0.5), b"1QIR0.5\r\n"),
+        (Command::Set(Param::RmsTime, 1.0), b"1QIT1\r\n"),
+        (Command::Set(Param::RsAddress, 2.0), b"1SA2\r\n"),
+        (Command::Set(Param::BaseVelocity, 0.5), b"1VB0.5\r\n"),
+        (Command::Set(Param::StageCheck, 3.0), b"1ZX3\r\n"),
+        (Command::SetStageId("URS100BPP".into()), b"1IDURS100BPP\r\n"),
+        (Command::Query(Param::PeakCurrent), b"1QIL?\r\n"),
+        (Command::Query(Param::HomeType), b"1HT?\r\n"),
+    ];
+    for (c, want) in cases {
+        let f = Frame::addressed(1, c.clone());
+        assert_eq!(f.to_bytes(), want, "{c:?}");
+        assert_eq!(Frame::parse(&want[..want.len() - 2]), Ok(f));
+    }
+    // The dedicated variants stay what the parser reads for SL, SR, VA, AC.
+    assert_eq!(
+        Command::set(Param::Velocity, 30.0),
+        Command::SetVelocity(30.0)
+    );
+    assert_eq!(
+        Command::set(Param::NegativeLimit, -90.0),
+        Command::SetNegativeLimit(-90.0)
+    );
+    assert_eq!(
+        Command::set(Param::Backlash, 0.5),
+        Command::Set(Param::Backlash, 0.5)
+    );
+    // Lenient as the controller is: case and blanks.
+    assert_eq!(
+        Frame::parse(b"1 qil 0.7"),
+        Ok(Frame::addressed(1, Command::Set(Param::PeakCurrent, 0.7)))
+    );
+    assert_eq!(Frame::parse(b"1PW2"), Err(CommandError::BadParameter));
+    assert_eq!(Frame::parse(b"1ID"), Err(CommandError::BadParameter));
+    assert_eq!(Frame::parse(b"1QIX1"), Err(CommandError::Unknown));
+    assert!(!Command::ConfigurationMode(true).is_idempotent());
+    assert!(Command::DumpConfiguration.is_idempotent());
+    assert!(Command::Set(Param::Backlash, 0.1).is_idempotent());
+}
+
+#[test]
+fn parameter_ranges_follow_the_manual() {
+    assert!(Param::HomeType.accepts(4.0) && !Param::HomeType.accepts(5.0));
+    assert!(!Param::HomeType.accepts(1.5));
+    assert!(Param::HomeTimeout.accepts(2.0) && !Param::HomeTimeout.accepts(1.0));
+    assert!(!Param::HomeTimeout.accepts(1000.0));
+    assert!(Param::NegativeLimit.accepts(-170.0) && !Param::NegativeLimit.accepts(1.0));
+    assert!(Param::PositiveLimit.accepts(0.0) && !Param::PositiveLimit.accepts(-1.0));
+    assert!(!Param::Velocity.accepts(0.0) && Param::Velocity.accepts(1e-5));
+    assert!(!Param::StageCheck.accepts(0.0) && Param::StageCheck.accepts(2.0));
+    assert!(!Param::Backlash.accepts(f64::NAN));
+    assert!(Param::Backlash.is_configuration() && !Param::AbsoluteTarget.is_configuration());
+    assert!(!Param::ConfigurationMode.is_configuration());
+    let codes: Vec<&str> = Param::CONFIGURATION.iter().map(|p| p.code()).collect();
+    let mut sorted = codes.clone();
+    sorted.sort_unstable();
+    assert_eq!(
+        codes, sorted,
+        "a ZT dump lists its parameters alphabetically"
+    );
+}
+
+/// The dump of an SMC100PP with a rotation stage, byte for byte: `PW1`, `ID`, the
+/// parameters alphabetically, reals with six decimals (as the manual's
+/// `1AC320.000000`), whole numbers without, `PW0`.
+const PP_DUMP: &str = "1PW1\r\n1IDURS100PP\r\n1AC160.000000\r\n1BA0.000000\r\n\
+1BH0.000000\r\n1FRM100\r\n1FRS0.050000\r\n1HT2\r\n1JR0.040000\r\n1OH10.000000\r\n\
+1OT60.000000\r\n1QIL1.000000\r\n1QIR0.500000\r\n1QIT1.000000\r\n1SA1\r\n\
+1SL-170.000000\r\n1SR170.000000\r\n1VA40.000000\r\n1VB0.000000\r\n1ZX3\r\n1PW0\r\n";
+
+fn pp_parameters() -> Smc100Parameters {
+    let v = [
+        160.0, 0.0, 0.0, 100.0, 0.05, 2.0, 0.04, 10.0, 60.0, 1.0, 0.5, 1.0, 1.0, -170.0, 170.0,
+        40.0, 0.0, 3.0,
+    ];
+    Smc100Parameters {
+        stage: "URS100PP".into(),
+        values: Param::CONFIGURATION.iter().copied().zip(v).collect(),
+        other: Vec::new(),
+    }
+}
+
+fn lines(text: &str) -> Vec<&[u8]> {
+    text.split("\r\n")
+        .filter(|l| !l.is_empty())
+        .map(str::as_bytes)
+        .collect()
+}
+
+#[test]
+fn zt_dump_encodes_and_parses_byte_for_byte() {
+    let p = pp_parameters();
+    let mut out = Vec::new();
+    p.encode_dump(1, &mut out);
+    assert_eq!(String::from_utf8(out).expect("ascii"), PP_DUMP);
+    let read = Smc100Parameters::parse_dump(1, lines(PP_DUMP)).expect("a dump");
+    assert_eq!(read, p);
+    assert_eq!(read.get(Param::HomeType), Some(2.0));
+    assert_eq!(read.get(Param::PeakCurrent), Some(1.0));
+    assert_eq!(read.get(Param::AbsoluteTarget), None);
+    // Each line is also a reply on its own.
+    assert_eq!(
+        Reply::parse(b"1QIL1.000000"),
+        Ok(Reply {
+            address: 1,
+            body: ReplyBody::Value(Param::PeakCurrent, 1.0)
+        })
+    );
+    // A CC controller's lines this codec has no name for are kept, in order.
+    let cc = "1PW1\r\n1IDURS100CC\r\n1AC320.000000\r\n1KP0.100000\r\n1SC1\r\n1PW0\r\n";
+    let read = Smc100Parameters::parse_dump(1, lines(cc)).expect("a dump");
+    assert_eq!(read.values, vec![(Param::Acceleration, 320.0)]);
+    assert_eq!(
+        read.other,
+        vec!["KP0.100000".to_string(), "SC1".to_string()]
+    );
+    let mut again = Vec::new();
+    read.encode_dump(1, &mut again);
+    assert_eq!(again, cc.as_bytes());
+    // A late reply before the dump is skipped; a cut dump is incomplete; another
+    // controller's line inside it is an error.
+    let late = format!("1TP5\r\n{PP_DUMP}");
+    assert_eq!(Smc100Parameters::parse_dump(1, lines(&late)), Ok(p));
+    let cut = &PP_DUMP[..PP_DUMP.len() - 6];
+    assert_eq!(
+        Smc100Parameters::parse_dump(1, lines(cut)),
+        Err(DumpError::Incomplete)
+    );
+    assert_eq!(
+        Smc100Parameters::parse_dump(1, lines("1PW1\r\n2AC1\r\n1PW0\r\n")),
+        Err(DumpError::OtherAddress(2))
+    );
+}
+
+// --- session transcripts, against a controller played by a closure ---
+
+fn stage() -> AxisConfig {
+    AxisConfig {
+        name: "source".into(),
+        address: 1,
+        units: "deg".into(),
+        min: -170.0,
+        max: 170.0,
+        velocity: None,
+        acceleration: None,
+        tolerance: 0.01,
+        home_timeout_s: 60.0,
+    }
+}
+
+/// Runs `op`; `answer(line, now)` gives the controller's reply lines to each line
+/// sent (each arrives 12 ms later). Returns the output and every line sent, with its
+/// time.
+fn transcript<O: Operation>(
+    mut op: O,
+    mut answer: impl FnMut(&str, Duration) -> Vec<String>,
+) -> (O::Output, Vec<(Duration, String)>) {
+    let mut now = Duration::ZERO;
+    let mut sent = Vec::new();
+    let mut inbox: VecDeque<String> = VecDeque::new();
+    for _ in 0..10_000 {
+        while let Some(io) = op.poll_io() {
+            match io {
+                Io::Transmit(b) => {
+                    let line = String::from_utf8_lossy(b).trim_end().to_string();
+                    inbox.extend(answer(&line, now));
+                    sent.push((now, line));
+                    op.handle_sent(now, Ok(()));
+                }
+                Io::ClearInput => inbox.clear(),
+                Io::Reconnect => panic!("no reconnection expected"),
+            }
+        }
+        if let Some(out) = op.poll_output() {
+            return (out, sent);
+        }
+        match op.poll_timeout().expect("waits for something") {
+            Deadline::Reply(at) => match inbox.pop_front() {
+                Some(l) => {
+                    now += Duration::from_millis(12);
+                    op.handle_line(now, l.as_bytes());
+                }
+                None => {
+                    now = at;
+                    op.handle_timeout(now);
+                }
+            },
+            Deadline::Poll(at) | Deadline::Sleep(at) => {
+                now = at;
+                op.handle_timeout(now);
+            }
+        }
+    }
+    panic!("the operation never ended");
+}
+
+fn session() -> Smc100Session {
+    Smc100Session::new(vec![stage()], ChainPolicy::default()).expect("valid")
+}
+
+#[test]
+fn read_config_transcript() {
+    let mut s = session();
+    let op = s.start_read_config("source", Duration::ZERO);
+    let (out, sent) = transcript(op, |line, _| match line {
+        // A late reply to an earlier command arrives first, and is skipped.
+        "1ZT" => std::iter::once("1TP0".to_string())
+            .chain(
+                lines(PP_DUMP)
+                    .iter()
+                    .map(|l| String::from_utf8_lossy(l).into()),
+            )
+            .collect(),
+        other => panic!("unexpected {other}"),
+    });
+    assert_eq!(out, Ok(pp_parameters()));
+    assert_eq!(sent, vec![(Duration::ZERO, "1ZT".to_string())]);
+    assert_eq!(s.retried(), 0);
+}
+
+#[test]
+fn read_config_asks_again_after_a_lost_line() {
+    let mut s = session();
+    let mut first = true;
+    let op = s.start_read_config("source", Duration::ZERO);
+    let (out, sent) = transcript(op, |line, _| {
+        assert_eq!(line, "1ZT");
+        let all: Vec<String> = lines(PP_DUMP)
+            .iter()
+            .map(|l| String::from_utf8_lossy(l).into())
+            .collect();
+        if std::mem::take(&mut first) {
+            // The closing PW0 is lost.
+            all[..all.len() - 1].to_vec()
+        } else {
+            all
+        }
+    });
+    assert_eq!(out, Ok(pp_parameters()));
+    let texts: Vec<&str> = sent.iter().map(|(_, l)| l.as_str()).collect();
+    assert_eq!(texts, ["1ZT", "1ZT"]);
+    assert_eq!(s.retried(), 1);
+}
+
+/// The manual's sequence: from NOT REFERENCED, `PW1`, each set checked with `TE`,
+/// `PW0`, silence while it saves (10 s here), NOT REFERENCED from CONFIGURATION, `TE`.
+#[test]
+fn configure_transcript() {
+    let mut s = session();
+    let changes = [
+        (Param::Backlash, 0.01),
+        (Param::HomeType, 1.0),
+        (Param::Velocity, 30.0),
+    ];
+    let mut saved_at: Option<Duration> = None;
+    let op = s.start_configure("source", &changes, Duration::ZERO);
+    let (out, sent) = transcript(op, |line, now| {
+        let busy = saved_at.is_some_and(|t| now < t + Duration::from_secs(10));
+        let r: &[&str] = match line {
+            _ if busy => &[],
+            "1TS" if saved_at.is_some() => &["1TS00000C"],
+            "1TS" => &["1TS00000A"],
+            "1TE" => &["1TE@"],
+            "1PW0" => {
+                saved_at = Some(now);
+                &[]
+            }
+            "1PW1" | "1BA0.01" | "1HT1" | "1VA30" => &[],
+            other => panic!("unexpected {other}"),
+        };
+        r.iter().map(|l| l.to_string()).collect()
+    });
+    assert_eq!(out, Ok(()));
+    let texts: Vec<&str> = sent.iter().map(|(_, l)| l.as_str()).collect();
+    assert_eq!(
+        &texts[..10],
+        [
+            "1TS", "1PW1", "1TE", "1BA0.01", "1TE", "1HT1", "1TE", "1VA30", "1TE", "1PW0"
+        ]
+    );
+    // Then status polls until the save ends, and the save's own TE.
+    assert!(texts[10..texts.len() - 1].iter().all(|l| *l == "1TS"));
+    assert_eq!(texts.last(), Some(&"1TE"));
+    let pw0 = sent[9].0;
+    let answered = sent[sent.len() - 2].0;
+    assert!(answered >= pw0 + Duration::from_secs(10), "{answered:?}");
+    assert!(
+        answered <= pw0 + Duration::from_millis(10_600),
+        "{answered:?}"
+    );
+}
+
+#[test]
+fn configure_refuses_before_sending() {
+    let mut s = session();
+    // Not a configuration parameter, or out of the manual's range: not a byte.
+    for change in [(Param::AbsoluteTarget, 1.0), (Param::HomeType, 7.0)] {
+        let mut op = s.start_configure("source", &[change], Duration::ZERO);
+        assert_eq!(op.poll_io(), None);
+        match op.poll_output() {
+            Some(Err(MotionError::AtAxis {
+                source: AxisError::InvalidSetting { code, .. },
+                ..
+            })) => assert_eq!(code, change.0.code()),
+            other => panic!("{other:?}"),
+        }
+    }
+    // READY: PW1 needs NOT REFERENCED, and the session does not reset on its own.
+    let op = s.start_configure("source", &[(Param::Backlash, 0.1)], Duration::ZERO);
+    let (out, sent) = transcript(op, |line, _| match line {
+        "1TS" => vec!["1TS000032".into()],
+        other => panic!("unexpected {other}"),
+    });
+    match out {
+        Err(MotionError::AtAxis {
+            source: AxisError::WrongState { state, .. },
+            ..
+        }) => assert_eq!(state, ControllerState::ReadyFromHoming),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(sent.len(), 1);
+}
+
+/// A refused set still leaves CONFIGURATION with `PW0` (the only way out), then the
+/// refusal is the result.
+#[test]
+fn configure_leaves_configuration_after_a_refusal() {
+    let mut s = session();
+    let mut saving = false;
+    let op = s.start_configure(
+        "source",
+        &[(Param::Backlash, 0.01), (Param::PeakCurrent, 2.0)],
+        Duration::ZERO,
+    );
+    let mut last = String::new();
+    let (out, sent) = transcript(op, |line, _| {
+        let r: Vec<String> = match line {
+            "1TS" if saving => vec!["1TS00000C".into()],
+            "1TS" => vec!["1TS00000A".into()],
+            "1TE" if last == "1QIL2" => vec!["1TEC".into()],
+            "1TE" => vec!["1TE@".into()],
+            "1PW0" => {
+                saving = true;
+                vec![]
+            }
+            _ => vec![],
+        };
+        last = line.to_string();
+        r
+    });
+    match out {
+        Err(MotionError::AtAxis {
+            source: AxisError::Controller { command, code },
+            ..
+        }) => {
+            assert_eq!(command, "1QIL2");
+            assert_eq!(code, ErrorCode::BadParameter);
+        }
+        other => panic!("{other:?}"),
+    }
+    let texts: Vec<&str> = sent.iter().map(|(_, l)| l.as_str()).collect();
+    assert_eq!(
+        &texts[..8],
+        [
+            "1TS", "1PW1", "1TE", "1BA0.01", "1TE", "1QIL2", "1TE", "1PW0"
+        ]
+    );
 }

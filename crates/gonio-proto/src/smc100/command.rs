@@ -4,7 +4,11 @@
 use super::{ErrorCode, MAX_ADDRESS, TERMINATOR};
 use crate::number;
 
-/// A parameter that can be queried with `xxAA?`.
+/// A parameter that can be queried with `xxAA?`; most can also be set, and those the
+/// `ZT` dump lists are the controller's configuration (manual §2, command pages).
+///
+/// Codes of three letters (`QIL`, `FRM`) are the manual's sub-commands: `QI` (motor
+/// current limits) and `FR` (stepper motor configuration) with their third letter.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Param {
     /// `AC`: acceleration, units/s².
@@ -23,35 +27,178 @@ pub enum Param {
     Enabled,
     /// `ID`: stage identifier (a string).
     StageId,
+    /// `BA`: backlash compensation, units.
+    Backlash,
+    /// `BH`: hysteresis compensation, units.
+    Hysteresis,
+    /// `FRM`: micro-steps per full step (PP only).
+    MicroSteps,
+    /// `FRS`: the motion of one full step, units (PP only; it defines the units).
+    FullStep,
+    /// `HT`: home search type, 0–4 (0 MZ switch and index, 1 current position, 2 MZ
+    /// switch only, 3 EoR− switch and index, 4 EoR− switch only).
+    HomeType,
+    /// `JR`: jerk time, s.
+    JerkTime,
+    /// `OH`: home search velocity, units/s.
+    HomeVelocity,
+    /// `OT`: home search time-out, s.
+    HomeTimeout,
+    /// `QIL`: motor peak current limit, A.
+    PeakCurrent,
+    /// `QIR`: motor rms current limit, A.
+    RmsCurrent,
+    /// `QIT`: averaging time of the rms current, s.
+    RmsTime,
+    /// `SA`: RS-485 address.
+    RsAddress,
+    /// `VB`: base velocity, units/s (PP only).
+    BaseVelocity,
+    /// `ZX`: ESP stage check, 1–3 (1 off, 2 read the stage's EEPROM, 3 check at
+    /// power-up).
+    StageCheck,
+    /// `PW`: 1 in CONFIGURATION, 0 otherwise.
+    ConfigurationMode,
 }
 
+/// How a parameter's value is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// A real number: a `ZT` dump writes six decimals.
+    Real,
+    /// A whole number, written without decimals everywhere.
+    Integer,
+    /// Text (`ID`).
+    Text,
+}
+
+/// Every parameter: code, kind, and whether it is configuration (settable in
+/// CONFIGURATION and listed by `ZT`). Configuration entries are in the order the `ZT`
+/// dump lists them: alphabetical by code.
+const PARAMS: [(Param, &str, Kind, bool); 23] = [
+    (Param::Acceleration, "AC", Kind::Real, true),
+    (Param::Backlash, "BA", Kind::Real, true),
+    (Param::Hysteresis, "BH", Kind::Real, true),
+    (Param::MicroSteps, "FRM", Kind::Integer, true),
+    (Param::FullStep, "FRS", Kind::Real, true),
+    (Param::HomeType, "HT", Kind::Integer, true),
+    (Param::JerkTime, "JR", Kind::Real, true),
+    (Param::HomeVelocity, "OH", Kind::Real, true),
+    (Param::HomeTimeout, "OT", Kind::Real, true),
+    (Param::PeakCurrent, "QIL", Kind::Real, true),
+    (Param::RmsCurrent, "QIR", Kind::Real, true),
+    (Param::RmsTime, "QIT", Kind::Real, true),
+    (Param::RsAddress, "SA", Kind::Integer, true),
+    (Param::NegativeLimit, "SL", Kind::Real, true),
+    (Param::PositiveLimit, "SR", Kind::Real, true),
+    (Param::Velocity, "VA", Kind::Real, true),
+    (Param::BaseVelocity, "VB", Kind::Real, true),
+    (Param::StageCheck, "ZX", Kind::Integer, true),
+    (Param::AbsoluteTarget, "PA", Kind::Real, false),
+    (Param::RelativeTarget, "PR", Kind::Real, false),
+    (Param::Enabled, "MM", Kind::Integer, false),
+    (Param::StageId, "ID", Kind::Text, false),
+    (Param::ConfigurationMode, "PW", Kind::Integer, false),
+];
+
 impl Param {
-    /// The two-letter code.
+    /// The numeric configuration parameters of an SMC100PP, in the order its `ZT` dump
+    /// lists them (after `PW1` and `ID`, before `PW0`).
+    pub const CONFIGURATION: [Param; 18] = [
+        Param::Acceleration,
+        Param::Backlash,
+        Param::Hysteresis,
+        Param::MicroSteps,
+        Param::FullStep,
+        Param::HomeType,
+        Param::JerkTime,
+        Param::HomeVelocity,
+        Param::HomeTimeout,
+        Param::PeakCurrent,
+        Param::RmsCurrent,
+        Param::RmsTime,
+        Param::RsAddress,
+        Param::NegativeLimit,
+        Param::PositiveLimit,
+        Param::Velocity,
+        Param::BaseVelocity,
+        Param::StageCheck,
+    ];
+
+    fn entry(self) -> (Param, &'static str, Kind, bool) {
+        // Every variant has its row; the fallback is never taken.
+        PARAMS
+            .iter()
+            .copied()
+            .find(|(p, ..)| *p == self)
+            .unwrap_or((self, "", Kind::Real, false))
+    }
+
+    /// The command code (two letters, or three for `QIx` and `FRx`).
     pub fn code(self) -> &'static str {
+        self.entry().1
+    }
+
+    /// True for a numeric configuration parameter: set in CONFIGURATION, saved by `PW0`,
+    /// listed by `ZT`.
+    pub fn is_configuration(self) -> bool {
+        self.entry().3
+    }
+
+    /// True when the value is a whole number (`HT`, `SA`, `ZX`, `FRM`, `MM`, `PW`).
+    pub fn is_integer(self) -> bool {
+        self.entry().2 == Kind::Integer
+    }
+
+    /// True when a controller takes `value` for this parameter in CONFIGURATION: the
+    /// ranges of the manual's command pages (a value outside is refused with `C`).
+    /// Where the manual gives only "> 1E-6 and < 1E12" that is the range.
+    pub fn accepts(self, value: f64) -> bool {
+        let open = |lo: f64, hi: f64| value > lo && value < hi;
+        let whole = |lo: f64, hi: f64| value.fract() == 0.0 && value >= lo && value <= hi;
+        if !value.is_finite() {
+            return false;
+        }
         match self {
-            Param::Acceleration => "AC",
-            Param::Velocity => "VA",
-            Param::NegativeLimit => "SL",
-            Param::PositiveLimit => "SR",
-            Param::AbsoluteTarget => "PA",
-            Param::RelativeTarget => "PR",
-            Param::Enabled => "MM",
-            Param::StageId => "ID",
+            Param::Acceleration
+            | Param::Velocity
+            | Param::HomeVelocity
+            | Param::FullStep
+            | Param::PeakCurrent
+            | Param::RmsCurrent
+            | Param::RmsTime
+            | Param::JerkTime => open(1e-6, 1e12),
+            Param::Backlash | Param::Hysteresis | Param::BaseVelocity => {
+                (0.0..1e12).contains(&value)
+            }
+            Param::HomeTimeout => open(1.0, 1e3),
+            Param::NegativeLimit => value > -1e12 && value <= 0.0,
+            Param::PositiveLimit => (0.0..1e12).contains(&value),
+            Param::HomeType => whole(0.0, 4.0),
+            Param::MicroSteps => whole(1.0, 2000.0),
+            Param::RsAddress => whole(1.0, 31.0),
+            Param::StageCheck => whole(1.0, 3.0),
+            Param::Enabled | Param::ConfigurationMode => whole(0.0, 1.0),
+            Param::AbsoluteTarget | Param::RelativeTarget => open(-1e12, 1e12),
+            Param::StageId => false,
         }
     }
 
-    pub(super) fn from_code(c: &str) -> Option<Param> {
-        Some(match c {
-            "AC" => Param::Acceleration,
-            "VA" => Param::Velocity,
-            "SL" => Param::NegativeLimit,
-            "SR" => Param::PositiveLimit,
-            "PA" => Param::AbsoluteTarget,
-            "PR" => Param::RelativeTarget,
-            "MM" => Param::Enabled,
-            "ID" => Param::StageId,
-            _ => return None,
-        })
+    /// The parameter a code names; `None` for codes that are not parameters.
+    pub fn from_code(c: &str) -> Option<Param> {
+        PARAMS.iter().find(|(_, code, ..)| *code == c).map(|e| e.0)
+    }
+
+    /// Writes `value` as a `ZT` dump does: six decimals for a real (`1AC320.000000`),
+    /// none for a whole number (`1HT1`). A value that six decimals would not give back
+    /// exactly is written in full, so that a dump never changes what it reports.
+    pub(super) fn format_fixed(self, value: f64, out: &mut Vec<u8>) {
+        let fixed = format!("{value:.6}");
+        if !self.is_integer() && fixed.parse::<f64>().ok() == Some(value) {
+            out.extend_from_slice(fixed.as_bytes());
+        } else {
+            crate::number::format(value, out);
+        }
     }
 }
 
@@ -92,6 +239,19 @@ pub enum Command {
     Version,
     /// `xxAA?`: the value of a parameter; replies.
     Query(Param),
+    /// `xxAAnn`: sets a configuration parameter that has no variant of its own (`BA`,
+    /// `HT`, `OH`, `QIL`…); accepted in CONFIGURATION only. Build it with
+    /// [`Command::set`], which picks the dedicated variant where there is one.
+    Set(Param, f64),
+    /// `IDxx`: names the stage (1–31 characters; CONFIGURATION only).
+    SetStageId(String),
+    /// `PW1` enters CONFIGURATION (from NOT REFERENCED only); `PW0` saves the
+    /// configuration to the controller's memory and leaves for NOT REFERENCED. The
+    /// controller answers nothing while it saves (up to 10 s, manual PW command).
+    ConfigurationMode(bool),
+    /// `ZT`: every configuration parameter, one line each (manual ZT command); the
+    /// lines are the commands that would set them, from `PW1` to `PW0`.
+    DumpConfiguration,
 }
 
 impl Command {
@@ -114,7 +274,23 @@ impl Command {
             Command::TellStatus => "TS",
             Command::TellError => "TE",
             Command::Version => "VE",
-            Command::Query(p) => p.code(),
+            Command::Query(p) | Command::Set(p, _) => p.code(),
+            Command::SetStageId(_) => "ID",
+            Command::ConfigurationMode(_) => "PW",
+            Command::DumpConfiguration => "ZT",
+        }
+    }
+
+    /// The command that sets `param` to `value`: the dedicated variant for `SL`, `SR`,
+    /// `VA` and `AC` (so that it is what the controller's parser reads back), the
+    /// generic [`Command::Set`] for the others.
+    pub fn set(param: Param, value: f64) -> Command {
+        match param {
+            Param::NegativeLimit => Command::SetNegativeLimit(value),
+            Param::PositiveLimit => Command::SetPositiveLimit(value),
+            Param::Velocity => Command::SetVelocity(value),
+            Param::Acceleration => Command::SetAcceleration(value),
+            p => Command::Set(p, value),
         }
     }
 
@@ -129,13 +305,15 @@ impl Command {
                 | Command::TellError
                 | Command::Version
                 | Command::Query(_)
+                | Command::DumpConfiguration
         )
     }
 
     /// True when sending the command twice has the same effect as sending it once, so
     /// that a driver may re-send it after a lost acknowledgement. An absolute move is;
     /// a relative move is not (it would move twice), nor is `TE` or `TS` (reading
-    /// clears what they report), nor a reset or a home search.
+    /// clears what they report), nor a reset, a home search, or `PW` (a second `PW1`
+    /// is refused in CONFIGURATION; a second `PW0` finds the controller saving).
     pub fn is_idempotent(&self) -> bool {
         !matches!(
             self,
@@ -144,6 +322,7 @@ impl Command {
                 | Command::TellStatus
                 | Command::Reset
                 | Command::Home
+                | Command::ConfigurationMode(_)
         )
     }
 
@@ -219,8 +398,12 @@ impl Frame {
             | Command::SetPositiveLimit(v)
             | Command::SetVelocity(v)
             | Command::SetAcceleration(v)
+            | Command::Set(_, v)
             | Command::MotionTime(v) => number::format(*v, out),
-            Command::Enable(on) => out.push(if *on { b'1' } else { b'0' }),
+            Command::Enable(on) | Command::ConfigurationMode(on) => {
+                out.push(if *on { b'1' } else { b'0' })
+            }
+            Command::SetStageId(name) => out.extend_from_slice(name.as_bytes()),
             Command::Query(_) => out.push(b'?'),
             _ => {}
         }
@@ -256,9 +439,14 @@ impl Frame {
             let a = s[..digits].iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'));
             Some(a)
         };
-        let code = s.get(digits..digits + 2).ok_or(CommandError::Unknown)?;
+        // `QI` and `FR` take a third letter (`QIL`, `FRM`).
+        let len = match s.get(digits..digits + 2) {
+            Some(b"QI" | b"FR") => 3,
+            _ => 2,
+        };
+        let code = s.get(digits..digits + len).ok_or(CommandError::Unknown)?;
         let code = std::str::from_utf8(code).map_err(|_| CommandError::Unknown)?;
-        let rest = &s[digits + 2..];
+        let rest = &s[digits + len..];
         let query = rest.first() == Some(&b'?');
         let value = || -> Result<f64, CommandError> {
             // The value is the longest numeric prefix; what follows is ignored.
@@ -278,7 +466,14 @@ impl Frame {
             "TE" => Command::TellError,
             "VE" => Command::Version,
             "ID" if query => Command::Query(Param::StageId),
+            "ID" => Command::SetStageId(stage_name(rest)?),
             "PT" => Command::MotionTime(value()?),
+            "ZT" => Command::DumpConfiguration,
+            "PW" if !query => match value()? {
+                0.0 => Command::ConfigurationMode(false),
+                1.0 => Command::ConfigurationMode(true),
+                _ => return Err(CommandError::BadParameter),
+            },
             c => match (Param::from_code(c), query) {
                 (Some(p), true) => Command::Query(p),
                 (Some(Param::AbsoluteTarget), false) => Command::MoveAbsolute(value()?),
@@ -292,8 +487,10 @@ impl Frame {
                     1.0 => Command::Enable(true),
                     _ => return Err(CommandError::BadParameter),
                 },
-                // Setting the stage name needs CONFIGURATION; not part of this codec.
-                (Some(Param::StageId), false) => return Err(CommandError::Unknown),
+                (Some(Param::StageId | Param::ConfigurationMode), false) => {
+                    return Err(CommandError::Unknown);
+                }
+                (Some(p), false) => Command::Set(p, value()?),
                 (None, _) => return Err(CommandError::Unknown),
             },
         };
@@ -304,4 +501,13 @@ impl Frame {
         };
         Ok(Frame { address, command })
     }
+}
+
+/// A stage name as `IDxx` carries it: 1–31 printable ASCII characters (the line has
+/// already lost its blanks and been upper-cased, as the controller reads it).
+fn stage_name(rest: &[u8]) -> Result<String, CommandError> {
+    if rest.is_empty() || rest.len() > 31 || !rest.iter().all(u8::is_ascii_graphic) {
+        return Err(CommandError::BadParameter);
+    }
+    String::from_utf8(rest.to_vec()).map_err(|_| CommandError::BadParameter)
 }

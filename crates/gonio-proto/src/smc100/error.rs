@@ -124,6 +124,19 @@ pub enum AxisError {
     /// The operation was aborted; the stages were stopped.
     #[error("aborted; stages stopped")]
     Aborted,
+    /// A configuration change the controller would refuse (not a configuration
+    /// parameter, or a value outside the manual's range); nothing was sent.
+    #[error(
+        "`{code}{value}` is not a configuration the controller accepts ({reason}); nothing was sent"
+    )]
+    InvalidSetting {
+        /// The parameter's command code.
+        code: &'static str,
+        /// The refused value.
+        value: f64,
+        /// Why.
+        reason: &'static str,
+    },
 }
 
 /// An error on a named axis.

@@ -2,7 +2,7 @@
 //! parser of this protocol. They must never panic; they also check that whatever
 //! parses re-encodes into something that parses to the same value.
 
-use super::{Frame, Reply};
+use super::{DumpReader, Frame, Reply, Smc100Parameters};
 use crate::LineFramer;
 
 /// Parses `data` as a command line (the simulator's side), and round-trips it.
@@ -23,13 +23,32 @@ pub fn reply_line(data: &[u8]) {
     }
 }
 
-/// Frames `data` as a stream of reply lines and parses each.
+/// Frames `data` as a stream of reply lines and parses each, and reads the stream as
+/// a `ZT` dump of controller 1: whatever dump it holds re-encodes into the same dump.
 pub fn stream(data: &[u8]) {
     let mut f = LineFramer::new(b'\n', super::MAX_LINE);
     f.push(data);
+    let mut dump = DumpReader::new(1);
     while let Some(line) = f.next_line() {
-        if let Ok(l) = line {
-            reply_line(&l);
+        let Ok(l) = line else { continue };
+        reply_line(&l);
+        let l = l.strip_suffix(b"\r").unwrap_or(&l);
+        match dump.push(l) {
+            Ok(Some(params)) => dump_round_trip(&params),
+            Ok(None) => {}
+            Err(_) => dump = DumpReader::new(1),
         }
     }
+}
+
+/// A dump re-encoded reads back to the same parameters.
+fn dump_round_trip(params: &Smc100Parameters) {
+    let mut bytes = Vec::new();
+    params.encode_dump(1, &mut bytes);
+    let lines = bytes
+        .split(|b| *b == b'\n')
+        .filter(|l| !l.is_empty())
+        .map(|l| l.strip_suffix(b"\r").unwrap_or(l));
+    let again = Smc100Parameters::parse_dump(1, lines);
+    assert_eq!(again.as_ref().ok(), Some(params), "re-encoded {bytes:?}");
 }

@@ -12,11 +12,13 @@
 //!
 //! The codec is split by direction and content: [`Command`] and [`Frame`] (host to
 //! controller), the `TS`/`TE` vocabulary ([`ControllerState`], [`ErrorCode`],
-//! [`PositionerErrors`]), and [`Reply`] (controller to host).
+//! [`PositionerErrors`]), [`Reply`] (controller to host), and the configuration a
+//! `ZT` dump lists ([`Smc100Parameters`], read line by line with [`DumpReader`]).
 
 mod command;
 mod config;
 mod error;
+mod params;
 mod reply;
 mod session;
 mod status;
@@ -26,6 +28,7 @@ pub mod fuzz;
 pub use command::{Command, CommandError, Frame, Param};
 pub use config::{AxisConfig, ChainPolicy};
 pub use error::{AxisError, ControllerInfo, MotionError, describe_errors};
+pub use params::{DumpError, DumpReader, Smc100Parameters};
 pub use reply::{Reply, ReplyBody, ReplyError};
 pub use session::Smc100Session;
 pub use status::{ControllerState, ErrorCode, PositionerErrors, Status};

@@ -20,7 +20,8 @@ pub enum ReplyBody {
     MotionTime(f64),
     /// `ID?`: the stage name.
     StageId(String),
-    /// `AC?`, `VA?`, `SL?`, `SR?`, `PA?`, `PR?`, `MM?`: the parameter's value.
+    /// `AC?`, `VA?`, `SL?`, `PA?`, `HT?`, `PW?`…: the parameter's value; also the
+    /// numeric lines of a `ZT` dump (`1PW1`, `1AC320.000000`, …, `1PW0`).
     Value(Param, f64),
 }
 
@@ -47,6 +48,22 @@ pub struct Reply {
     pub address: u8,
     /// The content.
     pub body: ReplyBody,
+}
+
+impl Reply {
+    /// Appends the line as a `ZT` dump writes it (terminator included): real values
+    /// with six decimals, as in the manual's `1AC320.000000`, whole numbers without.
+    pub fn encode_fixed(&self, out: &mut Vec<u8>) {
+        match &self.body {
+            ReplyBody::Value(p, v) => {
+                out.extend_from_slice(self.address.to_string().as_bytes());
+                out.extend_from_slice(p.code().as_bytes());
+                p.format_fixed(*v, out);
+                out.extend_from_slice(TERMINATOR);
+            }
+            _ => self.encode(out),
+        }
+    }
 }
 
 /// Why a reply line could not be understood.
@@ -110,10 +127,15 @@ impl Reply {
         let address = line[..digits]
             .iter()
             .fold(0u8, |acc, d| acc * 10 + (d - b'0'));
+        // `QI` and `FR` take a third letter (`QIL`, `FRM`).
+        let len = match line.get(digits..digits + 2) {
+            Some(b"QI" | b"FR") => 3,
+            _ => 2,
+        };
         let code = line
-            .get(digits..digits + 2)
+            .get(digits..digits + len)
             .ok_or(ReplyError::UnknownCode)?;
-        let rest = &line[digits + 2..];
+        let rest = &line[digits + len..];
         let num = || number::parse(trim(rest)).ok_or(ReplyError::BadValue);
         let text = || {
             std::str::from_utf8(rest)

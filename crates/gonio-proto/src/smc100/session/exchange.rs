@@ -10,7 +10,10 @@ use tracing::{debug, warn};
 use super::{Smc100Session, line_text};
 use crate::TransportError;
 use crate::machine::{Cx, Event, Machine, Pending, Step, drive};
-use crate::smc100::{AxisError, Command, ErrorCode, Frame, MotionError, Param, Reply, ReplyBody};
+use crate::smc100::{
+    AxisError, Command, DumpReader, ErrorCode, Frame, MotionError, Param, Reply, ReplyBody,
+    Smc100Parameters,
+};
 
 /// Sends one command line. When the port has vanished, reopens it (one attempt, then
 /// up to `reconnect_attempts` more, `reconnect_delay` apart) and sends once more.
@@ -193,6 +196,105 @@ impl Machine<Smc100Session> for Query {
                 "smc100: no usable reply; asking again",
             );
             s.retried += 1;
+            self.state = QueryState::Sending(Transfer::new(&self.frame));
+            ev = Event::Start;
+        }
+    }
+}
+
+/// `ZT` and its dump (manual, ZT command): lines up to the dump's `PW1` answer earlier
+/// commands and are skipped until the reply timeout; from `PW1` on, each line must
+/// come within the reply timeout of the one before, and `PW0` ends it. `ZT` changes
+/// nothing, so a lost, late or garbled line clears the input and asks again, up to
+/// `retries` times; a NUL byte means the controller lost power.
+#[derive(Debug)]
+pub(super) struct Dump {
+    frame: Frame,
+    attempts: usize,
+    attempt: usize,
+    reader: DumpReader,
+    state: QueryState,
+}
+
+impl Dump {
+    pub(super) fn new(s: &Smc100Session, axis: usize) -> Self {
+        let frame = s.frame(axis, Command::DumpConfiguration);
+        Dump {
+            state: QueryState::Sending(Transfer::new(&frame)),
+            reader: DumpReader::new(s.axes[axis].address),
+            frame,
+            attempts: s.policy.retries + 1,
+            attempt: 0,
+        }
+    }
+}
+
+impl Machine<Smc100Session> for Dump {
+    type Output = Result<Smc100Parameters, AxisError>;
+
+    fn step(
+        &mut self,
+        s: &mut Smc100Session,
+        cx: &mut Cx,
+        mut ev: Event<'_>,
+    ) -> Step<Self::Output> {
+        loop {
+            let deadline = match &mut self.state {
+                QueryState::Sending(t) => {
+                    if let Err(e) = drive!(t, s, cx, ev) {
+                        return Step::Done(Err(e));
+                    }
+                    let deadline = cx.now.saturating_add(s.policy.reply_timeout);
+                    self.state = QueryState::Reading(deadline);
+                    return Step::Wait(Pending::Reply(deadline));
+                }
+                QueryState::Reading(deadline) => *deadline,
+            };
+            let failure = match ev {
+                Event::Line(line) => match self.reader.push(line) {
+                    Ok(Some(params)) => return Step::Done(Ok(params)),
+                    Ok(None) => {
+                        // A line of the dump restarts the wait; a skipped one does not.
+                        let next = if self.reader.started() {
+                            cx.now.saturating_add(s.policy.reply_timeout)
+                        } else {
+                            deadline
+                        };
+                        self.state = QueryState::Reading(next);
+                        return Step::Wait(Pending::Reply(next));
+                    }
+                    Err(e) => AxisError::Protocol {
+                        sent: line_text(&self.frame.to_bytes()),
+                        reply: line_text(line),
+                        reason: e.to_string(),
+                    },
+                },
+                Event::LinkError(TransportError::Nul) => {
+                    warn!("smc100: NUL byte on the line: a controller lost power");
+                    return Step::Done(Err(AxisError::ControllerReset));
+                }
+                Event::LinkError(
+                    e @ (TransportError::Timeout(_)
+                    | TransportError::LineTooLong
+                    | TransportError::Garbled(_)),
+                ) => AxisError::Transport(e),
+                Event::LinkError(e) => return Step::Done(Err(AxisError::Transport(e))),
+                _ => return Step::Wait(Pending::Reply(deadline)),
+            };
+            // The rest of a broken dump must not be read as the next one.
+            cx.clear_input();
+            self.attempt += 1;
+            if self.attempt >= self.attempts {
+                warn!(
+                    attempts = self.attempts,
+                    error = %failure,
+                    "smc100: no complete ZT dump",
+                );
+                return Step::Done(Err(failure));
+            }
+            warn!(error = %failure, "smc100: ZT dump broken off; asking again");
+            s.retried += 1;
+            self.reader = DumpReader::new(self.frame.address.unwrap_or(0));
             self.state = QueryState::Sending(Transfer::new(&self.frame));
             ev = Event::Start;
         }

@@ -7,8 +7,9 @@
 //!   of every stage;
 //! - `script`: operations written as steps, each asking for one exchange or pause and
 //!   naming the step that takes its result;
-//! - `ops`, `home`, `motion`: the operations themselves.
+//! - `ops`, `home`, `motion`, `config`: the operations themselves.
 
+mod config;
 mod exchange;
 mod home;
 mod motion;
@@ -19,7 +20,7 @@ use std::time::Duration;
 
 use super::{
     AxisConfig, AxisError, ChainPolicy, Command, ControllerInfo, Frame, MAX_ADDRESS, MotionError,
-    ReplyBody, Status,
+    Param, ReplyBody, Smc100Parameters, Status,
 };
 use crate::link::Operation;
 use crate::machine::Run;
@@ -246,6 +247,50 @@ impl Smc100Session {
             "smc100.move_by",
             self,
             Exec::new(motion::Motion::by(name, delta)),
+            now,
+        )
+    }
+
+    /// Reads the named controller's configuration: `ZT`, and its dump up to `PW0`
+    /// (manual, ZT command; accepted in every state but while it saves). The dump is
+    /// read again, whole, after a lost or garbled line.
+    pub fn start_read_config<'s>(
+        &'s mut self,
+        name: &str,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Smc100Parameters, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.read_config",
+            self,
+            Exec::new(config::ReadConfig::new(name)),
+            now,
+        )
+    }
+
+    /// Changes and saves the named controller's configuration (manual, PW command):
+    /// from NOT REFERENCED, `PW1`; each change set and checked with `TE`; `PW0`, which
+    /// saves to the controller's memory while it answers nothing (up to 10 s); `TS`
+    /// polled until NOT REFERENCED (15 s at most), and `TE` for the save's own error.
+    ///
+    /// Every change is checked first ([`Param::is_configuration`], [`Param::accepts`]):
+    /// one the controller would refuse is [`AxisError::InvalidSetting`] and nothing is
+    /// sent. A controller in READY, DISABLE or moving is refused with
+    /// [`AxisError::WrongState`]: the manual allows `PW1` only from NOT REFERENCED, and
+    /// getting there takes `RS`, which loses the reference, so it is left to the
+    /// caller. One already in CONFIGURATION is taken as it is. If the controller
+    /// refuses a set, the operation still leaves with `PW0` (the only way out; `RS` is
+    /// refused in CONFIGURATION), so the sets before the refused one are saved, and
+    /// returns the refusal. The stage stays NOT REFERENCED: home it before moving.
+    pub fn start_configure<'s>(
+        &'s mut self,
+        name: &str,
+        changes: &[(Param, f64)],
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+        Run::new(
+            "smc100.configure",
+            self,
+            Exec::new(config::Configure::new(name, changes)),
             now,
         )
     }

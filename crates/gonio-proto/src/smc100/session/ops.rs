@@ -96,13 +96,13 @@ impl Identify {
 
 /// One axis by name, resolved when the operation starts.
 #[derive(Debug)]
-struct Named {
+pub(super) struct Named {
     name: String,
-    axis: usize,
+    pub(super) axis: usize,
 }
 
 impl Named {
-    fn new(name: &str) -> Self {
+    pub(super) fn new(name: &str) -> Self {
         Named {
             name: name.to_string(),
             axis: 0,
@@ -110,7 +110,7 @@ impl Named {
     }
 
     /// Resolves the name; `Err` is the operation's end.
-    fn resolve(&mut self, s: &Smc100Session) -> Result<usize, MotionError> {
+    pub(super) fn resolve(&mut self, s: &Smc100Session) -> Result<usize, MotionError> {
         self.axis = s.index(&self.name)?;
         Ok(self.axis)
     }

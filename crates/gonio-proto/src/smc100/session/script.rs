@@ -10,9 +10,9 @@ use std::time::Duration;
 use tracing::warn;
 
 use super::Smc100Session;
-use super::exchange::{Checked, Query, StopAll, Transfer};
+use super::exchange::{Checked, Dump, Query, StopAll, Transfer};
 use crate::machine::{Cx, Event, Machine, Pending, Step};
-use crate::smc100::{AxisError, Command, Frame, MotionError, ReplyBody};
+use crate::smc100::{AxisError, Command, Frame, MotionError, ReplyBody, Smc100Parameters};
 
 /// A step taking the result `R` of the exchange it asked for.
 pub(super) type Then<O, R> = fn(&mut O, &mut Smc100Session, &mut Cx, R) -> Next<O>;
@@ -37,13 +37,26 @@ pub(super) enum Next<O: Op> {
         command: Command,
         then: Then<O, Result<ReplyBody, AxisError>>,
     },
+    /// A query to an axis asked once: silence is the step's to judge (a controller
+    /// that is saving or booting), not a retry.
+    Probe {
+        axis: usize,
+        command: Command,
+        then: Then<O, Result<ReplyBody, AxisError>>,
+    },
     /// A set or action command to an axis, checked with `TE`.
     Command {
         axis: usize,
         command: Command,
         then: Then<O, Result<(), AxisError>>,
     },
-    /// A frame sent with no reply read and no `TE` (`RS`).
+    /// `ZT` to an axis and its dump, read whole (asked again after a lost or garbled
+    /// line).
+    Dump {
+        axis: usize,
+        then: Then<O, Result<Smc100Parameters, AxisError>>,
+    },
+    /// A frame sent with no reply read and no `TE` (`RS`, `PW0`).
     Send {
         frame: Frame,
         then: Then<O, Result<(), AxisError>>,
@@ -114,6 +127,7 @@ enum Current<O: Op> {
     Idle,
     Query(Query, Then<O, Result<ReplyBody, AxisError>>),
     Command(Checked, Then<O, Result<(), AxisError>>),
+    Dump(Dump, Then<O, Result<Smc100Parameters, AxisError>>),
     Send(Transfer, Then<O, Result<(), AxisError>>),
     StopAll(StopAll, Then<O, Result<(), MotionError>>),
     Pause(Pending, Then<O, Result<(), Aborted>>),
@@ -175,6 +189,7 @@ impl<O: Op> Machine<Smc100Session> for Exec<O> {
                 Current::Query(m, then) => resume!(self, s, cx, ev, Query, m, then),
                 Current::Command(m, then) => resume!(self, s, cx, ev, Command, m, then),
                 Current::Send(m, then) => resume!(self, s, cx, ev, Send, m, then),
+                Current::Dump(m, then) => resume!(self, s, cx, ev, Dump, m, then),
                 Current::StopAll(m, then) => resume!(self, s, cx, ev, StopAll, m, then),
                 Current::Pause(p, then) => match ev {
                     Event::Timer => then(&mut self.op, s, cx, Ok(())),
@@ -226,12 +241,18 @@ impl<O: Op> Machine<Smc100Session> for Exec<O> {
                     command,
                     then,
                 } => Current::Query(Query::new(s, axis, command, true), then),
+                Next::Probe {
+                    axis,
+                    command,
+                    then,
+                } => Current::Query(Query::new(s, axis, command, false), then),
                 Next::Command {
                     axis,
                     command,
                     then,
                 } => Current::Command(Checked::new(s, axis, command), then),
                 Next::Send { frame, then } => Current::Send(Transfer::new(&frame), then),
+                Next::Dump { axis, then } => Current::Dump(Dump::new(s, axis), then),
                 Next::StopAll { then } => Current::StopAll(StopAll::new(), then),
                 Next::Pause {
                     until,
