@@ -160,9 +160,6 @@ impl Machine<AptSession> for Wait {
             _ => return Step::Wait(Pending::Reply(self.until)),
         };
         let update = s.status_of(&message).is_some();
-        if update {
-            s.updates += 1;
-        }
         if (self.want)(&message) {
             if update && self.maybe_ack(s, cx, Some(message.clone())) {
                 return self.step(s, cx, Event::Start);
@@ -172,6 +169,7 @@ impl Machine<AptSession> for Wait {
         match &message {
             Message::GetDcStatusUpdate(_) | Message::GetStatusUpdate(_) if update => {
                 // Updates flow only when asked for (or left on by another host).
+                s.updates += 1;
                 s.updates_on = true;
                 if self.maybe_ack(s, cx, None) {
                     return self.step(s, cx, Event::Start);
