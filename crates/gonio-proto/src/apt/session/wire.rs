@@ -160,7 +160,11 @@ impl Machine<AptSession> for Wait {
             _ => return Step::Wait(Pending::Reply(self.until)),
         };
         let update = s.status_of(&message).is_some();
-        if (self.want)(&message) {
+        let wanted = (self.want)(&message);
+        if update && (s.updates_on || !wanted) {
+            s.updates += 1;
+        }
+        if wanted {
             if update && self.maybe_ack(s, cx, Some(message.clone())) {
                 return self.step(s, cx, Event::Start);
             }
@@ -169,7 +173,6 @@ impl Machine<AptSession> for Wait {
         match &message {
             Message::GetDcStatusUpdate(_) | Message::GetStatusUpdate(_) if update => {
                 // Updates flow only when asked for (or left on by another host).
-                s.updates += 1;
                 s.updates_on = true;
                 if self.maybe_ack(s, cx, None) {
                     return self.step(s, cx, Event::Start);
@@ -227,14 +230,27 @@ pub(super) struct Query {
 
 #[derive(Debug)]
 enum QueryState {
+    /// While status updates flow, a status request is not sent: the next update is
+    /// the answer (a reply to a request would queue behind the updates and be stale).
+    /// This is the wait for it, made on the first event.
+    Listen(Option<Wait>),
     Sending(Transfer),
     Waiting(Wait),
 }
 
 impl Query {
     pub(super) fn new(s: &AptSession, request: Message, want: Want, retry: bool) -> Self {
+        let listen = s.updates_on
+            && matches!(
+                request,
+                Message::ReqDcStatusUpdate { .. } | Message::ReqStatusUpdate { .. }
+            );
         Query {
-            state: QueryState::Sending(Transfer::new(&request)),
+            state: if listen {
+                QueryState::Listen(None)
+            } else {
+                QueryState::Sending(Transfer::new(&request))
+            },
             request,
             want,
             attempts: if retry { s.policy.retries + 1 } else { 1 },
@@ -249,6 +265,26 @@ impl Machine<AptSession> for Query {
     fn step(&mut self, s: &mut AptSession, cx: &mut Cx, mut ev: Event<'_>) -> Step<Self::Output> {
         loop {
             let failure = match &mut self.state {
+                QueryState::Listen(w) => {
+                    let w = w.get_or_insert_with(|| {
+                        // Three reply timeouts: longer than the 100 ms update period.
+                        let until = cx
+                            .now
+                            .saturating_add(s.policy.reply_timeout.saturating_mul(3));
+                        Wait::new(self.want, until, self.request.name())
+                    });
+                    match drive!(w, s, cx, ev) {
+                        Ok(m) => return Step::Done(Ok(m)),
+                        Err(AxisError::Transport(TransportError::Timeout(_))) => {
+                            debug!("apt: no status update came; asking for the status");
+                            s.updates_on = false;
+                            self.state = QueryState::Sending(Transfer::new(&self.request));
+                            ev = Event::Start;
+                            continue;
+                        }
+                        Err(e) => return Step::Done(Err(e)),
+                    }
+                }
                 QueryState::Sending(t) => {
                     if let Err(e) = drive!(t, s, cx, ev) {
                         return Step::Done(Err(e));
