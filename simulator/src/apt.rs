@@ -589,13 +589,12 @@ impl AptDevice {
                 },
                 out,
             ),
-            Message::SetVelParams(v) => {
-                if v.max_velocity > 0 && v.acceleration > 0 {
-                    self.vel = VelParams {
-                        chan: CHANNEL,
-                        ..*v
-                    };
-                }
+            // Non-positive velocities are not applied.
+            Message::SetVelParams(v) if v.max_velocity > 0 && v.acceleration > 0 => {
+                self.vel = VelParams {
+                    chan: CHANNEL,
+                    ..*v
+                };
             }
             Message::ReqVelParams { .. } => put(&Message::GetVelParams(self.vel), out),
             Message::SetJogParams(j) => {
@@ -605,13 +604,11 @@ impl AptDevice {
                 }
             }
             Message::ReqJogParams { .. } => put(&Message::GetJogParams(self.jog), out),
-            Message::SetHomeParams(h) => {
-                if h.velocity > 0 {
-                    self.home = HomeParams {
-                        chan: CHANNEL,
-                        ..*h
-                    };
-                }
+            Message::SetHomeParams(h) if h.velocity > 0 => {
+                self.home = HomeParams {
+                    chan: CHANNEL,
+                    ..*h
+                };
             }
             Message::ReqHomeParams { .. } => put(&Message::GetHomeParams(self.home), out),
             Message::SetGenMoveParams(g) => {
