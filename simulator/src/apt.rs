@@ -137,6 +137,9 @@ pub struct AptDevice {
     home: HomeParams,
     genmove: GenMoveParams,
     lim: LimSwitchParams,
+    /// `MOVERELPARAMS` and `MOVEABSPARAMS`, counts: what short-form moves use.
+    move_rel: i32,
+    move_abs: i32,
     updates: bool,
     next_update: f64,
     last_ack: f64,
@@ -195,6 +198,8 @@ impl AptDevice {
                 ccw_soft: 0,
                 soft_mode: 1,
             },
+            move_rel: 0,
+            move_abs: 0,
             updates: false,
             next_update: 0.0,
             last_ack: 0.0,
@@ -659,17 +664,44 @@ impl AptDevice {
                 self.homed = false;
                 self.start_motion(now, to, v, Kind::Home);
             }
-            Message::MoveAbsolute {
-                position: Some(p), ..
-            } if self.enabled => {
-                let to = s.to_deg(*p) - self.offset;
+            Message::SetMoveRelParams { distance, .. } => self.move_rel = *distance,
+            Message::ReqMoveRelParams { .. } => put(
+                &Message::GetMoveRelParams {
+                    chan: CHANNEL,
+                    distance: self.move_rel,
+                },
+                out,
+            ),
+            Message::SetMoveAbsParams { position, .. } => self.move_abs = *position,
+            Message::ReqMoveAbsParams { .. } => put(
+                &Message::GetMoveAbsParams {
+                    chan: CHANNEL,
+                    position: self.move_abs,
+                },
+                out,
+            ),
+            Message::MoveAbsolute { position, .. } if self.enabled => {
+                let to = s.to_deg(position.unwrap_or(self.move_abs)) - self.offset;
                 self.start_motion(now, to, self.velocity(), Kind::Move);
             }
-            Message::MoveRelative {
-                distance: Some(d), ..
-            } if self.enabled => {
-                let to = self.mechanical(now) + s.to_deg(*d);
+            Message::MoveRelative { distance, .. } if self.enabled => {
+                let to = self.mechanical(now) + s.to_deg(distance.unwrap_or(self.move_rel));
                 self.start_motion(now, to, self.velocity(), Kind::Move);
+            }
+            // A jog: one step (mode 2) or a velocity move (mode 1) at the jog velocity.
+            Message::MoveJog { direction, .. } if self.enabled => {
+                let sign = match direction {
+                    Direction::Forward => 1.0,
+                    Direction::Reverse => -1.0,
+                };
+                let v = s.velocity_from_apt(self.jog.max_velocity).max(1e-6);
+                let (distance, kind) = if self.jog.mode == 1 {
+                    (1.0e7, Kind::Velocity)
+                } else {
+                    (s.to_deg(self.jog.step).abs(), Kind::Move)
+                };
+                let to = self.mechanical(now) + sign * distance;
+                self.start_motion(now, to, v, kind);
             }
             Message::MoveVelocity { direction, .. } if self.enabled => {
                 let far = match direction {

@@ -524,6 +524,47 @@ fn device_answers_what_a_polling_python_client_sends() {
     out.clear();
     dev.poll(end, &mut out);
     assert_eq!(out, [0x44, 0x04, 1, 0, 0x01, 0x50]);
+    // Its prepared moves: MOVEABSPARAMS, then a short-form MOVE_ABSOLUTE; and a jog
+    // step (1°, the power-up jog step) in reverse; each ends with MOVE_COMPLETED.
+    for (m, to) in [
+        (
+            Message::SetMoveAbsParams {
+                chan: 1,
+                position: StageKind::Prm1Z8.to_counts(20.0),
+            },
+            None,
+        ),
+        (
+            Message::MoveAbsolute {
+                chan: 1,
+                position: None,
+            },
+            Some(20.0),
+        ),
+        (
+            Message::MoveJog {
+                chan: 1,
+                direction: Direction::Reverse,
+            },
+            Some(19.0),
+        ),
+    ] {
+        out.clear();
+        let t = dev.motion_end().unwrap_or(end);
+        dev.receive(t, &m.to_bytes(), &mut out);
+        assert!(out.is_empty(), "{out:02x?}");
+        if let Some(to) = to {
+            let done = dev.motion_end().unwrap();
+            dev.poll(done, &mut out);
+            match Message::parse(&out).unwrap() {
+                Message::MoveCompleted {
+                    status: Some(st), ..
+                } => assert!((StageKind::Prm1Z8.to_deg(st.position) - to).abs() < 1e-3),
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+    let end = dev.motion_end().unwrap_or(end);
     // The raw disable byte that client sends (0) disables.
     out.clear();
     dev.receive(

@@ -162,6 +162,21 @@ fn short_messages_byte_for_byte() {
             [0x90, 0x04, 1, 0, 0x50, 0x01],
         ),
         (Message::AckDcStatusUpdate, [0x92, 0x04, 0, 0, 0x50, 0x01]),
+        (
+            Message::ReqMoveRelParams { chan: 1 },
+            [0x46, 0x04, 1, 0, 0x50, 0x01],
+        ),
+        (
+            Message::ReqMoveAbsParams { chan: 1 },
+            [0x51, 0x04, 1, 0, 0x50, 0x01],
+        ),
+        (
+            Message::MoveJog {
+                chan: 1,
+                direction: Direction::Reverse,
+            },
+            [0x6A, 0x04, 1, 2, 0x50, 0x01],
+        ),
     ];
     for (m, want) in cases {
         assert_eq!(bytes(&m), want, "{m:?}");
@@ -219,6 +234,20 @@ fn long_messages_byte_for_byte() {
                 position: 172_768,
             },
             vec![0x12, 0x04, 6, 0, 0x81, 0x50, 1, 0, 0xE0, 0xA2, 0x02, 0x00],
+        ),
+        (
+            Message::SetMoveAbsParams {
+                chan: 1,
+                position: 2048,
+            },
+            vec![0x50, 0x04, 6, 0, 0xD0, 0x01, 1, 0, 0x00, 0x08, 0, 0],
+        ),
+        (
+            Message::GetMoveRelParams {
+                chan: 1,
+                distance: -1,
+            },
+            vec![0x47, 0x04, 6, 0, 0x81, 0x50, 1, 0, 0xFF, 0xFF, 0xFF, 0xFF],
         ),
         (
             Message::SetPosCounter {
@@ -625,6 +654,16 @@ fn any_message() -> impl Strategy<Value = Message> {
             }
         }),
         any_dc().prop_map(Message::GetDcStatusUpdate),
+        (any::<u16>(), any::<i32>())
+            .prop_map(|(chan, position)| Message::SetMoveAbsParams { chan, position }),
+        (any::<u8>(), any::<bool>()).prop_map(|(chan, f)| Message::MoveJog {
+            chan,
+            direction: if f {
+                Direction::Forward
+            } else {
+                Direction::Reverse
+            }
+        }),
         any_dc().prop_map(|s| Message::MoveCompleted {
             chan: s.chan,
             status: Some(s)

@@ -410,6 +410,51 @@ pub enum Message {
         /// The channel.
         chan: u8,
     },
+    /// `MOT_SET_MOVERELPARAMS` `0x0445`: the distance a short-form relative move goes.
+    SetMoveRelParams {
+        /// The channel.
+        chan: u16,
+        /// Distance, counts.
+        distance: i32,
+    },
+    /// `MOT_REQ_MOVERELPARAMS` `0x0446`.
+    ReqMoveRelParams {
+        /// The channel.
+        chan: u8,
+    },
+    /// `MOT_GET_MOVERELPARAMS` `0x0447`.
+    GetMoveRelParams {
+        /// The channel.
+        chan: u16,
+        /// Distance, counts.
+        distance: i32,
+    },
+    /// `MOT_SET_MOVEABSPARAMS` `0x0450`: the target of a short-form absolute move.
+    SetMoveAbsParams {
+        /// The channel.
+        chan: u16,
+        /// Position, counts.
+        position: i32,
+    },
+    /// `MOT_REQ_MOVEABSPARAMS` `0x0451`.
+    ReqMoveAbsParams {
+        /// The channel.
+        chan: u8,
+    },
+    /// `MOT_GET_MOVEABSPARAMS` `0x0452`.
+    GetMoveAbsParams {
+        /// The channel.
+        chan: u16,
+        /// Position, counts.
+        position: i32,
+    },
+    /// `MOT_MOVE_JOG` `0x046A`: a jog (step or continuous, as the jog parameters say).
+    MoveJog {
+        /// The channel.
+        chan: u8,
+        /// The direction.
+        direction: Direction,
+    },
     /// `MOT_MOVE_RELATIVE` `0x0448`: by `distance` counts (long form), or by the
     /// stored relative move parameters (short form, `None`).
     MoveRelative {
@@ -530,6 +575,13 @@ mod id {
     pub const GET_HOMEPARAMS: u16 = 0x0442;
     pub const MOVE_HOME: u16 = 0x0443;
     pub const MOVE_HOMED: u16 = 0x0444;
+    pub const SET_MOVERELPARAMS: u16 = 0x0445;
+    pub const REQ_MOVERELPARAMS: u16 = 0x0446;
+    pub const GET_MOVERELPARAMS: u16 = 0x0447;
+    pub const SET_MOVEABSPARAMS: u16 = 0x0450;
+    pub const REQ_MOVEABSPARAMS: u16 = 0x0451;
+    pub const GET_MOVEABSPARAMS: u16 = 0x0452;
+    pub const MOVE_JOG: u16 = 0x046A;
     pub const MOVE_RELATIVE: u16 = 0x0448;
     pub const MOVE_ABSOLUTE: u16 = 0x0453;
     pub const MOVE_VELOCITY: u16 = 0x0457;
@@ -582,11 +634,12 @@ pub(super) fn form_of(message_id: u16) -> Option<Form> {
         | GET_CHANENABLESTATE | REQ_POSCOUNTER | REQ_VELPARAMS | REQ_JOGPARAMS
         | REQ_LIMSWITCHPARAMS | REQ_STATUSBITS | REQ_GENMOVEPARAMS | REQ_HOMEPARAMS | MOVE_HOME
         | MOVE_HOMED | MOVE_VELOCITY | MOVE_STOP | REQ_STATUSUPDATE | REQ_DCSTATUSUPDATE
-        | ACK_DCSTATUSUPDATE => Form::Short,
+        | ACK_DCSTATUSUPDATE | REQ_MOVERELPARAMS | REQ_MOVEABSPARAMS | MOVE_JOG => Form::Short,
         HW_GET_INFO => Form::Long(84),
         HW_RICHRESPONSE => Form::Long(68),
         SET_POSCOUNTER | GET_POSCOUNTER | GET_STATUSBITS | SET_GENMOVEPARAMS
-        | GET_GENMOVEPARAMS => Form::Long(6),
+        | GET_GENMOVEPARAMS | SET_MOVERELPARAMS | GET_MOVERELPARAMS | SET_MOVEABSPARAMS
+        | GET_MOVEABSPARAMS => Form::Long(6),
         SET_VELPARAMS | GET_VELPARAMS | SET_HOMEPARAMS | GET_HOMEPARAMS | GET_STATUSUPDATE
         | GET_DCSTATUSUPDATE => Form::Long(14),
         SET_JOGPARAMS | GET_JOGPARAMS => Form::Long(22),
@@ -771,6 +824,13 @@ impl Message {
             M::GetHomeParams(_) => id::GET_HOMEPARAMS,
             M::MoveHome { .. } => id::MOVE_HOME,
             M::MoveHomed { .. } => id::MOVE_HOMED,
+            M::SetMoveRelParams { .. } => id::SET_MOVERELPARAMS,
+            M::ReqMoveRelParams { .. } => id::REQ_MOVERELPARAMS,
+            M::GetMoveRelParams { .. } => id::GET_MOVERELPARAMS,
+            M::SetMoveAbsParams { .. } => id::SET_MOVEABSPARAMS,
+            M::ReqMoveAbsParams { .. } => id::REQ_MOVEABSPARAMS,
+            M::GetMoveAbsParams { .. } => id::GET_MOVEABSPARAMS,
+            M::MoveJog { .. } => id::MOVE_JOG,
             M::MoveRelative { .. } => id::MOVE_RELATIVE,
             M::MoveAbsolute { .. } => id::MOVE_ABSOLUTE,
             M::MoveVelocity { .. } => id::MOVE_VELOCITY,
@@ -825,6 +885,13 @@ impl Message {
             M::GetHomeParams(_) => "MOT_GET_HOMEPARAMS",
             M::MoveHome { .. } => "MOT_MOVE_HOME",
             M::MoveHomed { .. } => "MOT_MOVE_HOMED",
+            M::SetMoveRelParams { .. } => "MOT_SET_MOVERELPARAMS",
+            M::ReqMoveRelParams { .. } => "MOT_REQ_MOVERELPARAMS",
+            M::GetMoveRelParams { .. } => "MOT_GET_MOVERELPARAMS",
+            M::SetMoveAbsParams { .. } => "MOT_SET_MOVEABSPARAMS",
+            M::ReqMoveAbsParams { .. } => "MOT_REQ_MOVEABSPARAMS",
+            M::GetMoveAbsParams { .. } => "MOT_GET_MOVEABSPARAMS",
+            M::MoveJog { .. } => "MOT_MOVE_JOG",
             M::MoveRelative { .. } => "MOT_MOVE_RELATIVE",
             M::MoveAbsolute { .. } => "MOT_MOVE_ABSOLUTE",
             M::MoveVelocity { .. } => "MOT_MOVE_VELOCITY",
@@ -852,6 +919,8 @@ impl Message {
                 | M::HwRichResponse { .. }
                 | M::GetChanEnableState { .. }
                 | M::GetPosCounter { .. }
+                | M::GetMoveRelParams { .. }
+                | M::GetMoveAbsParams { .. }
                 | M::GetVelParams(_)
                 | M::GetJogParams(_)
                 | M::GetLimSwitchParams(_)
@@ -913,12 +982,16 @@ impl Message {
             | M::MoveHome { chan }
             | M::MoveHomed { chan }
             | M::ReqStatusUpdate { chan }
+            | M::ReqMoveRelParams { chan }
+            | M::ReqMoveAbsParams { chan }
             | M::ReqDcStatusUpdate { chan } => return short(out, *chan, 0),
             M::SetChanEnableState { chan, enable: e }
             | M::GetChanEnableState { chan, enabled: e } => {
                 return short(out, *chan, if *e { 1 } else { 2 });
             }
-            M::MoveVelocity { chan, direction } => return short(out, *chan, direction.code()),
+            M::MoveVelocity { chan, direction } | M::MoveJog { chan, direction } => {
+                return short(out, *chan, direction.code());
+            }
             M::MoveStop { chan, mode } => {
                 let m = match mode {
                     StopMode::Immediate => 1,
@@ -965,7 +1038,18 @@ impl Message {
                 data.extend_from_slice(&code.to_le_bytes());
                 put_text(&mut data, notes, 64);
             }
-            M::SetPosCounter { chan, position } | M::GetPosCounter { chan, position } => {
+            M::SetPosCounter { chan, position }
+            | M::GetPosCounter { chan, position }
+            | M::SetMoveRelParams {
+                chan,
+                distance: position,
+            }
+            | M::GetMoveRelParams {
+                chan,
+                distance: position,
+            }
+            | M::SetMoveAbsParams { chan, position }
+            | M::GetMoveAbsParams { chan, position } => {
                 data.extend_from_slice(&chan.to_le_bytes());
                 data.extend_from_slice(&position.to_le_bytes());
             }
@@ -1165,6 +1249,28 @@ impl Packet {
             id::GET_HOMEPARAMS => M::GetHomeParams(home(r)),
             id::MOVE_HOME => M::MoveHome { chan: p1 },
             id::MOVE_HOMED => M::MoveHomed { chan: p1 },
+            id::SET_MOVERELPARAMS => M::SetMoveRelParams {
+                chan: r.u16(),
+                distance: r.i32(),
+            },
+            id::REQ_MOVERELPARAMS => M::ReqMoveRelParams { chan: p1 },
+            id::GET_MOVERELPARAMS => M::GetMoveRelParams {
+                chan: r.u16(),
+                distance: r.i32(),
+            },
+            id::SET_MOVEABSPARAMS => M::SetMoveAbsParams {
+                chan: r.u16(),
+                position: r.i32(),
+            },
+            id::REQ_MOVEABSPARAMS => M::ReqMoveAbsParams { chan: p1 },
+            id::GET_MOVEABSPARAMS => M::GetMoveAbsParams {
+                chan: r.u16(),
+                position: r.i32(),
+            },
+            id::MOVE_JOG => M::MoveJog {
+                chan: p1,
+                direction: Direction::from_code(h.id, "direction", u16::from(p2))?,
+            },
             id::MOVE_RELATIVE if long => M::MoveRelative {
                 chan: r.u16(),
                 distance: Some(r.i32()),
