@@ -165,8 +165,7 @@ pub struct JogParams {
 pub struct HomeParams {
     /// The channel.
     pub chan: u16,
-    /// Home direction: 1 forward, 2 reverse (the manual notes that the controllers
-    /// ignore it and home in their fixed direction).
+    /// Home direction: 1 forward, 2 reverse.
     pub direction: u16,
     /// Limit switch used: 1 reverse (hardware), 4 forward (hardware).
     pub limit_switch: u16,
@@ -274,29 +273,30 @@ impl fmt::Display for AptInfo {
 /// that the manual marks unused are written as 0 and ignored when read.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Message {
-    /// `MOD_IDENTIFY` `0x0223`: flash the front panel LED.
+    /// `MOD_IDENTIFY` `0x0223` (manual Issue 25 p. 41): flash the front panel LED.
     Identify {
         /// The channel (0 for a single-channel unit).
         chan: u8,
     },
     /// `HW_DISCONNECT` `0x0002`: the host is about to close the port.
     HwDisconnect,
-    /// `HW_REQ_INFO` `0x0005`.
+    /// `HW_REQ_INFO` `0x0005` (p. 47).
     HwReqInfo,
-    /// `HW_GET_INFO` `0x0006`.
+    /// `HW_GET_INFO` `0x0006` (p. 47).
     HwGetInfo(AptInfo),
-    /// `HW_START_UPDATEMSGS` `0x0011`: status updates every 100 ms until stopped.
+    /// `HW_START_UPDATEMSGS` `0x0011` (p. 46): status updates every 100 ms until
+    /// stopped.
     HwStartUpdateMsgs,
-    /// `HW_STOP_UPDATEMSGS` `0x0012`.
+    /// `HW_STOP_UPDATEMSGS` `0x0012` (p. 46).
     HwStopUpdateMsgs,
     /// `HW_YES_FLASH_PROGRAMMING` `0x0017` (deprecated; sent by some controllers at start).
     HwYesFlashProgramming,
     /// `HW_NO_FLASH_PROGRAMMING` `0x0018`: part of a host's initialisation.
     HwNoFlashProgramming,
-    /// `HW_RESPONSE` `0x0080`: the controller reports an error, unspecified.
+    /// `HW_RESPONSE` `0x0080` (p. 44): the controller reports an error, unspecified.
     HwResponse,
-    /// `HW_RICHRESPONSE` `0x0081` (68 bytes): an error, with the message that caused
-    /// it, a code and a text.
+    /// `HW_RICHRESPONSE` `0x0081` (p. 45; 68 bytes): an error, with the message that
+    /// caused it, a code and a text.
     HwRichResponse {
         /// The id of the message that caused it (0 for a spontaneous fault).
         msg_id: u16,
@@ -305,7 +305,7 @@ pub enum Message {
         /// The description (64 bytes, NUL padded, on the wire).
         notes: String,
     },
-    /// `MOD_SET_CHANENABLESTATE` `0x0210`.
+    /// `MOD_SET_CHANENABLESTATE` `0x0210` (p. 42).
     SetChanEnableState {
         /// The channel.
         chan: u8,

@@ -3,7 +3,10 @@
 //! rotation stage) and the K10CR1 rotation mount with its built-in stepper controller.
 //!
 //! Source: *Thorlabs APT Controllers Host-Controller Communications Protocol*
-//! (Issue 25, 25 August 2020; "the manual" below). Every message starts with a 6-byte
+//! (Issue 25, 25 August 2020; "the manual" below; page numbers are that issue's, from
+//! its contents list, and are given where they could be checked). Message layouts
+//! were cross-checked against the parser of the public `thorlabs-apt-device` Python
+//! package (facts only; no code taken). Every message starts with a 6-byte
 //! header (the manual's introduction, "Message Header"): the message id (u16 little
 //! endian), then either two parameter bytes (a *short* message, header only) or, when
 //! the destination byte has bit 7 set, a u16 little-endian length of the data packet

@@ -1,7 +1,7 @@
 //! The stages, and the conversions between degrees and the controller's units.
 //!
-//! The manual's introduction ("Conversion between position, velocity and acceleration
-//! and APT units") gives, for a DC servo controller such as the KDC101 with sampling
+//! The manual's section on scaling positions, velocities and accelerations into APT
+//! units gives, for a DC servo controller such as the KDC101 with sampling
 //! interval T = 2048 / (6 × 10⁶) s: position = EncCnt × x; velocity = EncCnt × T ×
 //! 65536 × v; acceleration = EncCnt × T² × 65536 × a, where EncCnt is the encoder
 //! counts per unit. The PRM1-Z8 has 1919.6418 counts per degree, hence 42941.66 per
@@ -99,8 +99,8 @@ impl StageKind {
         matches!(self, StageKind::Prm1Z8)
     }
 
-    /// The fastest the stage is specified to turn, deg/s (Thorlabs' specifications:
-    /// PRM1-Z8 25°/s, K10CR1 10°/s).
+    /// The highest velocity a configuration may set, deg/s: Thorlabs' specified maxima
+    /// (PRM1-Z8 25°/s, K10CR1 10°/s; check the current specification sheets).
     pub fn max_velocity(self) -> f64 {
         match self {
             StageKind::Prm1Z8 => 25.0,
@@ -108,7 +108,8 @@ impl StageKind {
         }
     }
 
-    /// The highest specified acceleration, deg/s² (PRM1-Z8 25°/s², K10CR1 20°/s²).
+    /// The highest acceleration a configuration may set, deg/s² (PRM1-Z8 25°/s², K10CR1
+    /// 20°/s²): conservative bounds of this crate, not values from the manual.
     pub fn max_acceleration(self) -> f64 {
         match self {
             StageKind::Prm1Z8 => 25.0,
@@ -116,7 +117,8 @@ impl StageKind {
         }
     }
 
-    /// The velocity used when the configuration gives none, deg/s.
+    /// The velocity used when the configuration gives none, deg/s (10°/s, within both
+    /// stages' range; this crate's choice).
     pub fn default_velocity(self) -> f64 {
         10.0
     }
@@ -137,12 +139,12 @@ impl StageKind {
         1
     }
 
-    /// The homing velocity, deg/s.
+    /// The homing velocity, deg/s (this crate's choice, sent in `MOT_SET_HOMEPARAMS`).
     pub fn home_velocity(self) -> f64 {
         10.0
     }
 
-    /// The home position's distance from the home switch, deg.
+    /// The home position's distance from the home switch, deg (this crate's choice).
     pub fn home_offset(self) -> f64 {
         4.0
     }
