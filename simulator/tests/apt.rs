@@ -580,3 +580,32 @@ fn device_answers_what_a_polling_python_client_sends() {
         }
     );
 }
+
+#[test]
+fn home_past_its_deadline_is_a_timeout_and_the_stage_is_stopped() {
+    let mut rig = Rig::new(&kdc(90.0));
+    let mut a = axis(StageKind::Prm1Z8);
+    a.home_timeout_s = 2.0;
+    let mut s = session(a);
+    rig.run(s.start_setup(rig.now)).unwrap();
+    let t0 = rig.now;
+    match axis_error(rig.run(s.start_home(rig.now))) {
+        AxisError::Timeout {
+            operation,
+            position,
+            waited,
+            ..
+        } => {
+            assert_eq!(operation, "home");
+            assert_eq!(waited, Duration::from_secs(2));
+            // Counter 0 at power-up at 90°; about 15° turned in reverse by then.
+            let p = position.unwrap();
+            assert!((-17.0..-13.0).contains(&p), "{p}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(secs(rig.now - t0) < 2.1);
+    let names = rig.sent_names(rig.sent.len() - 2);
+    assert_eq!(names, ["MOT_MOVE_STOP", "MOT_REQ_POSCOUNTER"]);
+    assert!(!rig.dev.is_homed());
+}

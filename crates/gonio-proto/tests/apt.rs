@@ -1009,3 +1009,74 @@ fn limit_switch_mid_move_is_a_device_fault() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn a_vanished_port_is_reopened_and_the_message_sent_again() {
+    let mut s = session(StageKind::Prm1Z8);
+    let mut op = s.start_position(Duration::ZERO);
+    let req = Message::ReqPosCounter { chan: 1 }.to_bytes();
+    assert_eq!(op.poll_io(), Some(Io::Transmit(&req)));
+    let gone = gonio_proto::TransportError::Disconnected {
+        port: "/dev/ttyUSB0".into(),
+        reason: "unplugged".into(),
+    };
+    op.handle_sent(Duration::ZERO, Err(gone.clone()));
+    assert_eq!(op.poll_io(), Some(Io::Reconnect));
+    op.handle_reconnected(MS, Err(gone));
+    // The policy's 500 ms between attempts.
+    assert_eq!(op.poll_timeout(), Some(Deadline::Sleep(501 * MS)));
+    op.handle_timeout(501 * MS);
+    assert_eq!(op.poll_io(), Some(Io::Reconnect));
+    op.handle_reconnected(502 * MS, Ok(()));
+    expect_tx(&mut op, &Message::ReqPosCounter { chan: 1 }, 502 * MS);
+    op.handle_line(
+        503 * MS,
+        &Message::GetPosCounter {
+            chan: 1,
+            position: -1920,
+        }
+        .to_bytes(),
+    );
+    let p = op.poll_output().unwrap().unwrap();
+    assert!((p + 1920.0 / 1919.6418).abs() < 1e-12);
+}
+
+#[test]
+fn an_error_report_is_a_device_fault() {
+    let mut s = session(StageKind::Prm1Z8);
+    let mut op = s.start_velocity_params(Duration::ZERO);
+    expect_tx(&mut op, &Message::ReqVelParams { chan: 1 }, Duration::ZERO);
+    let err = Message::HwRichResponse {
+        msg_id: 0x0414,
+        code: 42,
+        notes: "bad channel".into(),
+    };
+    op.handle_line(MS, &err.to_bytes());
+    match op.poll_output() {
+        Some(Err(MotionError::AtAxis {
+            source: AxisError::Device { command, reason },
+            ..
+        })) => {
+            assert_eq!(command, "MOT_REQ_VELPARAMS");
+            assert_eq!(reason, "error 42 on message 0x0414: bad channel");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn lost_status_replies_are_asked_again() {
+    let mut s = session(StageKind::Prm1Z8);
+    let mut op = s.start_status(Duration::ZERO);
+    let req = Message::ReqDcStatusUpdate { chan: 1 };
+    expect_tx(&mut op, &req, Duration::ZERO);
+    op.handle_timeout(100 * MS);
+    assert_eq!(op.poll_io(), Some(Io::ClearInput));
+    expect_tx(&mut op, &req, 100 * MS);
+    op.handle_line(101 * MS, &dc(1920, READY).to_bytes());
+    let st = op.poll_output().unwrap().unwrap();
+    assert!((st.position_deg - 1920.0 / 1919.6418).abs() < 1e-12);
+    assert_eq!(st.velocity_raw, Some(0));
+    drop(op);
+    assert_eq!(s.retried(), 1);
+}
