@@ -14,6 +14,7 @@
 //! Deterministic: the config's seed fixes every noise sample and every random fault,
 //! so the same seed and the same commands give the same bytes.
 
+pub mod apt;
 pub mod bench;
 pub mod clock;
 pub mod config;

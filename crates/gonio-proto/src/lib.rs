@@ -1,7 +1,8 @@
 //! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
-//! controller ([`smc100`]) and the Stanford Research SR830 lock-in amplifier
-//! ([`sr830`]), byte-exactly as their manuals define them, and the policy that drives
-//! them, as state machines.
+//! controller ([`smc100`]), the Thorlabs APT controllers KDC101 and K10CR1 ([`apt`],
+//! binary messages) and the Stanford Research SR830 lock-in amplifier ([`sr830`]),
+//! byte-exactly as their manuals define them, and the policy that drives them, as
+//! state machines.
 //!
 //! Deterministic: no I/O, no clocks, no threads. Two layers:
 //!
@@ -40,6 +41,7 @@
 //! faults, retries, reconnections and stops at `warn`); the bytes themselves are logged
 //! by the pump that moves them.
 
+pub mod apt;
 mod framing;
 pub mod link;
 mod machine;

@@ -1,0 +1,66 @@
+//! The Thorlabs APT (Kinesis) binary protocol, for single-channel controllers on a
+//! USB virtual serial port: the KDC101 K-Cube DC servo controller (driving a PRM1-Z8
+//! rotation stage) and the K10CR1 rotation mount with its built-in stepper controller.
+//!
+//! Source: *Thorlabs APT Controllers Host-Controller Communications Protocol*
+//! (Issue 25, 25 August 2020; "the manual" below; page numbers are that issue's, from
+//! its contents list, and are given where they could be checked). Message layouts
+//! were cross-checked against the parser of the public `thorlabs-apt-device` Python
+//! package (facts only; no code taken). Every message starts with a 6-byte
+//! header (the manual's introduction, "Message Header"): the message id (u16 little
+//! endian), then either two parameter bytes (a *short* message, header only) or, when
+//! the destination byte has bit 7 set, a u16 little-endian length of the data packet
+//! that follows (a *long* message); then the destination and source addresses. All
+//! multi-byte fields are little endian; positions are signed 32-bit counts.
+//!
+//! - [`Header`], the address constants and [`AptFramer`] cut a byte stream into
+//!   messages (a [`Framer`](crate::Framer), so the same transport carries every
+//!   protocol);
+//! - [`Message`] and [`Packet`] encode and parse every message the sessions and the
+//!   simulator use, in both directions, and pass through the ones they do not know;
+//! - [`status`] names the status bits; [`StageKind`] converts counts and APT velocity
+//!   and acceleration units to degrees;
+//! - [`AptSession`] is the policy that drives one controller, sans-IO like
+//!   [`Smc100Session`](crate::smc100::Smc100Session).
+
+mod framer;
+mod message;
+mod session;
+mod stage;
+pub mod status;
+
+pub mod fuzz;
+
+pub use framer::AptFramer;
+pub use message::{
+    AptError, AptInfo, DcStatus, Direction, GenMoveParams, Header, HomeParams, JogParams,
+    LimSwitchParams, Message, Packet, StepperStatus, StopMode, VelParams,
+};
+pub use session::{AptAxisConfig, AptSession, AptStatus};
+pub use stage::StageKind;
+
+/// The host (the PC), as source and destination.
+pub const HOST: u8 = 0x01;
+/// A rack controller, the motherboard of a card-slot system, or a comms router board.
+pub const RACK: u8 = 0x11;
+/// Bay 0 of a card-slot system; bays 1–9 follow (`0x22`–`0x2A`).
+pub const BAY0: u8 = 0x21;
+/// The last bay address, bay 9.
+pub const BAY9: u8 = 0x2A;
+/// A generic USB hardware unit: every single-channel K-Cube and the K10CR1.
+pub const USB_UNIT: u8 = 0x50;
+/// The destination byte's flag for a long message (a data packet follows).
+pub const LONG_FLAG: u8 = 0x80;
+/// The header's length, bytes.
+pub const HEADER_LEN: usize = 6;
+/// The largest data packet accepted. The manual states that no data packet exceeds
+/// 255 bytes; the largest this crate knows, `HW_GET_INFO`, is 84.
+pub const MAX_DATA_LEN: usize = 255;
+/// The channel of a single-channel controller.
+pub const CHANNEL: u16 = 1;
+
+/// True for an address the manual defines (host, rack, bays 0–9, USB unit), or 0,
+/// which some controllers put as the source of unsolicited messages.
+pub fn is_address(a: u8) -> bool {
+    matches!(a, 0x00 | HOST | RACK | USB_UNIT) || (BAY0..=BAY9).contains(&a)
+}

@@ -1,0 +1,482 @@
+//! The policy that drives one APT controller, as a sans-IO state machine:
+//! [`AptSession`]. Built like the SMC100 session, on `crate::machine`:
+//!
+//! - `wire`: one message on the wire: a send (reopening a vanished port a bounded
+//!   number of times), a wait for a message (answering the controller's status
+//!   updates with the keep-alive, noting completions, skipping the rest), a query
+//!   (asked again after a lost or garbled reply);
+//! - `exec`: operations written as steps, each asking for one exchange or pause;
+//! - `ops`: the operations.
+
+mod exec;
+mod ops;
+mod wire;
+
+use std::time::Duration;
+
+use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
+use crate::link::Operation;
+use crate::machine::Run;
+use crate::motion::{AxisError, MotionError};
+use crate::smc100::ChainPolicy;
+use exec::Exec;
+
+/// One stage on one APT controller, and how the session may move it.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AptAxisConfig {
+    /// The axis' name in plans and configs.
+    pub name: String,
+    /// The stage, which fixes the controller and the unit conversions.
+    pub stage: StageKind,
+    /// Lowest position the session will ever command, deg.
+    pub min: f64,
+    /// Highest position the session will ever command, deg.
+    pub max: f64,
+    /// Maximum velocity set up, deg/s; the stage's default otherwise.
+    #[serde(default)]
+    pub velocity: Option<f64>,
+    /// Acceleration set up, deg/s²; the stage's default otherwise.
+    #[serde(default)]
+    pub acceleration: Option<f64>,
+    /// Largest |position − target| accepted at the end of a move, deg.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Longest a home search may take, s.
+    #[serde(default = "default_home_timeout")]
+    pub home_timeout_s: f64,
+    /// Backlash distance set up, deg; the controller's own when absent.
+    #[serde(default)]
+    pub backlash_deg: Option<f64>,
+    /// Ask the controller for its periodic status updates at set-up
+    /// (`HW_START_UPDATEMSGS`), which the session then keeps alive.
+    #[serde(default)]
+    pub status_updates: bool,
+}
+
+fn default_tolerance() -> f64 {
+    0.01
+}
+fn default_home_timeout() -> f64 {
+    120.0
+}
+
+impl AptAxisConfig {
+    /// A configuration with the defaults, for `stage` between `min` and `max`.
+    pub fn new(name: &str, stage: StageKind, min: f64, max: f64) -> Self {
+        AptAxisConfig {
+            name: name.into(),
+            stage,
+            min,
+            max,
+            velocity: None,
+            acceleration: None,
+            tolerance: default_tolerance(),
+            home_timeout_s: default_home_timeout(),
+            backlash_deg: None,
+            status_updates: false,
+        }
+    }
+
+    /// Checks every field; the error names the field and says why.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let s = self.stage;
+        if self.name.trim().is_empty() {
+            return Err(("name", "must not be empty".into()));
+        }
+        if !(self.min.is_finite() && self.max.is_finite() && self.min < self.max) {
+            return Err((
+                "min",
+                format!(
+                    "limits [{}, {}] must be finite with min < max",
+                    self.min, self.max
+                ),
+            ));
+        }
+        if let Some(v) = self.velocity
+            && !(v > 0.0 && v <= s.max_velocity())
+        {
+            let max = s.max_velocity();
+            return Err(("velocity", format!("{v} deg/s is outside (0, {max}]")));
+        }
+        if let Some(a) = self.acceleration
+            && !(a > 0.0 && a <= s.max_acceleration())
+        {
+            let max = s.max_acceleration();
+            return Err(("acceleration", format!("{a} deg/s² is outside (0, {max}]")));
+        }
+        let count = 1.0 / s.counts_per_deg();
+        if !(self.tolerance.is_finite() && self.tolerance >= count && self.tolerance <= 10.0) {
+            return Err((
+                "tolerance",
+                format!(
+                    "{} deg is outside [{count:.3e}, 10] (one count to 10°)",
+                    self.tolerance
+                ),
+            ));
+        }
+        if !(self.home_timeout_s.is_finite() && self.home_timeout_s > 0.0) {
+            return Err(("home_timeout_s", "must be finite and positive".into()));
+        }
+        if let Some(b) = self.backlash_deg
+            && !(b.is_finite() && b.abs() <= 10.0)
+        {
+            return Err(("backlash_deg", format!("{b} deg is outside [-10, 10]")));
+        }
+        Ok(())
+    }
+
+    /// The velocity and acceleration the session sets up, deg/s and deg/s².
+    pub fn motion(&self) -> (f64, f64) {
+        (
+            self.velocity.unwrap_or(self.stage.default_velocity()),
+            self.acceleration
+                .unwrap_or(self.stage.default_acceleration()),
+        )
+    }
+}
+
+/// A channel's status, in degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AptStatus {
+    /// Position, deg.
+    pub position_deg: f64,
+    /// The DC status' velocity word, raw (`None` from a stepper). Its scale is not
+    /// documented consistently, and the session decides nothing on it.
+    pub velocity_raw: Option<i16>,
+    /// The status bits ([`status`]).
+    pub bits: u32,
+}
+
+impl AptStatus {
+    fn from_dc(stage: StageKind, s: &DcStatus) -> Self {
+        AptStatus {
+            position_deg: stage.to_deg(s.position),
+            velocity_raw: Some(s.velocity),
+            bits: s.bits,
+        }
+    }
+
+    fn from_stepper(stage: StageKind, s: &StepperStatus) -> Self {
+        AptStatus {
+            position_deg: stage.to_deg(s.position),
+            velocity_raw: None,
+            bits: s.bits,
+        }
+    }
+
+    /// Moving, jogging or homing.
+    pub fn is_moving(&self) -> bool {
+        self.bits & status::MOTION != 0
+    }
+
+    /// Homed: the position is referenced.
+    pub fn is_homed(&self) -> bool {
+        self.bits & status::HOMED != 0
+    }
+
+    /// The channel is enabled.
+    pub fn is_enabled(&self) -> bool {
+        self.bits & status::CHANNEL_ENABLED != 0
+    }
+
+    /// The fault bits set (limit switches included), by name; empty when none.
+    pub fn faults(&self) -> Vec<&'static str> {
+        status::describe(self.bits & (status::FAULTS | status::HW_LIMITS))
+    }
+}
+
+/// What the session has seen arrive unasked since an operation began.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Seen {
+    completed: Option<Option<DcStatus>>,
+    stopped: Option<Option<DcStatus>>,
+    homed: bool,
+}
+
+/// One single-channel APT controller (a KDC101 with a PRM1-Z8, or a K10CR1) on its
+/// own serial line, as a state machine: the stage, the timing and retry policy, and
+/// every decision about which message goes out next, what a reply means, when to ask
+/// again, answer a status update, reopen the port, stop the stage or give up. It does
+/// no I/O and reads no clock.
+///
+/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// finishes; lines handed in are whole messages (cut by [`AptFramer`](super::AptFramer)):
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::apt::{AptAxisConfig, AptSession, Message, StageKind};
+/// use gonio_proto::link::{Deadline, Io, Operation};
+/// use gonio_proto::smc100::ChainPolicy;
+///
+/// let axis = AptAxisConfig::new("sample_rot", StageKind::Prm1Z8, -170.0, 170.0);
+/// let mut session = AptSession::new(axis, ChainPolicy::default()).unwrap();
+/// let mut op = session.start_position(Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(&[0x11, 0x04, 0x01, 0x00, 0x50, 0x01])));
+/// op.handle_sent(Duration::ZERO, Ok(()));
+/// assert_eq!(op.poll_timeout(), Some(Deadline::Reply(Duration::from_millis(100))));
+/// let reply = Message::GetPosCounter { chan: 1, position: 19196 }.to_bytes();
+/// op.handle_line(Duration::from_millis(5), &reply);
+/// assert_eq!(op.poll_output(), Some(Ok(19196.0 / 1919.6418)));
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct AptSession {
+    axis: AptAxisConfig,
+    policy: ChainPolicy,
+    retried: u64,
+    /// Status updates were asked for (or arrived unasked): keep them alive.
+    updates_on: bool,
+    /// When the last keep-alive went out.
+    last_ack: Option<Duration>,
+    acks: u64,
+    updates: u64,
+    seen: Seen,
+}
+
+impl AptSession {
+    /// A session for `axis`, whose configuration must [`validate`](AptAxisConfig::validate).
+    pub fn new(axis: AptAxisConfig, policy: ChainPolicy) -> Result<Self, MotionError> {
+        if let Err((field, why)) = axis.validate() {
+            return Err(MotionError::Config(format!(
+                "axis {:?}: {field}: {why}",
+                axis.name
+            )));
+        }
+        Ok(AptSession {
+            axis,
+            policy,
+            retried: 0,
+            updates_on: false,
+            last_ack: None,
+            acks: 0,
+            updates: 0,
+            seen: Seen::default(),
+        })
+    }
+
+    /// The axis.
+    pub fn axis(&self) -> &AptAxisConfig {
+        &self.axis
+    }
+
+    /// The timing and retry policy.
+    pub fn policy(&self) -> &ChainPolicy {
+        &self.policy
+    }
+
+    /// Exchanges repeated after a lost, late or garbled reply since the session began.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+
+    /// Keep-alives (`MOT_ACK_DCSTATUSUPDATE`) sent since the session began.
+    pub fn keepalives_sent(&self) -> u64 {
+        self.acks
+    }
+
+    /// Status updates that arrived unasked since the session began.
+    pub fn updates_received(&self) -> u64 {
+        self.updates
+    }
+
+    /// Reads the controller's identity (`HW_REQ_INFO`) and checks that its model is
+    /// the configured stage's controller.
+    pub fn start_identify(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<AptInfo, MotionError>> + '_ {
+        Run::new("apt.identify", self, Exec::new(ops::Identify), now)
+    }
+
+    /// Prepares the channel: `HW_NO_FLASH_PROGRAMMING`, the channel enabled, then the
+    /// velocity, home and (when configured) backlash parameters set and each read back
+    /// and compared; finally the status updates started when configured.
+    pub fn start_setup(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+        Run::new("apt.setup", self, Exec::new(ops::Setup::default()), now)
+    }
+
+    /// Homes the stage (`MOT_MOVE_HOME`) and waits for `MOT_MOVE_HOMED`, or a status
+    /// showing the search over and the stage homed, within `home_timeout_s`. The pause
+    /// between status polls is an abort point.
+    pub fn start_home(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+        Run::new("apt.home", self, Exec::new(ops::Home::default()), now)
+    }
+
+    /// Moves to `target_deg` (`MOT_MOVE_ABSOLUTE`, long form), checked against the
+    /// limits before any byte, refused when the stage is not homed, and waited for
+    /// until `MOT_MOVE_COMPLETED` or a status showing it settled within tolerance; the
+    /// final position is the output. An absolute move is idempotent: when its outcome
+    /// is lost it is sent again. The pause between polls is an abort point.
+    pub fn start_move(
+        &mut self,
+        target_deg: f64,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+        Run::new(
+            "apt.move",
+            self,
+            Exec::new(ops::Motion::to(target_deg)),
+            now,
+        )
+    }
+
+    /// Moves by `delta_deg` from the current position (`MOT_MOVE_RELATIVE`), checked
+    /// against the limits first. Never sent twice: a lost outcome is
+    /// [`AxisError::Ambiguous`].
+    pub fn start_move_by(
+        &mut self,
+        delta_deg: f64,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+        Run::new(
+            "apt.move_by",
+            self,
+            Exec::new(ops::Motion::by(delta_deg)),
+            now,
+        )
+    }
+
+    /// Stops the stage (`MOT_MOVE_STOP`, profiled or immediate) and waits for
+    /// `MOT_MOVE_STOPPED` (or a status showing it still).
+    pub fn start_stop(
+        &mut self,
+        profiled: bool,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+        Run::new("apt.stop", self, Exec::new(ops::Stop::new(profiled)), now)
+    }
+
+    /// The position counter (`MOT_REQ_POSCOUNTER`), deg.
+    pub fn start_position(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+        Run::new("apt.position", self, Exec::new(ops::Position), now)
+    }
+
+    /// The channel's status (`MOT_REQ_DCSTATUSUPDATE`, or `MOT_REQ_STATUSUPDATE` for a
+    /// stepper).
+    pub fn start_status(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<AptStatus, MotionError>> + '_ {
+        Run::new("apt.status", self, Exec::new(ops::StatusQuery), now)
+    }
+
+    /// The velocity parameters (`MOT_REQ_VELPARAMS`): maximum velocity in deg/s and
+    /// acceleration in deg/s².
+    pub fn start_velocity_params(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(f64, f64), MotionError>> + '_ {
+        Run::new("apt.velocity_params", self, Exec::new(ops::VelQuery), now)
+    }
+
+    fn at(&self, source: AxisError) -> MotionError {
+        MotionError::AtAxis {
+            axis: self.axis.name.clone(),
+            source,
+        }
+    }
+
+    fn stage(&self) -> StageKind {
+        self.axis.stage
+    }
+
+    /// The status request for this stage's drive.
+    fn status_request(&self) -> Message {
+        if self.stage().is_dc_servo() {
+            Message::ReqDcStatusUpdate { chan: 1 }
+        } else {
+            Message::ReqStatusUpdate { chan: 1 }
+        }
+    }
+
+    /// A message read as a status, if it is one of this channel's.
+    fn status_of(&self, m: &Message) -> Option<AptStatus> {
+        match m {
+            Message::GetDcStatusUpdate(s) if s.chan == CHANNEL => {
+                Some(AptStatus::from_dc(self.stage(), s))
+            }
+            Message::GetStatusUpdate(s) if s.chan == CHANNEL => {
+                Some(AptStatus::from_stepper(self.stage(), s))
+            }
+            _ => None,
+        }
+    }
+
+    fn check_limits(&self, target: f64) -> Result<(), AxisError> {
+        let a = &self.axis;
+        if target.is_finite() && target >= a.min && target <= a.max {
+            Ok(())
+        } else {
+            Err(AxisError::OutOfLimits {
+                target,
+                min: a.min,
+                max: a.max,
+                units: "deg".into(),
+            })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(bits: u32) -> AptStatus {
+        AptStatus {
+            position_deg: 1.0,
+            velocity_raw: None,
+            bits,
+        }
+    }
+
+    #[test]
+    fn status_predicates() {
+        let s = status(status::HOMED | status::CHANNEL_ENABLED | status::MOVING_REV);
+        assert!(s.is_homed() && s.is_enabled() && s.is_moving());
+        assert!(s.faults().is_empty());
+        let s = status(status::REV_HW_LIMIT | status::MOTION_ERROR | status::HOMED);
+        assert_eq!(s.faults(), ["reverse limit switch", "motion error"]);
+        assert!(!s.is_moving() && !s.is_enabled());
+    }
+
+    #[test]
+    fn session_refuses_an_invalid_config() {
+        let mut a = AptAxisConfig::new("rot", StageKind::K10cr1, 0.0, 90.0);
+        a.home_timeout_s = 0.0;
+        match AptSession::new(a, ChainPolicy::default()) {
+            Err(MotionError::Config(m)) => assert!(m.contains("home_timeout_s"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn stepper_asks_for_the_stepper_status() {
+        let s = AptSession::new(
+            AptAxisConfig::new("rot", StageKind::K10cr1, 0.0, 90.0),
+            ChainPolicy::default(),
+        )
+        .unwrap();
+        assert_eq!(s.status_request(), Message::ReqStatusUpdate { chan: 1 });
+        let dc = Message::GetDcStatusUpdate(DcStatus {
+            chan: 2,
+            position: 0,
+            velocity: 0,
+            reserved: 0,
+            bits: 0,
+        });
+        // Another channel's status is not this axis'.
+        assert_eq!(s.status_of(&dc), None);
+        assert!(s.check_limits(90.5).is_err());
+        assert!(s.check_limits(f64::NAN).is_err());
+        assert_eq!(s.check_limits(45.0), Ok(()));
+    }
+}
