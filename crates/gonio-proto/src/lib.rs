@@ -1,6 +1,7 @@
 //! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
-//! controller ([`smc100`]) and the Stanford Research SR830 lock-in amplifier
-//! ([`sr830`]), byte-exactly as their manuals define them, and the policy that drives
+//! controller ([`smc100`]), the Stanford Research SR830 lock-in amplifier
+//! ([`sr830`]) and the Keithley 6485 picoammeter ([`k6485`], a DC detector),
+//! byte-exactly as their manuals define them, and the policy that drives
 //! them, as state machines.
 //!
 //! Deterministic: no I/O, no clocks, no threads. Two layers:
@@ -41,6 +42,7 @@
 //! by the pump that moves them.
 
 mod framing;
+pub mod k6485;
 pub mod link;
 mod machine;
 /// The errors every motion family's session returns: [`motion::AxisError`] on one
