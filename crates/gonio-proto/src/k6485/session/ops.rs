@@ -95,14 +95,15 @@ impl Setup {
                 debug!(identity = %id, "k6485: identified");
                 self.identity = Some(id);
             }
-            (Some(Command::LineFrequency), Some(Reply::LineFrequency(lf))) => {
-                if lf.hz() != s.config.line_frequency_hz {
-                    return Next::Done(Err(K6485Error::LineFrequency {
-                        configured: s.config.line_frequency_hz,
-                        instrument: lf.hz(),
-                    }));
-                }
+            (Some(Command::LineFrequency), Some(Reply::LineFrequency(lf)))
+                if lf.hz() != s.config.line_frequency_hz =>
+            {
+                return Next::Done(Err(K6485Error::LineFrequency {
+                    configured: s.config.line_frequency_hz,
+                    instrument: lf.hz(),
+                }));
             }
+            (Some(Command::LineFrequency), Some(Reply::LineFrequency(_))) => {}
             (Some(Command::NextError), Some(Reply::Error(e))) => {
                 if !e.is_none() {
                     return Next::Done(Err(K6485Error::Rejected(e)));
