@@ -25,6 +25,7 @@ pub mod bench;
 pub mod clock;
 pub mod config;
 mod goniometer;
+pub mod k6485;
 mod pump;
 pub mod script;
 pub mod smc100;
