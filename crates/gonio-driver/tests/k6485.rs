@@ -57,12 +57,15 @@ fn rig(config: K6485Config) -> (Driver, ScriptHandle, ManualClock) {
     (driver, h, clock)
 }
 
-fn script_setup(h: &ScriptHandle, r: Range) {
-    script_setup_ending(h, r, "0,\"No error\"\r");
+fn script_setup(h: &ScriptHandle, c: &K6485Config) {
+    script_setup_ending(h, c, "0,\"No error\"\r");
 }
 
 /// The set-up exchanges for `config()`, `SYST:ERR?` answering `last`.
-fn script_setup_ending(h: &ScriptHandle, r: Range, last: &str) {
+fn script_setup_ending(h: &ScriptHandle, c: &K6485Config, last: &str) {
+    let rang = |r: Range| format!("CURR:RANG 2E{}\r", i32::from(r.index()) - 9);
+    // With autoranging the zero is taken on 2 nA, then the starting range is set.
+    let zero = if c.autorange { Range::MOST } else { c.range };
     h.exchange("*IDN?\r", IDN)
         .send("*RST\r")
         .send("*CLS\r")
@@ -75,18 +78,19 @@ fn script_setup_ending(h: &ScriptHandle, r: Range, last: &str) {
         .send("AVER ON\r")
         .send("CURR:RANG:AUTO OFF\r")
         .send("SYST:ZCH ON\r")
-        .send(format!("CURR:RANG 2E{}\r", i32::from(r.index()) - 9))
+        .send(rang(zero))
         .send("INIT\r")
         .send("SYST:ZCOR:ACQ\r")
-        .send("SYST:ZCOR ON\r")
-        .send("SYST:ZCH OFF\r")
-        .exchange("SYST:ERR?\r", last);
+        .send("SYST:ZCOR ON\r");
+    if zero != c.range {
+        h.send(rang(c.range));
+    }
+    h.send("SYST:ZCH OFF\r").exchange("SYST:ERR?\r", last);
 }
 
 fn ready(config: K6485Config) -> (Driver, ScriptHandle, ManualClock) {
-    let r = config.range;
-    let (mut d, h, clock) = rig(config);
-    script_setup(&h, r);
+    let (mut d, h, clock) = rig(config.clone());
+    script_setup(&h, &config);
     d.setup().expect("scripted set-up");
     h.finish().expect("set-up transcript");
     (d, h, clock)
@@ -127,7 +131,7 @@ fn setup_refuses_another_instrument_and_reports_a_refused_command() {
     h.finish().expect("transcript");
 
     let (mut d, h, _) = rig(config());
-    script_setup_ending(&h, range(3), "-221,\"Settings conflict\"\r");
+    script_setup_ending(&h, &config(), "-221,\"Settings conflict\"\r");
     match d.setup() {
         Err(K6485Error::Rejected(ScpiError {
             code: -221,
@@ -159,8 +163,9 @@ fn reading_averages_and_reports_its_accuracy() {
     assert_eq!(r.status.0, 2);
     assert!(close(r.accuracy_a(), accuracy_a(range(3), 1e-6)));
     assert!(close(r.accuracy_a(), 1.6e-9));
-    // Settled at 100 ms already; the scripted replies come at once.
-    assert_eq!(clock.now(), ms(100));
+    // The 2 µA range set after the zero settles at 200 ms; the scripted replies come
+    // at once.
+    assert_eq!(clock.now(), ms(200));
 }
 
 #[test]
@@ -175,7 +180,7 @@ fn autorange_up_and_down_wait_each_range_change() {
     let r = d.read().expect("reading");
     assert_eq!((r.range, r.autorange_steps), (range(4), 1));
     assert!(r.is_valid());
-    assert_eq!(clock.now(), ms(200));
+    assert_eq!(clock.now(), ms(300));
     // 0.5 µA is 0.025 of 20 µA: down to 2 µA.
     for _ in 0..3 {
         h.exchange("READ?\r", sample(5e-7, 0));
@@ -187,7 +192,7 @@ fn autorange_up_and_down_wait_each_range_change() {
     let r = d.read().expect("reading");
     assert_eq!((r.range, r.autorange_steps), (range(3), 1));
     assert_eq!(d.range(), range(3));
-    assert_eq!(clock.now(), ms(300));
+    assert_eq!(clock.now(), ms(400));
     h.finish().expect("transcript");
 }
 

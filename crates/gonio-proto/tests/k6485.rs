@@ -578,13 +578,20 @@ fn script_setup(w: &mut Wire, c: &K6485Config) {
     } else {
         w.send("AVER OFF");
     }
-    w.send("CURR:RANG:AUTO OFF")
-        .send("SYST:ZCH ON")
-        .send(&format!("CURR:RANG 2E{}", i32::from(c.range.index()) - 9));
+    let rang = |r: Range| format!("CURR:RANG 2E{}", i32::from(r.index()) - 9);
+    w.send("CURR:RANG:AUTO OFF").send("SYST:ZCH ON");
     if c.zero_correct {
-        w.send("INIT").send("SYST:ZCOR:ACQ").send("SYST:ZCOR ON");
+        // With autorange the zero is taken on 2 nA, then the starting range is set.
+        let zero = if c.autorange { Range::MOST } else { c.range };
+        w.send(&rang(zero))
+            .send("INIT")
+            .send("SYST:ZCOR:ACQ")
+            .send("SYST:ZCOR ON");
+        if zero != c.range {
+            w.send(&rang(c.range));
+        }
     } else {
-        w.send("SYST:ZCOR OFF");
+        w.send(&rang(c.range)).send("SYST:ZCOR OFF");
     }
     w.send("SYST:ZCH OFF").ask("SYST:ERR?", "0,\"No error\"");
 }
@@ -628,16 +635,34 @@ fn setup_transcript_acquires_the_zero_after_the_range_settles() {
             .map(|(t, _)| *t)
             .expect(l)
     };
-    // Everything up to the range at t = 0; INIT waits the 100 ms range settling; the
-    // zero is measured for 20 ms (1 PLC at 50 Hz); SYST:ERR? answers after it.
-    assert_eq!(t("CURR:RANG 2E-6\r"), Duration::ZERO);
+    // Everything up to the zero's range (2 nA, autorange being on) at t = 0; INIT
+    // waits its 100 ms range settling; the zero is measured for 20 ms (1 PLC at
+    // 50 Hz) while the starting range 2 µA is set; SYST:ERR? answers after it.
+    assert_eq!(t("CURR:RANG 2E-9\r"), Duration::ZERO);
     assert_eq!(t("INIT\r"), ms(100));
     assert_eq!(t("SYST:ZCOR:ACQ\r"), ms(100));
+    assert_eq!(t("CURR:RANG 2E-6\r"), ms(100));
     assert_eq!(*w.deadlines.last().expect("SYST:ERR?"), ms(120 + 500));
     assert_eq!(w.now, ms(120));
     assert_eq!(s.range(), range(3));
     assert_eq!(s.identity().map(|i| i.serial.as_str()), Some("1234567"));
     assert_eq!(s.busy_until(), ms(120));
+    // Readings wait for the 2 µA range until 200 ms.
+    assert_eq!(s.settled_at(), ms(200));
+
+    // Without autorange the zero is taken on the configured range itself.
+    let (s, w) = ready(K6485Config {
+        autorange: false,
+        ..config()
+    });
+    let ranges: Vec<&str> = w
+        .sent
+        .iter()
+        .map(|(_, l)| l.as_str())
+        .filter(|l| l.starts_with("CURR:RANG 2"))
+        .collect();
+    assert_eq!(ranges, ["CURR:RANG 2E-6\r"]);
+    assert_eq!(s.settled_at(), ms(100));
 }
 
 #[test]
@@ -713,13 +738,14 @@ fn read_averages_samples_spaced_by_the_integration() {
     assert_eq!(r.current(), Some(r.mean_a));
     assert!(close(r.fraction_of_full_scale(), 0.05));
     assert!(close(r.accuracy_a(), 0.0015 * 1e-7 + 100e-12));
-    // One READ? every 20 ms (1 PLC at 50 Hz): each answers when its conversion ends.
+    // From the 2 µA range's settling at 200 ms, one READ? every 20 ms (1 PLC at
+    // 50 Hz): each answers when its conversion ends.
     let times: Vec<Duration> = w.lines_since(k).iter().map(|(t, _)| *t).collect();
-    assert_eq!(times, [ms(120), ms(140), ms(160), ms(180)]);
-    assert_eq!(w.now, ms(200));
+    assert_eq!(times, [ms(200), ms(220), ms(240), ms(260)]);
+    assert_eq!(w.now, ms(280));
     assert_eq!(
         w.deadlines[w.deadlines.len() - 4..],
-        [ms(640), ms(660), ms(680), ms(700)]
+        [ms(720), ms(740), ms(760), ms(780)]
     );
 }
 
@@ -738,8 +764,8 @@ fn autorange_steps_up_on_overflow_and_down_on_a_small_signal() {
     assert_eq!((r.range, r.autorange_steps), (range(4), 1));
     assert!(close(r.mean_a, 3e-6));
     let lines = w.lines_since(k);
-    assert_eq!(lines[1], (ms(140), "CURR:RANG 2E-5\r"));
-    assert_eq!(lines[2], (ms(240), "READ?\r"));
+    assert_eq!(lines[1], (ms(220), "CURR:RANG 2E-5\r"));
+    assert_eq!(lines[2], (ms(320), "READ?\r"));
 
     // Down: 50 nA is 0.025 of 2 µA, under 0.05: 200 nA, where it is 0.25.
     let (mut s, mut w) = ready(config());

@@ -88,10 +88,12 @@ impl K6485Session {
     /// `*IDN?` (must be a 6485 or 6487); `*RST`; `*CLS`; `SYST:LFR?` (must match the
     /// config); `FORM:ELEM READ,TIME,STAT`; `TRIG:COUN 1`; `CURR:NPLC`; the filter
     /// (`AVER:TCON`, `AVER:COUN`, `AVER ON`, or `AVER OFF`); `CURR:RANG:AUTO OFF`;
-    /// `SYST:ZCH ON`; `CURR:RANG`; then, with `zero_correct`, the range's settling
-    /// wait, `INIT`, `SYST:ZCOR:ACQ`, `SYST:ZCOR ON` (else `SYST:ZCOR OFF`);
-    /// `SYST:ZCH OFF`; and `SYST:ERR?`, which must answer `0,"No error"` and also
-    /// proves every command before it has run.
+    /// `SYST:ZCH ON`; then, with `zero_correct`, `CURR:RANG` of the zero's range (2 nA
+    /// with autorange, as in the manual's example, else the configured range), the
+    /// range's settling wait, `INIT`, `SYST:ZCOR:ACQ`, `SYST:ZCOR ON` and `CURR:RANG`
+    /// of the configured range if it differs; without, `CURR:RANG` and
+    /// `SYST:ZCOR OFF`; then `SYST:ZCH OFF`; and `SYST:ERR?`, which must answer
+    /// `0,"No error"` and also proves every command before it has run.
     ///
     /// Integration and filter are set before the zero is acquired so that the zero is
     /// measured as the readings will be.

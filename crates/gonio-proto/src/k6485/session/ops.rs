@@ -5,7 +5,7 @@ use tracing::debug;
 
 use super::script::{Answer, Next, Op};
 use super::{K6485Session, unexpected};
-use crate::k6485::{Command, Identity, K6485Config, K6485Error, Reply};
+use crate::k6485::{Command, Identity, K6485Config, K6485Error, Range, Reply};
 use crate::machine::Cx;
 
 /// Ends the operation on an error, or goes on with the reply.
@@ -48,12 +48,20 @@ impl Setup {
         }
         commands.push(Command::AutoRange(false));
         commands.push(Command::ZeroCheck(true));
-        commands.push(Command::SetRange(c.range));
         if c.zero_correct {
+            // The zero is an input offset current, the same on every range: measured
+            // where it is resolved best, the most sensitive range the session may use
+            // (the manual's example acquires on 2 nA, then autoranges).
+            let zero_range = if c.autorange { Range::MOST } else { c.range };
+            commands.push(Command::SetRange(zero_range));
             commands.push(Command::Initiate);
             commands.push(Command::ZeroCorrectAcquire);
             commands.push(Command::ZeroCorrect(true));
+            if zero_range != c.range {
+                commands.push(Command::SetRange(c.range));
+            }
         } else {
+            commands.push(Command::SetRange(c.range));
             commands.push(Command::ZeroCorrect(false));
         }
         commands.push(Command::ZeroCheck(false));
