@@ -256,7 +256,8 @@ fn keyword(node: &[u8]) -> Option<&'static str> {
         .map(|(_, short)| *short)
 }
 
-/// Which of the two optional parts a header may omit.
+/// The canonical header of short-form nodes: the optional `SENS` root, `STAT` leaf and
+/// `NEXT` (of `SYST:ERR:NEXT`) removed, joined by `:`.
 fn canonical(nodes: &[&'static str]) -> String {
     let mut v: Vec<&str> = nodes.to_vec();
     // `[:SENSe]` is optional before CURR and AVER.

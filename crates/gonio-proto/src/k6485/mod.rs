@@ -5,7 +5,7 @@
 //!
 //! A command is a SCPI header (`SYST:ZCH`, long or short form, case ignored), `?` for a
 //! query, then a space and its parameter: `CURR:RANG 2E-9`, `READ?`. The host ends a
-//! line with CR: "incoming commands are processed after the <CR> character is
+//! line with CR: "incoming commands are processed after the `<CR>` character is
 //! received" (RS-232 settings, p. 9-17). The instrument ends each reply with the
 //! terminator selected on its front panel (CR, LF, CRLF or LFCR, p. 9-17); Gonio
 //! requires **CR**, 8 data bits, no parity, one stop bit, no flow control (the 6485 has

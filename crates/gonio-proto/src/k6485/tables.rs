@@ -3,9 +3,13 @@
 //!
 //! Sources: Model 6485 Picoammeter Instruction Manual (Keithley 6485-901-01), Table 4-1
 //! "Measurement ranges" and Table 4-3 "Ranges and values" (p. 4-2, 4-5), "Rate" (p. 4-5,
-//! 4-6), and Appendix A "Specifications" for accuracy, noise and rise time. The
-//! specification numbers below are transcribed from the 6485 data sheet (Appendix A);
-//! the 6487 shares them on these ranges.
+//! 4-6), and Appendix A "Specifications" for accuracy, noise and rise time.
+//!
+//! The ranges, the 5 % over-range, the NPLC limits and the overflow codes were checked
+//! against the manual's pages. The Appendix A numbers (accuracy, typical rms noise,
+//! rise time) are the 6485 data sheet's as transcribed here, not re-checked against a
+//! copy of Appendix A (UNCONFIRMED): verify them against the unit's own manual
+//! revision before a reduction relies on them.
 
 use std::fmt;
 

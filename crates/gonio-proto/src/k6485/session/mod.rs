@@ -129,7 +129,10 @@ impl K6485Session {
     }
 
     /// Sends any command and, for a query, reads its reply, with the link policy of
-    /// every exchange (reconnects, re-asks of rereadable queries).
+    /// every exchange (reconnects, re-asks of rereadable queries). `CURR:RANG` updates
+    /// the tracked range; `*RST` returns the instrument to its defaults (zero check on,
+    /// its own autorange), after which [`start_setup`](Self::start_setup) must run
+    /// again.
     pub fn start_execute<'s>(
         &'s mut self,
         command: &Command,
