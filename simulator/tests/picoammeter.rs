@@ -487,4 +487,18 @@ fn protocol_errors_and_queries() {
     };
     assert!(sample.status.zero_check());
     assert!((sample.time_s - 1.1).abs() < 1e-6);
+    // FETC? sends the same reading again, at once; two triggers send two triples.
+    let first = out.clone();
+    out.clear();
+    p.handle_line(1.1, b"FETC?", &mut out);
+    assert_eq!(out, first);
+    assert!((p.busy_until() - 1.1).abs() < 1e-12);
+    out.clear();
+    p.handle_line(1.1, b"TRIG:COUN 2;READ?", &mut out);
+    assert_eq!(out.iter().filter(|b| **b == b',').count(), 5);
+    assert!((p.busy_until() - 1.3).abs() < 1e-12);
+    // Acquiring a zero with zero check off is refused.
+    out.clear();
+    p.handle_line(2.0, b"SYST:ZCH OFF;SYST:ZCOR:ACQ;SYST:ERR?", &mut out);
+    assert_eq!(out, b"-221,\"Settings conflict\"\r");
 }

@@ -851,6 +851,13 @@ fn a_lost_reading_is_asked_again_and_a_lost_error_query_is_not() {
     // Lost at 120 + 20 + 500 ms; asked again, answered 20 ms later.
     assert_eq!(w.now, ms(660));
 
+    // A garbled reading is asked again too.
+    w.ask("READ?", "+1.0E-07A,+1.0E+00")
+        .ask("READ?", &reading(2e-7, 0));
+    let r = w.run(s.start_read(w.now)).expect("reading");
+    assert_eq!(r.current(), Some(2e-7));
+    assert_eq!(s.retried(), 2);
+
     w.send("SYST:ERR?");
     match w.run(s.start_execute(&Command::NextError, w.now)) {
         Err(K6485Error::Transport {
