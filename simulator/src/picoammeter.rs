@@ -291,6 +291,12 @@ impl Picoammeter {
         };
         self.input.retain(|(s, _)| *s < t);
         self.input.push((t, p));
+        // Changes the front end has passed matter only through the last of them: drop
+        // the rest, so that a long run's history does not grow without bound.
+        let front_t = self.front_t;
+        if let Some(k) = self.input.iter().rposition(|(s, _)| *s <= front_t) {
+            self.input.drain(..k);
+        }
     }
 
     /// One received command line (terminator removed) at time `now`: runs its
