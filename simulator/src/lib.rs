@@ -23,6 +23,7 @@ pub mod faults;
 pub mod instrument;
 pub mod lockin;
 pub mod optics;
+pub mod picoammeter;
 pub mod pty;
 pub mod serve;
 pub mod transport;

@@ -26,6 +26,7 @@ pub mod clock;
 pub mod config;
 pub mod detector;
 mod goniometer;
+pub mod k6485;
 pub mod motion;
 pub mod ports;
 mod pump;
