@@ -130,7 +130,7 @@ pub fn instrument_config(data: &[u8]) {
     }
     let clock = ManualClock::new();
     let (t, _) = ScriptedTransport::new(b'\r', 64, clock.clone());
-    let chain = Smc100Chain::new(t, clock.clone(), c.motion.axes.clone(), c.motion.policy());
+    let chain = Smc100Chain::new(t, clock.clone(), c.motion.smc100_axes(), c.motion.policy());
     assert!(
         chain.is_ok(),
         "an accepted config's axes: {:?}",

@@ -13,6 +13,8 @@ use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
 use crate::smc100::{AxisConfig, ChainPolicy};
 use crate::sr830::Sr830Config;
 use crate::transport::{FlowControl, Framing, SerialSettings};
+use gonio_proto::apt::{AptAxisConfig, StageKind};
+use gonio_proto::k6485::K6485Config;
 
 /// A goniometer: its motion chain and its detector.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -73,6 +75,12 @@ pub enum ControllerKind {
     /// A Newport SMC100 on an RS-485 chain (addresses 1–31) behind one serial line.
     #[default]
     Smc100,
+    /// A Thorlabs KDC101 K-Cube DC servo controller (APT protocol), with the stage
+    /// `stage` names (default `prm1z8`), on its own USB serial line.
+    Kdc101,
+    /// A Thorlabs K10CR1 rotation mount (APT protocol, built-in stepper controller), on
+    /// its own USB serial line.
+    K10cr1,
 }
 
 impl ControllerKind {
@@ -80,6 +88,8 @@ impl ControllerKind {
     pub fn as_str(self) -> &'static str {
         match self {
             ControllerKind::Smc100 => "smc100",
+            ControllerKind::Kdc101 => "kdc101",
+            ControllerKind::K10cr1 => "k10cr1",
         }
     }
 }
@@ -118,6 +128,16 @@ pub struct AxisSpec {
     /// Longest a home search may take, s.
     #[serde(default = "default_home_timeout")]
     pub home_timeout_s: f64,
+    /// The stage on an APT controller (`prm1z8` on a KDC101; a K10CR1 is its own).
+    #[serde(default)]
+    pub stage: Option<StageKind>,
+    /// An APT controller's serial number: start-up refuses any other controller on the
+    /// port (a swapped cable).
+    #[serde(default)]
+    pub serial_number: Option<u32>,
+    /// Backlash distance an APT controller is set to, deg; its own when absent.
+    #[serde(default)]
+    pub backlash_deg: Option<f64>,
 }
 
 fn default_units() -> String {
@@ -131,6 +151,27 @@ fn default_home_timeout() -> f64 {
 }
 
 impl AxisSpec {
+    /// The APT stage of an APT axis (`None` for other families).
+    pub fn apt_stage(&self) -> Option<StageKind> {
+        match self.kind {
+            ControllerKind::Smc100 => None,
+            ControllerKind::Kdc101 => Some(self.stage.unwrap_or(StageKind::Prm1Z8)),
+            ControllerKind::K10cr1 => Some(StageKind::K10cr1),
+        }
+    }
+
+    /// The axis as an APT session takes it (for an APT axis).
+    pub fn apt(&self, stage: StageKind) -> AptAxisConfig {
+        AptAxisConfig {
+            velocity: self.velocity,
+            acceleration: self.acceleration,
+            tolerance: self.tolerance,
+            home_timeout_s: self.home_timeout_s,
+            backlash_deg: self.backlash_deg,
+            ..AptAxisConfig::new(&self.name, stage, self.min, self.max)
+        }
+    }
+
     /// The axis as an SMC100 chain's session takes it.
     pub fn smc100(&self) -> AxisConfig {
         AxisConfig {
@@ -161,6 +202,8 @@ pub struct MotionLine {
 pub enum LineKind {
     /// A chain of SMC100 controllers, in config order.
     Smc100(Vec<AxisConfig>),
+    /// One APT controller, and the serial number it must have.
+    Apt(AptAxisConfig, Option<u32>),
 }
 
 impl MotionLine {
@@ -168,6 +211,7 @@ impl MotionLine {
     pub fn axis_names(&self) -> Vec<String> {
         match &self.kind {
             LineKind::Smc100(axes) => axes.iter().map(|a| a.name.clone()).collect(),
+            LineKind::Apt(a, _) => vec![a.name.clone()],
         }
     }
 }
@@ -194,11 +238,25 @@ fn default_reconnect_delay_ms() -> u64 {
     500
 }
 
-/// The serial line of the SR830 and its settings.
+/// The detector family.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DetectorKind {
+    /// A Stanford Research SR830 lock-in amplifier (`[detector.lockin]`).
+    #[default]
+    Sr830,
+    /// A Keithley 6485 picoammeter on a photodiode (`[detector.picoammeter]`).
+    K6485,
+}
+
+/// The detector's serial line and its settings.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DetectorConfig {
-    /// Port path.
+    /// The detector family (default `sr830`).
+    #[serde(default)]
+    pub kind: DetectorKind,
+    /// Port path, or `usb:SERIAL`.
     pub port: String,
     /// Baud rate, as set on the SR830's front panel (default 9600).
     #[serde(default = "default_detector_baud")]
@@ -206,9 +264,19 @@ pub struct DetectorConfig {
     /// Flow control (`none`, or `hardware` for CTS/DTR).
     #[serde(default = "default_detector_flow")]
     pub flow: FlowControl,
-    /// Lock-in settings (`[detector.lockin]`).
+    /// Lock-in settings (`[detector.lockin]`, for `kind = "sr830"`).
     #[serde(default)]
     pub lockin: Sr830Config,
+    /// Picoammeter settings (`[detector.picoammeter]`, for `kind = "k6485"`).
+    #[serde(default)]
+    pub picoammeter: Option<K6485Config>,
+}
+
+impl DetectorConfig {
+    /// The picoammeter settings in force: the section's, else the defaults.
+    pub fn picoammeter(&self) -> K6485Config {
+        self.picoammeter.clone().unwrap_or_default()
+    }
 }
 
 fn default_detector_baud() -> u32 {
@@ -244,6 +312,13 @@ impl MotionConfig {
                         });
                     }
                 }
+                ControllerKind::Kdc101 | ControllerKind::K10cr1 => {
+                    let stage = a.apt_stage().unwrap_or(StageKind::Prm1Z8);
+                    lines.push(MotionLine {
+                        port: port.to_string(),
+                        kind: LineKind::Apt(a.apt(stage), a.serial_number),
+                    });
+                }
             }
         }
         lines
@@ -266,6 +341,12 @@ impl MotionConfig {
             LineKind::Smc100(_) => SerialSettings {
                 path: line.port.clone(),
                 ..self.serial()
+            },
+            LineKind::Apt(..) => SerialSettings {
+                path: line.port.clone(),
+                baud: crate::apt::BAUD,
+                flow: FlowControl::Hardware,
+                framing: Framing::Apt,
             },
         }
     }
@@ -303,9 +384,15 @@ impl DetectorConfig {
             path: self.port.clone(),
             baud: self.baud,
             flow: self.flow,
-            framing: Framing::Lines {
-                terminator: gonio_proto::sr830::REPLY_TERMINATOR,
-                max_line: gonio_proto::sr830::MAX_LINE,
+            framing: match self.kind {
+                DetectorKind::Sr830 => Framing::Lines {
+                    terminator: gonio_proto::sr830::REPLY_TERMINATOR,
+                    max_line: gonio_proto::sr830::MAX_LINE,
+                },
+                DetectorKind::K6485 => Framing::Lines {
+                    terminator: gonio_proto::k6485::REPLY_TERMINATOR,
+                    max_line: gonio_proto::k6485::MAX_LINE,
+                },
             },
         }
     }
@@ -371,6 +458,12 @@ impl InstrumentConfig {
     /// serial exchanges of a read cycle (a status query before and after, one
     /// snapshot per sample, each about 36 characters both ways).
     pub fn reading_seconds(&self) -> f64 {
+        if self.detector.kind == DetectorKind::K6485 {
+            // One `READ?` (about 8 characters) and its reply (about 40) a sample.
+            let p = self.detector.picoammeter();
+            let wire = p.samples as f64 * 48.0 * 10.0 / f64::from(self.detector.baud.max(1));
+            return p.reading_seconds() + wire;
+        }
         let lockin = &self.detector.lockin;
         let exchanges = lockin.samples as f64 + 2.0;
         let wire = exchanges * 36.0 * 10.0 / f64::from(self.detector.baud.max(1));
@@ -464,6 +557,51 @@ impl InstrumentConfig {
             {
                 return err(f("address"), "must be in 1..=31");
             }
+            if let Some(stage) = a.apt_stage() {
+                if a.address != 0 {
+                    return err(
+                        f("address"),
+                        "an APT controller has no chain address; leave it out",
+                    );
+                }
+                if a.units != "deg" {
+                    return err(f("units"), "APT rotation stages move in `deg`");
+                }
+                if a.kind == ControllerKind::K10cr1 && a.stage.is_some_and(|s| s != stage) {
+                    return err(f("stage"), "a K10CR1 is its own stage; leave it out");
+                }
+                if a.kind == ControllerKind::Kdc101 && stage != StageKind::Prm1Z8 {
+                    return err(f("stage"), "a KDC101 drives a `prm1z8` here");
+                }
+                a.apt(stage)
+                    .validate()
+                    .map_err(|(k, why)| (f(k), why))?;
+                if let Some(j) = m.axes[..i].iter().position(|b| m.port_of(b) == m.port_of(a)) {
+                    return Err((
+                        f("port"),
+                        format!(
+                            "an APT controller needs a line of its own; motion.axes[{j}] is on {:?} too",
+                            m.port_of(a)
+                        ),
+                    ));
+                }
+            } else {
+                if a.stage.is_some() || a.serial_number.is_some() || a.backlash_deg.is_some() {
+                    return err(
+                        f("kind"),
+                        "`stage`, `serial_number` and `backlash_deg` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
+                    );
+                }
+                if let Some(j) = m.axes[..i]
+                    .iter()
+                    .position(|b| b.apt_stage().is_some() && m.port_of(b) == m.port_of(a))
+                {
+                    return Err((
+                        f("port"),
+                        format!("motion.axes[{j}], an APT controller, holds this line"),
+                    ));
+                }
+            }
             limits::POSITION.at(f("min"), a.min)?;
             limits::POSITION.at(f("max"), a.max)?;
             if a.max <= a.min {
@@ -522,8 +660,29 @@ impl InstrumentConfig {
             limits::MAX_BAUD,
             "baud",
         )?;
-        d.lockin
-            .validate()
-            .map_err(|e| (format!("detector.lockin.{}", e.field), e.reason))
+        match d.kind {
+            DetectorKind::Sr830 => {
+                if d.picoammeter.is_some() {
+                    return err(
+                        "detector.picoammeter".into(),
+                        "is for kind = \"k6485\"; an SR830 takes [detector.lockin]",
+                    );
+                }
+                d.lockin
+                    .validate()
+                    .map_err(|e| (format!("detector.lockin.{}", e.field), e.reason))
+            }
+            DetectorKind::K6485 => {
+                if d.lockin != Sr830Config::default() {
+                    return err(
+                        "detector.lockin".into(),
+                        "is for kind = \"sr830\"; a K6485 takes [detector.picoammeter]",
+                    );
+                }
+                d.picoammeter()
+                    .validate()
+                    .map_err(|e| (format!("detector.picoammeter.{}", e.field), e.reason))
+            }
+        }
     }
 }

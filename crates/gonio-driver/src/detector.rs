@@ -9,18 +9,23 @@
 use crate::clock::Clock;
 use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
 use crate::transport::Transport;
+use crate::k6485::K6485;
+use gonio_proto::k6485::{K6485Error, PicoReading, Range as PicoRange};
 use gonio_proto::sr830::Sensitivity;
 
 /// A detector on its serial line.
 pub enum Detector<C: Clock> {
     /// An SR830 lock-in amplifier.
     Sr830(Sr830<Box<dyn Transport>, C>),
+    /// A Keithley 6485 picoammeter reading a photodiode's current.
+    K6485(K6485<Box<dyn Transport>, C>),
 }
 
 impl<C: Clock> std::fmt::Debug for Detector<C> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Detector::Sr830(d) => write!(f, "Sr830({:?})", d.config()),
+            Detector::K6485(d) => write!(f, "K6485({:?})", d.config()),
         }
     }
 }
@@ -30,6 +35,9 @@ impl<C: Clock> std::fmt::Debug for Detector<C> {
 pub enum Reading {
     /// A lock-in reading (volts).
     Lockin(LockinReading),
+    /// A DC current reading (amps), and the power-line frequency its integration time
+    /// (in power-line cycles) counts, Hz.
+    Current(PicoReading, u32),
 }
 
 /// A reading as the run file's `readings` row stores it (see `docs/run-file.md`): the
@@ -67,6 +75,7 @@ impl Reading {
     pub fn lockin(&self) -> Option<&LockinReading> {
         match self {
             Reading::Lockin(r) => Some(r),
+            Reading::Current(..) => None,
         }
     }
 
@@ -74,6 +83,7 @@ impl Reading {
     pub fn is_valid(&self) -> bool {
         match self {
             Reading::Lockin(r) => r.is_valid(),
+            Reading::Current(r, _) => r.is_valid(),
         }
     }
 
@@ -81,6 +91,7 @@ impl Reading {
     pub fn flags_text(&self) -> String {
         match self {
             Reading::Lockin(r) => format!("{:?}", r.flags),
+            Reading::Current(r, _) => format!("{:?}", r.flags),
         }
     }
 
@@ -101,8 +112,33 @@ impl Reading {
                 autorange_steps: r.autorange_steps,
                 status: r.status.0,
             },
+            Reading::Current(r, line_hz) => Columns {
+                range: r.range.index(),
+                full_scale: r.range.amps(),
+                integration: 0,
+                integration_s: r.nplc * f64::from(r.filter_count.max(1))
+                    / f64::from((*line_hz).max(1)),
+                slope_db: 0,
+                mean: r.mean_a,
+                std: r.std_a,
+                x: r.mean_a,
+                y: 0.0,
+                n: r.n,
+                autorange_steps: r.autorange_steps,
+                status: dc_status(r),
+            },
         }
     }
+}
+
+/// A DC reading's flags in the lock-in status bits the run file keeps (`lias`, see
+/// `docs/run-file.md`): an overflow or overvoltage as an input overload (bit 0), an
+/// invalid sample as an output overload (bit 2), zero check on as "no signal" (bit
+/// 3, the lock-in's unlock).
+fn dc_status(r: &PicoReading) -> u8 {
+    u8::from(r.flags.overflow || r.flags.overvoltage)
+        | u8::from(r.flags.invalid) << 2
+        | u8::from(r.flags.zero_check) << 3
 }
 
 /// Why a detector operation failed.
@@ -111,6 +147,9 @@ pub enum DetectorError {
     /// The SR830 failed.
     #[error(transparent)]
     Sr830(#[from] Sr830Error),
+    /// The picoammeter failed.
+    #[error(transparent)]
+    K6485(#[from] K6485Error),
 }
 
 /// What the run engine should do after a detector error.
@@ -135,6 +174,13 @@ impl DetectorError {
                 | Sr830Error::Interrupted { .. },
             ) => Disposition::Again,
             DetectorError::Sr830(_) => Disposition::Stop,
+            DetectorError::K6485(K6485Error::Autorange { .. }) => Disposition::Skip,
+            DetectorError::K6485(
+                K6485Error::Transport { .. }
+                | K6485Error::Protocol { .. }
+                | K6485Error::Interrupted { .. },
+            ) => Disposition::Again,
+            DetectorError::K6485(_) => Disposition::Stop,
         }
     }
 }
@@ -144,6 +190,7 @@ impl<C: Clock> Detector<C> {
     pub fn setup(&mut self) -> Result<String, DetectorError> {
         match self {
             Detector::Sr830(d) => Ok(d.setup()?.to_string()),
+            Detector::K6485(d) => Ok(d.setup()?.to_string()),
         }
     }
 
@@ -151,6 +198,10 @@ impl<C: Clock> Detector<C> {
     pub fn read(&mut self) -> Result<Reading, DetectorError> {
         match self {
             Detector::Sr830(d) => Ok(Reading::Lockin(d.read()?)),
+            Detector::K6485(d) => {
+                let hz = d.config().line_frequency_hz;
+                Ok(Reading::Current(d.read()?, hz))
+            }
         }
     }
 
@@ -158,6 +209,7 @@ impl<C: Clock> Detector<C> {
     pub fn input_changed(&mut self) {
         match self {
             Detector::Sr830(d) => d.input_changed(),
+            Detector::K6485(d) => d.input_changed(),
         }
     }
 
@@ -165,6 +217,7 @@ impl<C: Clock> Detector<C> {
     pub fn range(&self) -> u8 {
         match self {
             Detector::Sr830(d) => d.sensitivity().index(),
+            Detector::K6485(d) => d.range().index(),
         }
     }
 
@@ -180,6 +233,13 @@ impl<C: Clock> Detector<C> {
                 }
                 None => Ok(None),
             },
+            Detector::K6485(d) => match PicoRange::new(index) {
+                Some(r) => {
+                    d.set_range(r)?;
+                    Ok(Some(r.to_string()))
+                }
+                None => Ok(None),
+            },
         }
     }
 
@@ -187,6 +247,7 @@ impl<C: Clock> Detector<C> {
     pub fn retried(&self) -> u64 {
         match self {
             Detector::Sr830(d) => d.retried(),
+            Detector::K6485(d) => d.retried(),
         }
     }
 }

@@ -1,7 +1,9 @@
 //! A goniometer: named axes on whatever controllers the lab owns, and a detector.
 
+use crate::apt::AptAxis;
 use crate::clock::{Clock, SystemClock};
-use crate::config::{DetectorConfig, InstrumentConfig, LineKind, MotionLine};
+use crate::config::{DetectorConfig, DetectorKind, InstrumentConfig, LineKind, MotionLine};
+use crate::k6485::K6485;
 use crate::detector::{Detector, DetectorError, Reading};
 use crate::motion::{AxisInfo, Line, Motion};
 use crate::smc100::{MotionError, Smc100Chain};
@@ -139,6 +141,13 @@ impl<C: Clock + Clone> Goniometer<C> {
                 axes.clone(),
                 cfg.motion.policy(),
             )?),
+            LineKind::Apt(axis, serial) => Line::Apt(AptAxis::new(
+                t,
+                clock,
+                axis.clone(),
+                cfg.motion.policy(),
+                *serial,
+            )?),
         })
     }
 
@@ -147,8 +156,14 @@ impl<C: Clock + Clone> Goniometer<C> {
         t: Box<dyn Transport>,
         clock: C,
     ) -> Result<Detector<C>, GoniometerError> {
-        let d = Sr830::new(t, clock, cfg.detector.lockin.clone()).map_err(DetectorError::from)?;
-        Ok(Detector::Sr830(d))
+        Ok(match cfg.detector.kind {
+            DetectorKind::Sr830 => Detector::Sr830(
+                Sr830::new(t, clock, cfg.detector.lockin.clone()).map_err(DetectorError::from)?,
+            ),
+            DetectorKind::K6485 => Detector::K6485(
+                K6485::new(t, clock, cfg.detector.picoammeter()).map_err(DetectorError::from)?,
+            ),
+        })
     }
 
     /// Identifies every controller and sets the detector up: what runs before anything

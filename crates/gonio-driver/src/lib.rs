@@ -21,6 +21,7 @@
 //! - [`Goniometer`] is the named axes and the detector, built from an instrument
 //!   config file.
 
+pub mod apt;
 pub mod bench;
 pub mod clock;
 pub mod config;

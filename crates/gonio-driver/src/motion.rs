@@ -9,6 +9,7 @@
 //! together on one thread (`pump_many`), and a fault on one line stops the stages on
 //! every line.
 
+use crate::apt::AptAxis;
 use crate::clock::Clock;
 use crate::pump::{AbortFlag, pump_many};
 use crate::smc100::{AxisError, MotionError, Smc100Chain};
@@ -18,18 +19,37 @@ use crate::transport::Transport;
 pub enum Line<C: Clock> {
     /// A chain of SMC100 controllers.
     Smc100(Smc100Chain<Box<dyn Transport>, C>),
+    /// One Thorlabs APT controller (KDC101, K10CR1).
+    Apt(AptAxis<Box<dyn Transport>, C>),
 }
 
 impl<C: Clock> Line<C> {
     fn axis_names(&self) -> Vec<String> {
         match self {
             Line::Smc100(c) => c.axes().iter().map(|a| a.name.clone()).collect(),
+            Line::Apt(a) => vec![a.axis().name.clone()],
         }
     }
 
     fn retried(&self) -> u64 {
         match self {
             Line::Smc100(c) => c.retried(),
+            Line::Apt(a) => a.retried(),
+        }
+    }
+
+    /// The limits and units of the named axis, if it is on this line.
+    fn limits(&self, name: &str) -> Option<(f64, f64, String)> {
+        match self {
+            Line::Smc100(c) => c
+                .axes()
+                .iter()
+                .find(|a| a.name == name)
+                .map(|a| (a.min, a.max, a.units.clone())),
+            Line::Apt(a) => {
+                let x = a.axis();
+                (x.name == name).then(|| (x.min, x.max, "deg".to_string()))
+            }
         }
     }
 }
@@ -38,6 +58,7 @@ impl<C: Clock> std::fmt::Debug for Line<C> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Line::Smc100(c) => c.fmt(f),
+            Line::Apt(a) => a.fmt(f),
         }
     }
 }
@@ -96,6 +117,7 @@ impl<C: Clock + Clone> Motion<C> {
             .into_iter()
             .map(|l| match l {
                 Line::Smc100(c) => Line::Smc100(c.with_abort_flag(abort.clone())),
+                Line::Apt(a) => Line::Apt(a.with_abort_flag(abort.clone())),
             })
             .collect();
         let mut axes: Vec<(String, usize)> = Vec::new();
@@ -177,6 +199,27 @@ impl<C: Clock + Clone> Motion<C> {
                         ));
                     }
                 }
+                Line::Apt(axis) => {
+                    let info = axis.identify()?;
+                    let status = axis.status()?;
+                    let homed = status.is_homed();
+                    let [ma, it, mi] = info.firmware;
+                    out.push((
+                        axis.axis().name.clone(),
+                        AxisInfo {
+                            family: if info.model.starts_with("K10CR1") {
+                                "k10cr1"
+                            } else {
+                                "kdc101"
+                            },
+                            version: format!("{ma}.{it}.{mi}"),
+                            stage: format!("{} s/n {} ({:?})", info.model, info.serial, axis.axis().stage),
+                            state_code: format!("{:08X}", status.bits),
+                            state: if homed { "homed" } else { "not homed" }.to_string(),
+                            referenced: homed,
+                        },
+                    ));
+                }
             }
         }
         // Config order, whatever the lines' order.
@@ -197,6 +240,16 @@ impl<C: Clock + Clone> Motion<C> {
                     AxisState::Unreferenced
                 })
             }
+            Line::Apt(a) => {
+                let s = a.status()?;
+                Ok(if s.is_moving() {
+                    AxisState::Moving
+                } else if s.is_homed() {
+                    AxisState::Referenced
+                } else {
+                    AxisState::Unreferenced
+                })
+            }
         }
     }
 
@@ -204,6 +257,7 @@ impl<C: Clock + Clone> Motion<C> {
     pub fn position(&mut self, name: &str) -> Result<f64, MotionError> {
         match self.line_of(name)? {
             Line::Smc100(c) => c.position(name),
+            Line::Apt(a) => a.position(),
         }
     }
 
@@ -220,6 +274,9 @@ impl<C: Clock + Clone> Motion<C> {
             }
             match &mut self.lines[i] {
                 Line::Smc100(c) => c.home(&here)?,
+                Line::Apt(a) => {
+                    a.home()?;
+                }
             }
         }
         if let Some(n) = names
@@ -262,6 +319,7 @@ impl<C: Clock + Clone> Motion<C> {
             // One line: its own pump, exchange for exchange as a chain alone.
             let got = match &mut self.lines[*only] {
                 Line::Smc100(c) => c.move_to(&per_line[*only])?,
+                Line::Apt(a) => vec![a.move_to(per_line[*only][0].1)?],
             };
             ended.extend(per_line[*only].iter().map(|(n, _)| n.to_string()).zip(got));
         } else {
@@ -279,6 +337,7 @@ impl<C: Clock + Clone> Motion<C> {
                 );
                 slots.push(match line {
                     Line::Smc100(c) => c.move_slot(&per_line[i]),
+                    Line::Apt(a) => a.move_slot(per_line[i][0].1),
                 });
             }
             let results = pump_many(slots, &self.clock, Some(&self.abort), Result::is_err);
@@ -319,17 +378,16 @@ impl<C: Clock + Clone> Motion<C> {
     fn check_limits(&self, targets: &[(&str, f64)]) -> Result<(), MotionError> {
         for &(name, target) in targets {
             for line in &self.lines {
-                let Line::Smc100(c) = line;
-                if let Some(a) = c.axes().iter().find(|a| a.name == name)
-                    && !(target.is_finite() && target >= a.min && target <= a.max)
+                if let Some((min, max, units)) = line.limits(name)
+                    && !(target.is_finite() && target >= min && target <= max)
                 {
                     return Err(MotionError::AtAxis {
                         axis: name.to_string(),
                         source: AxisError::OutOfLimits {
                             target,
-                            min: a.min,
-                            max: a.max,
-                            units: a.units.clone(),
+                            min,
+                            max,
+                            units,
                         },
                     });
                 }
@@ -342,6 +400,7 @@ impl<C: Clock + Clone> Motion<C> {
     pub fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
         match self.line_of(name)? {
             Line::Smc100(c) => c.move_by(name, delta),
+            Line::Apt(a) => a.move_by(delta),
         }
     }
 
@@ -352,6 +411,7 @@ impl<C: Clock + Clone> Motion<C> {
         for line in &mut self.lines {
             let r = match line {
                 Line::Smc100(c) => c.stop_all(),
+                Line::Apt(a) => a.stop(true),
             };
             if let Err(e) = r {
                 first.get_or_insert(e);
@@ -365,6 +425,8 @@ impl<C: Clock + Clone> Motion<C> {
     pub fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError> {
         match self.line_of(name)? {
             Line::Smc100(c) => c.reset_and_home(name),
+            // An APT controller has no reset command: homing restores its reference.
+            Line::Apt(a) => a.home().map(|_| ()),
         }
     }
 }

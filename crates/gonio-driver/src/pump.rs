@@ -16,7 +16,7 @@ use gonio_proto::link::{Deadline, Io, Operation};
 use tracing::{debug, trace};
 
 use crate::clock::Clock;
-use crate::transport::Transport;
+use crate::transport::{Transport, TransportError};
 
 /// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
 /// running and every later wait stop all stages and return `AxisError::Aborted`.
@@ -135,6 +135,53 @@ pub(crate) fn pump_many<T>(
         };
         let (link, port, op) = &mut slots[i];
         wait(&mut **link, clock, port, op.as_mut(), deadline, aborting);
+    }
+}
+
+/// An operation whose output is mapped by a function: slots of different families
+/// share one output type.
+pub(crate) struct Mapped<O, F> {
+    op: O,
+    map: Option<F>,
+}
+
+impl<O, F> Mapped<O, F> {
+    /// `op`, its output mapped by `map`.
+    pub(crate) fn new(op: O, map: F) -> Self {
+        Mapped { op, map: Some(map) }
+    }
+}
+
+impl<O: Operation, T, F: FnOnce(O::Output) -> T> Operation for Mapped<O, F> {
+    type Output = T;
+    fn poll_io(&mut self) -> Option<Io<'_>> {
+        self.op.poll_io()
+    }
+    fn poll_timeout(&self) -> Option<Deadline> {
+        self.op.poll_timeout()
+    }
+    fn poll_output(&mut self) -> Option<T> {
+        let out = self.op.poll_output()?;
+        // An operation yields its output once; `map` is there until then.
+        self.map.take().map(|f| f(out))
+    }
+    fn handle_sent(&mut self, now: std::time::Duration, r: Result<(), TransportError>) {
+        self.op.handle_sent(now, r);
+    }
+    fn handle_reconnected(&mut self, now: std::time::Duration, r: Result<(), TransportError>) {
+        self.op.handle_reconnected(now, r);
+    }
+    fn handle_line(&mut self, now: std::time::Duration, line: &[u8]) {
+        self.op.handle_line(now, line);
+    }
+    fn handle_link_error(&mut self, now: std::time::Duration, e: TransportError) {
+        self.op.handle_link_error(now, e);
+    }
+    fn handle_timeout(&mut self, now: std::time::Duration) {
+        self.op.handle_timeout(now);
+    }
+    fn handle_abort(&mut self, now: std::time::Duration) {
+        self.op.handle_abort(now);
     }
 }
 

@@ -58,6 +58,8 @@ pub enum Framing {
         /// The longest line accepted.
         max_line: usize,
     },
+    /// Thorlabs APT binary messages (6-byte header, optional data packet).
+    Apt,
 }
 
 impl Framing {
@@ -68,6 +70,7 @@ impl Framing {
                 terminator,
                 max_line,
             } => Box::new(LineFramer::new(terminator, max_line)),
+            Framing::Apt => Box::new(gonio_proto::apt::AptFramer::new()),
         }
     }
 }
