@@ -9,10 +9,12 @@ use gonio_brdf::{Brdf, Model};
 use gonio_core::kinematics::Layout;
 use serde::Deserialize;
 
+use crate::apt::AptDeviceConfig;
 use crate::controller::ControllerConfig;
 use crate::faults::FaultConfig;
 use crate::lockin::LockInConfig;
 use crate::optics::OpticsConfig;
+use crate::picoammeter::PicoammeterConfig;
 
 /// The embedded default: the blue paint of Lafortune et al. 1997 on a coplanar-arm
 /// goniometer (`config/sim-example.toml`).
@@ -162,6 +164,8 @@ pub struct LinkConfig {
     pub motion_latency_s: f64,
     /// The SR830's time to answer a query, s.
     pub detector_latency_s: f64,
+    /// An APT controller's time to answer, s (its USB line runs at 115 200 baud).
+    pub apt_latency_s: f64,
 }
 
 impl Default for LinkConfig {
@@ -171,8 +175,18 @@ impl Default for LinkConfig {
             detector_baud: 9_600,
             motion_latency_s: 0.010,
             detector_latency_s: 0.005,
+            apt_latency_s: 0.002,
         }
     }
+}
+
+/// What drives a role's stage in the simulator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RoleStage {
+    /// The SMC100 at this address on the motion line.
+    Smc100(u8),
+    /// The APT controller of `[apt.ROLE]`, on its own line.
+    Apt,
 }
 
 /// A simulated goniometer.
@@ -199,6 +213,15 @@ pub struct SimConfig {
     /// Lock-in physics.
     #[serde(default)]
     pub lockin: LockInConfig,
+    /// Thorlabs APT controllers, by the role their stage plays (`[apt.sample_rot]`):
+    /// each on its own line, instead of an SMC100 address for that role.
+    #[serde(default)]
+    pub apt: BTreeMap<String, AptDeviceConfig>,
+    /// A Keithley 6485 picoammeter on a photodiode as the detector, instead of the
+    /// SR830: its current is the optics' power (`signal / responsivity_v_per_w`) times
+    /// its own `responsivity_a_per_w`.
+    #[serde(default)]
+    pub picoammeter: Option<PicoammeterConfig>,
     /// Faults.
     #[serde(default)]
     pub faults: FaultConfig,
@@ -288,23 +311,58 @@ impl SimConfig {
         Self::from_toml(&text, Some(path))
     }
 
-    /// The controller address of each role, in the layout's order.
-    pub fn role_addresses(&self) -> Result<[u8; 4], (String, String)> {
+    /// What drives each role's stage, in the layout's order: an SMC100 address, or
+    /// the APT controller of `[apt.ROLE]`.
+    pub fn role_stages(&self) -> Result<[RoleStage; 4], (String, String)> {
         let roles = self.kinematics.layout.roles();
-        let mut out = [0u8; 4];
+        let mut out = [RoleStage::Apt; 4];
         for (i, r) in roles.iter().enumerate() {
-            out[i] = *self.kinematics.addresses.get(*r).ok_or_else(|| {
-                (
-                    format!("kinematics.addresses.{r}"),
-                    format!(
-                        "missing: the {:?} layout needs {}",
-                        self.kinematics.layout,
-                        roles.join(", ")
-                    ),
-                )
-            })?;
+            out[i] = match (self.kinematics.addresses.get(*r), self.apt.contains_key(*r)) {
+                (Some(a), false) => RoleStage::Smc100(*a),
+                (None, true) => RoleStage::Apt,
+                (Some(_), true) => {
+                    return Err((
+                        format!("apt.{r}"),
+                        format!("role {r} also has an SMC100 address in kinematics.addresses"),
+                    ));
+                }
+                (None, false) => {
+                    return Err((
+                        format!("kinematics.addresses.{r}"),
+                        format!(
+                            "missing: the {:?} layout needs {} (an SMC100 address or an [apt.{r}] table)",
+                            self.kinematics.layout,
+                            roles.join(", ")
+                        ),
+                    ));
+                }
+            };
         }
         Ok(out)
+    }
+
+    /// The SMC100 addresses of the roles on SMC100s, in the layout's order.
+    pub fn role_addresses(&self) -> Result<Vec<u8>, (String, String)> {
+        Ok(self
+            .role_stages()?
+            .iter()
+            .filter_map(|s| match s {
+                RoleStage::Smc100(a) => Some(*a),
+                RoleStage::Apt => None,
+            })
+            .collect())
+    }
+
+    /// The APT controllers' roles, in the layout's order: the index of a role here is
+    /// its line's in [`Port::Apt`](crate::Port::Apt).
+    pub fn apt_roles(&self) -> Vec<&'static str> {
+        self.kinematics
+            .layout
+            .roles()
+            .iter()
+            .copied()
+            .filter(|r| self.apt.contains_key(*r))
+            .collect()
     }
 
     fn validate(&self) -> Result<(), (String, String)> {
@@ -317,20 +375,53 @@ impl SimConfig {
                 ));
             }
         }
+        for k in self.apt.keys() {
+            if !roles.contains(&k.as_str()) {
+                return Err((
+                    format!("apt.{k}"),
+                    format!("not a role of this layout ({})", roles.join(", ")),
+                ));
+            }
+        }
+        let stages = self.role_stages()?;
         let addrs = self.role_addresses()?;
-        for (i, a) in addrs.iter().enumerate() {
+        for (i, s) in stages.iter().enumerate() {
+            let RoleStage::Smc100(a) = s else { continue };
             if !(1..=31).contains(a) {
                 return Err((
                     format!("kinematics.addresses.{}", roles[i]),
                     "must be in 1..=31".into(),
                 ));
             }
-            if addrs[..i].contains(a) {
+            if stages[..i].contains(s) {
                 return Err((
                     format!("kinematics.addresses.{}", roles[i]),
                     "repeats an address".into(),
                 ));
             }
+        }
+        for (role, a) in &self.apt {
+            let f = |k: &str| format!("apt.{role}.{k}");
+            limits::POSITION.at(f("start_position_deg"), a.start_position_deg)?;
+            limits::POSITION.at(f("home_switch_deg"), a.home_switch_deg)?;
+            if let Some([lo, hi]) = a.limit_switches_deg {
+                limits::POSITION.at(f("limit_switches_deg"), lo)?;
+                limits::POSITION.at(f("limit_switches_deg"), hi)?;
+                if lo >= hi {
+                    return Err((f("limit_switches_deg"), "the reverse switch must be below the forward one".into()));
+                }
+            }
+            limits::VELOCITY.at(f("velocity"), a.velocity)?;
+            limits::ACCELERATION.at(f("acceleration"), a.acceleration)?;
+            limits::TIME.at(f("update_period_s"), a.update_period_s)?;
+            limits::TIME.at(f("keepalive_timeout_s"), a.keepalive_timeout_s)?;
+            if a.update_period_s < 1e-3 {
+                return Err((f("update_period_s"), "must be at least 0.001 s".into()));
+            }
+        }
+        if let Some(p) = &self.picoammeter {
+            p.validate()
+                .map_err(|e| (format!("picoammeter.{}", e.field), e.reason))?;
         }
         for (i, c) in self.controllers.iter().enumerate() {
             if !addrs.contains(&c.address) {
@@ -494,6 +585,7 @@ impl SimConfig {
         }
         limits::LATENCY.at("link.motion_latency_s", l.motion_latency_s)?;
         limits::LATENCY.at("link.detector_latency_s", l.detector_latency_s)?;
+        limits::LATENCY.at("link.apt_latency_s", l.apt_latency_s)?;
         Ok(())
     }
 

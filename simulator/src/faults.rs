@@ -8,8 +8,11 @@
 pub enum Port {
     /// The SMC100 chain.
     Motion,
-    /// The SR830.
+    /// The detector (the SR830, or the picoammeter).
     Detector,
+    /// The line of the n-th APT controller, in the layout's role order
+    /// (`port = { apt = 0 }`).
+    Apt(u8),
 }
 
 /// A span of physical time, s.

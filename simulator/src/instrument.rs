@@ -15,7 +15,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::clock::SimClock;
-use crate::config::{SimConfig, SimConfigError};
+use crate::apt::AptDevice;
+use crate::config::{RoleStage, SimConfig, SimConfigError};
+use crate::picoammeter::Picoammeter;
 use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
 use crate::lockin::LockIn;
@@ -37,14 +39,25 @@ pub struct SimStats {
     pub power_losses: u64,
 }
 
+/// What drives a role's stage: an index into the SMC100 controllers or the APT ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RoleRef {
+    Smc(usize),
+    Apt(usize),
+}
+
 /// The whole simulated goniometer.
 pub struct SimInstrument {
     clock: SimClock,
     layout: Layout,
     controllers: Vec<Controller>,
-    /// Index into `controllers` of each kinematic role.
-    roles: [usize; 4],
+    /// The APT controllers, each on its own line, in the layout's role order.
+    apt: Vec<AptDevice>,
+    /// What drives each kinematic role's stage.
+    roles: [RoleRef; 4],
     lockin: LockIn,
+    /// The picoammeter, when it is the detector instead of the lock-in.
+    pico: Option<Picoammeter>,
     optics: Optics,
     faults: FaultConfig,
     fired_power_losses: Vec<bool>,
@@ -70,19 +83,39 @@ impl std::fmt::Debug for SimInstrument {
 impl SimInstrument {
     /// Builds the instrument a config describes, on `clock`.
     pub fn new(cfg: &SimConfig, clock: SimClock) -> Result<Self, SimConfigError> {
-        let addrs = cfg
-            .role_addresses()
+        let stages = cfg
+            .role_stages()
             .map_err(|(field, message)| SimConfigError {
                 field: Some(field),
                 ..SimConfigError::whole("sim config", None, message)
             })?;
-        let mut sorted = addrs;
+        let mut sorted = cfg.role_addresses().unwrap_or_default();
         sorted.sort_unstable();
         let controllers: Vec<Controller> = sorted
             .iter()
             .map(|a| Controller::new(cfg.controller(*a)))
             .collect();
-        let roles = addrs.map(|a| sorted.iter().position(|b| *b == a).unwrap_or(0));
+        let apt_roles = cfg.apt_roles();
+        let apt: Vec<AptDevice> = apt_roles
+            .iter()
+            .filter_map(|r| cfg.apt.get(*r))
+            .map(AptDevice::new)
+            .collect();
+        let role_names = cfg.kinematics.layout.roles();
+        let roles: [RoleRef; 4] = std::array::from_fn(|i| match stages[i] {
+            RoleStage::Smc100(a) => RoleRef::Smc(sorted.iter().position(|b| *b == a).unwrap_or(0)),
+            RoleStage::Apt => RoleRef::Apt(
+                apt_roles
+                    .iter()
+                    .position(|r| *r == role_names[i])
+                    .unwrap_or(0),
+            ),
+        });
+        // Its own stream, like the lock-in's, so that wire faults do not shift it.
+        let pico = cfg
+            .picoammeter
+            .as_ref()
+            .map(|p| Picoammeter::new(p, splitmix64(cfg.seed ^ 0x9c0a_3e7e)));
         let (sample, channel) = cfg.load_sample()?;
         // Separate streams, so that faults drawn on the wire do not shift the noise.
         let lockin = LockIn::new(cfg.lockin.clone(), cfg.seed);
@@ -90,8 +123,10 @@ impl SimInstrument {
             clock,
             layout: cfg.kinematics.layout,
             controllers,
+            apt,
             roles,
             lockin,
+            pico,
             optics: Optics::new(cfg.optics.clone(), sample, channel),
             fired_power_losses: vec![false; cfg.faults.power_loss.len()],
             faults: cfg.faults.clone(),
@@ -154,8 +189,11 @@ impl SimInstrument {
     pub fn begin_point(&mut self, key: u64) {
         let now = self.clock.seconds();
         self.sync(now);
-        self.lockin
-            .restart(now, splitmix64(self.seed ^ splitmix64(key)));
+        let seed = splitmix64(self.seed ^ splitmix64(key));
+        self.lockin.restart(now, seed);
+        if let Some(p) = &mut self.pico {
+            p.restart(now, seed);
+        }
     }
 
     /// The lock-in.
@@ -185,7 +223,30 @@ impl SimInstrument {
 
     /// The stages' mechanical angles at `t`, in the layout's role order.
     pub fn stage_angles(&self, t: f64) -> [f64; 4] {
-        self.roles.map(|i| self.controllers[i].mechanical(t))
+        self.roles.map(|r| match r {
+            RoleRef::Smc(i) => self.controllers[i].mechanical(t),
+            RoleRef::Apt(i) => self.apt[i].mechanical(t),
+        })
+    }
+
+    /// The n-th APT controller (in the layout's role order).
+    pub fn apt_mut(&mut self, n: usize) -> Option<&mut AptDevice> {
+        self.apt.get_mut(n)
+    }
+
+    /// The picoammeter, when it is the detector.
+    pub fn picoammeter_mut(&mut self) -> Option<&mut Picoammeter> {
+        self.pico.as_mut()
+    }
+
+    /// The detector's input: the lock-in's, or the picoammeter's (optical power, W,
+    /// from the optics' signal through their responsivity).
+    fn set_detector_input(&mut self, t: f64, volts: f64) {
+        self.lockin.set_input(t, volts);
+        if let Some(p) = &mut self.pico {
+            let r = self.optics.config().responsivity_v_per_w;
+            p.set_input(t, volts / r);
+        }
     }
 
     /// The directions the stages point at `t`.
@@ -210,19 +271,20 @@ impl SimInstrument {
             .controllers
             .iter()
             .filter_map(Controller::motion_end)
+            .chain(self.apt.iter().filter_map(AptDevice::motion_end))
             .filter(|t| *t > self.last_sync && *t <= now)
             .collect();
         ends.sort_by(f64::total_cmp);
         for t in ends {
             let v = self.signal(t);
-            self.lockin.set_input(t, v);
+            self.set_detector_input(t, v);
         }
         let over = self.faults.overload.iter().any(|w| w.contains(now));
         self.lockin.force_overload(over);
         let unlocked = self.faults.unlock.iter().any(|w| w.contains(now));
         self.lockin.set_unlocked(unlocked);
         let v = self.signal(now);
-        self.lockin.set_input(now, v);
+        self.set_detector_input(now, v);
         self.last_sync = now;
     }
 
@@ -332,6 +394,104 @@ impl SimInstrument {
         out
     }
 
+    /// Bytes the driver wrote on `port`; returns the instrument's answers.
+    pub fn port_bytes(&mut self, port: Port, bytes: &[u8]) -> Vec<u8> {
+        match port {
+            Port::Motion => self.motion_bytes(bytes),
+            Port::Detector if self.pico.is_some() => self.picoammeter_bytes(bytes),
+            Port::Detector => self.lockin_bytes(bytes),
+            Port::Apt(n) => self.apt_bytes(usize::from(n), bytes),
+        }
+    }
+
+    /// Bytes the driver wrote on the n-th APT controller's line; returns its answers.
+    pub fn apt_bytes(&mut self, n: usize, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        self.sync(now);
+        let mut out = Vec::new();
+        if let Some(d) = self.apt.get_mut(n) {
+            d.receive(now, bytes, &mut out);
+        }
+        self.sync(now);
+        out
+    }
+
+    /// When `port` next sends something nobody asked for (an APT controller's
+    /// `MOVE_COMPLETED`, a status update), if ever.
+    pub fn next_unsolicited(&self, port: Port) -> Option<f64> {
+        match port {
+            Port::Apt(n) => self.apt.get(usize::from(n))?.next_event(),
+            _ => None,
+        }
+    }
+
+    /// What `port` sends by itself up to now.
+    pub fn unsolicited(&mut self, port: Port) -> Vec<u8> {
+        let now = self.clock.seconds();
+        let mut out = Vec::new();
+        if let Port::Apt(n) = port {
+            self.sync(now);
+            if let Some(d) = self.apt.get_mut(usize::from(n)) {
+                d.poll(now, &mut out);
+            }
+            self.sync(now);
+        }
+        out
+    }
+
+    /// The earliest time an answer on `port` can leave the instrument (a picoammeter
+    /// answers `READ?` once its integrations are done).
+    pub fn busy_until(&self, port: Port) -> f64 {
+        match (port, &self.pico) {
+            (Port::Detector, Some(p)) => p.busy_until(),
+            _ => 0.0,
+        }
+    }
+
+    /// The instrument's time to answer on `port`, s.
+    pub fn latency(&self, port: Port) -> f64 {
+        match port {
+            Port::Motion => self.link.motion_latency_s,
+            Port::Detector => self.link.detector_latency_s,
+            Port::Apt(_) => self.link.apt_latency_s,
+        }
+    }
+
+    /// The APT lines there are.
+    pub fn apt_ports(&self) -> Vec<Port> {
+        (0..self.apt.len())
+            .filter_map(|n| u8::try_from(n).ok().map(Port::Apt))
+            .collect()
+    }
+
+    /// Bytes the driver wrote on the detector line when it is the picoammeter.
+    fn picoammeter_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        self.sync(now);
+        // The 6485 ends a command at CR or LF, as the SR830 does.
+        let unified: Vec<u8> = bytes
+            .iter()
+            .map(|b| if *b == b'\r' { b'\n' } else { *b })
+            .collect();
+        self.lockin_framer.push(&unified);
+        let mut out = Vec::new();
+        while let Some(line) = self.lockin_framer.next_line() {
+            let Ok(line) = line else { continue };
+            if line.is_empty() {
+                continue;
+            }
+            self.stats.detector_lines += 1;
+            let mut reply = Vec::new();
+            if let Some(p) = &mut self.pico {
+                p.handle_line(now, &line, &mut reply);
+            }
+            for part in reply.split_inclusive(|b| *b == b'\r') {
+                self.deliver(&line, part.to_vec(), &mut out);
+            }
+        }
+        out
+    }
+
     /// Bytes the driver wrote on the detector line; returns the lock-in's answers.
     pub fn lockin_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
         let now = self.clock.seconds();
@@ -369,6 +529,7 @@ impl SimInstrument {
         let baud = match port {
             Port::Motion => self.link.motion_baud,
             Port::Detector => self.link.detector_baud,
+            Port::Apt(_) => gonio_driver::apt::BAUD,
         };
         bytes as f64 * 10.0 / f64::from(baud.max(1))
     }

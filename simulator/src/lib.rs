@@ -39,7 +39,8 @@ pub use transport::{SharedSim, SimTransport, lock};
 
 use std::sync::{Arc, Mutex};
 
-use gonio_driver::{Goniometer, GoniometerError, InstrumentConfig};
+use gonio_driver::config::{DetectorKind, LineKind};
+use gonio_driver::{Goniometer, GoniometerError, InstrumentConfig, PortUse};
 
 /// Why a simulated instrument could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -61,27 +62,92 @@ pub fn instrument(sim: &SimConfig) -> Result<SharedSim, SimError> {
     Ok(Arc::new(Mutex::new(SimInstrument::new(sim, clock)?)))
 }
 
-/// Checks that every axis of `instrument` is a simulated controller.
+/// The simulated line an instrument config's port stands for.
+fn sim_port(instrument: &InstrumentConfig, sim: &SimConfig, use_: PortUse<'_>) -> Result<Port, SimError> {
+    let line = match use_ {
+        PortUse::Detector(_) => return Ok(Port::Detector),
+        PortUse::Motion(line) => line,
+    };
+    let LineKind::Apt(axis, _) = &line.kind else {
+        return Ok(Port::Motion);
+    };
+    let role = instrument
+        .kinematics
+        .as_ref()
+        .and_then(|k| {
+            k.layout
+                .roles()
+                .iter()
+                .zip(k.role_axes())
+                .find(|(_, a)| *a == axis.name)
+                .map(|(r, _)| *r)
+        })
+        .ok_or_else(|| {
+            SimError::Mismatch(format!(
+                "APT axis {:?} plays no role of the [kinematics] section, so no simulated stage stands for it",
+                axis.name
+            ))
+        })?;
+    let n = sim
+        .apt_roles()
+        .iter()
+        .position(|r| *r == role)
+        .and_then(|n| u8::try_from(n).ok())
+        .ok_or_else(|| {
+            SimError::Mismatch(format!(
+                "axis {:?} ({role}) is an APT controller, but the simulator has no [apt.{role}]",
+                axis.name
+            ))
+        })?;
+    if let Some(twin) = sim.apt.get(role)
+        && twin.model.stage() != axis.stage
+    {
+        return Err(SimError::Mismatch(format!(
+            "axis {:?} is a {:?}, but the simulator's [apt.{role}] is a {:?}",
+            axis.name,
+            axis.stage,
+            twin.model.stage()
+        )));
+    }
+    Ok(Port::Apt(n))
+}
+
+/// Checks that every axis of `instrument` is a simulated controller of its family, and
+/// the detector the simulated one.
 pub fn check_compatible(instrument: &InstrumentConfig, sim: &SimConfig) -> Result<(), SimError> {
     let addrs = sim
         .role_addresses()
         .map_err(|(f, m)| SimError::Mismatch(format!("{f}: {m}")))?;
-    for a in &instrument.motion.axes {
-        if !addrs.contains(&a.address) {
-            return Err(SimError::Mismatch(format!(
-                "axis {:?} is at address {}, but the simulator's controllers are at {addrs:?}",
-                a.name, a.address
-            )));
+    for line in instrument.motion.lines() {
+        if let LineKind::Smc100(axes) = &line.kind {
+            for a in axes {
+                if !addrs.contains(&a.address) {
+                    return Err(SimError::Mismatch(format!(
+                        "axis {:?} is at address {}, but the simulator's controllers are at {addrs:?}",
+                        a.name, a.address
+                    )));
+                }
+            }
         }
+        sim_port(instrument, sim, PortUse::Motion(&line))?;
     }
-    Ok(())
+    match (instrument.detector.kind, sim.picoammeter.is_some()) {
+        (DetectorKind::Sr830, true) => Err(SimError::Mismatch(
+            "the detector is an SR830, but the simulator's is a picoammeter ([picoammeter])".into(),
+        )),
+        (DetectorKind::K6485, false) => Err(SimError::Mismatch(
+            "the detector is a K6485, but the simulator has no [picoammeter]".into(),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// A goniometer driving an in-process simulator over in-memory lines, on the
 /// simulator's clock; and the handle to the simulator (faults, stats, clock).
 pub type SimGoniometer = Goniometer<SimClock>;
 
-/// Builds a simulator from `sim` and a goniometer from `instrument` that drives it.
+/// Builds a simulator from `sim` and a goniometer from `instrument` that drives it:
+/// each line of the instrument config on the simulated line of its family.
 pub fn connect(
     instrument_cfg: &InstrumentConfig,
     sim: &SimConfig,
@@ -89,12 +155,21 @@ pub fn connect(
     check_compatible(instrument_cfg, sim)?;
     let shared = instrument(sim)?;
     let clock = lock(&shared).clock().clone();
-    let g = Goniometer::from_transports(
+    let mut mismatch = None;
+    let g = Goniometer::from_ports(
         instrument_cfg,
-        SimTransport::new(shared.clone(), Port::Motion),
-        SimTransport::new(shared.clone(), Port::Detector),
-        clock.clone(),
+        |use_, _| match sim_port(instrument_cfg, sim, use_) {
+            Ok(port) => Ok(Box::new(SimTransport::new(shared.clone(), port))),
+            Err(e) => {
+                let m = e.to_string();
+                mismatch = Some(e);
+                Err(gonio_driver::TransportError::Script(m))
+            }
+        },
         clock,
-    )?;
-    Ok((g, shared))
+    );
+    if let Some(e) = mismatch {
+        return Err(e);
+    }
+    Ok((g?, shared))
 }

@@ -24,8 +24,10 @@ use crate::transport::{SharedSim, lock};
 pub struct PtySim {
     /// Path of the SMC100 line (a symlink to the pty slave).
     pub motion: PathBuf,
-    /// Path of the SR830 line.
+    /// Path of the detector line.
     pub detector: PathBuf,
+    /// Paths of the APT controllers' lines, in the layout's role order.
+    pub apt: Vec<PathBuf>,
     dir: PathBuf,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
@@ -44,6 +46,21 @@ fn new_pair(link: &Path) -> std::io::Result<(TTYPort, TTYPort)> {
     Ok((master, slave))
 }
 
+/// Sends what the instrument on `port` sends unasked by now (an APT controller's
+/// completion messages and status updates).
+/// False when the pty is gone.
+fn unasked(sim: &SharedSim, port: Port, master: &mut TTYPort) -> bool {
+    let bytes = {
+        let mut s = lock(sim);
+        let now = s.clock().seconds();
+        match s.next_unsolicited(port) {
+            Some(t) if t <= now => s.unsolicited(port),
+            _ => return true,
+        }
+    };
+    bytes.is_empty() || master.write_all(&bytes).is_ok()
+}
+
 fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
     let mut pair = new_pair(&link).ok();
     let mut buf = [0u8; 512];
@@ -58,23 +75,18 @@ fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
             (None, false) => pair = new_pair(&link).ok(),
             (None, true) => std::thread::sleep(Duration::from_millis(5)),
             (Some((master, _slave)), false) => match master.read(&mut buf) {
-                Ok(0) => {}
+                Ok(0) => {
+                    if !unasked(&sim, port, master) {
+                        pair = None;
+                    }
+                }
                 Ok(n) => {
                     let reply = {
                         let mut s = lock(&sim);
-                        let r = match port {
-                            Port::Motion => s.motion_bytes(&buf[..n]),
-                            Port::Detector => s.lockin_bytes(&buf[..n]),
-                        };
+                        let r = s.port_bytes(port, &buf[..n]);
                         // Account the physical time of the exchange on a driven clock.
-                        let (lat, t) = match port {
-                            Port::Motion => {
-                                (s.link().motion_latency_s, s.wire_time(port, n + r.len()))
-                            }
-                            Port::Detector => {
-                                (s.link().detector_latency_s, s.wire_time(port, n + r.len()))
-                            }
-                        };
+                        let lat = s.latency(port);
+                        let t = s.wire_time(port, n + r.len());
                         let extra = if r.is_empty() { t } else { t + lat };
                         s.clock().advance(crate::clock::secs(extra));
                         r
@@ -83,7 +95,11 @@ fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
                         pair = None;
                     }
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
+                    if !unasked(&sim, port, master) {
+                        pair = None;
+                    }
+                }
                 Err(_) => std::thread::sleep(Duration::from_millis(5)),
             },
         }
@@ -99,18 +115,25 @@ impl PtySim {
         let dir = std::env::temp_dir().join(format!("gonio-sim-{}-{n}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
         let (motion, detector) = (dir.join("motion"), dir.join("detector"));
+        let apt_ports = lock(&sim).apt_ports();
+        let apt: Vec<PathBuf> = (0..apt_ports.len())
+            .map(|n| dir.join(format!("apt{n}")))
+            .collect();
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
-        for (port, link) in [
+        let lines = [
             (Port::Motion, motion.clone()),
             (Port::Detector, detector.clone()),
-        ] {
+        ]
+        .into_iter()
+        .chain(apt_ports.into_iter().zip(apt.iter().cloned()));
+        for (port, link) in lines {
             let (s, st) = (sim.clone(), stop.clone());
             threads.push(std::thread::spawn(move || serve(s, port, link, st)));
         }
         // The first pairs exist once both links do.
         for _ in 0..400 {
-            if motion.exists() && detector.exists() {
+            if motion.exists() && detector.exists() && apt.iter().all(|p| p.exists()) {
                 break;
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -118,6 +141,7 @@ impl PtySim {
         Ok(PtySim {
             motion,
             detector,
+            apt,
             dir,
             stop,
             threads,

@@ -59,6 +59,7 @@ impl Served {
         serde_json::json!({
             "motion": self.pty.motion.display().to_string(),
             "detector": self.pty.detector.display().to_string(),
+            "apt": self.pty.apt.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
             "seed": self.seed,
             "time_scale": self.time_scale,
         })

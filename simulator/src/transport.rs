@@ -8,7 +8,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use gonio_driver::{Clock, Transport, TransportError};
-use gonio_proto::LineFramer;
+use gonio_proto::apt::AptFramer;
+use gonio_proto::{Framer, LineFramer};
 
 use crate::clock::SimClock;
 use crate::faults::Port;
@@ -27,7 +28,7 @@ pub struct SimTransport {
     sim: SharedSim,
     port: Port,
     clock: SimClock,
-    framer: LineFramer,
+    framer: Box<dyn Framer>,
     /// Reply lines not yet arrived: (arrival time, bytes).
     in_flight: VecDeque<(f64, Vec<u8>)>,
     open: bool,
@@ -45,15 +46,19 @@ impl SimTransport {
     /// The `port` line of `sim`.
     pub fn new(sim: SharedSim, port: Port) -> Self {
         let clock = lock(&sim).clock().clone();
-        let (term, max) = match port {
-            Port::Motion => (b'\n', gonio_proto::smc100::MAX_LINE),
-            Port::Detector => (b'\r', gonio_proto::sr830::MAX_LINE),
+        let framer: Box<dyn Framer> = match port {
+            Port::Motion => Box::new(LineFramer::new(b'\n', gonio_proto::smc100::MAX_LINE)),
+            Port::Detector => Box::new(LineFramer::new(
+                b'\r',
+                gonio_proto::sr830::MAX_LINE.max(gonio_proto::k6485::MAX_LINE),
+            )),
+            Port::Apt(_) => Box::new(AptFramer::new()),
         };
         SimTransport {
             sim,
             port,
             clock,
-            framer: LineFramer::new(term, max),
+            framer,
             in_flight: VecDeque::new(),
             open: true,
         }
@@ -78,18 +83,12 @@ impl Transport for SimTransport {
         drop(sim);
         self.clock.advance(crate::clock::secs(out_time));
         let mut sim = lock(&self.sim);
-        let reply = match self.port {
-            Port::Motion => sim.motion_bytes(bytes),
-            Port::Detector => sim.lockin_bytes(bytes),
-        };
+        let reply = sim.port_bytes(self.port, bytes);
         if reply.is_empty() {
             return Ok(());
         }
-        let latency = match self.port {
-            Port::Motion => sim.link().motion_latency_s,
-            Port::Detector => sim.link().detector_latency_s,
-        };
-        let arrive = self.clock.seconds()
+        let latency = sim.latency(self.port);
+        let arrive = self.clock.seconds().max(sim.busy_until(self.port))
             + latency
             + sim.faults().reply_delay_s
             + sim.wire_time(self.port, reply.len());
@@ -103,8 +102,28 @@ impl Transport for SimTransport {
         }
         let deadline = self.clock.seconds() + timeout.as_secs_f64();
         loop {
-            if let Some(line) = self.framer.next_line() {
+            if let Some(line) = self.framer.next_frame() {
                 return line.map_err(TransportError::from);
+            }
+            // What the instrument sends unasked (an APT controller's move completed)
+            // arrives when it happens, if that is before the next reply.
+            let next_reply = self.in_flight.front().map_or(f64::INFINITY, |(t, _)| *t);
+            let unasked = lock(&self.sim).next_unsolicited(self.port);
+            if let Some(t) = unasked
+                && t <= deadline
+                && t < next_reply
+            {
+                let now = self.clock.seconds();
+                if t > now {
+                    self.clock.sleep(crate::clock::secs(t - now));
+                }
+                let bytes = lock(&self.sim).unsolicited(self.port);
+                if bytes.is_empty() && t <= now {
+                    // Nothing was due after all; let time pass rather than spin.
+                    self.clock.sleep(crate::clock::secs(1e-3));
+                }
+                self.framer.push(&bytes);
+                continue;
             }
             match self.in_flight.front() {
                 Some((t, _)) if *t <= deadline => {
@@ -148,6 +167,7 @@ impl Transport for SimTransport {
         match self.port {
             Port::Motion => "sim:motion".into(),
             Port::Detector => "sim:detector".into(),
+            Port::Apt(n) => format!("sim:apt{n}"),
         }
     }
 }
