@@ -408,7 +408,10 @@ impl SimConfig {
                 limits::POSITION.at(f("limit_switches_deg"), lo)?;
                 limits::POSITION.at(f("limit_switches_deg"), hi)?;
                 if lo >= hi {
-                    return Err((f("limit_switches_deg"), "the reverse switch must be below the forward one".into()));
+                    return Err((
+                        f("limit_switches_deg"),
+                        "the reverse switch must be below the forward one".into(),
+                    ));
                 }
             }
             limits::VELOCITY.at(f("velocity"), a.velocity)?;

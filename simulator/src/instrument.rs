@@ -14,14 +14,14 @@ use gonio_proto::smc100::{Frame, MAX_LINE};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::clock::SimClock;
 use crate::apt::AptDevice;
+use crate::clock::SimClock;
 use crate::config::{RoleStage, SimConfig, SimConfigError};
-use crate::picoammeter::Picoammeter;
 use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
 use crate::lockin::LockIn;
 use crate::optics::{LightPath, Optics};
+use crate::picoammeter::Picoammeter;
 use gonio_brdf::Brdf;
 
 /// Counters of what the simulator did.

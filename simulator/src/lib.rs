@@ -63,7 +63,11 @@ pub fn instrument(sim: &SimConfig) -> Result<SharedSim, SimError> {
 }
 
 /// The simulated line an instrument config's port stands for.
-fn sim_port(instrument: &InstrumentConfig, sim: &SimConfig, use_: PortUse<'_>) -> Result<Port, SimError> {
+fn sim_port(
+    instrument: &InstrumentConfig,
+    sim: &SimConfig,
+    use_: PortUse<'_>,
+) -> Result<Port, SimError> {
     let line = match use_ {
         PortUse::Detector(_) => return Ok(Port::Detector),
         PortUse::Motion(line) => line,

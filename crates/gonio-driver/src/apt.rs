@@ -8,8 +8,8 @@
 //! status updates, re-sends of what may be repeated only, and a stop on any fault or
 //! abort. Dropping the axis stops the stage.
 
-pub use gonio_proto::apt::{AptAxisConfig, AptInfo, AptStatus, StageKind};
 use gonio_proto::apt::AptSession;
+pub use gonio_proto::apt::{AptAxisConfig, AptInfo, AptStatus, StageKind};
 use gonio_proto::motion::MotionError;
 use gonio_proto::smc100::ChainPolicy;
 use tracing::debug_span;

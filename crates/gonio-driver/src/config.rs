@@ -301,7 +301,7 @@ impl MotionConfig {
                 ControllerKind::Smc100 => {
                     if let Some(LineKind::Smc100(axes)) = lines
                         .iter_mut()
-                        .find(|l| l.port == port)
+                        .find(|l| l.port == port && matches!(l.kind, LineKind::Smc100(_)))
                         .map(|l| &mut l.kind)
                     {
                         axes.push(a.smc100());
@@ -322,6 +322,18 @@ impl MotionConfig {
             }
         }
         lines
+    }
+
+    /// Every port the axes use, each once.
+    pub fn ports(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        for a in &self.axes {
+            let p = self.port_of(a);
+            if !out.contains(&p) {
+                out.push(p);
+            }
+        }
+        out
     }
 
     /// The SMC100 axes, as one chain's session takes them (the config of an
@@ -396,6 +408,12 @@ impl DetectorConfig {
             },
         }
     }
+}
+
+/// True for a port that names the in-process simulator (`"sim"`): every line of an
+/// instrument may be `"sim"`, each standing for its own simulated line.
+pub fn is_sim_port(port: &str) -> bool {
+    port == "sim"
 }
 
 /// The ranges the instrument config's numbers must lie in (documented in
@@ -573,10 +591,11 @@ impl InstrumentConfig {
                 if a.kind == ControllerKind::Kdc101 && stage != StageKind::Prm1Z8 {
                     return err(f("stage"), "a KDC101 drives a `prm1z8` here");
                 }
-                a.apt(stage)
-                    .validate()
-                    .map_err(|(k, why)| (f(k), why))?;
-                if let Some(j) = m.axes[..i].iter().position(|b| m.port_of(b) == m.port_of(a)) {
+                a.apt(stage).validate().map_err(|(k, why)| (f(k), why))?;
+                if let Some(j) = m.axes[..i]
+                    .iter()
+                    .position(|b| m.port_of(b) == m.port_of(a) && !is_sim_port(m.port_of(a)))
+                {
                     return Err((
                         f("port"),
                         format!(
@@ -592,10 +611,11 @@ impl InstrumentConfig {
                         "`stage`, `serial_number` and `backlash_deg` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
                     );
                 }
-                if let Some(j) = m.axes[..i]
-                    .iter()
-                    .position(|b| b.apt_stage().is_some() && m.port_of(b) == m.port_of(a))
-                {
+                if let Some(j) = m.axes[..i].iter().position(|b| {
+                    b.apt_stage().is_some()
+                        && m.port_of(b) == m.port_of(a)
+                        && !is_sim_port(m.port_of(a))
+                }) {
                     return Err((
                         f("port"),
                         format!("motion.axes[{j}], an APT controller, holds this line"),

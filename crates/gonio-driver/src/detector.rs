@@ -7,9 +7,9 @@
 //! file's reading row.
 
 use crate::clock::Clock;
+use crate::k6485::K6485;
 use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
 use crate::transport::Transport;
-use crate::k6485::K6485;
 use gonio_proto::k6485::{K6485Error, PicoReading, Range as PicoRange};
 use gonio_proto::sr830::Sensitivity;
 

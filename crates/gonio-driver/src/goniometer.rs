@@ -3,8 +3,8 @@
 use crate::apt::AptAxis;
 use crate::clock::{Clock, SystemClock};
 use crate::config::{DetectorConfig, DetectorKind, InstrumentConfig, LineKind, MotionLine};
-use crate::k6485::K6485;
 use crate::detector::{Detector, DetectorError, Reading};
+use crate::k6485::K6485;
 use crate::motion::{AxisInfo, Line, Motion};
 use crate::smc100::{MotionError, Smc100Chain};
 use crate::sr830::Sr830;

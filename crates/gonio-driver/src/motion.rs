@@ -213,7 +213,12 @@ impl<C: Clock + Clone> Motion<C> {
                                 "kdc101"
                             },
                             version: format!("{ma}.{it}.{mi}"),
-                            stage: format!("{} s/n {} ({:?})", info.model, info.serial, axis.axis().stage),
+                            stage: format!(
+                                "{} s/n {} ({:?})",
+                                info.model,
+                                info.serial,
+                                axis.axis().stage
+                            ),
                             state_code: format!("{:08X}", status.bits),
                             state: if homed { "homed" } else { "not homed" }.to_string(),
                             referenced: homed,

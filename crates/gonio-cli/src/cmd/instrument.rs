@@ -3,6 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use gonio_driver::config::is_sim_port;
 use gonio_driver::{Goniometer, InstrumentConfig};
 use serde_json::json;
 
@@ -73,15 +74,21 @@ pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
     Ok(cfg)
 }
 
-/// Ports named `"sim"` mean the in-process simulator; both lines must be simulated.
+/// Ports named `"sim"` mean the in-process simulator; every line must be simulated,
+/// or none.
 pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
-    match (cfg.motion.port == "sim", cfg.detector.port == "sim") {
-        (true, true) => Ok(true),
-        (false, false) => Ok(false),
-        _ => Err(CliError::Input(format!(
-            "{}: field `motion.port`/`detector.port`: either both ports are \"sim\" or neither",
+    let mut ports = cfg.motion.ports();
+    ports.push(&cfg.detector.port);
+    let sim = ports.iter().filter(|p| is_sim_port(p)).count();
+    if sim == 0 {
+        Ok(false)
+    } else if sim == ports.len() {
+        Ok(true)
+    } else {
+        Err(CliError::Input(format!(
+            "{}: field `motion.port`/`detector.port`: either every port is \"sim\" or none",
             path.display()
-        ))),
+        )))
     }
 }
 
