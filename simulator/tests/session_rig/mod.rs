@@ -57,6 +57,7 @@ pub fn slot(port: Port) -> usize {
     match port {
         Port::Motion => 0,
         Port::Detector => 1,
+        Port::Apt(_) => unreachable!("the rig has no APT line"),
     }
 }
 
@@ -166,15 +167,9 @@ impl Rig {
             return Err(Self::gone(port));
         }
         self.sent.push((port, self.now, bytes.to_vec()));
-        let reply = match port {
-            Port::Motion => self.sim.motion_bytes(bytes),
-            Port::Detector => self.sim.lockin_bytes(bytes),
-        };
+        let reply = self.sim.port_bytes(port, bytes);
         if !reply.is_empty() {
-            let latency = match port {
-                Port::Motion => self.sim.link().motion_latency_s,
-                Port::Detector => self.sim.link().detector_latency_s,
-            };
+            let latency = self.sim.latency(port);
             let delay = Duration::from_secs_f64(latency + self.sim.faults().reply_delay_s);
             line.in_flight.push_back((self.now + delay, reply));
         }
