@@ -1,0 +1,160 @@
+//! The mixed-family instrument (`config/instrument-mixed.toml` on
+//! `config/sim-mixed.toml`): SMC100 arms, a KDC101 + PRM1-Z8 and a K10CR1 on APT
+//! lines of their own, a K6485 picoammeter. The real drivers, in memory and through
+//! real pseudo-terminals.
+
+use std::path::Path;
+
+use gonio_core::kinematics::Layout;
+use gonio_core::{DirPair, SphericalDeg};
+use gonio_driver::config::LineKind;
+use gonio_driver::detector::Reading;
+use gonio_driver::{Goniometer, InstrumentConfig, PortUse, SerialTransport};
+use gonio_sim::{SimConfig, lock};
+
+fn cfgs() -> (InstrumentConfig, SimConfig) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+    (
+        InstrumentConfig::load(&root.join("instrument-mixed.toml")).expect("instrument config"),
+        SimConfig::load(&root.join("sim-mixed.toml")).expect("sim config"),
+    )
+}
+
+/// Trapezoid time of a move of `d` at velocity `v`, acceleration `a`.
+fn trapezoid(d: f64, v: f64, a: f64) -> f64 {
+    let d = d.abs();
+    if d * a > v * v {
+        d / v + v / a
+    } else {
+        2.0 * (d / a).sqrt()
+    }
+}
+
+/// Axes on different lines move together: a move of an SMC100 arm and of the APT
+/// rotation stage takes the longer of the two trapezoids, not their sum, and the
+/// stages end where they were sent, as the simulated stages agree.
+#[test]
+fn axes_on_different_lines_move_together() {
+    let (icfg, scfg) = cfgs();
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).expect("connects");
+    let report = g.start().expect("starts");
+    let fams: Vec<&str> = report.axes.iter().map(|(_, i)| i.family).collect();
+    assert_eq!(fams, ["smc100", "smc100", "kdc101", "k10cr1"]);
+    assert!(report.detector.contains("MODEL 6485"), "{}", report.detector);
+    assert!(report.axes.iter().all(|(_, i)| !i.referenced));
+    g.home().expect("homes");
+    let t0 = lock(&sim).clock().seconds();
+    let got = g
+        .motion
+        .move_to(&[("source", 30.0), ("sample_rot", 60.0)])
+        .expect("moves");
+    let took = lock(&sim).clock().seconds() - t0;
+    let smc = trapezoid(30.0, 20.0, 80.0);
+    let apt = trapezoid(60.0, 20.0, 20.0);
+    assert!((smc - 1.75).abs() < 1e-12 && (apt - 4.0).abs() < 1e-12);
+    // The longer move plus the polling and the exchanges, far below the sum (5.75 s).
+    assert!(took >= apt && took < apt + 0.5, "took {took} s");
+    assert!((got[0] - 30.0).abs() < 0.01 && (got[1] - 60.0).abs() < 0.01, "{got:?}");
+    let now = lock(&sim).clock().seconds();
+    let angles = lock(&sim).stage_angles(now);
+    assert!((angles[0] - 30.0).abs() < 0.01 && (angles[2] - 60.0).abs() < 0.01, "{angles:?}");
+    // A target outside an APT axis' limits refuses the whole move before any byte.
+    let before = lock(&sim).clock().seconds();
+    let e = g
+        .motion
+        .move_to(&[("source", 0.0), ("sample_tilt", 90.0)])
+        .expect_err("out of limits");
+    assert!(e.to_string().contains("sample_tilt"), "{e}");
+    assert_eq!(lock(&sim).clock().seconds(), before);
+    let now = lock(&sim).clock().seconds();
+    assert!((lock(&sim).stage_angles(now)[0] - 30.0).abs() < 0.01);
+}
+
+/// A picoammeter reading of the sample is the photocurrent the optics predict:
+/// responsivity × power on the photodiode + the dark current, within its noise.
+#[test]
+fn the_picoammeter_reads_the_photocurrent() {
+    let (icfg, scfg) = cfgs();
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).expect("connects");
+    g.start().expect("starts");
+    g.home().expect("homes");
+    let pair = DirPair::new(
+        gonio_core::Dir::from(SphericalDeg::new(30.0, 0.0)),
+        gonio_core::Dir::from(SphericalDeg::new(30.0, 180.0)),
+    );
+    let a = Layout::CoplanarArms
+        .inverse(pair, Some([0.0; 4]))
+        .expect("reachable");
+    let targets = [
+        ("source", a[0]),
+        ("detector", a[1]),
+        ("sample_rot", a[2]),
+        ("sample_tilt", a[3]),
+    ];
+    let (_, reading) = g.measure_at(&targets).expect("measures");
+    let Reading::Current(r, hz) = &reading else {
+        panic!("a DC reading: {reading:?}")
+    };
+    assert_eq!(*hz, 50);
+    assert!(reading.is_valid(), "{reading:?}");
+    let now = lock(&sim).clock().seconds();
+    let power_w = lock(&sim).signal(now) / scfg.optics.responsivity_v_per_w;
+    let pico = scfg.picoammeter.as_ref().expect("picoammeter");
+    let want = pico.responsivity_a_per_w * power_w + pico.dark_current_a;
+    let sigma = r.std_a / (r.n as f64).sqrt();
+    assert!(
+        (r.mean_a - want).abs() < 5.0 * sigma + r.accuracy_a() * 1e-3,
+        "read {} A, expected {want} A (σ {sigma})",
+        r.mean_a
+    );
+    assert!(want > 1e-9 && want < r.range.amps(), "{want} on {}", r.range);
+}
+
+/// The same instrument through real pseudo-terminals: every line a `SerialTransport`
+/// with its family's framing (APT binary messages on two of them).
+#[test]
+fn mixed_lines_through_real_pseudo_terminals() {
+    let (icfg, scfg) = cfgs();
+    let sim = gonio_sim::instrument(&scfg).expect("sim");
+    let clock = lock(&sim).clock().clone();
+    let pty = gonio_sim::PtySim::spawn(sim.clone()).expect("ptys");
+    assert_eq!(pty.apt.len(), 2);
+    let roles = scfg.apt_roles();
+    let mut g = Goniometer::from_ports(
+        &icfg,
+        |use_, mut settings| {
+            settings.path = match use_ {
+                PortUse::Detector(_) => pty.detector.display().to_string(),
+                PortUse::Motion(line) => match &line.kind {
+                    LineKind::Smc100(_) => pty.motion.display().to_string(),
+                    LineKind::Apt(axis, _) => {
+                        let n = roles
+                            .iter()
+                            .position(|r| *r == axis.name)
+                            .expect("a simulated APT role");
+                        pty.apt[n].display().to_string()
+                    }
+                },
+            };
+            Ok(Box::new(SerialTransport::open(settings)?))
+        },
+        clock,
+    )
+    .expect("built");
+    g.start().expect("starts");
+    g.home().expect("homes");
+    let got = g
+        .motion
+        .move_to(&[("detector", -20.0), ("sample_rot", 45.0), ("sample_tilt", 10.0)])
+        .expect("moves");
+    for (p, want) in got.iter().zip([-20.0, 45.0, 10.0]) {
+        assert!((p - want).abs() < 0.01, "{got:?}");
+    }
+    let now = lock(&sim).clock().seconds();
+    let angles = lock(&sim).stage_angles(now);
+    assert!((angles[1] + 20.0).abs() < 0.01, "{angles:?}");
+    assert!((angles[2] - 45.0).abs() < 0.01 && (angles[3] - 10.0).abs() < 0.01);
+    let r = g.detector.read().expect("reads");
+    assert!(r.is_valid(), "{r:?}");
+    assert!(r.columns().mean > 0.0);
+}
