@@ -40,7 +40,11 @@ fn axes_on_different_lines_move_together() {
     let report = g.start().expect("starts");
     let fams: Vec<&str> = report.axes.iter().map(|(_, i)| i.family).collect();
     assert_eq!(fams, ["smc100", "smc100", "kdc101", "k10cr1"]);
-    assert!(report.detector.contains("MODEL 6485"), "{}", report.detector);
+    assert!(
+        report.detector.contains("MODEL 6485"),
+        "{}",
+        report.detector
+    );
     assert!(report.axes.iter().all(|(_, i)| !i.referenced));
     g.home().expect("homes");
     let t0 = lock(&sim).clock().seconds();
@@ -54,10 +58,16 @@ fn axes_on_different_lines_move_together() {
     assert!((smc - 1.75).abs() < 1e-12 && (apt - 4.0).abs() < 1e-12);
     // The longer move plus the polling and the exchanges, far below the sum (5.75 s).
     assert!(took >= apt && took < apt + 0.5, "took {took} s");
-    assert!((got[0] - 30.0).abs() < 0.01 && (got[1] - 60.0).abs() < 0.01, "{got:?}");
+    assert!(
+        (got[0] - 30.0).abs() < 0.01 && (got[1] - 60.0).abs() < 0.01,
+        "{got:?}"
+    );
     let now = lock(&sim).clock().seconds();
     let angles = lock(&sim).stage_angles(now);
-    assert!((angles[0] - 30.0).abs() < 0.01 && (angles[2] - 60.0).abs() < 0.01, "{angles:?}");
+    assert!(
+        (angles[0] - 30.0).abs() < 0.01 && (angles[2] - 60.0).abs() < 0.01,
+        "{angles:?}"
+    );
     // A target outside an APT axis' limits refuses the whole move before any byte.
     let before = lock(&sim).clock().seconds();
     let e = g
@@ -107,7 +117,11 @@ fn the_picoammeter_reads_the_photocurrent() {
         "read {} A, expected {want} A (σ {sigma})",
         r.mean_a
     );
-    assert!(want > 1e-9 && want < r.range.amps(), "{want} on {}", r.range);
+    assert!(
+        want > 1e-9 && want < r.range.amps(),
+        "{want} on {}",
+        r.range
+    );
 }
 
 /// The same instrument through real pseudo-terminals: every line a `SerialTransport`
@@ -145,7 +159,11 @@ fn mixed_lines_through_real_pseudo_terminals() {
     g.home().expect("homes");
     let got = g
         .motion
-        .move_to(&[("detector", -20.0), ("sample_rot", 45.0), ("sample_tilt", 10.0)])
+        .move_to(&[
+            ("detector", -20.0),
+            ("sample_rot", 45.0),
+            ("sample_tilt", 10.0),
+        ])
         .expect("moves");
     for (p, want) in got.iter().zip([-20.0, 45.0, 10.0]) {
         assert!((p - want).abs() < 0.01, "{got:?}");

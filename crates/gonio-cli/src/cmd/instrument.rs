@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use gonio_driver::config::is_sim_port;
+use gonio_driver::config::{ControllerKind, DetectorKind, is_sim_port};
 use gonio_driver::{Goniometer, InstrumentConfig};
 use serde_json::json;
 
@@ -18,6 +18,17 @@ pub enum Command {
     /// `--connect`, open the ports, identify every controller and set the lock-in up.
     /// Nothing moves.
     Check(CheckArgs),
+    /// List the serial ports this machine has, with the USB vendor, product and serial
+    /// number of USB adapters and instruments. A config may name a port
+    /// `usb:SERIAL` by that serial number instead of a path that reorders on reboot.
+    Ports(PortsArgs),
+}
+
+/// `gonio instrument ports`.
+#[derive(clap::Args)]
+pub struct PortsArgs {
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 /// `gonio instrument check`.
@@ -46,7 +57,60 @@ pub struct SimFlag {
 pub fn run(c: Command) -> CliResult<()> {
     match c {
         Command::Check(a) => check(&a.config, a.connect, a.sim.sim.as_deref(), a.json.json),
+        Command::Ports(a) => ports(a.json.json),
     }
+}
+
+/// `gonio instrument ports [--json]`.
+fn ports(json: bool) -> CliResult<()> {
+    let ports = gonio_driver::ports::list().map_err(CliError::Runtime)?;
+    let rows: Vec<serde_json::Value> = ports
+        .iter()
+        .map(|p| {
+            let u = p.usb.as_ref();
+            json!({
+                "path": p.path,
+                "bus": p.bus,
+                "vid": u.map(|u| format!("{:04x}", u.vid)),
+                "pid": u.map(|u| format!("{:04x}", u.pid)),
+                "serial_number": u.and_then(|u| u.serial_number.clone()),
+                "manufacturer": u.and_then(|u| u.manufacturer.clone()),
+                "product": u.and_then(|u| u.product.clone()),
+                "name": u
+                    .and_then(|u| u.serial_number.as_ref())
+                    .map(|s| format!("{}{s}", gonio_driver::ports::USB_PREFIX)),
+            })
+        })
+        .collect();
+    if json {
+        return output::json(&json!({ "ports": rows }));
+    }
+    let mut w = output::stdout();
+    output::finish((|| {
+        if ports.is_empty() {
+            writeln!(w, "no serial ports")?;
+        }
+        for p in &ports {
+            match &p.usb {
+                Some(u) => writeln!(
+                    w,
+                    "{}  usb {:04x}:{:04x}  {}  {}  {}",
+                    p.path,
+                    u.vid,
+                    u.pid,
+                    u.serial_number
+                        .as_ref()
+                        .map_or("(no serial number)".to_string(), |s| {
+                            format!("{}{s}", gonio_driver::ports::USB_PREFIX)
+                        }),
+                    u.manufacturer.as_deref().unwrap_or("-"),
+                    u.product.as_deref().unwrap_or("-"),
+                )?,
+                None => writeln!(w, "{}  {}", p.path, p.bus)?,
+            }
+        }
+        w.flush()
+    })())
 }
 
 /// `gonio sim`: the simulated goniometer on two pseudo-terminals.
@@ -101,7 +165,8 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
         .iter()
         .map(|a| {
             json!({
-                "name": a.name, "address": a.address, "units": a.units,
+                "name": a.name, "kind": a.kind.as_str(), "port": cfg.motion.port_of(a),
+                "address": a.address, "units": a.units,
                 "min": a.min, "max": a.max, "velocity": a.velocity,
                 "acceleration": a.acceleration, "tolerance": a.tolerance,
             })
@@ -113,6 +178,10 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
         "name": cfg.name,
         "motion": {"port": cfg.motion.port, "baud": cfg.motion.baud, "axes": axes},
         "detector": {
+            "kind": match cfg.detector.kind {
+                DetectorKind::Sr830 => "sr830",
+                DetectorKind::K6485 => "k6485",
+            },
             "port": cfg.detector.port, "baud": cfg.detector.baud,
             "sensitivity_v": lockin.sensitivity.volts(),
             "time_constant_s": lockin.time_constant.seconds(),
@@ -156,22 +225,51 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             cfg.motion.axes.len()
         )?;
         for a in &cfg.motion.axes {
-            writeln!(
-                w,
-                "  {:<12} address {:>2}  limits [{}, {}] {}",
-                a.name, a.address, a.min, a.max, a.units
-            )?;
+            if a.kind == ControllerKind::Smc100 && a.port.is_none() {
+                writeln!(
+                    w,
+                    "  {:<12} address {:>2}  limits [{}, {}] {}",
+                    a.name, a.address, a.min, a.max, a.units
+                )?;
+            } else {
+                writeln!(
+                    w,
+                    "  {:<12} {} on {}  limits [{}, {}] {}",
+                    a.name,
+                    a.kind.as_str(),
+                    cfg.motion.port_of(a),
+                    a.min,
+                    a.max,
+                    a.units
+                )?;
+            }
         }
-        writeln!(
-            w,
-            "detector: {} at {} baud; {} V full scale, {} s, {} dB/oct, {} samples",
-            cfg.detector.port,
-            cfg.detector.baud,
-            lockin.sensitivity.volts(),
-            lockin.time_constant.seconds(),
-            lockin.slope.db_per_octave(),
-            lockin.samples
-        )?;
+        match cfg.detector.kind {
+            DetectorKind::Sr830 => writeln!(
+                w,
+                "detector: {} at {} baud; {} V full scale, {} s, {} dB/oct, {} samples",
+                cfg.detector.port,
+                cfg.detector.baud,
+                lockin.sensitivity.volts(),
+                lockin.time_constant.seconds(),
+                lockin.slope.db_per_octave(),
+                lockin.samples
+            )?,
+            DetectorKind::K6485 => {
+                let p = cfg.detector.picoammeter();
+                writeln!(
+                    w,
+                    "detector: K6485 on {} at {} baud; {}{}, {} PLC at {} Hz, {} samples",
+                    cfg.detector.port,
+                    cfg.detector.baud,
+                    p.range,
+                    if p.autorange { " (autorange)" } else { "" },
+                    p.nplc,
+                    p.line_frequency_hz,
+                    p.samples
+                )?;
+            }
+        }
         if let Some(c) = report.get("connected") {
             writeln!(w, "connected: {c}")?;
         }

@@ -1,0 +1,139 @@
+//! Instrument families from the command line: a mixed config checked, connected to
+//! the simulator and refused where wrong; the machine's serial ports listed.
+
+mod common;
+
+use common::{config, gonio, ok_json, scratch, stderr};
+
+#[test]
+fn a_mixed_instrument_checks_and_connects() {
+    let inst = config("instrument-mixed.toml");
+    let sim = config("sim-mixed.toml");
+    let v = ok_json(&[
+        "instrument",
+        "check",
+        &inst,
+        "--connect",
+        "--sim",
+        &sim,
+        "--json",
+    ]);
+    let kinds: Vec<&str> = v["motion"]["axes"]
+        .as_array()
+        .expect("axes")
+        .iter()
+        .map(|a| a["kind"].as_str().expect("kind"))
+        .collect();
+    assert_eq!(kinds, ["smc100", "smc100", "kdc101", "k10cr1"]);
+    assert_eq!(v["detector"]["kind"], "k6485");
+    let c = v["connected"]["controllers"]
+        .as_array()
+        .expect("controllers");
+    assert_eq!(c[2]["stage"], "KDC101 s/n 27000001 (Prm1Z8)");
+    assert_eq!(c[3]["family"], "k10cr1");
+    assert!(
+        v["connected"]["detector"]
+            .as_str()
+            .expect("idn")
+            .contains("MODEL 6485")
+    );
+}
+
+/// Each refusal names the file, line and field, exits 2, and opens no port.
+#[test]
+fn wrong_family_settings_are_refused_with_the_field() {
+    let dir = scratch("families");
+    let text = std::fs::read_to_string(config("instrument-mixed.toml")).expect("config");
+    let cases = [
+        (
+            "serial_number = 27000001",
+            "serial_number = 27000001\naddress = 3",
+            "motion.axes[2].address",
+            "no chain address",
+        ),
+        (
+            "kind = \"k10cr1\"",
+            "kind = \"k10cr1\"\nstage = \"prm1z8\"",
+            "motion.axes[3].stage",
+            "its own stage",
+        ),
+        (
+            "name = \"source\"\naddress = 1",
+            "name = \"source\"\naddress = 1\nserial_number = 5",
+            "motion.axes[0].kind",
+            "for APT axes",
+        ),
+        (
+            "[detector.picoammeter]",
+            "[detector.lockin]\nsamples = 3\n[detector.picoammeter]",
+            "detector.lockin",
+            "a K6485 takes [detector.picoammeter]",
+        ),
+        (
+            "nplc = 1.0",
+            "nplc = 100.0",
+            "detector.picoammeter.nplc",
+            "",
+        ),
+    ];
+    for (i, (from, to, field, why)) in cases.iter().enumerate() {
+        assert!(text.contains(from), "{from}");
+        let bad = dir.join(format!("bad{i}.toml"));
+        std::fs::write(&bad, text.replacen(from, to, 1)).expect("write");
+        let o = gonio(&["instrument", "check", &bad.display().to_string()]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(&format!("bad{i}.toml:")), "{e}");
+        assert!(e.contains(&format!("field `{field}`")), "{e}");
+        assert!(e.contains(why), "{e}");
+    }
+    // Ports named by USB serial numbers nobody has: the config is valid, the
+    // connection fails and says which serial number it looked for.
+    let lab = text
+        .replace(
+            "port = \"sim\"                   # in the lab: \"usb:27000001\"",
+            "port = \"usb:27000001\"",
+        )
+        .replace(
+            "port = \"sim\"                   # the SMC100",
+            "port = \"usb:27000009\" # the SMC100",
+        )
+        .replace(
+            "port = \"sim\"                   # in the lab: \"usb:55000001\"",
+            "port = \"/dev/null-tilt\"",
+        )
+        .replace(
+            "port = \"sim\"                   # RS-232",
+            "port = \"/dev/null-pico\" # RS-232",
+        );
+    assert!(
+        lab.contains("usb:27000001") && !lab.contains("port = \"sim\""),
+        "{lab}"
+    );
+    let p = dir.join("lab.toml");
+    std::fs::write(&p, lab).expect("write");
+    let o = gonio(&["instrument", "check", &p.display().to_string()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = gonio(&["instrument", "check", &p.display().to_string(), "--connect"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("opening motion port"), "{e}");
+    assert!(
+        e.contains("no USB serial device with serial number \"27000009\""),
+        "{e}"
+    );
+}
+
+#[test]
+fn ports_are_listed_with_their_usb_identity() {
+    let v = ok_json(&["instrument", "ports", "--json"]);
+    for p in v["ports"].as_array().expect("ports") {
+        let path = p["path"].as_str().expect("path");
+        assert!(path.starts_with("/dev/"), "{path}");
+        // A USB port with a serial number can be named by it.
+        if let Some(s) = p["serial_number"].as_str() {
+            assert_eq!(p["name"], format!("usb:{s}"));
+            assert_eq!(p["bus"], "usb");
+        }
+    }
+}
