@@ -2,10 +2,16 @@
 //!
 //! ```sh
 //! GONIO_SMC100_PORT=/dev/ttyUSB0 GONIO_SR830_PORT=/dev/ttyUSB1 \
+//! GONIO_KDC101_PORT=usb:27000001 GONIO_K10CR1_PORT=usb:55000001 \
+//! GONIO_K6485_PORT=/dev/ttyUSB2 \
 //!     cargo test --release -p gonio-driver --test hardware -- --ignored
 //! ```
-//! Nothing moves: the controllers are identified, and the lock-in is set up and read.
+//! Set only the variables of the instruments attached, and run only their tests by
+//! name (`-- --ignored kdc101`). Nothing moves: the controllers are identified and
+//! set up (channel enabled, velocity read back), and the detectors are set up and read.
 
+use gonio_driver::apt::{AptAxis, AptAxisConfig, StageKind};
+use gonio_driver::k6485::K6485;
 use gonio_driver::smc100::{AxisConfig, ChainPolicy, Smc100Chain};
 use gonio_driver::sr830::{Sr830, Sr830Config};
 use gonio_driver::{FlowControl, SerialSettings, SerialTransport, SystemClock};
@@ -71,4 +77,63 @@ fn sr830_reads() {
     println!("{r:?}");
     assert_eq!(r.n, 3);
     assert!(r.r_mean.is_finite());
+}
+
+/// An APT controller on `var`'s port: identified (model and stage checked), set up,
+/// its status and velocity parameters read. Nothing moves.
+fn apt_identifies(var: &str, stage: StageKind) {
+    let t = SerialTransport::open(SerialSettings {
+        path: port(var),
+        baud: gonio_driver::apt::BAUD,
+        flow: FlowControl::Hardware,
+        framing: gonio_driver::Framing::Apt,
+    })
+    .expect("port opens");
+    let axis = AptAxisConfig::new("axis", stage, -1.0, 1.0);
+    let mut a = AptAxis::new(t, SystemClock::new(), axis, ChainPolicy::default(), None)
+        .expect("valid");
+    let info = a.identify().expect("HW_GET_INFO answers");
+    println!("{info}");
+    let s = a.status().expect("status answers");
+    println!("{s:?}");
+    assert!(s.position_deg.is_finite());
+    let (v, acc) = a.velocity_params().expect("GET_VELPARAMS answers");
+    assert!(v > 0.0 && acc > 0.0, "{v} {acc}");
+}
+
+#[test]
+#[ignore = "needs a KDC101 with a PRM1-Z8 on $GONIO_KDC101_PORT"]
+fn kdc101_identifies() {
+    apt_identifies("GONIO_KDC101_PORT", StageKind::Prm1Z8);
+}
+
+#[test]
+#[ignore = "needs a K10CR1 on $GONIO_K10CR1_PORT"]
+fn k10cr1_identifies() {
+    apt_identifies("GONIO_K10CR1_PORT", StageKind::K10cr1);
+}
+
+#[test]
+#[ignore = "needs a Keithley 6485 on $GONIO_K6485_PORT"]
+fn k6485_reads() {
+    let t = SerialTransport::open(SerialSettings {
+        path: port("GONIO_K6485_PORT"),
+        baud: 9600,
+        flow: FlowControl::None,
+        framing: gonio_driver::Framing::Lines {
+            terminator: gonio_proto::k6485::REPLY_TERMINATOR,
+            max_line: gonio_proto::k6485::MAX_LINE,
+        },
+    })
+    .expect("port opens");
+    let cfg = gonio_proto::k6485::K6485Config {
+        samples: 3,
+        ..Default::default()
+    };
+    let mut d = K6485::new(t, SystemClock::new(), cfg).expect("valid");
+    let id = d.setup().expect("answers *IDN?");
+    println!("{id}");
+    let r = d.read().expect("reads");
+    println!("{r:?}");
+    assert_eq!(r.samples, 3);
 }
