@@ -45,7 +45,10 @@ fn an_sr830_run_reduces_to_the_same_bytes_as_before_the_dc_path() {
     std::fs::copy(data("sr830-in-plane.gonio"), d.join("sr830.gonio")).expect("copy");
     // Table, text and JSON account, with the drift references (the default).
     let text = gonio_in(&d, &["reduce", "sr830.gonio", "--out", "sr830.csv"]);
-    assert_eq!(read(&d.join("sr830.csv")), read(&data("sr830-in-plane.csv")));
+    assert_eq!(
+        read(&d.join("sr830.csv")),
+        read(&data("sr830-in-plane.csv"))
+    );
     assert_eq!(tail(&text), read(&data("sr830-in-plane.txt")).as_slice());
     let json = gonio_in(
         &d,
@@ -123,5 +126,8 @@ fn a_picoammeter_run_reduces_with_the_dc_budget() {
         .map(|l| l.split(',').filter_map(|x| x.trim().parse().ok()).collect())
         .collect();
     assert!(rows.len() >= 80, "{}", rows.len());
-    assert!(rows.iter().all(|r| r.len() == 6 && r[4] > 0.0 && r[5] > 0.0));
+    assert!(
+        rows.iter()
+            .all(|r| r.len() == 6 && r[4] > 0.0 && r[5] > 0.0)
+    );
 }
