@@ -61,6 +61,9 @@
 //!   shared by every reading on that range: it cancels between a sample and a
 //!   calibration read on the same range and does not between ranges (see
 //!   [`DC_CORRELATIONS`]).
+//!
+//! The report's budget lines name amps; its `dark_v` ([I_dark, 0]) and `incident_v`
+//! fields, named for the lock-in, hold amps for a DC run.
 
 use std::collections::BTreeMap;
 
@@ -1133,12 +1136,23 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 vec![
                     format!(
                         "the picoammeter's noise, {} (a mean of n independent samples: s²/n, ρ = 0)",
-                        match noise.lines.values().next() {
-                            None => "each reading's own sample scatter".to_string(),
-                            Some(l) => format!(
-                                "pooled per range over the run's readings as a + b·I per sample, a = {:.3e} A², b = {:.3e} A",
-                                l.a, l.b
-                            ),
+                        if noise.lines.is_empty() {
+                            "each reading's own sample scatter".to_string()
+                        } else {
+                            format!(
+                                "pooled per range over the run's readings as a + b·I per sample ({}; other settings: their own s)",
+                                noise
+                                    .lines
+                                    .iter()
+                                    .map(|((_, range, _), l)| format!(
+                                        "{}: a = {:.3e} A², b = {:.3e} A",
+                                        ranges_label(std::iter::once(*range)),
+                                        l.a,
+                                        l.b
+                                    ))
+                                    .collect::<Vec<_>>()
+                                    .join("; ")
+                            )
                         }
                     ),
                     "the 6485's seven-digit replies (step/√12)".into(),
