@@ -1355,6 +1355,58 @@ mod tests {
     }
 
     #[test]
+    fn the_picoammeter_s_rounding_is_a_seventh_digit_of_the_raw_reading() {
+        // +1.234567E-08A: a step of 1e-14 A, over the signal 1e-8 A.
+        let r = dc_resolution_rel(1.234567e-8, 1e-8);
+        assert!((r - 1e-14 / 12f64.sqrt() / 1e-8).abs() < 1e-22, "{r}");
+        // A negative dark-sized reading rounds on its magnitude.
+        let r = dc_resolution_rel(-2.5e-12, 1e-9);
+        assert!((r - 1e-18 / 12f64.sqrt() / 1e-9).abs() < 1e-24, "{r}");
+        assert_eq!(dc_resolution_rel(0.0, 1e-9), 0.0);
+        assert_eq!(dc_resolution_rel(1e-9, -1e-12), 0.0);
+    }
+
+    #[test]
+    fn the_range_accuracy_is_the_bound_over_root_three() {
+        let r = ReadingRecord {
+            step_id: 1,
+            commanded: None,
+            position: [0.0; 4],
+            read_pair: PairDeg {
+                incident: gonio_core::SphericalDeg::new(0.0, 0.0),
+                outgoing: gonio_core::SphericalDeg::new(0.0, 0.0),
+            },
+            sensitivity: 2,
+            sensitivity_v: 2e-7,
+            time_constant: 0,
+            time_constant_s: 0.1,
+            slope_db: 0,
+            r_mean: 1e-7,
+            r_std: 1e-12,
+            x_mean: 1e-7,
+            y_mean: 0.0,
+            n: 5,
+            autorange_steps: 0,
+            lias: 0,
+            flags: 0,
+            retries: 0,
+            physical_s: 0.0,
+            wall_s: 0.0,
+        };
+        // 200 nA: 0.2 % + 10 pA of 100 nA is 210 pA, /√3.
+        let (k, u) = range_sigma(&r).expect("a range");
+        assert_eq!(k, 2);
+        assert!((u - 210e-12 / 3f64.sqrt()).abs() < 1e-24, "{u}");
+        assert!(
+            range_sigma(&ReadingRecord {
+                sensitivity: 8,
+                ..r
+            })
+            .is_none()
+        );
+    }
+
+    #[test]
     fn the_reply_rounding_is_a_sixth_digit_over_root_twelve() {
         assert!((resolution_rel(1.5e-3) - 1e-8 / 12f64.sqrt() / 1.5e-3).abs() < 1e-18);
         assert_eq!(resolution_rel(0.0), 0.0);
