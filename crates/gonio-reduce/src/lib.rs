@@ -42,6 +42,28 @@
 //! - `drift`: the uncertainty of g(t) relative to the calibrations' g.
 //! - `standard`: the reference standard's own BRDF uncertainty
 //!   ([`Options::standard_rel_sigma`]), when the standard calibrates.
+//!
+//! **DC readings.** When the run's stored instrument config names a Keithley 6485
+//! picoammeter (`[detector] kind = "k6485"`, [`Detector::of_instrument`]), the
+//! readings are currents, A, and Eq. A.15 is applied to them with a budget of their
+//! own ([`DC_TERMS`]):
+//! - the dark is a scalar: the mean of the dark readings' mean currents, subtracted
+//!   with its sign (a dark current has a true mean, unlike the lock-in's R);
+//! - `noise`: the samples of a reading are independent conversions (ρ = 0), so the
+//!   mean's σ is s/√n; where enough readings share a range, integration time and
+//!   sample count, s² is pooled as a + b·I (the meter's and the shunt's noise, and
+//!   shot noise growing with the current);
+//! - `resolution`: the 6485's seven-digit replies (`+1.234567E-09A`);
+//! - `dark`: s/√n of the dark readings, combined;
+//! - `range accuracy`: the manual's 1-year accuracy of each reading's range
+//!   (`gonio_proto::k6485::accuracy_a`), a ± bound taken as a rectangular
+//!   distribution (σ = bound/√3, GUM 4.3.7). It is one systematic error per range,
+//!   shared by every reading on that range: it cancels between a sample and a
+//!   calibration read on the same range and does not between ranges (see
+//!   [`DC_CORRELATIONS`]).
+//!
+//! The report's budget lines name amps; its `dark_v` ([I_dark, 0]) and `incident_v`
+//! fields, named for the lock-in, hold amps for a DC run.
 
 use std::collections::BTreeMap;
 
@@ -77,6 +99,66 @@ pub const CORRELATIONS: [&str; 6] = [
     "segment",
     "common",
 ];
+
+/// The terms of a DC (picoammeter) run's budget: [`TERMS`] and the meter's range
+/// accuracy. [`Reduction::budget`] is indexed by these for every run; a lock-in
+/// run's `range accuracy` is 0 and is not reported.
+pub const DC_TERMS: [&str; 7] = [
+    "noise",
+    "resolution",
+    "dark",
+    "calibration",
+    "drift",
+    "standard",
+    "range accuracy",
+];
+
+/// How each term of [`DC_TERMS`] is shared between samples. The range accuracy is
+/// `range`: one error per current range, shared by all readings on it — the samples
+/// read on one range share it, and every sample shares the calibration's and the
+/// dark's; it cancels in the ratio of readings on the same range.
+pub const DC_CORRELATIONS: [&str; 7] = [
+    "independent",
+    "independent",
+    "common",
+    "common",
+    "segment",
+    "common",
+    "range",
+];
+
+/// The number of budget terms kept per sample and channel ([`DC_TERMS`]).
+pub const N_TERMS: usize = 7;
+
+/// What the run's detector measures, which decides how its readings are reduced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Detector {
+    /// An SR830 lock-in: readings are (X, Y) vectors in volts (every run before
+    /// the picoammeter, and any run whose instrument config names no other kind).
+    LockIn,
+    /// A Keithley 6485 picoammeter on a photodiode: readings are DC currents, A.
+    Dc,
+}
+
+impl Detector {
+    /// The detector a run's stored instrument config text names: `Dc` for
+    /// `[detector] kind = "k6485"`, else `LockIn` (the config's default kind, and
+    /// what a text that does not parse is taken for, as runs before the
+    /// picoammeter never named a kind).
+    pub fn of_instrument(text: &str) -> Detector {
+        let kind = toml::from_str::<toml::Table>(text).ok().and_then(|t| {
+            t.get("detector")?
+                .get("kind")?
+                .as_str()
+                .map(str::to_ascii_lowercase)
+        });
+        if kind.as_deref() == Some("k6485") {
+            Detector::Dc
+        } else {
+            Detector::LockIn
+        }
+    }
+}
 
 /// The time between the end of one lock-in snapshot and the start of the next
 /// beyond one time constant, s, by default: the `SNAP?1,2` exchange at the SR830's
@@ -122,6 +204,10 @@ pub struct Options {
     /// certificate's), carried as the budget's `standard` term when the standard
     /// calibrates. 0 by default: a model file states none.
     pub standard_rel_sigma: f64,
+    /// Whether a DC run's noise is pooled per range as a + b·I over the run's
+    /// readings (the default: n = 5 samples give s² only to ±70 %), or taken from
+    /// each reading's own s/√n. A lock-in run always pools.
+    pub dc_pool_noise: bool,
 }
 
 impl Default for Options {
@@ -135,6 +221,7 @@ impl Default for Options {
                 | flags::UNLOCK,
             snapshot_gap_s: SNAPSHOT_GAP_S,
             standard_rel_sigma: 0.0,
+            dc_pool_noise: true,
         }
     }
 }
@@ -163,9 +250,12 @@ pub struct Reduction {
     /// What was done.
     pub report: Report,
     /// Per sample (in the order of `samples.samples`), per channel, the standard
-    /// uncertainty of each term of [`TERMS`], 1/sr: their quadrature sum is the
-    /// sample's σ. Terms of the same kind are correlated as [`CORRELATIONS`] says.
-    pub budget: Vec<Vec<[f64; 6]>>,
+    /// uncertainty of each term of [`DC_TERMS`], 1/sr: their quadrature sum is the
+    /// sample's σ. Terms of the same kind are correlated as [`DC_CORRELATIONS`]
+    /// says. The last, the range accuracy, is 0 for a lock-in run.
+    pub budget: Vec<Vec<[f64; N_TERMS]>>,
+    /// The detector the readings came from.
+    pub detector: Detector,
 }
 
 /// A value with its standard uncertainty.
@@ -202,15 +292,22 @@ struct NoiseLine {
 /// The key of readings that share a noise law.
 type NoiseKey = (u64, u8, u32);
 
-fn noise_key(r: &ReadingRecord) -> NoiseKey {
-    (r.time_constant_s.to_bits(), r.slope_db, r.n)
+/// A lock-in's noise depends on its time constant, slope and snapshot count; a
+/// picoammeter's on its integration time, sample count and range (each range has
+/// its own feedback resistor, hence its own noise floor).
+fn noise_key(r: &ReadingRecord, detector: Detector) -> NoiseKey {
+    match detector {
+        Detector::LockIn => (r.time_constant_s.to_bits(), r.slope_db, r.n),
+        Detector::Dc => (r.time_constant_s.to_bits(), r.sensitivity, r.n),
+    }
 }
 
-/// The lock-in's noise: pooled lines where enough readings share a setting, and
-/// the snapshot correlation.
+/// The detector's noise: pooled lines where enough readings share a setting, and
+/// the lock-in's snapshot correlation.
 struct Noise {
     lines: BTreeMap<NoiseKey, NoiseLine>,
     gap_s: f64,
+    detector: Detector,
 }
 
 /// Fewest readings a pooled noise line is fitted to.
@@ -222,13 +319,19 @@ impl Noise {
     /// both unbiased for the snapshot variance σ² of X. Weighted least squares,
     /// re-weighted by the fitted variance (the scatter of a variance estimate
     /// grows with it).
-    fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64) -> Noise {
+    ///
+    /// A DC reading's samples are independent conversions and its mean current is
+    /// signed: every reading (the darks too) gives the point (I, s²), I clamped at
+    /// 0 (a dark current a little below zero has the noise of zero current).
+    fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64, detector: Detector) -> Noise {
         let mut groups: BTreeMap<NoiseKey, Vec<(f64, f64)>> = BTreeMap::new();
         for (r, dark) in readings {
             if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
                 continue;
             }
-            let point = if *dark {
+            let point = if detector == Detector::Dc {
+                (r.r_std > 0.0).then(|| (r.x_mean.max(0.0), r.r_std * r.r_std))
+            } else if *dark {
                 Some((0.0, rayleigh_variance(r)))
             } else if r.r_mean > 3.0 * r.r_std && r.r_std > 0.0 {
                 let (_, b) = variance_factors(r.n, rho(r, gap_s));
@@ -237,7 +340,7 @@ impl Noise {
                 None
             };
             if let Some(p) = point {
-                groups.entry(noise_key(r)).or_default().push(p);
+                groups.entry(noise_key(r, detector)).or_default().push(p);
             }
         }
         let lines = groups
@@ -245,12 +348,20 @@ impl Noise {
             .filter(|(_, v)| v.len() >= MIN_POOL)
             .filter_map(|(k, v)| fit_line(&v).map(|l| (k, l)))
             .collect();
-        Noise { lines, gap_s }
+        Noise {
+            lines,
+            gap_s,
+            detector,
+        }
     }
 
-    /// The standard deviation of a reading's mean X (or Y), V.
+    /// The standard deviation of a reading's mean X (or Y), V, or of a DC
+    /// reading's mean current, A.
     fn sigma_mean(&self, r: &ReadingRecord, dark: bool) -> f64 {
-        let var = match self.lines.get(&noise_key(r)) {
+        if self.detector == Detector::Dc {
+            return self.sigma_mean_dc(r, dark);
+        }
+        let var = match self.lines.get(&noise_key(r, self.detector)) {
             Some(l) if !dark => l.a + l.b * r.r_mean.max(0.0),
             _ if dark => rayleigh_variance(r),
             _ => {
@@ -260,6 +371,20 @@ impl Noise {
         };
         let (a, _) = variance_factors(r.n, rho(r, self.gap_s));
         (var.max(0.0) * a / f64::from(r.n.max(1))).sqrt()
+    }
+
+    /// A DC reading's σ of the mean, s/√n: its n samples are independent
+    /// conversions (ρ = 0, [`variance_factors`] gives A = B = 1), so the sample
+    /// variance s² (n − 1 in the denominator) is unbiased and needs no correction.
+    /// s² is the pooled a + b·I where the reading's setting has a line, else the
+    /// reading's own; a dark keeps its own s (its σ is that of the dark readings).
+    fn sigma_mean_dc(&self, r: &ReadingRecord, dark: bool) -> f64 {
+        let own = r.r_std * r.r_std;
+        let var = match self.lines.get(&noise_key(r, self.detector)) {
+            Some(l) if !dark => l.a + l.b * r.x_mean.max(0.0),
+            _ => own,
+        };
+        (var.max(0.0) / f64::from(r.n.max(1))).sqrt()
     }
 }
 
@@ -329,6 +454,34 @@ fn resolution_rel(v: f64) -> f64 {
         0.0
     }
 }
+
+/// The 6485's reply rounding of a current `i`, A, relative to the signal `v`: its
+/// replies carry seven significant digits (`+1.234567E-09A`, `d.ddddddE±xx`), a
+/// step of 10^(⌊log₁₀ |i|⌋ − 6) on the raw reading, uniformly distributed (σ =
+/// step/√12). The rounding is of the reading, not of the dark-subtracted signal;
+/// like the lock-in's it is not taken as averaged down by the n samples (without
+/// noise they all round alike).
+fn dc_resolution_rel(i: f64, v: f64) -> f64 {
+    if i != 0.0 && i.is_finite() && v > 0.0 {
+        10f64.powf(i.abs().log10().floor() - 6.0) / 12f64.sqrt() / v
+    } else {
+        0.0
+    }
+}
+
+/// The 6485's range accuracy of a DC reading as a standard uncertainty, A, with
+/// the range it belongs to: the manual's 1-year ±bound (Appendix A, ±(% rdg +
+/// offset), [`gonio_proto::k6485::accuracy_a`]) as the half-width of a
+/// rectangular distribution, σ = bound/√3 (GUM 4.3.7): the manual states a limit,
+/// not a distribution. `None` for a range index the 6485 has not.
+fn range_sigma(r: &ReadingRecord) -> Option<(usize, f64)> {
+    let range = gonio_proto::k6485::Range::new(r.sensitivity)?;
+    let bound = gonio_proto::k6485::accuracy_a(range, r.x_mean);
+    Some((usize::from(r.sensitivity), bound / 3f64.sqrt()))
+}
+
+/// The 6485's ranges (2 nA … 20 mA), the range-accuracy coefficients' length.
+const RANGES: usize = gonio_proto::k6485::Range::COUNT as usize;
 
 /// Inverse-variance mean of values, with its uncertainty, scaled by the Birge ratio
 /// √(χ²/(n − 1)) when the values disagree beyond their noise (χ² more than three
@@ -529,7 +682,7 @@ fn timeline(by_step: &BTreeMap<i64, &ReadingRecord>) -> BTreeMap<i64, f64> {
 
 /// A pair's directions, its (value, budget) per channel as the channels are
 /// reduced, and the union of its readings' flags.
-type PerPair = (PairDeg, Vec<Option<(f64, [f64; 6])>>, u32);
+type PerPair = (PairDeg, Vec<Option<(f64, [f64; N_TERMS])>>, u32);
 
 /// The incident flux Φ(t) a sample reading is divided by.
 enum Flux {
@@ -578,6 +731,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         why,
     };
     let stored = store.run_meta()?;
+    let detector = Detector::of_instrument(&stored.instrument);
     let isotropic = gonio_plan::Plan::from_toml(&stored.plan, None)
         .is_ok_and(|p| matches!(p.points, gonio_plan::plan::Points::Isotropic { .. }));
     let geo = &stored.geometry;
@@ -602,7 +756,11 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             .filter(|r| r.flags & opts.reject_flags == 0)
             .map(|r| (*r, kind_of.get(&r.step_id) == Some(&StepKind::Dark)))
             .collect();
-        Noise::fit(&all, opts.snapshot_gap_s)
+        let mut noise = Noise::fit(&all, opts.snapshot_gap_s, detector);
+        if detector == Detector::Dc && !opts.dc_pool_noise {
+            noise.lines.clear();
+        }
+        noise
     };
     let channel_names: Vec<Option<String>> = {
         let mut v: Vec<Option<String>> = Vec::new();
@@ -671,13 +829,54 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 .sqrt()
                 / darks.len() as f64
         };
-        // The signal, its noise σ and its unit vector (the direction a dark error
-        // moves it in).
-        let signal = |r: &ReadingRecord| {
-            let (x, y) = (r.x_mean - dark[0], r.y_mean - dark[1]);
-            let s = x.hypot(y);
-            let u = if s > 0.0 { [x / s, y / s] } else { [1.0, 0.0] };
-            (s, noise.sigma_mean(r, false), u)
+        // A DC dark is a scalar, the mean of the dark currents (the y components
+        // are 0), and its range-accuracy error per range: the mean of the dark
+        // readings' errors, each on its own range.
+        let mut dark_acc = [0.0f64; RANGES];
+        if detector == Detector::Dc {
+            for (_, r) in &darks {
+                let (k, u) = range_sigma(r).ok_or_else(|| {
+                    missing(format!(
+                        "step {}: range index {} is not a 6485 range",
+                        r.step_id, r.sensitivity
+                    ))
+                })?;
+                dark_acc[k] += u / darks.len() as f64;
+            }
+        }
+        // The signal, its noise σ, its unit vector (the direction a dark error
+        // moves it in) and its relative resolution. A DC signal is the mean
+        // current less the dark, signed: a dark error moves it along +1.
+        let signal = |r: &ReadingRecord| match detector {
+            Detector::LockIn => {
+                let (x, y) = (r.x_mean - dark[0], r.y_mean - dark[1]);
+                let s = x.hypot(y);
+                let u = if s > 0.0 { [x / s, y / s] } else { [1.0, 0.0] };
+                (s, noise.sigma_mean(r, false), u, resolution_rel(s))
+            }
+            Detector::Dc => {
+                let v = r.x_mean - dark[0];
+                (
+                    v,
+                    noise.sigma_mean(r, false),
+                    [1.0, 0.0],
+                    dc_resolution_rel(r.x_mean, v),
+                )
+            }
+        };
+        // A reading's range-accuracy error relative to its signal, per range.
+        let range_rel = |r: &ReadingRecord, v: f64| -> Result<[f64; RANGES], ReduceError> {
+            let mut out = [0.0; RANGES];
+            if detector == Detector::Dc && v > 0.0 {
+                let (k, u) = range_sigma(r).ok_or_else(|| {
+                    missing(format!(
+                        "step {}: range index {} is not a 6485 range",
+                        r.step_id, r.sensitivity
+                    ))
+                })?;
+                out[k] = u / v;
+            }
+            Ok(out)
         };
         let incident = of(StepKind::Incident, ch);
         let standard_readings = of(StepKind::Standard, ch);
@@ -690,6 +889,8 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         // The calibration signals' dark sensitivity: Σ u/S over the readings.
         let mut cal_dark = [0.0f64; 2];
         let mut cal_res = 0.0f64;
+        // The calibration signals' range-accuracy sensitivity: Σ e/S per range.
+        let mut cal_acc = [0.0f64; RANGES];
         if use_standard {
             let model = standard.as_ref().ok_or_else(|| {
                 missing(format!("channel {name}: no reference standard in the run"))
@@ -712,7 +913,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 };
                 let k = out[idx] * omega * d.wo.z;
                 if k > 0.0 {
-                    let (v, sv, u) = signal(r);
+                    let (v, sv, u, res) = signal(r);
                     cal.push(Measured {
                         t: time[&r.step_id],
                         v: v / k,
@@ -722,12 +923,15 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                         cal_dark[0] += u[0] / v;
                         cal_dark[1] += u[1] / v;
                     }
-                    cal_res += resolution_rel(v).powi(2);
+                    cal_res += res.powi(2);
+                    for (a, e) in cal_acc.iter_mut().zip(range_rel(r, v)?) {
+                        *a += e;
+                    }
                 }
             }
         } else {
             for (_, r) in &incident {
-                let (v, sv, u) = signal(r);
+                let (v, sv, u, res) = signal(r);
                 cal.push(Measured {
                     t: time[&r.step_id],
                     v: v / stored.transmittance,
@@ -737,7 +941,10 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                     cal_dark[0] += u[0] / v;
                     cal_dark[1] += u[1] / v;
                 }
-                cal_res += resolution_rel(v).powi(2);
+                cal_res += res.powi(2);
+                for (a, e) in cal_acc.iter_mut().zip(range_rel(r, v)?) {
+                    *a += e;
+                }
             }
         }
         if cal.is_empty() {
@@ -753,12 +960,17 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         let ncal = cal.len() as f64;
         let cal_dark = [cal_dark[0] / ncal, cal_dark[1] / ncal];
         let cal_res = cal_res.sqrt() / ncal;
+        // The calibration's relative range-accuracy error per range: its readings'
+        // own (a plain mean over them, as for the dark) less the dark's, which moves
+        // every calibration signal by −e_dark.
+        let cal_acc: [f64; RANGES] =
+            std::array::from_fn(|k| cal_acc[k] / ncal - dark_acc[k] * cal_dark[0]);
         cal.sort_by(|a, b| a.t.total_cmp(&b.t));
         let mut refs: Vec<Measured> = if opts.drift == Drift::Auto {
             of(StepKind::Reference, ch)
                 .iter()
                 .map(|(_, r)| {
-                    let (v, s, _) = signal(r);
+                    let (v, s, _, _) = signal(r);
                     Measured {
                         t: time[&r.step_id],
                         v,
@@ -833,7 +1045,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             0.0
         };
         let mut count = 0;
-        let mut rels: [Vec<f64>; 6] = Default::default();
+        let mut rels: [Vec<f64>; N_TERMS] = Default::default();
         for (s, r) in of(StepKind::Sample, ch) {
             let (Some(pair), Some(index)) = (s.step.pair, s.step.plan_index) else {
                 continue;
@@ -850,7 +1062,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 *rejected.entry("grazing".into()).or_default() += 1;
                 continue;
             }
-            let (v, sv, u) = signal(r);
+            let (v, sv, u, res) = signal(r);
             let (phi, drift_rel, interp_rel) = flux.at(time[&r.step_id]);
             let scale = phi * omega * cos_o;
             let f = v / scale;
@@ -858,17 +1070,28 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 // A dark error d moves S by −u·d and the calibration by −u_c·d: f by
                 // f (u_c/S_c − u/S)·d.
                 let dk = [cal_dark[0] - u[0] / v, cal_dark[1] - u[1] / v];
+                // Each range's error z_k moves f (Eq. A.15 is S/Φ) by the sample's
+                // relative error on it less the calibration's, the dark's moving
+                // both: on one range, gain errors cancel in the ratio.
+                let own = range_rel(r, v)?;
+                let acc = (0..RANGES)
+                    .map(|k| own[k] - dark_acc[k] / v - cal_acc[k])
+                    .map(|c| c * c)
+                    .sum::<f64>()
+                    .sqrt();
                 [
                     sv / v,
-                    resolution_rel(v),
+                    res,
                     dark_sigma * dk[0].hypot(dk[1]),
                     c_rel.hypot(interp_rel).hypot(cal_res),
                     drift_rel,
                     standard_rel,
+                    acc,
                 ]
             } else {
                 [
                     sv / scale / f.abs().max(f64::MIN_POSITIVE),
+                    0.0,
                     0.0,
                     0.0,
                     0.0,
@@ -879,10 +1102,10 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             for (k, t) in terms.iter().enumerate() {
                 rels[k].push(*t);
             }
-            let abs: [f64; 6] = if v > 0.0 {
+            let abs: [f64; N_TERMS] = if v > 0.0 {
                 terms.map(|t| t * f)
             } else {
-                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0]
+                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
             };
             let entry = values
                 .entry((index, s.step.repeat))
@@ -891,35 +1114,88 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             entry.2 |= r.flags;
             count += 1;
         }
-        let sources = [
-            format!(
-                "the lock-in's noise, {} (variance of a mean of correlated snapshots, ρ = e^−(1 + {:.4} s/T))",
-                match noise.lines.values().next() {
-                    None => "each reading's own snapshot scatter".to_string(),
-                    Some(l) => format!(
-                        "pooled over the run's readings as a + b·R per snapshot, a = {:.3e} V², b = {:.3e} V",
-                        l.a, l.b
+        let standard_source = if use_standard {
+            "the reference standard's BRDF (its stated relative uncertainty)".to_string()
+        } else {
+            "the reference standard: not used (incident-beam calibration)".to_string()
+        };
+        let calibration_source = format!(
+            "the {} calibration reading(s)' noise (scaled by their Birge ratio when they disagree), and the source's level at their time",
+            cal.len()
+        );
+        let sources: Vec<String> = match detector {
+            Detector::Dc => {
+                let cal_readings = if use_standard {
+                    &standard_readings
+                } else {
+                    &incident
+                };
+                let labels = |rs: &[(&StoredStep, &ReadingRecord)]| {
+                    ranges_label(rs.iter().map(|(_, r)| r.sensitivity))
+                };
+                vec![
+                    format!(
+                        "the picoammeter's noise, {} (a mean of n independent samples: s²/n, ρ = 0)",
+                        if noise.lines.is_empty() {
+                            "each reading's own sample scatter".to_string()
+                        } else {
+                            format!(
+                                "pooled per range over the run's readings as a + b·I per sample ({}; other settings: their own s)",
+                                noise
+                                    .lines
+                                    .iter()
+                                    .map(|((_, range, _), l)| format!(
+                                        "{}: a = {:.3e} A², b = {:.3e} A",
+                                        ranges_label(std::iter::once(*range)),
+                                        l.a,
+                                        l.b
+                                    ))
+                                    .collect::<Vec<_>>()
+                                    .join("; ")
+                            )
+                        }
                     ),
-                },
-                opts.snapshot_gap_s
-            ),
-            "the lock-in's six-digit replies (step/√12)".into(),
-            format!(
-                "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
-                darks.len(),
-                dark_sigma
-            ),
-            format!(
-                "the {} calibration reading(s)' noise (scaled by their Birge ratio when they disagree), and the source's level at their time",
-                cal.len()
-            ),
-            format!("the source's drift: {drift_source}"),
-            if use_standard {
-                "the reference standard's BRDF (its stated relative uncertainty)".into()
-            } else {
-                "the reference standard: not used (incident-beam calibration)".into()
-            },
-        ];
+                    "the 6485's seven-digit replies (step/√12)".into(),
+                    format!(
+                        "the dark current's noise ({} reading(s), mean {:.3e} A subtracted as a scalar, σ {:.3e} A from s/√n)",
+                        darks.len(),
+                        dark[0],
+                        dark_sigma
+                    ),
+                    calibration_source,
+                    format!("the source's drift: {drift_source}"),
+                    standard_source,
+                    format!(
+                        "the 6485's 1-year accuracy per range (manual App. A, ±(% rdg + offset) A) as a rectangular bound, σ = bound/√3; one error per range: calibration on {}, dark on {}, samples on {}",
+                        labels(cal_readings),
+                        labels(&darks),
+                        labels(&of(StepKind::Sample, ch))
+                    ),
+                ]
+            }
+            Detector::LockIn => vec![
+                format!(
+                    "the lock-in's noise, {} (variance of a mean of correlated snapshots, ρ = e^−(1 + {:.4} s/T))",
+                    match noise.lines.values().next() {
+                        None => "each reading's own snapshot scatter".to_string(),
+                        Some(l) => format!(
+                            "pooled over the run's readings as a + b·R per snapshot, a = {:.3e} V², b = {:.3e} V",
+                            l.a, l.b
+                        ),
+                    },
+                    opts.snapshot_gap_s
+                ),
+                "the lock-in's six-digit replies (step/√12)".into(),
+                format!(
+                    "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
+                    darks.len(),
+                    dark_sigma
+                ),
+                calibration_source,
+                format!("the source's drift: {drift_source}"),
+                standard_source,
+            ],
+        };
         let interpolated = matches!(flux, Flux::Interpolated(_));
         let c_rel = if interpolated {
             // The interpolated calibrations' own uncertainty, as the samples carry it.
@@ -933,9 +1209,9 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             .map(|(k, source)| {
                 let (rel_median, rel_max) = median_max(std::mem::take(&mut rels[k]));
                 BudgetTerm {
-                    term: TERMS[k],
+                    term: DC_TERMS[k],
                     source,
-                    correlation: CORRELATIONS[k],
+                    correlation: DC_CORRELATIONS[k],
                     rel_median,
                     rel_max,
                 }
@@ -966,7 +1242,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             incomplete += 1;
             continue;
         }
-        let (value, terms): (Vec<f64>, Vec<[f64; 6]>) = v.into_iter().flatten().unzip();
+        let (value, terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
         let sigma = terms
             .iter()
             .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
@@ -999,7 +1275,23 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             unmeasured,
         },
         budget,
+        detector,
     })
+}
+
+/// The 6485 ranges of readings, as a list of their labels (`2 µA`, `200 nA`).
+fn ranges_label(indices: impl Iterator<Item = u8>) -> String {
+    let set: std::collections::BTreeSet<u8> = indices.collect();
+    if set.is_empty() {
+        return "none".into();
+    }
+    set.into_iter()
+        .map(|k| match gonio_proto::k6485::Range::new(k) {
+            Some(r) => r.to_string(),
+            None => format!("range {k}"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn position_error(a: &PairDeg, b: &PairDeg) -> f64 {
@@ -1060,6 +1352,58 @@ mod tests {
         // 10σ apart: χ² = 50 on one degree of freedom, σ × √50.
         let (_, s) = weighted_mean(&[m(0.0), m(10.0)]);
         assert!((s - 0.5f64.sqrt() * 50f64.sqrt()).abs() < 1e-12, "{s}");
+    }
+
+    #[test]
+    fn the_picoammeter_s_rounding_is_a_seventh_digit_of_the_raw_reading() {
+        // +1.234567E-08A: a step of 1e-14 A, over the signal 1e-8 A.
+        let r = dc_resolution_rel(1.234567e-8, 1e-8);
+        assert!((r - 1e-14 / 12f64.sqrt() / 1e-8).abs() < 1e-22, "{r}");
+        // A negative dark-sized reading rounds on its magnitude.
+        let r = dc_resolution_rel(-2.5e-12, 1e-9);
+        assert!((r - 1e-18 / 12f64.sqrt() / 1e-9).abs() < 1e-24, "{r}");
+        assert_eq!(dc_resolution_rel(0.0, 1e-9), 0.0);
+        assert_eq!(dc_resolution_rel(1e-9, -1e-12), 0.0);
+    }
+
+    #[test]
+    fn the_range_accuracy_is_the_bound_over_root_three() {
+        let r = ReadingRecord {
+            step_id: 1,
+            commanded: None,
+            position: [0.0; 4],
+            read_pair: PairDeg {
+                incident: gonio_core::SphericalDeg::new(0.0, 0.0),
+                outgoing: gonio_core::SphericalDeg::new(0.0, 0.0),
+            },
+            sensitivity: 2,
+            sensitivity_v: 2e-7,
+            time_constant: 0,
+            time_constant_s: 0.1,
+            slope_db: 0,
+            r_mean: 1e-7,
+            r_std: 1e-12,
+            x_mean: 1e-7,
+            y_mean: 0.0,
+            n: 5,
+            autorange_steps: 0,
+            lias: 0,
+            flags: 0,
+            retries: 0,
+            physical_s: 0.0,
+            wall_s: 0.0,
+        };
+        // 200 nA: 0.2 % + 10 pA of 100 nA is 210 pA, /√3.
+        let (k, u) = range_sigma(&r).expect("a range");
+        assert_eq!(k, 2);
+        assert!((u - 210e-12 / 3f64.sqrt()).abs() < 1e-24, "{u}");
+        assert!(
+            range_sigma(&ReadingRecord {
+                sensitivity: 8,
+                ..r
+            })
+            .is_none()
+        );
     }
 
     #[test]
