@@ -197,15 +197,13 @@ fn the_instrument_config_names_the_detector() {
 }
 
 /// Over four seeds, the reduced BRDF against the simulated paint. The simulated
-/// photocurrents of the samples fall 0.25–0.37 % short of responsivity × f_r ×
-/// Φ Ω cos θo (varying smoothly with θo; the incident beam's is exact to 3e-6),
-/// where the same reduction formula on SR830 runs agrees to 1e-4: a bias of the
-/// simulated DC chain, not of the reduction, hundreds of times the noise. It lies
-/// within the range-accuracy σ (1.7e-3): the mean relative error is asserted
-/// within two of it and χ²/n with the full σ below 4 (seeds 11–14 print theirs:
-/// about 2.5, not 1, because of that bias). χ²/n without the range accuracy
-/// (independent terms, dark and calibration as rank-one correlations) is printed
-/// too: it measures the bias in units of the noise.
+/// picoammeter has noise but no range gain or offset error, so the residuals are held
+/// against the independent terms with the dark and calibration as rank-one
+/// correlations: χ²/n near 1 (seeds 11–14: 1.26, 0.88, 0.97, 1.23), and a mean relative
+/// error of a few 1e-5, far inside the range-accuracy σ (1.7e-3), which with the full σ
+/// makes χ²/n near 0. (Before the simulated APT stages homed to the instrument's zero,
+/// the sample stood 4° off and the residuals showed it as a 0.3 % bias: this test is
+/// what found it.)
 #[test]
 fn a_dc_run_reduces_to_the_truth_within_its_stated_uncertainty() {
     let mut chis = Vec::new();
@@ -256,12 +254,13 @@ fn a_dc_run_reduces_to_the_truth_within_its_stated_uncertainty() {
         }
         let bias = truth::mean_rel(&truth::residuals(&red, &model));
         let range_sigma = ch.budget[6].rel_median;
-        assert!(bias.abs() < 2.0 * range_sigma, "{bias} vs {range_sigma}");
+        assert!(bias.abs() < 1e-4 && bias.abs() < 0.1 * range_sigma, "{bias} vs {range_sigma}");
+        assert!(plain < 0.05, "χ²/n {plain} with the full σ");
         chis.push((plain, chi));
     }
-    let mean = chis.iter().map(|c| c.0).sum::<f64>() / chis.len() as f64;
-    println!("mean χ²/n over the seeds, full σ: {mean:.3}; {chis:?}");
-    assert!(mean < 4.0, "{chis:?}");
+    let mean = chis.iter().map(|c| c.1).sum::<f64>() / chis.len() as f64;
+    println!("mean χ²/n over the seeds without the range accuracy: {mean:.3}; {chis:?}");
+    assert!((0.6..1.6).contains(&mean), "{chis:?}");
 }
 
 /// Adding a known offset to every stored current (the darks too) moves the dark by
