@@ -100,3 +100,6 @@ def test_a_public_apt_client_drives_the_simulated_kdc101(simulator):
         assert abs(stopped - back) > 5 * COUNTS_PER_DEG
     finally:
         dev.close()
+        # The client's event loop ends on its own thread; let it, before the
+        # simulator's ptys go away under its last poll.
+        time.sleep(0.5)
