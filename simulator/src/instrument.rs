@@ -425,9 +425,11 @@ impl SimInstrument {
         }
     }
 
-    /// What `port` sends by itself up to now.
-    pub fn unsolicited(&mut self, port: Port) -> Vec<u8> {
-        let now = self.clock.seconds();
+    /// What `port` sends by itself up to `at` (or now, if later). A caller that slept
+    /// until an event's time passes that time: the clock counts whole nanoseconds, so
+    /// it may stand a hair short of it.
+    pub fn unsolicited(&mut self, port: Port, at: f64) -> Vec<u8> {
+        let now = self.clock.seconds().max(at);
         let mut out = Vec::new();
         if let Port::Apt(n) = port {
             self.sync(now);

@@ -54,7 +54,7 @@ fn unasked(sim: &SharedSim, port: Port, master: &mut TTYPort) -> bool {
         let mut s = lock(sim);
         let now = s.clock().seconds();
         match s.next_unsolicited(port) {
-            Some(t) if t <= now => s.unsolicited(port),
+            Some(t) if t <= now => s.unsolicited(port, t),
             _ => return true,
         }
     };

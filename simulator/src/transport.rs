@@ -101,6 +101,7 @@ impl Transport for SimTransport {
             return Err(self.gone());
         }
         let deadline = self.clock.seconds() + timeout.as_secs_f64();
+        let mut stale = None;
         loop {
             if let Some(line) = self.framer.next_frame() {
                 return line.map_err(TransportError::from);
@@ -112,16 +113,16 @@ impl Transport for SimTransport {
             if let Some(t) = unasked
                 && t <= deadline
                 && t < next_reply
+                && stale != Some(t)
             {
                 let now = self.clock.seconds();
                 if t > now {
                     self.clock.sleep(crate::clock::secs(t - now));
                 }
-                let bytes = lock(&self.sim).unsolicited(self.port);
-                if bytes.is_empty() && t <= now {
-                    // Nothing was due after all; let time pass rather than spin.
-                    self.clock.sleep(crate::clock::secs(1e-3));
-                }
+                let bytes = lock(&self.sim).unsolicited(self.port, t);
+                // A device that had nothing to send at `t` after all is not asked
+                // about `t` again: the wait goes on to its replies or its deadline.
+                stale = bytes.is_empty().then_some(t);
                 self.framer.push(&bytes);
                 continue;
             }

@@ -336,7 +336,9 @@ fn mixed_instrument_run_is_identical_after_kill_and_resume() {
                 "11",
             ])
         };
-        let delay = Duration::from_millis(150 + rng.next() % 500);
+        // Longer each time, so that a slow machine still gets past start-up and
+        // homing and makes progress.
+        let delay = Duration::from_millis(150 + rng.next() % 500 + 100 * session);
         let sig = ["-KILL", "-TERM"][(rng.next() % 2) as usize];
         let start = Instant::now();
         let mut done = None;

@@ -78,6 +78,11 @@ impl<T: Transport, C: Clock> AptAxis<T, C> {
         self
     }
 
+    /// Makes `flag` the axis's abort flag.
+    pub fn set_abort_flag(&mut self, flag: AbortFlag) {
+        self.abort = flag;
+    }
+
     /// The axis' configuration.
     pub fn axis(&self) -> &AptAxisConfig {
         self.session.axis()

@@ -13,20 +13,33 @@ use crate::transport::Transport;
 use gonio_proto::k6485::{K6485Error, PicoReading, Range as PicoRange};
 use gonio_proto::sr830::Sensitivity;
 
-/// A detector on its serial line.
-pub enum Detector<C: Clock> {
-    /// An SR830 lock-in amplifier.
-    Sr830(Sr830<Box<dyn Transport>, C>),
-    /// A Keithley 6485 picoammeter reading a photodiode's current.
-    K6485(K6485<Box<dyn Transport>, C>),
+/// A detector on its serial line, whatever its family: what the run engine needs of
+/// it. A family plugs in by implementing it over its session's pump ([`Sr830`],
+/// [`K6485`]); its readings go into the run file through [`Reading::columns`].
+pub trait DetectorDevice: Send {
+    /// The family's name (`sr830`, `k6485`).
+    fn family(&self) -> &'static str;
+    /// Sets the detector up; returns its identity, for the run log.
+    fn setup(&mut self) -> Result<String, DetectorError>;
+    /// One reading.
+    fn read(&mut self) -> Result<Reading, DetectorError>;
+    /// The light changed (a stage moved): the next reading waits for it to settle.
+    fn input_changed(&mut self);
+    /// The range index in force ([`Columns::range`]).
+    fn range(&self) -> u8;
+    /// Sets the range by its index ([`Columns::range`]): after a resume, the range the
+    /// run left it at, so that autoranging takes the same path. Returns its name, or
+    /// `None` for an index the detector does not have.
+    fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError>;
+    /// Exchanges re-sent after a lost, late or garbled reply.
+    fn retried(&self) -> u64;
+    /// The detector as `Any`, to reach a family's own operations.
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
 }
 
-impl<C: Clock> std::fmt::Debug for Detector<C> {
+impl std::fmt::Debug for dyn DetectorDevice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Detector::Sr830(d) => write!(f, "Sr830({:?})", d.config()),
-            Detector::K6485(d) => write!(f, "K6485({:?})", d.config()),
-        }
+        write!(f, "DetectorDevice({})", self.family())
     }
 }
 
@@ -185,69 +198,69 @@ impl DetectorError {
     }
 }
 
-impl<C: Clock> Detector<C> {
-    /// Sets the detector up; returns its identity, for the run log.
-    pub fn setup(&mut self) -> Result<String, DetectorError> {
-        match self {
-            Detector::Sr830(d) => Ok(d.setup()?.to_string()),
-            Detector::K6485(d) => Ok(d.setup()?.to_string()),
-        }
+impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> {
+    fn family(&self) -> &'static str {
+        "sr830"
     }
-
-    /// One reading.
-    pub fn read(&mut self) -> Result<Reading, DetectorError> {
-        match self {
-            Detector::Sr830(d) => Ok(Reading::Lockin(d.read()?)),
-            Detector::K6485(d) => {
-                let hz = d.config().line_frequency_hz;
-                Ok(Reading::Current(d.read()?, hz))
+    fn setup(&mut self) -> Result<String, DetectorError> {
+        Ok(Sr830::setup(self)?.to_string())
+    }
+    fn read(&mut self) -> Result<Reading, DetectorError> {
+        Ok(Reading::Lockin(Sr830::read(self)?))
+    }
+    fn input_changed(&mut self) {
+        Sr830::input_changed(self);
+    }
+    fn range(&self) -> u8 {
+        self.sensitivity().index()
+    }
+    fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
+        match Sensitivity::new(index) {
+            Some(s) => {
+                self.set_sensitivity(s)?;
+                Ok(Some(s.to_string()))
             }
+            None => Ok(None),
         }
     }
+    fn retried(&self) -> u64 {
+        Sr830::retried(self)
+    }
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+}
 
-    /// The light changed (a stage moved): the next reading waits for it to settle.
-    pub fn input_changed(&mut self) {
-        match self {
-            Detector::Sr830(d) => d.input_changed(),
-            Detector::K6485(d) => d.input_changed(),
+impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for K6485<T, C> {
+    fn family(&self) -> &'static str {
+        "k6485"
+    }
+    fn setup(&mut self) -> Result<String, DetectorError> {
+        Ok(K6485::setup(self)?.to_string())
+    }
+    fn read(&mut self) -> Result<Reading, DetectorError> {
+        let hz = self.config().line_frequency_hz;
+        Ok(Reading::Current(K6485::read(self)?, hz))
+    }
+    fn input_changed(&mut self) {
+        K6485::input_changed(self);
+    }
+    fn range(&self) -> u8 {
+        K6485::range(self).index()
+    }
+    fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
+        match PicoRange::new(index) {
+            Some(r) => {
+                self.set_range(r)?;
+                Ok(Some(r.to_string()))
+            }
+            None => Ok(None),
         }
     }
-
-    /// The range index in force ([`Columns::range`]).
-    pub fn range(&self) -> u8 {
-        match self {
-            Detector::Sr830(d) => d.sensitivity().index(),
-            Detector::K6485(d) => d.range().index(),
-        }
+    fn retried(&self) -> u64 {
+        K6485::retried(self)
     }
-
-    /// Sets the range by its index ([`Columns::range`]): after a resume, the range the
-    /// run left it at, so that autoranging takes the same path. Returns its name, or
-    /// `None` for an index the detector does not have.
-    pub fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
-        match self {
-            Detector::Sr830(d) => match Sensitivity::new(index) {
-                Some(s) => {
-                    d.set_sensitivity(s)?;
-                    Ok(Some(s.to_string()))
-                }
-                None => Ok(None),
-            },
-            Detector::K6485(d) => match PicoRange::new(index) {
-                Some(r) => {
-                    d.set_range(r)?;
-                    Ok(Some(r.to_string()))
-                }
-                None => Ok(None),
-            },
-        }
-    }
-
-    /// Exchanges re-sent after a lost, late or garbled reply.
-    pub fn retried(&self) -> u64 {
-        match self {
-            Detector::Sr830(d) => d.retried(),
-            Detector::K6485(d) => d.retried(),
-        }
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 }

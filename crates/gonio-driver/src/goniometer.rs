@@ -3,9 +3,9 @@
 use crate::apt::AptAxis;
 use crate::clock::{Clock, SystemClock};
 use crate::config::{DetectorConfig, DetectorKind, InstrumentConfig, LineKind, MotionLine};
-use crate::detector::{Detector, DetectorError, Reading};
+use crate::detector::{DetectorDevice, DetectorError, Reading};
 use crate::k6485::K6485;
-use crate::motion::{AxisInfo, Line, Motion};
+use crate::motion::{AxisInfo, Motion, MotionDevice};
 use crate::smc100::{MotionError, Smc100Chain};
 use crate::sr830::Sr830;
 use crate::transport::{SerialSettings, SerialTransport, Transport, TransportError};
@@ -57,7 +57,7 @@ pub struct Goniometer<C: Clock + Clone> {
     /// Every motion axis.
     pub motion: Motion<C>,
     /// The detector.
-    pub detector: Detector<C>,
+    pub detector: Box<dyn DetectorDevice>,
 }
 
 impl Goniometer<SystemClock> {
@@ -71,7 +71,7 @@ impl Goniometer<SystemClock> {
     }
 }
 
-impl<C: Clock + Clone> Goniometer<C> {
+impl<C: Clock + Clone + 'static> Goniometer<C> {
     /// Builds the instrument, opening each line with `open` (given what the line is
     /// for and the settings a serial port would need).
     pub fn from_ports(
@@ -133,15 +133,15 @@ impl<C: Clock + Clone> Goniometer<C> {
         line: &MotionLine,
         t: Box<dyn Transport>,
         clock: C,
-    ) -> Result<Line<C>, GoniometerError> {
+    ) -> Result<Box<dyn MotionDevice>, GoniometerError> {
         Ok(match &line.kind {
-            LineKind::Smc100(axes) => Line::Smc100(Smc100Chain::new(
+            LineKind::Smc100(axes) => Box::new(Smc100Chain::new(
                 t,
                 clock,
                 axes.clone(),
                 cfg.motion.policy(),
             )?),
-            LineKind::Apt(axis, serial) => Line::Apt(AptAxis::new(
+            LineKind::Apt(axis, serial) => Box::new(AptAxis::new(
                 t,
                 clock,
                 axis.clone(),
@@ -155,17 +155,19 @@ impl<C: Clock + Clone> Goniometer<C> {
         cfg: &InstrumentConfig,
         t: Box<dyn Transport>,
         clock: C,
-    ) -> Result<Detector<C>, GoniometerError> {
+    ) -> Result<Box<dyn DetectorDevice>, GoniometerError> {
         Ok(match cfg.detector.kind {
-            DetectorKind::Sr830 => Detector::Sr830(
+            DetectorKind::Sr830 => Box::new(
                 Sr830::new(t, clock, cfg.detector.lockin.clone()).map_err(DetectorError::from)?,
             ),
-            DetectorKind::K6485 => Detector::K6485(
+            DetectorKind::K6485 => Box::new(
                 K6485::new(t, clock, cfg.detector.picoammeter()).map_err(DetectorError::from)?,
             ),
         })
     }
+}
 
+impl<C: Clock + Clone> Goniometer<C> {
     /// Identifies every controller and sets the detector up: what runs before anything
     /// moves.
     pub fn start(&mut self) -> Result<StartupReport, GoniometerError> {

@@ -39,9 +39,9 @@ mod transport;
 pub use bench::{Bench, BenchError, OperatorBench, Setup};
 pub use clock::{Clock, ManualClock, SystemClock};
 pub use config::{ConfigFileError, InstrumentConfig};
-pub use detector::{Detector, DetectorError};
+pub use detector::{DetectorDevice, DetectorError};
 pub use goniometer::{Goniometer, GoniometerError, PortUse, StartupReport};
-pub use motion::Motion;
+pub use motion::{Motion, MotionDevice};
 pub use script::ScriptedTransport;
 pub use transport::{
     FlowControl, Framing, SerialSettings, SerialTransport, Transport, TransportError,

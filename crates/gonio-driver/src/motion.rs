@@ -9,57 +9,213 @@
 //! together on one thread (`pump_many`), and a fault on one line stops the stages on
 //! every line.
 
-use crate::apt::AptAxis;
+use std::any::Any;
+
+use crate::apt::{AptAxis, StageKind};
 use crate::clock::Clock;
+pub use crate::pump::Slot;
 use crate::pump::{AbortFlag, pump_many};
 use crate::smc100::{AxisError, MotionError, Smc100Chain};
 use crate::transport::Transport;
 
-/// One serial line of the motion system.
-pub enum Line<C: Clock> {
-    /// A chain of SMC100 controllers.
-    Smc100(Smc100Chain<Box<dyn Transport>, C>),
-    /// One Thorlabs APT controller (KDC101, K10CR1).
-    Apt(AptAxis<Box<dyn Transport>, C>),
+/// One serial line of motion controllers, whatever their family: what [`Motion`]
+/// needs of it. A family plugs in by implementing it over its session's pump
+/// ([`Smc100Chain`] for an SMC100 chain, [`AptAxis`] for one APT controller); the
+/// engine, plans and safety rules then work for it unchanged. `Motion` hands each
+/// line only the axes it has.
+pub trait MotionDevice: Send + std::fmt::Debug {
+    /// The names of the axes on the line, in config order.
+    fn axis_names(&self) -> Vec<String>;
+    /// The limits and units of the named axis, when it is on this line.
+    fn limits(&self, name: &str) -> Option<(f64, f64, String)>;
+    /// Exchanges re-sent after a lost, late or garbled reply.
+    fn retried(&self) -> u64;
+    /// Takes the motion system's abort flag, read at every abort point.
+    fn set_abort_flag(&mut self, flag: AbortFlag);
+    /// Identifies (and, where the family needs it, sets up) every controller. Nothing
+    /// moves.
+    fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError>;
+    /// Where the named axis stands.
+    fn state(&mut self, name: &str) -> Result<AxisState, MotionError>;
+    /// The named axis' position, units.
+    fn position(&mut self, name: &str) -> Result<f64, MotionError>;
+    /// Homes the named axes.
+    fn home(&mut self, names: &[&str]) -> Result<(), MotionError>;
+    /// Moves the named axes and returns where they ended, in `targets` order.
+    fn move_to(&mut self, targets: &[(&str, f64)]) -> Result<Vec<f64>, MotionError>;
+    /// The same move, started but not pumped: one slot of a move over several lines.
+    fn move_slot<'a>(
+        &'a mut self,
+        targets: &[(&str, f64)],
+    ) -> Slot<'a, Result<Vec<f64>, MotionError>>;
+    /// Moves one axis by `delta`; never re-sent.
+    fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError>;
+    /// Stops every stage on the line.
+    fn stop_all(&mut self) -> Result<(), MotionError>;
+    /// Resets the named axis' controller where the family can, and homes it.
+    fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError>;
+    /// The line as `Any`, to reach a family's own operations (an SMC100's
+    /// configuration, through `downcast_mut`).
+    fn as_any_mut(&mut self) -> &mut dyn Any;
 }
 
-impl<C: Clock> Line<C> {
+impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for Smc100Chain<T, C> {
     fn axis_names(&self) -> Vec<String> {
-        match self {
-            Line::Smc100(c) => c.axes().iter().map(|a| a.name.clone()).collect(),
-            Line::Apt(a) => vec![a.axis().name.clone()],
-        }
+        self.axes().iter().map(|a| a.name.clone()).collect()
     }
-
-    fn retried(&self) -> u64 {
-        match self {
-            Line::Smc100(c) => c.retried(),
-            Line::Apt(a) => a.retried(),
-        }
-    }
-
-    /// The limits and units of the named axis, if it is on this line.
     fn limits(&self, name: &str) -> Option<(f64, f64, String)> {
-        match self {
-            Line::Smc100(c) => c
-                .axes()
-                .iter()
-                .find(|a| a.name == name)
-                .map(|a| (a.min, a.max, a.units.clone())),
-            Line::Apt(a) => {
-                let x = a.axis();
-                (x.name == name).then(|| (x.min, x.max, "deg".to_string()))
-            }
-        }
+        self.axes()
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| (a.min, a.max, a.units.clone()))
+    }
+    fn retried(&self) -> u64 {
+        Smc100Chain::retried(self)
+    }
+    fn set_abort_flag(&mut self, flag: AbortFlag) {
+        Smc100Chain::set_abort_flag(self, flag);
+    }
+    fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
+        let infos = Smc100Chain::identify(self)?;
+        Ok(self
+            .axes()
+            .iter()
+            .zip(infos)
+            .map(|(a, i)| {
+                (
+                    a.name.clone(),
+                    AxisInfo {
+                        family: "smc100",
+                        version: i.version.clone(),
+                        stage: i.stage.clone(),
+                        state_code: format!("{:02X}", i.state.code()),
+                        state: i.state.to_string(),
+                        referenced: i.state.is_ready(),
+                    },
+                )
+            })
+            .collect())
+    }
+    fn state(&mut self, name: &str) -> Result<AxisState, MotionError> {
+        let s = self.status(name)?;
+        Ok(if s.state.is_moving() {
+            AxisState::Moving
+        } else if s.state.is_ready() {
+            AxisState::Referenced
+        } else {
+            AxisState::Unreferenced
+        })
+    }
+    fn position(&mut self, name: &str) -> Result<f64, MotionError> {
+        Smc100Chain::position(self, name)
+    }
+    fn home(&mut self, names: &[&str]) -> Result<(), MotionError> {
+        Smc100Chain::home(self, names)
+    }
+    fn move_to(&mut self, targets: &[(&str, f64)]) -> Result<Vec<f64>, MotionError> {
+        Smc100Chain::move_to(self, targets)
+    }
+    fn move_slot<'a>(
+        &'a mut self,
+        targets: &[(&str, f64)],
+    ) -> Slot<'a, Result<Vec<f64>, MotionError>> {
+        Smc100Chain::move_slot(self, targets)
+    }
+    fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
+        Smc100Chain::move_by(self, name, delta)
+    }
+    fn stop_all(&mut self) -> Result<(), MotionError> {
+        Smc100Chain::stop_all(self)
+    }
+    fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError> {
+        Smc100Chain::reset_and_home(self, name)
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
     }
 }
 
-impl<C: Clock> std::fmt::Debug for Line<C> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Line::Smc100(c) => c.fmt(f),
-            Line::Apt(a) => a.fmt(f),
-        }
+impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for AptAxis<T, C> {
+    fn axis_names(&self) -> Vec<String> {
+        vec![self.axis().name.clone()]
+    }
+    fn limits(&self, name: &str) -> Option<(f64, f64, String)> {
+        let x = self.axis();
+        (x.name == name).then(|| (x.min, x.max, "deg".to_string()))
+    }
+    fn retried(&self) -> u64 {
+        AptAxis::retried(self)
+    }
+    fn set_abort_flag(&mut self, flag: AbortFlag) {
+        AptAxis::set_abort_flag(self, flag);
+    }
+    fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
+        let info = AptAxis::identify(self)?;
+        let status = self.status()?;
+        let homed = status.is_homed();
+        let [ma, it, mi] = info.firmware;
+        Ok(vec![(
+            self.axis().name.clone(),
+            AxisInfo {
+                family: match self.axis().stage {
+                    StageKind::K10cr1 => "k10cr1",
+                    StageKind::Prm1Z8 => "kdc101",
+                },
+                version: format!("{ma}.{it}.{mi}"),
+                stage: format!(
+                    "{} s/n {} ({:?})",
+                    info.model,
+                    info.serial,
+                    self.axis().stage
+                ),
+                state_code: format!("{:08X}", status.bits),
+                state: if homed { "homed" } else { "not homed" }.to_string(),
+                referenced: homed,
+            },
+        )])
+    }
+    fn state(&mut self, _name: &str) -> Result<AxisState, MotionError> {
+        let s = self.status()?;
+        Ok(if s.is_moving() {
+            AxisState::Moving
+        } else if s.is_homed() {
+            AxisState::Referenced
+        } else {
+            AxisState::Unreferenced
+        })
+    }
+    fn position(&mut self, _name: &str) -> Result<f64, MotionError> {
+        AptAxis::position(self)
+    }
+    fn home(&mut self, _names: &[&str]) -> Result<(), MotionError> {
+        AptAxis::home(self).map(|_| ())
+    }
+    fn move_to(&mut self, targets: &[(&str, f64)]) -> Result<Vec<f64>, MotionError> {
+        targets
+            .iter()
+            .map(|(_, t)| AptAxis::move_to(self, *t))
+            .collect()
+    }
+    fn move_slot<'a>(
+        &'a mut self,
+        targets: &[(&str, f64)],
+    ) -> Slot<'a, Result<Vec<f64>, MotionError>> {
+        // One axis on the line: one target (a missing one is refused by the limits).
+        let target = targets.first().map_or(f64::NAN, |(_, t)| *t);
+        AptAxis::move_slot(self, target)
+    }
+    fn move_by(&mut self, _name: &str, delta: f64) -> Result<f64, MotionError> {
+        AptAxis::move_by(self, delta)
+    }
+    fn stop_all(&mut self) -> Result<(), MotionError> {
+        self.stop(true)
+    }
+    fn reset_and_home(&mut self, _name: &str) -> Result<(), MotionError> {
+        // An APT controller has no reset command: homing restores its reference.
+        AptAxis::home(self).map(|_| ())
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
     }
 }
 
@@ -101,7 +257,7 @@ pub enum AxisState {
 /// Every motion axis of an instrument, on however many lines of whichever families.
 #[derive(Debug)]
 pub struct Motion<C: Clock + Clone> {
-    lines: Vec<Line<C>>,
+    lines: Vec<Box<dyn MotionDevice>>,
     /// Each axis' name and line, in config order.
     axes: Vec<(String, usize)>,
     clock: C,
@@ -111,15 +267,11 @@ pub struct Motion<C: Clock + Clone> {
 impl<C: Clock + Clone> Motion<C> {
     /// The motion system of `lines`, waiting on `clock`. Every line takes the one abort
     /// flag. Axis names must be distinct across lines.
-    pub fn new(lines: Vec<Line<C>>, clock: C) -> Result<Self, MotionError> {
+    pub fn new(mut lines: Vec<Box<dyn MotionDevice>>, clock: C) -> Result<Self, MotionError> {
         let abort = AbortFlag::new();
-        let lines: Vec<Line<C>> = lines
-            .into_iter()
-            .map(|l| match l {
-                Line::Smc100(c) => Line::Smc100(c.with_abort_flag(abort.clone())),
-                Line::Apt(a) => Line::Apt(a.with_abort_flag(abort.clone())),
-            })
-            .collect();
+        for l in &mut lines {
+            l.set_abort_flag(abort.clone());
+        }
         let mut axes: Vec<(String, usize)> = Vec::new();
         for (i, l) in lines.iter().enumerate() {
             for name in l.axis_names() {
@@ -153,21 +305,21 @@ impl<C: Clock + Clone> Motion<C> {
     }
 
     /// The lines.
-    pub fn lines(&self) -> &[Line<C>] {
+    pub fn lines(&self) -> &[Box<dyn MotionDevice>] {
         &self.lines
     }
 
     /// The lines, to reach a family's own operations (an SMC100's configuration).
-    pub fn lines_mut(&mut self) -> &mut [Line<C>] {
+    pub fn lines_mut(&mut self) -> &mut [Box<dyn MotionDevice>] {
         &mut self.lines
     }
 
     /// Exchanges re-sent after a lost, late or garbled reply, on every line.
     pub fn retried(&self) -> u64 {
-        self.lines.iter().map(Line::retried).sum()
+        self.lines.iter().map(|l| l.retried()).sum()
     }
 
-    fn line_of(&mut self, name: &str) -> Result<&mut Line<C>, MotionError> {
+    fn line_of(&mut self, name: &str) -> Result<&mut Box<dyn MotionDevice>, MotionError> {
         let i = self
             .axes
             .iter()
@@ -182,50 +334,7 @@ impl<C: Clock + Clone> Motion<C> {
     pub fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
         let mut out = Vec::new();
         for line in &mut self.lines {
-            match line {
-                Line::Smc100(chain) => {
-                    let infos = chain.identify()?;
-                    for (a, i) in chain.axes().iter().zip(infos) {
-                        out.push((
-                            a.name.clone(),
-                            AxisInfo {
-                                family: "smc100",
-                                version: i.version.clone(),
-                                stage: i.stage.clone(),
-                                state_code: format!("{:02X}", i.state.code()),
-                                state: i.state.to_string(),
-                                referenced: i.state.is_ready(),
-                            },
-                        ));
-                    }
-                }
-                Line::Apt(axis) => {
-                    let info = axis.identify()?;
-                    let status = axis.status()?;
-                    let homed = status.is_homed();
-                    let [ma, it, mi] = info.firmware;
-                    out.push((
-                        axis.axis().name.clone(),
-                        AxisInfo {
-                            family: if info.model.starts_with("K10CR1") {
-                                "k10cr1"
-                            } else {
-                                "kdc101"
-                            },
-                            version: format!("{ma}.{it}.{mi}"),
-                            stage: format!(
-                                "{} s/n {} ({:?})",
-                                info.model,
-                                info.serial,
-                                axis.axis().stage
-                            ),
-                            state_code: format!("{:08X}", status.bits),
-                            state: if homed { "homed" } else { "not homed" }.to_string(),
-                            referenced: homed,
-                        },
-                    ));
-                }
-            }
+            out.extend(line.identify()?);
         }
         // Config order, whatever the lines' order.
         out.sort_by_key(|(n, _)| self.axes.iter().position(|(m, _)| m == n));
@@ -234,36 +343,12 @@ impl<C: Clock + Clone> Motion<C> {
 
     /// Where the named axis stands: moving, referenced or not.
     pub fn state(&mut self, name: &str) -> Result<AxisState, MotionError> {
-        match self.line_of(name)? {
-            Line::Smc100(c) => {
-                let s = c.status(name)?;
-                Ok(if s.state.is_moving() {
-                    AxisState::Moving
-                } else if s.state.is_ready() {
-                    AxisState::Referenced
-                } else {
-                    AxisState::Unreferenced
-                })
-            }
-            Line::Apt(a) => {
-                let s = a.status()?;
-                Ok(if s.is_moving() {
-                    AxisState::Moving
-                } else if s.is_homed() {
-                    AxisState::Referenced
-                } else {
-                    AxisState::Unreferenced
-                })
-            }
-        }
+        self.line_of(name)?.state(name)
     }
 
     /// The named axis' position, units.
     pub fn position(&mut self, name: &str) -> Result<f64, MotionError> {
-        match self.line_of(name)? {
-            Line::Smc100(c) => c.position(name),
-            Line::Apt(a) => a.position(),
-        }
+        self.line_of(name)?.position(name)
     }
 
     /// Homes the named axes, line by line (concurrently within an SMC100 chain).
@@ -277,12 +362,7 @@ impl<C: Clock + Clone> Motion<C> {
             if here.is_empty() {
                 continue;
             }
-            match &mut self.lines[i] {
-                Line::Smc100(c) => c.home(&here)?,
-                Line::Apt(a) => {
-                    a.home()?;
-                }
-            }
+            self.lines[i].home(&here)?;
         }
         if let Some(n) = names
             .iter()
@@ -322,10 +402,7 @@ impl<C: Clock + Clone> Motion<C> {
         let mut ended: Vec<(String, f64)> = Vec::new();
         if let [only] = used.as_slice() {
             // One line: its own pump, exchange for exchange as a chain alone.
-            let got = match &mut self.lines[*only] {
-                Line::Smc100(c) => c.move_to(&per_line[*only])?,
-                Line::Apt(a) => vec![a.move_to(per_line[*only][0].1)?],
-            };
+            let got = self.lines[*only].move_to(&per_line[*only])?;
             ended.extend(per_line[*only].iter().map(|(n, _)| n.to_string()).zip(got));
         } else {
             let mut slots = Vec::new();
@@ -340,10 +417,7 @@ impl<C: Clock + Clone> Motion<C> {
                         .map(|(n, _)| n.to_string())
                         .collect::<Vec<_>>(),
                 );
-                slots.push(match line {
-                    Line::Smc100(c) => c.move_slot(&per_line[i]),
-                    Line::Apt(a) => a.move_slot(per_line[i][0].1),
-                });
+                slots.push(line.move_slot(&per_line[i]));
             }
             let results = pump_many(slots, &self.clock, Some(&self.abort), Result::is_err);
             let mut errors = Vec::new();
@@ -403,10 +477,7 @@ impl<C: Clock + Clone> Motion<C> {
 
     /// Moves one axis by `delta` from its current target; never re-sent.
     pub fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
-        match self.line_of(name)? {
-            Line::Smc100(c) => c.move_by(name, delta),
-            Line::Apt(a) => a.move_by(delta),
-        }
+        self.line_of(name)?.move_by(name, delta)
     }
 
     /// Stops every stage on every line. Every line gets its stop; the first error is
@@ -414,11 +485,7 @@ impl<C: Clock + Clone> Motion<C> {
     pub fn stop_all(&mut self) -> Result<(), MotionError> {
         let mut first = None;
         for line in &mut self.lines {
-            let r = match line {
-                Line::Smc100(c) => c.stop_all(),
-                Line::Apt(a) => a.stop(true),
-            };
-            if let Err(e) = r {
+            if let Err(e) = line.stop_all() {
                 first.get_or_insert(e);
             }
         }
@@ -428,10 +495,6 @@ impl<C: Clock + Clone> Motion<C> {
     /// Resets the named axis' controller where the family can (an SMC100's `RS`),
     /// waits for it, and homes it.
     pub fn reset_and_home(&mut self, name: &str) -> Result<(), MotionError> {
-        match self.line_of(name)? {
-            Line::Smc100(c) => c.reset_and_home(name),
-            // An APT controller has no reset command: homing restores its reference.
-            Line::Apt(a) => a.home().map(|_| ()),
-        }
+        self.line_of(name)?.reset_and_home(name)
     }
 }

@@ -68,9 +68,9 @@ pub(crate) fn pump<O: Operation>(
     }
 }
 
-/// One operation of [`pump_many`]: the line it runs on, the line's name, the
-/// operation.
-pub(crate) type Slot<'a, T> = (
+/// One operation of a concurrent run over several lines: the line it runs on, the
+/// line's name, the operation.
+pub type Slot<'a, T> = (
     &'a mut dyn Transport,
     &'a str,
     Box<dyn Operation<Output = T> + 'a>,

@@ -90,6 +90,11 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         self
     }
 
+    /// Makes `flag` the chain's abort flag.
+    pub fn set_abort_flag(&mut self, flag: AbortFlag) {
+        self.abort = flag;
+    }
+
     /// A move of the chain's axes among `targets`, started but not pumped: one slot of
     /// a concurrent move over several lines.
     pub(crate) fn move_slot<'a>(

@@ -90,8 +90,8 @@ fn apt_identifies(var: &str, stage: StageKind) {
     })
     .expect("port opens");
     let axis = AptAxisConfig::new("axis", stage, -1.0, 1.0);
-    let mut a = AptAxis::new(t, SystemClock::new(), axis, ChainPolicy::default(), None)
-        .expect("valid");
+    let mut a =
+        AptAxis::new(t, SystemClock::new(), axis, ChainPolicy::default(), None).expect("valid");
     let info = a.identify().expect("HW_GET_INFO answers");
     println!("{info}");
     let s = a.status().expect("status answers");

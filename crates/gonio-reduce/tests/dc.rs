@@ -254,7 +254,10 @@ fn a_dc_run_reduces_to_the_truth_within_its_stated_uncertainty() {
         }
         let bias = truth::mean_rel(&truth::residuals(&red, &model));
         let range_sigma = ch.budget[6].rel_median;
-        assert!(bias.abs() < 1e-4 && bias.abs() < 0.1 * range_sigma, "{bias} vs {range_sigma}");
+        assert!(
+            bias.abs() < 1e-4 && bias.abs() < 0.1 * range_sigma,
+            "{bias} vs {range_sigma}"
+        );
         assert!(plain < 0.05, "χ²/n {plain} with the full σ");
         chis.push((plain, chi));
     }
