@@ -1,8 +1,8 @@
-//! The instrument's detector, whatever it is: [`Detector`].
+//! The instrument's detector, whatever it is: [`DetectorDevice`].
 //!
 //! A lock-in (the SR830, reading a chopped signal in volts) or a DC instrument reads
 //! the light. The run engine takes readings, restores a range after a resume, and
-//! decides how to react to a fault, through this one type; what a reading is stays
+//! decides how to react to a fault, through this one trait; what a reading is stays
 //! the family's own ([`Reading`]), and [`Reading::columns`] puts it into the run
 //! file's reading row.
 
