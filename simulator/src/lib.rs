@@ -26,6 +26,7 @@ pub mod optics;
 pub mod picoammeter;
 pub mod pty;
 pub mod serve;
+pub mod spectral;
 pub mod transport;
 
 pub use bench::SimBench;

@@ -102,6 +102,9 @@ pub struct Optics {
     sample: Box<dyn Brdf>,
     channel: usize,
     path: LightPath,
+    /// The light a monochromator passes, `(nm, relative power)`; `None` without one
+    /// (the source's power is all in the measured channel).
+    spectrum: Option<Vec<(f64, f64)>>,
     omega: f64,
     /// Gauss–Legendre-on-a-disc points (unit disc) with weights summing to 1.
     disc: Vec<(f64, f64, f64)>,
@@ -130,6 +133,7 @@ impl Optics {
             sample,
             channel,
             path: LightPath::Sample,
+            spectrum: None,
             omega,
             disc: disc_rule(),
         }
@@ -175,6 +179,42 @@ impl Optics {
         }
     }
 
+    /// Sets the light a monochromator passes (see [`crate::spectral::passband`]):
+    /// the source's power is then spread over these wavelengths with these relative
+    /// weights, and the sample reflects each at its own `f_r(λ)`. `None`: no
+    /// monochromator; an empty list: no light (shutter closed).
+    pub fn set_spectrum(&mut self, spectrum: Option<Vec<(f64, f64)>>) {
+        self.spectrum = spectrum;
+    }
+
+    /// The light a monochromator passes, if there is one.
+    pub fn spectrum(&self) -> Option<&[(f64, f64)]> {
+        self.spectrum.as_deref()
+    }
+
+    /// The source's power through the monochromator relative to `source_power_w`
+    /// (1 without one).
+    fn spectral_share(&self) -> f64 {
+        self.spectrum
+            .as_ref()
+            .map_or(1.0, |s| s.iter().map(|(_, w)| w).sum())
+    }
+
+    /// The sample's `f_r` as the detector sees it, from one evaluation `buf` (a value
+    /// per channel): the measured channel's, or, through a monochromator, the sum over
+    /// its passband of the weight times `f_r(λ)` interpolated between the sample's
+    /// wavelength channels (a sample without wavelengths is spectrally flat).
+    fn seen(&self, buf: &[f64]) -> f64 {
+        match (&self.spectrum, self.sample.channels()) {
+            (None, _) => buf[self.channel],
+            (Some(s), gonio_core::Channels::Wavelengths(w)) => s
+                .iter()
+                .map(|(nm, wt)| wt * crate::spectral::interpolate(w, buf, *nm))
+                .sum(),
+            (Some(s), _) => buf[self.channel] * s.iter().map(|(_, w)| w).sum::<f64>(),
+        }
+    }
+
     /// What is in the light path.
     pub fn light_path(&self) -> LightPath {
         self.path
@@ -200,7 +240,11 @@ impl Optics {
         let share = (2.0 * self.cfg.detector_radius_m / self.cfg.beam_diameter_m)
             .powi(2)
             .min(1.0);
-        self.cfg.responsivity_v_per_w * self.source_power(t) * transmittance * share
+        self.cfg.responsivity_v_per_w
+            * self.source_power(t)
+            * self.spectral_share()
+            * transmittance
+            * share
     }
 
     /// Source power at physical time `t` (drift included), W.
@@ -242,7 +286,7 @@ impl Optics {
             return 0.0;
         }
         self.sample.eval(wi, wo, buf);
-        buf[self.channel] * wo.z
+        self.seen(buf) * wo.z
     }
 
     /// The detector signal, V, at physical time `t` for directions `pair`, in the

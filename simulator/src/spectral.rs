@@ -1,0 +1,239 @@
+//! The light a monochromator passes: a tungsten-halogen lamp, a blazed grating's
+//! efficiency in the first and second orders, the triangular slit function, and the
+//! filters in the beam.
+//!
+//! A monochromator set to `λ` passes, through its exit slit, first-order light near
+//! `λ` and second-order light near `λ/2` (the grating equation `m λ = d (sin α + sin β)`
+//! sends `λ/2` in order 2 to the same angle as `λ` in order 1). An order-sorting
+//! long-pass filter with cut-on between `λ/2` and `λ` removes the second order. This
+//! module turns those facts into a list of `(wavelength, weight)` pairs: the spectral
+//! power reaching the sample, relative to the lamp's power per nm at 560 nm through a
+//! perfect 1 nm passband. The optics multiply the sample's `f_r(λ)` by it and sum.
+//!
+//! Models, with their sources:
+//! - Lamp: Planck's law at the lamp's colour temperature (a tungsten filament is close
+//!   to a grey body over 350–1000 nm; its colour temperature is what a lamp's data
+//!   sheet gives). `c2 = 1.438 776 877e-2 m·K` (CODATA 2018).
+//! - Grating: the scalar approximation of a blazed grating's efficiency in order `m`,
+//!   `η_m(λ) = sinc²(π (m − λ_B/λ))` with `λ_B` the first-order blaze wavelength
+//!   (Littrow mounting; scalar theory, valid for `λ/d` well below 1). A real grating's
+//!   curve differs by polarisation and anomalies; the simulator needs only the shape
+//!   that makes the second order matter.
+//! - Slit: with equal entrance and exit slits the instrument's slit function is a
+//!   triangle whose full width at half maximum is the bandpass (the Cornerstone 130
+//!   manual's bandpass is this FWHM).
+
+use std::f64::consts::PI;
+
+/// Second radiation constant, m·K (CODATA 2018).
+const C2_M_K: f64 = 1.438_776_877e-2;
+/// The wavelength the lamp's spectrum is normalised at, nm.
+const REFERENCE_NM: f64 = 560.0;
+/// Nodes per FWHM of the slit function in each order's sum.
+const NODES_PER_FWHM: usize = 16;
+
+/// Planck's spectral radiance at `nm` and temperature `kelvin`, relative to its value
+/// at 560 nm.
+pub fn planck_relative(nm: f64, kelvin: f64) -> f64 {
+    let b = |nm: f64| {
+        let l = nm * 1e-9;
+        1.0 / (l.powi(5) * ((C2_M_K / (l * kelvin)).exp_m1()))
+    };
+    b(nm) / b(REFERENCE_NM)
+}
+
+/// A blazed grating's efficiency in order `order` at `nm` (scalar theory, Littrow),
+/// for a first-order blaze wavelength `blaze_nm`; 1 at `λ = λ_B / m`.
+pub fn blaze_efficiency(nm: f64, blaze_nm: f64, order: u32) -> f64 {
+    let x = PI * (f64::from(order) - blaze_nm / nm);
+    if x.abs() < 1e-12 {
+        1.0
+    } else {
+        (x.sin() / x).powi(2)
+    }
+}
+
+/// The triangular slit function of full width at half maximum `fwhm_nm`, at `delta_nm`
+/// from its centre; unit area (1/nm).
+pub fn slit(delta_nm: f64, fwhm_nm: f64) -> f64 {
+    (1.0 - delta_nm.abs() / fwhm_nm).max(0.0) / fwhm_nm
+}
+
+/// A long-pass filter's transmittance: `peak` well above the cut-on (50 % point)
+/// `cut_on_nm`, a logistic edge of 10–90 % width `edge_nm`.
+pub fn longpass(nm: f64, cut_on_nm: f64, edge_nm: f64, peak: f64) -> f64 {
+    // 10 %–90 % of a logistic spans 2 ln 9 scale lengths.
+    let s = edge_nm / (2.0 * 9f64.ln());
+    peak / (1.0 + (-(nm - cut_on_nm) / s).exp())
+}
+
+/// What the monochromator is doing, as the light model needs it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Setting {
+    /// The wavelength the grating really sends to the exit slit's centre, nm (the set
+    /// wavelength plus the instrument's accuracy error and backlash).
+    pub actual_nm: f64,
+    /// The bandpass (FWHM of the slit function), nm.
+    pub fwhm_nm: f64,
+    /// The grating's first-order blaze wavelength, nm.
+    pub blaze_nm: f64,
+    /// The lamp's colour temperature, K.
+    pub lamp_k: f64,
+    /// False with the shutter closed: no light at all.
+    pub shutter_open: bool,
+}
+
+/// The light through the exit slit at `setting`, as `(wavelength nm, weight)` pairs:
+/// first order around `actual_nm`, second order around `actual_nm / 2`, each through
+/// `filter` (the transmittance of everything else in the beam: order-sorting filter,
+/// filter wheel). Weights are relative to the lamp at 560 nm through a perfect grating
+/// and a unit-area passband, so they sum to about `η(λ) T(λ) L(λ)/L(560)` (plus the
+/// second order's share). Empty with the shutter closed.
+pub fn passband(setting: &Setting, filter: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
+    if !setting.shutter_open || !(setting.fwhm_nm > 0.0) || !(setting.actual_nm > 0.0) {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(4 * NODES_PER_FWHM + 2);
+    for order in 1..=2u32 {
+        let m = f64::from(order);
+        // Order m sends λ/m to the slit's centre; a wavelength λ' of it sits at m λ'
+        // on the first-order scale, so its slit width in λ' is FWHM/m.
+        let centre = setting.actual_nm / m;
+        let half = setting.fwhm_nm / m;
+        let n = 2 * NODES_PER_FWHM;
+        let h = 2.0 * half / n as f64;
+        // Composite midpoint rule over the triangle's support: exact for the
+        // piecewise-linear slit function at these nodes, up to the kink at the centre.
+        for k in 0..n {
+            let nm = centre - half + (k as f64 + 0.5) * h;
+            // The slit passes the dimensionless triangle in λ'; over λ' it is FWHM/m
+            // wide, so order m carries 1/m of the first order's bandwidth.
+            let w = slit(m * nm - setting.actual_nm, setting.fwhm_nm)
+                * h
+                * planck_relative(nm, setting.lamp_k)
+                * blaze_efficiency(nm, setting.blaze_nm, order)
+                * filter(nm);
+            if w > 0.0 {
+                out.push((nm, w));
+            }
+        }
+    }
+    out
+}
+
+/// `values` (one per wavelength of `wavelengths_nm`, strictly increasing) at `nm`,
+/// linearly interpolated, and held at the end values outside.
+pub fn interpolate(wavelengths_nm: &[f64], values: &[f64], nm: f64) -> f64 {
+    let n = wavelengths_nm.len().min(values.len());
+    if n == 0 {
+        return 0.0;
+    }
+    if nm <= wavelengths_nm[0] {
+        return values[0];
+    }
+    if nm >= wavelengths_nm[n - 1] {
+        return values[n - 1];
+    }
+    let k = wavelengths_nm[..n].partition_point(|w| *w <= nm);
+    // wavelengths[k-1] <= nm < wavelengths[k], with 1 <= k <= n-1 from the checks above.
+    let (x0, x1) = (wavelengths_nm[k - 1], wavelengths_nm[k]);
+    let t = (nm - x0) / (x1 - x0);
+    values[k - 1] + t * (values[k] - values[k - 1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn planck_matches_wiens_displacement_and_its_own_ratio() {
+        // Wien: λ_max T = 2.897 771 955e-3 m·K (CODATA 2018).
+        let t = 3000.0;
+        let peak = 2.897_771_955e-3 / t * 1e9;
+        let at = |d: f64| planck_relative(peak + d, t);
+        assert!(at(0.0) > at(1.0) && at(0.0) > at(-1.0));
+        assert!((planck_relative(560.0, t) - 1.0).abs() < 1e-15);
+        // The ratio at 700 and 350 nm from Planck's law written out.
+        let x = |nm: f64| C2_M_K / (nm * 1e-9 * t);
+        let want = (700.0f64 / 350.0).powi(5) * x(700.0).exp_m1() / x(350.0).exp_m1();
+        let got = planck_relative(350.0, t) / planck_relative(700.0, t);
+        assert!((got / want - 1.0).abs() < 1e-12, "{got} vs {want}");
+    }
+
+    #[test]
+    fn blaze_efficiency_peaks_at_the_blaze_in_each_order() {
+        assert_eq!(blaze_efficiency(500.0, 500.0, 1), 1.0);
+        assert!((blaze_efficiency(250.0, 500.0, 2) - 1.0).abs() < 1e-12);
+        // A zero of sinc²: m − λB/λ = ±1 → λ = λB/2 in order 1 (second order's peak).
+        assert!(blaze_efficiency(250.0, 500.0, 1) < 1e-24);
+        // At λ = λB/1.5, m − λB/λ = −1/2 and sinc²(−π/2) = 4/π².
+        let v = blaze_efficiency(500.0 / 1.5, 500.0, 1);
+        assert!((v - 4.0 / (PI * PI)).abs() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn slit_function_has_unit_area_and_its_fwhm() {
+        let f = 4.0;
+        let n = 100_000;
+        let h = 2.0 * f / n as f64;
+        let area: f64 = (0..n).map(|k| slit(-f + (k as f64 + 0.5) * h, f) * h).sum();
+        assert!((area - 1.0).abs() < 1e-9, "{area}");
+        assert!((slit(f / 2.0, f) / slit(0.0, f) - 0.5).abs() < 1e-15);
+        assert_eq!(slit(f, f), 0.0);
+    }
+
+    #[test]
+    fn passband_integrates_to_lamp_times_grating_and_holds_second_order_at_half() {
+        let s = Setting {
+            actual_nm: 700.0,
+            fwhm_nm: 4.0,
+            blaze_nm: 500.0,
+            lamp_k: 3100.0,
+            shutter_open: true,
+        };
+        let open = passband(&s, &|_| 1.0);
+        let (first, second): (Vec<_>, Vec<_>) = open.iter().partition(|(nm, _)| *nm > 500.0);
+        let sum = |v: &[&(f64, f64)]| v.iter().map(|(_, w)| *w).sum::<f64>();
+        // Over a 4 nm passband the lamp and grating are nearly linear: the sum is
+        // their product at the centre to well under 0.1 %.
+        let want1 = planck_relative(700.0, 3100.0) * blaze_efficiency(700.0, 500.0, 1);
+        assert!(
+            (sum(&first) / want1 - 1.0).abs() < 1e-3,
+            "{} {want1}",
+            sum(&first)
+        );
+        // The second order spans λ/2 ± FWHM/2: half the first order's bandwidth, so
+        // it carries L(350) η₂(350) / 2.
+        let want2 = planck_relative(350.0, 3100.0) * blaze_efficiency(350.0, 500.0, 2) / 2.0;
+        assert!(
+            (sum(&second) / want2 - 1.0).abs() < 2e-3,
+            "{} {want2}",
+            sum(&second)
+        );
+        assert!(second.iter().all(|(nm, _)| (nm - 350.0).abs() <= 2.0));
+        // A long-pass at 495 nm takes the second order out and leaves the first.
+        let sorted = passband(&s, &|nm| longpass(nm, 495.0, 10.0, 1.0));
+        let leak: f64 = sorted
+            .iter()
+            .filter(|(nm, _)| *nm < 500.0)
+            .map(|p| p.1)
+            .sum();
+        assert!(leak < 1e-12 * want2, "{leak}");
+        let closed = Setting {
+            shutter_open: false,
+            ..s
+        };
+        assert!(passband(&closed, &|_| 1.0).is_empty());
+    }
+
+    #[test]
+    fn interpolation_is_linear_inside_and_holds_outside() {
+        let w = [400.0, 500.0, 600.0];
+        let v = [0.2, 0.6, 0.4];
+        assert_eq!(interpolate(&w, &v, 350.0), 0.2);
+        assert_eq!(interpolate(&w, &v, 650.0), 0.4);
+        assert!((interpolate(&w, &v, 450.0) - 0.4).abs() < 1e-15);
+        assert!((interpolate(&w, &v, 575.0) - 0.45).abs() < 1e-15);
+        assert_eq!(interpolate(&w, &v, 500.0), 0.6);
+    }
+}
