@@ -7,6 +7,7 @@ use crate::detector::{DetectorDevice, DetectorError, Reading};
 use crate::k6485::K6485;
 use crate::motion::{AxisInfo, Motion, MotionDevice};
 use crate::smc100::{MotionError, Smc100Chain};
+use crate::spectral::{BandSelector, SpectralError};
 use crate::sr830::Sr830;
 use crate::transport::{SerialSettings, SerialTransport, Transport, TransportError};
 
@@ -28,6 +29,9 @@ pub enum GoniometerError {
     /// The detector failed.
     #[error("detector: {0}")]
     Detector(#[from] DetectorError),
+    /// The band selector failed.
+    #[error("wavelength: {0}")]
+    Spectral(#[from] SpectralError),
     /// Transports given do not match the config's lines.
     #[error("{0}")]
     Lines(String),
@@ -40,6 +44,8 @@ pub struct StartupReport {
     pub axes: Vec<(String, AxisInfo)>,
     /// The detector's identity.
     pub detector: String,
+    /// The band selector's identity, when there is one.
+    pub spectral: Option<String>,
 }
 
 /// What a port is opened for: handed to the opener of [`Goniometer::from_ports`].
@@ -58,6 +64,8 @@ pub struct Goniometer<C: Clock + Clone> {
     pub motion: Motion<C>,
     /// The detector.
     pub detector: Box<dyn DetectorDevice>,
+    /// What selects the wavelength (a monochromator, a filter wheel), if anything.
+    pub spectral: Option<Box<dyn BandSelector>>,
 }
 
 impl Goniometer<SystemClock> {
@@ -101,6 +109,7 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
         Ok(Goniometer {
             motion: Motion::new(lines, clock)?,
             detector,
+            spectral: None,
         })
     }
 
@@ -125,6 +134,7 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
         Ok(Goniometer {
             motion: Motion::new(vec![line], motion_clock)?,
             detector,
+            spectral: None,
         })
     }
 
@@ -173,7 +183,15 @@ impl<C: Clock + Clone> Goniometer<C> {
     pub fn start(&mut self) -> Result<StartupReport, GoniometerError> {
         let axes = self.motion.identify()?;
         let detector = self.detector.setup()?;
-        Ok(StartupReport { axes, detector })
+        let spectral = match &mut self.spectral {
+            Some(s) => Some(s.setup()?),
+            None => None,
+        };
+        Ok(StartupReport {
+            axes,
+            detector,
+            spectral,
+        })
     }
 
     /// Homes every axis.

@@ -33,6 +33,7 @@ pub mod ports;
 mod pump;
 pub mod script;
 pub mod smc100;
+pub mod spectral;
 pub mod sr830;
 mod transport;
 
@@ -43,6 +44,7 @@ pub use detector::{DetectorDevice, DetectorError};
 pub use goniometer::{Goniometer, GoniometerError, PortUse, StartupReport};
 pub use motion::{Motion, MotionDevice};
 pub use script::ScriptedTransport;
+pub use spectral::{BandSelector, SpectralError};
 pub use transport::{
     FlowControl, Framing, SerialSettings, SerialTransport, Transport, TransportError,
 };

@@ -222,6 +222,7 @@ where
                 cfg,
                 setup: None,
                 channel: None,
+                shutter_open: None,
                 t0,
                 events,
                 span: tracing::Span::none(),

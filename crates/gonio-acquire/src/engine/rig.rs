@@ -9,7 +9,7 @@ use gonio_core::kinematics;
 use gonio_driver::detector::{DetectorError, Disposition, Reading};
 use gonio_driver::motion::AxisState;
 use gonio_driver::smc100::{AxisError, MotionError};
-use gonio_driver::{Clock, Goniometer, TransportError};
+use gonio_driver::{Clock, Goniometer, SpectralError, TransportError};
 use tokio::sync::broadcast;
 
 use gonio_core::goniometer::Mechanics;
@@ -37,6 +37,8 @@ pub(super) struct Rig<C: Clock + Clone, B: Bench> {
     pub(super) cfg: EngineConfig,
     pub(super) setup: Option<Setup>,
     pub(super) channel: Option<String>,
+    /// The band selector's shutter as last set (`None`: not yet this session).
+    pub(super) shutter_open: Option<bool>,
     pub(super) t0: Duration,
     pub(super) events: broadcast::Sender<Event>,
     /// The session's span: each step's span is its child, on whichever thread runs it.
@@ -85,7 +87,9 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
     }
 
     fn retried(&self) -> u64 {
-        self.gonio.motion.retried() + self.gonio.detector.retried()
+        self.gonio.motion.retried()
+            + self.gonio.detector.retried()
+            + self.gonio.spectral.as_ref().map_or(0, |s| s.retried())
     }
 
     fn fault(
@@ -223,18 +227,48 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         if let Some(ch) = &s.step.channel
             && self.channel.as_ref() != Some(ch)
         {
-            if let Err(e) = self.bench.select_channel(ch) {
-                return self.bench_failed(id, e);
-            }
-            tracing::info!("bench: band {ch}");
-            self.store.event("bench", Some(id), &format!("band {ch}"))?;
-            let _ = self.events.send(Event::Bench {
-                what: format!("band {ch}"),
-            });
+            let what = match &mut self.gonio.spectral {
+                // A monochromator or filter wheel selects the band itself.
+                Some(sel) => match gonio_driver::spectral::channel_nm(ch)
+                    .and_then(|nm| sel.select(nm))
+                {
+                    Ok(band) => format!("band {ch}: {} at {band}", sel.family()),
+                    Err(e) => return self.spectral_failed(id, e),
+                },
+                None => {
+                    if let Err(e) = self.bench.select_channel(ch) {
+                        return self.bench_failed(id, e);
+                    }
+                    format!("band {ch}")
+                }
+            };
+            tracing::info!("bench: {what}");
+            self.store.event("bench", Some(id), &what)?;
+            let _ = self.events.send(Event::Bench { what });
             self.channel = Some(ch.clone());
         }
         let setup = setup_for(s.step.kind, self.cfg.incident_transmittance);
-        if self.setup != Some(setup) {
+        // With a shutter, a dark reading closes it rather than asking the bench.
+        let shuttered = self
+            .gonio
+            .spectral
+            .as_ref()
+            .is_some_and(|sel| sel.has_shutter());
+        let by_shutter = shuttered && setup == Setup::Dark;
+        if shuttered && self.shutter_open != Some(!by_shutter) {
+            let open = !by_shutter;
+            if let Some(sel) = &mut self.gonio.spectral
+                && let Err(e) = sel.set_shutter(open)
+            {
+                return self.spectral_failed(id, e);
+            }
+            let what = format!("shutter {}", if open { "open" } else { "closed" });
+            tracing::info!("bench: {what}");
+            self.store.event("bench", Some(id), &what)?;
+            let _ = self.events.send(Event::Bench { what });
+            self.shutter_open = Some(open);
+        }
+        if !by_shutter && self.setup != Some(setup) {
             if let Err(e) = self.bench.set_up(setup) {
                 return self.bench_failed(id, e);
             }
@@ -352,6 +386,12 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             BenchError::Declined(_) | BenchError::NoOperator(_) => Outcome::Interrupted,
             BenchError::UnknownChannel(_) => Outcome::Faulted(m),
         }))
+    }
+
+    fn spectral_failed(&mut self, id: i64, e: SpectralError) -> Result<StepOutcome, StoreError> {
+        let m = format!("wavelength: {e}");
+        self.fault(Some(id), &m, false)?;
+        Ok(StepOutcome::Stop(Outcome::Faulted(m)))
     }
 
     fn motion_failed(&mut self, id: i64, e: MotionError) -> Result<StepOutcome, StoreError> {
