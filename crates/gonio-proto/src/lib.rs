@@ -1,7 +1,8 @@
 //! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
 //! controller ([`smc100`]), the Thorlabs APT controllers KDC101 and K10CR1 ([`apt`],
-//! binary messages), the Stanford Research SR830 lock-in amplifier ([`sr830`]) and
-//! the Keithley 6485 picoammeter ([`k6485`], a DC detector), byte-exactly as their
+//! binary messages), the Stanford Research SR830 lock-in amplifier ([`sr830`]),
+//! the Keithley 6485 picoammeter ([`k6485`], a DC detector) and the Newport
+//! Cornerstone 130 monochromator ([`cs130`], with its echo), byte-exactly as their
 //! manuals define them, and the policy that drives them, as state machines.
 //!
 //! Deterministic: no I/O, no clocks, no threads. Two layers:
@@ -42,6 +43,7 @@
 //! by the pump that moves them.
 
 pub mod apt;
+pub mod cs130;
 mod framing;
 pub mod k6485;
 pub mod link;

@@ -1,0 +1,288 @@
+//! Host to instrument: [`Command`], its encoding, and [`Command::parse`] for the
+//! twin's side.
+
+use super::TERMINATOR;
+
+/// The units `GOWAVE` takes and `WAVE?` answers in (the `UNITS` command). The session
+/// always selects nanometres.
+///
+/// **UNCONFIRMED**: the command reference page that lists the `UNITS` parameters was
+/// not found in the stored CS130B manual; `NM`, `UM` and `WN` (wavenumbers, cm⁻¹) are
+/// the Cornerstone family's names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Units {
+    /// Nanometres.
+    Nm,
+    /// Micrometres.
+    Um,
+    /// Wavenumbers, cm⁻¹.
+    Wn,
+}
+
+impl Units {
+    /// The parameter as sent.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Units::Nm => "NM",
+            Units::Um => "UM",
+            Units::Wn => "WN",
+        }
+    }
+
+    /// A value in these units, in nanometres (wavenumbers: 10⁷ / value).
+    pub fn to_nm(self, v: f64) -> f64 {
+        match self {
+            Units::Nm => v,
+            Units::Um => v * 1e3,
+            Units::Wn => 1e7 / v,
+        }
+    }
+
+    /// A wavelength in nanometres, in these units.
+    pub fn from_nm(self, nm: f64) -> f64 {
+        match self {
+            Units::Nm => nm,
+            Units::Um => nm * 1e-3,
+            Units::Wn => 1e7 / nm,
+        }
+    }
+}
+
+/// A statement to the Cornerstone 130 (CS130B manual, 90088262, Appendix I, §15.3):
+/// a keyword, then for some a parameter separated by at least one space. Queries end
+/// in `?` and are answered by one line; commands are answered by nothing but their
+/// echo (§15.4, standard mode).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// `GOWAVE <λ>`: move the wavelength drive to λ in the present units (§15.4's
+    /// example `GOWAVE 500`; §15.8's `gowave 587.1`). A destination outside the
+    /// grating's range is refused with error 3 (§15.9). Sent with at most three
+    /// decimals.
+    GoWave(f64),
+    /// `WAVE?`: the wavelength, in the present units (§15.4's example answers
+    /// `500.01`).
+    Wave,
+    /// `GRAT <n>`: select grating n (the drive turns the turret). **UNCONFIRMED**:
+    /// syntax from the task brief and the Cornerstone family, not a stored page.
+    Grat(u8),
+    /// `GRAT?`: the grating in use. **UNCONFIRMED** answer format (see
+    /// [`Reply::Grating`](super::Reply::Grating)).
+    GratQuery,
+    /// `FILTER <n>`: move the filter wheel to position n. A missing wheel is error 6
+    /// (§15.9). **UNCONFIRMED** syntax, as for `GRAT`.
+    Filter(u8),
+    /// `FILTER?`: the filter wheel's position.
+    FilterQuery,
+    /// `SHUTTER O` / `SHUTTER C`: open or close the shutter (§15.8's example
+    /// `shutter o`).
+    Shutter(bool),
+    /// `SHUTTER?`: `O` or `C`. **UNCONFIRMED** answer format.
+    ShutterQuery,
+    /// `UNITS <u>`: the wavelength units.
+    Units(Units),
+    /// `STB?`: the status byte; reading it clears it (§15.9).
+    Stb,
+    /// `ERROR?`: the latest error code; reading it resets it to 0 (§15.9).
+    Error,
+    /// `INFO?`: the model and firmware. **UNCONFIRMED** answer format: any text is
+    /// accepted.
+    Info,
+    /// `ABORT`: stop the wavelength drive. **UNCONFIRMED**: from the brief.
+    Abort,
+    /// `*WAI`: hold every later statement until the pending operations (a move) are
+    /// finished (§15.8). The session's way of knowing a move is done: the query sent
+    /// after it is answered only then.
+    Wai,
+}
+
+/// Why a received line is not a statement the instrument runs: the error code it
+/// records (§15.9), which the twin reports through `STB?` and `ERROR?`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CommandError {
+    /// Not a keyword the codec knows: error 1, "Command not understood".
+    #[error("command not understood: {0:?}")]
+    Unknown(String),
+    /// A known keyword with a missing, extra or bad parameter: error 2, "Bad parameter
+    /// used in command".
+    #[error("{0}: bad parameter")]
+    BadParameter(&'static str),
+}
+
+impl CommandError {
+    /// The manual's error code (§15.9).
+    pub fn code(&self) -> u8 {
+        match self {
+            CommandError::Unknown(_) => 1,
+            CommandError::BadParameter(_) => 2,
+        }
+    }
+}
+
+impl Command {
+    /// True for queries, which the instrument answers with a line after the echo.
+    pub fn is_query(&self) -> bool {
+        matches!(
+            self,
+            Command::Wave
+                | Command::GratQuery
+                | Command::FilterQuery
+                | Command::ShutterQuery
+                | Command::Stb
+                | Command::Error
+                | Command::Info
+        )
+    }
+
+    /// True when sending it twice does what sending it once does: everything but the
+    /// queries whose reading clears what they report (`STB?`, `ERROR?`, §15.9). Set
+    /// commands are absolute (a wavelength, a position, a state), so a lost echo may
+    /// be answered by sending the command again.
+    pub fn is_repeatable(&self) -> bool {
+        !matches!(self, Command::Stb | Command::Error)
+    }
+
+    /// Appends the statement without terminator.
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
+        let text = match self {
+            Command::GoWave(nm) => format!("GOWAVE {}", format_value(*nm)),
+            Command::Wave => "WAVE?".into(),
+            Command::Grat(n) => format!("GRAT {n}"),
+            Command::GratQuery => "GRAT?".into(),
+            Command::Filter(n) => format!("FILTER {n}"),
+            Command::FilterQuery => "FILTER?".into(),
+            Command::Shutter(open) => format!("SHUTTER {}", if *open { 'O' } else { 'C' }),
+            Command::ShutterQuery => "SHUTTER?".into(),
+            Command::Units(u) => format!("UNITS {}", u.as_str()),
+            Command::Stb => "STB?".into(),
+            Command::Error => "ERROR?".into(),
+            Command::Info => "INFO?".into(),
+            Command::Abort => "ABORT".into(),
+            Command::Wai => "*WAI".into(),
+        };
+        out.extend_from_slice(text.as_bytes());
+    }
+
+    /// Appends the statement and its CR LF terminator.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        self.encode_body(out);
+        out.extend_from_slice(TERMINATOR);
+    }
+
+    /// The statement with its terminator.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.encode(&mut out);
+        out
+    }
+
+    /// Parses one received statement (terminator removed), as the instrument does:
+    /// case ignored (§15.3), the parameter after at least one space, surrounding
+    /// blanks ignored.
+    pub fn parse(line: &[u8]) -> Result<Command, CommandError> {
+        let text = String::from_utf8_lossy(line);
+        let text = text.trim_matches(|c: char| c.is_ascii_whitespace());
+        let (keyword, param) = match text.find(|c: char| c.is_ascii_whitespace()) {
+            Some(i) => (&text[..i], Some(text[i..].trim())),
+            None => (text, None),
+        };
+        let keyword = keyword.to_ascii_uppercase();
+        let bare = |c: Command, name: &'static str| match param {
+            None => Ok(c),
+            Some(_) => Err(CommandError::BadParameter(name)),
+        };
+        match keyword.as_str() {
+            "GOWAVE" => param
+                .and_then(|p| p.parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .map(Command::GoWave)
+                .ok_or(CommandError::BadParameter("GOWAVE")),
+            "GRAT" => small_int(param)
+                .map(Command::Grat)
+                .ok_or(CommandError::BadParameter("GRAT")),
+            "FILTER" => small_int(param)
+                .map(Command::Filter)
+                .ok_or(CommandError::BadParameter("FILTER")),
+            "SHUTTER" => match param.map(str::to_ascii_uppercase).as_deref() {
+                Some("O") => Ok(Command::Shutter(true)),
+                Some("C") => Ok(Command::Shutter(false)),
+                _ => Err(CommandError::BadParameter("SHUTTER")),
+            },
+            "UNITS" => match param.map(str::to_ascii_uppercase).as_deref() {
+                Some("NM") => Ok(Command::Units(Units::Nm)),
+                Some("UM") => Ok(Command::Units(Units::Um)),
+                Some("WN") => Ok(Command::Units(Units::Wn)),
+                _ => Err(CommandError::BadParameter("UNITS")),
+            },
+            "WAVE?" => bare(Command::Wave, "WAVE?"),
+            "GRAT?" => bare(Command::GratQuery, "GRAT?"),
+            "FILTER?" => bare(Command::FilterQuery, "FILTER?"),
+            "SHUTTER?" => bare(Command::ShutterQuery, "SHUTTER?"),
+            "STB?" => bare(Command::Stb, "STB?"),
+            "ERROR?" => bare(Command::Error, "ERROR?"),
+            "INFO?" => bare(Command::Info, "INFO?"),
+            "ABORT" => bare(Command::Abort, "ABORT"),
+            "*WAI" => bare(Command::Wai, "*WAI"),
+            _ => Err(CommandError::Unknown(text.to_string())),
+        }
+    }
+}
+
+/// A parameter 0..=255 written as a plain integer.
+fn small_int(param: Option<&str>) -> Option<u8> {
+    let p = param?;
+    if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    p.parse().ok()
+}
+
+/// A number with at most three decimals and no trailing zeros (`500`, `587.1`).
+pub(super) fn format_value(v: f64) -> String {
+    let s = format!("{v:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn statements_encode_as_the_manual_writes_them() {
+        assert_eq!(Command::GoWave(500.0).to_bytes(), b"GOWAVE 500\r\n");
+        assert_eq!(Command::GoWave(587.1).to_bytes(), b"GOWAVE 587.1\r\n");
+        assert_eq!(Command::GoWave(587.12349).to_bytes(), b"GOWAVE 587.123\r\n");
+        assert_eq!(Command::Wave.to_bytes(), b"WAVE?\r\n");
+        assert_eq!(Command::Shutter(true).to_bytes(), b"SHUTTER O\r\n");
+        assert_eq!(Command::Shutter(false).to_bytes(), b"SHUTTER C\r\n");
+        assert_eq!(Command::Grat(2).to_bytes(), b"GRAT 2\r\n");
+        assert_eq!(Command::Filter(3).to_bytes(), b"FILTER 3\r\n");
+        assert_eq!(Command::Units(Units::Nm).to_bytes(), b"UNITS NM\r\n");
+        assert_eq!(Command::Wai.to_bytes(), b"*WAI\r\n");
+    }
+
+    #[test]
+    fn parsing_ignores_case_and_extra_spaces_and_refuses_with_the_manual_codes() {
+        assert_eq!(
+            Command::parse(b"gowave   587.1 "),
+            Ok(Command::GoWave(587.1))
+        );
+        assert_eq!(Command::parse(b"shutter o"), Ok(Command::Shutter(true)));
+        assert_eq!(Command::parse(b"*wai"), Ok(Command::Wai));
+        assert_eq!(Command::parse(b"Filter 4"), Ok(Command::Filter(4)));
+        let e = Command::parse(b"GOWAVE").unwrap_err();
+        assert_eq!(e.code(), 2);
+        assert_eq!(Command::parse(b"GOWAVE nan").unwrap_err().code(), 2);
+        assert_eq!(Command::parse(b"GRAT -1").unwrap_err().code(), 2);
+        assert_eq!(Command::parse(b"WAVE? 3").unwrap_err().code(), 2);
+        assert_eq!(Command::parse(b"GOWAV 500").unwrap_err().code(), 1);
+    }
+
+    #[test]
+    fn units_convert_both_ways() {
+        assert_eq!(Units::Um.to_nm(0.5), 500.0);
+        assert_eq!(Units::Wn.to_nm(20_000.0), 500.0);
+        assert_eq!(Units::Wn.from_nm(500.0), 20_000.0);
+        assert_eq!(Units::Nm.from_nm(500.0), 500.0);
+    }
+}

@@ -1,0 +1,256 @@
+//! Instrument to host: the echo of each statement, and [`Reply`], the answer to a
+//! query.
+
+use super::{Command, ErrorCode, REPLY_TERMINATOR, StatusByte};
+
+/// The answer to a query, parsed knowing the query (the answers carry no keyword).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reply {
+    /// `WAVE?`: the wavelength in the present units (§15.4: `500.01`).
+    Wavelength(f64),
+    /// `GRAT?`: the grating number, then optionally its lines/mm and label, separated
+    /// by commas (`1,1200,UV`). **UNCONFIRMED** format: the command reference page
+    /// was not found; only the leading number is relied on.
+    Grating {
+        /// The grating's number.
+        number: u8,
+        /// Its lines per mm, when answered.
+        lines_per_mm: Option<u32>,
+        /// Its label, when answered.
+        label: Option<String>,
+    },
+    /// `FILTER?`: the filter wheel's position.
+    Filter(u8),
+    /// `SHUTTER?`: true when open (`O`), false when closed (`C`). **UNCONFIRMED**.
+    Shutter(bool),
+    /// `STB?`: the status byte (§15.9).
+    Status(StatusByte),
+    /// `ERROR?`: the latest error code (§15.9).
+    Error(ErrorCode),
+    /// `INFO?`: the instrument's description, as sent.
+    Info(String),
+}
+
+/// Why a line is not the answer to its query, or not the echo of its statement.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplyError {
+    /// The statement has no answer (a command, not a query).
+    #[error("a command has no answer")]
+    NotAQuery,
+    /// The line is not the number, position or letter the query answers.
+    #[error("not a valid answer")]
+    BadValue,
+    /// The line is not the statement that was sent (the echo, §15.4).
+    #[error("not the echo of the statement sent")]
+    BadEcho,
+}
+
+/// True when `line` (terminator removed) is the echo of `command`: the instrument
+/// "echoes back all characters it receives on the RS232 port" (§15.4), so the echo is
+/// the statement as sent; case and surrounding blanks are ignored so that a
+/// statement typed in lower case still matches.
+pub fn is_echo(command: &Command, line: &[u8]) -> bool {
+    let mut sent = Vec::new();
+    command.encode_body(&mut sent);
+    line.trim_ascii().eq_ignore_ascii_case(&sent)
+}
+
+impl Reply {
+    /// Parses `line` (terminator removed) as the answer to `query`. Surrounding
+    /// blanks are ignored.
+    pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
+        let text = std::str::from_utf8(line).map_err(|_| ReplyError::BadValue)?;
+        let text = text.trim_matches(|c: char| c.is_ascii_whitespace());
+        let bad = ReplyError::BadValue;
+        match query {
+            Command::Wave => text
+                .parse::<f64>()
+                .ok()
+                .filter(|v| {
+                    v.is_finite()
+                        && text
+                            .bytes()
+                            .all(|b| b.is_ascii_digit() || b"+-.eE".contains(&b))
+                })
+                .map(Reply::Wavelength)
+                .ok_or(bad),
+            Command::GratQuery => {
+                let mut fields = text.split(',').map(str::trim);
+                let number = int::<u8>(fields.next()).ok_or(bad.clone())?;
+                let lines_per_mm = match fields.next() {
+                    None => None,
+                    Some(f) => Some(int::<u32>(Some(f)).ok_or(bad.clone())?),
+                };
+                let label = fields.next().map(str::to_string);
+                if fields.next().is_some()
+                    || label
+                        .as_deref()
+                        .is_some_and(|l| !l.is_ascii() || l.contains(','))
+                {
+                    return Err(bad);
+                }
+                Ok(Reply::Grating {
+                    number,
+                    lines_per_mm,
+                    label,
+                })
+            }
+            Command::FilterQuery => int::<u8>(Some(text)).map(Reply::Filter).ok_or(bad),
+            Command::ShutterQuery => match text {
+                "O" | "o" => Ok(Reply::Shutter(true)),
+                "C" | "c" => Ok(Reply::Shutter(false)),
+                _ => Err(bad),
+            },
+            Command::Stb => {
+                if text.is_empty() || text.len() > 2 {
+                    return Err(bad);
+                }
+                u8::from_str_radix(text, 16)
+                    .map(|v| Reply::Status(StatusByte(v)))
+                    .map_err(|_| bad)
+            }
+            Command::Error => int::<u8>(Some(text))
+                .map(|v| Reply::Error(ErrorCode(v)))
+                .ok_or(bad),
+            Command::Info => {
+                if text.is_empty() || !text.bytes().all(|b| b.is_ascii_graphic() || b == b' ') {
+                    return Err(bad);
+                }
+                Ok(Reply::Info(text.to_string()))
+            }
+            _ => Err(ReplyError::NotAQuery),
+        }
+    }
+
+    /// Appends the answer without terminator, as the twin sends it.
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
+        let text = match self {
+            Reply::Wavelength(v) => format!("{v:.2}"),
+            Reply::Grating {
+                number,
+                lines_per_mm,
+                label,
+            } => {
+                let mut s = number.to_string();
+                if let Some(l) = lines_per_mm {
+                    s.push_str(&format!(",{l}"));
+                    if let Some(label) = label {
+                        s.push_str(&format!(",{label}"));
+                    }
+                }
+                s
+            }
+            Reply::Filter(n) => n.to_string(),
+            Reply::Shutter(open) => if *open { "O" } else { "C" }.into(),
+            Reply::Status(s) => s.to_string(),
+            Reply::Error(e) => e.0.to_string(),
+            Reply::Info(s) => s.clone(),
+        };
+        out.extend_from_slice(text.as_bytes());
+    }
+
+    /// The answer with its CR LF terminator (§15.3).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.encode_body(&mut out);
+        out.push(b'\r');
+        out.push(REPLY_TERMINATOR);
+        out
+    }
+}
+
+/// A plain decimal integer.
+fn int<T: std::str::FromStr>(field: Option<&str>) -> Option<T> {
+    let f = field?;
+    if f.is_empty() || !f.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    f.parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn answers_parse_by_query() {
+        assert_eq!(
+            Reply::parse(&Command::Wave, b"500.01"),
+            Ok(Reply::Wavelength(500.01))
+        );
+        assert_eq!(
+            Reply::parse(&Command::Stb, b"00"),
+            Ok(Reply::Status(StatusByte(0)))
+        );
+        let Ok(Reply::Status(s)) = Reply::parse(&Command::Stb, b"20") else {
+            panic!()
+        };
+        assert!(s.error());
+        // A decimal 32 still shows the error bit.
+        let Ok(Reply::Status(s)) = Reply::parse(&Command::Stb, b"32") else {
+            panic!()
+        };
+        assert!(s.error());
+        assert_eq!(
+            Reply::parse(&Command::Error, b"3"),
+            Ok(Reply::Error(ErrorCode::DESTINATION))
+        );
+        assert_eq!(
+            Reply::parse(&Command::ShutterQuery, b"C"),
+            Ok(Reply::Shutter(false))
+        );
+        assert_eq!(
+            Reply::parse(&Command::GratQuery, b"2,600,IR"),
+            Ok(Reply::Grating {
+                number: 2,
+                lines_per_mm: Some(600),
+                label: Some("IR".into())
+            })
+        );
+        assert_eq!(
+            Reply::parse(&Command::GratQuery, b"1"),
+            Ok(Reply::Grating {
+                number: 1,
+                lines_per_mm: None,
+                label: None
+            })
+        );
+        assert_eq!(
+            Reply::parse(&Command::Wave, b"abc"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::Wave, b"inf"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::GoWave(1.0), b"1"),
+            Err(ReplyError::NotAQuery)
+        );
+    }
+
+    #[test]
+    fn the_echo_is_the_statement_as_sent() {
+        assert!(is_echo(&Command::GoWave(500.0), b"GOWAVE 500"));
+        assert!(is_echo(&Command::GoWave(500.0), b"gowave 500 "));
+        assert!(!is_echo(&Command::GoWave(500.0), b"GOWAVE 501"));
+        assert!(!is_echo(&Command::Wave, b"500.01"));
+    }
+
+    #[test]
+    fn answers_encode_as_parsed() {
+        for (q, r) in [
+            (Command::Wave, Reply::Wavelength(500.25)),
+            (Command::FilterQuery, Reply::Filter(3)),
+            (Command::Stb, Reply::Status(StatusByte(0x20))),
+            (Command::Error, Reply::Error(ErrorCode(6))),
+            (Command::Info, Reply::Info("CORNERSTONE 130 TWIN".into())),
+        ] {
+            let bytes = r.to_bytes();
+            assert!(bytes.ends_with(b"\r\n"));
+            assert_eq!(Reply::parse(&q, &bytes[..bytes.len() - 2]), Ok(r));
+        }
+        assert_eq!(Reply::Status(StatusByte(0x20)).to_bytes(), b"20\r\n");
+        assert_eq!(Reply::Wavelength(500.0).to_bytes(), b"500.00\r\n");
+    }
+}

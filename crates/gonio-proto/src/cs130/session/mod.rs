@@ -1,0 +1,201 @@
+//! The monochromator's policy as a sans-IO state machine: [`Cs130Session`].
+//!
+//! The layers, from the wire up, as for the 6485:
+//! - `exchange`: one statement on the wire, with its echo and the link policy
+//!   (reopened port, re-sends of repeatable statements, the hold after `*WAI`);
+//! - `script`: operations written as steps, each asking for one exchange;
+//! - `ops`: the statement sequences of the operations, and what each answer means.
+
+mod exchange;
+mod ops;
+mod script;
+
+use std::time::Duration;
+
+use super::{Command, Cs130Config, Cs130Error, MonoState};
+use crate::link::Operation;
+use crate::machine::Run;
+use ops::Sequence;
+use script::Exec;
+
+/// What the session knows the instrument is set to; `None` until read or set.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Known {
+    pub(crate) wavelength_nm: Option<f64>,
+    pub(crate) grating: Option<u8>,
+    pub(crate) filter: Option<u8>,
+    pub(crate) shutter_open: Option<bool>,
+}
+
+impl Known {
+    fn state(&self) -> Option<MonoState> {
+        Some(MonoState {
+            wavelength_nm: self.wavelength_nm?,
+            grating: self.grating?,
+            filter: self.filter?,
+            shutter_open: self.shutter_open?,
+        })
+    }
+}
+
+/// The Cornerstone 130 as a state machine: its configuration, what it is set to as far
+/// as the session knows, whether a `*WAI` holds it, and every decision of its
+/// operations. It does no I/O and reads no clock.
+///
+/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// finishes; see [`Operation`] for the order in which a caller drives it:
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::link::{Io, Operation};
+/// use gonio_proto::cs130::{Cs130Config, Cs130Error, Cs130Session};
+///
+/// let mut session = Cs130Session::new(Cs130Config::default(), "sim").unwrap();
+/// // Outside every grating's range: refused before any byte.
+/// let mut op = session.start_go(2500.0, Duration::ZERO);
+/// assert_eq!(op.poll_io(), None);
+/// assert!(matches!(op.poll_output(), Some(Err(Cs130Error::Select(_)))));
+/// drop(op);
+/// let mut op = session.start_shutter(false, Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"SHUTTER C\r\n")));
+/// ```
+///
+/// `gonio_driver::cs130::Cs130` is the pump that runs these operations over a serial
+/// port.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cs130Session {
+    config: Cs130Config,
+    /// The port's name, for errors.
+    port: String,
+    known: Known,
+    /// A `*WAI` was echoed and no query has been answered since: the instrument holds
+    /// statements until its move is done (§15.8).
+    held: bool,
+    reconnects: usize,
+    retried: u64,
+    info: Option<String>,
+}
+
+impl Cs130Session {
+    /// A session for the monochromator on `port` (its name, for errors); nothing is
+    /// sent until an operation starts. Fails if `config` does not
+    /// [`validate`](Cs130Config::validate).
+    pub fn new(config: Cs130Config, port: impl Into<String>) -> Result<Self, Cs130Error> {
+        config.validate()?;
+        Ok(Cs130Session {
+            config,
+            port: port.into(),
+            known: Known::default(),
+            held: false,
+            reconnects: 0,
+            retried: 0,
+            info: None,
+        })
+    }
+
+    /// Takes the instrument over: input cleared; `INFO?` (any answer is accepted and
+    /// kept); `UNITS NM`; `GRAT?`, `FILTER?`, `SHUTTER?`, `WAVE?`; then `STB?`, which
+    /// must show no error (else `ERROR?`, and [`Cs130Error::Rejected`]).
+    pub fn start_init(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+        let op = Sequence::init();
+        Run::new("cs130.init", self, Exec::new(op), now)
+    }
+
+    /// Goes to `nm`. Before any byte: the grating whose range holds `nm`
+    /// ([`Cs130Config::grating_for`]) and, with `auto_order_filter`, the filter
+    /// ([`Cs130Config::order_filter_for`]); a wavelength either refuses ends the
+    /// operation with [`Cs130Error::Select`] and nothing sent. Then, in order:
+    /// `GRAT n` if the grating differs from the one in use (or is unknown),
+    /// `FILTER n` likewise, `GOWAVE nm`, `*WAI` (later statements wait for the move,
+    /// §15.8), `WAVE?` (answered once the move is done, within `move_timeout`), the
+    /// queries of any setting still unknown, and `STB?`: an error bit is reported
+    /// with `ERROR?`'s code. The read-back wavelength must lie within
+    /// `position_tolerance_nm` of `nm`; it is what the returned state carries.
+    pub fn start_go(
+        &mut self,
+        nm: f64,
+        now: Duration,
+    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+        let op = Sequence::go(self, nm);
+        Run::new("cs130.go", self, Exec::new(op), now)
+    }
+
+    /// Opens (`SHUTTER O`) or closes (`SHUTTER C`) the shutter, reads any unknown
+    /// setting, and checks `STB?`.
+    pub fn start_shutter(
+        &mut self,
+        open: bool,
+        now: Duration,
+    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+        let op = Sequence::shutter(self, open);
+        Run::new("cs130.shutter", self, Exec::new(op), now)
+    }
+
+    /// Reads every setting back: `GRAT?`, `FILTER?`, `SHUTTER?`, `WAVE?`.
+    pub fn start_read_state(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+        let op = Sequence::read_state();
+        Run::new("cs130.read_state", self, Exec::new(op), now)
+    }
+
+    /// Sends any statement and, for a query, reads its answer, with the link policy
+    /// of every exchange. The session's idea of the settings is forgotten when the
+    /// statement may change them, so the next operation reads them again.
+    pub fn start_execute<'s>(
+        &'s mut self,
+        command: &Command,
+        now: Duration,
+    ) -> impl Operation<Output = Result<Option<super::Reply>, Cs130Error>> + use<'s> {
+        let op = ops::Single::new(command.clone());
+        Run::new("cs130.execute", self, Exec::new(op), now)
+    }
+
+    /// What the session knows the instrument is set to, when it knows every setting.
+    pub fn state(&self) -> Option<MonoState> {
+        self.known.state()
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Cs130Config {
+        &self.config
+    }
+
+    /// What `INFO?` answered at init.
+    pub fn info(&self) -> Option<&str> {
+        self.info.as_deref()
+    }
+
+    /// How many times the port was reopened.
+    pub fn reconnects(&self) -> usize {
+        self.reconnects
+    }
+
+    /// Statements sent again after a lost, late or garbled echo or answer.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+}
+
+/// Faults a second attempt may not have: a lost, late, garbled or truncated line.
+fn is_transient(e: &Cs130Error) -> bool {
+    use crate::TransportError;
+    matches!(
+        e,
+        Cs130Error::Protocol { .. }
+            | Cs130Error::Transport {
+                source: TransportError::Timeout(_)
+                    | TransportError::LineTooLong
+                    | TransportError::Garbled(_)
+                    | TransportError::Nul,
+                ..
+            }
+    )
+}
+
+#[cfg(test)]
+mod tests;
