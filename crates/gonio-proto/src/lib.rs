@@ -1,7 +1,8 @@
 //! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
 //! controller ([`smc100`]), the Thorlabs APT controllers KDC101 and K10CR1 ([`apt`],
 //! binary messages), the Stanford Research SR830 lock-in amplifier ([`sr830`]) and
-//! the Keithley 6485 picoammeter ([`k6485`], a DC detector), byte-exactly as their
+//! the Keithley 6485 picoammeter ([`k6485`], a DC detector), the Thorlabs FW102C
+//! filter wheel ([`fw102c`], filter-based spectral bands), byte-exactly as their
 //! manuals define them, and the policy that drives them, as state machines.
 //!
 //! Deterministic: no I/O, no clocks, no threads. Two layers:
@@ -43,6 +44,7 @@
 
 pub mod apt;
 mod framing;
+pub mod fw102c;
 pub mod k6485;
 pub mod link;
 mod machine;
