@@ -1,8 +1,9 @@
 //! The instruments of a Gonio goniometer, sans-IO: the Newport SMC100 motion
 //! controller ([`smc100`]), the Thorlabs APT controllers KDC101 and K10CR1 ([`apt`],
 //! binary messages), the Stanford Research SR830 lock-in amplifier ([`sr830`]),
-//! the Keithley 6485 picoammeter ([`k6485`], a DC detector) and the Newport
-//! Cornerstone 130 monochromator ([`cs130`], with its echo), byte-exactly as their
+//! the Keithley 6485 picoammeter ([`k6485`], a DC detector), the Newport
+//! Cornerstone 130 monochromator ([`cs130`], with its echo) and the Thorlabs FW102C
+//! filter wheel ([`fw102c`], filter-based spectral bands), byte-exactly as their
 //! manuals define them, and the policy that drives them, as state machines.
 //!
 //! Deterministic: no I/O, no clocks, no threads. Two layers:
@@ -45,6 +46,7 @@
 pub mod apt;
 pub mod cs130;
 mod framing;
+pub mod fw102c;
 pub mod k6485;
 pub mod link;
 mod machine;

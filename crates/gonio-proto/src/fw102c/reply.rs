@@ -1,0 +1,309 @@
+//! Wheel-to-host lines: the prompt, the echo, error lines and values. Formats are
+//! UNCONFIRMED against the manual (see the module docs).
+
+use std::fmt;
+
+use super::{Command, CommandError, SensorMode, Speed, TERMINATOR, TriggerMode};
+
+/// `line` without a leading prompt (`>` and the spaces after it, as many as there
+/// are) and without trailing spaces, tabs or LF.
+///
+/// The prompt ends every answer unterminated, so on a CR-framed link it begins the
+/// next line (`"> pos?"`); a lost command can leave two. A trailing LF is tolerated
+/// for a wheel or adapter that sends CR LF.
+pub fn strip_prompt(line: &[u8]) -> &[u8] {
+    let mut rest = line;
+    while let Some((&first, tail)) = rest.split_first() {
+        if first == b'>' || first == b' ' {
+            rest = tail;
+        } else {
+            break;
+        }
+    }
+    while let Some((&last, head)) = rest.split_last() {
+        if matches!(last, b' ' | b'\t' | b'\n') {
+            rest = head;
+        } else {
+            break;
+        }
+    }
+    rest
+}
+
+/// The code after `Command error `.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ErrorCode {
+    /// `CMD_NOT_DEFINED`: unknown command.
+    NotDefined,
+    /// `CMD_ARG_INVALID`: bad argument (a position beyond `pcount`, speed 2).
+    ArgInvalid,
+    /// Any other code, kept as sent.
+    Other(String),
+}
+
+impl From<CommandError> for ErrorCode {
+    fn from(e: CommandError) -> Self {
+        match e {
+            CommandError::NotDefined => ErrorCode::NotDefined,
+            CommandError::ArgInvalid => ErrorCode::ArgInvalid,
+        }
+    }
+}
+
+impl fmt::Display for ErrorCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ErrorCode::NotDefined => f.write_str("CMD_NOT_DEFINED"),
+            ErrorCode::ArgInvalid => f.write_str("CMD_ARG_INVALID"),
+            ErrorCode::Other(s) => f.write_str(s),
+        }
+    }
+}
+
+/// A refusal line: `Command error <code>`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceError {
+    /// What the wheel reported.
+    pub code: ErrorCode,
+}
+
+impl DeviceError {
+    const PREFIX: &'static [u8] = b"Command error ";
+
+    /// The refusal in `line` (prompt already stripped), if it is one.
+    pub fn parse(line: &[u8]) -> Option<DeviceError> {
+        let rest = line.strip_prefix(Self::PREFIX)?;
+        let code = match rest {
+            b"CMD_NOT_DEFINED" => ErrorCode::NotDefined,
+            b"CMD_ARG_INVALID" => ErrorCode::ArgInvalid,
+            other => ErrorCode::Other(String::from_utf8_lossy(other).into_owned()),
+        };
+        Some(DeviceError { code })
+    }
+
+    /// The line as the wheel sends it, CR included.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(Self::PREFIX);
+        out.extend_from_slice(self.code.to_string().as_bytes());
+        out.push(TERMINATOR);
+    }
+}
+
+impl fmt::Display for DeviceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Command error {}", self.code)
+    }
+}
+
+/// One received line, classified.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Line<'a> {
+    /// Nothing but the prompt or spaces.
+    Blank,
+    /// A refusal.
+    Error(DeviceError),
+    /// Anything else (an echo or a value), prompt stripped.
+    Text(&'a [u8]),
+}
+
+impl<'a> Line<'a> {
+    /// Classifies a line, terminator removed.
+    pub fn classify(line: &'a [u8]) -> Line<'a> {
+        let text = strip_prompt(line);
+        if text.is_empty() {
+            return Line::Blank;
+        }
+        match DeviceError::parse(text) {
+            Some(e) => Line::Error(e),
+            None => Line::Text(text),
+        }
+    }
+}
+
+/// Whether `text` (prompt stripped) is the echo of `command`. Case is ignored: the
+/// wheel echoes what it received, and the host sends lower case.
+pub(crate) fn is_echo(command: &Command, text: &[u8]) -> bool {
+    let mut body = Vec::new();
+    command.encode_body(&mut body);
+    text.eq_ignore_ascii_case(&body)
+}
+
+/// A query's value.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Reply {
+    /// `*idn?`: e.g. `THORLABS FW102C/FW212C Filter Wheel version 1.04` (the form
+    /// Odemis quotes; UNCONFIRMED).
+    Identity(String),
+    /// `pos?`.
+    Position(u8),
+    /// `pcount?`.
+    PositionCount(u8),
+    /// `speed?`.
+    Speed(Speed),
+    /// `trig?`.
+    Trigger(TriggerMode),
+    /// `sensors?`.
+    Sensors(SensorMode),
+}
+
+/// Why a value line does not answer its query.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ReplyError {
+    /// The command is not a query: it has no value line.
+    #[error("not a query")]
+    NotAQuery,
+    /// The line is not a value of the query's kind.
+    #[error("not a value of the query's kind")]
+    BadValue,
+}
+
+impl Reply {
+    /// Parses the value line answering `query` (prompt stripped, terminator removed).
+    /// Numbers are decimal digits; surrounding spaces are ignored.
+    pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
+        let text = strip_prompt(line);
+        let digit = || -> Result<u8, ReplyError> {
+            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?.trim();
+            if t.is_empty() || t.len() > 3 || !t.bytes().all(|b| b.is_ascii_digit()) {
+                return Err(ReplyError::BadValue);
+            }
+            t.parse().map_err(|_| ReplyError::BadValue)
+        };
+        match query {
+            Command::Identify => {
+                let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
+                if t.is_empty() || t.chars().any(char::is_control) {
+                    return Err(ReplyError::BadValue);
+                }
+                Ok(Reply::Identity(t.to_string()))
+            }
+            Command::QueryPosition => match digit()? {
+                0 => Err(ReplyError::BadValue),
+                n => Ok(Reply::Position(n)),
+            },
+            Command::QueryPositionCount => match digit()? {
+                0 => Err(ReplyError::BadValue),
+                n => Ok(Reply::PositionCount(n)),
+            },
+            Command::QuerySpeed => Speed::from_digit(digit()?)
+                .map(Reply::Speed)
+                .ok_or(ReplyError::BadValue),
+            Command::QueryTrigger => TriggerMode::from_digit(digit()?)
+                .map(Reply::Trigger)
+                .ok_or(ReplyError::BadValue),
+            Command::QuerySensors => SensorMode::from_digit(digit()?)
+                .map(Reply::Sensors)
+                .ok_or(ReplyError::BadValue),
+            _ => Err(ReplyError::NotAQuery),
+        }
+    }
+
+    /// The value line as the wheel sends it, CR included.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        let text = match self {
+            Reply::Identity(s) => s.clone(),
+            Reply::Position(n) | Reply::PositionCount(n) => n.to_string(),
+            Reply::Speed(s) => s.digit().to_string(),
+            Reply::Trigger(t) => match t {
+                TriggerMode::Input => "0".into(),
+                TriggerMode::Output => "1".into(),
+            },
+            Reply::Sensors(s) => match s {
+                SensorMode::OffWhenIdle => "0".into(),
+                SensorMode::AlwaysOn => "1".into(),
+            },
+        };
+        out.extend_from_slice(text.as_bytes());
+        out.push(TERMINATOR);
+    }
+
+    /// The value line, CR included.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.encode(&mut out);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_prompt_is_stripped_from_the_next_line() {
+        assert_eq!(strip_prompt(b"> pos?"), b"pos?");
+        assert_eq!(strip_prompt(b">> > 3\n"), b"3");
+        assert_eq!(strip_prompt(b">"), b"");
+        assert_eq!(Line::classify(b"> "), Line::Blank);
+        assert_eq!(Line::classify(b"> pos=2"), Line::Text(b"pos=2"));
+        assert_eq!(
+            Line::classify(b"Command error CMD_ARG_INVALID"),
+            Line::Error(DeviceError {
+                code: ErrorCode::ArgInvalid
+            })
+        );
+        assert_eq!(
+            Line::classify(b"> Command error CMD_NOT_DEFINED"),
+            Line::Error(DeviceError {
+                code: ErrorCode::NotDefined
+            })
+        );
+        assert_eq!(
+            Line::classify(b"Command error CMD_BUSY"),
+            Line::Error(DeviceError {
+                code: ErrorCode::Other("CMD_BUSY".into())
+            })
+        );
+    }
+
+    #[test]
+    fn error_lines_encode_as_parsed() {
+        for code in [ErrorCode::NotDefined, ErrorCode::ArgInvalid] {
+            let mut out = Vec::new();
+            DeviceError { code: code.clone() }.encode(&mut out);
+            let line = out.strip_suffix(b"\r").unwrap();
+            assert_eq!(DeviceError::parse(line), Some(DeviceError { code }));
+        }
+        let mut out = Vec::new();
+        DeviceError {
+            code: ErrorCode::ArgInvalid,
+        }
+        .encode(&mut out);
+        assert_eq!(out, b"Command error CMD_ARG_INVALID\r");
+    }
+
+    #[test]
+    fn values_parse_by_query() {
+        let idn = b"THORLABS FW102C/FW212C Filter Wheel version 1.04";
+        assert_eq!(
+            Reply::parse(&Command::Identify, idn),
+            Ok(Reply::Identity(String::from_utf8_lossy(idn).into()))
+        );
+        assert_eq!(Reply::parse(&Command::QueryPosition, b"12"), Ok(Reply::Position(12)));
+        assert_eq!(Reply::parse(&Command::QueryPosition, b"0"), Err(ReplyError::BadValue));
+        assert_eq!(Reply::parse(&Command::QueryPosition, b"2.0"), Err(ReplyError::BadValue));
+        assert_eq!(
+            Reply::parse(&Command::QueryPositionCount, b"6"),
+            Ok(Reply::PositionCount(6))
+        );
+        assert_eq!(Reply::parse(&Command::QuerySpeed, b"0"), Ok(Reply::Speed(Speed::Low)));
+        assert_eq!(Reply::parse(&Command::QuerySpeed, b"2"), Err(ReplyError::BadValue));
+        assert_eq!(
+            Reply::parse(&Command::QuerySensors, b"0"),
+            Ok(Reply::Sensors(SensorMode::OffWhenIdle))
+        );
+        assert_eq!(
+            Reply::parse(&Command::SetPosition(2), b"2"),
+            Err(ReplyError::NotAQuery)
+        );
+        assert_eq!(Reply::Position(7).to_bytes(), b"7\r");
+    }
+
+    #[test]
+    fn echoes_match_their_command_only() {
+        assert!(is_echo(&Command::SetPosition(3), b"pos=3"));
+        assert!(is_echo(&Command::Identify, b"*IDN?"));
+        assert!(!is_echo(&Command::SetPosition(3), b"pos=4"));
+        assert!(!is_echo(&Command::QueryPosition, b"3"));
+    }
+}

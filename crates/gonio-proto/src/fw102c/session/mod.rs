@@ -1,0 +1,346 @@
+//! The wheel's policy as a sans-IO state machine: [`Fw102cSession`].
+//!
+//! Layers, as for the 6485: `exchange` (one command, its echo and value, with the
+//! link policy), `script` (operations as steps of exchanges and pauses), `ops` (set-up,
+//! a move, a position read).
+
+mod exchange;
+mod ops;
+mod script;
+
+use super::{Fw102cConfig, Fw102cError};
+use crate::link::Operation;
+use crate::machine::Run;
+use script::Exec;
+use std::time::Duration;
+
+/// The FW102C as a state machine: its configuration, the position it last read, and
+/// every decision of its operations. It does no I/O and reads no clock.
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::fw102c::{Fw102cConfig, Fw102cSession, Fw102cError};
+/// use gonio_proto::link::{Io, Operation};
+///
+/// let mut session = Fw102cSession::new(Fw102cConfig::default(), "sim").unwrap();
+/// // Position 7 on a 6-position wheel: refused before any byte.
+/// let mut op = session.start_select(7, Duration::ZERO);
+/// assert_eq!(op.poll_io(), None);
+/// assert!(matches!(op.poll_output(), Some(Err(Fw102cError::PositionOutOfRange { .. }))));
+/// drop(op);
+/// let mut op = session.start_select(2, Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"pos=2\r")));
+/// ```
+///
+/// `gonio_driver::fw102c::Fw102c` is the pump that runs these operations over a port.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fw102cSession {
+    config: Fw102cConfig,
+    /// The port's name, for errors.
+    port: String,
+    /// The position last read, `None` while unknown (during a move, after a fault).
+    position: Option<u8>,
+    identity: Option<String>,
+    reconnects: usize,
+    retried: u64,
+}
+
+impl Fw102cSession {
+    /// A session for the wheel on `port` (its name, for errors); nothing is sent until
+    /// an operation starts. Fails if `config` does not validate.
+    pub fn new(config: Fw102cConfig, port: impl Into<String>) -> Result<Self, Fw102cError> {
+        config.validate()?;
+        Ok(Fw102cSession {
+            config,
+            port: port.into(),
+            position: None,
+            identity: None,
+            reconnects: 0,
+            retried: 0,
+        })
+    }
+
+    /// Takes the wheel over: `*idn?` (must name a FW102C or FW212C), `pcount?` (must
+    /// equal `positions`), `speed=` and `speed?`, with `sensors_off_when_idle`
+    /// `sensors=0` and `sensors?`, then `pos?`. Each set is read back, because a set
+    /// command's success has no line of its own (see [`crate::fw102c`]). Returns the
+    /// identification string.
+    pub fn start_init(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<String, Fw102cError>> + '_ {
+        Run::new("fw102c.init", self, Exec::new(ops::Init::default()), now)
+    }
+
+    /// Turns the wheel to `position`: refused before any byte outside
+    /// 1..=`positions`; then `pos=n` and `pos?` every `poll_interval_ms` until it reads
+    /// n, for at most `move_timeout_ms` ([`Fw102cError::MoveTimeout`]).
+    pub fn start_select(
+        &mut self,
+        position: u8,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Fw102cError>> + '_ {
+        Run::new("fw102c.select", self, Exec::new(ops::Select::new(position)), now)
+    }
+
+    /// `pos?`.
+    pub fn start_read_position(
+        &mut self,
+        now: Duration,
+    ) -> impl Operation<Output = Result<u8, Fw102cError>> + '_ {
+        Run::new("fw102c.position", self, Exec::new(ops::ReadPosition), now)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Fw102cConfig {
+        &self.config
+    }
+
+    /// The position last read, `None` while unknown.
+    pub fn position(&self) -> Option<u8> {
+        self.position
+    }
+
+    /// The identification string set-up read, once it has run.
+    pub fn identity(&self) -> Option<&str> {
+        self.identity.as_deref()
+    }
+
+    /// How many times the port was reopened.
+    pub fn reconnects(&self) -> usize {
+        self.reconnects
+    }
+
+    /// Commands sent again after a lost, late or garbled answer.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::TransportError;
+    use crate::fw102c::{ErrorCode, Speed};
+    use crate::link::{Deadline, Io};
+
+    fn ms(v: u64) -> Duration {
+        Duration::from_millis(v)
+    }
+
+    fn config() -> Fw102cConfig {
+        Fw102cConfig {
+            timeout_ms: 500,
+            move_timeout_ms: 5000,
+            poll_interval_ms: 200,
+            retries: 1,
+            reconnect_attempts: 1,
+            reconnect_delay_ms: 300,
+            ..Fw102cConfig::default()
+        }
+    }
+
+    /// Expects `tx` to be sent at `now`.
+    fn sent<O: Operation>(op: &mut O, now: Duration, tx: &[u8]) {
+        assert_eq!(op.poll_io(), Some(Io::Transmit(tx)), "expected {tx:?}");
+        op.handle_sent(now, Ok(()));
+    }
+
+    /// Hands in `lines` at `now`.
+    fn lines<O: Operation>(op: &mut O, now: Duration, lines: &[&[u8]]) {
+        for l in lines {
+            assert!(matches!(op.poll_timeout(), Some(Deadline::Reply(_))), "at {l:?}");
+            op.handle_line(now, l);
+        }
+    }
+
+    #[test]
+    fn init_transcript_byte_for_byte() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_init(ms(0));
+        sent(&mut op, ms(0), b"*idn?\r");
+        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        sent(&mut op, ms(1), b"pcount?\r");
+        lines(&mut op, ms(2), &[b"> pcount?", b"6"]);
+        sent(&mut op, ms(2), b"speed=1\r");
+        lines(&mut op, ms(3), &[b"> speed=1"]);
+        sent(&mut op, ms(3), b"speed?\r");
+        lines(&mut op, ms(4), &[b"> speed?", b"1"]);
+        sent(&mut op, ms(4), b"sensors=0\r");
+        lines(&mut op, ms(5), &[b"> sensors=0"]);
+        sent(&mut op, ms(5), b"sensors?\r");
+        lines(&mut op, ms(6), &[b"> sensors?", b"0"]);
+        sent(&mut op, ms(6), b"pos?\r");
+        lines(&mut op, ms(7), &[b"> pos?", b"4"]);
+        assert_eq!(
+            op.poll_output(),
+            Some(Ok("THORLABS FW102C/FW212C Filter Wheel version 1.04".to_string()))
+        );
+        drop(op);
+        assert_eq!(s.position(), Some(4));
+    }
+
+    #[test]
+    fn init_refuses_another_instrument_and_a_wrong_count() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_init(ms(0));
+        sent(&mut op, ms(0), b"*idn?\r");
+        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS LCC25"]);
+        assert!(matches!(
+            op.poll_output(),
+            Some(Err(Fw102cError::NotAFilterWheel { .. }))
+        ));
+        drop(op);
+        let mut op = s.start_init(ms(0));
+        sent(&mut op, ms(0), b"*idn?\r");
+        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        sent(&mut op, ms(1), b"pcount?\r");
+        lines(&mut op, ms(2), &[b"> pcount?", b"12"]);
+        assert_eq!(
+            op.poll_output(),
+            Some(Err(Fw102cError::PositionCountMismatch {
+                config: 6,
+                device: 12
+            }))
+        );
+    }
+
+    #[test]
+    fn a_refused_set_is_reported_from_the_line_before_the_read_back() {
+        let c = Fw102cConfig {
+            speed: Speed::Low,
+            ..config()
+        };
+        let mut s = Fw102cSession::new(c, "p").unwrap();
+        let mut op = s.start_init(ms(0));
+        sent(&mut op, ms(0), b"*idn?\r");
+        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        sent(&mut op, ms(1), b"pcount?\r");
+        lines(&mut op, ms(2), &[b"> pcount?", b"6"]);
+        sent(&mut op, ms(2), b"speed=0\r");
+        lines(&mut op, ms(3), &[b"> speed=0"]);
+        sent(&mut op, ms(3), b"speed?\r");
+        lines(&mut op, ms(4), &[b"Command error CMD_ARG_INVALID"]);
+        assert_eq!(op.poll_io(), Some(Io::ClearInput));
+        assert_eq!(
+            op.poll_output(),
+            Some(Err(Fw102cError::Refused {
+                command: "speed=0".into(),
+                code: ErrorCode::ArgInvalid
+            }))
+        );
+    }
+
+    #[test]
+    fn select_polls_until_the_wheel_reads_the_target() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_select(4, ms(0));
+        sent(&mut op, ms(0), b"pos=4\r");
+        lines(&mut op, ms(1), &[b"> pos=4"]);
+        sent(&mut op, ms(1), b"pos?\r");
+        // The first poll's echo may wait for the move: due at the move deadline.
+        assert_eq!(op.poll_timeout(), Some(Deadline::Reply(ms(5000))));
+        lines(&mut op, ms(2), &[b"pos?", b"3"]);
+        assert_eq!(op.poll_timeout(), Some(Deadline::Sleep(ms(202))));
+        op.handle_timeout(ms(202));
+        sent(&mut op, ms(202), b"pos?\r");
+        lines(&mut op, ms(900), &[b"> pos?", b"4"]);
+        assert_eq!(op.poll_output(), Some(Ok(())));
+        drop(op);
+        assert_eq!(s.position(), Some(4));
+    }
+
+    #[test]
+    fn select_times_out_with_the_last_position() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_select(2, ms(0));
+        sent(&mut op, ms(0), b"pos=2\r");
+        lines(&mut op, ms(1), &[b"pos=2"]);
+        let mut now = ms(1);
+        loop {
+            sent(&mut op, now, b"pos?\r");
+            lines(&mut op, now, &[b"pos?", b"1"]);
+            if let Some(out) = op.poll_output() {
+                assert_eq!(
+                    out,
+                    Err(Fw102cError::MoveTimeout {
+                        position: 2,
+                        last: Some(1),
+                        waited: ms(5000)
+                    })
+                );
+                break;
+            }
+            let Some(Deadline::Sleep(t)) = op.poll_timeout() else {
+                panic!("expected a pause")
+            };
+            assert!(t <= ms(5000));
+            now = t;
+            op.handle_timeout(now);
+        }
+    }
+
+    #[test]
+    fn a_refused_move_and_a_lost_echo() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_select(5, ms(0));
+        sent(&mut op, ms(0), b"pos=5\r");
+        lines(&mut op, ms(1), &[b"pos=5"]);
+        sent(&mut op, ms(1), b"pos?\r");
+        lines(&mut op, ms(2), &[b"Command error CMD_ARG_INVALID"]);
+        assert_eq!(op.poll_io(), Some(Io::ClearInput));
+        assert_eq!(
+            op.poll_output(),
+            Some(Err(Fw102cError::Refused {
+                command: "pos=5".into(),
+                code: ErrorCode::ArgInvalid
+            }))
+        );
+        drop(op);
+        // A lost echo: the reply timeout passes, the input is cleared, sent again.
+        let mut op = s.start_read_position(ms(0));
+        sent(&mut op, ms(0), b"pos?\r");
+        assert_eq!(op.poll_timeout(), Some(Deadline::Reply(ms(500))));
+        op.handle_timeout(ms(500));
+        assert_eq!(op.poll_io(), Some(Io::ClearInput));
+        sent(&mut op, ms(500), b"pos?\r");
+        lines(&mut op, ms(501), &[b"pos?", b"garbage"]);
+        // The retry is spent: the garbled value is the error.
+        assert_eq!(op.poll_io(), Some(Io::ClearInput));
+        assert!(matches!(
+            op.poll_output(),
+            Some(Err(Fw102cError::Protocol { .. }))
+        ));
+        drop(op);
+        assert_eq!(s.retried(), 1);
+    }
+
+    #[test]
+    fn a_vanished_port_is_reopened_and_the_command_sent_again() {
+        let mut s = Fw102cSession::new(config(), "p").unwrap();
+        let mut op = s.start_read_position(ms(0));
+        assert_eq!(op.poll_io(), Some(Io::Transmit(b"pos?\r")));
+        let gone = TransportError::Disconnected {
+            port: "p".into(),
+            reason: "unplugged".into(),
+        };
+        op.handle_sent(ms(0), Err(gone.clone()));
+        assert_eq!(op.poll_timeout(), Some(Deadline::Sleep(ms(300))));
+        op.handle_timeout(ms(300));
+        assert_eq!(op.poll_io(), Some(Io::Reconnect));
+        op.handle_reconnected(ms(310), Ok(()));
+        sent(&mut op, ms(310), b"pos?\r");
+        op.handle_link_error(ms(311), gone.clone());
+        // One reopening allowed: the second loss is final.
+        assert_eq!(
+            op.poll_output(),
+            Some(Err(Fw102cError::Disconnected {
+                port: "p".into(),
+                attempts: 1,
+                source: gone
+            }))
+        );
+        drop(op);
+        assert_eq!(s.reconnects(), 1);
+    }
+}
