@@ -10,6 +10,7 @@
 //!   needs: solid angle of an aperture, projected solid angle, BRDF from a flux ratio.
 //! - [`Channels`] names the spectral channels of every BRDF value; [`Spectrum`] is a
 //!   value per channel that knows its channels.
+//! - [`colour`] turns spectra into CIE XYZ, chromaticity and sRGB (CIE 015:2018).
 //! - [`quad`] is adaptive Gauss–Kronrod quadrature in one and two dimensions.
 //! - [`special`] has the error function the microfacet models need.
 //! - [`dirfile`] reads and writes the directions CSV of `docs/CONVENTIONS.md`.
@@ -36,6 +37,7 @@
 //! randomness: [`rng`] is a deterministic function of its seed.
 
 mod channels;
+pub mod colour;
 pub mod dirfile;
 mod frame;
 pub mod fuzz;
