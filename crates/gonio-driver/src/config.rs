@@ -11,6 +11,7 @@ pub use gonio_core::goniometer::{GeometryConfig, KinematicsConfig};
 use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
 
 use crate::smc100::{AxisConfig, ChainPolicy};
+use crate::spectral::{FilterWheelConfig, MonochromatorConfig};
 use crate::sr830::Sr830Config;
 use crate::transport::{FlowControl, Framing, SerialSettings};
 use gonio_proto::apt::{AptAxisConfig, StageKind};
@@ -33,6 +34,12 @@ pub struct InstrumentConfig {
     /// The optical geometry (needed to plan and to reduce readings).
     #[serde(default)]
     pub geometry: GeometryConfig,
+    /// A monochromator that selects the wavelength channels (`[monochromator]`).
+    #[serde(default)]
+    pub monochromator: Option<MonochromatorConfig>,
+    /// A wheel of band-pass filters that selects them instead (`[filter_wheel]`).
+    #[serde(default)]
+    pub filter_wheel: Option<FilterWheelConfig>,
 }
 
 /// The motion axes, their controllers and the timing and retry policy they share.
@@ -504,6 +511,53 @@ impl InstrumentConfig {
         gonio_core::tomlfile::load(KIND, path, Self::validate)
     }
 
+    /// The `[monochromator]` and `[filter_wheel]` sections.
+    fn validate_spectral(&self) -> Result<(), (String, String)> {
+        use gonio_core::limits::count_at;
+        if self.monochromator.is_some() && self.filter_wheel.is_some() {
+            return Err((
+                "filter_wheel".into(),
+                "one device selects the wavelength: give [monochromator] or [filter_wheel], not both"
+                    .into(),
+            ));
+        }
+        if let Some(m) = &self.monochromator {
+            if m.port.trim().is_empty() {
+                return Err(("monochromator.port".into(), "must name a port".into()));
+            }
+            count_at(
+                "monochromator.baud",
+                m.baud.into(),
+                limits::MIN_BAUD,
+                limits::MAX_BAUD,
+                "baud",
+            )?;
+            m.cs130
+                .validate()
+                .map_err(|e| (format!("monochromator.cs130.{}", e.field), e.reason))?;
+            m.timing.validate("monochromator.timing")?;
+        }
+        if let Some(w) = &self.filter_wheel {
+            if w.port.trim().is_empty() {
+                return Err(("filter_wheel.port".into(), "must name a port".into()));
+            }
+            count_at(
+                "filter_wheel.baud",
+                w.baud.into(),
+                limits::MIN_BAUD,
+                limits::MAX_BAUD,
+                "baud",
+            )?;
+            w.fw102c
+                .validate()
+                .map_err(|e| (format!("filter_wheel.fw102c.{}", e.field), e.reason))?;
+            crate::spectral::CHANGE_TIME
+                .check(w.change_s)
+                .map_err(|m| ("filter_wheel.change_s".to_string(), m))?;
+        }
+        Ok(())
+    }
+
     /// Checks every value a driver will rely on against its range ([`limits`]); the
     /// first bad one is named by its path.
     pub fn validate(&self) -> Result<(), (String, String)> {
@@ -669,6 +723,7 @@ impl InstrumentConfig {
             }
         }
         self.geometry.validate("geometry")?;
+        self.validate_spectral()?;
         let d = &self.detector;
         if d.port.trim().is_empty() {
             return err("detector.port".into(), "must name a port");

@@ -7,7 +7,11 @@ use crate::detector::{DetectorDevice, DetectorError, Reading};
 use crate::k6485::K6485;
 use crate::motion::{AxisInfo, Motion, MotionDevice};
 use crate::smc100::{MotionError, Smc100Chain};
-use crate::spectral::{BandSelector, SpectralError};
+use crate::cs130::Cs130;
+use crate::fw102c::Fw102c;
+use crate::spectral::{
+    BandSelector, FilterWheelConfig, MonochromatorConfig, SpectralError, WheelBands,
+};
 use crate::sr830::Sr830;
 use crate::transport::{SerialSettings, SerialTransport, Transport, TransportError};
 
@@ -55,6 +59,10 @@ pub enum PortUse<'a> {
     Motion(&'a MotionLine),
     /// The detector.
     Detector(&'a DetectorConfig),
+    /// The monochromator.
+    Monochromator(&'a MonochromatorConfig),
+    /// The filter wheel.
+    FilterWheel(&'a FilterWheelConfig),
 }
 
 /// The stages and the detector of one instrument, each line its own transport.
@@ -106,10 +114,11 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
                 }
             })?;
         let detector = Self::detector(cfg, d, clock.clone())?;
+        let spectral = Self::spectral(cfg, &mut open, clock.clone())?;
         Ok(Goniometer {
             motion: Motion::new(lines, clock)?,
             detector,
-            spectral: None,
+            spectral,
         })
     }
 
@@ -159,6 +168,36 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
                 *serial,
             )?),
         })
+    }
+
+    /// The band selector the config names, on its own line.
+    fn spectral(
+        cfg: &InstrumentConfig,
+        open: &mut impl FnMut(PortUse<'_>, SerialSettings) -> Result<Box<dyn Transport>, TransportError>,
+        clock: C,
+    ) -> Result<Option<Box<dyn BandSelector>>, GoniometerError> {
+        let opened = |source| GoniometerError::Open {
+            role: "wavelength",
+            source,
+        };
+        let failed = |device: &'static str| {
+            move |e: &dyn std::fmt::Display| SpectralError::Device {
+                device,
+                message: e.to_string(),
+            }
+        };
+        if let Some(m) = &cfg.monochromator {
+            let t = open(PortUse::Monochromator(m), m.serial()).map_err(opened)?;
+            let mono = Cs130::new(t, clock, m.cs130.clone()).map_err(|e| failed("cs130")(&e))?;
+            return Ok(Some(Box::new(mono)));
+        }
+        if let Some(w) = &cfg.filter_wheel {
+            let t = open(PortUse::FilterWheel(w), w.serial()).map_err(opened)?;
+            let wheel =
+                Fw102c::new(t, clock, w.fw102c.clone()).map_err(|e| failed("fw102c")(&e))?;
+            return Ok(Some(Box::new(WheelBands::new(wheel))));
+        }
+        Ok(None)
     }
 
     fn detector(
