@@ -274,6 +274,10 @@ pub mod limits {
     pub const DRIFT_AMPLITUDE: Range = Range::closed(0.0, 1.0, "");
     /// Chopper-frequency pickup, V.
     pub const PICKUP: Range = Range::closed(0.0, 100.0, "V");
+    /// A lamp's colour temperature, K: from a candle's to above the sun's.
+    pub const LAMP_TEMPERATURE: Range = Range::closed(1000.0, 10000.0, "K");
+    /// The lamp's and optics' short-wavelength cut-on, nm.
+    pub const LAMP_CUT_ON: Range = Range::closed(0.0, 5000.0, "nm");
     /// Times on the simulated clock (drift period, fault times and windows), s: up to
     /// about 30 years.
     pub const TIME: Range = Range::closed(0.0, 1e9, "s");
@@ -495,6 +499,11 @@ impl SimConfig {
         limits::DRIFT_AMPLITUDE.at("optics.drift_amplitude", o.drift_amplitude)?;
         limits::TIME.at("optics.drift_period_s", o.drift_period_s)?;
         limits::PICKUP.at("optics.pickup_v", o.pickup_v)?;
+        limits::LAMP_TEMPERATURE.at(
+            "optics.lamp_colour_temperature_k",
+            o.lamp_colour_temperature_k,
+        )?;
+        limits::LAMP_CUT_ON.at("optics.lamp_cut_on_nm", o.lamp_cut_on_nm)?;
         self.lockin
             .validate()
             .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;

@@ -45,6 +45,13 @@ pub struct OpticsConfig {
     /// Electrical pickup at the chopper frequency, V: present with the source dark,
     /// what a dark reading measures and the reduction subtracts.
     pub pickup_v: f64,
+    /// The colour temperature of the tungsten-halogen lamp behind a monochromator or
+    /// filter wheel, K: the shape of the source's spectrum (`crate::spectral`).
+    pub lamp_colour_temperature_k: f64,
+    /// Where the lamp's envelope and the optics before the grating start to pass
+    /// light, nm (the 50 % point of a 20 nm-wide edge): no light below it reaches the
+    /// grating, so no second order is seen below twice it.
+    pub lamp_cut_on_nm: f64,
 }
 
 impl Default for OpticsConfig {
@@ -63,6 +70,8 @@ impl Default for OpticsConfig {
             drift_amplitude: 0.0,
             drift_period_s: 600.0,
             pickup_v: 0.0,
+            lamp_colour_temperature_k: 3100.0,
+            lamp_cut_on_nm: 300.0,
         }
     }
 }
