@@ -29,18 +29,18 @@ fn secs(c: &ManualClock) -> f64 {
 impl Line {
     fn deliver(&mut self, at: f64) {
         let mut out = Vec::new();
-        self.twin.lock().unwrap().poll(at, &mut out);
+        self.twin.lock().expect("lock").poll(at, &mut out);
         self.framer.push(&out);
     }
 }
 
 impl Transport for Line {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
-        self.sent.lock().unwrap().push(bytes.to_vec());
+        self.sent.lock().expect("lock").push(bytes.to_vec());
         let mut out = Vec::new();
         self.twin
             .lock()
-            .unwrap()
+            .expect("lock")
             .receive(secs(&self.clock), bytes, &mut out);
         self.framer.push(&out);
         Ok(())
@@ -52,7 +52,7 @@ impl Transport for Line {
             if let Some(line) = self.framer.next_line() {
                 return line.map_err(TransportError::from);
             }
-            let next = self.twin.lock().unwrap().next_event();
+            let next = self.twin.lock().expect("lock").next_event();
             match next {
                 Some(t) if t <= until.as_secs_f64() => {
                     let now = self.clock.now();
@@ -119,7 +119,7 @@ fn filters() -> Vec<Filter> {
 }
 
 fn rig(sim: FilterWheelSim, config: Fw102cConfig) -> Rig {
-    sim.validate().unwrap();
+    sim.validate().expect("valid");
     let twin = Arc::new(Mutex::new(Fw102cTwin::new(&sim)));
     let sent = Arc::new(Mutex::new(Vec::new()));
     let clock = ManualClock::new();
@@ -129,7 +129,7 @@ fn rig(sim: FilterWheelSim, config: Fw102cConfig) -> Rig {
         clock: clock.clone(),
         framer: LineFramer::new(TERMINATOR, MAX_LINE),
     };
-    let wheel = Fw102c::new(line, clock.clone(), config).unwrap();
+    let wheel = Fw102c::new(line, clock.clone(), config).expect("valid");
     Rig {
         wheel,
         twin,
@@ -152,9 +152,9 @@ fn standard() -> Rig {
 
 /// The commands sent since the last call, as text.
 fn sent(r: &Rig) -> Vec<String> {
-    std::mem::take(&mut *r.sent.lock().unwrap())
+    std::mem::take(&mut *r.sent.lock().expect("lock"))
         .into_iter()
-        .map(|b| String::from_utf8(b).unwrap())
+        .map(|b| String::from_utf8_lossy(&b).into_owned())
         .collect()
 }
 
