@@ -20,6 +20,7 @@ pub mod clock;
 pub mod config;
 pub mod controller;
 pub mod faults;
+pub mod filterwheel;
 pub mod instrument;
 pub mod lockin;
 pub mod optics;

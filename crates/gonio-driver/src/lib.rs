@@ -26,6 +26,7 @@ pub mod bench;
 pub mod clock;
 pub mod config;
 pub mod detector;
+pub mod fw102c;
 mod goniometer;
 pub mod k6485;
 pub mod motion;

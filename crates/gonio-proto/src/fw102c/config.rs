@@ -184,7 +184,10 @@ impl Fw102cConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         let bad = |field: String, reason: String| Err(ConfigError { field, reason });
         if !POSITION_COUNTS.contains(&self.positions) {
-            return bad("positions".into(), format!("{} is not 6 or 12", self.positions));
+            return bad(
+                "positions".into(),
+                format!("{} is not 6 or 12", self.positions),
+            );
         }
         if !(positive(self.band_tolerance_nm) && self.band_tolerance_nm <= 50.0) {
             return bad(
@@ -198,7 +201,12 @@ impl Fw102cConfig {
             ("poll_interval_ms", self.poll_interval_ms, 1, 10_000),
             ("reconnect_delay_ms", self.reconnect_delay_ms, 0, 60_000),
             ("retries", u64::from(self.retries), 0, 10),
-            ("reconnect_attempts", u64::from(self.reconnect_attempts), 0, 100),
+            (
+                "reconnect_attempts",
+                u64::from(self.reconnect_attempts),
+                0,
+                100,
+            ),
         ] {
             if !(lo..=hi).contains(&v) {
                 return bad(field.into(), format!("{v} is not in {lo}..={hi}"));
@@ -209,7 +217,10 @@ impl Fw102cConfig {
             let name = |k: &str| format!("filters[{i}].{k}");
             let p = f.position();
             if !(1..=self.positions).contains(&p) {
-                return bad(name("position"), format!("{p} is not in 1..={}", self.positions));
+                return bad(
+                    name("position"),
+                    format!("{p} is not in 1..={}", self.positions),
+                );
             }
             if seen.contains(&p) {
                 return bad(name("position"), format!("position {p} is listed twice"));
@@ -223,7 +234,10 @@ impl Fw102cConfig {
                     ..
                 } => {
                     if !(positive(*centre_nm) && *centre_nm <= 20_000.0) {
-                        return bad(name("centre_nm"), format!("{centre_nm} is not in (0, 20000]"));
+                        return bad(
+                            name("centre_nm"),
+                            format!("{centre_nm} is not in (0, 20000]"),
+                        );
                     }
                     if !(positive(*fwhm_nm) && *fwhm_nm <= 1000.0) {
                         return bad(name("fwhm_nm"), format!("{fwhm_nm} is not in (0, 1000]"));
@@ -241,7 +255,10 @@ impl Fw102cConfig {
                     ..
                 } => {
                     if !(positive(*cut_on_nm) && *cut_on_nm <= 20_000.0) {
-                        return bad(name("cut_on_nm"), format!("{cut_on_nm} is not in (0, 20000]"));
+                        return bad(
+                            name("cut_on_nm"),
+                            format!("{cut_on_nm} is not in (0, 20000]"),
+                        );
                     }
                     if !(positive(*peak_transmittance) && *peak_transmittance <= 1.0) {
                         return bad(
@@ -434,7 +451,9 @@ mod tests {
             "filters[0].position"
         );
         assert_eq!(
-            field("[[filters]]\nposition = 1\nkind = \"open\"\n[[filters]]\nposition = 1\nkind = \"dark\""),
+            field(
+                "[[filters]]\nposition = 1\nkind = \"open\"\n[[filters]]\nposition = 1\nkind = \"dark\""
+            ),
             "filters[1].position"
         );
         assert_eq!(
@@ -442,7 +461,9 @@ mod tests {
             "filters[0].fwhm_nm"
         );
         assert_eq!(
-            field("[[filters]]\nposition = 1\nkind = \"longpass\"\ncut_on_nm = 495\npeak_transmittance = 1.5"),
+            field(
+                "[[filters]]\nposition = 1\nkind = \"longpass\"\ncut_on_nm = 495\npeak_transmittance = 1.5"
+            ),
             "filters[0].peak_transmittance"
         );
     }

@@ -70,7 +70,10 @@ pub enum Fw102cError {
         code: ErrorCode,
     },
     /// A line that is neither the echo, nor a value, nor an error.
-    #[error("unexpected reply to {command}: {:?} ({source})", String::from_utf8_lossy(reply))]
+    #[error(
+        "unexpected reply to {command}: {:?} ({source})",
+        String::from_utf8_lossy(reply)
+    )]
     Protocol {
         /// The command.
         command: String,

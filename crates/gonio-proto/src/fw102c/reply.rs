@@ -163,7 +163,9 @@ impl Reply {
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
         let digit = || -> Result<u8, ReplyError> {
-            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?.trim();
+            let t = std::str::from_utf8(text)
+                .map_err(|_| ReplyError::BadValue)?
+                .trim();
             if t.is_empty() || t.len() > 3 || !t.bytes().all(|b| b.is_ascii_digit()) {
                 return Err(ReplyError::BadValue);
             }
@@ -279,15 +281,30 @@ mod tests {
             Reply::parse(&Command::Identify, idn),
             Ok(Reply::Identity(String::from_utf8_lossy(idn).into()))
         );
-        assert_eq!(Reply::parse(&Command::QueryPosition, b"12"), Ok(Reply::Position(12)));
-        assert_eq!(Reply::parse(&Command::QueryPosition, b"0"), Err(ReplyError::BadValue));
-        assert_eq!(Reply::parse(&Command::QueryPosition, b"2.0"), Err(ReplyError::BadValue));
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"12"),
+            Ok(Reply::Position(12))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"0"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"2.0"),
+            Err(ReplyError::BadValue)
+        );
         assert_eq!(
             Reply::parse(&Command::QueryPositionCount, b"6"),
             Ok(Reply::PositionCount(6))
         );
-        assert_eq!(Reply::parse(&Command::QuerySpeed, b"0"), Ok(Reply::Speed(Speed::Low)));
-        assert_eq!(Reply::parse(&Command::QuerySpeed, b"2"), Err(ReplyError::BadValue));
+        assert_eq!(
+            Reply::parse(&Command::QuerySpeed, b"0"),
+            Ok(Reply::Speed(Speed::Low))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QuerySpeed, b"2"),
+            Err(ReplyError::BadValue)
+        );
         assert_eq!(
             Reply::parse(&Command::QuerySensors, b"0"),
             Ok(Reply::Sensors(SensorMode::OffWhenIdle))

@@ -101,7 +101,13 @@ impl Exchange {
         Step::Done(Err(e))
     }
 
-    fn garbled(&mut self, s: &mut Fw102cSession, cx: &mut Cx, line: &[u8], source: crate::fw102c::ReplyError) -> Step<Out> {
+    fn garbled(
+        &mut self,
+        s: &mut Fw102cSession,
+        cx: &mut Cx,
+        line: &[u8],
+        source: crate::fw102c::ReplyError,
+    ) -> Step<Out> {
         let e = Fw102cError::Protocol {
             command: self.command.to_string(),
             reply: line.to_vec(),

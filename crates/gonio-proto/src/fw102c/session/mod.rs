@@ -80,7 +80,12 @@ impl Fw102cSession {
         position: u8,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Fw102cError>> + '_ {
-        Run::new("fw102c.select", self, Exec::new(ops::Select::new(position)), now)
+        Run::new(
+            "fw102c.select",
+            self,
+            Exec::new(ops::Select::new(position)),
+            now,
+        )
     }
 
     /// `pos?`.
@@ -149,7 +154,10 @@ mod tests {
     /// Hands in `lines` at `now`.
     fn lines<O: Operation>(op: &mut O, now: Duration, lines: &[&[u8]]) {
         for l in lines {
-            assert!(matches!(op.poll_timeout(), Some(Deadline::Reply(_))), "at {l:?}");
+            assert!(
+                matches!(op.poll_timeout(), Some(Deadline::Reply(_))),
+                "at {l:?}"
+            );
             op.handle_line(now, l);
         }
     }
@@ -159,7 +167,14 @@ mod tests {
         let mut s = Fw102cSession::new(config(), "p").unwrap();
         let mut op = s.start_init(ms(0));
         sent(&mut op, ms(0), b"*idn?\r");
-        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        lines(
+            &mut op,
+            ms(1),
+            &[
+                b"*idn?",
+                b"THORLABS FW102C/FW212C Filter Wheel version 1.04",
+            ],
+        );
         sent(&mut op, ms(1), b"pcount?\r");
         lines(&mut op, ms(2), &[b"> pcount?", b"6"]);
         sent(&mut op, ms(2), b"speed=1\r");
@@ -174,7 +189,9 @@ mod tests {
         lines(&mut op, ms(7), &[b"> pos?", b"4"]);
         assert_eq!(
             op.poll_output(),
-            Some(Ok("THORLABS FW102C/FW212C Filter Wheel version 1.04".to_string()))
+            Some(Ok(
+                "THORLABS FW102C/FW212C Filter Wheel version 1.04".to_string()
+            ))
         );
         drop(op);
         assert_eq!(s.position(), Some(4));
@@ -193,7 +210,14 @@ mod tests {
         drop(op);
         let mut op = s.start_init(ms(0));
         sent(&mut op, ms(0), b"*idn?\r");
-        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        lines(
+            &mut op,
+            ms(1),
+            &[
+                b"*idn?",
+                b"THORLABS FW102C/FW212C Filter Wheel version 1.04",
+            ],
+        );
         sent(&mut op, ms(1), b"pcount?\r");
         lines(&mut op, ms(2), &[b"> pcount?", b"12"]);
         assert_eq!(
@@ -214,7 +238,14 @@ mod tests {
         let mut s = Fw102cSession::new(c, "p").unwrap();
         let mut op = s.start_init(ms(0));
         sent(&mut op, ms(0), b"*idn?\r");
-        lines(&mut op, ms(1), &[b"*idn?", b"THORLABS FW102C/FW212C Filter Wheel version 1.04"]);
+        lines(
+            &mut op,
+            ms(1),
+            &[
+                b"*idn?",
+                b"THORLABS FW102C/FW212C Filter Wheel version 1.04",
+            ],
+        );
         sent(&mut op, ms(1), b"pcount?\r");
         lines(&mut op, ms(2), &[b"> pcount?", b"6"]);
         sent(&mut op, ms(2), b"speed=0\r");

@@ -84,7 +84,10 @@ impl Init {
         match a {
             Ok(Some(Reply::Speed(v))) if v == s.config.speed => {
                 if s.config.sensors_off_when_idle {
-                    Next::send(Command::SetSensors(SensorMode::OffWhenIdle), Init::sensors_set)
+                    Next::send(
+                        Command::SetSensors(SensorMode::OffWhenIdle),
+                        Init::sensors_set,
+                    )
                 } else {
                     Next::send(Command::QueryPosition, Init::positioned)
                 }
@@ -187,7 +190,10 @@ impl Select {
                 if cx.now >= self.deadline {
                     return self.timed_out(s, cx);
                 }
-                let until = cx.now.saturating_add(s.config.poll_interval()).min(self.deadline);
+                let until = cx
+                    .now
+                    .saturating_add(s.config.poll_interval())
+                    .min(self.deadline);
                 Next::Pause {
                     until,
                     then: Select::again,

@@ -91,7 +91,12 @@ impl<O: Op> std::fmt::Debug for Exec<O> {
 impl<O: Op> Machine<Fw102cSession> for Exec<O> {
     type Output = Result<O::Value, Fw102cError>;
 
-    fn step(&mut self, s: &mut Fw102cSession, cx: &mut Cx, mut ev: Event<'_>) -> Step<Self::Output> {
+    fn step(
+        &mut self,
+        s: &mut Fw102cSession,
+        cx: &mut Cx,
+        mut ev: Event<'_>,
+    ) -> Step<Self::Output> {
         loop {
             let next = match std::mem::replace(&mut self.current, Current::Idle) {
                 Current::Idle => self.op.start(s, cx),

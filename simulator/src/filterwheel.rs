@@ -1,0 +1,553 @@
+//! The simulated Thorlabs FW102C (FW212C) filter wheel, device side: command bytes in,
+//! the exact bytes the wheel sends out, on virtual time (seconds). Wire format:
+//! [`gonio_proto::fw102c`], whose facts are UNCONFIRMED against the manual (see
+//! `docs/instruments/fw102c.md`).
+//!
+//! # Protocol
+//! - Every byte received is echoed as the wheel reads it, CR included; at CR the line
+//!   is run ([`Command::parse`]). A query answers its value and CR; a refusal answers
+//!   `Command error CMD_NOT_DEFINED` (unknown word, empty line) or
+//!   `Command error CMD_ARG_INVALID` (bad value, a position beyond `pcount`) and CR;
+//!   then the prompt `"> "`, unterminated.
+//! - `pos=n` turns the wheel the shortest way round and sends its prompt when it
+//!   stops. Bytes received meanwhile wait, unechoed, and are read when it stops (the
+//!   firmware is taken as busy while it turns: the twin's choice, UNCONFIRMED; so a
+//!   `pos?` sent during a move answers the new position, late). `pos=` of the present
+//!   position does not move.
+//! - A move takes `slots × slot time` of the speed (`slot_time_high_s`,
+//!   `slot_time_low_s`): the per-slot times and the linear model are the twin's,
+//!   **UNCONFIRMED** (no manual figure was available).
+//! - `pcount=`, `speed=`, `trig=`, `sensors=` are stored and read back; `save`
+//!   answers the prompt (power cycles are not modelled). `baud=` is not modelled
+//!   (refused as undefined).
+//!
+//! # Optics
+//! [`Fw102cTwin::transmittance`] is the transmittance of the filter in the beam:
+//! band-pass, `peak · exp(−4 ln 2 (λ − centre)² / FWHM²)` (a Gaussian of the stated
+//! FWHM); long-pass, `peak / (1 + exp(−(λ − cut_on) / s))` with `s` such that it rises
+//! from 10 % to 90 % of `peak` over `longpass_rise_nm` (`s = rise / (2 ln 9)`); half the
+//! peak at the cut-on; open 1; dark 0; a position with no filter listed is an empty
+//! aperture, 1. While the wheel turns the beam is taken as blocked, 0 (the twin's
+//! choice). Real filters' out-of-band leakage and angle dependence are not modelled.
+
+use std::collections::VecDeque;
+
+use gonio_proto::fw102c::{
+    Command, DeviceError, ErrorCode, Filter, Fw102cConfig, PROMPT, Reply, SensorMode, Speed,
+    TERMINATOR, TriggerMode,
+};
+
+/// The identification string the twin answers to `*idn?`, in the form Odemis quotes
+/// from a real wheel (UNCONFIRMED).
+pub const IDENTITY: &str = "THORLABS FW102C/FW212C Filter Wheel version 1.04";
+
+/// The simulated wheel, as a sim config file writes it. Every field is optional and
+/// unknown fields are refused:
+///
+/// ```toml
+/// positions = 6
+/// speed = "high"
+/// initial_position = 1
+/// slot_time_high_s = 0.5
+/// slot_time_low_s = 1.0
+/// longpass_rise_nm = 10.0
+/// latency_s = 0.001
+/// [[filters]]
+/// position = 2
+/// kind = "bandpass"
+/// centre_nm = 550
+/// fwhm_nm = 10
+/// ```
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilterWheelSim {
+    /// The mechanical wheel's positions, 6 or 12; also the firmware's `pcount` at
+    /// power-up.
+    pub positions: u8,
+    /// The speed at power-up.
+    pub speed: Speed,
+    /// Where the wheel stands at power-up, 1..=positions.
+    pub initial_position: u8,
+    /// The filters mounted, described as the driver's config describes them.
+    pub filters: Vec<Filter>,
+    /// Seconds per slot travelled at high speed, (0, 10] (UNCONFIRMED).
+    pub slot_time_high_s: f64,
+    /// Seconds per slot travelled at low speed, (0, 10] (UNCONFIRMED).
+    pub slot_time_low_s: f64,
+    /// A long-pass filter's 10–90 % rise, nm, (0, 200].
+    pub longpass_rise_nm: f64,
+    /// The wheel's time to answer a byte, s, [0, 1].
+    pub latency_s: f64,
+}
+
+impl Default for FilterWheelSim {
+    fn default() -> Self {
+        FilterWheelSim {
+            positions: 6,
+            speed: Speed::High,
+            initial_position: 1,
+            filters: Vec::new(),
+            slot_time_high_s: 0.5,
+            slot_time_low_s: 1.0,
+            longpass_rise_nm: 10.0,
+            latency_s: 0.001,
+        }
+    }
+}
+
+/// A [`FilterWheelSim`] value that cannot describe a wheel.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("filter wheel sim config {field}: {reason}")]
+pub struct FilterWheelSimError {
+    /// The field, as written in a config file.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl FilterWheelSim {
+    /// Checks every field's range; the first bad field is named in the error. The
+    /// positions and filters are checked as the driver's config checks them.
+    pub fn validate(&self) -> Result<(), FilterWheelSimError> {
+        let bad = |field: &str, reason: String| {
+            Err(FilterWheelSimError {
+                field: field.into(),
+                reason,
+            })
+        };
+        let driver = Fw102cConfig {
+            positions: self.positions,
+            filters: self.filters.clone(),
+            ..Fw102cConfig::default()
+        };
+        if let Err(e) = driver.validate() {
+            return Err(FilterWheelSimError {
+                field: e.field,
+                reason: e.reason,
+            });
+        }
+        if !(1..=self.positions).contains(&self.initial_position) {
+            return bad(
+                "initial_position",
+                format!("{} is not in 1..={}", self.initial_position, self.positions),
+            );
+        }
+        for (field, v, hi) in [
+            ("slot_time_high_s", self.slot_time_high_s, 10.0),
+            ("slot_time_low_s", self.slot_time_low_s, 10.0),
+            ("longpass_rise_nm", self.longpass_rise_nm, 200.0),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= hi) {
+                return bad(field, format!("{v} is not in (0, {hi}]"));
+            }
+        }
+        if !(self.latency_s.is_finite() && (0.0..=1.0).contains(&self.latency_s)) {
+            return bad("latency_s", format!("{} is not in [0, 1]", self.latency_s));
+        }
+        Ok(())
+    }
+
+    /// The filter at `position`, if one is listed.
+    pub fn filter_at(&self, position: u8) -> Option<&Filter> {
+        self.filters.iter().find(|f| f.position() == position)
+    }
+}
+
+/// Band-pass transmittance: `peak · exp(−4 ln 2 (λ − centre)² / FWHM²)`.
+pub fn bandpass_transmittance(nm: f64, centre_nm: f64, fwhm_nm: f64, peak: f64) -> f64 {
+    let x = (nm - centre_nm) / fwhm_nm;
+    peak * (-4.0 * std::f64::consts::LN_2 * x * x).exp()
+}
+
+/// Long-pass transmittance: `peak / (1 + exp(−(λ − cut_on) / s))`, `s = rise / (2 ln 9)`.
+pub fn longpass_transmittance(nm: f64, cut_on_nm: f64, rise_nm: f64, peak: f64) -> f64 {
+    let s = rise_nm / (2.0 * 9f64.ln());
+    peak / (1.0 + (-(nm - cut_on_nm) / s).exp())
+}
+
+/// The simulated wheel. Time is virtual: every call says when it happens (seconds
+/// since power-up).
+#[derive(Clone, Debug)]
+pub struct Fw102cTwin {
+    config: FilterWheelSim,
+    pcount: u8,
+    speed: Speed,
+    trigger: TriggerMode,
+    sensors: SensorMode,
+    /// Where the wheel stands, or is heading while it turns.
+    position: u8,
+    /// The move under way or last made: from, start, end.
+    from: u8,
+    move_start: f64,
+    move_end: f64,
+    /// Bytes received and not yet read by the firmware, with their arrival times.
+    input: VecDeque<(f64, u8)>,
+    /// The line read so far.
+    line: Vec<u8>,
+    /// Bytes to send, with the times they leave, in order.
+    outbox: VecDeque<(f64, Vec<u8>)>,
+}
+
+impl Fw102cTwin {
+    /// A wheel just powered up at time 0, at `initial_position`. `config` should have
+    /// passed [`FilterWheelSim::validate`]; an initial position out of range is taken
+    /// as 1.
+    pub fn new(config: &FilterWheelSim) -> Self {
+        let position = if (1..=config.positions).contains(&config.initial_position) {
+            config.initial_position
+        } else {
+            1
+        };
+        Fw102cTwin {
+            pcount: config.positions,
+            speed: config.speed,
+            trigger: TriggerMode::Input,
+            sensors: SensorMode::AlwaysOn,
+            position,
+            from: position,
+            move_start: 0.0,
+            move_end: 0.0,
+            input: VecDeque::new(),
+            line: Vec::new(),
+            outbox: VecDeque::new(),
+            config: config.clone(),
+        }
+    }
+
+    /// Bytes from the host at `now`; appends to `out` what the wheel sends by `now`.
+    pub fn receive(&mut self, now: f64, bytes: &[u8], out: &mut Vec<u8>) {
+        let now = if now.is_finite() { now } else { 0.0 };
+        self.input.extend(bytes.iter().map(|b| (now, *b)));
+        self.poll(now, out);
+    }
+
+    /// Appends to `out` what the wheel sends by `now` (a move's prompt, the answers
+    /// to bytes that waited for the move).
+    pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
+        self.run(now);
+        while let Some((t, _)) = self.outbox.front() {
+            if *t > now {
+                break;
+            }
+            if let Some((_, bytes)) = self.outbox.pop_front() {
+                out.extend_from_slice(&bytes);
+            }
+        }
+    }
+
+    /// When the wheel next sends something, if it has anything to send.
+    pub fn next_event(&self) -> Option<f64> {
+        let queued = self.outbox.front().map(|(t, _)| *t);
+        let waiting = self.input.front().map(|(t, _)| t.max(self.move_end));
+        match (queued, waiting) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// When the move under way ends (or the last one ended): bytes received before it
+    /// are answered then, not before.
+    pub fn busy_until(&self) -> f64 {
+        self.move_end
+    }
+
+    /// The wheel's time to answer a byte, s: a transport delays each answer by it.
+    pub fn latency(&self) -> f64 {
+        self.config.latency_s
+    }
+
+    /// Whether the wheel is turning at `t`.
+    pub fn is_moving(&self, t: f64) -> bool {
+        t >= self.move_start && t < self.move_end
+    }
+
+    /// The position in the beam at `t`; `None` while turning.
+    pub fn position_at(&self, t: f64) -> Option<u8> {
+        if self.is_moving(t) {
+            None
+        } else if t < self.move_start {
+            Some(self.from)
+        } else {
+            Some(self.position)
+        }
+    }
+
+    /// The firmware's position count.
+    pub fn pcount(&self) -> u8 {
+        self.pcount
+    }
+
+    /// The present speed setting.
+    pub fn speed(&self) -> Speed {
+        self.speed
+    }
+
+    /// The position sensors' mode.
+    pub fn sensors(&self) -> SensorMode {
+        self.sensors
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FilterWheelSim {
+        &self.config
+    }
+
+    /// How long a move from `from` to `to` takes at the present speed: the slots of
+    /// the shortest way round × the speed's slot time.
+    pub fn move_time(&self, from: u8, to: u8) -> f64 {
+        let n = i32::from(self.config.positions);
+        let d = (i32::from(to) - i32::from(from)).rem_euclid(n);
+        let slots = d.min(n - d);
+        let per = match self.speed {
+            Speed::High => self.config.slot_time_high_s,
+            Speed::Low => self.config.slot_time_low_s,
+        };
+        f64::from(slots) * per
+    }
+
+    /// The transmittance at `nm` of what is in the beam at `now` (see the module docs).
+    pub fn transmittance(&self, nm: f64, now: f64) -> f64 {
+        if !nm.is_finite() {
+            return 0.0;
+        }
+        let Some(p) = self.position_at(now) else {
+            return 0.0;
+        };
+        match self.config.filter_at(p) {
+            None | Some(Filter::Open { .. }) => 1.0,
+            Some(Filter::Dark { .. }) => 0.0,
+            Some(Filter::Bandpass {
+                centre_nm,
+                fwhm_nm,
+                peak_transmittance,
+                ..
+            }) => bandpass_transmittance(nm, *centre_nm, *fwhm_nm, *peak_transmittance),
+            Some(Filter::Longpass {
+                cut_on_nm,
+                peak_transmittance,
+                ..
+            }) => longpass_transmittance(
+                nm,
+                *cut_on_nm,
+                self.config.longpass_rise_nm,
+                *peak_transmittance,
+            ),
+        }
+    }
+
+    /// Reads every byte the firmware can read by `now`: each when it has arrived and
+    /// the wheel is not turning.
+    fn run(&mut self, now: f64) {
+        while let Some(&(arrived, byte)) = self.input.front() {
+            let t = arrived.max(self.move_end);
+            if t > now {
+                break;
+            }
+            self.input.pop_front();
+            self.send(t, vec![byte]);
+            if byte == TERMINATOR {
+                let line = std::mem::take(&mut self.line);
+                self.execute(t, &line);
+            } else if byte != b'\n' {
+                self.line.push(byte);
+            }
+        }
+    }
+
+    fn send(&mut self, t: f64, bytes: Vec<u8>) {
+        match self.outbox.back_mut() {
+            Some((last, b)) if *last == t => b.extend_from_slice(&bytes),
+            _ => self.outbox.push_back((t, bytes)),
+        }
+    }
+
+    /// Runs one line at `t`: its answer, then the prompt (at the end of a move).
+    fn execute(&mut self, t: f64, line: &[u8]) {
+        let mut out = Vec::new();
+        let mut prompt_at = t;
+        match Command::parse(line) {
+            Err(e) => DeviceError {
+                code: ErrorCode::from(e),
+            }
+            .encode(&mut out),
+            Ok(command) => match command {
+                Command::SetPosition(n) if n > self.pcount => DeviceError {
+                    code: ErrorCode::ArgInvalid,
+                }
+                .encode(&mut out),
+                Command::SetPosition(n) => {
+                    if n != self.position {
+                        let d = self.move_time(self.position, n);
+                        tracing::debug!(
+                            from = self.position,
+                            to = n,
+                            seconds = d,
+                            "filter wheel: moving"
+                        );
+                        self.from = self.position;
+                        self.position = n;
+                        self.move_start = t;
+                        self.move_end = t + d;
+                        prompt_at = self.move_end;
+                    }
+                }
+                Command::SetPositionCount(n) => self.pcount = n,
+                Command::SetSpeed(s) => self.speed = s,
+                Command::SetTrigger(m) => self.trigger = m,
+                Command::SetSensors(m) => self.sensors = m,
+                Command::Save => {}
+                Command::Identify => Reply::Identity(IDENTITY.into()).encode(&mut out),
+                Command::QueryPosition => Reply::Position(self.position).encode(&mut out),
+                Command::QueryPositionCount => Reply::PositionCount(self.pcount).encode(&mut out),
+                Command::QuerySpeed => Reply::Speed(self.speed).encode(&mut out),
+                Command::QueryTrigger => Reply::Trigger(self.trigger).encode(&mut out),
+                Command::QuerySensors => Reply::Sensors(self.sensors).encode(&mut out),
+            },
+        }
+        self.send(t, out);
+        self.send(prompt_at, PROMPT.to_vec());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wheel() -> Fw102cTwin {
+        Fw102cTwin::new(&FilterWheelSim::default())
+    }
+
+    /// Sends `tx` at `t` and returns what comes back by `t`.
+    fn exchange(w: &mut Fw102cTwin, t: f64, tx: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        w.receive(t, tx, &mut out);
+        out
+    }
+
+    #[test]
+    fn queries_echo_answer_and_prompt() {
+        let mut w = wheel();
+        assert_eq!(
+            exchange(&mut w, 0.0, b"*idn?\r"),
+            b"*idn?\rTHORLABS FW102C/FW212C Filter Wheel version 1.04\r> "
+        );
+        assert_eq!(exchange(&mut w, 0.1, b"pos?\r"), b"pos?\r1\r> ");
+        assert_eq!(exchange(&mut w, 0.2, b"pcount?\r"), b"pcount?\r6\r> ");
+        assert_eq!(exchange(&mut w, 0.3, b"speed=0\r"), b"speed=0\r> ");
+        assert_eq!(exchange(&mut w, 0.4, b"speed?\r"), b"speed?\r0\r> ");
+        assert_eq!(exchange(&mut w, 0.5, b"sensors=0\r"), b"sensors=0\r> ");
+        assert_eq!(exchange(&mut w, 0.6, b"sensors?\r"), b"sensors?\r0\r> ");
+        assert_eq!(exchange(&mut w, 0.7, b"trig?\r"), b"trig?\r0\r> ");
+        assert_eq!(exchange(&mut w, 0.8, b"save\r"), b"save\r> ");
+    }
+
+    #[test]
+    fn refusals_carry_the_codes() {
+        let mut w = wheel();
+        assert_eq!(
+            exchange(&mut w, 0.0, b"\r"),
+            b"\rCommand error CMD_NOT_DEFINED\r> "
+        );
+        assert_eq!(
+            exchange(&mut w, 0.0, b"home\r"),
+            b"home\rCommand error CMD_NOT_DEFINED\r> "
+        );
+        assert_eq!(
+            exchange(&mut w, 0.0, b"pos=7\r"),
+            b"pos=7\rCommand error CMD_ARG_INVALID\r> "
+        );
+        assert_eq!(
+            exchange(&mut w, 0.0, b"speed=3\r"),
+            b"speed=3\rCommand error CMD_ARG_INVALID\r> "
+        );
+        assert_eq!(w.position_at(0.0), Some(1));
+    }
+
+    #[test]
+    fn a_move_sends_its_prompt_when_it_stops_and_holds_later_bytes() {
+        let mut w = wheel();
+        // 1 → 5 on 6 positions: 2 slots the short way (1 → 6 → 5), 0.5 s each.
+        assert_eq!(exchange(&mut w, 1.0, b"pos=5\r"), b"pos=5\r");
+        assert!((w.move_time(1, 5) - 1.0).abs() < 1e-12);
+        assert_eq!(w.busy_until(), 2.0);
+        assert_eq!(w.position_at(1.5), None);
+        // Sent during the move: read when it stops.
+        assert_eq!(exchange(&mut w, 1.2, b"pos?\r"), b"");
+        assert_eq!(w.next_event(), Some(2.0));
+        let mut out = Vec::new();
+        w.poll(1.999, &mut out);
+        assert!(out.is_empty());
+        w.poll(2.0, &mut out);
+        assert_eq!(out, b"> pos?\r5\r> ");
+        assert_eq!(w.next_event(), None);
+        assert_eq!(w.position_at(2.0), Some(5));
+        // Low speed: 5 → 2 is 3 slots at 1 s.
+        exchange(&mut w, 3.0, b"speed=0\r");
+        exchange(&mut w, 3.0, b"pos=2\r");
+        assert_eq!(w.busy_until(), 6.0);
+        // pos= of the present position does not move.
+        let mut out = Vec::new();
+        w.poll(6.0, &mut out);
+        assert_eq!(exchange(&mut w, 6.5, b"pos=2\r"), b"pos=2\r> ");
+        assert_eq!(w.busy_until(), 6.0);
+    }
+
+    #[test]
+    fn transmittance_follows_the_filter_formulas() {
+        let config: FilterWheelSim = toml::from_str(
+            r#"
+            longpass_rise_nm = 8.0
+            [[filters]]
+            position = 2
+            kind = "bandpass"
+            centre_nm = 550
+            fwhm_nm = 10
+            peak_transmittance = 0.8
+            [[filters]]
+            position = 3
+            kind = "longpass"
+            cut_on_nm = 495
+            [[filters]]
+            position = 4
+            kind = "dark"
+            "#,
+        )
+        .unwrap();
+        config.validate().unwrap();
+        let mut w = Fw102cTwin::new(&config);
+        // Position 1: no filter listed, an empty aperture.
+        assert_eq!(w.transmittance(550.0, 0.0), 1.0);
+        exchange(&mut w, 0.0, b"pos=2\r");
+        assert_eq!(w.transmittance(550.0, 0.25), 0.0, "blocked while turning");
+        let t = 0.5;
+        assert!((w.transmittance(550.0, t) - 0.8).abs() < 1e-12);
+        // Half the peak at ± FWHM/2, 1/16 of it at ± FWHM.
+        assert!((w.transmittance(555.0, t) - 0.4).abs() < 1e-12);
+        assert!((w.transmittance(540.0, t) - 0.05).abs() < 1e-12);
+        exchange(&mut w, 1.0, b"pos=3\r");
+        let t = 1.5;
+        assert!((w.transmittance(495.0, t) - 0.5).abs() < 1e-12);
+        // 10 % and 90 % at cut-on ∓ rise/2.
+        assert!((w.transmittance(491.0, t) - 0.1).abs() < 1e-12);
+        assert!((w.transmittance(499.0, t) - 0.9).abs() < 1e-12);
+        exchange(&mut w, 2.0, b"pos=4\r");
+        assert_eq!(w.transmittance(600.0, 2.5), 0.0);
+    }
+
+    #[test]
+    fn bad_sim_values_name_their_field() {
+        let field = |text: &str| match toml::from_str::<FilterWheelSim>(text) {
+            Ok(c) => c.validate().unwrap_err().field,
+            Err(e) => format!("parse: {e}"),
+        };
+        assert_eq!(field("positions = 10"), "positions");
+        assert_eq!(field("initial_position = 7"), "initial_position");
+        assert_eq!(field("slot_time_low_s = 0"), "slot_time_low_s");
+        assert_eq!(field("latency_s = -1"), "latency_s");
+        assert_eq!(
+            field("[[filters]]\nposition = 9\nkind = \"dark\""),
+            "filters[0].position"
+        );
+        assert!(toml::from_str::<FilterWheelSim>("colour = 1").is_err());
+    }
+}
