@@ -14,6 +14,8 @@ use crate::controller::ControllerConfig;
 use crate::faults::FaultConfig;
 use crate::lockin::LockInConfig;
 use crate::optics::OpticsConfig;
+use crate::filterwheel::FilterWheelSim;
+use crate::monochromator::MonochromatorSim;
 use crate::picoammeter::PicoammeterConfig;
 
 /// The embedded default: the blue paint of Lafortune et al. 1997 on a coplanar-arm
@@ -222,6 +224,13 @@ pub struct SimConfig {
     /// its own `responsivity_a_per_w`.
     #[serde(default)]
     pub picoammeter: Option<PicoammeterConfig>,
+    /// A Newport Cornerstone 130 monochromator between the lamp and the sample: the
+    /// light is then its passband (`crate::spectral`), selected over its own line.
+    #[serde(default)]
+    pub monochromator: Option<MonochromatorSim>,
+    /// A Thorlabs FW102C wheel of filters between the lamp and the sample, instead.
+    #[serde(default)]
+    pub filter_wheel: Option<FilterWheelSim>,
     /// Faults.
     #[serde(default)]
     pub faults: FaultConfig,
@@ -425,6 +434,20 @@ impl SimConfig {
             if a.update_period_s < 1e-3 {
                 return Err((f("update_period_s"), "must be at least 0.001 s".into()));
             }
+        }
+        if self.monochromator.is_some() && self.filter_wheel.is_some() {
+            return Err((
+                "filter_wheel".into(),
+                "the simulator has one band selector: [monochromator] or [filter_wheel]".into(),
+            ));
+        }
+        if let Some(m) = &self.monochromator {
+            m.validate()
+                .map_err(|e| (format!("monochromator.{}", e.field), e.reason))?;
+        }
+        if let Some(w) = &self.filter_wheel {
+            w.validate()
+                .map_err(|e| (format!("filter_wheel.{}", e.field), e.reason))?;
         }
         if let Some(p) = &self.picoammeter {
             p.validate()

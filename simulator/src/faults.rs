@@ -13,6 +13,11 @@ pub enum Port {
     /// The line of the n-th APT controller, in the layout's role order
     /// (`port = { apt = 0 }`).
     Apt(u8),
+    /// The monochromator's line.
+    Monochromator,
+    /// The filter wheel's line.
+    #[serde(rename = "filter_wheel")]
+    FilterWheel,
 }
 
 /// A span of physical time, s.

@@ -21,8 +21,21 @@ use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
 use crate::lockin::LockIn;
 use crate::optics::{LightPath, Optics};
+use crate::filterwheel::Fw102cTwin;
+use crate::monochromator::Cs130Twin;
 use crate::picoammeter::Picoammeter;
+use crate::spectral;
 use gonio_brdf::Brdf;
+
+/// The 10–90 % width of the lamp's and optics' UV edge, nm.
+const LAMP_EDGE_NM: f64 = 20.0;
+/// The 10–90 % width of an order-sorting filter's edge, nm (a coloured-glass
+/// long-pass).
+const ORDER_FILTER_EDGE_NM: f64 = 15.0;
+/// An order-sorting filter's transmittance well above its cut-on.
+const ORDER_FILTER_PEAK: f64 = 0.9;
+/// The monochromator line's baud rate (`gonio_driver::spectral::MonochromatorConfig`).
+const MONOCHROMATOR_BAUD: u32 = 9_600;
 
 /// Counters of what the simulator did.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -58,6 +71,10 @@ pub struct SimInstrument {
     lockin: LockIn,
     /// The picoammeter, when it is the detector instead of the lock-in.
     pico: Option<Picoammeter>,
+    /// The monochromator between the lamp and the sample, if any.
+    mono: Option<Cs130Twin>,
+    /// The filter wheel between the lamp and the sample, if any.
+    wheel: Option<Fw102cTwin>,
     optics: Optics,
     faults: FaultConfig,
     fired_power_losses: Vec<bool>,
@@ -116,6 +133,8 @@ impl SimInstrument {
             .picoammeter
             .as_ref()
             .map(|p| Picoammeter::new(p, splitmix64(cfg.seed ^ 0x9c0a_3e7e)));
+        let mono = cfg.monochromator.as_ref().map(Cs130Twin::new);
+        let wheel = cfg.filter_wheel.as_ref().map(Fw102cTwin::new);
         let (sample, channel) = cfg.load_sample()?;
         // Separate streams, so that faults drawn on the wire do not shift the noise.
         let lockin = LockIn::new(cfg.lockin.clone(), cfg.seed);
@@ -127,6 +146,8 @@ impl SimInstrument {
             roles,
             lockin,
             pico,
+            mono,
+            wheel,
             optics: Optics::new(cfg.optics.clone(), sample, channel),
             fired_power_losses: vec![false; cfg.faults.power_loss.len()],
             faults: cfg.faults.clone(),
@@ -249,14 +270,72 @@ impl SimInstrument {
         }
     }
 
+    /// The monochromator, when there is one.
+    pub fn monochromator_mut(&mut self) -> Option<&mut Cs130Twin> {
+        self.mono.as_mut()
+    }
+
+    /// The filter wheel, when there is one.
+    pub fn filter_wheel_mut(&mut self) -> Option<&mut Fw102cTwin> {
+        self.wheel.as_mut()
+    }
+
+    /// The light between the lamp and the sample at `t`: a monochromator's passband
+    /// (with its order-sorting filter) or the lamp through the wheel's filter, both
+    /// cut below the lamp's cut-on; `None` without either.
+    pub fn spectrum_at(&self, t: f64) -> Option<Vec<(f64, f64)>> {
+        let o = self.optics.config();
+        let lamp_k = o.lamp_colour_temperature_k;
+        let cut_on = o.lamp_cut_on_nm;
+        let lamp = move |nm: f64| spectral::longpass(nm, cut_on, LAMP_EDGE_NM, 1.0);
+        if let Some(m) = &self.mono {
+            let now = m.optical(t);
+            let cfg = m.config();
+            let blaze_nm = cfg
+                .gratings
+                .iter()
+                .find(|g| g.index == now.grating)
+                .map_or(500.0, |g| g.blaze_nm);
+            let order = cfg
+                .filters
+                .iter()
+                .find(|f| f.position == now.filter)
+                .map(|f| f.cut_on_nm);
+            let setting = spectral::Setting {
+                actual_nm: now.actual_nm,
+                fwhm_nm: now.bandwidth_nm,
+                blaze_nm,
+                lamp_k,
+                shutter_open: now.shutter_open,
+            };
+            return Some(spectral::passband(&setting, &|nm| {
+                lamp(nm)
+                    * order.map_or(1.0, |c| {
+                        spectral::longpass(nm, c, ORDER_FILTER_EDGE_NM, ORDER_FILTER_PEAK)
+                    })
+            }));
+        }
+        let w = self.wheel.as_ref()?;
+        Some(spectral::white(lamp_k, &|nm| lamp(nm) * w.transmittance(nm, t)))
+    }
+
     /// The directions the stages point at `t`.
     pub fn directions(&self, t: f64) -> DirPair {
         self.layout.forward(self.stage_angles(t))
     }
 
-    /// The detector signal at `t`, V.
+    /// The detector signal at `t`, V, in the light path as the optics hold it.
     pub fn signal(&self, t: f64) -> f64 {
         self.optics.signal(t, self.directions(t))
+    }
+
+    /// Brings the optics' light to `t` (a band selector's state), then the signal.
+    fn signal_now(&mut self, t: f64) -> f64 {
+        if self.mono.is_some() || self.wheel.is_some() {
+            let s = self.spectrum_at(t);
+            self.optics.set_spectrum(s);
+        }
+        self.signal(t)
     }
 
     /// Brings the lock-in's input up to `now`: the signal at the end of every motion
@@ -272,18 +351,20 @@ impl SimInstrument {
             .iter()
             .filter_map(Controller::motion_end)
             .chain(self.apt.iter().filter_map(AptDevice::motion_end))
+            .chain(self.mono.iter().map(Cs130Twin::motion_until))
+            .chain(self.wheel.iter().map(Fw102cTwin::busy_until))
             .filter(|t| *t > self.last_sync && *t <= now)
             .collect();
         ends.sort_by(f64::total_cmp);
         for t in ends {
-            let v = self.signal(t);
+            let v = self.signal_now(t);
             self.set_detector_input(t, v);
         }
         let over = self.faults.overload.iter().any(|w| w.contains(now));
         self.lockin.force_overload(over);
         let unlocked = self.faults.unlock.iter().any(|w| w.contains(now));
         self.lockin.set_unlocked(unlocked);
-        let v = self.signal(now);
+        let v = self.signal_now(now);
         self.set_detector_input(now, v);
         self.last_sync = now;
     }
@@ -401,7 +482,37 @@ impl SimInstrument {
             Port::Detector if self.pico.is_some() => self.picoammeter_bytes(bytes),
             Port::Detector => self.lockin_bytes(bytes),
             Port::Apt(n) => self.apt_bytes(usize::from(n), bytes),
+            Port::Monochromator => self.monochromator_bytes(bytes),
+            Port::FilterWheel => self.filter_wheel_bytes(bytes),
         }
+    }
+
+    /// Bytes the driver wrote on the monochromator's line; returns what it sends by
+    /// now (its echo at once; an answer held by `*WAI` comes later, unasked).
+    pub fn monochromator_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        self.sync(now);
+        let mut out = Vec::new();
+        if let Some(m) = &mut self.mono {
+            m.handle_bytes(now, bytes);
+            m.take_output(now, &mut out);
+        }
+        // A shutter or filter changes the light at once.
+        self.sync(now);
+        out
+    }
+
+    /// Bytes the driver wrote on the filter wheel's line; returns its answers by now
+    /// (the prompt that ends a move comes when the move does).
+    pub fn filter_wheel_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let now = self.clock.seconds();
+        self.sync(now);
+        let mut out = Vec::new();
+        if let Some(w) = &mut self.wheel {
+            w.receive(now, bytes, &mut out);
+        }
+        self.sync(now);
+        out
     }
 
     /// Bytes the driver wrote on the n-th APT controller's line; returns its answers.
@@ -421,6 +532,8 @@ impl SimInstrument {
     pub fn next_unsolicited(&self, port: Port) -> Option<f64> {
         match port {
             Port::Apt(n) => self.apt.get(usize::from(n))?.next_event(),
+            Port::Monochromator => self.mono.as_ref()?.next_output_at(),
+            Port::FilterWheel => self.wheel.as_ref()?.next_event(),
             _ => None,
         }
     }
@@ -431,13 +544,26 @@ impl SimInstrument {
     pub fn unsolicited(&mut self, port: Port, at: f64) -> Vec<u8> {
         let now = self.clock.seconds().max(at);
         let mut out = Vec::new();
-        if let Port::Apt(n) = port {
-            self.sync(now);
-            if let Some(d) = self.apt.get_mut(usize::from(n)) {
-                d.poll(now, &mut out);
+        self.sync(now);
+        match port {
+            Port::Apt(n) => {
+                if let Some(d) = self.apt.get_mut(usize::from(n)) {
+                    d.poll(now, &mut out);
+                }
             }
-            self.sync(now);
+            Port::Monochromator => {
+                if let Some(m) = &mut self.mono {
+                    m.take_output(now, &mut out);
+                }
+            }
+            Port::FilterWheel => {
+                if let Some(w) = &mut self.wheel {
+                    w.poll(now, &mut out);
+                }
+            }
+            Port::Motion | Port::Detector => {}
         }
+        self.sync(now);
         out
     }
 
@@ -456,7 +582,21 @@ impl SimInstrument {
             Port::Motion => self.link.motion_latency_s,
             Port::Detector => self.link.detector_latency_s,
             Port::Apt(_) => self.link.apt_latency_s,
+            Port::Monochromator => 0.0,
+            Port::FilterWheel => self.wheel.as_ref().map_or(0.0, Fw102cTwin::latency),
         }
+    }
+
+    /// The band selectors' lines there are (the monochromator's, the wheel's).
+    pub fn spectral_ports(&self) -> Vec<Port> {
+        let mut v = Vec::new();
+        if self.mono.is_some() {
+            v.push(Port::Monochromator);
+        }
+        if self.wheel.is_some() {
+            v.push(Port::FilterWheel);
+        }
+        v
     }
 
     /// The APT lines there are.
@@ -532,6 +672,8 @@ impl SimInstrument {
             Port::Motion => self.link.motion_baud,
             Port::Detector => self.link.detector_baud,
             Port::Apt(_) => gonio_driver::apt::BAUD,
+            Port::Monochromator => MONOCHROMATOR_BAUD,
+            Port::FilterWheel => gonio_proto::fw102c::BAUD,
         };
         bytes as f64 * 10.0 / f64::from(baud.max(1))
     }

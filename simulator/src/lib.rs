@@ -72,6 +72,8 @@ fn sim_port(
 ) -> Result<Port, SimError> {
     let line = match use_ {
         PortUse::Detector(_) => return Ok(Port::Detector),
+        PortUse::Monochromator(_) => return Ok(Port::Monochromator),
+        PortUse::FilterWheel(_) => return Ok(Port::FilterWheel),
         PortUse::Motion(line) => line,
     };
     let LineKind::Apt(axis, _) = &line.kind else {
@@ -136,6 +138,24 @@ pub fn check_compatible(instrument: &InstrumentConfig, sim: &SimConfig) -> Resul
             }
         }
         sim_port(instrument, sim, PortUse::Motion(&line))?;
+    }
+    match (
+        instrument.monochromator.is_some(),
+        sim.monochromator.is_some(),
+        instrument.filter_wheel.is_some(),
+        sim.filter_wheel.is_some(),
+    ) {
+        (true, false, _, _) => {
+            return Err(SimError::Mismatch(
+                "the instrument has a [monochromator], but the simulator has none".into(),
+            ));
+        }
+        (_, _, true, false) => {
+            return Err(SimError::Mismatch(
+                "the instrument has a [filter_wheel], but the simulator has none".into(),
+            ));
+        }
+        _ => {}
     }
     match (instrument.detector.kind, sim.picoammeter.is_some()) {
         (DetectorKind::Sr830, true) => Err(SimError::Mismatch(

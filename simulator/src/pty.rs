@@ -28,6 +28,10 @@ pub struct PtySim {
     pub detector: PathBuf,
     /// Paths of the APT controllers' lines, in the layout's role order.
     pub apt: Vec<PathBuf>,
+    /// Path of the monochromator's line, when the simulator has one.
+    pub monochromator: Option<PathBuf>,
+    /// Path of the filter wheel's line, when the simulator has one.
+    pub filter_wheel: Option<PathBuf>,
     dir: PathBuf,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
@@ -119,6 +123,25 @@ impl PtySim {
         let apt: Vec<PathBuf> = (0..apt_ports.len())
             .map(|n| dir.join(format!("apt{n}")))
             .collect();
+        let spectral: Vec<(Port, PathBuf)> = lock(&sim)
+            .spectral_ports()
+            .into_iter()
+            .map(|p| {
+                let name = match p {
+                    Port::Monochromator => "monochromator",
+                    _ => "filter_wheel",
+                };
+                (p, dir.join(name))
+            })
+            .collect();
+        let path_of = |want: Port| {
+            spectral
+                .iter()
+                .find(|(p, _)| *p == want)
+                .map(|(_, l)| l.clone())
+        };
+        let (monochromator, filter_wheel) =
+            (path_of(Port::Monochromator), path_of(Port::FilterWheel));
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
         let lines = [
@@ -126,14 +149,19 @@ impl PtySim {
             (Port::Detector, detector.clone()),
         ]
         .into_iter()
-        .chain(apt_ports.into_iter().zip(apt.iter().cloned()));
+        .chain(apt_ports.into_iter().zip(apt.iter().cloned()))
+        .chain(spectral.iter().cloned());
         for (port, link) in lines {
             let (s, st) = (sim.clone(), stop.clone());
             threads.push(std::thread::spawn(move || serve(s, port, link, st)));
         }
         // The first pairs exist once both links do.
         for _ in 0..400 {
-            if motion.exists() && detector.exists() && apt.iter().all(|p| p.exists()) {
+            if motion.exists()
+                && detector.exists()
+                && apt.iter().all(|p| p.exists())
+                && spectral.iter().all(|(_, p)| p.exists())
+            {
                 break;
             }
             std::thread::sleep(Duration::from_millis(5));
@@ -142,6 +170,8 @@ impl PtySim {
             motion,
             detector,
             apt,
+            monochromator,
+            filter_wheel,
             dir,
             stop,
             threads,

@@ -60,6 +60,8 @@ impl Served {
             "motion": self.pty.motion.display().to_string(),
             "detector": self.pty.detector.display().to_string(),
             "apt": self.pty.apt.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "monochromator": self.pty.monochromator.as_ref().map(|p| p.display().to_string()),
+            "filter_wheel": self.pty.filter_wheel.as_ref().map(|p| p.display().to_string()),
             "seed": self.seed,
             "time_scale": self.time_scale,
         })

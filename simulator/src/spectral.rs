@@ -121,6 +121,26 @@ pub fn passband(setting: &Setting, filter: &dyn Fn(f64) -> f64) -> Vec<(f64, f64
     out
 }
 
+/// The lamp's light through `filter` (a filter wheel's band-pass, and the lamp's
+/// cut-on), as `(wavelength nm, weight)` pairs over 250–1200 nm at 0.5 nm: the lamp
+/// at `lamp_k` relative to its value at 560 nm, times the transmittance, times the
+/// step (so the weights sum to the filter's equivalent width in nm, seen through the
+/// lamp's shape). Nodes below 1e-9 of the largest are left out.
+pub fn white(lamp_k: f64, filter: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
+    const FROM_NM: f64 = 250.0;
+    const TO_NM: f64 = 1200.0;
+    const STEP_NM: f64 = 0.5;
+    let n = ((TO_NM - FROM_NM) / STEP_NM) as usize;
+    let all: Vec<(f64, f64)> = (0..=n)
+        .map(|k| {
+            let nm = FROM_NM + k as f64 * STEP_NM;
+            (nm, planck_relative(nm, lamp_k) * filter(nm) * STEP_NM)
+        })
+        .collect();
+    let top = all.iter().map(|p| p.1).fold(0.0, f64::max);
+    all.into_iter().filter(|p| p.1 > 1e-9 * top).collect()
+}
+
 /// `values` (one per wavelength of `wavelengths_nm`, strictly increasing) at `nm`,
 /// linearly interpolated, and held at the end values outside.
 pub fn interpolate(wavelengths_nm: &[f64], values: &[f64], nm: f64) -> f64 {
@@ -224,6 +244,22 @@ mod tests {
             ..s
         };
         assert!(passband(&closed, &|_| 1.0).is_empty());
+    }
+
+    #[test]
+    fn white_light_through_a_gaussian_band_pass_has_its_equivalent_width() {
+        // A Gaussian of FWHM w has equivalent width w √(π / (4 ln 2)); through a flat
+        // lamp (a very hot one is nearly flat over a few nm) the weights sum to it.
+        let (c, w) = (550.0, 10.0);
+        let s = w / (8.0 * 2f64.ln()).sqrt();
+        let g = |nm: f64| (-0.5 * ((nm - c) / s).powi(2)).exp();
+        let sum: f64 = white(2.897_771_955e-3 / 560e-9, &g)
+            .iter()
+            .map(|p| p.1)
+            .sum();
+        let want = w * (PI / (4.0 * 2f64.ln())).sqrt();
+        assert!((sum / want - 1.0).abs() < 2e-3, "{sum} vs {want}");
+        assert!(white(3000.0, &|_| 0.0).is_empty());
     }
 
     #[test]

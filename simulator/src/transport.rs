@@ -53,6 +53,14 @@ impl SimTransport {
                 gonio_proto::sr830::MAX_LINE.max(gonio_proto::k6485::MAX_LINE),
             )),
             Port::Apt(_) => Box::new(AptFramer::new()),
+            Port::Monochromator => Box::new(LineFramer::new(
+                gonio_proto::cs130::REPLY_TERMINATOR,
+                gonio_proto::cs130::MAX_LINE,
+            )),
+            Port::FilterWheel => Box::new(LineFramer::new(
+                gonio_proto::fw102c::TERMINATOR,
+                gonio_proto::fw102c::MAX_LINE,
+            )),
         };
         SimTransport {
             sim,
@@ -169,6 +177,8 @@ impl Transport for SimTransport {
             Port::Motion => "sim:motion".into(),
             Port::Detector => "sim:detector".into(),
             Port::Apt(n) => format!("sim:apt{n}"),
+            Port::Monochromator => "sim:monochromator".into(),
+            Port::FilterWheel => "sim:filter_wheel".into(),
         }
     }
 }

@@ -139,6 +139,9 @@ fn mixed_lines_through_real_pseudo_terminals() {
         |use_, mut settings| {
             settings.path = match use_ {
                 PortUse::Detector(_) => pty.detector.display().to_string(),
+                PortUse::Monochromator(_) | PortUse::FilterWheel(_) => {
+                    unreachable!("the mixed instrument selects no wavelengths")
+                }
                 PortUse::Motion(line) => match &line.kind {
                     LineKind::Smc100(_) => pty.motion.display().to_string(),
                     LineKind::Apt(axis, _) => {

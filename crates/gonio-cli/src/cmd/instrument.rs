@@ -143,6 +143,12 @@ pub fn sim_config(path: Option<&Path>) -> CliResult<gonio_sim::SimConfig> {
 pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
     let mut ports = cfg.motion.ports();
     ports.push(&cfg.detector.port);
+    if let Some(m) = &cfg.monochromator {
+        ports.push(&m.port);
+    }
+    if let Some(w) = &cfg.filter_wheel {
+        ports.push(&w.port);
+    }
     let sim = ports.iter().filter(|p| is_sim_port(p)).count();
     if sim == 0 {
         Ok(false)
@@ -150,7 +156,7 @@ pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
         Ok(true)
     } else {
         Err(CliError::Input(format!(
-            "{}: field `motion.port`/`detector.port`: either every port is \"sim\" or none",
+            "{}: field `motion.port`/`detector.port`/`monochromator.port`/`filter_wheel.port`: either every port is \"sim\" or none",
             path.display()
         )))
     }
