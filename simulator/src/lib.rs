@@ -22,6 +22,7 @@ pub mod controller;
 pub mod faults;
 pub mod instrument;
 pub mod lockin;
+pub mod monochromator;
 pub mod optics;
 pub mod picoammeter;
 pub mod pty;

@@ -25,6 +25,7 @@ pub mod apt;
 pub mod bench;
 pub mod clock;
 pub mod config;
+pub mod cs130;
 pub mod detector;
 mod goniometer;
 pub mod k6485;
