@@ -23,6 +23,7 @@ pub mod faults;
 pub mod filterwheel;
 pub mod instrument;
 pub mod lockin;
+pub mod monochromator;
 pub mod optics;
 pub mod picoammeter;
 pub mod pty;

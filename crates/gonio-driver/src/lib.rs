@@ -25,6 +25,7 @@ pub mod apt;
 pub mod bench;
 pub mod clock;
 pub mod config;
+pub mod cs130;
 pub mod detector;
 pub mod fw102c;
 mod goniometer;

@@ -1,0 +1,568 @@
+//! The simulated Newport Cornerstone 130 monochromator, device side: bytes in, the
+//! exact bytes a real CS130 sends on RS-232 out, on simulated time (seconds). Wire
+//! format and facts: [`gonio_proto::cs130`] (Cornerstone 130B manual, 90088262,
+//! Appendix I, §15).
+//!
+//! # Protocol
+//! - Echo (§15.4): every byte received is sent back at once, terminators included, so
+//!   `GOWAVE 500\r\n` comes back as `GOWAVE 500\r\n` the moment it arrives. A line
+//!   ends at LF (a CR before it is dropped) and is parsed with [`Command::parse`];
+//!   a query's answer follows as its own CR LF line.
+//! - Standard mode only: no status byte after statements (`HANDSHAKE 1`, §15.5, is
+//!   not modelled, nor USB).
+//! - Errors (§15.9): a statement it cannot run sets the status byte to 32 and the
+//!   error code (1 not understood, 2 bad parameter, 3 destination not allowed);
+//!   `STB?` answers `20` (hexadecimal, see [`StatusByte`]) and clears it, `ERROR?`
+//!   answers the code and resets it to 0. One code is kept, the latest (the manual's
+//!   `SYSTEM:ERROR?` queue is not modelled).
+//! - Timing: statements run when they arrive, also during a move, except after
+//!   `*WAI`, which holds every later statement until the moves under way have ended
+//!   (§15.8); a held query is answered then. Moves run one after the other: a
+//!   `GRAT` change takes `grating_change_s`, a `FILTER` change `filter_change_s`, a
+//!   `GOWAVE` |Δλ| / the grating's `slew_nm_per_s`. All three times are the twin's
+//!   own (**UNCONFIRMED**: no timing was found in the stored manual).
+//! - `WAVE?` answers the *actual* position, two decimals (§15.4's `500.01`), linearly
+//!   interpolated during a move. The real instrument reports where it believes the
+//!   drive is; the twin reports where the light is, so that a driver can be tested
+//!   against a known error (the twin's choice).
+//! - `ABORT` stops the drive where it is; `SHUTTER O|C` acts at once; `UNITS NM|UM|WN`
+//!   converts `GOWAVE` and `WAVE?`; `INFO?` answers `info`; `GRAT?` answers
+//!   `n,lines,BLAZEnnn` (**UNCONFIRMED** format).
+//!
+//! # Optics
+//! The actual wavelength is the one asked for, plus `accuracy_nm` (a fixed
+//! calibration error), plus `backlash_nm` when the drive approached from above (moving
+//! down: the slack in the drive leaves it `backlash_nm` short of the target, i.e.
+//! above it). [`Cs130Twin::optical`] gives the light model what it needs: the actual
+//! wavelength, grating, filter, shutter and bandwidth. The bandwidth (FWHM) is
+//! `bandwidth_nm` with a 1200 l/mm grating, scaled by 1200 / lines per mm (the
+//! reciprocal linear dispersion is proportional to the groove spacing, at small
+//! angles). The light itself (lamp, efficiencies, second order) is not modelled here.
+
+use std::collections::VecDeque;
+
+use gonio_proto::cs130::{Command, ErrorCode, MAX_LINE, Reply, StatusByte, Units};
+
+/// One grating on the twin's turret.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimGrating {
+    /// Its number (`GRAT n`), 1..=3.
+    pub index: u8,
+    /// Grooves per mm.
+    pub lines_per_mm: u32,
+    /// Blaze wavelength, nm (for the light model).
+    pub blaze_nm: f64,
+    /// Shortest wavelength the drive accepts with it, nm: `GOWAVE` below is error 3.
+    pub min_nm: f64,
+    /// Longest wavelength the drive accepts with it, nm.
+    pub max_nm: f64,
+    /// Slew speed, nm/s.
+    pub slew_nm_per_s: f64,
+}
+
+/// One filter on the twin's wheel; positions not listed are open.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimFilter {
+    /// Wheel position, 1..=6.
+    pub position: u8,
+    /// Cut-on wavelength, nm.
+    pub cut_on_nm: f64,
+}
+
+/// The simulated monochromator, as a config file writes it. Every field is optional
+/// and unknown fields are refused:
+///
+/// ```toml
+/// bandwidth_nm = 2.0        # FWHM with a 1200 l/mm grating
+/// accuracy_nm = 0.25
+/// backlash_nm = 0.5
+/// grating_change_s = 4.0
+/// filter_change_s = 1.5
+/// home_nm = 400.0
+/// echo = true
+/// info = "CORNERSTONE 130 TWIN"
+///
+/// [[gratings]]
+/// index = 1
+/// lines_per_mm = 1200
+/// blaze_nm = 350.0
+/// min_nm = 180.0
+/// max_nm = 1300.0
+/// slew_nm_per_s = 100.0
+///
+/// [[filters]]
+/// position = 2
+/// cut_on_nm = 335.0
+/// ```
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MonochromatorSim {
+    /// The turret. Default: 1200 l/mm blazed at 350 nm (180–1300 nm, 100 nm/s) and
+    /// 600 l/mm blazed at 1000 nm (400–2800 nm, 200 nm/s).
+    pub gratings: Vec<SimGrating>,
+    /// The order-sorting filters. Default: cut-ons 335, 590, 1000, 1500 nm at
+    /// positions 2 to 5 (1 and 6 open).
+    pub filters: Vec<SimFilter>,
+    /// Slit bandwidth (FWHM) with a 1200 l/mm grating, nm, in [0, 100].
+    pub bandwidth_nm: f64,
+    /// Fixed wavelength error, nm, in [−50, 50]: actual = asked + this.
+    pub accuracy_nm: f64,
+    /// Backlash, nm, in [0, 50]: added when approaching from above.
+    pub backlash_nm: f64,
+    /// Time of a grating change, s, in [0, 600].
+    pub grating_change_s: f64,
+    /// Time of a filter change, s, in [0, 600].
+    pub filter_change_s: f64,
+    /// Wavelength at power-up (after homing), nm.
+    pub home_nm: f64,
+    /// Echo on RS-232 (§15.4; the factory setting).
+    pub echo: bool,
+    /// What `INFO?` answers: printable ASCII, 1 to 200 characters.
+    pub info: String,
+}
+
+impl Default for MonochromatorSim {
+    fn default() -> Self {
+        MonochromatorSim {
+            gratings: vec![
+                SimGrating {
+                    index: 1,
+                    lines_per_mm: 1200,
+                    blaze_nm: 350.0,
+                    min_nm: 180.0,
+                    max_nm: 1300.0,
+                    slew_nm_per_s: 100.0,
+                },
+                SimGrating {
+                    index: 2,
+                    lines_per_mm: 600,
+                    blaze_nm: 1000.0,
+                    min_nm: 400.0,
+                    max_nm: 2800.0,
+                    slew_nm_per_s: 200.0,
+                },
+            ],
+            filters: [(2, 335.0), (3, 590.0), (4, 1000.0), (5, 1500.0)]
+                .into_iter()
+                .map(|(position, cut_on_nm)| SimFilter {
+                    position,
+                    cut_on_nm,
+                })
+                .collect(),
+            bandwidth_nm: 2.0,
+            accuracy_nm: 0.25,
+            backlash_nm: 0.5,
+            grating_change_s: 4.0,
+            filter_change_s: 1.5,
+            home_nm: 400.0,
+            echo: true,
+            info: "CORNERSTONE 130 TWIN".into(),
+        }
+    }
+}
+
+/// A [`MonochromatorSim`] value that cannot describe an instrument.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("monochromator config {field}: {reason}")]
+pub struct MonochromatorSimError {
+    /// The field, as a config file writes it.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl MonochromatorSim {
+    /// Checks every field; the first bad one is named.
+    pub fn validate(&self) -> Result<(), MonochromatorSimError> {
+        let bad = |field: String, reason: String| Err(MonochromatorSimError { field, reason });
+        let within = |v: f64, lo: f64, hi: f64| v >= lo && v <= hi;
+        if self.gratings.is_empty() {
+            return bad("gratings".into(), "at least one grating is needed".into());
+        }
+        for (i, g) in self.gratings.iter().enumerate() {
+            let f = |name: &str| format!("gratings[{i}].{name}");
+            if !(1..=3).contains(&g.index) || self.gratings[..i].iter().any(|o| o.index == g.index)
+            {
+                return bad(
+                    f("index"),
+                    format!("{} is not a new number in 1..=3", g.index),
+                );
+            }
+            if !(1..=10_000).contains(&g.lines_per_mm) {
+                return bad(
+                    f("lines_per_mm"),
+                    format!("{} is not in 1..=10000", g.lines_per_mm),
+                );
+            }
+            if !within(g.blaze_nm, f64::MIN_POSITIVE, 100_000.0) {
+                return bad(
+                    f("blaze_nm"),
+                    format!("{} is not in (0, 100000]", g.blaze_nm),
+                );
+            }
+            if !(g.min_nm > 0.0 && g.min_nm < g.max_nm && g.max_nm <= 100_000.0) {
+                return bad(
+                    f("max_nm"),
+                    format!("{}..={} is not 0 < min < max <= 100000", g.min_nm, g.max_nm),
+                );
+            }
+            if !within(g.slew_nm_per_s, f64::MIN_POSITIVE, 100_000.0) {
+                return bad(
+                    f("slew_nm_per_s"),
+                    format!("{} is not in (0, 100000]", g.slew_nm_per_s),
+                );
+            }
+        }
+        for (i, fl) in self.filters.iter().enumerate() {
+            if !(1..=6).contains(&fl.position)
+                || self.filters[..i].iter().any(|o| o.position == fl.position)
+            {
+                return bad(
+                    format!("filters[{i}].position"),
+                    format!("{} is not a new position in 1..=6", fl.position),
+                );
+            }
+            if !within(fl.cut_on_nm, f64::MIN_POSITIVE, 100_000.0) {
+                return bad(
+                    format!("filters[{i}].cut_on_nm"),
+                    format!("{} is not in (0, 100000]", fl.cut_on_nm),
+                );
+            }
+        }
+        let ranges = [
+            ("bandwidth_nm", self.bandwidth_nm, 0.0, 100.0),
+            ("accuracy_nm", self.accuracy_nm, -50.0, 50.0),
+            ("backlash_nm", self.backlash_nm, 0.0, 50.0),
+            ("grating_change_s", self.grating_change_s, 0.0, 600.0),
+            ("filter_change_s", self.filter_change_s, 0.0, 600.0),
+            ("home_nm", self.home_nm, 0.0, 100_000.0),
+        ];
+        for (field, v, lo, hi) in ranges {
+            if !within(v, lo, hi) {
+                return bad(field.into(), format!("{v} is not in [{lo}, {hi}]"));
+            }
+        }
+        if self.info.is_empty()
+            || self.info.len() > 200
+            || !self.info.bytes().all(|b| b.is_ascii_graphic() || b == b' ')
+        {
+            return bad(
+                "info".into(),
+                "must be 1 to 200 printable ASCII characters".into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// What the light model needs of the monochromator at one time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MonoOptical {
+    /// The wavelength the light leaves at, nm (during a move, where the drive is).
+    pub actual_nm: f64,
+    /// The grating in the beam.
+    pub grating: u8,
+    /// The filter wheel position.
+    pub filter: u8,
+    /// True when the shutter is open.
+    pub shutter_open: bool,
+    /// The bandpass, FWHM, nm.
+    pub bandwidth_nm: f64,
+}
+
+/// The wavelength drive's present or last move: from `from_nm` at `t0` to `to_nm` at
+/// `t1`, linearly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Motion {
+    t0: f64,
+    t1: f64,
+    from_nm: f64,
+    to_nm: f64,
+}
+
+impl Motion {
+    fn at(&self, t: f64) -> f64 {
+        if t >= self.t1 || self.t1 <= self.t0 {
+            self.to_nm
+        } else if t <= self.t0 {
+            self.from_nm
+        } else {
+            self.from_nm + (self.to_nm - self.from_nm) * (t - self.t0) / (self.t1 - self.t0)
+        }
+    }
+}
+
+/// The byte-level twin of the Cornerstone 130: see the module docs.
+#[derive(Clone, Debug)]
+pub struct Cs130Twin {
+    config: MonochromatorSim,
+    /// The line being received.
+    partial: Vec<u8>,
+    /// Inside an overlong line: dropped up to its LF.
+    discarding: bool,
+    /// Bytes to send, each with the time it leaves.
+    outbox: VecDeque<(f64, Vec<u8>)>,
+    units: Units,
+    grating: u8,
+    filter: u8,
+    shutter_open: bool,
+    /// The last wavelength asked for, nm: the direction of the next approach.
+    asked_nm: f64,
+    motion: Motion,
+    /// When the mechanism (drive, turret, wheel) has finished what it was asked.
+    motion_until: f64,
+    /// Statements are held until then (`*WAI`).
+    hold_until: f64,
+    /// When the output of the last line is due.
+    busy_until: f64,
+    status: StatusByte,
+    error: ErrorCode,
+}
+
+impl Cs130Twin {
+    /// A monochromator just powered up and homed at `home_nm`, grating 1 (or the
+    /// first listed), filter position 1, shutter closed (**UNCONFIRMED** power-up
+    /// state), at time 0. `config` should have been validated.
+    pub fn new(config: &MonochromatorSim) -> Self {
+        let grating = config.gratings.iter().map(|g| g.index).min().unwrap_or(1);
+        Cs130Twin {
+            partial: Vec::new(),
+            discarding: false,
+            outbox: VecDeque::new(),
+            units: Units::Nm,
+            grating,
+            filter: 1,
+            shutter_open: false,
+            asked_nm: config.home_nm,
+            motion: Motion {
+                t0: 0.0,
+                t1: 0.0,
+                from_nm: config.home_nm,
+                to_nm: config.home_nm,
+            },
+            motion_until: 0.0,
+            hold_until: 0.0,
+            busy_until: 0.0,
+            status: StatusByte(0),
+            error: ErrorCode::NONE,
+            config: config.clone(),
+        }
+    }
+
+    /// Bytes received at `now`, in any chunks: echoed at once (§15.4), and each
+    /// complete line run at `now`, or when a `*WAI` hold ends. Output waits in the
+    /// twin until [`take_output`](Self::take_output).
+    pub fn handle_bytes(&mut self, now: f64, bytes: &[u8]) {
+        let now = if now.is_finite() { now.max(0.0) } else { 0.0 };
+        if self.config.echo && !bytes.is_empty() {
+            self.send(now, bytes.to_vec());
+        }
+        for &b in bytes {
+            if b == b'\n' {
+                let line = std::mem::take(&mut self.partial);
+                if std::mem::replace(&mut self.discarding, false) {
+                    continue;
+                }
+                let line = line.strip_suffix(b"\r").unwrap_or(&line).to_vec();
+                self.run_line(now, &line);
+            } else if !self.discarding {
+                self.partial.push(b);
+                if self.partial.len() > MAX_LINE {
+                    self.partial.clear();
+                    self.discarding = true;
+                    self.fail(ErrorCode::NOT_UNDERSTOOD);
+                }
+            }
+        }
+    }
+
+    /// Appends to `out` every byte due by `now`, in order.
+    pub fn take_output(&mut self, now: f64, out: &mut Vec<u8>) {
+        while let Some((t, _)) = self.outbox.front() {
+            if *t > now {
+                break;
+            }
+            if let Some((_, bytes)) = self.outbox.pop_front() {
+                out.extend_from_slice(&bytes);
+            }
+        }
+    }
+
+    /// When the next byte waiting in the twin is due, if any.
+    pub fn next_output_at(&self) -> Option<f64> {
+        self.outbox.front().map(|(t, _)| *t)
+    }
+
+    /// One line (terminator removed) received at `now`, the picoammeter's shape: its
+    /// echo and answer, and anything still waiting, are appended to `out` at once and
+    /// are due at [`busy_until`](Self::busy_until) (later than `now` only when a
+    /// `*WAI` holds the line until a move ends). A transport that needs the echo at
+    /// its real time uses [`handle_bytes`](Self::handle_bytes) and
+    /// [`take_output`](Self::take_output) instead.
+    pub fn handle_line(&mut self, now: f64, line: &[u8], out: &mut Vec<u8>) {
+        let mut bytes = line.to_vec();
+        bytes.extend_from_slice(b"\r\n");
+        self.handle_bytes(now, &bytes);
+        self.take_output(f64::INFINITY, out);
+    }
+
+    /// When the output of the last line is due: its arrival, or the end of the moves
+    /// a `*WAI` before it waits for.
+    pub fn busy_until(&self) -> f64 {
+        self.busy_until
+    }
+
+    /// When the mechanism has finished every move asked of it.
+    pub fn motion_until(&self) -> f64 {
+        self.motion_until
+    }
+
+    /// The optics at `t`: see the module docs.
+    pub fn optical(&self, t: f64) -> MonoOptical {
+        let lines = self.grating_spec().map_or(1200, |g| g.lines_per_mm);
+        MonoOptical {
+            actual_nm: self.motion.at(t),
+            grating: self.grating,
+            filter: self.filter,
+            shutter_open: self.shutter_open,
+            bandwidth_nm: self.config.bandwidth_nm * 1200.0 / f64::from(lines.max(1)),
+        }
+    }
+
+    /// The config.
+    pub fn config(&self) -> &MonochromatorSim {
+        &self.config
+    }
+
+    fn grating_spec(&self) -> Option<&SimGrating> {
+        self.config
+            .gratings
+            .iter()
+            .find(|g| g.index == self.grating)
+    }
+
+    fn fail(&mut self, code: ErrorCode) {
+        self.status = StatusByte(StatusByte::ERROR);
+        self.error = code;
+    }
+
+    fn answer(&mut self, t: f64, reply: &Reply) {
+        self.send(t, reply.to_bytes());
+    }
+
+    /// Queues `bytes` to leave at `t`, after everything due by then (an echo is not
+    /// held behind an answer that waits for a move).
+    fn send(&mut self, t: f64, bytes: Vec<u8>) {
+        let at = self.outbox.partition_point(|(due, _)| *due <= t);
+        self.outbox.insert(at, (t, bytes));
+    }
+
+    /// A mechanism move of `seconds` asked at `t`: after the ones under way.
+    fn occupy(&mut self, t: f64, seconds: f64) -> f64 {
+        let start = self.motion_until.max(t);
+        self.motion_until = start + seconds.max(0.0);
+        start
+    }
+
+    fn run_line(&mut self, now: f64, line: &[u8]) {
+        let t = now.max(self.hold_until);
+        self.busy_until = t;
+        let command = match Command::parse(line) {
+            Ok(c) => c,
+            Err(e) => {
+                self.fail(ErrorCode(e.code()));
+                return;
+            }
+        };
+        match command {
+            Command::GoWave(v) => {
+                let nm = self.units.to_nm(v);
+                let Some(g) = self.grating_spec().cloned() else {
+                    return self.fail(ErrorCode::SYSTEM);
+                };
+                if !(nm >= g.min_nm && nm <= g.max_nm) {
+                    return self.fail(ErrorCode::DESTINATION);
+                }
+                let from_above = nm < self.asked_nm;
+                let target = nm
+                    + self.config.accuracy_nm
+                    + if from_above {
+                        self.config.backlash_nm
+                    } else {
+                        0.0
+                    };
+                let start_t = self.motion_until.max(t);
+                let from = self.motion.at(start_t);
+                let start = self.occupy(t, (target - from).abs() / g.slew_nm_per_s);
+                self.motion = Motion {
+                    t0: start,
+                    t1: self.motion_until,
+                    from_nm: from,
+                    to_nm: target,
+                };
+                self.asked_nm = nm;
+            }
+            Command::Grat(n) => {
+                if !self.config.gratings.iter().any(|g| g.index == n) {
+                    return self.fail(ErrorCode::BAD_PARAMETER);
+                }
+                if n != self.grating {
+                    self.occupy(t, self.config.grating_change_s);
+                    self.grating = n;
+                }
+            }
+            Command::Filter(n) => {
+                if !(1..=6).contains(&n) {
+                    return self.fail(ErrorCode::BAD_PARAMETER);
+                }
+                if n != self.filter {
+                    self.occupy(t, self.config.filter_change_s);
+                    self.filter = n;
+                }
+            }
+            Command::Shutter(open) => self.shutter_open = open,
+            Command::Units(u) => self.units = u,
+            Command::Abort => {
+                let here = self.motion.at(t);
+                self.motion = Motion {
+                    t0: t,
+                    t1: t,
+                    from_nm: here,
+                    to_nm: here,
+                };
+                self.motion_until = self.motion_until.min(t);
+            }
+            Command::Wai => self.hold_until = t.max(self.motion_until),
+            Command::Wave => {
+                let v = self.units.from_nm(self.motion.at(t));
+                self.answer(t, &Reply::Wavelength(v));
+            }
+            Command::GratQuery => {
+                let reply = Reply::Grating {
+                    number: self.grating,
+                    lines_per_mm: self.grating_spec().map(|g| g.lines_per_mm),
+                    label: self
+                        .grating_spec()
+                        .map(|g| format!("BLAZE{:.0}", g.blaze_nm)),
+                };
+                self.answer(t, &reply);
+            }
+            Command::FilterQuery => self.answer(t, &Reply::Filter(self.filter)),
+            Command::ShutterQuery => self.answer(t, &Reply::Shutter(self.shutter_open)),
+            Command::Stb => {
+                let s = std::mem::take(&mut self.status);
+                self.answer(t, &Reply::Status(s));
+            }
+            Command::Error => {
+                let e = std::mem::replace(&mut self.error, ErrorCode::NONE);
+                self.answer(t, &Reply::Error(e));
+            }
+            Command::Info => {
+                let info = self.config.info.clone();
+                self.answer(t, &Reply::Info(info));
+            }
+        }
+    }
+}
