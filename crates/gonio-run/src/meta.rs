@@ -118,6 +118,9 @@ pub struct Estimate {
     pub raster_motion_s: f64,
     /// Detector time.
     pub detector_s: f64,
+    /// Band changes (absent from run files written before bands were estimated).
+    #[serde(default)]
+    pub band_s: f64,
 }
 
 /// The metadata of a run file, typed.
