@@ -10,12 +10,19 @@ use crate::DirPair;
 use crate::kinematics::{self, KinematicsError, Layout};
 use crate::limits::{Fault, Range};
 use crate::motion::{AxisMotion, MotionModel};
+use crate::spectral_timing::WavelengthTiming;
 
 /// Stage velocity assumed when the instrument config leaves it to the controller,
 /// deg/s (the SMC100PP's factory setting for the simulator's stages).
 pub const ASSUMED_VELOCITY: f64 = 20.0;
 /// Stage acceleration assumed likewise, deg/s².
 pub const ASSUMED_ACCELERATION: f64 = 80.0;
+/// Time of a band change on an instrument with no wavelength timing
+/// ([`Mechanics::wavelength`] is `None`), s: an operator turns a filter wheel or a
+/// monochromator's dial and confirms, which takes about a minute. A guess for
+/// planning, not a measurement: it only has to make the planner keep band changes
+/// few when a person makes them.
+pub const OPERATOR_BAND_CHANGE_S: f64 = 60.0;
 
 /// One stage as planning sees it: its name, its soft limits and its speeds.
 #[derive(Clone, Debug, PartialEq)]
@@ -215,6 +222,10 @@ pub struct Mechanics {
     pub motion: MotionModel,
     /// The optical geometry.
     pub geometry: GeometryConfig,
+    /// How long the bench takes to change wavelength; `None`: an operator changes
+    /// bands, [`OPERATOR_BAND_CHANGE_S`] a change. Set with
+    /// [`with_wavelength`](Mechanics::with_wavelength).
+    pub wavelength: Option<WavelengthTiming>,
 }
 
 /// Why an instrument cannot plan.
@@ -267,7 +278,35 @@ impl Mechanics {
             limits,
             motion: MotionModel { axes: motion },
             geometry: geometry.clone(),
+            wavelength: None,
         })
+    }
+
+    /// The same mechanics with a wavelength selector of timing `timing`.
+    pub fn with_wavelength(mut self, timing: WavelengthTiming) -> Mechanics {
+        self.wavelength = Some(timing);
+        self
+    }
+
+    /// Time to change from the band at `from_nm` (`None`: unknown, as at the start)
+    /// to the band at `to_nm`, s: the wavelength timing's, or
+    /// [`OPERATOR_BAND_CHANGE_S`] for any change without one.
+    pub fn wavelength_move_s(&self, from_nm: Option<f64>, to_nm: f64) -> f64 {
+        match &self.wavelength {
+            Some(t) => t.move_s(from_nm, to_nm),
+            None if from_nm == Some(to_nm) => 0.0,
+            None => OPERATOR_BAND_CHANGE_S,
+        }
+    }
+
+    /// Time of a change between two different bands that are not wavelengths
+    /// (`R`, `G`, `B`, named filters), s: a per-change selector's constant, else
+    /// [`OPERATOR_BAND_CHANGE_S`] (a monochromator's model needs wavelengths).
+    pub fn named_band_change_s(&self) -> f64 {
+        match &self.wavelength {
+            Some(WavelengthTiming::PerChange { change_s }) => *change_s,
+            _ => OPERATOR_BAND_CHANGE_S,
+        }
     }
 
     /// The first axis (role index) of `stages` outside its limits.

@@ -52,6 +52,7 @@ pub mod quad;
 pub mod radiometry;
 pub mod rng;
 pub mod special;
+pub mod spectral_timing;
 pub mod tomlfile;
 mod vec3;
 

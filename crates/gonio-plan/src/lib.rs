@@ -5,7 +5,8 @@
 //!   limits and the optical geometry.
 //! - [`order`]: the visiting order that minimises motion time.
 //! - [`schedule`]: the steps of a run (channels, repeats, drift references,
-//!   calibrations), fixed when the run is created.
+//!   calibrations), fixed when the run is created; with several bands, which of
+//!   wavelength and geometry is the inner loop, and why.
 //! - [`prepare()`]: all three on one instrument, with the estimates.
 //!
 //! Pure: the instrument comes in as a [`gonio_core::goniometer::Mechanics`] value,
@@ -16,6 +17,6 @@ pub mod plan;
 mod prepare;
 pub mod schedule;
 
-pub use plan::{Checked, Mechanics, Plan, Rejection};
+pub use plan::{Checked, Inner, Mechanics, Plan, Rejection, Wavelengths};
 pub use prepare::{PrepareError, Prepared, prepare, rejection_counts};
-pub use schedule::{Schedule, Step, StepKind};
+pub use schedule::{Loop, LoopEstimate, Schedule, SpectralDecision, Step, StepKind};

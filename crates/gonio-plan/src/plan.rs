@@ -22,6 +22,12 @@
 //! incident = { transmittance = 1e-3 }
 //! ```
 //!
+//! Several bands: `channels = ["R", "G", "B"]` names them, or
+//! `wavelengths = [450, 550, 650]` / `wavelengths = { from = 400, to = 700, step = 10 }`
+//! gives them in nm ([`Wavelengths`]; the bands are then named `450nm`, …). With
+//! several, `[spectral] inner = "auto" | "wavelength" | "geometry"` says which loop is
+//! inside ([`Inner`]; `crate::schedule` decides `auto` from the estimated times).
+//!
 //! Point kinds: `grid` (all combinations of `theta_i`, `phi_i`, `theta_o`, `phi_o`),
 //! `isotropic` (fixed `phi_i`, `theta_i` × `theta_o` × `delta_phi`, φo = φi + Δφ),
 //! `in-plane` (fixed `phi_i`; a signed `theta_o` > 0 lies on the mirror side,
@@ -31,9 +37,9 @@
 use std::path::{Path, PathBuf};
 
 use gonio_core::dirfile::{self, PairDeg};
-use gonio_core::limits::Range;
+use gonio_core::limits::{Fault, Range, num};
 use gonio_core::tomlfile::{self, FileError, Tagged};
-use gonio_core::{DirPair, SphericalDeg};
+use gonio_core::{Channels, DirPair, SphericalDeg};
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 
@@ -87,17 +93,18 @@ const VALUES_FORMS: &str = "a list of angles like [0, 30, 60], one angle like 45
 
 impl<'de> Deserialize<'de> for Values {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        d.deserialize_any(ValuesVisitor)
+        d.deserialize_any(ValuesVisitor(VALUES_FORMS))
     }
 }
 
-struct ValuesVisitor;
+/// Reads [`Values`]; the text names the forms accepted, for messages.
+struct ValuesVisitor(&'static str);
 
 impl<'de> Visitor<'de> for ValuesVisitor {
     type Value = Values;
 
     fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(VALUES_FORMS)
+        f.write_str(self.0)
     }
 
     fn visit_f64<E: de::Error>(self, v: f64) -> Result<Values, E> {
@@ -129,7 +136,8 @@ impl<'de> Visitor<'de> for ValuesVisitor {
                 "step" => &mut step,
                 _ => {
                     return Err(de::Error::custom(format!(
-                        "unknown key `{key}` in a range: a range is {{ from = 0, to = 60, step = 30 }}"
+                        "unknown key `{key}` in a range: a range is {}",
+                        self.range_example()
                     )));
                 }
             };
@@ -144,12 +152,160 @@ impl<'de> Visitor<'de> for ValuesVisitor {
                     .map(|(k, _)| *k)
                     .collect();
                 Err(de::Error::custom(format!(
-                    "a range needs from, to and step (missing {}): {{ from = 0, to = 60, step = 30 }}",
-                    missing.join(", ")
+                    "a range needs from, to and step (missing {}): {}",
+                    missing.join(", "),
+                    self.range_example()
                 )))
             }
         }
     }
+}
+
+impl ValuesVisitor {
+    /// The range form of the values read, as an example.
+    fn range_example(&self) -> &'static str {
+        if self.0 == WAVELENGTH_FORMS {
+            "{ from = 400, to = 700, step = 10 }"
+        } else {
+            "{ from = 0, to = 60, step = 30 }"
+        }
+    }
+}
+
+/// The wavelengths a plan measures at, nm: a list, one wavelength, or an inclusive
+/// range with a step (see [`Wavelengths::expand`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct Wavelengths(pub Values);
+
+/// What a plan's wavelengths may be, for messages.
+const WAVELENGTH_FORMS: &str = "a list of wavelengths in nm like [450, 550, 650], one like 550, or a range like { from = 400, to = 700, step = 10 }";
+
+/// Wavelengths a plan may name, nm: from 1 nm (soft X-rays) to 100 µm (far infrared),
+/// well past any selector Gonio drives; outside it a number is a typo.
+pub const WAVELENGTH: Range = Range::closed(1.0, 100_000.0, "nm");
+/// The smallest step of a wavelength range, nm: a picometre is far below any
+/// selector's bandwidth, and range values are rounded to 10⁻⁶ nm.
+pub const WAVELENGTH_STEP: Range = Range::closed(0.001, 100_000.0, "nm");
+/// Most wavelengths a plan may name (1 nm steps over 10 µm).
+pub const MAX_WAVELENGTHS: usize = 10_000;
+
+impl<'de> Deserialize<'de> for Wavelengths {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(ValuesVisitor(WAVELENGTH_FORMS))
+            .map(Wavelengths)
+    }
+}
+
+impl Wavelengths {
+    /// The wavelengths, nm, or the fault (field under `wavelengths`, message).
+    ///
+    /// A range gives `from + k·step` for k = 0, 1, … up to `to` (included when it
+    /// lies within 10⁻⁹ steps of the grid), each rounded to 10⁻⁶ nm: 400 to 700 by
+    /// 10 is exactly 31 wavelengths, and 400 to 401 by 0.1 names its channels
+    /// `400.1nm`, not `400.09999999999997nm`. A list is kept as written. Every
+    /// wavelength lies in [`WAVELENGTH`], they strictly increase, and there are at
+    /// most [`MAX_WAVELENGTHS`].
+    pub fn expand(&self) -> Result<Vec<f64>, Fault> {
+        const F: &str = "wavelengths";
+        let v = match &self.0 {
+            Values::One(x) => vec![*x],
+            Values::List(v) => v.clone(),
+            Values::Range { from, to, step } => {
+                WAVELENGTH.at(format!("{F}.from"), *from)?;
+                WAVELENGTH.at(format!("{F}.to"), *to)?;
+                WAVELENGTH_STEP.at(format!("{F}.step"), *step)?;
+                if from > to {
+                    return Err((
+                        F.into(),
+                        format!("range from {from} to {to} must have from ≤ to"),
+                    ));
+                }
+                let n = ((to - from) / step + 1e-9).floor();
+                if n + 1.0 > MAX_WAVELENGTHS as f64 {
+                    return Err((
+                        format!("{F}.step"),
+                        format!(
+                            "{from} to {to} by {step} nm is more than {MAX_WAVELENGTHS} wavelengths"
+                        ),
+                    ));
+                }
+                // Below MAX_WAVELENGTHS: the cast is exact.
+                (0..=n as usize)
+                    .map(|k| ((from + k as f64 * step) * 1e6).round() / 1e6)
+                    .collect()
+            }
+        };
+        if v.is_empty() {
+            return Err((F.into(), "name at least one wavelength".into()));
+        }
+        if v.len() > MAX_WAVELENGTHS {
+            return Err((
+                F.into(),
+                format!("{} wavelengths, more than {MAX_WAVELENGTHS}", v.len()),
+            ));
+        }
+        for (k, x) in v.iter().enumerate() {
+            let field = if matches!(self.0, Values::List(_)) {
+                format!("{F}[{k}]")
+            } else {
+                F.to_string()
+            };
+            WAVELENGTH.at(field.clone(), *x)?;
+            if k > 0 && *x <= v[k - 1] {
+                return Err((
+                    field,
+                    format!(
+                        "{} nm does not follow {} nm: wavelengths must be strictly increasing",
+                        num(*x),
+                        num(v[k - 1])
+                    ),
+                ));
+            }
+        }
+        Ok(v)
+    }
+
+    /// The channel names of the wavelengths, as `gonio_core::Channels` writes them
+    /// (`550nm`, `412.5nm`), which read back to the same numbers.
+    pub fn names(&self) -> Result<Vec<String>, Fault> {
+        let v = self.expand()?;
+        Channels::wavelengths(&v)
+            .map(|c| c.names())
+            .map_err(|e| ("wavelengths".to_string(), e.to_string()))
+    }
+}
+
+/// Which loop of a spectral run is inside.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Inner {
+    /// The faster of the two, from the estimated times.
+    #[default]
+    Auto,
+    /// Every wavelength at each geometry point.
+    Wavelength,
+    /// A pass over the geometry per wavelength.
+    Geometry,
+}
+
+impl Inner {
+    /// The name a plan writes.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Inner::Auto => "auto",
+            Inner::Wavelength => "wavelength",
+            Inner::Geometry => "geometry",
+        }
+    }
+}
+
+/// How a run with several bands is ordered.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SpectralConfig {
+    /// Which loop is inside (default `auto`).
+    pub inner: Inner,
 }
 
 impl Values {
@@ -387,9 +543,16 @@ pub struct Plan {
     #[serde(default)]
     pub name: Option<String>,
     /// Bands the bench selects in turn (filter wheel, monochromator); absent: one
-    /// pass in whatever band the detector sees.
+    /// pass in whatever band the detector sees. Not with `wavelengths`.
     #[serde(default)]
     pub channels: Option<Vec<String>>,
+    /// Wavelengths the bench selects, nm: the bands named as `gonio_core::Channels`
+    /// names wavelengths (`550nm`). Not with `channels`.
+    #[serde(default)]
+    pub wavelengths: Option<Wavelengths>,
+    /// Which loop is inside when there are several bands.
+    #[serde(default)]
+    pub spectral: SpectralConfig,
     /// Readings per point, taken one after another without moving.
     #[serde(default = "one_repeat")]
     pub repeats: u32,
@@ -473,6 +636,15 @@ impl Plan {
                     );
                 }
             }
+        }
+        if let Some(w) = &self.wavelengths {
+            if self.channels.is_some() {
+                return bad(
+                    "wavelengths",
+                    "`wavelengths` and `channels` both name the bands; give one of them".into(),
+                );
+            }
+            w.names()?;
         }
         let fields: Vec<(&str, &Values)> = match &self.points {
             Points::Grid {
@@ -569,7 +741,7 @@ impl Plan {
     /// Checks that `pairs` pairs, with the calibrations, repeats and channels, stay
     /// within [`MAX_READINGS`]; the fault names the field that multiplies them.
     fn check_readings(&self, pairs: usize) -> Result<(), (String, String)> {
-        let passes = self.channels.as_ref().map_or(1, Vec::len).max(1);
+        let passes = self.band_count();
         let standards = self.calibration.standard.as_ref().map_or(0, |s| s.at.len());
         // Dark and incident readings, the standard's pairs, and the pairs themselves.
         let per_pass = pairs.saturating_add(standards).saturating_add(2);
@@ -581,6 +753,8 @@ impl Plan {
         }
         let field = if self.repeats > 1 {
             "repeats"
+        } else if passes > 1 && self.wavelengths.is_some() {
+            "wavelengths"
         } else if passes > 1 {
             "channels"
         } else {
@@ -594,6 +768,41 @@ impl Plan {
                 self.repeats
             ),
         ))
+    }
+
+    /// How many bands the plan measures in (1 without `channels` or `wavelengths`).
+    fn band_count(&self) -> usize {
+        match (&self.channels, &self.wavelengths) {
+            (Some(c), _) => c.len().max(1),
+            (None, Some(w)) => w.expand().map_or(1, |v| v.len()),
+            (None, None) => 1,
+        }
+    }
+
+    /// The bands the plan measures in, in its order: the `channels`, or the
+    /// `wavelengths`' channel names; `None` for one unnamed band.
+    pub fn channel_names(&self) -> Result<Option<Vec<String>>, FileError> {
+        match (&self.channels, &self.wavelengths) {
+            (Some(c), _) => Ok(Some(c.clone())),
+            (None, Some(w)) => w.names().map(Some).map_err(|(field, m)| FileError {
+                field: Some(field),
+                ..FileError::whole(KIND, self.source.as_deref(), m)
+            }),
+            (None, None) => Ok(None),
+        }
+    }
+
+    /// The wavelength of each band, nm, when every band is one: the `wavelengths`,
+    /// or `channels` that all name wavelengths (`["450nm", "550nm"]`).
+    pub fn band_wavelengths(&self) -> Option<Vec<f64>> {
+        match (&self.channels, &self.wavelengths) {
+            (Some(c), _) => match Channels::from_names(c) {
+                Ok(Channels::Wavelengths(w)) => Some(w.to_vec()),
+                _ => None,
+            },
+            (None, Some(w)) => w.expand().ok(),
+            (None, None) => None,
+        }
     }
 
     /// The plan's direction pairs in its own order (duplicates included), degrees.

@@ -60,6 +60,8 @@ pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared
         rejected = checked.rejected.len(),
         steps = schedule.steps.len(),
         motion_s = schedule.motion_s,
+        band_s = schedule.band_s,
+        inner = schedule.spectral.as_ref().map(|d| d.inner.as_str()),
         "plan prepared"
     );
     Ok(Prepared {

@@ -2,6 +2,13 @@
 //! channels and repeats, with drift references and calibrations put in place. It is
 //! fixed when a run is created and stored in the run file, so that a resumed run
 //! follows exactly the same steps.
+//!
+//! With several bands (`channels` or `wavelengths`) either loop can be inside: a pass
+//! over the geometry per band ([`Loop::Geometry`]), or every band at each geometry
+//! point ([`Loop::Wavelength`]). The plan's `[spectral] inner` picks one, or (`auto`)
+//! the one whose estimate — stage motion, band changes from the instrument's
+//! `gonio_core::spectral_timing::WavelengthTiming`, readings — is shorter;
+//! [`SpectralDecision`] records both estimates and the reason.
 
 use std::time::Duration;
 
@@ -10,7 +17,7 @@ use gonio_core::dirfile::PairDeg;
 use serde::{Deserialize, Serialize};
 
 use crate::order;
-use crate::plan::{Checked, Mechanics, Plan, Rejection};
+use crate::plan::{Checked, Inner, Mechanics, Plan, Rejection};
 
 /// What a step measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -82,13 +89,75 @@ pub struct Schedule {
     pub raster_motion_s: f64,
     /// Estimated detector time (settling and sampling, serial traffic), s.
     pub detector_s: f64,
+    /// Estimated time of the band changes (the first selection included), s.
+    pub band_s: f64,
+    /// With several bands: which loop is inside, and why.
+    pub spectral: Option<SpectralDecision>,
 }
 
 impl Schedule {
     /// Estimated duration, s.
     pub fn duration_s(&self) -> f64 {
-        self.motion_s + self.detector_s
+        self.motion_s + self.band_s + self.detector_s
     }
+}
+
+/// Which loop of a run with several bands is inside.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Loop {
+    /// Every band at each geometry point (and each calibration, each reference).
+    Wavelength,
+    /// A pass over the geometry per band.
+    Geometry,
+}
+
+impl Loop {
+    /// Its name in reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Loop::Wavelength => "wavelength",
+            Loop::Geometry => "geometry",
+        }
+    }
+}
+
+/// The estimate of a schedule in one loop order.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LoopEstimate {
+    /// Stage motion, s.
+    pub motion_s: f64,
+    /// Band changes, the first selection included.
+    pub band_changes: usize,
+    /// Their time, s.
+    pub band_s: f64,
+    /// Readings, s.
+    pub detector_s: f64,
+    /// All three, s.
+    pub total_s: f64,
+}
+
+/// Which loop is inside a run with several bands, and why.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SpectralDecision {
+    /// What the plan asked for (`spectral.inner`).
+    pub requested: Inner,
+    /// The loop inside.
+    pub inner: Loop,
+    /// Number of bands.
+    pub bands: usize,
+    /// With the wavelength loop inside: whether successive sweeps over the bands
+    /// alternate in direction (else each sweep runs in the plan's order, ascending
+    /// wavelength). The wavelength timing decides: alternating saves the move back
+    /// to the first band, and costs a drive with backlash its overshoot on every
+    /// move down.
+    pub alternate: bool,
+    /// The estimate with the wavelength loop inside.
+    pub wavelength_inner: LoopEstimate,
+    /// The estimate with the geometry loop inside.
+    pub geometry_inner: LoopEstimate,
+    /// The decision in words, with both estimates.
+    pub reason: String,
 }
 
 /// Why a plan cannot be scheduled on an instrument.
@@ -111,6 +180,9 @@ pub enum ScheduleError {
     /// The incident-beam reading has no usable stage positions.
     #[error("field `calibration.incident.stages`: {0}")]
     Incident(String),
+    /// The bands cannot be named (a plan built in code that skipped validation).
+    #[error("{0}")]
+    Bands(String),
 }
 
 fn pair_of(p: [f64; 4]) -> PairDeg {
@@ -155,14 +227,255 @@ fn incident_stages(
     Ok(stages)
 }
 
+/// A band: its channel name and its wavelength, when it is one.
+struct Band {
+    name: String,
+    nm: Option<f64>,
+}
+
+/// Time to change from band `from` (`None`: unknown) to band `to`, s.
+fn band_move_s(mech: &Mechanics, bands: &[Band], from: Option<usize>, to: usize) -> f64 {
+    if from == Some(to) {
+        return 0.0;
+    }
+    match bands[to].nm {
+        Some(nm) => mech.wavelength_move_s(from.and_then(|f| bands[f].nm), nm),
+        None => mech.named_band_change_s(),
+    }
+}
+
+/// A step before its band is named.
+#[derive(Clone, Copy)]
+struct Proto {
+    kind: StepKind,
+    band: Option<usize>,
+    repeat: u32,
+    pair: Option<PairDeg>,
+    stages: Option<[f64; 4]>,
+    plan_index: Option<usize>,
+}
+
+/// Where each kind of step is taken: what both loop orders lay out.
+struct Layout<'a> {
+    checked: &'a Checked,
+    repeats: u32,
+    dark: bool,
+    incident: Option<(PairDeg, [f64; 4])>,
+    standard: Vec<(PairDeg, [f64; 4])>,
+    reference: Option<(PairDeg, [f64; 4])>,
+    every: usize,
+    repeat_at_end: bool,
+    /// The bands in plan order (`[None]`: one unnamed band).
+    bands: Vec<Option<usize>>,
+}
+
+/// One configuration to measure: kind, pair, stages, plan index, readings per band.
+type At = (
+    StepKind,
+    Option<PairDeg>,
+    Option<[f64; 4]>,
+    Option<usize>,
+    u32,
+);
+
+impl Layout<'_> {
+    /// The configurations of one pass over the geometry, in order: the calibrations,
+    /// the reference, the pairs of `ord` (backwards with `reverse`) with the
+    /// reference after every `every` and after the last, the calibrations again.
+    fn sequence(&self, ord: &[usize], reverse: bool, at: &mut dyn FnMut(At)) {
+        let calibrations = |at: &mut dyn FnMut(At)| {
+            if self.dark {
+                at((StepKind::Dark, None, None, None, self.repeats));
+            }
+            if let Some((p, s)) = self.incident {
+                at((StepKind::Incident, Some(p), Some(s), None, self.repeats));
+            }
+            for (p, s) in &self.standard {
+                at((StepKind::Standard, Some(*p), Some(*s), None, self.repeats));
+            }
+        };
+        calibrations(at);
+        let reference = |at: &mut dyn FnMut(At)| {
+            if let Some((p, s)) = self.reference {
+                at((StepKind::Reference, Some(p), Some(s), None, 1));
+            }
+        };
+        reference(at);
+        let n = ord.len();
+        for k in 0..n {
+            let i = if reverse { ord[n - 1 - k] } else { ord[k] };
+            let a = &self.checked.accepted[i];
+            at((
+                StepKind::Sample,
+                Some(a.pair),
+                Some(a.stages),
+                Some(a.index),
+                self.repeats,
+            ));
+            if (k + 1) % self.every == 0 || k + 1 == n {
+                reference(at);
+            }
+        }
+        if self.repeat_at_end {
+            calibrations(at);
+        }
+    }
+
+    /// Every step of the schedule in `inner` order, to `emit`. With the wavelength
+    /// loop inside, each configuration is measured in every band, the sweeps
+    /// alternating in direction with `alternate` (the first one ascending, so that
+    /// the bands first appear in the plan's order).
+    fn walk(&self, ord: &[usize], inner: Loop, alternate: bool, emit: &mut dyn FnMut(Proto)) {
+        let one = |emit: &mut dyn FnMut(Proto), band: Option<usize>, at: At| {
+            let (kind, pair, stages, plan_index, repeats) = at;
+            for repeat in 0..repeats {
+                emit(Proto {
+                    kind,
+                    band,
+                    repeat,
+                    pair,
+                    stages,
+                    plan_index,
+                });
+            }
+        };
+        match inner {
+            Loop::Geometry => {
+                for (pass, &band) in self.bands.iter().enumerate() {
+                    self.sequence(ord, pass % 2 == 1, &mut |at| one(emit, band, at));
+                }
+            }
+            Loop::Wavelength => {
+                let mut up = true;
+                self.sequence(ord, false, &mut |at| {
+                    let n = self.bands.len();
+                    for k in 0..n {
+                        one(emit, self.bands[if up { k } else { n - 1 - k }], at);
+                    }
+                    if alternate {
+                        up = !up;
+                    }
+                });
+            }
+        }
+    }
+}
+
+/// The cost of a walk, step by step.
+struct Cost<'a> {
+    mech: &'a Mechanics,
+    bands: &'a [Band],
+    at: [f64; 4],
+    band: Option<usize>,
+    motion_s: f64,
+    band_s: f64,
+    band_changes: usize,
+    steps: usize,
+}
+
+impl<'a> Cost<'a> {
+    fn new(mech: &'a Mechanics, bands: &'a [Band], start: [f64; 4]) -> Cost<'a> {
+        Cost {
+            mech,
+            bands,
+            at: start,
+            band: None,
+            motion_s: 0.0,
+            band_s: 0.0,
+            band_changes: 0,
+            steps: 0,
+        }
+    }
+
+    /// The engine's order: the band first, then the stages.
+    fn take(&mut self, p: &Proto) {
+        if let Some(b) = p.band
+            && self.band != Some(b)
+        {
+            self.band_s += band_move_s(self.mech, self.bands, self.band, b);
+            self.band_changes += 1;
+            self.band = Some(b);
+        }
+        if let Some(s) = p.stages {
+            self.motion_s += self.mech.motion.step_time(&self.at, &s);
+            self.at = s;
+        }
+        self.steps += 1;
+    }
+
+    fn estimate(&self, reading_s: f64) -> LoopEstimate {
+        let detector_s = self.steps as f64 * reading_s;
+        LoopEstimate {
+            motion_s: self.motion_s,
+            band_changes: self.band_changes,
+            band_s: self.band_s,
+            detector_s,
+            total_s: self.motion_s + self.band_s + detector_s,
+        }
+    }
+}
+
+/// Seconds as `1h02m03s`, for reasons.
+fn hms(s: f64) -> String {
+    if !s.is_finite() || s < 0.0 {
+        return "?".into();
+    }
+    let t = s.round() as u64;
+    match (t / 3600, t % 3600 / 60, t % 60) {
+        (0, 0, s) => format!("{s}s"),
+        (0, m, s) => format!("{m}m{s:02}s"),
+        (h, m, s) => format!("{h}h{m:02}m{s:02}s"),
+    }
+}
+
+/// An estimate in words: `2h06m (motion 10m00s, 3100 band changes of 2.0 s, 1h43m;
+/// readings 13m)`.
+fn describe(e: &LoopEstimate) -> String {
+    let each = if e.band_changes > 0 {
+        e.band_s / e.band_changes as f64
+    } else {
+        0.0
+    };
+    format!(
+        "{} (motion {}, {} band changes of {:.1} s, {}; readings {})",
+        hms(e.total_s),
+        hms(e.motion_s),
+        e.band_changes,
+        each,
+        hms(e.band_s),
+        hms(e.detector_s)
+    )
+}
+
+/// Whether sweeps over the bands should alternate in direction: when a sweep down
+/// and one up cost less than two sweeps up, each after a move back to the first band.
+fn alternates(mech: &Mechanics, bands: &[Band]) -> bool {
+    let n = bands.len();
+    if n < 2 {
+        return false;
+    }
+    let up: f64 = (1..n)
+        .map(|k| band_move_s(mech, bands, Some(k - 1), k))
+        .sum();
+    let down: f64 = (1..n)
+        .map(|k| band_move_s(mech, bands, Some(k), k - 1))
+        .sum();
+    let back = band_move_s(mech, bands, Some(n - 1), 0);
+    up + down < 2.0 * (back + up)
+}
+
 /// Builds the schedule of `plan` from its checked pairs, starting from `start`
 /// (stage positions, role order).
 ///
 /// Order of a pass: the calibrations (dark, incident, standard), the drift
 /// reference, then the sample pairs in the optimised order with the reference after
 /// every `drift.every` pairs and once more at the end; with `repeat_at_end` the
-/// calibrations again. One pass per channel; every other pass runs the pairs
-/// backwards, so that no pass starts with a long move back.
+/// calibrations again. With the geometry loop inside, one pass per band; every
+/// other pass runs the pairs backwards, so that no pass starts with a long move
+/// back. With the wavelength loop inside, one pass in which every step (each
+/// calibration, each reference, each pair) is taken in every band before the
+/// stages move on. With several bands and `spectral.inner = "auto"`, the order whose
+/// estimate is shorter (the geometry loop on a tie).
 pub fn build(
     plan: &Plan,
     mech: &Mechanics,
@@ -207,7 +520,15 @@ pub fn build(
         .atan2(mech.geometry.detector_distance_m)
         .to_degrees();
     let incident = match &c.incident {
-        Some(i) => Some(incident_stages(mech, i.stages, half_angle)?),
+        Some(i) => {
+            let s = incident_stages(mech, i.stages, half_angle)?;
+            let wi_wo = mech.layout.forward(s);
+            let pair = PairDeg {
+                incident: SphericalDeg::from(wi_wo.wi),
+                outgoing: SphericalDeg::from(wi_wo.wo),
+            };
+            Some((pair, s))
+        }
         None => None,
     };
     let mut standard = Vec::new();
@@ -220,107 +541,113 @@ pub fn build(
             standard.push((pair, stages));
         }
     }
-    let channels: Vec<Option<String>> = match &plan.channels {
-        Some(c) => c.iter().cloned().map(Some).collect(),
-        None => vec![None],
+    let names = plan
+        .channel_names()
+        .map_err(|e| ScheduleError::Bands(e.to_string()))?;
+    let nm = plan.band_wavelengths();
+    let bands: Vec<Band> = names
+        .iter()
+        .flatten()
+        .enumerate()
+        .map(|(k, name)| Band {
+            name: name.clone(),
+            nm: nm.as_ref().and_then(|w| w.get(k).copied()),
+        })
+        .collect();
+    let layout = Layout {
+        checked,
+        repeats: plan.repeats,
+        dark: c.dark,
+        incident,
+        standard,
+        reference,
+        every: plan.drift.as_ref().map_or(usize::MAX, |d| d.every.max(1)),
+        repeat_at_end: c.repeat_at_end,
+        bands: if bands.is_empty() {
+            vec![None]
+        } else {
+            (0..bands.len()).map(Some).collect()
+        },
     };
-    let every = plan.drift.as_ref().map_or(usize::MAX, |d| d.every);
-
-    let build_with = |ord: &[usize]| {
-        let mut steps = Vec::new();
-        for (pass, channel) in channels.iter().enumerate() {
-            let push = |steps: &mut Vec<Step>, kind, pair, stages, plan_index, repeats| {
-                for repeat in 0..repeats {
-                    steps.push(Step {
-                        kind,
-                        channel: channel.clone(),
-                        repeat,
-                        pair,
-                        stages,
-                        plan_index,
-                    });
-                }
-            };
-            let calibrations = |steps: &mut Vec<Step>| {
-                if c.dark {
-                    push(steps, StepKind::Dark, None, None, None, plan.repeats);
-                }
-                if let Some(s) = incident {
-                    let wi_wo = mech.layout.forward(s);
-                    let pair = PairDeg {
-                        incident: SphericalDeg::from(wi_wo.wi),
-                        outgoing: SphericalDeg::from(wi_wo.wo),
-                    };
-                    push(
-                        steps,
-                        StepKind::Incident,
-                        Some(pair),
-                        Some(s),
-                        None,
-                        plan.repeats,
-                    );
-                }
-                for (p, s) in &standard {
-                    push(
-                        steps,
-                        StepKind::Standard,
-                        Some(*p),
-                        Some(*s),
-                        None,
-                        plan.repeats,
-                    );
-                }
-            };
-            calibrations(&mut steps);
-            if let Some((p, s)) = reference {
-                push(&mut steps, StepKind::Reference, Some(p), Some(s), None, 1);
-            }
-            let mut this_pass: Vec<usize> = ord.to_vec();
-            if pass % 2 == 1 {
-                this_pass.reverse();
-            }
-            for (k, &i) in this_pass.iter().enumerate() {
-                let a = &checked.accepted[i];
-                push(
-                    &mut steps,
-                    StepKind::Sample,
-                    Some(a.pair),
-                    Some(a.stages),
-                    Some(a.index),
-                    plan.repeats,
-                );
-                let last = k + 1 == this_pass.len();
-                if let Some((p, s)) = reference
-                    && ((k + 1) % every == 0 || last)
-                {
-                    push(&mut steps, StepKind::Reference, Some(p), Some(s), None, 1);
-                }
-            }
-            if c.repeat_at_end {
-                calibrations(&mut steps);
-            }
-        }
-        steps
+    let estimate = |ord: &[usize], inner: Loop, alternate: bool| {
+        let mut cost = Cost::new(mech, &bands, start);
+        layout.walk(ord, inner, alternate, &mut |p| cost.take(&p));
+        cost.estimate(reading_s)
     };
-    let steps = build_with(&optimised);
-    let motion = |steps: &[Step]| {
-        let mut at = start;
-        let mut t = 0.0;
-        for s in steps {
-            if let Some(p) = s.stages {
-                t += mech.motion.step_time(&at, &p);
-                at = p;
-            }
-        }
-        t
+    let alternate = alternates(mech, &bands);
+    let (inner, spectral) = if bands.len() < 2 {
+        (Loop::Geometry, None)
+    } else {
+        let w = estimate(&optimised, Loop::Wavelength, alternate);
+        let g = estimate(&optimised, Loop::Geometry, false);
+        let requested = plan.spectral.inner;
+        let inner = match requested {
+            Inner::Wavelength => Loop::Wavelength,
+            Inner::Geometry => Loop::Geometry,
+            Inner::Auto if w.total_s < g.total_s => Loop::Wavelength,
+            Inner::Auto => Loop::Geometry,
+        };
+        let (mine, other) = match inner {
+            Loop::Wavelength => (&w, &g),
+            Loop::Geometry => (&g, &w),
+        };
+        let other_loop = match inner {
+            Loop::Wavelength => Loop::Geometry,
+            Loop::Geometry => Loop::Wavelength,
+        };
+        let reason = match requested {
+            Inner::Auto => format!(
+                "{} inner: {}, {} than {} inner: {}",
+                inner.as_str(),
+                describe(mine),
+                if mine.total_s < other.total_s {
+                    "less"
+                } else {
+                    "no more"
+                },
+                other_loop.as_str(),
+                describe(other)
+            ),
+            _ => format!(
+                "{} inner, as spectral.inner asks: {}; {} inner: {}",
+                inner.as_str(),
+                describe(mine),
+                other_loop.as_str(),
+                describe(other)
+            ),
+        };
+        let decision = SpectralDecision {
+            requested,
+            inner,
+            bands: bands.len(),
+            alternate: inner == Loop::Wavelength && alternate,
+            wavelength_inner: w,
+            geometry_inner: g,
+            reason,
+        };
+        (inner, Some(decision))
     };
-    let motion_s = motion(&steps);
-    let raster_motion_s = motion(&build_with(&order::raster(points.len())));
-    let detector_s = steps.len() as f64 * reading_s;
+    let alternate = inner == Loop::Wavelength && alternate;
+    let mut steps = Vec::new();
+    let mut cost = Cost::new(mech, &bands, start);
+    layout.walk(&optimised, inner, alternate, &mut |p| {
+        cost.take(&p);
+        steps.push(Step {
+            kind: p.kind,
+            channel: p.band.map(|b| bands[b].name.clone()),
+            repeat: p.repeat,
+            pair: p.pair,
+            stages: p.stages,
+            plan_index: p.plan_index,
+        });
+    });
+    let raster = estimate(&order::raster(points.len()), inner, alternate);
     Ok(Schedule {
         steps,
-        motion_s,
-        raster_motion_s,
-        detector_s,
+        motion_s: cost.motion_s,
+        raster_motion_s: raster.motion_s,
+        detector_s: cost.steps as f64 * reading_s,
+        band_s: cost.band_s,
+        spectral,
     })
 }

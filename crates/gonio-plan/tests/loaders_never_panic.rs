@@ -23,6 +23,10 @@ const PLANS: &[(&str, &str)] = &[
         "plan-list.toml",
         include_str!("../../../config/plan-list.toml"),
     ),
+    (
+        "plan-spectral.toml",
+        include_str!("../../../config/plan-spectral.toml"),
+    ),
 ];
 
 /// Reads `text` as a plan anchored in `config/` (so a list plan finds its CSV) and,
@@ -59,6 +63,31 @@ proptest! {
                  (\\[[-0-9e., ]{0,12}\\]|[-0-9e.]{1,6}|\\{ ?(from|to|step) = [-0-9.]{1,4} ?\\}|\"[a-z.]{0,8}\")\n){0,5}",
     ) {
         let _ = load(&text, &common::mechanics());
+    }
+
+    /// Wavelengths of any form, either loop order, on a monochromator of any
+    /// timing within its ranges.
+    #[test]
+    fn spectral_plans_from_plan_like_text(
+        text in "wavelengths = (\\[[-0-9e., ]{0,16}\\]|[-0-9e.]{1,6}|\\{ ?from = [0-9.]{1,4}, to = [0-9.]{1,4}, step = [-0-9.e]{1,4} ?\\})\n\
+                 (channels = \\[\"R\"\\]\n)?(\\[spectral\\]\ninner = \"(auto|wavelength|geometry|up)\"\n)?\
+                 \\[points\\]\nkind = \"in-plane\"\ntheta_i = \\[30\\]\ntheta_o = \\[10, 50\\]\n\
+                 (\\[drift\\]\nevery = [0-3]\n)?(\\[calibration\\]\ndark = true\nrepeat_at_end = true\n)?",
+        slew in 1e-3f64..1e6,
+        settle in 0f64..3600.0,
+        backlash in 0f64..1000.0,
+        change in 0f64..3600.0,
+        at in prop::collection::vec(1f64..1e5, 0..4),
+    ) {
+        let mut at = at;
+        at.sort_by(f64::total_cmp);
+        at.dedup();
+        let timing = gonio_core::spectral_timing::WavelengthTiming::monochromator(slew, settle)
+            .with_backlash(backlash)
+            .with_order_filter(change, &at)
+            .with_grating(change, &at);
+        prop_assert_eq!(timing.validate("wavelength"), Ok(()));
+        let _ = load(&text, &common::mechanics().with_wavelength(timing));
     }
 
     #[test]

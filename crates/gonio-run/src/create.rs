@@ -87,12 +87,20 @@ pub fn meta_for(plan: &Plan, prepared: &Prepared, inputs: &Inputs) -> Result<Run
             motion_s: s.motion_s,
             raster_motion_s: s.raster_motion_s,
             detector_s: s.detector_s,
+            band_s: s.band_s,
         }),
-        check: Some(serde_json::json!({
-            "pairs": prepared.pairs.len(),
-            "accepted": prepared.checked.accepted.len(),
-            "rejected": rejection_counts(&prepared.checked),
-        })),
+        check: Some({
+            let mut check = serde_json::json!({
+                "pairs": prepared.pairs.len(),
+                "accepted": prepared.checked.accepted.len(),
+                "rejected": rejection_counts(&prepared.checked),
+            });
+            // With several bands: which loop is inside, both estimates, the reason.
+            if let Some(d) = &s.spectral {
+                check["spectral"] = serde_json::json!(d);
+            }
+            check
+        }),
         ..RunMeta::default()
     })
 }

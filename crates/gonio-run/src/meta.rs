@@ -118,6 +118,9 @@ pub struct Estimate {
     pub raster_motion_s: f64,
     /// Detector time.
     pub detector_s: f64,
+    /// Band changes (absent from run files written before bands were estimated).
+    #[serde(default)]
+    pub band_s: f64,
 }
 
 /// The metadata of a run file, typed.
@@ -346,6 +349,8 @@ mod tests {
         assert_eq!(meta.status, RunStatus::Interrupted);
         assert_eq!(meta.step_count, Some(7));
         assert_eq!(meta.estimate.map(|e| e.detector_s), Some(3.0));
+        // Written before band changes were estimated: none.
+        assert_eq!(meta.estimate.map(|e| e.band_s), Some(0.0));
         assert_eq!(meta.other["from_a_newer_build"], "kept");
         // Without a recorded geometry, the instrument config's own table.
         assert_eq!(meta.geometry.detector_radius_m, 0.01);

@@ -17,7 +17,8 @@ use crate::output;
 pub enum Command {
     /// Map every pair through the instrument's kinematics; list the pairs left out
     /// (outside the limits, shadowed, overfilled, below the horizon, duplicated) and
-    /// estimate the motion and detector time.
+    /// estimate the motion, band-change and detector time; with several bands, say
+    /// which loop (wavelength or geometry) is inside and why.
     Check(CheckArgs),
 }
 
@@ -122,8 +123,9 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             "estimate": {
                 "motion_s": s.motion_s, "raster_motion_s": s.raster_motion_s,
                 "motion_saving": gain, "detector_s": s.detector_s,
-                "total_s": s.duration_s(),
+                "band_s": s.band_s, "total_s": s.duration_s(),
             },
+            "spectral": s.spectral,
         }));
     }
     let mut w = output::stdout();
@@ -153,14 +155,32 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
         }
         writeln!(
             w,
-            "{} steps; motion {} ({} in plan order, {:.0}% less), detector {}, total {}",
+            "{} steps; motion {} ({} in plan order, {:.0}% less), detector {}, {}total {}",
             s.steps.len(),
             hms(s.motion_s),
             hms(s.raster_motion_s),
             100.0 * gain,
             hms(s.detector_s),
+            if s.band_s > 0.0 {
+                format!("band changes {}, ", hms(s.band_s))
+            } else {
+                String::new()
+            },
             hms(s.duration_s())
         )?;
+        if let Some(d) = &s.spectral {
+            writeln!(
+                w,
+                "{} bands, {}{}",
+                d.bands,
+                d.reason,
+                if d.alternate {
+                    "; the sweeps over the bands alternate up and down"
+                } else {
+                    ""
+                }
+            )?;
+        }
         w.flush()
     })())
 }
