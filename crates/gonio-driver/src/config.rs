@@ -9,6 +9,7 @@ use serde::Deserialize;
 
 pub use gonio_core::goniometer::{GeometryConfig, KinematicsConfig};
 use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
+use gonio_core::spectral_timing::WavelengthTiming;
 
 use crate::smc100::{AxisConfig, ChainPolicy};
 use crate::spectral::{FilterWheelConfig, MonochromatorConfig};
@@ -476,7 +477,54 @@ impl InstrumentConfig {
     /// The instrument as planning sees it (layout, role axes, limits, speeds,
     /// geometry); fails without a `[kinematics]` section.
     pub fn mechanics(&self) -> Result<Mechanics, MechanicsError> {
-        Mechanics::new(self.kinematics.as_ref(), &self.stages(), &self.geometry)
+        let mech = Mechanics::new(self.kinematics.as_ref(), &self.stages(), &self.geometry)?;
+        Ok(match self.wavelength_timing() {
+            Some(t) => mech.with_wavelength(t),
+            None => mech,
+        })
+    }
+
+    /// How long the band selector takes to change wavelength, for the planner: a
+    /// monochromator's slew, settling, and its order-filter and grating changes at
+    /// the wavelengths where its config changes them; a filter wheel's change time.
+    /// `None` without either (an operator changes bands).
+    pub fn wavelength_timing(&self) -> Option<WavelengthTiming> {
+        if let Some(w) = &self.filter_wheel {
+            return Some(WavelengthTiming::per_change(w.change_s));
+        }
+        let m = self.monochromator.as_ref()?;
+        let c = &m.cs130;
+        let t = &m.timing;
+        let lo = c.gratings.iter().map(|g| g.min_nm).fold(f64::INFINITY, f64::min);
+        let hi = c.gratings.iter().map(|g| g.max_nm).fold(0.0, f64::max);
+        let (mut filters, mut gratings) = (Vec::new(), Vec::new());
+        if lo.is_finite() && hi > lo {
+            // Half-nanometre steps find each crossover to within 0.5 nm: a planning
+            // estimate needs no better.
+            let steps = ((hi - lo) / 0.5) as usize;
+            let (mut filter, mut grating) = (None, None);
+            for k in 0..=steps {
+                let nm = lo + k as f64 * 0.5;
+                let f = c.order_filter_for(nm).ok();
+                if k > 0 && f != filter && f.is_some() {
+                    filters.push(nm);
+                }
+                filter = f.or(filter);
+                let g = c.grating_for(nm).ok().map(|g| g.index);
+                if k > 0 && g != grating && g.is_some() {
+                    gratings.push(nm);
+                }
+                grating = g.or(grating);
+            }
+        }
+        let mut timing = WavelengthTiming::monochromator(t.slew_nm_per_s, t.settle_s);
+        if c.auto_order_filter && !filters.is_empty() {
+            timing = timing.with_order_filter(t.filter_change_s, &filters);
+        }
+        if !gratings.is_empty() {
+            timing = timing.with_grating(t.grating_change_s, &gratings);
+        }
+        Some(timing)
     }
 
     /// Estimated seconds per reading on the detector: settling, sampling, and the
