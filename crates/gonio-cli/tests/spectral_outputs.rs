@@ -282,7 +282,10 @@ fn a_spectral_run_reduces_checks_and_fits_per_wavelength() {
         .enumerate()
     {
         let rho = ch["params"]["rho_d"].as_f64().expect("rho");
-        assert!(ch["std_err"]["rho_d"].as_f64().expect("std err") > 0.0, "{ch}");
+        assert!(
+            ch["std_err"]["rho_d"].as_f64().expect("std err") > 0.0,
+            "{ch}"
+        );
         assert!((rho / RHO[c] - 1.0).abs() < 1e-4, "{ch}");
     }
 }

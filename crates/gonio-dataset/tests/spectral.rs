@@ -49,8 +49,7 @@ fn long_form_samples_open_as_the_same_samples() {
     assert_eq!(back, s);
     // Without the sidecar the rows still read; only the isotropy is not known.
     std::fs::remove_file(format!("{}.json", path.display())).expect("sidecar");
-    let Dataset::Samples(bare) = open(&path, &OpenOptions::default()).expect("opens").data
-    else {
+    let Dataset::Samples(bare) = open(&path, &OpenOptions::default()).expect("opens").data else {
         panic!("samples")
     };
     assert_eq!(bare.samples, s.samples);

@@ -612,9 +612,9 @@ mod tests {
         )
         .expect("model");
         let opts = AlbedoOptions::default();
-        let e = spectral(&Source::Model(&rgb), None, &[0.0], &opts)
-            .err()
-            .expect("refused");
+        let Err(e) = spectral(&Source::Model(&rgb), None, &[0.0], &opts) else {
+            panic!("refused")
+        };
         assert!(e.to_string().contains("wavelength channels"), "{e}");
         let m = lambert();
         assert!(spectral(&Source::Model(&m), None, &[90.0], &opts).is_err());
