@@ -43,7 +43,8 @@ pub enum Kind {
     Merl,
     /// ASTM E1392-style text.
     Astm,
-    /// Gonio's CSV: a table or samples.
+    /// Gonio's CSV: a table or samples, wide (a column a channel) or long (a row a
+    /// wavelength, `gonio_io::formats::long`).
     Csv,
     /// A k-separable representation (TOML, `kind = "separable"`).
     Separable,
@@ -238,7 +239,7 @@ pub fn detect(bytes: &[u8]) -> Option<Kind> {
     formats::detect(bytes).map(|f| match f {
         formats::Format::Merl => Kind::Merl,
         formats::Format::Astm => Kind::Astm,
-        formats::Format::Csv => Kind::Csv,
+        formats::Format::Csv | formats::Format::CsvLong => Kind::Csv,
     })
 }
 
@@ -288,9 +289,13 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
             reduction: Some(red),
         });
     }
-    let (kind, data) = if is_csv(path)? {
-        // Streamed with its sidecar: a large table is never held as text.
-        let data = formats::read_csv_file(path, MAX_TEXT_BYTES)?;
+    let (kind, data) = if let Some(f) = csv_format(path)? {
+        // With its sidecar; the wide form streamed, so a large table is never held as
+        // text.
+        let data = match f {
+            formats::Format::CsvLong => formats::read_long_file(path, MAX_TEXT_BYTES)?,
+            _ => formats::read_csv_file(path, MAX_TEXT_BYTES)?,
+        };
         (Kind::Csv, from_data(data, path)?)
     } else {
         let bytes =
@@ -340,7 +345,7 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
     let detected = formats::detect(bytes);
     let kind = match detected {
         Some(formats::Format::Astm) => Kind::Astm,
-        Some(formats::Format::Csv) => Kind::Csv,
+        Some(formats::Format::Csv | formats::Format::CsvLong) => Kind::Csv,
         _ => Kind::Merl,
     };
     let read = match detected {
@@ -350,10 +355,15 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
     Ok((kind, from_data(read?, path)?))
 }
 
-/// Whether `path` holds Gonio's CSV, from its first 64 KiB.
-fn is_csv(path: &Path) -> Result<bool, DatasetError> {
+/// Which of Gonio's CSV forms `path` holds (wide or long), if either, from its
+/// first 64 KiB.
+fn csv_format(path: &Path) -> Result<Option<formats::Format>, DatasetError> {
     let head = gonio_core::input::read_head(path, 64 << 10).map_err(DatasetError::input)?;
-    Ok(toml_kind(&head).is_none() && formats::detect(&head) == Some(formats::Format::Csv))
+    if toml_kind(&head).is_some() {
+        return Ok(None);
+    }
+    Ok(formats::detect(&head)
+        .filter(|f| matches!(f, formats::Format::Csv | formats::Format::CsvLong)))
 }
 
 /// What a format reader gave, as a dataset: samples that form a complete uniform grid

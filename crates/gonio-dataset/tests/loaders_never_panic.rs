@@ -1,6 +1,6 @@
 //! Any bytes given as an `INPUT` are recognised and opened, or refused as bad input
 //! naming the file, never a panic: arbitrary bytes, and inputs of every text kind
-//! (model, table, samples, ASTM, separable, harmonics) with hostile changes
+//! (model, table, samples, long-form samples, ASTM, separable, harmonics) with hostile changes
 //! (`gonio_core::fuzz::mutate`: a number made `nan`, `inf`, `-0`, `1e308` or a huge
 //! integer, a line deleted or repeated, a BOM). What opens becomes a table and
 //! samples, or says why not.
@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 use gonio_brdf::Model;
 use gonio_core::fuzz::mutate;
 use gonio_dataset::{Kind, detect, open_bytes};
-use gonio_io::formats::write_astm;
+use gonio_io::formats::{Data, write_astm, write_long};
 use gonio_process::separable::SeparableBrdf;
 use gonio_process::sh::{ShBrdf, ShOptions};
 use gonio_process::{Grid, GridStep, Samples, Table};
@@ -31,6 +31,10 @@ fn inputs() -> &'static [(Kind, String)] {
             (Kind::Model, PAINT.to_string()),
             (Kind::Csv, gonio_process::file::write_table(&table)),
             (Kind::Csv, gonio_process::file::write_samples(&samples)),
+            (
+                Kind::Csv,
+                write_long(&Data::Samples(samples.clone())).expect("550nm is a wavelength"),
+            ),
             (Kind::Astm, write_astm(&samples)),
             (
                 Kind::Separable,
@@ -82,7 +86,7 @@ proptest! {
 
     #[test]
     fn inputs_damaged(
-        k in 0usize..6,
+        k in 0usize..7,
         seeds in prop::collection::vec(any::<u64>(), 1..4),
     ) {
         open(mutate(&inputs()[k].1, &seeds).as_bytes())?;

@@ -52,6 +52,13 @@ impl Checked {
         let mut v = serde_json::to_value(&self.report).unwrap_or_default();
         if let Some(o) = v.as_object_mut() {
             o.insert("symmetry".into(), self.tab.symmetry.name().into());
+            // The channels' wavelengths (nm), in the order of `channels`; null for
+            // single-band and R/G/B data.
+            let wl = match &self.tab.table.channels {
+                gonio_core::Channels::Wavelengths(w) => serde_json::json!(w.to_vec()),
+                _ => serde_json::Value::Null,
+            };
+            o.insert("wavelengths_nm".into(), wl);
             o.insert(
                 "grid".into(),
                 serde_json::to_value(super::grid_json(&self.tab.table, &self.tab))

@@ -17,7 +17,8 @@ use crate::output;
 pub struct ExportArgs {
     /// The input.
     input: PathBuf,
-    /// merl, astm or csv.
+    /// merl, astm, csv or csv-long (a row per pair per wavelength: wavelength
+    /// channels only).
     #[arg(long)]
     format: String,
     /// The file to write.
@@ -35,11 +36,14 @@ pub struct ExportArgs {
 pub fn run(a: ExportArgs) -> CliResult<()> {
     let (input, out, json_out) = (a.input.as_path(), a.out.as_path(), a.json.json);
     let format = Format::from_name(&a.format).ok_or_else(|| {
-        CliError::Input(format!("--format: merl, astm or csv, got {:?}", a.format))
+        CliError::Input(format!(
+            "--format: merl, astm, csv or csv-long, got {:?}",
+            a.format
+        ))
     })?;
     // A CSV goes with its sidecar (the grid, isotropy), both checked before any work.
     let target = match format {
-        Format::Csv => Err(CsvTarget::new(out, a.force.force)?),
+        Format::Csv | Format::CsvLong => Err(CsvTarget::new(out, a.force.force)?),
         _ => Ok(output::Target::new(out, a.force.force)?),
     };
     let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
@@ -58,6 +62,10 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
     let bytes = formats::write(format, &data).map_err(|e| CliError::Input(e.to_string()))?;
     match &target {
         Ok(t) => t.write(&bytes)?,
+        Err(csv) if format == Format::CsvLong => csv.write(
+            &bytes,
+            &formats::long_meta(&data).map_err(|e| CliError::Input(e.to_string()))?,
+        )?,
         Err(csv) => csv.write(&bytes, &formats::csv_meta(&data))?,
     }
     let bytes = bytes.len();

@@ -184,6 +184,12 @@ impl Fitted {
             "fit": self.fit,
             "comparison": self.comparison,
             "cut_by_angle": self.data.cut,
+            // The channels' wavelengths (nm), in the order of `fit.channels`; null
+            // for single-band and R/G/B data.
+            "wavelengths_nm": match &self.data.channels {
+                gonio_core::Channels::Wavelengths(w) => Some(w.to_vec()),
+                _ => None,
+            },
         })
     }
 }

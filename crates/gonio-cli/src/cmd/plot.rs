@@ -19,7 +19,9 @@ pub struct PlotArgs {
     /// A fitted model file drawn against the data.
     #[arg(long)]
     fit: Option<PathBuf>,
-    /// polar, hemisphere, albedo, separability or sphere.
+    /// polar, hemisphere, albedo, separability or sphere. For two or more wavelength
+    /// channels (and no --channel), albedo is drawn against wavelength, one curve per
+    /// --theta-i.
     #[arg(long)]
     kind: String,
     /// The image to write (.png or .svg).
@@ -27,7 +29,8 @@ pub struct PlotArgs {
     out: PathBuf,
     #[command(flatten)]
     force: output::ForceFlag,
-    /// Incident polar angles, degrees (polar: the curves; hemisphere: the first).
+    /// Incident polar angles, degrees (polar and spectral albedo: the curves;
+    /// hemisphere: the first).
     #[arg(long, value_delimiter = ',', default_value = "0,35,65")]
     theta_i: Vec<f64>,
     /// Only this channel (by name).
@@ -84,6 +87,9 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
         })?),
     };
     let fit_brdf: Option<&dyn Brdf> = fit.as_ref().map(|m| m as &dyn Brdf);
+    // Several wavelengths: the albedo is a spectrum, drawn against wavelength.
+    let spectral = channel == ChannelChoice::All
+        && matches!(src.channels(), gonio_core::Channels::Wavelengths(w) if w.len() > 1);
     target.write_with(|tmp| -> CliResult<()> {
         let out = Output::File(tmp);
         match a.kind.as_str() {
@@ -106,6 +112,13 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
                     channel,
                     ..plot::HemisphereOptions::default()
                 },
+            ),
+            "albedo" if spectral => plot::spectral_albedo(
+                out,
+                &src,
+                fit_brdf,
+                &a.theta_i,
+                &plot::AlbedoOptions::default(),
             ),
             "albedo" => plot::albedo(
                 out,

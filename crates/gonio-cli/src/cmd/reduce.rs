@@ -32,6 +32,11 @@ pub struct ReduceArgs {
     grid: GridFlag,
     #[command(flatten)]
     json: JsonFlag,
+    /// Write the long-form CSV: a row per pair per wavelength, with its σ
+    /// (`theta_i_deg,…,wavelength_nm,f_r_per_sr,sigma_per_sr`); wavelength channels
+    /// only.
+    #[arg(long)]
+    long: bool,
     /// The reference standard's relative standard uncertainty (its certificate's),
     /// carried as the budget's `standard` term when the standard calibrates.
     #[arg(long, value_name = "REL", default_value_t = 0.0)]
@@ -98,6 +103,23 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
     let target = CsvTarget::new(out, a.force.force)?;
     let (red, content) = compute(&a)?;
     let what = match (&content, grid) {
+        _ if a.long => {
+            let data = match &content {
+                Content::Table(t) => gonio_io::formats::Data::Table(t.clone()),
+                Content::Samples(s) => gonio_io::formats::Data::Samples(s.clone()),
+            };
+            let bad = |e: gonio_io::formats::FormatError| CliError::Input(e.to_string());
+            let text = gonio_io::formats::write_long(&data).map_err(bad)?;
+            target.write(
+                text.as_bytes(),
+                &gonio_io::formats::long_meta(&data).map_err(bad)?,
+            )?;
+            format!(
+                "{} rows (long form, {} wavelengths)",
+                text.lines().count() - 1,
+                data.channels().len()
+            )
+        }
         (Content::Table(t), None) => {
             target.write_table(t)?;
             format!("a table of {} nodes", t.grid.len())
@@ -117,6 +139,12 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             "wrote": what,
             "samples": red.samples.samples.len(),
             "channels": red.samples.channels.names(),
+            // The channels' wavelengths (nm), in the order of `channels`; null for
+            // single-band and R/G/B runs.
+            "wavelengths_nm": match &red.samples.channels {
+                gonio_core::Channels::Wavelengths(w) => Some(w.to_vec()),
+                _ => None,
+            },
             "reduction": reduction_json(&red),
         }));
     }

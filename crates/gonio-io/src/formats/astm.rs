@@ -37,6 +37,14 @@
 //!   error too.
 //!
 //! Errors name the file, the line and the field (the column's `VARS` name).
+//!
+//! # Spectral data
+//! Several wavelengths are written as a column each, `VARS
+//! theta_i,phi_i,theta_s,phi_s,450nm,550nm,650nm`, one row a pair: the layout
+//! libbsdf's ASTM reader expects (KimuraRyo/libbsdf, `src/Reader/AstmReader.cpp`: a
+//! `VARS` name ending in `nm` is that wavelength). **UNCONFIRMED:** what ASTM E1392
+//! itself prescribes for several wavelengths, and whether the Cornell text files put
+//! a wavelength in each record instead; a `wavelength` column in `VARS` is not read.
 
 use std::fmt::Write as _;
 use std::path::Path;

@@ -6,6 +6,7 @@
 //! | MERL binary (Matusik et al. 2003) | [`merl`] | isotropic RGB BRDF on 90 × 90 × 180 half/difference bins | [`Data::Merl`] ([`MerlBrdf`]) |
 //! | ASTM E1392-style text (the Cornell measurements) | [`astm`] | scattered samples, any channels | [`Data::Samples`] |
 //! | CSV samples or table (`gonio_process::file`) | — | samples, or a table on a grid | [`Data::Samples`] or [`Data::Table`] |
+//! | long-form spectral CSV (a row per pair per wavelength) | [`long`] | samples with wavelength channels | [`Data::Samples`] |
 //!
 //! [`detect`] recognises a format from the bytes alone (never from a file name);
 //! [`read`] detects and parses, [`read_as`] parses as a given format; [`write()`] and
@@ -42,9 +43,11 @@ use gonio_process::{Samples, Table};
 
 pub mod astm;
 pub mod fuzz;
+pub mod long;
 pub mod merl;
 
 pub use astm::{read_astm, write_astm};
+pub use long::{long_meta, read_long, write_long};
 pub use merl::{Bin, FromSamples, MerlBrdf, read_merl, write_merl};
 
 /// The largest file [`read_file`] reads (4 GiB): far beyond any BRDF Gonio writes
@@ -64,18 +67,21 @@ pub enum Format {
     Astm,
     /// Gonio's CSV samples or table (`gonio_process::file`).
     Csv,
+    /// The long-form spectral CSV: a row per pair per wavelength ([`long`]).
+    CsvLong,
 }
 
 impl Format {
     /// Every format, in the order [`detect`] tries them.
-    pub const ALL: [Format; 3] = [Format::Merl, Format::Astm, Format::Csv];
+    pub const ALL: [Format; 4] = [Format::Merl, Format::Astm, Format::Csv, Format::CsvLong];
 
-    /// The short name commands take (`merl`, `astm`, `csv`).
+    /// The short name commands take (`merl`, `astm`, `csv`, `csv-long`).
     pub fn name(self) -> &'static str {
         match self {
             Format::Merl => "merl",
             Format::Astm => "astm",
             Format::Csv => "csv",
+            Format::CsvLong => "csv-long",
         }
     }
 
@@ -85,6 +91,7 @@ impl Format {
             Format::Merl => "MERL BRDF",
             Format::Astm => "ASTM E1392 BRDF",
             Format::Csv => "BRDF table",
+            Format::CsvLong => "long-form spectral BRDF CSV",
         }
     }
 
@@ -96,8 +103,8 @@ impl Format {
     }
 
     /// The format a file name's extension suggests: `.binary` or `.merl` (MERL),
-    /// `.astm` (ASTM), `.csv` (CSV). Only a hint for writing; reading detects the
-    /// format from the content.
+    /// `.astm` (ASTM), `.csv` (CSV; never the long form, which is asked for by name).
+    /// Only a hint for writing; reading detects the format from the content.
     pub fn from_extension(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
@@ -275,7 +282,8 @@ impl std::error::Error for FormatError {}
 ///   keyword line, after any blank lines, `#` comments and other keyword lines;
 /// - **CSV**: text whose first line that is neither blank nor a `#` line starts with
 ///   the `docs/CONVENTIONS.md` header `theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg`
-///   (or `theta_i,phi_i,theta_o,phi_o`, as files before format 2 have it).
+///   (or `theta_i,phi_i,theta_o,phi_o`, as files before format 2 have it);
+/// - **long-form CSV**: the same, with `wavelength_nm` for the fifth column.
 ///
 /// `None` for anything else, including a MERL file of the wrong length (which
 /// [`read`] still reads as MERL, to say what is wrong with it). Looks at no more
@@ -321,6 +329,9 @@ fn detect_text(bytes: &[u8]) -> Result<Format, Unrecognised> {
             continue;
         }
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if long::is_long_header(&fields) {
+            return Ok(Format::CsvLong);
+        }
         if fields.len() >= 4
             && (fields[..4] == gonio_core::dirfile::HEADER
                 || fields[..4] == gonio_process::file::DIR_COLUMNS)
@@ -405,6 +416,7 @@ pub fn read_as(format: Format, bytes: &[u8], path: Option<&Path>) -> Result<Data
         Format::Merl => read_merl(bytes, path).map(Data::Merl),
         Format::Astm => read_astm(utf8(format, bytes, path)?, path).map(Data::Samples),
         Format::Csv => read_csv(utf8(format, bytes, path)?, path),
+        Format::CsvLong => read_long(utf8(format, bytes, path)?, None, path),
     }
 }
 
@@ -515,7 +527,9 @@ pub fn csv_meta(data: &Data) -> Meta {
 ///   ([`MerlBrdf::from_samples`] with the default [`FromSamples`]);
 /// - ASTM from a table's nodes or a MERL table's valid bin centres (ASTM holds
 ///   samples only; uncertainties and flags are not part of it and are dropped);
-/// - CSV as [`write_csv`].
+/// - CSV as [`write_csv`];
+/// - the long-form CSV ([`write_long`]) from any data with wavelength channels (a
+///   table's nodes, a MERL table's valid bins), refused for other channels.
 ///
 /// Errors (channels MERL cannot hold, samples that cannot be interpolated) carry no
 /// file name; [`write_file`] adds it.
@@ -529,6 +543,7 @@ pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
         (Format::Astm, Data::Samples(s)) => write_astm(s).into_bytes(),
         (Format::Astm, d) => write_astm(&d.to_samples()).into_bytes(),
         (Format::Csv, d) => write_csv(d).into_bytes(),
+        (Format::CsvLong, d) => write_long(d)?.into_bytes(),
     })
 }
 
@@ -540,8 +555,12 @@ pub fn read_file(path: &Path) -> Result<Data, FormatError> {
     let head = gonio_core::input::read_head(path, DETECT_BYTES as u64).map_err(|e| {
         FormatError::whole(None, Some(path), format!("cannot read: {}", e.reason()))
     })?;
-    if !merl::looks_like_merl(&head) && matches!(detect_text(&head), Ok(Format::Csv)) {
-        return read_csv_file(path, MAX_FILE_BYTES);
+    if !merl::looks_like_merl(&head) {
+        match detect_text(&head) {
+            Ok(Format::Csv) => return read_csv_file(path, MAX_FILE_BYTES),
+            Ok(Format::CsvLong) => return read_long_file(path, MAX_FILE_BYTES),
+            _ => {}
+        }
     }
     let bytes = gonio_core::input::read_bounded(path, MAX_FILE_BYTES).map_err(|e| match e {
         gonio_core::input::InputError::TooLarge { max, .. } => FormatError::whole(
@@ -565,9 +584,33 @@ pub fn write_file(format: Format, data: &Data, path: &Path) -> Result<(), Format
         FormatError::whole(Some(format), Some(p), format!("cannot write: {e}"))
     };
     std::fs::write(path, bytes).map_err(|e| fail(path, e))?;
-    if format == Format::Csv {
+    let meta = match format {
+        Format::Csv => Some(csv_meta(data)),
+        Format::CsvLong => Some(long_meta(data)?),
+        _ => None,
+    };
+    if let Some(meta) = meta {
         let side = sidecar_path(path);
-        std::fs::write(&side, csv_meta(data).to_json()).map_err(|e| fail(&side, e))?;
+        std::fs::write(&side, meta.to_json()).map_err(|e| fail(&side, e))?;
     }
     Ok(())
+}
+
+/// Reads the long-form CSV file `path` ([`read_long`]) with its sidecar when there
+/// is one ([`read_sidecar`]), which gives the isotropy. Only a regular file of at
+/// most `max_bytes` is read.
+pub fn read_long_file(path: &Path, max_bytes: u64) -> Result<Data, FormatError> {
+    let meta = read_sidecar(path)?;
+    let bytes = gonio_core::input::read_bounded(path, max_bytes).map_err(|e| {
+        FormatError::whole(
+            Some(Format::CsvLong),
+            Some(path),
+            format!("cannot read: {}", e.reason()),
+        )
+    })?;
+    read_long(
+        utf8(Format::CsvLong, &bytes, Some(path))?,
+        meta.as_ref(),
+        Some(path),
+    )
 }

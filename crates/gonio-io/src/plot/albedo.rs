@@ -1,5 +1,6 @@
 //! Directional albedo against θi, per channel and per model term (Lafortune et al.
-//! 1997, Figs. 4b, 7b, 9b).
+//! 1997, Figs. 4b, 7b, 9b); and, for wavelength channels, against wavelength, one
+//! curve per θi ([`SpectralAlbedo`]).
 
 use gonio_brdf::{Brdf, Lafortune, Model};
 use gonio_core::Dir;
@@ -9,7 +10,10 @@ use super::draw::{self, Area, Entry, INK, Mark, Sizes};
 use super::eval::Evaluator;
 use super::font::FAMILY;
 use super::output::Figure;
-use super::{AlbedoOptions, PanelRect, PlotErrorKind, Source, check_size, same_channels, select};
+use super::{
+    AlbedoOptions, PanelRect, PlotErrorKind, Source, check_size, check_theta_i, same_channels,
+    select,
+};
 
 /// The largest θi drawn, degrees (at 90° every albedo is 0 by definition).
 const THETA_MAX: f64 = 89.0;
@@ -327,5 +331,299 @@ impl Figure for AlbedoFig {
             &sz,
         )?;
         Ok(out)
+    }
+}
+
+/// What a spectral albedo plot draws: the directional albedo
+/// ρ(θi, λ) = ∫ f_r cos θo dωo at each wavelength channel, for each requested θi
+/// (at the options' φi), from [`Brdf::albedo`] (for samples, of the nearest-j
+/// interpolation over the hemisphere).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpectralAlbedo {
+    /// The wavelengths, nm, increasing (the x axis).
+    pub wavelengths_nm: Vec<f64>,
+    /// The incident polar angles, degrees: one curve each.
+    pub theta_i_deg: Vec<f64>,
+    /// The data's albedo, `data[k][c]` at `theta_i_deg[k]` and `wavelengths_nm[c]`.
+    pub data: Vec<Vec<f64>>,
+    /// The fit's albedo, indexed as `data`, when a fit is given.
+    pub fit: Option<Vec<Vec<f64>>>,
+    /// The φi of the incident directions, degrees.
+    pub phi_i_deg: f64,
+}
+
+/// The numbers of the spectral albedo plot (see [`SpectralAlbedo`]); the data's
+/// channels must be wavelengths (at least one), and a fit must have the same ones.
+pub(crate) fn spectral(
+    data: &Source<'_>,
+    fit: Option<&dyn Brdf>,
+    theta_i_deg: &[f64],
+    opts: &AlbedoOptions,
+) -> Result<SpectralAlbedo, PlotErrorKind> {
+    let gonio_core::Channels::Wavelengths(wl) = data.channels() else {
+        return Err(PlotErrorKind::Input(format!(
+            "albedo against wavelength needs wavelength channels; the data has {}",
+            data.channels()
+        )));
+    };
+    same_channels(data.channels(), fit.map(|f| f.channels()))?;
+    if theta_i_deg.is_empty() {
+        return Err(PlotErrorKind::Input(
+            "albedo against wavelength needs at least one θi".into(),
+        ));
+    }
+    for &t in theta_i_deg {
+        check_theta_i(t)?;
+    }
+    if !opts.phi_i_deg.is_finite() {
+        return Err(PlotErrorKind::Input("φi is not a finite number".into()));
+    }
+    let nc = wl.len();
+    let eval = Evaluator::new(data, opts.kernel)?;
+    let data_values = albedos(
+        |wi, o| eval.brdf().albedo(wi, o),
+        nc,
+        theta_i_deg,
+        opts.phi_i_deg,
+    );
+    let fit_values = fit.map(|f| albedos(|wi, o| f.albedo(wi, o), nc, theta_i_deg, opts.phi_i_deg));
+    Ok(SpectralAlbedo {
+        wavelengths_nm: wl.to_vec(),
+        theta_i_deg: theta_i_deg.to_vec(),
+        data: data_values,
+        fit: fit_values,
+        phi_i_deg: opts.phi_i_deg,
+    })
+}
+
+/// The spectral albedo figure: one panel, a curve per θi.
+pub(crate) struct SpectralFig {
+    values: SpectralAlbedo,
+    /// Data as points (when a fit is drawn, or the data are samples), else as lines.
+    data_points: bool,
+    legend: Vec<Entry>,
+    title: String,
+}
+
+pub(crate) fn build_spectral(
+    data: &Source<'_>,
+    fit: Option<&dyn Brdf>,
+    theta_i_deg: &[f64],
+    opts: &AlbedoOptions,
+) -> Result<SpectralFig, PlotErrorKind> {
+    check_size(opts.size, (320, 240))?;
+    let values = spectral(data, fit, theta_i_deg, opts)?;
+    let data_points = fit.is_some() || matches!(data, Source::Samples(_));
+    let mut legend = Vec::new();
+    for (k, t) in values.theta_i_deg.iter().enumerate() {
+        let mark = if data_points {
+            Mark::Point(draw::series_color(k))
+        } else {
+            Mark::Line(draw::series_color(k))
+        };
+        legend.push(Entry::new(mark, format!("θi = {}", draw::fmt_deg(*t))));
+    }
+    legend.push(Entry::new(
+        if data_points {
+            Mark::Point(INK)
+        } else {
+            Mark::Line(INK)
+        },
+        opts.data_label.clone(),
+    ));
+    if fit.is_some() {
+        legend.push(Entry::new(Mark::Line(INK), opts.fit_label.clone()));
+    }
+    let title = opts.title.clone().unwrap_or_else(|| {
+        format!(
+            "Directional albedo ρ(λ) = ∫ f_r cos θo dωo   (φi = {})",
+            draw::fmt_deg(values.phi_i_deg)
+        )
+    });
+    Ok(SpectralFig {
+        values,
+        data_points,
+        legend,
+        title,
+    })
+}
+
+impl SpectralFig {
+    /// The data's albedo table (the figure's numbers).
+    pub(crate) fn values(&self) -> &SpectralAlbedo {
+        &self.values
+    }
+}
+
+impl Figure for SpectralFig {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &Area<DB>,
+        _cell: u32,
+    ) -> Result<Vec<PanelRect>, String> {
+        root.fill(&WHITE).map_err(draw::de)?;
+        let sz = Sizes::for_area(root);
+        let (w, h) = root.dim_in_pixel();
+        let (w, h) = (w as i32, h as i32);
+        let top = draw::title(root, &self.title, &sz)?;
+        let lw = sz.px(220.0);
+        let v = &self.values;
+        let sub = root.clone().shrink(
+            (sz.px(4.0), top),
+            (
+                (w - lw - sz.px(12.0)).max(1) as u32,
+                (h - top - sz.px(4.0)).max(1) as u32,
+            ),
+        );
+        let ymax = v
+            .data
+            .iter()
+            .chain(v.fit.iter().flatten())
+            .flatten()
+            .fold(0.0f64, |a, &x| a.max(x));
+        let ymax = if ymax > 0.0 && ymax.is_finite() {
+            let step = draw::nice_step(ymax * 1.08, 5);
+            step * (ymax * 1.08 / step).ceil()
+        } else {
+            1.0
+        };
+        let ystep = draw::nice_step(ymax, 5);
+        // One wavelength still gets an axis: ±10 nm around it.
+        let (lo, hi) = match (v.wavelengths_nm.first(), v.wavelengths_nm.last()) {
+            (Some(&a), Some(&b)) if b > a => (a, b),
+            (Some(&a), _) => (a - 10.0, a + 10.0),
+            _ => (0.0, 1.0),
+        };
+        let xstep = draw::nice_step(hi - lo, 8);
+        let mut chart = ChartBuilder::on(&sub)
+            .margin(sz.px(10.0))
+            .x_label_area_size(sz.px(52.0))
+            .y_label_area_size(sz.px(66.0))
+            .build_cartesian_2d(lo..hi, 0f64..ymax)
+            .map_err(draw::de)?;
+        chart
+            .configure_mesh()
+            .light_line_style(WHITE)
+            .bold_line_style(draw::GRID)
+            .x_labels(10)
+            .y_labels(8)
+            .x_label_formatter(&|x| draw::fmt_tick(*x, xstep / 2.0))
+            .y_label_formatter(&|y| draw::fmt_tick(*y, ystep / 2.0))
+            .label_style((FAMILY, sz.tick))
+            .axis_desc_style((FAMILY, sz.label))
+            .x_desc("wavelength λ (nm)")
+            .y_desc("directional albedo ρ (dimensionless)")
+            .draw()
+            .map_err(draw::de)?;
+        let lw_px = sz.px(2.0).max(1) as u32;
+        let curve = |row: &[f64]| -> Vec<(f64, f64)> {
+            v.wavelengths_nm
+                .iter()
+                .copied()
+                .zip(row.iter().copied())
+                .collect()
+        };
+        for (k, row) in v.data.iter().enumerate() {
+            let color = draw::series_color(k);
+            if self.data_points {
+                for p in curve(row) {
+                    let at = chart.backend_coord(&p);
+                    draw::dot(root, at, sz.px(3.5), color)?;
+                }
+            } else {
+                chart
+                    .draw_series(LineSeries::new(curve(row), color.stroke_width(lw_px)))
+                    .map_err(draw::de)?;
+            }
+        }
+        for (k, row) in v.fit.iter().flatten().enumerate() {
+            chart
+                .draw_series(LineSeries::new(
+                    curve(row),
+                    draw::series_color(k).stroke_width(lw_px),
+                ))
+                .map_err(draw::de)?;
+        }
+        draw::legend(
+            root,
+            &self.legend,
+            (w - lw - sz.px(2.0), top + sz.px(40.0)),
+            lw - sz.px(8.0),
+            &sz,
+        )?;
+        let (xr, yr) = chart.plotting_area().get_pixel_range();
+        Ok(vec![PanelRect {
+            label: "albedo".into(),
+            x0: xr.start,
+            y0: yr.start,
+            x1: xr.end,
+            y1: yr.end,
+        }])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gonio_process::{Grid, Table};
+
+    const RHO: [f64; 4] = [0.12, 0.3, 0.55, 0.81];
+
+    fn lambert() -> Model {
+        Model::from_toml(
+            "kind = \"lambert\"\nchannels = [\"400nm\", \"500nm\", \"600nm\", \"700nm\"]\n\
+             rho = [0.12, 0.3, 0.55, 0.81]\n",
+            None,
+        )
+        .expect("model")
+    }
+
+    #[test]
+    fn a_lambertian_spectrum_is_its_own_albedo_at_every_wavelength() {
+        let m = lambert();
+        let theta = [0.0, 35.0, 65.0];
+        let opts = AlbedoOptions::default();
+        let v = spectral(&Source::Model(&m), None, &theta, &opts).expect("values");
+        assert_eq!(v.wavelengths_nm, vec![400.0, 500.0, 600.0, 700.0]);
+        assert_eq!(v.theta_i_deg, theta.to_vec());
+        for row in &v.data {
+            for (a, r) in row.iter().zip(RHO) {
+                assert!((a - r).abs() < 1e-9, "{a} vs {r}");
+            }
+        }
+        // The same spectrum tabulated on a 5° grid: the table's albedo is a quadrature
+        // of its interpolation, within 0.5% of ρ(λ); the fit (the model) exactly ρ(λ).
+        let t = Table::from_brdf(&m, Grid::hemisphere(18, 72)).expect("table");
+        let v = spectral(&Source::Brdf(&t), Some(&m), &theta, &opts).expect("values");
+        let fit = v.fit.as_ref().expect("fit");
+        for (row, frow) in v.data.iter().zip(fit) {
+            for ((a, f), r) in row.iter().zip(frow).zip(RHO) {
+                assert!((a / r - 1.0).abs() < 5e-3, "{a} vs {r}");
+                assert!((f - r).abs() < 1e-9, "{f} vs {r}");
+            }
+        }
+    }
+
+    #[test]
+    fn needs_wavelengths_and_valid_angles() {
+        let rgb = Model::from_toml(
+            "kind = \"lambert\"\nchannels = [\"R\", \"G\", \"B\"]\nrho = [0.1, 0.2, 0.3]\n",
+            None,
+        )
+        .expect("model");
+        let opts = AlbedoOptions::default();
+        let Err(e) = spectral(&Source::Model(&rgb), None, &[0.0], &opts) else {
+            panic!("refused")
+        };
+        assert!(e.to_string().contains("wavelength channels"), "{e}");
+        let m = lambert();
+        assert!(spectral(&Source::Model(&m), None, &[90.0], &opts).is_err());
+        assert!(spectral(&Source::Model(&m), None, &[], &opts).is_err());
+        let other = Model::from_toml(
+            "kind = \"lambert\"\nchannels = [\"400nm\", \"500nm\"]\nrho = [0.1, 0.2]\n",
+            None,
+        )
+        .expect("model");
+        assert!(spectral(&Source::Model(&m), Some(other.as_brdf()), &[0.0], &opts).is_err());
     }
 }

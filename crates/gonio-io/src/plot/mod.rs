@@ -13,6 +13,8 @@
 //! - [`albedo`]: the directional albedo ρ(θi) = ∫ f_r cos θo dωo per channel, and for a
 //!   Lafortune model per term (the diffuse term, each lobe, the mirror term;
 //!   Lafortune Figs. 4b, 7b, 9b), from [`Brdf::albedo`].
+//! - [`spectral_albedo`]: for wavelength channels, the directional albedo against
+//!   wavelength, one curve per θi ([`spectral_albedo_values`] gives its numbers).
 //! - [`separability`]: P_s^(k) against k (DeYoung Fig. 5.9) from
 //!   [`gonio_process::measure::separability`].
 //! - [`sphere`]: a sphere rendered under a directional light, for the data and the
@@ -56,6 +58,7 @@ use gonio_core::Channels;
 use gonio_process::samples::Kernel;
 use gonio_process::{ProcessError, Samples, Table};
 
+pub use albedo::SpectralAlbedo;
 pub use hemisphere::{ColorScale, Projection};
 pub use polar::RadialScale;
 
@@ -442,6 +445,38 @@ pub fn albedo(
 ) -> Result<Drawn, PlotError> {
     let fig = albedo::build(data, fit, opts).map_err(|k| err(&out, k))?;
     output::emit(out, opts.size, &fig)
+}
+
+/// Directional albedo against wavelength for data with wavelength channels: one
+/// curve per θi in `theta_i_deg` (degrees, in [0°, 90°)), at
+/// [`AlbedoOptions::phi_i_deg`]; the data as lines when shown alone, as points when a
+/// fit (drawn as lines, the same colour per θi) is given or the data are samples.
+/// [`AlbedoOptions::channel`], `step_deg` and `terms` do not apply.
+pub fn spectral_albedo(
+    out: Output<'_>,
+    data: &Source<'_>,
+    fit: Option<&dyn Brdf>,
+    theta_i_deg: &[f64],
+    opts: &AlbedoOptions,
+) -> Result<Drawn, PlotError> {
+    let fig = albedo::build_spectral(data, fit, theta_i_deg, opts).map_err(|k| err(&out, k))?;
+    output::emit(out, opts.size, &fig)
+}
+
+/// The numbers [`spectral_albedo`] draws, without drawing them; errors name
+/// `<spectral albedo>` as their target.
+pub fn spectral_albedo_values(
+    data: &Source<'_>,
+    fit: Option<&dyn Brdf>,
+    theta_i_deg: &[f64],
+    opts: &AlbedoOptions,
+) -> Result<SpectralAlbedo, PlotError> {
+    albedo::build_spectral(data, fit, theta_i_deg, opts)
+        .map(|f| f.values().clone())
+        .map_err(|kind| PlotError {
+            target: "<spectral albedo>".into(),
+            kind,
+        })
 }
 
 /// P_s^(k) against k for each named table (DeYoung Eq. 4.20, Fig. 5.9), on a log
