@@ -584,6 +584,16 @@ impl InstrumentConfig {
                 .validate()
                 .map_err(|e| (format!("monochromator.cs130.{}", e.field), e.reason))?;
             m.timing.validate("monochromator.timing")?;
+            for (f, v) in [
+                ("wavelength_uncertainty_nm", m.wavelength_uncertainty_nm),
+                ("bandwidth_nm", m.bandwidth_nm),
+            ] {
+                if let Some(v) = v {
+                    crate::spectral::BANDWIDTH
+                        .check(v)
+                        .map_err(|e| (format!("monochromator.{f}"), e))?;
+                }
+            }
         }
         if let Some(w) = &self.filter_wheel {
             if w.port.trim().is_empty() {
@@ -602,6 +612,11 @@ impl InstrumentConfig {
             crate::spectral::CHANGE_TIME
                 .check(w.change_s)
                 .map_err(|m| ("filter_wheel.change_s".to_string(), m))?;
+            if let Some(v) = w.wavelength_uncertainty_nm {
+                crate::spectral::BANDWIDTH
+                    .check(v)
+                    .map_err(|e| ("filter_wheel.wavelength_uncertainty_nm".to_string(), e))?;
+            }
         }
         Ok(())
     }

@@ -125,6 +125,15 @@ pub struct MonochromatorConfig {
     /// How long its moves take, for planning (`[monochromator.timing]`).
     #[serde(default)]
     pub timing: MonochromatorTimingConfig,
+    /// The standard uncertainty of its wavelength scale, nm, for the reduction's
+    /// wavelength term (default `gonio_reduce::spectral::MONOCHROMATOR_UNCERTAINTY_NM`,
+    /// 0.2 nm).
+    #[serde(default)]
+    pub wavelength_uncertainty_nm: Option<f64>,
+    /// Its bandpass (the FWHM of the slit function with the slits installed), nm
+    /// (default 2 nm).
+    #[serde(default)]
+    pub bandwidth_nm: Option<f64>,
 }
 
 /// A monochromator's move times, as the planner estimates them. The defaults are the
@@ -185,6 +194,10 @@ pub struct FilterWheelConfig {
     /// One change of position, s, for planning (the wheel's longest move).
     #[serde(default = "default_wheel_change_s")]
     pub change_s: f64,
+    /// The standard uncertainty of the filters' centre wavelengths, nm, for the
+    /// reduction's wavelength term (default 1.2 nm: a ±2 nm tolerance).
+    #[serde(default)]
+    pub wavelength_uncertainty_nm: Option<f64>,
 }
 
 impl MonochromatorConfig {
@@ -218,6 +231,9 @@ impl FilterWheelConfig {
         }
     }
 }
+
+/// A wavelength uncertainty or bandpass, nm.
+pub const BANDWIDTH: Range = Range::closed(0.0, 1000.0, "nm");
 
 /// A slew rate, nm/s.
 pub const SLEW: Range = Range::positive(1e6, "nm/s");

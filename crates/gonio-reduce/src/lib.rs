@@ -65,6 +65,8 @@
 //! The report's budget lines name amps; its `dark_v` ([I_dark, 0]) and `incident_v`
 //! fields, named for the lock-in, hold amps for a DC run.
 
+pub mod spectral;
+
 use std::collections::BTreeMap;
 
 use gonio_core::Channels;
@@ -127,8 +129,10 @@ pub const DC_CORRELATIONS: [&str; 7] = [
     "range",
 ];
 
-/// The number of budget terms kept per sample and channel ([`DC_TERMS`]).
-pub const N_TERMS: usize = 7;
+/// The number of budget terms kept per sample and channel: [`DC_TERMS`], then the
+/// wavelength term of a spectral run ([`spectral::TERM`]; 0 and not reported
+/// otherwise).
+pub const N_TERMS: usize = 8;
 
 /// What the run's detector measures, which decides how its readings are reduced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -732,6 +736,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
     };
     let stored = store.run_meta()?;
     let detector = Detector::of_instrument(&stored.instrument);
+    let bandpass = spectral::Bandpass::of_instrument(&stored.instrument);
     let isotropic = gonio_plan::Plan::from_toml(&stored.plan, None)
         .is_ok_and(|p| matches!(p.points, gonio_plan::plan::Points::Isotropic { .. }));
     let geo = &stored.geometry;
@@ -1087,10 +1092,12 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                     drift_rel,
                     standard_rel,
                     acc,
+                    0.0,
                 ]
             } else {
                 [
                     sv / scale / f.abs().max(f64::MIN_POSITIVE),
+                    0.0,
                     0.0,
                     0.0,
                     0.0,
@@ -1105,7 +1112,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             let abs: [f64; N_TERMS] = if v > 0.0 {
                 terms.map(|t| t * f)
             } else {
-                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
             };
             let entry = values
                 .entry((index, s.step.repeat))
@@ -1242,7 +1249,13 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             incomplete += 1;
             continue;
         }
-        let (value, terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
+        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) =
+            v.into_iter().flatten().unzip();
+        if let (Some(b), Channels::Wavelengths(w)) = (&bandpass, &channels) {
+            for (t, x) in terms.iter_mut().zip(b.terms(w, &value)) {
+                t[N_TERMS - 1] = x;
+            }
+        }
         let sigma = terms
             .iter()
             .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
@@ -1257,6 +1270,26 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
     }
     if incomplete > 0 {
         rejected.insert("missing-channel".into(), incomplete);
+    }
+    if let (Some(b), Channels::Wavelengths(w)) = (&bandpass, &channels)
+        && w.len() >= 2
+    {
+        for (c, report) in reports.iter_mut().enumerate() {
+            let rels = samples
+                .iter()
+                .zip(&budget)
+                .filter(|(s, _)| s.value[c] > 0.0)
+                .map(|(s, t)| t[c][N_TERMS - 1] / s.value[c])
+                .collect();
+            let (rel_median, rel_max) = median_max(rels);
+            report.budget.push(BudgetTerm {
+                term: spectral::TERM,
+                source: b.source(),
+                correlation: spectral::CORRELATION,
+                rel_median,
+                rel_max,
+            });
+        }
     }
     if samples.is_empty() {
         return Err(missing("no sample readings to reduce".into()));
