@@ -270,6 +270,23 @@ fn the_twin_echoes_answers_and_reports_errors_as_the_manual_says() {
 }
 
 #[test]
+fn the_picoammeter_shaped_hooks_put_held_answers_at_busy_until() {
+    let mut twin = Cs130Twin::new(&MonochromatorSim::default());
+    let mut out = Vec::new();
+    twin.handle_line(0.0, b"GOWAVE 600", &mut out);
+    assert_eq!(out, b"GOWAVE 600\r\n");
+    // Not held: due at once, while the drive moves until 2.0025 s.
+    assert_eq!(twin.busy_until(), 0.0);
+    assert_eq!(twin.motion_until(), 2.0025);
+    out.clear();
+    twin.handle_line(0.5, b"*WAI", &mut out);
+    twin.handle_line(0.5, b"WAVE?", &mut out);
+    assert_eq!(out, b"*WAI\r\nWAVE?\r\n600.25\r\n");
+    assert_eq!(twin.busy_until(), 2.0025);
+    assert_eq!(twin.optical(1.0).actual_nm, 400.0 + 200.25 / 2.0025);
+}
+
+#[test]
 fn abort_stops_the_drive_where_it_is() {
     let mut twin = Cs130Twin::new(&MonochromatorSim::default());
     exchange(&mut twin, 0.0, b"GOWAVE 600\r\n");

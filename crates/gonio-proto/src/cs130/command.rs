@@ -133,6 +133,16 @@ impl Command {
         )
     }
 
+    /// True for the statements that start or wait for a mechanism move (`GOWAVE`,
+    /// `GRAT`, `FILTER`, `*WAI`): after them the session allows `move_timeout` for
+    /// the next echoes and answers.
+    pub fn moves(&self) -> bool {
+        matches!(
+            self,
+            Command::GoWave(_) | Command::Grat(_) | Command::Filter(_) | Command::Wai
+        )
+    }
+
     /// True when sending it twice does what sending it once does: everything but the
     /// queries whose reading clears what they report (`STB?`, `ERROR?`, §15.9). Set
     /// commands are absolute (a wavelength, a position, a state), so a lost echo may

@@ -436,6 +436,21 @@ mod tests {
     }
 
     #[test]
+    fn the_documented_toml_parses_and_unknown_keys_are_refused() {
+        let text = "auto_order_filter = false\nshortest_nm = 300.0\n\
+                    [[gratings]]\nindex = 1\nlines_per_mm = 1200\nmin_nm = 250.0\nmax_nm = 900.0\n\
+                    [[filters]]\nposition = 2\ncut_on_nm = 335.0\n";
+        let c: Cs130Config = toml::from_str(text).unwrap();
+        c.validate().unwrap();
+        assert!(!c.auto_order_filter);
+        assert_eq!(c.gratings.len(), 1);
+        assert_eq!(c.cut_on_nm(2), Some(335.0));
+        assert_eq!(c.timeout_ms, 1000);
+        assert!(toml::from_str::<Cs130Config>("speed = 1").is_err());
+        assert!(toml::from_str::<Cs130Config>("[[filters]]\nposition = 2\ncut_on = 3.0").is_err());
+    }
+
+    #[test]
     fn validation_names_the_field() {
         let mut c = Cs130Config::default();
         c.gratings[1].max_nm = 800.0;

@@ -12,9 +12,11 @@ use crate::machine::{Cx, Event, Machine, Pending, Step};
 /// Sends a statement, reads its echo (when the config says the instrument echoes,
 /// §15.4) and, for a query, its answer.
 ///
-/// - Echo and answer are each due `timeout` after the statement was sent; after a
+/// - Echo and answer are each due `timeout` after the statement was sent. After a
 ///   `*WAI` (§15.8) the instrument holds later statements until the move is done,
-///   so until a query has been answered they are due `move_timeout` after.
+///   and after `GRAT`, `FILTER` or `GOWAVE` it may be busy (the manual does not say
+///   whether it echoes meanwhile: **UNCONFIRMED**), so until a query has been
+///   answered they are due `move_timeout` after.
 /// - A line that is not the echo, or not a valid answer, is a protocol fault.
 /// - A vanished port (on send, on receive) is reopened after a pause and the
 ///   statement sent again; `reconnect_attempts` reopenings are allowed per statement.
@@ -160,8 +162,10 @@ impl Machine<Cs130Session> for Exchange {
                     return self.fault(s, cx, e);
                 }
                 if !self.command.is_query() {
-                    if self.command == Command::Wai {
-                        // Every later statement waits for the move (§15.8).
+                    if self.command.moves() {
+                        // After `*WAI` every later statement waits for the move
+                        // (§15.8); after a statement that starts one, whether the
+                        // instrument echoes while it moves is not documented.
                         s.held = true;
                     }
                     return Self::finish(None);

@@ -68,8 +68,8 @@ pub struct Cs130Session {
     /// The port's name, for errors.
     port: String,
     known: Known,
-    /// A `*WAI` was echoed and no query has been answered since: the instrument holds
-    /// statements until its move is done (§15.8).
+    /// A `*WAI` or a statement that moves was echoed and no query has been answered
+    /// since: the instrument may hold statements until its move is done (§15.8).
     held: bool,
     reconnects: usize,
     retried: u64,

@@ -117,12 +117,13 @@ fn go_sets_the_order_filter_waits_for_the_move_and_reads_back() {
             shutter_open: false
         }
     );
-    // After *WAI, the query's echo and answer wait for the move (60 s), the rest 1 s.
+    // After a statement that moves, until a query is answered, echoes and answers may
+    // wait for the move (60 s); the rest 1 s.
     let second = Duration::from_secs(1);
     let minute = Duration::from_secs(60);
     assert_eq!(
         deadlines,
-        [second, second, second, minute, minute, second, second]
+        [second, minute, minute, minute, minute, second, second]
     );
 }
 
