@@ -12,10 +12,10 @@ use serde::Deserialize;
 use crate::apt::AptDeviceConfig;
 use crate::controller::ControllerConfig;
 use crate::faults::FaultConfig;
-use crate::lockin::LockInConfig;
-use crate::optics::OpticsConfig;
 use crate::filterwheel::FilterWheelSim;
+use crate::lockin::LockInConfig;
 use crate::monochromator::MonochromatorSim;
+use crate::optics::OpticsConfig;
 use crate::picoammeter::PicoammeterConfig;
 
 /// The embedded default: the blue paint of Lafortune et al. 1997 on a coplanar-arm

@@ -19,10 +19,10 @@ use crate::clock::SimClock;
 use crate::config::{RoleStage, SimConfig, SimConfigError};
 use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
-use crate::lockin::LockIn;
-use crate::optics::{LightPath, Optics};
 use crate::filterwheel::Fw102cTwin;
+use crate::lockin::LockIn;
 use crate::monochromator::Cs130Twin;
+use crate::optics::{LightPath, Optics};
 use crate::picoammeter::Picoammeter;
 use crate::spectral;
 use gonio_brdf::Brdf;
@@ -316,7 +316,9 @@ impl SimInstrument {
             }));
         }
         let w = self.wheel.as_ref()?;
-        Some(spectral::white(lamp_k, &|nm| lamp(nm) * w.transmittance(nm, t)))
+        Some(spectral::white(lamp_k, &|nm| {
+            lamp(nm) * w.transmittance(nm, t)
+        }))
     }
 
     /// The directions the stages point at `t`.

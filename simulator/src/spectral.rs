@@ -141,24 +141,45 @@ pub fn white(lamp_k: f64, filter: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
     all.into_iter().filter(|p| p.1 > 1e-9 * top).collect()
 }
 
-/// `values` (one per wavelength of `wavelengths_nm`, strictly increasing) at `nm`,
-/// linearly interpolated, and held at the end values outside.
+/// `values` (one per wavelength of `wavelengths_nm`, strictly increasing) at `nm`:
+/// a cubic Hermite curve through them whose slope at each wavelength is that of the
+/// parabola through it and its two neighbours (the chord's at the ends), held at the
+/// end values outside. Smooth (no kink at a tabulated wavelength, which a finite
+/// passband would turn into a bias a real spectrum does not have) and exact for
+/// quadratics between interior points.
 pub fn interpolate(wavelengths_nm: &[f64], values: &[f64], nm: f64) -> f64 {
     let n = wavelengths_nm.len().min(values.len());
     if n == 0 {
         return 0.0;
     }
-    if nm <= wavelengths_nm[0] {
-        return values[0];
+    let (w, v) = (&wavelengths_nm[..n], &values[..n]);
+    if nm <= w[0] {
+        return v[0];
     }
-    if nm >= wavelengths_nm[n - 1] {
-        return values[n - 1];
+    if nm >= w[n - 1] {
+        return v[n - 1];
     }
-    let k = wavelengths_nm[..n].partition_point(|w| *w <= nm);
-    // wavelengths[k-1] <= nm < wavelengths[k], with 1 <= k <= n-1 from the checks above.
-    let (x0, x1) = (wavelengths_nm[k - 1], wavelengths_nm[k]);
-    let t = (nm - x0) / (x1 - x0);
-    values[k - 1] + t * (values[k] - values[k - 1])
+    let k = w.partition_point(|x| *x <= nm);
+    // w[k-1] <= nm < w[k], with 1 <= k <= n-1 from the checks above.
+    let chord = |a: usize| (v[a + 1] - v[a]) / (w[a + 1] - w[a]);
+    let slope = |i: usize| {
+        if i == 0 {
+            chord(0)
+        } else if i == n - 1 {
+            chord(n - 2)
+        } else {
+            let (hl, hr) = (w[i] - w[i - 1], w[i + 1] - w[i]);
+            (chord(i - 1) * hr + chord(i) * hl) / (hl + hr)
+        }
+    };
+    let (x0, x1) = (w[k - 1], w[k]);
+    let h = x1 - x0;
+    let t = (nm - x0) / h;
+    let (t2, t3) = (t * t, t * t * t);
+    (2.0 * t3 - 3.0 * t2 + 1.0) * v[k - 1]
+        + (t3 - 2.0 * t2 + t) * h * slope(k - 1)
+        + (-2.0 * t3 + 3.0 * t2) * v[k]
+        + (t3 - t2) * h * slope(k)
 }
 
 #[cfg(test)]
@@ -263,13 +284,26 @@ mod tests {
     }
 
     #[test]
-    fn interpolation_is_linear_inside_and_holds_outside() {
-        let w = [400.0, 500.0, 600.0];
-        let v = [0.2, 0.6, 0.4];
-        assert_eq!(interpolate(&w, &v, 350.0), 0.2);
-        assert_eq!(interpolate(&w, &v, 650.0), 0.4);
-        assert!((interpolate(&w, &v, 450.0) - 0.4).abs() < 1e-15);
-        assert!((interpolate(&w, &v, 575.0) - 0.45).abs() < 1e-15);
-        assert_eq!(interpolate(&w, &v, 500.0), 0.6);
+    fn interpolation_is_smooth_exact_for_quadratics_and_holds_outside() {
+        let w = [400.0, 430.0, 500.0, 520.0, 600.0];
+        let q = |x: f64| 0.3 + 2e-3 * (x - 450.0) - 3e-5 * (x - 450.0).powi(2);
+        let v: Vec<f64> = w.iter().map(|x| q(*x)).collect();
+        // Between interior points both slopes are the parabola's: exact.
+        for x in [431.0, 467.5, 499.0, 505.0, 519.9] {
+            assert!((interpolate(&w, &v, x) - q(x)).abs() < 1e-14, "{x}");
+        }
+        for (x, y) in w.iter().zip(&v) {
+            assert_eq!(interpolate(&w, &v, *x), *y);
+        }
+        assert_eq!(interpolate(&w, &v, 350.0), v[0]);
+        assert_eq!(interpolate(&w, &v, 650.0), v[4]);
+        // A straight line stays straight.
+        let l: Vec<f64> = w.iter().map(|x| 1.0 - 1e-3 * x).collect();
+        assert!((interpolate(&w, &l, 555.0) - (1.0 - 0.555)).abs() < 1e-14);
+        // No kink: the one-sided slopes at a tabulated wavelength agree.
+        let d = 1e-6;
+        let left = (interpolate(&w, &v, 500.0) - interpolate(&w, &v, 500.0 - d)) / d;
+        let right = (interpolate(&w, &v, 500.0 + d) - interpolate(&w, &v, 500.0)) / d;
+        assert!((left - right).abs() < 1e-6, "{left} {right}");
     }
 }

@@ -495,7 +495,11 @@ impl InstrumentConfig {
         let m = self.monochromator.as_ref()?;
         let c = &m.cs130;
         let t = &m.timing;
-        let lo = c.gratings.iter().map(|g| g.min_nm).fold(f64::INFINITY, f64::min);
+        let lo = c
+            .gratings
+            .iter()
+            .map(|g| g.min_nm)
+            .fold(f64::INFINITY, f64::min);
         let hi = c.gratings.iter().map(|g| g.max_nm).fold(0.0, f64::max);
         let (mut filters, mut gratings) = (Vec::new(), Vec::new());
         if lo.is_finite() && hi > lo {
@@ -517,7 +521,8 @@ impl InstrumentConfig {
                 grating = g.or(grating);
             }
         }
-        let mut timing = WavelengthTiming::monochromator(t.slew_nm_per_s, t.settle_s);
+        let mut timing = WavelengthTiming::monochromator(t.slew_nm_per_s, t.settle_s)
+            .with_backlash(c.approach_nm);
         if c.auto_order_filter && !filters.is_empty() {
             timing = timing.with_order_filter(t.filter_change_s, &filters);
         }

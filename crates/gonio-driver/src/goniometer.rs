@@ -3,12 +3,12 @@
 use crate::apt::AptAxis;
 use crate::clock::{Clock, SystemClock};
 use crate::config::{DetectorConfig, DetectorKind, InstrumentConfig, LineKind, MotionLine};
+use crate::cs130::Cs130;
 use crate::detector::{DetectorDevice, DetectorError, Reading};
+use crate::fw102c::Fw102c;
 use crate::k6485::K6485;
 use crate::motion::{AxisInfo, Motion, MotionDevice};
 use crate::smc100::{MotionError, Smc100Chain};
-use crate::cs130::Cs130;
-use crate::fw102c::Fw102c;
 use crate::spectral::{
     BandSelector, FilterWheelConfig, MonochromatorConfig, SpectralError, WheelBands,
 };

@@ -370,7 +370,10 @@ impl<T: Transport, C: Clock> BandSelector for WheelBands<T, C> {
         let (centre, detail) = match self.wheel.config().filter_at(position) {
             Some(Filter::Bandpass {
                 centre_nm, fwhm_nm, ..
-            }) => (*centre_nm, format!("position {position}, FWHM {fwhm_nm} nm")),
+            }) => (
+                *centre_nm,
+                format!("position {position}, FWHM {fwhm_nm} nm"),
+            ),
             _ => (nm, format!("position {position}")),
         };
         Ok(Band {

@@ -1249,8 +1249,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             incomplete += 1;
             continue;
         }
-        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) =
-            v.into_iter().flatten().unzip();
+        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
         if let (Some(b), Channels::Wavelengths(w)) = (&bandpass, &channels) {
             for (t, x) in terms.iter_mut().zip(b.terms(w, &value)) {
                 t[N_TERMS - 1] = x;

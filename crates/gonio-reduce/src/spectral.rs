@@ -80,7 +80,8 @@ impl Bandpass {
             .unwrap_or_default();
         Some(Bandpass {
             device: "filter wheel",
-            uncertainty_nm: num(w.get("wavelength_uncertainty_nm")).unwrap_or(FILTER_UNCERTAINTY_NM),
+            uncertainty_nm: num(w.get("wavelength_uncertainty_nm"))
+                .unwrap_or(FILTER_UNCERTAINTY_NM),
             variance: Variance::Filters(filters),
         })
     }
@@ -115,7 +116,8 @@ impl Bandpass {
         if n < 2 {
             return vec![0.0; n];
         }
-        let slope = |a: usize, b: usize| (values[b] - values[a]) / (wavelengths[b] - wavelengths[a]);
+        let slope =
+            |a: usize, b: usize| (values[b] - values[a]) / (wavelengths[b] - wavelengths[a]);
         let (first, second): (Vec<f64>, Vec<f64>) = (0..n)
             .map(|c| {
                 if c == 0 || c == n - 1 {

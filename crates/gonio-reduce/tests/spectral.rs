@@ -160,7 +160,9 @@ fn a_spectral_run_reduces_to_the_truth_at_every_wavelength() {
         let w = wavelengths(&red);
         assert_eq!(
             w,
-            [400.0, 440.0, 480.0, 520.0, 560.0, 600.0, 640.0, 680.0, 720.0, 760.0]
+            [
+                400.0, 440.0, 480.0, 520.0, 560.0, 600.0, 640.0, 680.0, 720.0, 760.0
+            ]
         );
         // 2 × 7 pairs, less the two where the arms shadow the beam.
         assert_eq!(red.samples.samples.len(), 12);

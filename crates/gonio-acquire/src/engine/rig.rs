@@ -229,12 +229,12 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         {
             let what = match &mut self.gonio.spectral {
                 // A monochromator or filter wheel selects the band itself.
-                Some(sel) => match gonio_driver::spectral::channel_nm(ch)
-                    .and_then(|nm| sel.select(nm))
-                {
-                    Ok(band) => format!("band {ch}: {} at {band}", sel.family()),
-                    Err(e) => return self.spectral_failed(id, e),
-                },
+                Some(sel) => {
+                    match gonio_driver::spectral::channel_nm(ch).and_then(|nm| sel.select(nm)) {
+                        Ok(band) => format!("band {ch}: {} at {band}", sel.family()),
+                        Err(e) => return self.spectral_failed(id, e),
+                    }
+                }
                 None => {
                     if let Err(e) = self.bench.select_channel(ch) {
                         return self.bench_failed(id, e);

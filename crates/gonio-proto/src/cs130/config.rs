@@ -91,6 +91,11 @@ pub struct Cs130Config {
     /// has a width, and its transmission near the edge is neither 0 nor 1. In
     /// [0, 500].
     pub filter_margin_nm: f64,
+    /// How far below each wavelength the drive starts its last approach, nm, in
+    /// [0, 100]: a move that would come down onto a wavelength (or start from an
+    /// unknown position) first goes this far below it, so that the drive's backlash
+    /// is always taken up upwards. 0 turns it off. Default 5 nm.
+    pub approach_nm: f64,
     /// The largest difference between the wavelength asked for and the one `WAVE?`
     /// reads back after the move, nm, in (0, 100]: more is an error.
     pub position_tolerance_nm: f64,
@@ -138,6 +143,7 @@ impl Default for Cs130Config {
             auto_order_filter: true,
             shortest_nm: 250.0,
             filter_margin_nm: 10.0,
+            approach_nm: 5.0,
             position_tolerance_nm: 2.0,
             echo: true,
             timeout_ms: 1000,
@@ -251,9 +257,10 @@ impl Cs130Config {
                 );
             }
         }
-        let checks: [(&str, f64, f64, f64); 3] = [
+        let checks: [(&str, f64, f64, f64); 4] = [
             ("shortest_nm", self.shortest_nm, f64::MIN_POSITIVE, 10_000.0),
             ("filter_margin_nm", self.filter_margin_nm, 0.0, 500.0),
+            ("approach_nm", self.approach_nm, 0.0, 100.0),
             (
                 "position_tolerance_nm",
                 self.position_tolerance_nm,

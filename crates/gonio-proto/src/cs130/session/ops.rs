@@ -87,6 +87,13 @@ impl Sequence {
         {
             seq.commands.push(Command::Filter(f));
         }
+        // A drive's backlash leaves it short when it comes down onto a wavelength:
+        // every wavelength is approached from below, so the slack is always taken up
+        // the same way (an unknown position counts as above).
+        let below = (nm - c.approach_nm).max(c.grating_for(nm).map_or(nm, |g| g.min_nm));
+        if c.approach_nm > 0.0 && below < nm && s.known.wavelength_nm.is_none_or(|at| at > below) {
+            seq.commands.push(Command::GoWave(below));
+        }
         seq.commands.push(Command::GoWave(nm));
         seq.commands.push(Command::Wai);
         seq.commands.push(Command::Wave);
