@@ -90,9 +90,13 @@ impl Transport for TwinLink {
 type Driver = Cs130<TwinLink, ManualClock>;
 
 fn rig(sim: &MonochromatorSim) -> (Driver, ManualClock) {
+    rig_with(sim, Cs130Config::default())
+}
+
+fn rig_with(sim: &MonochromatorSim, config: Cs130Config) -> (Driver, ManualClock) {
     let clock = ManualClock::new();
     let link = TwinLink::new(sim, clock.clone());
-    let driver = Cs130::new(link, clock.clone(), Cs130Config::default()).expect("valid config");
+    let driver = Cs130::new(link, clock.clone(), config).expect("valid config");
     (driver, clock)
 }
 
@@ -148,13 +152,29 @@ fn the_driver_walks_the_crossovers_and_reads_back_set_plus_accuracy() {
 }
 
 #[test]
-fn approaching_from_above_leaves_the_drive_backlash_short() {
+fn approaching_from_above_leaves_the_drive_backlash_short_unless_the_session_comes_up() {
     let sim = MonochromatorSim::default();
-    let (mut d, _) = rig(&sim);
+    // Straight down (approach_nm = 0): the drive stops backlash short.
+    let (mut d, _) = rig_with(
+        &sim,
+        Cs130Config {
+            approach_nm: 0.0,
+            ..Cs130Config::default()
+        },
+    );
     d.init().unwrap();
     d.go_to(650.0).unwrap();
     let got = d.go_to(620.0).unwrap();
     assert_eq!(got.wavelength_nm, 620.0 + sim.accuracy_nm + sim.backlash_nm);
+    // The session's default goes 5 nm below first and comes up: no backlash.
+    let (mut d, _) = rig(&sim);
+    d.init().unwrap();
+    d.go_to(650.0).unwrap();
+    let got = d.go_to(620.0).unwrap();
+    assert_eq!(got.wavelength_nm, 620.0 + sim.accuracy_nm);
+    let (_, wire) = optics(d);
+    let wire = String::from_utf8(wire).unwrap();
+    assert!(wire.contains("GOWAVE 615\r\nGOWAVE 620\r\n"), "{wire}");
 }
 
 #[test]

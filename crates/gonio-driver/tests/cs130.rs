@@ -89,6 +89,8 @@ fn a_refused_wavelength_sends_nothing() {
 #[test]
 fn a_refused_destination_is_reported_with_its_code() {
     let (mut d, h, _) = ready();
+    // Down from 400 nm: the drive first goes 5 nm below, to come up onto 260 nm.
+    echo(&h, "GOWAVE 255", None);
     echo(&h, "GOWAVE 260", None);
     echo(&h, "*WAI", None);
     echo(&h, "WAVE?", Some("400.00"));

@@ -57,7 +57,9 @@ pub fn slot(port: Port) -> usize {
     match port {
         Port::Motion => 0,
         Port::Detector => 1,
-        Port::Apt(_) => unreachable!("the rig has no APT line"),
+        Port::Apt(_) | Port::Monochromator | Port::FilterWheel => {
+            unreachable!("the rig has only the motion and detector lines")
+        }
     }
 }
 

@@ -91,7 +91,7 @@ impl Sequence {
         // every wavelength is approached from below, so the slack is always taken up
         // the same way (an unknown position counts as above).
         let below = (nm - c.approach_nm).max(c.grating_for(nm).map_or(nm, |g| g.min_nm));
-        if c.approach_nm > 0.0 && below < nm && s.known.wavelength_nm.is_none_or(|at| at > below) {
+        if c.approach_nm > 0.0 && below < nm && s.known.wavelength_nm.is_none_or(|at| at > nm) {
             seq.commands.push(Command::GoWave(below));
         }
         seq.commands.push(Command::GoWave(nm));

@@ -264,6 +264,8 @@ fn a_go_from_an_unknown_state_sets_everything_and_reads_the_shutter() {
         &[
             (b"GRAT 1\r\n", &[b"GRAT 1"]),
             (b"FILTER 1\r\n", &[b"FILTER 1"]),
+            // From an unknown position the last approach starts 5 nm below.
+            (b"GOWAVE 295\r\n", &[b"GOWAVE 295"]),
             (b"GOWAVE 300\r\n", &[b"GOWAVE 300"]),
             (b"*WAI\r\n", &[b"*WAI"]),
             (b"WAVE?\r\n", &[b"WAVE?", b"300.00"]),
@@ -279,6 +281,75 @@ fn a_go_from_an_unknown_state_sets_everything_and_reads_the_shutter() {
             filter: 1,
             shutter_open: true
         }
+    );
+}
+
+#[test]
+fn every_wavelength_is_approached_from_below() {
+    let mut s = Cs130Session::new(Cs130Config::default(), "test").unwrap();
+    fn step(s: &mut Cs130Session, nm: f64, script: &[Turn]) -> MonoState {
+        let (out, _, _) = drive(s.start_go(nm, Duration::ZERO), script);
+        out.unwrap()
+    }
+    step(
+        &mut s,
+        450.0,
+        &[
+            (b"GRAT 1\r\n", &[b"GRAT 1"]),
+            (b"FILTER 1\r\n", &[b"FILTER 1"]),
+            (b"GOWAVE 445\r\n", &[b"GOWAVE 445"]),
+            (b"GOWAVE 450\r\n", &[b"GOWAVE 450"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"450.00"]),
+            (b"SHUTTER?\r\n", &[b"SHUTTER?", b"C"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    // Up: straight there.
+    step(
+        &mut s,
+        460.0,
+        &[
+            (b"GOWAVE 460\r\n", &[b"GOWAVE 460"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"460.00"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    // Down: below first, then up onto it.
+    let st = step(
+        &mut s,
+        420.0,
+        &[
+            (b"GOWAVE 415\r\n", &[b"GOWAVE 415"]),
+            (b"GOWAVE 420\r\n", &[b"GOWAVE 420"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"420.00"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    assert_eq!(st.wavelength_nm, 420.0);
+    // Turned off, down goes straight.
+    let mut off = Cs130Session::new(
+        Cs130Config {
+            approach_nm: 0.0,
+            ..Cs130Config::default()
+        },
+        "test",
+    )
+    .unwrap();
+    step(
+        &mut off,
+        450.0,
+        &[
+            (b"GRAT 1\r\n", &[b"GRAT 1"]),
+            (b"FILTER 1\r\n", &[b"FILTER 1"]),
+            (b"GOWAVE 450\r\n", &[b"GOWAVE 450"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"450.00"]),
+            (b"SHUTTER?\r\n", &[b"SHUTTER?", b"C"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
     );
 }
 
