@@ -644,6 +644,74 @@ mod tests {
         }
     }
 
+    /// A spectral Lambertian surface is drawn in its own colour everywhere: the
+    /// encoded sRGB of its reflectance (π · f_r = ρ).
+    #[test]
+    fn true_colour_of_a_spectral_lambertian_surface_is_its_reflectance_colour() {
+        let wl: Vec<f64> = (0..31).map(|i| 400.0 + 10.0 * i as f64).collect();
+        // An orange: low in the blue, rising through the green into the red.
+        let rho: Vec<f64> = wl
+            .iter()
+            .map(|l| 0.05 + 0.55 / (1.0 + (-(l - 580.0) / 20.0).exp()))
+            .collect();
+        let names: Vec<String> = wl.iter().map(|l| format!("\"{l}nm\"")).collect();
+        let values: Vec<String> = rho.iter().map(|r| r.to_string()).collect();
+        let toml = format!(
+            "kind = \"lambert\"\nchannels = [{}]\nrho = [{}]\n",
+            names.join(", "),
+            values.join(", ")
+        );
+        let m = gonio_brdf::Model::from_toml(&toml, None).unwrap();
+        let opts = HemisphereOptions {
+            true_colour: Some(crate::rgb::Conversion::default()),
+            ..HemisphereOptions::default()
+        };
+        let mut buf = Vec::new();
+        let drawn = crate::plot::hemisphere(
+            crate::plot::Output::Rgb(&mut buf),
+            &Source::Model(&m),
+            None,
+            30.0,
+            &opts,
+        )
+        .unwrap();
+        let c = gonio_core::colour::Colorimeter::new(
+            gonio_core::colour::Observer::Cie1931,
+            gonio_core::colour::Illuminant::D65,
+        );
+        let expect = c.colour(&wl, &rho).unwrap().srgb8;
+        assert!(expect[0] > expect[1] && expect[1] > expect[2], "{expect:?}");
+        let p = &drawn.panels[0];
+        let w = drawn.size.0 as usize;
+        let at = |x: i32, y: i32| {
+            let i = (y as usize * w + x as usize) * 3;
+            [buf[i], buf[i + 1], buf[i + 2]]
+        };
+        // The centre (the normal) and most of the panel: the reflectance's colour.
+        assert_eq!(at((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2), expect);
+        let same = (p.y0..p.y1)
+            .flat_map(|y| (p.x0..p.x1).map(move |x| (x, y)))
+            .filter(|&(x, y)| at(x, y) == expect)
+            .count();
+        let area = ((p.x1 - p.x0) * (p.y1 - p.y0)) as usize;
+        assert!(same as f64 > 0.9 * area as f64, "{same} of {area}");
+        // RGB input is taken as linear sRGB, and 3 wavelengths cannot make a colour.
+        let short = gonio_brdf::Model::from_toml(
+            "kind = \"lambert\"\nchannels = [\"450nm\", \"550nm\", \"650nm\"]\nrho = [0.1, 0.2, 0.3]\n",
+            None,
+        )
+        .unwrap();
+        let e = crate::plot::hemisphere(
+            crate::plot::Output::Rgb(&mut buf),
+            &Source::Model(&short),
+            None,
+            30.0,
+            &opts,
+        )
+        .unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("450–650 nm"), "{e}");
+    }
+
     #[test]
     fn projections_put_phi_zero_right() {
         for p in [Projection::Concentric, Projection::Orthographic] {
