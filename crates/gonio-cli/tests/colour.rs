@@ -16,7 +16,7 @@ fn testdata(name: &str) -> PathBuf {
 /// Data lines of a test file (comments and header left out), split at commas.
 fn rows(name: &str) -> Vec<Vec<String>> {
     std::fs::read_to_string(testdata(name))
-        .unwrap()
+        .expect("the test data file reads")
         .lines()
         .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
         .skip(1)
@@ -25,7 +25,7 @@ fn rows(name: &str) -> Vec<Vec<String>> {
 }
 
 fn num(v: &serde_json::Value) -> f64 {
-    v.as_f64().unwrap()
+    v.as_f64().expect("a number")
 }
 
 /// The 24 BabelColor spectra (10 nm, 380–730 nm) give, under every illuminant and

@@ -142,7 +142,7 @@ pub fn to_rgb(data: &Data, conversion: &Conversion) -> Result<Data, RgbError> {
             };
             Data::Table(Table {
                 channels: Channels::Rgb,
-                grid: t.grid.clone(),
+                grid: t.grid,
                 values: convert(&t.values, false),
                 sigma: t.sigma.as_ref().map(|s| convert(s, true)),
             })
@@ -189,16 +189,30 @@ mod tests {
         assert_eq!(out.channels, Channels::Rgb);
         let c = conv.colorimeter();
         let expect = c.srgb_linear(c.xyz(&w, &v).unwrap());
-        for k in 0..3 {
-            assert!((out.samples[0].value[k] - expect[k]).abs() < 1e-12);
+        for (got, e) in out.samples[0].value.iter().zip(expect) {
+            assert!((got - e).abs() < 1e-12);
         }
         // A reddish ramp: R above B.
         assert!(expect[0] > expect[2]);
-        // σ of 10 % on every channel: the uncertainty of a sum of positive weights is
-        // below 10 % of the value (the channels' errors partly average out).
+        // σ of 10 % on every channel, independent: σ_R² = Σ_λ (A_Rλ · 0.1 v_λ)², A the
+        // response of R to one unit in channel λ alone.
         let s = out.samples[0].sigma.as_ref().unwrap();
-        for k in 0..3 {
-            assert!(s[k] > 0.0 && s[k] < 0.1 * out.samples[0].value[k].abs() + 1e-12);
+        let ch = Channels::wavelengths(&w).unwrap();
+        let mut var = [0.0; 3];
+        for j in 0..w.len() {
+            let mut unit = vec![0.0; w.len()];
+            unit[j] = 1.0;
+            let a = c.srgb_linear(c.xyz_of_channels(&ch, &unit).unwrap());
+            for (vk, ak) in var.iter_mut().zip(a) {
+                *vk += (ak * 0.1 * v[j]).powi(2);
+            }
+        }
+        for (got, e) in s.iter().zip(var) {
+            assert!(
+                *got > 0.0 && (got - e.sqrt()).abs() < 1e-12,
+                "{got} {}",
+                e.sqrt()
+            );
         }
     }
 
