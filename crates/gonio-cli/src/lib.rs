@@ -89,6 +89,9 @@ enum Command {
     Export(cmd::export::ExportArgs),
     /// Plot a run, table, samples, MERL file or model (PNG or SVG by the extension).
     Plot(cmd::plot::PlotArgs),
+    /// Spectra (a CSV with a `wavelength_nm` column) to CIE XYZ, chromaticity and sRGB
+    /// under a CIE illuminant, for the 1931 or 1964 observer (CIE 015:2018).
+    Colour(cmd::colour::ColourArgs),
     /// Write the run report: one self-contained HTML page with the run's metadata,
     /// calibration, measures, fit and plots.
     Report(cmd::report::ReportArgs),
@@ -136,6 +139,7 @@ pub(crate) fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(
         Command::Fit(a) => cmd::fit::run(a),
         Command::Export(a) => cmd::export::run(a),
         Command::Plot(a) => cmd::plot::run(a),
+        Command::Colour(a) => cmd::colour::run(a),
         Command::Report(a) => cmd::report::run(a),
         Command::Sim(a) => cmd::instrument::sim(a),
     }

@@ -28,6 +28,9 @@ pub struct ExportArgs {
     force: output::ForceFlag,
     #[command(flatten)]
     reduction: ReduceFlags,
+    /// How wavelength channels become R, G, B for MERL (`docs/colour.md`).
+    #[command(flatten)]
+    colour: crate::cmd::colour::ConditionFlags,
     #[command(flatten)]
     json: JsonFlag,
 }
@@ -35,6 +38,7 @@ pub struct ExportArgs {
 /// `gonio export INPUT --format merl|astm|csv --out FILE`.
 pub fn run(a: ExportArgs) -> CliResult<()> {
     let (input, out, json_out) = (a.input.as_path(), a.out.as_path(), a.json.json);
+    let colour = a.colour.conversion()?;
     let format = Format::from_name(&a.format).ok_or_else(|| {
         CliError::Input(format!(
             "--format: merl, astm, csv or csv-long, got {:?}",
@@ -48,6 +52,15 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
     };
     let opened = gonio_dataset::open(input, &a.reduction.open_options()?)?;
     let mut data = opened.data.to_format_data(input)?;
+    // MERL holds R, G, B: wavelength channels go through the colour conversion.
+    let mut converted = None;
+    if matches!(format, Format::Merl)
+        && matches!(data.channels(), gonio_core::Channels::Wavelengths(_))
+    {
+        data = gonio_io::rgb::to_rgb(&data, &colour)
+            .map_err(|e| CliError::Input(format!("{}: {e}", input.display())))?;
+        converted = Some(colour.describe());
+    }
     // A MERL table fills the whole hemisphere: a half turn of an isotropic material
     // is unfolded into it (bilateral symmetry). CSV and ASTM keep the samples as
     // measured.
@@ -76,6 +89,7 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
             "from": data.kind(),
             "bytes": bytes,
             "symmetry": symmetry.map(|s| s.name()),
+            "colour": converted,
         }));
     }
     let mut w = output::stdout();
@@ -90,6 +104,12 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
         )?;
         if let Some(s) = symmetry {
             writeln!(w, "symmetry: {}", s.describe())?;
+        }
+        if let Some(c) = &converted {
+            writeln!(
+                w,
+                "colour: wavelength channels as linear sRGB R, G, B ({c})"
+            )?;
         }
         w.flush()
     })())

@@ -3,6 +3,7 @@
 
 pub mod acquire;
 pub mod check;
+pub mod colour;
 pub mod correct;
 pub mod demo;
 pub mod export;

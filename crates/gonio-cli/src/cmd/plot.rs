@@ -44,6 +44,13 @@ pub struct PlotArgs {
     light_phi: f64,
     #[command(flatten)]
     reduction: ReduceFlags,
+    /// Hemisphere: `srgb` draws each direction in its own colour (encoded sRGB of
+    /// π · f_r of a spectral or RGB input) instead of a colour map of one channel.
+    #[arg(long)]
+    colour: Option<String>,
+    /// How a spectrum becomes a colour with `--colour srgb` (`docs/colour.md`).
+    #[command(flatten)]
+    colour_conditions: crate::cmd::colour::ConditionFlags,
 }
 
 /// A plot failure: bad input (a channel, an angle) or a drawing failure.
@@ -86,6 +93,17 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
             ))
         })?),
     };
+    let true_colour = match a.colour.as_deref() {
+        None => None,
+        Some("srgb") if a.kind == "hemisphere" => Some(a.colour_conditions.conversion()?),
+        Some("srgb") => {
+            return Err(CliError::Input(format!(
+                "--colour srgb: only for --kind hemisphere, got {:?}",
+                a.kind
+            )));
+        }
+        Some(c) => return Err(CliError::Input(format!("--colour: srgb, got {c:?}"))),
+    };
     let fit_brdf: Option<&dyn Brdf> = fit.as_ref().map(|m| m as &dyn Brdf);
     // Several wavelengths: the albedo is a spectrum, drawn against wavelength.
     let spectral = channel == ChannelChoice::All
@@ -110,6 +128,7 @@ pub fn run(a: PlotArgs) -> CliResult<()> {
                 a.theta_i.first().copied().unwrap_or(30.0),
                 &plot::HemisphereOptions {
                     channel,
+                    true_colour,
                     ..plot::HemisphereOptions::default()
                 },
             ),

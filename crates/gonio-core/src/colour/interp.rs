@@ -78,31 +78,46 @@ pub(crate) fn uniform_onto_grid(
         Interpolation::Sprague => extended(v),
         Interpolation::Linear => Vec::new(),
     };
-    let mut seg = usize::MAX;
-    let mut a = [0.0; 6];
-    for g in 0..GRID_LEN {
+    let inv = 1.0 / step;
+    let mut g = 0;
+    // Before the first sample: its value.
+    while g < GRID_LEN && (GRID_FIRST_NM + g) as f64 <= first {
+        f(g, v[0]);
+        g += 1;
+    }
+    // Between the samples, a segment at a time: the grid points of segment i are those
+    // with first + i·step ≤ λ < first + (i + 1)·step.
+    while g < GRID_LEN && ((GRID_FIRST_NM + g) as f64) < last {
         let lambda = (GRID_FIRST_NM + g) as f64;
-        let value = if lambda <= first {
-            v[0]
-        } else if lambda >= last {
-            v[n - 1]
-        } else {
-            let u = (lambda - first) / step;
-            // u ∈ (0, n − 1): the segment index is below n − 1.
-            let i = (u.floor() as usize).min(n - 2);
-            let t = u - i as f64;
-            match how {
-                Interpolation::Linear => v[i] + t * (v[i + 1] - v[i]),
-                Interpolation::Sprague => {
-                    if i != seg {
-                        a = sprague_coefficients(&ext[i..i + 6]);
-                        seg = i;
-                    }
-                    a[0] + t * (a[1] + t * (a[2] + t * (a[3] + t * (a[4] + t * a[5]))))
-                }
-            }
+        // λ ∈ (first, last): the segment index is below n − 1.
+        let i = (((lambda - first) * inv).floor() as usize).min(n - 2);
+        let start = first + step * i as f64;
+        let end = first + step * (i + 1) as f64;
+        let a = match how {
+            Interpolation::Sprague => sprague_coefficients(&ext[i..i + 6]),
+            Interpolation::Linear => [v[i], v[i + 1] - v[i], 0.0, 0.0, 0.0, 0.0],
         };
-        f(g, value);
+        loop {
+            let lambda = (GRID_FIRST_NM + g) as f64;
+            let t = (lambda - start) * inv;
+            f(
+                g,
+                a[0] + t * (a[1] + t * (a[2] + t * (a[3] + t * (a[4] + t * a[5])))),
+            );
+            g += 1;
+            if g >= GRID_LEN {
+                break;
+            }
+            let next = (GRID_FIRST_NM + g) as f64;
+            if next >= end || next >= last {
+                break;
+            }
+        }
+    }
+    // From the last sample on: its value.
+    while g < GRID_LEN {
+        f(g, v[n - 1]);
+        g += 1;
     }
 }
 

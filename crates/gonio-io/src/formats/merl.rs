@@ -45,9 +45,10 @@
 //! bins far from every sample invalid). Inputs are evaluated as given at the centre
 //! pairs (φh = 0): the format stores isotropic BRDFs, and an anisotropic input is
 //! recorded along φh = 0. Channels: R, G, B as they are, a single channel as grey
-//! (the same BRDF in R, G and B); wavelength channels are refused (turning spectra
-//! into RGB is not this module's business). A negative value — measurement noise
-//! around 0 — cannot be stored as such (negative means invalid) and is written as 0.
+//! (the same BRDF in R, G and B); wavelength channels are refused here: turn them into
+//! linear sRGB first with [`crate::rgb::to_rgb`], as `gonio export --format merl`
+//! does. A negative value — measurement noise around 0 — cannot be stored as such
+//! (negative means invalid) and is written as 0.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::fmt;

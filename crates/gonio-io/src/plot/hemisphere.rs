@@ -1,5 +1,8 @@
 //! Hemisphere maps of f_r · cos θo for one incident direction (Lafortune et al. 1997,
-//! Figs. 12, 14).
+//! Figs. 12, 14), or of each direction's own colour: with
+//! [`HemisphereOptions::true_colour`], the encoded sRGB of π · f_r — the reflectance
+//! factor against a perfect diffuser, so a white Lambertian surface is white — of a
+//! spectral or RGB BRDF (`crate::rgb`, `docs/colour.md`).
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
 
@@ -133,6 +136,8 @@ pub(crate) struct HemiFig<'a> {
     title: String,
     data_label: String,
     fit_label: String,
+    /// True colour: the matrix from the channels to linear sRGB, and the conditions.
+    true_colour: Option<(Vec<[f64; 3]>, String)>,
 }
 
 pub(crate) fn build<'a>(
@@ -171,9 +176,22 @@ pub(crate) fn build<'a>(
         c => c,
     };
     let ch = select(chosen, data.channels())?[0];
+    let true_colour = match &opts.true_colour {
+        None => None,
+        Some(conv) => Some((
+            crate::rgb::rgb_matrix(data.channels(), conv)
+                .map_err(|e| PlotErrorKind::Input(e.to_string()))?,
+            conv.describe(),
+        )),
+    };
     let title = opts.title.clone().unwrap_or_else(|| {
         format!(
-            "f_r · cos θo over the outgoing hemisphere, θi = {}, φi = {}",
+            "{} over the outgoing hemisphere, θi = {}, φi = {}",
+            if true_colour.is_some() {
+                "colour (sRGB of π · f_r)"
+            } else {
+                "f_r · cos θo"
+            },
             draw::fmt_deg(theta_i_deg),
             draw::fmt_deg(opts.phi_i_deg)
         )
@@ -193,6 +211,7 @@ pub(crate) fn build<'a>(
         title,
         data_label: opts.data_label.clone(),
         fit_label: opts.fit_label.clone(),
+        true_colour,
     })
 }
 
@@ -273,6 +292,38 @@ impl HemiFig<'_> {
             let mut out = vec![0.0; nc];
             b.eval(self.wi, wo, &mut out);
             Some(out[self.ch] * wo.z)
+        })
+    }
+
+    /// Each direction's encoded sRGB colour of π · f_r (linear sRGB through `m`,
+    /// clipped to [0, 1], IEC 61966-2-1 encoding); [`NO_DATA`] where there is no data,
+    /// `None` off the hemisphere.
+    fn colours(
+        &self,
+        b: &dyn Brdf,
+        gaps: bool,
+        rect: (i32, i32, i32, i32),
+        cell: u32,
+        m: &[[f64; 3]],
+    ) -> Cells<Option<RGBColor>> {
+        let (x0, y0, w, h) = rect;
+        let nc = b.channels().len();
+        let sampled = if gaps { self.data.sampled() } else { None };
+        Cells::sample(rect, cell, |px, py| {
+            let u = 2.0 * (px - x0 as f64) / w as f64 - 1.0;
+            let v = 1.0 - 2.0 * (py - y0 as f64) / h as f64;
+            let wo = self.projection.to_dir(u, v)?;
+            if let Some(s) = sampled
+                && s.gap(self.wi, wo) > self.max_gap
+            {
+                return Some(NO_DATA);
+            }
+            let mut out = vec![0.0; nc];
+            b.eval(self.wi, wo, &mut out);
+            let linear = crate::rgb::apply(m, &out).map(|c| c * PI);
+            let [r, g, bl] =
+                gonio_core::colour::srgb::to_8bit(gonio_core::colour::srgb::encode_clipped(linear));
+            Some(RGBColor(r, g, bl))
         })
     }
 
@@ -363,11 +414,17 @@ impl Figure for HemiFig<'_> {
         let mut top = draw::title(root, &self.title, &sz)?;
         top += draw::subtitle(
             root,
-            &format!(
-                "channel {} · projection: {}",
-                self.channel_name,
-                self.projection.name()
-            ),
+            &match &self.true_colour {
+                Some((_, conditions)) => format!(
+                    "encoded sRGB, {conditions} · projection: {}",
+                    self.projection.name()
+                ),
+                None => format!(
+                    "channel {} · projection: {}",
+                    self.channel_name,
+                    self.projection.name()
+                ),
+            },
             top,
             &sz,
         )?;
@@ -398,11 +455,22 @@ impl Figure for HemiFig<'_> {
         let rects: Vec<(i32, i32, i32, i32)> = (0..n)
             .map(|k| (x_plot + k * (side + gap), y_plot, side, side))
             .collect();
-        let values: Vec<Cells<Option<f64>>> = sources
-            .iter()
-            .zip(&rects)
-            .map(|(&(b, gaps), &r)| self.values(b, gaps, r, cell))
-            .collect();
+        let values: Vec<Cells<Option<f64>>> = match self.true_colour {
+            Some(_) => Vec::new(),
+            None => sources
+                .iter()
+                .zip(&rects)
+                .map(|(&(b, gaps), &r)| self.values(b, gaps, r, cell))
+                .collect(),
+        };
+        let true_colours: Option<Vec<Cells<Option<RGBColor>>>> =
+            self.true_colour.as_ref().map(|(m, _)| {
+                sources
+                    .iter()
+                    .zip(&rects)
+                    .map(|(&(b, gaps), &r)| self.colours(b, gaps, r, cell, m))
+                    .collect()
+            });
         let vmax = values
             .iter()
             .flat_map(|c| c.v.iter().flatten())
@@ -418,7 +486,7 @@ impl Figure for HemiFig<'_> {
             Projection::Orthographic => ("x = sin θo cos φo", "y = sin θo sin φo"),
         };
         let mut out = Vec::new();
-        for (k, ((name, rect), vals)) in names.iter().zip(&rects).zip(&values).enumerate() {
+        for (k, (name, rect)) in names.iter().zip(&rects).enumerate() {
             let (x0, y0, s, _) = *rect;
             let left = if k == 0 { ylab } else { 0 };
             let sub = root
@@ -442,16 +510,21 @@ impl Figure for HemiFig<'_> {
                 .y_desc(yd)
                 .draw()
                 .map_err(draw::de)?;
-            let colours = vals.map(|v| {
-                v.map(|v| {
-                    if v.is_nan() {
-                        NO_DATA
-                    } else {
-                        colour(scale.t(v))
-                    }
-                })
-            });
-            draw::paint(root, &colours)?;
+            match &true_colours {
+                Some(c) => draw::paint(root, &c[k])?,
+                None => {
+                    let colours = values[k].map(|v| {
+                        v.map(|v| {
+                            if v.is_nan() {
+                                NO_DATA
+                            } else {
+                                colour(scale.t(v))
+                            }
+                        })
+                    });
+                    draw::paint(root, &colours)?;
+                }
+            }
             self.overlays(root, *rect, &sz)?;
             out.push(draw::caption_square(
                 root,
@@ -463,7 +536,44 @@ impl Figure for HemiFig<'_> {
                 INK,
             )?);
         }
-        // Colour bar.
+        if self.true_colour.is_none() {
+            self.colour_bar(root, (w, y_plot, side, cbw), cell, &scale, &sz)?;
+        }
+        let marks = if self.data.sampled().is_some() {
+            "○ towards the light   × mirror direction   grey: no sample nearby"
+        } else {
+            "○ towards the light   × mirror direction"
+        };
+        draw::text(
+            root,
+            &format!(
+                "{marks}   (θi = {}, φi = {})",
+                draw::fmt_deg(self.theta_i),
+                draw::fmt_deg(self.phi_i)
+            ),
+            (
+                x_plot - ylab + block_w / 2,
+                y_plot + side + xlab + sz.px(4.0),
+            ),
+            sz.tick,
+            MUTED,
+            (HPos::Center, VPos::Top),
+        )?;
+        Ok(out)
+    }
+}
+
+impl HemiFig<'_> {
+    /// The colour bar of the colour map, at the right of the image.
+    fn colour_bar<DB: DrawingBackend>(
+        &self,
+        root: &Area<DB>,
+        (w, y_plot, side, cbw): (i32, i32, i32, i32),
+        cell: u32,
+        scale: &Scale,
+        sz: &Sizes,
+    ) -> Result<(), String> {
+        let colour = |t: f64| draw::viridis(band(t, self.levels));
         let bx = w - cbw + sz.px(8.0);
         let bw = sz.px(22.0);
         let bar = (bx, y_plot, bw, side);
@@ -500,27 +610,7 @@ impl Figure for HemiFig<'_> {
             sz.label,
             INK,
         )?;
-        let marks = if self.data.sampled().is_some() {
-            "○ towards the light   × mirror direction   grey: no sample nearby"
-        } else {
-            "○ towards the light   × mirror direction"
-        };
-        draw::text(
-            root,
-            &format!(
-                "{marks}   (θi = {}, φi = {})",
-                draw::fmt_deg(self.theta_i),
-                draw::fmt_deg(self.phi_i)
-            ),
-            (
-                x_plot - ylab + block_w / 2,
-                y_plot + side + xlab + sz.px(4.0),
-            ),
-            sz.tick,
-            MUTED,
-            (HPos::Center, VPos::Top),
-        )?;
-        Ok(out)
+        Ok(())
     }
 }
 
@@ -552,6 +642,74 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A spectral Lambertian surface is drawn in its own colour everywhere: the
+    /// encoded sRGB of its reflectance (π · f_r = ρ).
+    #[test]
+    fn true_colour_of_a_spectral_lambertian_surface_is_its_reflectance_colour() {
+        let wl: Vec<f64> = (0..31).map(|i| 400.0 + 10.0 * i as f64).collect();
+        // An orange: low in the blue, rising through the green into the red.
+        let rho: Vec<f64> = wl
+            .iter()
+            .map(|l| 0.05 + 0.55 / (1.0 + (-(l - 580.0) / 20.0).exp()))
+            .collect();
+        let names: Vec<String> = wl.iter().map(|l| format!("\"{l}nm\"")).collect();
+        let values: Vec<String> = rho.iter().map(|r| r.to_string()).collect();
+        let toml = format!(
+            "kind = \"lambert\"\nchannels = [{}]\nrho = [{}]\n",
+            names.join(", "),
+            values.join(", ")
+        );
+        let m = gonio_brdf::Model::from_toml(&toml, None).unwrap();
+        let opts = HemisphereOptions {
+            true_colour: Some(crate::rgb::Conversion::default()),
+            ..HemisphereOptions::default()
+        };
+        let mut buf = Vec::new();
+        let drawn = crate::plot::hemisphere(
+            crate::plot::Output::Rgb(&mut buf),
+            &Source::Model(&m),
+            None,
+            30.0,
+            &opts,
+        )
+        .unwrap();
+        let c = gonio_core::colour::Colorimeter::new(
+            gonio_core::colour::Observer::Cie1931,
+            gonio_core::colour::Illuminant::D65,
+        );
+        let expect = c.colour(&wl, &rho).unwrap().srgb8;
+        assert!(expect[0] > expect[1] && expect[1] > expect[2], "{expect:?}");
+        let p = &drawn.panels[0];
+        let w = drawn.size.0 as usize;
+        let at = |x: i32, y: i32| {
+            let i = (y as usize * w + x as usize) * 3;
+            [buf[i], buf[i + 1], buf[i + 2]]
+        };
+        // The centre (the normal) and most of the panel: the reflectance's colour.
+        assert_eq!(at((p.x0 + p.x1) / 2, (p.y0 + p.y1) / 2), expect);
+        let same = (p.y0..p.y1)
+            .flat_map(|y| (p.x0..p.x1).map(move |x| (x, y)))
+            .filter(|&(x, y)| at(x, y) == expect)
+            .count();
+        let area = ((p.x1 - p.x0) * (p.y1 - p.y0)) as usize;
+        assert!(same as f64 > 0.9 * area as f64, "{same} of {area}");
+        // RGB input is taken as linear sRGB, and 3 wavelengths cannot make a colour.
+        let short = gonio_brdf::Model::from_toml(
+            "kind = \"lambert\"\nchannels = [\"450nm\", \"550nm\", \"650nm\"]\nrho = [0.1, 0.2, 0.3]\n",
+            None,
+        )
+        .unwrap();
+        let e = crate::plot::hemisphere(
+            crate::plot::Output::Rgb(&mut buf),
+            &Source::Model(&short),
+            None,
+            30.0,
+            &opts,
+        )
+        .unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("450–650 nm"), "{e}");
     }
 
     #[test]

@@ -263,6 +263,9 @@ pub struct HemisphereOptions {
     pub data_label: String,
     /// The name of the fit panel.
     pub fit_label: String,
+    /// Draw each direction in its own colour (encoded sRGB of π · f_r under these
+    /// conditions, `crate::rgb`) instead of a colour map of one channel.
+    pub true_colour: Option<crate::rgb::Conversion>,
 }
 
 impl Default for HemisphereOptions {
@@ -279,6 +282,7 @@ impl Default for HemisphereOptions {
             title: None,
             data_label: "data".into(),
             fit_label: "fit".into(),
+            true_colour: None,
         }
     }
 }
