@@ -195,6 +195,29 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             "samples": lockin.samples,
         },
     });
+    if let Some(m) = &cfg.monochromator {
+        report["monochromator"] = json!({
+            "kind": "cs130", "port": m.port, "baud": m.baud,
+            "gratings": m.cs130.gratings.iter().map(|g| json!({
+                "index": g.index, "lines_per_mm": g.lines_per_mm,
+                "min_nm": g.min_nm, "max_nm": g.max_nm,
+            })).collect::<Vec<_>>(),
+            "order_filters": m.cs130.filters.iter().map(|f| json!({
+                "position": f.position, "cut_on_nm": f.cut_on_nm,
+            })).collect::<Vec<_>>(),
+            "auto_order_filter": m.cs130.auto_order_filter,
+            "approach_nm": m.cs130.approach_nm,
+        });
+    }
+    if let Some(wh) = &cfg.filter_wheel {
+        report["filter_wheel"] = json!({
+            "kind": "fw102c", "port": wh.port, "baud": wh.baud,
+            "positions": wh.fw102c.positions,
+            "filters": wh.fw102c.filters.iter().map(|f| json!({
+                "position": f.position(), "kind": f.kind(),
+            })).collect::<Vec<_>>(),
+        });
+    }
     if connect {
         let start = if is_simulated(&cfg, path)? {
             let scfg = sim_config(sim)?;
@@ -215,6 +238,7 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
                 "state": i.state_code, "family": i.family,
             })).collect::<Vec<_>>(),
             "detector": start.detector,
+            "wavelength": start.spectral,
         });
     }
     if json {
@@ -275,6 +299,33 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
                     p.samples
                 )?;
             }
+        }
+        if let Some(m) = &cfg.monochromator {
+            let c = &m.cs130;
+            writeln!(
+                w,
+                "monochromator: CS130 on {} at {} baud; {} grating(s) over {}–{} nm, order filters {}",
+                m.port,
+                m.baud,
+                c.gratings.len(),
+                c.gratings.iter().map(|g| g.min_nm).fold(f64::INFINITY, f64::min),
+                c.gratings.iter().map(|g| g.max_nm).fold(0.0, f64::max),
+                if c.auto_order_filter {
+                    "chosen by wavelength"
+                } else {
+                    "left as they are"
+                }
+            )?;
+        }
+        if let Some(wh) = &cfg.filter_wheel {
+            writeln!(
+                w,
+                "filter wheel: FW102C on {} at {} baud; {} positions, {} filter(s)",
+                wh.port,
+                wh.baud,
+                wh.fw102c.positions,
+                wh.fw102c.filters.len()
+            )?;
         }
         if let Some(c) = report.get("connected") {
             writeln!(w, "connected: {c}")?;
