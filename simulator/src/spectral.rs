@@ -90,7 +90,8 @@ pub struct Setting {
 /// and a unit-area passband, so they sum to about `η(λ) T(λ) L(λ)/L(560)` (plus the
 /// second order's share). Empty with the shutter closed.
 pub fn passband(setting: &Setting, filter: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
-    if !setting.shutter_open || !(setting.fwhm_nm > 0.0) || !(setting.actual_nm > 0.0) {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    if !setting.shutter_open || !positive(setting.fwhm_nm) || !positive(setting.actual_nm) {
         return Vec::new();
     }
     let mut out = Vec::with_capacity(4 * NODES_PER_FWHM + 2);

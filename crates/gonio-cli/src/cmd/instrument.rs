@@ -308,7 +308,10 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
                 m.port,
                 m.baud,
                 c.gratings.len(),
-                c.gratings.iter().map(|g| g.min_nm).fold(f64::INFINITY, f64::min),
+                c.gratings
+                    .iter()
+                    .map(|g| g.min_nm)
+                    .fold(f64::INFINITY, f64::min),
                 c.gratings.iter().map(|g| g.max_nm).fold(0.0, f64::max),
                 if c.auto_order_filter {
                     "chosen by wavelength"
