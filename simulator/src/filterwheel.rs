@@ -261,7 +261,8 @@ impl Fw102cTwin {
         t >= self.move_start && t < self.move_end
     }
 
-    /// The position in the beam at `t`; `None` while turning.
+    /// The position in the beam at `t`; `None` while turning. Only the last move is
+    /// remembered: a time before it reads the position that move left.
     pub fn position_at(&self, t: f64) -> Option<u8> {
         if self.is_moving(t) {
             None

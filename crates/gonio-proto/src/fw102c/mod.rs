@@ -5,8 +5,8 @@
 //! **Sources.** The FW102C manual's command table was not in the reference corpus
 //! this module was written against, so no section or page of it is cited: every fact
 //! below is **UNCONFIRMED** against the manual. What is stated comes from drivers that
-//! talk to real wheels (Odemis `tlfw.py`, Delmic; InstrumentKit's Thorlabs helpers;
-//! the Thorlabs FW102C SDK header) and is marked as such; `docs/instruments/fw102c.md`
+//! talk to real wheels (Odemis `src/odemis/driver/tlfw.py`; InstrumentKit's
+//! `thorlabs_utils.py`; a wrapper of the Thorlabs SDK DLL) and is marked as such; `docs/instruments/fw102c.md`
 //! lists each fact with its source.
 //!
 //! - A command is lower-case ASCII ended by CR: `*idn?`, `pos=3`, `pos?`, `pcount?`,
