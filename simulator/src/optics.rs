@@ -188,7 +188,8 @@ impl Optics {
         }
     }
 
-    /// Sets the light a monochromator passes (see [`crate::spectral::passband`]):
+    /// Sets the light a band selector passes (a monochromator's
+    /// [`crate::spectral::passband`], a filter's [`crate::spectral::white`]):
     /// the source's power is then spread over these wavelengths with these relative
     /// weights, and the sample reflects each at its own `f_r(λ)`. `None`: no
     /// monochromator; an empty list: no light (shutter closed).

@@ -28,6 +28,22 @@ fn put(dir: &Path, name: &str, text: &str) -> String {
     s(&p)
 }
 
+/// The mean signal (R, V) of each reading of `kind` in a run.
+fn signals(run: &str, kind: &str) -> Vec<f64> {
+    let c = rusqlite::Connection::open_with_flags(run, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+        .expect("open");
+    let mut st = c
+        .prepare(
+            "SELECT r.r_mean FROM readings r JOIN steps s ON s.id = r.step_id \
+             WHERE s.kind = ?1 ORDER BY s.id",
+        )
+        .expect("query");
+    st.query_map([kind], |r| r.get::<_, f64>(0))
+        .expect("rows")
+        .map(|r| r.expect("row"))
+        .collect()
+}
+
 /// The bench events of a run, in order.
 fn bench_events(run: &str) -> Vec<String> {
     let c = rusqlite::Connection::open_with_flags(run, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
@@ -163,6 +179,24 @@ fn a_filter_wheel_run_selects_each_band_by_its_filter() {
         "{events:?}"
     );
     assert!(events.iter().any(|e| e == "shutter closed"), "{events:?}");
+    // Band and shutter share the wheel: a dark after a dark at another band stays
+    // behind the opaque position (the wheel is not turned to the band until the
+    // shutter opens), so every dark reads nothing next to the incident beam.
+    assert!(
+        events
+            .iter()
+            .any(|e| e.ends_with("once the shutter opens)")),
+        "{events:?}"
+    );
+    let (darks, incident) = (signals(&run, "dark"), signals(&run, "incident"));
+    assert_eq!((darks.len(), incident.len()), (3, 3));
+    let lit = incident.iter().copied().fold(f64::INFINITY, f64::min);
+    for d in &darks {
+        assert!(
+            *d < 1e-4 * lit,
+            "dark {d} V beside the incident beam's {lit} V"
+        );
+    }
     // The reduction: the paint's diffuse albedo shows through the lobe-free
     // backscatter side, within the wavelength term the 10 nm filters bring.
     let r = ok_json(&["reduce", &run, "--out", &s(&d.join("t.csv")), "--json"]);
@@ -251,7 +285,7 @@ fn a_band_selector_the_simulator_lacks_is_refused_before_anything_moves() {
     let out = gonio(&["instrument", "check", &both]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("filter_wheel"), "{}", stderr(&out));
-    // A wavelength the grating cannot reach.
+    // An approach longer than the drive's range of approach.
     let bad = put(
         &d,
         "bad.toml",
@@ -271,4 +305,42 @@ fn a_band_selector_the_simulator_lacks_is_refused_before_anything_moves() {
         stderr(&out)
     );
     let _ = ok(&["instrument", "check", &config("instrument-spectral.toml")]);
+    // Wavelengths the monochromator cannot serve, or bands that are not wavelengths:
+    // refused before the run file exists.
+    for (name, plan_text, why) in [
+        (
+            "far.toml",
+            PLAN.replace("[450, 550, 650]", "[450, 2500]"),
+            "field `wavelengths`",
+        ),
+        (
+            "rgb.toml",
+            PLAN.replace(
+                "wavelengths = [450, 550, 650]",
+                "channels = [\"R\", \"G\", \"B\"]",
+            ),
+            "field `channels`",
+        ),
+    ] {
+        let plan = put(&d, name, &plan_text);
+        for args in [
+            vec!["plan", "check", &plan, "--instrument"],
+            vec![
+                "acquire",
+                "--plan",
+                &plan,
+                "--out",
+                &s(&run),
+                "--instrument",
+            ],
+        ] {
+            let mut args: Vec<&str> = args;
+            let inst = config("instrument-spectral.toml");
+            args.push(&inst);
+            let out = gonio(&args);
+            assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+            assert!(stderr(&out).contains(why), "{}", stderr(&out));
+            assert!(!run.exists());
+        }
+    }
 }

@@ -484,6 +484,38 @@ impl InstrumentConfig {
         })
     }
 
+    /// Checks that the band selector can serve every one of `wavelengths_nm` (a
+    /// grating range and an order filter on a monochromator, a band-pass filter on a
+    /// wheel): what a plan must pass before its run file is created. Without a band
+    /// selector every wavelength passes (an operator changes the bands).
+    pub fn check_bands(&self, wavelengths_nm: &[f64]) -> Result<(), String> {
+        for &nm in wavelengths_nm {
+            if let Some(m) = &self.monochromator {
+                let c = &m.cs130;
+                c.grating_for(nm)
+                    .map_err(|e| format!("monochromator: {e}"))?;
+                if c.auto_order_filter {
+                    c.order_filter_for(nm)
+                        .map_err(|e| format!("monochromator: {e}"))?;
+                }
+            }
+            if let Some(w) = &self.filter_wheel
+                && w.fw102c.position_for_band(nm).is_none()
+            {
+                return Err(format!(
+                    "filter_wheel: no band-pass filter is centred within {} nm of {nm} nm",
+                    w.fw102c.band_tolerance_nm
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// True when a monochromator or filter wheel selects the wavelengths.
+    pub fn has_band_selector(&self) -> bool {
+        self.monochromator.is_some() || self.filter_wheel.is_some()
+    }
+
     /// How long the band selector takes to change wavelength, for the planner: a
     /// monochromator's slew, settling, and its order-filter and grating changes at
     /// the wavelengths where its config changes them; a filter wheel's change time.

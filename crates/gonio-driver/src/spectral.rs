@@ -126,12 +126,11 @@ pub struct MonochromatorConfig {
     #[serde(default)]
     pub timing: MonochromatorTimingConfig,
     /// The standard uncertainty of its wavelength scale, nm, for the reduction's
-    /// wavelength term (default `gonio_reduce::spectral::MONOCHROMATOR_UNCERTAINTY_NM`,
-    /// 0.2 nm).
+    /// wavelength term (default [`gonio_proto::cs130::WAVELENGTH_UNCERTAINTY_NM`]).
     #[serde(default)]
     pub wavelength_uncertainty_nm: Option<f64>,
     /// Its bandpass (the FWHM of the slit function with the slits installed), nm
-    /// (default 2 nm).
+    /// (default [`gonio_proto::cs130::BANDWIDTH_NM`]).
     #[serde(default)]
     pub bandwidth_nm: Option<f64>,
 }
@@ -158,7 +157,7 @@ impl Default for MonochromatorTimingConfig {
             slew_nm_per_s: 100.0,
             settle_s: 0.1,
             filter_change_s: 1.5,
-            grating_change_s: 10.0,
+            grating_change_s: 4.0,
         }
     }
 }
@@ -195,7 +194,8 @@ pub struct FilterWheelConfig {
     #[serde(default = "default_wheel_change_s")]
     pub change_s: f64,
     /// The standard uncertainty of the filters' centre wavelengths, nm, for the
-    /// reduction's wavelength term (default 1.2 nm: a ±2 nm tolerance).
+    /// reduction's wavelength term (default
+    /// [`gonio_proto::fw102c::CENTRE_UNCERTAINTY_NM`]).
     #[serde(default)]
     pub wavelength_uncertainty_nm: Option<f64>,
 }
@@ -324,18 +324,25 @@ impl<T: Transport, C: Clock> BandSelector for Cs130<T, C> {
 }
 
 /// A filter wheel as a band selector: the band-pass filter of each channel, and its
-/// opaque position as the shutter. It remembers the band, to return to it when the
-/// shutter opens.
+/// opaque position as the shutter. Band and shutter share the one wheel, so while
+/// the shutter is closed a new band is only remembered (the wheel stays opaque: a
+/// dark reading at the next wavelength is still dark), and opening the shutter turns
+/// the wheel to the band.
 #[derive(Debug)]
 pub struct WheelBands<T: Transport, C: Clock> {
     wheel: Fw102c<T, C>,
     band: Option<f64>,
+    closed: bool,
 }
 
 impl<T: Transport, C: Clock> WheelBands<T, C> {
     /// The wheel, no band selected yet.
     pub fn new(wheel: Fw102c<T, C>) -> Self {
-        WheelBands { wheel, band: None }
+        WheelBands {
+            wheel,
+            band: None,
+            closed: false,
+        }
     }
 
     /// The wheel.
@@ -362,11 +369,19 @@ impl<T: Transport, C: Clock> BandSelector for WheelBands<T, C> {
                 reason: "no band-pass filter on the wheel is centred there".into(),
             });
         }
+        self.band = Some(nm);
+        if self.closed {
+            let position = self.wheel.config().position_for_band(nm).unwrap_or(0);
+            return Ok(Band {
+                nm,
+                reported_nm: nm,
+                detail: format!("position {position} once the shutter opens"),
+            });
+        }
         let position = self
             .wheel
             .select_band(nm)
             .map_err(|e| device("fw102c")(&e))?;
-        self.band = Some(nm);
         let (centre, detail) = match self.wheel.config().filter_at(position) {
             Some(Filter::Bandpass {
                 centre_nm, fwhm_nm, ..
@@ -388,6 +403,7 @@ impl<T: Transport, C: Clock> BandSelector for WheelBands<T, C> {
     }
 
     fn set_shutter(&mut self, open: bool) -> Result<(), SpectralError> {
+        self.closed = !open;
         if open {
             match self.band {
                 Some(nm) => self.select(nm).map(|_| ()),

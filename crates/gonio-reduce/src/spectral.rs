@@ -20,14 +20,13 @@ pub const TERM: &str = "wavelength";
 /// How it is shared between samples.
 pub const CORRELATION: &str = "wavelength";
 /// A monochromator's wavelength standard uncertainty when its config states none,
-/// nm: the Cornerstone 130's ±0.35 nm accuracy with a 1200 l/mm grating taken as a
-/// rectangular bound (**UNCONFIRMED**; see docs/instruments/cs130.md).
-pub const MONOCHROMATOR_UNCERTAINTY_NM: f64 = 0.2;
+/// nm (the driver's config documents the same constant).
+pub const MONOCHROMATOR_UNCERTAINTY_NM: f64 = gonio_proto::cs130::WAVELENGTH_UNCERTAINTY_NM;
 /// A monochromator's bandpass (FWHM) when its config states none, nm.
-pub const MONOCHROMATOR_BANDWIDTH_NM: f64 = 2.0;
+pub const MONOCHROMATOR_BANDWIDTH_NM: f64 = gonio_proto::cs130::BANDWIDTH_NM;
 /// A band-pass filter's centre-wavelength standard uncertainty when the config
-/// states none, nm: a ±2 nm centre tolerance as a rectangular bound.
-pub const FILTER_UNCERTAINTY_NM: f64 = 1.2;
+/// states none, nm.
+pub const FILTER_UNCERTAINTY_NM: f64 = gonio_proto::fw102c::CENTRE_UNCERTAINTY_NM;
 
 /// The band selector of a run, as the instrument config gives it.
 #[derive(Clone, Debug, PartialEq)]

@@ -66,6 +66,26 @@ pub fn load_and_prepare(instrument: &Path, plan: &Path) -> CliResult<Loaded> {
     let mech = inst
         .mechanics()
         .map_err(|e| input(format!("{}: {e}", instrument.display())))?;
+    if (inst.has_band_selector() && plan_cfg.channels.is_some()) || plan_cfg.wavelengths.is_some() {
+        let bands = plan_cfg.band_wavelengths();
+        match bands {
+            Some(w) => inst.check_bands(&w).map_err(|e| {
+                input(format!(
+                    "{}: field `wavelengths`: {} cannot serve it: {e}",
+                    plan.display(),
+                    instrument.display()
+                ))
+            })?,
+            None if inst.has_band_selector() => {
+                return Err(input(format!(
+                    "{}: field `channels`: {} selects wavelengths (like \"550nm\"); these bands are not",
+                    plan.display(),
+                    instrument.display()
+                )));
+            }
+            None => {}
+        }
+    }
     let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan_cfg).map_err(input)?;
     Ok(Loaded {
         instrument: inst,

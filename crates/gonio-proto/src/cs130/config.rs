@@ -9,6 +9,15 @@ use std::time::Duration;
 /// CS130B's turret size was not found in the stored manual; 3 is a generous bound.
 pub const MAX_GRATINGS: u8 = 3;
 
+/// The standard uncertainty of a Cornerstone 130's wavelength scale that the
+/// reduction assumes when the instrument config states none, nm: a ±0.35 nm accuracy
+/// with a 1200 l/mm grating taken as a rectangular bound (**UNCONFIRMED**: the
+/// specification pages are not in the stored manual).
+pub const WAVELENGTH_UNCERTAINTY_NM: f64 = 0.2;
+/// The bandpass (FWHM of the triangular slit function) assumed when the instrument
+/// config states none, nm.
+pub const BANDWIDTH_NM: f64 = 2.0;
+
 /// Filter wheel positions, as far as the config accepts. **UNCONFIRMED**: the wheel's
 /// size was not found in the stored manual; the Cornerstone wheels have 6.
 pub const MAX_FILTER_POSITION: u8 = 6;

@@ -36,8 +36,8 @@ pub mod fuzz;
 
 pub use command::{Command, CommandError, Units};
 pub use config::{
-    ConfigError, Cs130Config, GratingSpec, MAX_FILTER_POSITION, MAX_GRATINGS, OrderFilterSpec,
-    SelectError,
+    BANDWIDTH_NM, ConfigError, Cs130Config, GratingSpec, MAX_FILTER_POSITION, MAX_GRATINGS,
+    OrderFilterSpec, SelectError, WAVELENGTH_UNCERTAINTY_NM,
 };
 pub use reply::{Reply, ReplyError, is_echo};
 pub use session::Cs130Session;

@@ -12,6 +12,12 @@ use super::{POSITION_COUNTS, Speed};
 /// (UNCONFIRMED: from the product pages, not a manual in the corpus).
 pub const DEFAULT_BAND_TOLERANCE_NM: f64 = 2.0;
 
+/// The standard uncertainty of a band-pass filter's centre wavelength that the
+/// reduction assumes when the instrument config states none, nm: a ±2 nm centre
+/// tolerance (a common catalogue figure, **UNCONFIRMED** for any one filter) as a
+/// rectangular bound.
+pub const CENTRE_UNCERTAINTY_NM: f64 = 1.2;
+
 /// One filter mounted in the wheel, as a config file writes it (`[[filters]]`):
 ///
 /// ```toml

@@ -40,7 +40,9 @@ mod session;
 pub mod fuzz;
 
 pub use command::{Command, CommandError, SensorMode, Speed, TriggerMode};
-pub use config::{ConfigError, DEFAULT_BAND_TOLERANCE_NM, Filter, Fw102cConfig};
+pub use config::{
+    CENTRE_UNCERTAINTY_NM, ConfigError, DEFAULT_BAND_TOLERANCE_NM, Filter, Fw102cConfig,
+};
 pub use error::Fw102cError;
 pub use reply::{DeviceError, ErrorCode, Line, Reply, ReplyError, strip_prompt};
 pub use session::Fw102cSession;
