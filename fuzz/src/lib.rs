@@ -30,10 +30,14 @@ const NOWHERE: &str = "/nonexistent-gonio-fuzz";
 pub const INSTRUMENTS: &[&str] = &[
     include_str!("../../config/instrument-example.toml"),
     include_str!("../../config/instrument-sim.toml"),
+    include_str!("../../config/instrument-spectral.toml"),
 ];
 
 /// The shipped simulator config.
-pub const SIMS: &[&str] = &[include_str!("../../config/sim-example.toml")];
+pub const SIMS: &[&str] = &[
+    include_str!("../../config/sim-example.toml"),
+    include_str!("../../config/sim-spectral.toml"),
+];
 
 /// The shipped plans.
 pub const PLANS: &[&str] = &[
@@ -106,8 +110,8 @@ fn pairs() -> [DirPair; 4] {
 }
 
 /// An instrument config: parsed and validated; if accepted, its policy, ports,
-/// reading time and mechanics, the mechanics checking pairs, and the SMC100 chain and
-/// SR830 driver built from it.
+/// reading time and mechanics, the mechanics checking pairs, and the SMC100 chain,
+/// SR830 driver and band selector (Cornerstone 130, FW102C) built from it.
 pub fn instrument_config(data: &[u8]) {
     use gonio_driver::smc100::Smc100Chain;
     use gonio_driver::sr830::Sr830;
@@ -137,12 +141,34 @@ pub fn instrument_config(data: &[u8]) {
         chain.err()
     );
     let (t, _) = ScriptedTransport::new(b'\r', 64, clock.clone());
-    let lockin = Sr830::new(t, clock, c.detector.lockin.clone());
+    let lockin = Sr830::new(t, clock.clone(), c.detector.lockin.clone());
     assert!(
         lockin.is_ok(),
         "an accepted config's lock-in: {:?}",
         lockin.err()
     );
+    let _ = (
+        c.wavelength_timing(),
+        c.check_bands(&[450.0, 550.0, 1500.0]),
+    );
+    if let Some(m) = &c.monochromator {
+        let (t, _) = ScriptedTransport::new(b'\n', 64, clock.clone());
+        let mono = gonio_driver::cs130::Cs130::new(t, clock.clone(), m.cs130.clone());
+        assert!(
+            mono.is_ok(),
+            "an accepted config's monochromator: {:?}",
+            mono.err()
+        );
+    }
+    if let Some(w) = &c.filter_wheel {
+        let (t, _) = ScriptedTransport::new(b'\r', 64, clock.clone());
+        let wheel = gonio_driver::fw102c::Fw102c::new(t, clock, w.fw102c.clone());
+        assert!(
+            wheel.is_ok(),
+            "an accepted config's filter wheel: {:?}",
+            wheel.err()
+        );
+    }
 }
 
 /// A simulator config: parsed and validated; if accepted (with the embedded sample,
@@ -173,6 +199,11 @@ pub fn sim_config(data: &[u8]) {
     let _ = sim.lockin_bytes(b"*IDN?\nOUTX 0\nSNAP?1,2\n");
     sim.clock().advance(Duration::from_secs(1));
     let _ = sim.lockin_bytes(b"SNAP?1,2\nLIAS?\n");
+    // A band selector, when the config has one (nothing happens otherwise).
+    let _ = sim.monochromator_bytes(b"FILTER 3\r\nGOWAVE 650\r\n*WAI\r\nWAVE?\r\n");
+    let _ = sim.filter_wheel_bytes(b"pos=2\rpos?\r");
+    sim.clock().advance(Duration::from_secs(30));
+    let _ = sim.spectrum_at(sim.clock().seconds());
     let _ = sim.signal(sim.clock().seconds());
 }
 
