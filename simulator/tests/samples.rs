@@ -187,3 +187,51 @@ fn the_standalone_simulator_serves_a_microgeometry_sample() {
     assert!(sent.success());
     assert!(child.wait().expect("exits").success());
 }
+
+/// A rough gold surface whose refractive index is given per wavelength: the traced
+/// table carries the wavelengths, and near the specular direction the colour comes
+/// from Fresnel's equations alone, so the ratio of two wavelengths' values is their
+/// normal-incidence reflectances' (the facets near the mirror direction sit near
+/// normal incidence; multiple scattering, weak at this roughness, is the rest).
+#[test]
+fn a_microgeometry_sample_with_a_spectral_refractive_index_is_spectral() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let gold = r#"
+channels = ["450nm", "550nm", "650nm"]
+[surface]
+kind = "gaussian"
+size = [128, 128]
+spacing = 1.0
+rms_height = 0.3
+correlation_length = 5.0
+seed = 9
+material = "gold"
+[materials.gold]
+kind = "conductor"
+n = [1.38, 0.433, 0.166]
+k = [1.86, 2.46, 3.15]
+"#;
+    std::fs::write(dir.path().join("surface.toml"), gold).expect("write");
+    let mut cfg = config_with(
+        dir.path(),
+        "[sample.micro]\nsurface = \"surface.toml\"\ngrid = [10, 30]\nrays = 20000\nseed = 2\n",
+    );
+    cfg.prepare_sample().expect("traces");
+    let (b, _) = cfg.load_sample().expect("prepared");
+    assert_eq!(b.channels().names(), ["450nm", "550nm", "650nm"]);
+    let mut v = vec![0.0; 3];
+    b.eval(
+        Dir::from(SphericalDeg::new(5.0, 0.0)),
+        Dir::from(SphericalDeg::new(5.0, 180.0)),
+        &mut v,
+    );
+    let fresnel = |n: f64, k: f64| ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
+    let want = fresnel(0.166, 3.15) / fresnel(1.38, 1.86);
+    let got = v[2] / v[0];
+    println!("650/450: {got} vs Fresnel {want}; {v:?}");
+    assert!(
+        (got / want - 1.0).abs() < 0.05,
+        "650/450: {got} vs Fresnel {want}"
+    );
+    assert!(v[0] < v[1] && v[1] < v[2], "gold reflects red best: {v:?}");
+}

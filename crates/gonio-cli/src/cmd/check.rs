@@ -52,13 +52,11 @@ impl Checked {
         let mut v = serde_json::to_value(&self.report).unwrap_or_default();
         if let Some(o) = v.as_object_mut() {
             o.insert("symmetry".into(), self.tab.symmetry.name().into());
-            // The channels' wavelengths (nm), in the order of `channels`; null for
-            // single-band and R/G/B data.
-            let wl = match &self.tab.table.channels {
-                gonio_core::Channels::Wavelengths(w) => serde_json::json!(w.to_vec()),
-                _ => serde_json::Value::Null,
-            };
-            o.insert("wavelengths_nm".into(), wl);
+            // The channels' wavelengths (nm), in the order of `channels`; only for
+            // wavelength channels, so that other data's output stays as it was.
+            if let gonio_core::Channels::Wavelengths(w) = &self.tab.table.channels {
+                o.insert("wavelengths_nm".into(), serde_json::json!(w.to_vec()));
+            }
             o.insert(
                 "grid".into(),
                 serde_json::to_value(super::grid_json(&self.tab.table, &self.tab))

@@ -179,18 +179,20 @@ impl Fitted {
 
     /// The `--json` object.
     pub fn json(&self, a: &FitArgs) -> serde_json::Value {
-        json!({
+        let mut v = json!({
             "out": a.out.as_ref().map(|p| p.display().to_string()),
             "fit": self.fit,
             "comparison": self.comparison,
             "cut_by_angle": self.data.cut,
-            // The channels' wavelengths (nm), in the order of `fit.channels`; null
-            // for single-band and R/G/B data.
-            "wavelengths_nm": match &self.data.channels {
-                gonio_core::Channels::Wavelengths(w) => Some(w.to_vec()),
-                _ => None,
-            },
-        })
+        });
+        // The channels' wavelengths (nm), in the order of `fit.channels`; only for
+        // wavelength channels, so that other data's output stays as it was.
+        if let (gonio_core::Channels::Wavelengths(w), Some(o)) =
+            (&self.data.channels, v.as_object_mut())
+        {
+            o.insert("wavelengths_nm".into(), json!(w.to_vec()));
+        }
+        v
     }
 }
 

@@ -134,19 +134,21 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
         }
     };
     if json_out {
-        return output::json(&json!({
+        let mut v = json!({
             "out": out.display().to_string(),
             "wrote": what,
             "samples": red.samples.samples.len(),
             "channels": red.samples.channels.names(),
-            // The channels' wavelengths (nm), in the order of `channels`; null for
-            // single-band and R/G/B runs.
-            "wavelengths_nm": match &red.samples.channels {
-                gonio_core::Channels::Wavelengths(w) => Some(w.to_vec()),
-                _ => None,
-            },
             "reduction": reduction_json(&red),
-        }));
+        });
+        // The channels' wavelengths (nm), in the order of `channels`; only for
+        // wavelength channels, so that other runs' output stays as it was.
+        if let (gonio_core::Channels::Wavelengths(w), Some(o)) =
+            (&red.samples.channels, v.as_object_mut())
+        {
+            o.insert("wavelengths_nm".into(), json!(w.to_vec()));
+        }
+        return output::json(&v);
     }
     let mut w = output::stdout();
     output::finish((|| {
