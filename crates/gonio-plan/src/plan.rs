@@ -26,7 +26,7 @@
 //! `wavelengths = [450, 550, 650]` / `wavelengths = { from = 400, to = 700, step = 10 }`
 //! gives them in nm ([`Wavelengths`]; the bands are then named `450nm`, …). With
 //! several, `[spectral] inner = "auto" | "wavelength" | "geometry"` says which loop is
-//! inside ([`Inner`]; `crate::schedule` decides `auto` from the estimated times).
+//! inside ([`Inner`]; the schedule decides `auto` from the estimated times).
 //!
 //! Point kinds: `grid` (all combinations of `theta_i`, `phi_i`, `theta_o`, `phi_o`),
 //! `isotropic` (fixed `phi_i`, `theta_i` × `theta_o` × `delta_phi`, φo = φi + Δφ),
