@@ -159,11 +159,9 @@ pub fn bandpass_transmittance(nm: f64, centre_nm: f64, fwhm_nm: f64, peak: f64) 
     peak * (-4.0 * std::f64::consts::LN_2 * x * x).exp()
 }
 
-/// Long-pass transmittance: `peak / (1 + exp(−(λ − cut_on) / s))`, `s = rise / (2 ln 9)`.
-pub fn longpass_transmittance(nm: f64, cut_on_nm: f64, rise_nm: f64, peak: f64) -> f64 {
-    let s = rise_nm / (2.0 * 9f64.ln());
-    peak / (1.0 + (-(nm - cut_on_nm) / s).exp())
-}
+/// Long-pass transmittance: `peak / (1 + exp(−(λ − cut_on) / s))`, `s = rise / (2 ln 9)`
+/// (the light model's own edge, [`crate::spectral::longpass`]).
+pub use crate::spectral::longpass as longpass_transmittance;
 
 /// The simulated wheel. Time is virtual: every call says when it happens (seconds
 /// since power-up).

@@ -6,13 +6,12 @@ mod truth;
 
 use std::path::PathBuf;
 
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
 use gonio_brdf::{Brdf, Model};
 use gonio_driver::InstrumentConfig;
-use gonio_plan::{Plan, StepKind};
+use gonio_plan::StepKind;
 use gonio_reduce::{DC_TERMS, Detector, Options, Reduction, reduce};
-use gonio_run::{Inputs, ReadingRecord, RunStore};
-use gonio_sim::{SimBench, SimConfig};
+use gonio_run::{ReadingRecord, RunStore};
+use gonio_sim::SimConfig;
 use truth::root;
 
 /// In-plane scans with drift references, a dark and the incident beam through ND3,
@@ -65,54 +64,23 @@ fn measure_with(
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
 ) -> (PathBuf, Model) {
-    let dir = tempfile::Builder::new()
-        .prefix(&format!("gonio-dc-{name}-"))
-        .tempdir()
-        .expect("temp dir")
-        .keep();
     let (inst, inst_text) =
         InstrumentConfig::load_with_text(&root().join("config/instrument-mixed.toml"))
             .expect("inst");
     let sim_path = root().join("config/sim-mixed.toml");
     let mut sim = SimConfig::load(&sim_path).expect("sim");
-    sim.seed = seed;
     tweak(&mut sim);
-    let sim_text = std::fs::read_to_string(&sim_path).expect("sim text");
-    let plan = Plan::from_toml(plan_text, Some(&root().join("config/plan.toml"))).expect("plan");
-    let mech = inst.mechanics().expect("mechanics");
-    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
-    let sample_text = sim.sample_model_text().expect("sample");
-    let inputs = Inputs {
-        instrument_text: inst_text,
-        plan_text: plan_text.into(),
-        plan_path: Some(root().join("config/plan.toml")),
-        sim: Some((sim_text, sample_text.clone())),
-        seed: Some(seed),
-        software: "test".into(),
-        ..Inputs::default()
-    };
-    let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).expect("meta");
-    let path = dir.join("run.gonio");
-    let store = gonio_run::create(&path, &plan, &prepared, &inputs).expect("creates");
-    let standard = meta.standard_model.as_ref().map(|t| {
-        let m = Model::from_toml(t, None).expect("standard");
-        (Box::new(m) as Box<dyn Brdf>, 0)
-    });
-    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let cfg = EngineConfig {
-        incident_transmittance: meta.transmittance,
-        ..EngineConfig::default()
-    };
-    let engine = Engine::new(g, SimBench::new(shared, standard), store, mech, cfg);
-    let (report, store) = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(engine.run())
-        .expect("runs");
-    assert_eq!(report.outcome, Outcome::Complete);
+    let (path, store, model) = truth::Run {
+        name: &format!("dc-{name}"),
+        instrument: (&inst, inst_text),
+        sim: &sim,
+        sim_text: std::fs::read_to_string(&sim_path).expect("sim text"),
+        plan_text,
+        seed,
+    }
+    .acquire();
     drop(store);
-    (path, Model::from_toml(&sample_text, None).expect("model"))
+    (path, model)
 }
 
 /// χ²/n of (f − f_true) with the independent terms (noise, resolution) on the

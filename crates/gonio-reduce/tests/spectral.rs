@@ -8,13 +8,11 @@ mod truth;
 
 use std::path::PathBuf;
 
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
 use gonio_brdf::{Brdf, Model};
 use gonio_driver::InstrumentConfig;
-use gonio_plan::Plan;
 use gonio_reduce::{Options, Reduction, reduce};
-use gonio_run::{Inputs, RunStore};
-use gonio_sim::{SimBench, SimConfig};
+use gonio_run::RunStore;
+use gonio_sim::SimConfig;
 use truth::root;
 
 /// In-plane at two incidences, ten wavelengths from 400 to 760 nm, a dark and the
@@ -35,50 +33,22 @@ incident = { transmittance = 1e-3 }
 /// Measures `PLAN` on the simulated spectral instrument, with `tweak` applied to
 /// the instrument config; returns the run and the sample.
 fn measure(name: &str, seed: u64, tweak: impl FnOnce(&mut InstrumentConfig)) -> (PathBuf, Model) {
-    let dir = tempfile::Builder::new()
-        .prefix(&format!("gonio-spectral-{name}-"))
-        .tempdir()
-        .expect("temp dir")
-        .keep();
     let (mut inst, inst_text) =
         InstrumentConfig::load_with_text(&root().join("config/instrument-spectral.toml"))
             .expect("inst");
     tweak(&mut inst);
     let sim_path = root().join("config/sim-spectral.toml");
-    let mut sim = SimConfig::load(&sim_path).expect("sim");
-    sim.seed = seed;
-    let sim_text = std::fs::read_to_string(&sim_path).expect("sim text");
-    let plan = Plan::from_toml(PLAN, Some(&root().join("config/plan.toml"))).expect("plan");
-    let mech = inst.mechanics().expect("mechanics");
-    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
-    let sample_text = sim.sample_model_text().expect("sample");
-    let inputs = Inputs {
-        instrument_text: inst_text,
-        plan_text: PLAN.into(),
-        plan_path: Some(root().join("config/plan.toml")),
-        sim: Some((sim_text, sample_text.clone())),
-        seed: Some(seed),
-        software: "test".into(),
-        ..Inputs::default()
-    };
-    let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).expect("meta");
-    let path = dir.join("run.gonio");
-    let store = gonio_run::create(&path, &plan, &prepared, &inputs).expect("creates");
-    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let cfg = EngineConfig {
-        incident_transmittance: meta.transmittance,
-        ..EngineConfig::default()
-    };
-    let engine = Engine::new(g, SimBench::new(shared, None), store, mech, cfg);
-    let (report, store) = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(engine.run())
-        .expect("runs");
-    assert_eq!(report.outcome, Outcome::Complete);
+    let (path, store, model) = truth::Run {
+        name: &format!("spectral-{name}"),
+        instrument: (&inst, inst_text),
+        sim: &SimConfig::load(&sim_path).expect("sim"),
+        sim_text: std::fs::read_to_string(&sim_path).expect("sim text"),
+        plan_text: PLAN,
+        seed,
+    }
+    .acquire();
     drop(store);
-    (path, Model::from_toml(&sample_text, None).expect("model"))
+    (path, model)
 }
 
 /// The sample's f_r at every sample of `red` and every channel of the reduction

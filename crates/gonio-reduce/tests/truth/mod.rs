@@ -39,55 +39,96 @@ pub fn measure(
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
 ) -> (RunStore, Model) {
-    // Kept: the returned run file stays open in it.
-    let dir = tempfile::Builder::new()
-        .prefix(&format!("gonio-truth-{name}-"))
-        .tempdir()
-        .expect("temp dir")
-        .keep();
     let (inst, inst_text) =
         InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml")).expect("inst");
-    let plan = Plan::from_toml(plan_text, Some(&root().join("config/plan.toml"))).expect("plan");
-    let mech = inst.mechanics().expect("mechanics");
-    let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
     let mut sim = SimConfig::default_config().expect("sim");
-    sim.seed = seed;
     if let Some(text) = sample {
         let m = Model::from_toml(text, None).expect("sample model");
         sim.set_sample(std::sync::Arc::new(m), text.to_string());
     }
     tweak(&mut sim);
-    let sample_text = sim.sample_model_text().expect("sample");
-    let inputs = Inputs {
-        instrument_text: inst_text,
-        plan_text: plan_text.into(),
-        plan_path: Some(root().join("config/plan.toml")),
-        sim: Some((gonio_sim::config::DEFAULT_SIM.into(), sample_text.clone())),
-        seed: Some(seed),
-        software: "test".into(),
-        ..Inputs::default()
+    let run = Run {
+        name,
+        instrument: (&inst, inst_text),
+        sim: &sim,
+        sim_text: gonio_sim::config::DEFAULT_SIM.into(),
+        plan_text,
+        seed,
     };
-    let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).expect("meta");
-    let store =
-        gonio_run::create(&dir.join("run.gonio"), &plan, &prepared, &inputs).expect("creates");
-    let standard = meta.standard_model.as_ref().map(|t| {
-        let m = Model::from_toml(t, None).expect("standard");
-        (Box::new(m) as Box<dyn Brdf>, 0)
-    });
-    let (g, shared) = gonio_sim::connect(&inst, &sim).expect("sim");
-    let cfg = EngineConfig {
-        incident_transmittance: meta.transmittance,
-        ..EngineConfig::default()
-    };
-    let engine = Engine::new(g, SimBench::new(shared, standard), store, mech, cfg);
-    let (report, store) = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
-        .block_on(engine.run())
-        .expect("runs");
-    assert_eq!(report.outcome, Outcome::Complete);
-    (store, Model::from_toml(&sample_text, None).expect("model"))
+    let (_, store, model) = run.acquire();
+    (store, model)
+}
+
+/// One simulated acquisition: an instrument config with its text, a simulator
+/// config with the text a run file keeps, a plan and a seed.
+pub struct Run<'a> {
+    /// Names the run's temporary directory.
+    pub name: &'a str,
+    /// The instrument config and its text.
+    pub instrument: (&'a InstrumentConfig, String),
+    /// The simulator (its seed is set from `seed`).
+    pub sim: &'a SimConfig,
+    /// The simulator config's text, kept in the run file.
+    pub sim_text: String,
+    /// The plan's text (relative paths resolved against `config/`).
+    pub plan_text: &'a str,
+    /// The seed of every random draw.
+    pub seed: u64,
+}
+
+impl Run<'_> {
+    /// Measures the plan into a fresh `run.gonio` in a kept temporary directory;
+    /// returns its path, the open store and the sample's model.
+    pub fn acquire(self) -> (PathBuf, RunStore, Model) {
+        // Kept: the returned run file stays open in it.
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("gonio-truth-{}-", self.name))
+            .tempdir()
+            .expect("temp dir")
+            .keep();
+        let (inst, inst_text) = self.instrument;
+        let mut sim = self.sim.clone();
+        sim.seed = self.seed;
+        let plan_path = root().join("config/plan.toml");
+        let plan = Plan::from_toml(self.plan_text, Some(&plan_path)).expect("plan");
+        let mech = inst.mechanics().expect("mechanics");
+        let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
+        let sample_text = sim.sample_model_text().expect("sample");
+        let inputs = Inputs {
+            instrument_text: inst_text,
+            plan_text: self.plan_text.into(),
+            plan_path: Some(plan_path),
+            sim: Some((self.sim_text, sample_text.clone())),
+            seed: Some(self.seed),
+            software: "test".into(),
+            ..Inputs::default()
+        };
+        let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).expect("meta");
+        let path = dir.join("run.gonio");
+        let store = gonio_run::create(&path, &plan, &prepared, &inputs).expect("creates");
+        let standard = meta.standard_model.as_ref().map(|t| {
+            let m = Model::from_toml(t, None).expect("standard");
+            (Box::new(m) as Box<dyn Brdf>, 0)
+        });
+        let (g, shared) = gonio_sim::connect(inst, &sim).expect("sim");
+        let cfg = EngineConfig {
+            incident_transmittance: meta.transmittance,
+            ..EngineConfig::default()
+        };
+        let engine = Engine::new(g, SimBench::new(shared, standard), store, mech, cfg);
+        let (report, store) = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime")
+            .block_on(engine.run())
+            .expect("runs");
+        assert_eq!(report.outcome, Outcome::Complete);
+        (
+            path,
+            store,
+            Model::from_toml(&sample_text, None).expect("model"),
+        )
+    }
 }
 
 /// Per sample: the normalised residual (f − f_true)/σ and the relative error
