@@ -190,6 +190,8 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
             Ok(Event::Fault { .. }) => {}
             Ok(Event::Homed { axes }) => bar.println(format!("gonio: homed {}", axes.join(", "))),
             Ok(Event::Bench { what }) => bar.println(format!("gonio: bench: {what}")),
+            Ok(Event::Paused) => bar.println("gonio: paused (stages idle)"),
+            Ok(Event::Resumed) => bar.println("gonio: pause ended"),
             // Logged by the engine (warn).
             Ok(Event::Skipped { .. }) => {}
             Ok(Event::Finished { .. }) | Err(tokio::sync::broadcast::error::RecvError::Closed) => {
