@@ -91,7 +91,9 @@
     $('run-name').textContent = str(run.name) || str(run.file) || 'live view';
     $('run-file').textContent = str(run.file);
     const det = [str(run.detector), run.unit ? `(${str(run.unit)})` : ''].join(' ').trim();
-    $('run-detector').textContent = det ? `· ${det}` : '';
+    // `live` false: this is `gonio view`, watching a run file another process may write.
+    const who = run.live === false ? ' · watching the run file' : '';
+    $('run-detector').textContent = (det ? `· ${det}` : '') + who;
     $('estimate').textContent = num(run.estimate_s) !== null
       ? `of ~${fmtHms(run.estimate_s)} planned` : '';
   }
