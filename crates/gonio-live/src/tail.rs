@@ -39,6 +39,12 @@ pub struct Tail {
     last_event: i64,
     /// Whether the latest pause has not ended.
     paused: bool,
+    /// Each session's first reading's instrument time: a session's first step
+    /// carries its start-up (homing), which says nothing of the pace after.
+    first_physical: BTreeMap<i64, f64>,
+    /// The instrument time between a session's first and last readings, and the
+    /// steps in between, summed over the sessions.
+    pace: (f64, usize),
     /// Readings seen, and at the last reduction.
     readings: usize,
     reduced_readings: Option<usize>,
@@ -104,6 +110,8 @@ impl Tail {
             last_wall: f64::NEG_INFINITY,
             last_event: 0,
             paused: false,
+            first_physical: BTreeMap::new(),
+            pace: (0.0, 0),
             readings: 0,
             reduced_readings: None,
             reduced_at: None,
@@ -139,6 +147,7 @@ impl Tail {
         }
         for (session, r) in self.store.readings_since(self.last_wall)? {
             self.last_wall = r.wall_s;
+            self.first_physical.entry(session).or_insert(r.physical_s);
             let (kind, channel) = self
                 .steps
                 .get(&r.step_id)
@@ -182,6 +191,13 @@ impl Tail {
                 flag_text: flags::text(r.flags),
             });
         }
+        self.pace = per_session
+            .iter()
+            .filter_map(|(id, (n, t))| {
+                Some((t - self.first_physical.get(id)?, n.saturating_sub(1)))
+            })
+            .filter(|(span, _)| span.is_finite())
+            .fold((0.0, 0), |(s, k), (ds, dk)| (s + ds, k + dk));
         keep_last(&mut u.trace, TRACE_ROWS);
         keep_last(&mut u.drift, DRIFT_ROWS);
         let mut last_stop = None;
@@ -204,7 +220,7 @@ impl Tail {
             });
         }
         keep_last(&mut u.log, LOG_ROWS);
-        let status = self.status(physical, readings, last_stop)?;
+        let status = self.status(physical, last_stop)?;
         if status != self.snapshot.status {
             u.status = Some(status.clone());
         }
@@ -282,12 +298,7 @@ impl Tail {
 
     /// Where the run stands, from its metadata, step counts, the holder of its
     /// lock and the pause events.
-    fn status(
-        &self,
-        physical_s: f64,
-        readings: usize,
-        last_stop: Option<String>,
-    ) -> Result<Status, LiveError> {
+    fn status(&self, physical_s: f64, last_stop: Option<String>) -> Result<Status, LiveError> {
         let counts = self.store.state_counts()?;
         let count = |k: &str| counts.get(k).copied().unwrap_or(0);
         let total: u64 = counts.values().sum();
@@ -323,9 +334,20 @@ impl Tail {
             "faulted" => ("faulted", previous()),
             _ => ("created", "created; no session has started".into()),
         };
-        let remaining = total.saturating_sub(done + failed);
-        let eta_s = (matches!(state, "running" | "paused") && readings > 0)
-            .then(|| physical_s / readings as f64 * remaining as f64);
+        let remaining = total.saturating_sub(done + failed) as f64;
+        // This run's own pace once it has one, else the planner's.
+        let per_step = match self.pace {
+            (span, steps) if steps > 0 => Some(span / steps as f64),
+            _ => self
+                .snapshot
+                .run
+                .estimate_s
+                .filter(|_| total > 0)
+                .map(|e| e / total as f64),
+        };
+        let eta_s = per_step
+            .filter(|_| matches!(state, "running" | "paused"))
+            .map(|p| p * remaining);
         Ok(Status {
             state,
             message,
