@@ -117,8 +117,7 @@ impl Tail {
             reduced_at: None,
             reduce_cost: Duration::ZERO,
         };
-        let first = tail.refresh(Instant::now(), true)?;
-        tail.snapshot.apply(&first);
+        tail.refresh(Instant::now(), true)?;
         Ok(tail)
     }
 
