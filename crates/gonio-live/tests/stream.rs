@@ -67,6 +67,39 @@ fn setup(dir: &Path, time_scale: f64) -> (PathBuf, Engine<SimClock, SimBench>) {
     (out, engine)
 }
 
+/// A runtime as the command's (two workers), and the page of `run` served on it
+/// while `engine` measures, with the control routes when `control`.
+fn serve(
+    run: &Path,
+    engine: &Engine<SimClock, SimBench>,
+    control: bool,
+) -> (tokio::runtime::Runtime, gonio_live::Server) {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let listener = gonio_live::bind(gonio_live::parse_addr("").expect("addr")).expect("binds");
+    let controls = control.then(|| gonio_live::Controls {
+        stopper: engine.stopper(),
+        pauser: engine.pauser(),
+    });
+    let srv = {
+        let _in = rt.enter();
+        gonio_live::Server::start(
+            listener,
+            run,
+            gonio_live::Options {
+                control: controls,
+                events: Some(engine.subscribe()),
+                ..Default::default()
+            },
+        )
+        .expect("serves")
+    };
+    (rt, srv)
+}
+
 /// One HTTP/1.0 exchange (the answer ends with the connection): status and body.
 fn request(addr: SocketAddr, head: &str) -> (u16, String) {
     let mut s = TcpStream::connect(addr).expect("connects");
@@ -199,25 +232,7 @@ fn a_page_following_the_stream_ends_where_a_fresh_one_and_the_run_file_do() {
     let dir = tempfile::tempdir().expect("dir");
     // About 2.5 s of wall time: several updates, each coalescing a few steps.
     let (run, engine) = setup(dir.path(), 0.05);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let listener = gonio_live::bind(gonio_live::parse_addr("").expect("addr")).expect("binds");
-    let events = engine.subscribe();
-    let srv = {
-        let _in = rt.enter();
-        gonio_live::Server::start(
-            listener,
-            &run,
-            gonio_live::Options {
-                events: Some(events),
-                ..Default::default()
-            },
-        )
-        .expect("serves")
-    };
+    let (rt, srv) = serve(&run, &engine, false);
     let addr = srv.local_addr();
     let page = std::thread::spawn(move || {
         follow(addr, Duration::from_secs(60), |p| {
@@ -312,29 +327,7 @@ fn a_page_following_the_stream_ends_where_a_fresh_one_and_the_run_file_do() {
 fn control_needs_the_token_and_a_pause_shows_on_the_page() {
     let dir = tempfile::tempdir().expect("dir");
     let (run, engine) = setup(dir.path(), 0.05);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
-    let listener = gonio_live::bind(gonio_live::parse_addr("").expect("addr")).expect("binds");
-    let controls = gonio_live::Controls {
-        stopper: engine.stopper(),
-        pauser: engine.pauser(),
-    };
-    let srv = {
-        let _in = rt.enter();
-        gonio_live::Server::start(
-            listener,
-            &run,
-            gonio_live::Options {
-                control: Some(controls),
-                events: Some(engine.subscribe()),
-                ..Default::default()
-            },
-        )
-        .expect("serves")
-    };
+    let (rt, srv) = serve(&run, &engine, true);
     let addr = srv.local_addr();
     let token = srv.token().expect("a token").to_string();
     assert!(srv.url().ends_with(&format!("/?token={token}")));
