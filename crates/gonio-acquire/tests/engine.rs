@@ -229,3 +229,18 @@ fn a_stop_during_a_pause_ends_the_session_interrupted_and_resumable() {
     assert_eq!(report.outcome, Outcome::Complete);
     assert_eq!(report.measured, report.total);
 }
+
+#[test]
+fn a_stop_requested_before_the_session_starts_is_honoured() {
+    let dir = common::scratch();
+    let out = dir.path().join("run.gonio");
+    let plan = common::plan(PLAN);
+    let (store, _) = common::create(&out, &plan, PLAN, 7);
+    let (engine, _sim) = common::engine(store, 7, |_| {});
+    // As a live page's Stop may arrive between the server's start and the engine's.
+    engine.stopper().stop();
+    let (report, store) = common::run_session(engine);
+    assert_eq!(report.outcome, Outcome::Interrupted);
+    assert_eq!(report.measured, 0);
+    assert!(store.readings().expect("readings").is_empty());
+}

@@ -143,6 +143,8 @@ pub(crate) struct Waker {
     tx: SyncSender<()>,
     ended: AtomicBool,
     quit: AtomicBool,
+    /// The follower has published the state after the session's end.
+    settled: AtomicBool,
 }
 
 impl Waker {
@@ -203,6 +205,7 @@ impl Server {
             tx,
             ended: AtomicBool::new(false),
             quit: AtomicBool::new(false),
+            settled: AtomicBool::new(false),
         });
         let follower = {
             let (hub, waker) = (hub.clone(), waker.clone());
@@ -302,8 +305,7 @@ impl Server {
     pub async fn settled(&self, timeout: Duration) {
         let t0 = Instant::now();
         while t0.elapsed() < timeout {
-            let s = self.hub.state();
-            if self.waker.has_ended() && !s.status.is_active() && s.report.is_some() {
+            if self.waker.settled.load(Ordering::SeqCst) {
                 return;
             }
             tokio::time::sleep(Duration::from_millis(20)).await;
@@ -367,7 +369,11 @@ fn follow(mut tail: Tail, hub: &hub::Hub, waker: &Waker, rx: &Receiver<()>, live
                 if !u.is_empty() {
                     hub.publish(tail.snapshot(), &u);
                 }
-                finished = ended;
+                // Settled once the file shows the session's end.
+                finished = ended && !tail.snapshot().status.is_active();
+                if finished {
+                    waker.settled.store(true, Ordering::SeqCst);
+                }
             }
             Err(e) => tracing::warn!("live view: reading the run file: {e}"),
         }

@@ -229,9 +229,6 @@ impl Tail {
             u.status = Some(status.clone());
         }
         let active = status.is_active();
-        if !active && self.snapshot.report.is_none() && status.state != "created" {
-            u.report = Some(REPORT);
-        }
         self.readings = readings;
         let fresh = self.reduced_readings != Some(readings);
         let gap = REDUCE_EVERY.max(self.reduce_cost * REDUCE_SHARE);
@@ -239,17 +236,29 @@ impl Tail {
         // A run that has ended is reduced at once, so that the page's last picture
         // is the final one.
         if fresh && (force || due || !active) {
-            let brdf = self.reduce();
+            let brdf = self.reduce(active);
             if brdf != self.snapshot.brdf {
                 u.brdf = Some(brdf);
             }
+        }
+        // The report is offered once the run has ended, if it reduces: the report
+        // is made of the reduction.
+        let reduced = u.brdf.as_ref().unwrap_or(&self.snapshot.brdf);
+        if !active
+            && self.snapshot.report.is_none()
+            && status.state != "created"
+            && reduced.note.is_none()
+            && !reduced.samples.is_empty()
+        {
+            u.report = Some(REPORT);
         }
         self.snapshot.apply(&u);
         Ok(u)
     }
 
-    /// The run reduced as `gonio reduce` reduces it by default.
-    fn reduce(&mut self) -> Brdf {
+    /// The run reduced as `gonio reduce` reduces it by default; while it is
+    /// `active`, a reduction that cannot be made yet says so as what it waits for.
+    fn reduce(&mut self, active: bool) -> Brdf {
         let t = Instant::now();
         let r = gonio_reduce::reduce(&self.store, &Options::default());
         self.reduce_cost = t.elapsed();
@@ -290,13 +299,20 @@ impl Tail {
                     note: None,
                 }
             }
-            Err(e) => Brdf {
-                note: Some(match e {
+            Err(e) => {
+                let why = match e {
                     gonio_reduce::ReduceError::Missing { why, .. } => why,
                     other => other.to_string(),
-                }),
-                ..Brdf::default()
-            },
+                };
+                Brdf {
+                    note: Some(if active {
+                        format!("not reduced yet (the calibrations come first): {why}")
+                    } else {
+                        format!("the run cannot be reduced: {why}")
+                    }),
+                    ..Brdf::default()
+                }
+            }
         }
     }
 

@@ -242,6 +242,9 @@ where
         mech: Mechanics,
         cfg: EngineConfig,
     ) -> Self {
+        // Cleared here, not when the session starts: a stop requested between now
+        // and then (a live page's button) is the session's to honour.
+        gonio.motion.abort_flag().clear();
         let stopper = Stopper(gonio.motion.abort_flag());
         let (events, _) = broadcast::channel(1024);
         let t0 = gonio.motion.clock().now();

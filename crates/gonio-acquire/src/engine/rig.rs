@@ -126,7 +126,6 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
     pub(super) fn start(&mut self) -> Result<Result<Start, Outcome>, StoreError> {
         let span = self.span.clone();
         let _entered = span.enter();
-        self.gonio.motion.abort_flag().clear();
         let sessions = self.store.sessions()?;
         self.store.begin_session(&self.cfg.software)?;
         let steps = self.store.steps()?;

@@ -292,6 +292,9 @@ where
     };
     // Set once the session has ended: a signal then ends the live page's stay.
     let ended = Arc::new(AtomicBool::new(false));
+    // Set by a stop signal during the session: whoever sent it wants the process to
+    // end, so the page does not stay after the session.
+    let signalled = Arc::new(AtomicBool::new(false));
     let linger = Arc::new(tokio::sync::Notify::new());
     let controls = gonio_live::Controls {
         stopper: engine.stopper(),
@@ -323,7 +326,7 @@ where
             None => None,
         };
         if let Some(mut signals) = signals {
-            let (ended, linger) = (ended.clone(), linger.clone());
+            let (ended, linger, signalled) = (ended.clone(), linger.clone(), signalled.clone());
             tokio::spawn(async move {
                 let mut stops = 0;
                 loop {
@@ -332,6 +335,7 @@ where
                         linger.notify_one();
                         return;
                     }
+                    signalled.store(true, Ordering::SeqCst);
                     stops += 1;
                     stopper.stop();
                     if stops == 1 {
@@ -361,7 +365,7 @@ where
             ended.store(true, Ordering::SeqCst);
             srv.session_ended();
             srv.settled(Duration::from_secs(30)).await;
-            if matches!(stop, StopBy::Signals) {
+            if matches!(stop, StopBy::Signals) && !signalled.load(Ordering::SeqCst) {
                 let how = match &r {
                     Ok((report, _)) => report.outcome.status(),
                     Err(_) => "failed",
