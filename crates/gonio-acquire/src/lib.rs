@@ -10,5 +10,7 @@
 pub mod engine;
 mod stored;
 
-pub use engine::{Engine, EngineConfig, EngineError, Event, Outcome, SessionReport, Stopper};
+pub use engine::{
+    Engine, EngineConfig, EngineError, Event, Outcome, Pauser, SessionReport, Stopper,
+};
 pub use stored::{Stored, stored};

@@ -104,3 +104,128 @@ fn a_complete_run_measures_the_blue_paint() {
     );
     let _ = flags::SHADOWED;
 }
+
+/// Runs a session on a multi-threaded runtime while `during` reacts to its events.
+fn run_watched(
+    engine: gonio_acquire::Engine<gonio_sim::SimClock, gonio_sim::SimBench>,
+    during: impl FnOnce(
+        tokio::sync::broadcast::Receiver<gonio_acquire::Event>,
+        gonio_acquire::Pauser,
+        gonio_acquire::Stopper,
+    ) -> std::pin::Pin<
+        Box<dyn std::future::Future<Output = Vec<gonio_acquire::Event>> + Send>,
+    >,
+) -> (
+    gonio_acquire::SessionReport,
+    RunStore,
+    Vec<gonio_acquire::Event>,
+) {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let watcher = during(engine.subscribe(), engine.pauser(), engine.stopper());
+    rt.block_on(async move {
+        let heard = tokio::spawn(watcher);
+        let (report, store) = engine.run().await.expect("engine runs");
+        (report, store, heard.await.expect("watcher"))
+    })
+}
+
+#[test]
+fn a_pause_holds_the_run_between_steps_until_resumed() {
+    use gonio_acquire::Event;
+    let dir = common::scratch();
+    let out = dir.path().join("run.gonio");
+    let plan = common::plan(PLAN);
+    let (store, _) = common::create(&out, &plan, PLAN, 7);
+    let (engine, _sim) = common::engine(store, 7, |_| {});
+    let (report, store, heard) = run_watched(engine, |mut rx, pauser, _| {
+        Box::pin(async move {
+            let mut heard = Vec::new();
+            while let Ok(e) = rx.recv().await {
+                match &e {
+                    // Paused after the third step's commit: nothing is measured
+                    // while the pause lasts, however long.
+                    Event::Measured { done: 3, .. } => pauser.pause(),
+                    Event::Paused => {
+                        tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+                        pauser.resume();
+                    }
+                    Event::Finished { .. } => {
+                        heard.push(e);
+                        break;
+                    }
+                    _ => {}
+                }
+                heard.push(e);
+            }
+            heard
+        })
+    });
+    assert_eq!(report.outcome, Outcome::Complete);
+    assert_eq!(report.measured, report.total);
+    let order: Vec<String> = heard
+        .iter()
+        .filter_map(|e| match e {
+            Event::Measured { done, .. } => Some(format!("m{done}")),
+            Event::Paused => Some("paused".into()),
+            Event::Resumed => Some("resumed".into()),
+            _ => None,
+        })
+        .collect();
+    let at = order.iter().position(|s| s == "paused").expect("paused");
+    // Step 3's commit may race the request by one step, never more.
+    assert!(
+        order[..at] == ["m1", "m2", "m3"] || order[..at] == ["m1", "m2", "m3", "m4"],
+        "{order:?}"
+    );
+    assert_eq!(order[at + 1], "resumed");
+    let kinds: Vec<String> = store
+        .events()
+        .expect("events")
+        .into_iter()
+        .map(|e| e.kind)
+        .filter(|k| k == "pause" || k == "continue")
+        .collect();
+    assert_eq!(kinds, ["pause", "continue"]);
+}
+
+#[test]
+fn a_stop_during_a_pause_ends_the_session_interrupted_and_resumable() {
+    use gonio_acquire::Event;
+    let dir = common::scratch();
+    let out = dir.path().join("run.gonio");
+    let plan = common::plan(PLAN);
+    let (store, _) = common::create(&out, &plan, PLAN, 7);
+    let (engine, _sim) = common::engine(store, 7, |_| {});
+    let (report, store, _) = run_watched(engine, |mut rx, pauser, stopper| {
+        pauser.pause();
+        Box::pin(async move {
+            while let Ok(e) = rx.recv().await {
+                if e == Event::Paused {
+                    stopper.stop();
+                }
+                if matches!(e, Event::Finished { .. }) {
+                    break;
+                }
+            }
+            Vec::new()
+        })
+    });
+    assert_eq!(report.outcome, Outcome::Interrupted);
+    assert_eq!(report.measured, 0);
+    assert!(store.readings().expect("readings").is_empty());
+    let log = store.events().expect("events");
+    let msg = log
+        .iter()
+        .find(|e| e.kind == "continue")
+        .expect("pause end logged");
+    assert_eq!(msg.message, "pause ended by a stop");
+    // Resumable: the next session measures every step.
+    let (engine, _sim) = common::engine(store, 7, |_| {});
+    let (report, _) = common::run_session(engine);
+    assert_eq!(report.outcome, Outcome::Complete);
+    assert_eq!(report.measured, report.total);
+}

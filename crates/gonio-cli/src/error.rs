@@ -78,6 +78,12 @@ impl From<gonio_run::StoreError> for CliError {
     }
 }
 
+impl From<gonio_live::LiveError> for CliError {
+    fn from(e: gonio_live::LiveError) -> Self {
+        CliError::classify(e.is_input(), e)
+    }
+}
+
 impl From<gonio_sim::serve::ServeError> for CliError {
     fn from(e: gonio_sim::serve::ServeError) -> Self {
         CliError::classify(e.exit_code() == 2, e)

@@ -95,6 +95,10 @@ enum Command {
     /// Write the run report: one self-contained HTML page with the run's metadata,
     /// calibration, measures, fit and plots.
     Report(cmd::report::ReportArgs),
+    /// Serve a run's live page (read-only) for any run file, measured by another
+    /// process or finished: status, progress, the BRDF filling in, the detector
+    /// trace, drift and the event log. Serves until Ctrl-C.
+    View(cmd::view::ViewArgs),
     /// Run the simulated goniometer on two pseudo-terminals: prints one JSON line with
     /// their paths, then serves until SIGINT, SIGTERM or SIGHUP.
     Sim(cmd::instrument::SimArgs),
@@ -131,6 +135,7 @@ pub(crate) fn dispatch(command: Command, matches: &clap::ArgMatches) -> Result<(
         Command::Runs(a) => cmd::runs::runs(a),
         Command::Show(a) => cmd::runs::show(a),
         Command::Verify(a) => cmd::verify::run(a),
+        Command::View(a) => cmd::view::run(a),
         Command::Reduce(a) => cmd::reduce::run(a),
         Command::Check(a) => cmd::check::run(a),
         Command::Correct(a) => cmd::correct::run(a, matches.subcommand_matches("correct")),

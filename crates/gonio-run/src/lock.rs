@@ -99,3 +99,80 @@ impl Drop for RunLock {
         let _ = self.file.unlock();
     }
 }
+
+/// Who holds the lock of `run`, if anyone: the holder's process id (0 when the lock
+/// file does not say). Nothing is locked, created or written to find out, so a
+/// process about to take the lock never finds it briefly held by the asker.
+///
+/// On Linux the kernel's table of `flock` locks (`/proc/locks`) is read for the
+/// lock file's inode; elsewhere a lock file that exists is taken as held (its owner
+/// removes it when it lets go; only a killed owner leaves one behind).
+pub(crate) fn holder(run: &Path) -> Option<u32> {
+    let path = lock_path(run);
+    let meta = std::fs::metadata(&path).ok()?;
+    let pid = || {
+        std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|t| t.trim().parse().ok())
+            .unwrap_or(0)
+    };
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let table = std::fs::read_to_string("/proc/locks").ok()?;
+        held_in(&table, meta.ino()).then(pid)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = meta;
+        Some(pid())
+    }
+}
+
+/// Whether `/proc/locks` text lists a `FLOCK` lock on inode `ino`. Each line reads
+/// `N: FLOCK  ADVISORY  WRITE PID MAJ:MIN:INODE START END` (proc(5)); lines of
+/// blocked waiters (`N: -> FLOCK …`) hold nothing.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
+fn held_in(table: &str, ino: u64) -> bool {
+    table.lines().any(|line| {
+        let mut words = line.split_whitespace().skip(1);
+        words.next() == Some("FLOCK")
+            && words
+                .nth(3)
+                .and_then(|dev| dev.rsplit(':').next())
+                .and_then(|i| i.parse::<u64>().ok())
+                == Some(ino)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lock_table_is_read_by_inode_and_skips_waiters() {
+        let table = "1: POSIX  ADVISORY  WRITE 77 08:01:42 0 EOF\n\
+                     2: FLOCK  ADVISORY  WRITE 1234 fd:00:9001 0 EOF\n\
+                     3: -> FLOCK  ADVISORY  WRITE 99 fd:00:555 0 EOF\n";
+        assert!(held_in(table, 9001));
+        // A POSIX (fcntl) lock is SQLite's, not the run's lock.
+        assert!(!held_in(table, 42));
+        assert!(!held_in(table, 555));
+        assert!(!held_in(table, 1234));
+    }
+
+    #[test]
+    fn a_held_lock_names_its_holder_and_a_released_one_nobody() {
+        let dir = tempfile::tempdir().expect("dir");
+        let run = dir.path().join("r.gonio");
+        assert_eq!(holder(&run), None);
+        let lock = RunLock::acquire(&run).ok().expect("locks");
+        assert_eq!(holder(&run), Some(std::process::id()));
+        drop(lock);
+        assert_eq!(holder(&run), None);
+        // A killed owner's file is left behind, unlocked: nobody holds it.
+        std::fs::write(lock_path(&run), "4242\n").expect("write");
+        #[cfg(target_os = "linux")]
+        assert_eq!(holder(&run), None);
+    }
+}

@@ -100,4 +100,24 @@ pub mod flags {
     pub const SHADOWED: u32 = 1 << 8;
     /// The read-back incidence makes the beam overfill the sample.
     pub const OVERFILLED: u32 = 1 << 9;
+
+    /// Every bit with its name, in bit order.
+    pub const NAMES: [(u32, &str); 6] = [
+        (INPUT_OVERLOAD, "input overload"),
+        (FILTER_OVERLOAD, "filter overload"),
+        (OUTPUT_OVERLOAD, "output overload"),
+        (UNLOCK, "unlock"),
+        (SHADOWED, "shadowed"),
+        (OVERFILLED, "overfilled"),
+    ];
+
+    /// The names of the bits set in `bits`, joined by ", " (empty for none).
+    pub fn text(bits: u32) -> String {
+        NAMES
+            .iter()
+            .filter(|(b, _)| bits & b != 0)
+            .map(|(_, n)| *n)
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }

@@ -511,6 +511,13 @@ impl RunStore {
         Ok(())
     }
 
+    /// The process id of whoever measures into the run now (holds its lock), if
+    /// anyone; 0 when the holder's id cannot be read. Asked without taking or
+    /// touching the lock.
+    pub fn measured_by(&self) -> Option<u32> {
+        crate::lock::holder(&self.path)
+    }
+
     /// Takes the run's exclusive lock, held until this store is dropped: one
     /// process at a time measures into a run. Readers (`show`, `reduce`) do not take
     /// it. A killed process leaves no lock behind (see `lock.rs`).
@@ -806,6 +813,19 @@ impl RunStore {
         condition: &str,
         params: P,
     ) -> Result<Vec<ReadingRecord>, StoreError> {
+        Ok(self
+            .readings_with_session(condition, params)?
+            .into_iter()
+            .map(|(_, r)| r)
+            .collect())
+    }
+
+    /// [`RunStore::readings_where`], each reading with its session.
+    fn readings_with_session<P: rusqlite::Params>(
+        &self,
+        condition: &str,
+        params: P,
+    ) -> Result<Vec<(i64, ReadingRecord)>, StoreError> {
         self.rows(
             &format!("SELECT {READING_COLUMNS} FROM readings WHERE {condition} ORDER BY step_id"),
             params,
@@ -819,31 +839,64 @@ impl RunStore {
                     _ => None,
                 };
                 let retries: i64 = r.get(27)?;
-                Ok(ReadingRecord {
-                    step_id: r.get(0)?,
-                    commanded,
-                    position: [num(r, 6)?, num(r, 7)?, num(r, 8)?, num(r, 9)?],
-                    read_pair: PairDeg {
-                        incident: SphericalDeg::new(num(r, 10)?, num(r, 11)?),
-                        outgoing: SphericalDeg::new(num(r, 12)?, num(r, 13)?),
+                let session: i64 = r.get(1)?;
+                Ok((
+                    session,
+                    ReadingRecord {
+                        step_id: r.get(0)?,
+                        commanded,
+                        position: [num(r, 6)?, num(r, 7)?, num(r, 8)?, num(r, 9)?],
+                        read_pair: PairDeg {
+                            incident: SphericalDeg::new(num(r, 10)?, num(r, 11)?),
+                            outgoing: SphericalDeg::new(num(r, 12)?, num(r, 13)?),
+                        },
+                        sensitivity: r.get(14)?,
+                        sensitivity_v: num(r, 15)?,
+                        time_constant: r.get(16)?,
+                        time_constant_s: num(r, 17)?,
+                        slope_db: r.get(18)?,
+                        r_mean: num(r, 19)?,
+                        r_std: num(r, 20)?,
+                        x_mean: num(r, 21)?,
+                        y_mean: num(r, 22)?,
+                        n: r.get(23)?,
+                        autorange_steps: r.get(24)?,
+                        lias: r.get(25)?,
+                        flags: r.get(26)?,
+                        retries: retries as u64,
+                        physical_s: num(r, 28)?,
+                        wall_s: num(r, 29)?,
                     },
-                    sensitivity: r.get(14)?,
-                    sensitivity_v: num(r, 15)?,
-                    time_constant: r.get(16)?,
-                    time_constant_s: num(r, 17)?,
-                    slope_db: r.get(18)?,
-                    r_mean: num(r, 19)?,
-                    r_std: num(r, 20)?,
-                    x_mean: num(r, 21)?,
-                    y_mean: num(r, 22)?,
-                    n: r.get(23)?,
-                    autorange_steps: r.get(24)?,
-                    lias: r.get(25)?,
-                    flags: r.get(26)?,
-                    retries: retries as u64,
-                    physical_s: num(r, 28)?,
-                    wall_s: num(r, 29)?,
-                })
+                ))
+            },
+        )
+    }
+
+    /// The readings committed after wall time `wall_s`, in commit order, each
+    /// with the session that took it: what a reader following a run in progress
+    /// has not seen yet (a step reopened because its reading went missing is
+    /// committed again with a new time, and seen again).
+    pub fn readings_since(&self, wall_s: f64) -> Result<Vec<(i64, ReadingRecord)>, StoreError> {
+        let mut rows = self.readings_with_session("wall_s > ?1", [wall_s])?;
+        rows.sort_by(|a, b| a.1.wall_s.total_cmp(&b.1.wall_s));
+        Ok(rows)
+    }
+
+    /// The events after the one with row id `id`, with their row ids, in order.
+    pub fn events_after(&self, id: i64) -> Result<Vec<(i64, EventRecord)>, StoreError> {
+        self.rows(
+            "SELECT id, wall_s, kind, step_id, message FROM events WHERE id > ?1 ORDER BY id",
+            [id],
+            |r| {
+                Ok((
+                    r.get(0)?,
+                    EventRecord {
+                        wall_s: r.get(1)?,
+                        kind: r.get(2)?,
+                        step_id: r.get(3)?,
+                        message: r.get(4)?,
+                    },
+                ))
             },
         )
     }

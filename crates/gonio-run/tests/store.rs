@@ -500,3 +500,61 @@ fn a_read_only_open_sees_a_live_run_at_its_last_commit() {
     writer.commit(&reading(3, 4e-3), &[]).expect("commit");
     assert_eq!(r.readings().expect("readings").len(), 4, "and the next");
 }
+
+#[test]
+fn a_reader_following_a_run_sees_each_new_reading_and_event_once() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("r.gonio");
+    let mut meta = BTreeMap::new();
+    meta.insert("instrument".to_string(), "name = \"x\"".to_string());
+    meta.insert("plan".to_string(), "name = \"p\"".to_string());
+    let mut w = RunStore::create(&p, &meta, &steps(4)).expect("creates");
+    let s1 = w.begin_session("test").expect("session");
+    let at = |i: i64, wall: f64| ReadingRecord {
+        wall_s: wall,
+        ..reading(i, 1e-3)
+    };
+    w.commit(&at(0, 100.0), &[]).expect("commit");
+    w.event("bench", Some(0), "dark").expect("event");
+    // A reader opened while the writer holds the run.
+    let r = RunStore::open_read_only(&p).expect("reader");
+    let first = r.readings_since(f64::NEG_INFINITY).expect("since");
+    assert_eq!(first.len(), 1);
+    assert_eq!((first[0].0, first[0].1.step_id), (s1, 0));
+    let events = r.events_after(0).expect("events");
+    let last_id = events.last().expect("an event").0;
+    assert!(
+        events
+            .iter()
+            .any(|(_, e)| e.kind == "bench" && e.message == "dark")
+    );
+    w.commit(&at(1, 101.0), &[]).expect("commit");
+    w.commit(&at(2, 102.0), &[]).expect("commit");
+    w.event("fault", Some(1), "lost reply").expect("event");
+    let next = r.readings_since(100.0).expect("since");
+    let ids: Vec<i64> = next.iter().map(|(_, x)| x.step_id).collect();
+    assert_eq!(ids, [1, 2]);
+    let new: Vec<String> = r
+        .events_after(last_id)
+        .expect("events")
+        .into_iter()
+        .map(|(_, e)| e.kind)
+        .collect();
+    assert_eq!(new, ["fault"]);
+    assert!(r.readings_since(102.0).expect("since").is_empty());
+    // The writer measures into it; the reader says who (this process).
+    w.lock().expect("locks");
+    assert_eq!(r.measured_by(), Some(std::process::id()));
+    drop(w);
+    assert_eq!(r.measured_by(), None);
+}
+
+#[test]
+fn flag_bits_are_named() {
+    use gonio_run::flags;
+    assert_eq!(flags::text(0), "");
+    assert_eq!(
+        flags::text(flags::UNLOCK | flags::SHADOWED),
+        "unlock, shadowed"
+    );
+}

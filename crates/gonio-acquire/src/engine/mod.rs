@@ -28,6 +28,9 @@ use gonio_driver::smc100::AbortFlag;
 use gonio_driver::{Clock, Goniometer};
 use gonio_plan::StepKind;
 use gonio_run::{RunStore, StoreError};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use tokio::sync::broadcast;
 
 mod rig;
@@ -130,6 +133,10 @@ pub enum Event {
         /// True when the engine carries on.
         recovering: bool,
     },
+    /// The engine paused between steps on request ([`Pauser`]); the stages are idle.
+    Paused,
+    /// The pause ended; the next step follows.
+    Resumed,
     /// A step was given up.
     Skipped {
         /// The step.
@@ -173,6 +180,30 @@ impl Stopper {
     }
 }
 
+/// Pauses a running engine between steps, from elsewhere (the live view's button):
+/// the step in flight finishes and is committed, then the engine waits with the
+/// stages idle until [`Pauser::resume`] or a stop. Each pause and its end go into the
+/// run's event log (`pause`, `continue`).
+#[derive(Clone, Debug, Default)]
+pub struct Pauser(Arc<AtomicBool>);
+
+impl Pauser {
+    /// Requests a pause before the next step.
+    pub fn pause(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    /// Ends the pause.
+    pub fn resume(&self) {
+        self.0.store(false, Ordering::SeqCst);
+    }
+
+    /// True while a pause is requested.
+    pub fn is_paused(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+}
+
 /// What a session did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SessionReport {
@@ -194,6 +225,7 @@ pub struct SessionReport {
 pub struct Engine<C: Clock + Clone, B: Bench> {
     rig: Rig<C, B>,
     stopper: Stopper,
+    pauser: Pauser,
 }
 
 impl<C, B> Engine<C, B>
@@ -228,12 +260,18 @@ where
                 span: tracing::Span::none(),
             },
             stopper,
+            pauser: Pauser::default(),
         }
     }
 
     /// The handle that stops the run.
     pub fn stopper(&self) -> Stopper {
         self.stopper.clone()
+    }
+
+    /// The handle that pauses the run between steps.
+    pub fn pauser(&self) -> Pauser {
+        self.pauser.clone()
     }
 
     /// A receiver of the engine's events (subscribe before [`run`](Self::run)).
@@ -244,7 +282,11 @@ where
     /// Runs a session: start-up (identify, home what needs it, restore the detector),
     /// then every pending step; returns the report and the run file.
     pub async fn run(self) -> Result<(SessionReport, RunStore), EngineError> {
-        let Engine { mut rig, stopper } = self;
+        let Engine {
+            mut rig,
+            stopper,
+            pauser,
+        } = self;
         rig.span = tracing::info_span!("run", file = %rig.store.path().display());
         let (mut rig, started) = blocking(rig, Rig::start).await?;
         let start = match started? {
@@ -261,6 +303,9 @@ where
         let mut queue = start.pending.into_iter().peekable();
         let mut attempts = 0u32;
         while let Some(step) = queue.peek().cloned() {
+            if pauser.is_paused() {
+                rig = pause(rig, &pauser, &stopper).await?;
+            }
             if stopper.is_stopped() {
                 outcome = Outcome::Interrupted;
                 break;
@@ -320,6 +365,37 @@ where
         let (rig, r) = blocking(rig, move |rig| rig.finish(outcome, measured, skipped)).await?;
         Ok((r?, rig.store))
     }
+}
+
+/// Waits out a pause between steps: logged at its start and end, ended by
+/// [`Pauser::resume`] or by a stop (which the caller then sees).
+async fn pause<C, B>(
+    rig: Rig<C, B>,
+    pauser: &Pauser,
+    stopper: &Stopper,
+) -> Result<Rig<C, B>, EngineError>
+where
+    C: Clock + Clone + Send + 'static,
+    B: Bench + 'static,
+{
+    let (rig, r) = blocking(rig, |rig| {
+        rig.note(Event::Paused, "pause", "paused on request; stages idle")
+    })
+    .await?;
+    r?;
+    // A pause is a person's decision: polled at a person's pace, never on the
+    // instrument clock (which a simulation may run faster than real time).
+    while pauser.is_paused() && !stopper.is_stopped() {
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+    let why = if stopper.is_stopped() {
+        "pause ended by a stop"
+    } else {
+        "pause ended; continuing"
+    };
+    let (rig, r) = blocking(rig, move |rig| rig.note(Event::Resumed, "continue", why)).await?;
+    r?;
+    Ok(rig)
 }
 
 /// Runs `f` on the blocking pool with the rig, and hands the rig back.

@@ -107,6 +107,19 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         self.store.event("fault", step, message)
     }
 
+    /// An engine state change of the session's own (a pause), logged, stored and
+    /// told to listeners.
+    pub(super) fn note(
+        &mut self,
+        event: Event,
+        kind: &str,
+        message: &str,
+    ) -> Result<(), StoreError> {
+        tracing::info!(parent: &self.span, "{message}");
+        let _ = self.events.send(event);
+        self.store.event(kind, None, message)
+    }
+
     /// Session start-up: a session row, the instrument identified and set up, the
     /// axes that lost their reference homed, the detector's range restored to where
     /// the run left it. `Ok(Err(outcome))` when the instrument cannot start.

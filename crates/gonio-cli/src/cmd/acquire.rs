@@ -42,6 +42,8 @@ pub struct AcquireArgs {
     notes: Option<String>,
     #[command(flatten)]
     log: LogFlag,
+    #[command(flatten)]
+    serve: ServeFlag,
     /// Print one JSON object at the end instead of progress and text.
     #[arg(long)]
     json: bool,
@@ -54,9 +56,56 @@ pub struct ResumeArgs {
     run: PathBuf,
     #[command(flatten)]
     log: LogFlag,
+    #[command(flatten)]
+    serve: ServeFlag,
     /// Print one JSON object at the end instead of progress and text.
     #[arg(long)]
     json: bool,
+}
+
+/// `--serve [ADDR]` and `--control`: the run's live page (docs/live.md).
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct ServeFlag {
+    /// Serve the run's live page while measuring, at ADDR: IP:PORT, a port, or an
+    /// IP (default 127.0.0.1 at a free port); its address is printed on stderr.
+    /// After the session the page stays up, showing how it ended, until Ctrl-C.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "")]
+    pub serve: Option<String>,
+    /// Put Stop and Pause buttons on the page, allowed only with the random token
+    /// printed in the page's address.
+    #[arg(long, requires = "serve")]
+    pub control: bool,
+}
+
+/// A live page about to be served: its address listened on, before the run exists.
+#[derive(Debug)]
+pub(crate) struct Serve {
+    listener: std::net::TcpListener,
+    control: bool,
+}
+
+impl ServeFlag {
+    /// Listens on the address, if serving: before anything is created, so that a
+    /// bad or busy address refuses the command whole (exit 2).
+    pub(crate) fn bind(&self) -> CliResult<Option<Serve>> {
+        let Some(text) = &self.serve else {
+            return Ok(None);
+        };
+        let listener = gonio_live::bind(gonio_live::parse_addr(text)?)?;
+        Ok(Some(Serve {
+            listener,
+            control: self.control,
+        }))
+    }
+}
+
+/// `/report.html` of the live page: `gonio report`'s page, made in memory.
+pub(crate) fn live_report() -> gonio_live::ReportFn {
+    Arc::new(|run: &Path| {
+        crate::cmd::report::build_report(run, &crate::flags::ReduceFlags::default())
+            .map(|c| gonio_io::report::html(&c))
+            .map_err(|e| e.to_string())
+    })
 }
 
 /// `--log FILE`.
@@ -190,6 +239,8 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
             Ok(Event::Fault { .. }) => {}
             Ok(Event::Homed { axes }) => bar.println(format!("gonio: homed {}", axes.join(", "))),
             Ok(Event::Bench { what }) => bar.println(format!("gonio: bench: {what}")),
+            Ok(Event::Paused) => bar.println("gonio: paused (stages idle)"),
+            Ok(Event::Resumed) => bar.println("gonio: pause ended"),
             // Logged by the engine (warn).
             Ok(Event::Skipped { .. }) => {}
             Ok(Event::Finished { .. }) | Err(tokio::sync::broadcast::error::RecvError::Closed) => {
@@ -205,15 +256,19 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
 /// Runs one session of `engine`, with the stop signals (Ctrl-C, SIGTERM, SIGHUP): the
 /// first stops the stages and ends the session `interrupted`; a second exits at once,
 /// after a moment for the stop to reach the stages.
+///
+/// With a live page, the page is served from the session's start; after its end
+/// it stays up, showing how the session ended, until the next stop signal.
 fn drive<C, B>(
     engine: Engine<C, B>,
-    quiet: bool,
-    stop: &StopBy,
+    run: &Path,
+    how: Driving<'_>,
 ) -> CliResult<(SessionReport, RunStore)>
 where
     C: Clock + Clone + Send + 'static,
     B: Bench + 'static,
 {
+    let Driving { quiet, stop, serve } = how;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -235,18 +290,59 @@ where
         StopBy::Flag(f) => Some(f.clone()),
         StopBy::Signals => None,
     };
+    // Set once the session has ended: a signal then ends the live page's stay.
+    let ended = Arc::new(AtomicBool::new(false));
+    let linger = Arc::new(tokio::sync::Notify::new());
+    let controls = gonio_live::Controls {
+        stopper: engine.stopper(),
+        pauser: engine.pauser(),
+    };
+    let live_events = serve.as_ref().map(|_| engine.subscribe());
     rt.block_on(async move {
+        let server = match serve {
+            Some(s) => {
+                let srv = gonio_live::Server::start(
+                    s.listener,
+                    run,
+                    gonio_live::Options {
+                        control: s.control.then_some(controls),
+                        report: Some(live_report()),
+                        events: live_events,
+                    },
+                )?;
+                if srv.token().is_some() {
+                    eprintln!(
+                        "gonio: live view at {} (the token allows Stop and Pause)",
+                        srv.url()
+                    );
+                } else {
+                    eprintln!("gonio: live view at {}", srv.url());
+                }
+                Some(srv)
+            }
+            None => None,
+        };
         if let Some(mut signals) = signals {
+            let (ended, linger) = (ended.clone(), linger.clone());
             tokio::spawn(async move {
-                let sig = signals.next().await;
-                eprintln!("\ngonio: {sig}: stopping the stages (again to quit at once)");
-                stopper.stop();
-                signals.next().await;
-                stopper.stop();
-                // The abort flag stops the stages at the driver's next poll.
-                tokio::time::sleep(Duration::from_millis(300)).await;
-                eprintln!("gonio: aborted");
-                std::process::exit(130);
+                let mut stops = 0;
+                loop {
+                    let sig = signals.next().await;
+                    if ended.load(Ordering::SeqCst) {
+                        linger.notify_one();
+                        return;
+                    }
+                    stops += 1;
+                    stopper.stop();
+                    if stops == 1 {
+                        eprintln!("\ngonio: {sig}: stopping the stages (again to quit at once)");
+                        continue;
+                    }
+                    // The abort flag stops the stages at the driver's next poll.
+                    tokio::time::sleep(Duration::from_millis(300)).await;
+                    eprintln!("gonio: aborted");
+                    std::process::exit(130);
+                }
             });
         } else if let Some(flag) = flag {
             // Another thread owns the interrupt (Python's KeyboardInterrupt): it
@@ -261,9 +357,25 @@ where
         let listener = tokio::spawn(progress(rx, quiet));
         let r = engine.run().await;
         let _ = listener.await;
-        r
+        if let Some(srv) = server {
+            ended.store(true, Ordering::SeqCst);
+            srv.session_ended();
+            srv.settled(Duration::from_secs(30)).await;
+            if matches!(stop, StopBy::Signals) {
+                let how = match &r {
+                    Ok((report, _)) => report.outcome.status(),
+                    Err(_) => "failed",
+                };
+                eprintln!(
+                    "gonio: the session ended ({how}); the live view stays at {} until Ctrl-C",
+                    srv.url()
+                );
+                linger.notified().await;
+            }
+            srv.stop().await;
+        }
+        r.map_err(|e| CliError::Runtime(e.to_string()))
     })
-    .map_err(|e| CliError::Runtime(e.to_string()))
 }
 
 /// Where a run's instrument lives.
@@ -277,13 +389,16 @@ pub enum StopBy {
     Flag(Arc<AtomicBool>),
 }
 
-/// How a session runs: quietly (no progress bar) or not, and what stops it.
-#[derive(Clone, Copy, Debug)]
+/// How a session runs: quietly (no progress bar) or not, what stops it, and
+/// whether its live page is served.
+#[derive(Debug)]
 pub(crate) struct Driving<'a> {
     /// No progress bar.
     pub quiet: bool,
     /// What stops it.
     pub stop: &'a StopBy,
+    /// The live page, listening already.
+    pub serve: Option<Serve>,
 }
 
 pub(crate) enum Rig {
@@ -328,10 +443,11 @@ pub(crate) fn session(
                 None => None,
             };
             let store = store()?;
+            let run = store.path().to_path_buf();
             drive(
                 Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
-                how.quiet,
-                how.stop,
+                &run,
+                how,
             )
         }
         Rig::Real => {
@@ -339,7 +455,8 @@ pub(crate) fn session(
             let bench =
                 OperatorBench::new(std::io::BufReader::new(std::io::stdin()), std::io::stderr());
             let store = store()?;
-            drive(Engine::new(g, bench, store, mech, cfg), how.quiet, how.stop)
+            let run = store.path().to_path_buf();
+            drive(Engine::new(g, bench, store, mech, cfg), &run, how)
         }
     }
 }
@@ -408,6 +525,7 @@ pub(crate) fn acquire_with(
     // Every referenced file read and checked: the run's whole record, before it
     // exists anywhere.
     let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).map_err(input)?;
+    let serve = a.serve.bind()?;
     let create = || {
         let store = RunStore::create(&a.out, &meta.to_map(), &prepared.schedule.steps)?;
         let s = &prepared.schedule;
@@ -433,7 +551,7 @@ pub(crate) fn acquire_with(
         rig,
         meta.standard_model.clone(),
         meta.transmittance,
-        Driving { quiet, stop },
+        Driving { quiet, stop, serve },
     )?;
     Ok(report)
 }
@@ -441,12 +559,22 @@ pub(crate) fn acquire_with(
 /// `gonio resume RUN [--json]`: continues a run where it stopped, with the
 /// instrument (and simulator) its file records.
 pub fn resume(a: ResumeArgs) -> CliResult<()> {
-    let report = resume_with(&a.run, a.json, &StopBy::Signals)?;
+    let report = resume_served(&a.run, a.json, &StopBy::Signals, &a.serve)?;
     report_session(&a.run, &report, a.json)
 }
 
 /// Continues the run at `path`; `quiet` prints nothing (no progress bar).
 pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<SessionReport> {
+    resume_served(path, quiet, stop, &ServeFlag::default())
+}
+
+/// [`resume_with`], with the live page if `serve` asks for it.
+fn resume_served(
+    path: &Path,
+    quiet: bool,
+    stop: &StopBy,
+    serve: &ServeFlag,
+) -> CliResult<SessionReport> {
     let mut store = RunStore::open_unverified(path)?;
     // Before anything is checked further, let alone a port opened or an axis homed:
     // one process at a time.
@@ -477,6 +605,7 @@ pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<
         }
         None => Rig::Real,
     };
+    let serve = serve.bind()?;
     if !found.missing.is_empty() {
         let reopened = store.reopen_missing()?;
         tracing::warn!(
@@ -492,7 +621,7 @@ pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<
         rig,
         stored.standard_model.clone(),
         stored.transmittance,
-        Driving { quiet, stop },
+        Driving { quiet, stop, serve },
     )?;
     Ok(report)
 }

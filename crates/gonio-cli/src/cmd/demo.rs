@@ -492,6 +492,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         crate::cmd::acquire::Driving {
             quiet: true,
             stop: &crate::cmd::acquire::StopBy::Signals,
+            serve: None,
         },
     )?;
     let wall_s = started.elapsed().as_secs_f64();

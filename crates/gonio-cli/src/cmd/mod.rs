@@ -18,6 +18,7 @@ pub mod reduce;
 pub mod report;
 pub mod runs;
 pub mod verify;
+pub mod view;
 
 /// The data of `path`, opened as the reduction flags say, or `given`: data already in
 /// memory (from the Python package) that `path` names in messages.

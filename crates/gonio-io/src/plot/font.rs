@@ -7,6 +7,12 @@ use plotters::style::FontStyle;
 /// DejaVu Sans (see `assets/fonts/LICENSE-DejaVu`), embedded in the binary.
 static DEJAVU_SANS: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
 
+/// DejaVu Sans as TrueType bytes: the font of the plots, for pages that draw their
+/// own (the live view serves it).
+pub fn dejavu_sans() -> &'static [u8] {
+    DEJAVU_SANS
+}
+
 /// The family every text of the plots uses. Registered under the generic name, so
 /// that an SVG viewer without DejaVu Sans still picks a sans-serif face.
 pub(crate) const FAMILY: &str = "sans-serif";

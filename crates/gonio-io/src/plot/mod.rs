@@ -45,6 +45,7 @@ mod albedo;
 mod draw;
 mod eval;
 mod font;
+pub use font::dejavu_sans;
 mod hemisphere;
 mod output;
 mod polar;
