@@ -95,6 +95,13 @@ fn page_follows_a_run_to_its_end() {
             .await;
         // One circle per sample drawn.
         assert_eq!(Some(grown.circles), grown.brdf_count(), "{grown:?}");
+        // Two thirds in, the plots are well filled: the screenshot to look at.
+        let grown = browser
+            .wait_for("two thirds of the steps", |p| {
+                p.is("running") && p.done().is_some_and(|d| d >= PLAN_STEPS * 2 / 3)
+            })
+            .await;
+        assert!(grown.brdf_count().is_some_and(|c| c > count0), "{grown:?}");
         let shot = browser.screenshot("live-view-running.png").await;
         eprintln!(
             "running: {grown:?} ({:.1} s); screenshot {}",
