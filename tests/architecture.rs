@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The crates, ground floor first: each may depend only on crates before it.
-const MAP: [&str; 17] = [
+const MAP: [&str; 18] = [
     "gonio-core",
     "gonio-brdf",
     "gonio-proto",
@@ -26,6 +26,7 @@ const MAP: [&str; 17] = [
     "gonio-micro",
     "gonio-io",
     "gonio-dataset",
+    "gonio-live",
     "gonio-sim",
     "gonio-cli",
     "gonio-py",
@@ -143,6 +144,20 @@ fn the_run_engine_does_not_depend_on_the_simulator() {
     let g = graph();
     assert!(!reach(&g, "gonio-acquire").contains("gonio-sim"));
     assert!(!reach(&g, "gonio-reduce").contains("gonio-sim"));
+    assert!(!reach(&g, "gonio-live").contains("gonio-sim"));
+}
+
+#[test]
+fn the_live_view_serves_nothing_from_disk() {
+    // Its page is compiled in (`include_str!`), and the run file is read through
+    // `gonio-run`: no file system call in its sources, so no route can reach a
+    // path.
+    for f in rust_files(&root().join("crates/gonio-live/src")) {
+        let text = std::fs::read_to_string(&f).expect("source");
+        for call in ["std::fs", "File::open", "fs::read", "ServeDir", "ServeFile"] {
+            assert!(!text.contains(call), "{} uses {call}", f.display());
+        }
+    }
 }
 
 #[test]

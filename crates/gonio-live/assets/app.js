@@ -405,6 +405,25 @@
     return out;
   }
 
+  // Ticks of a log axis (log10 values): decades, or 1-2-5 in each decade, or every
+  // digit, whichever first gives at least three inside [lo, hi] (at most eight).
+  function logTicks(lo, hi) {
+    let best = [];
+    for (const ms of [[1], [1, 2, 5], [1, 2, 3, 4, 5, 6, 7, 8, 9]]) {
+      const out = [];
+      for (let k = Math.floor(lo); k <= Math.ceil(hi); k++) {
+        for (const m of ms) {
+          const v = k + Math.log10(m);
+          if (v >= lo && v <= hi) out.push(v);
+        }
+      }
+      if (out.length > 8) break;
+      best = out;
+      if (out.length >= 3) break;
+    }
+    return best.length ? best : ticks(lo, hi, 4);
+  }
+
   // Short labels: 0.25, 1200, 1.5e-7 (trailing zeros of the mantissa dropped).
   const fmtTick = (v) => (v === 0 ? '0' : Math.abs(v) >= 1e4 || Math.abs(v) < 1e-2
     ? v.toExponential(2).replace(/\.?0+e/, 'e') : String(+v.toPrecision(3)));
@@ -420,13 +439,10 @@
     const X = (v) => box.l + (v - x0) / (x1 - x0) * (box.r - box.l);
     const Y = (v) => box.b - (v - y0) / (y1 - y0) * (box.b - box.t);
     const g = svg('g', { class: 'grid' }, root);
-    let yt = ticks(y0, y1, 5);
-    if (opts.ylog && Math.floor(y1) - Math.ceil(y0) >= 1) {
-      yt = ticks(Math.ceil(y0), Math.floor(y1), 5).filter((v) => Number.isInteger(v));
-    }
+    const yt = opts.ylog ? logTicks(y0, y1) : ticks(y0, y1, 5);
     for (const v of yt) {
       svg('line', { x1: box.l, x2: box.r, y1: Y(v), y2: Y(v) }, g);
-      const label = opts.ylog ? (10 ** v).toExponential(Number.isInteger(v) ? 0 : 1) : fmtTick(v);
+      const label = opts.ylog ? fmtTick(+(10 ** v).toPrecision(2)) : fmtTick(v);
       svg('text', { x: box.l - 5, y: Y(v) + 4, 'text-anchor': 'end', class: 'tick' }, g, label);
     }
     for (const v of ticks(x0, x1, 6)) {

@@ -284,7 +284,11 @@ async fn control(
             "refused: missing or wrong token (open the address with ?token= that the terminal printed)",
         );
     }
-    if app.waker.has_ended() {
+    let ended = matches!(
+        app.hub.state().status.state,
+        "complete" | "interrupted" | "faulted" | "stale"
+    );
+    if app.waker.has_ended() || ended {
         return refuse(StatusCode::CONFLICT, "the session has ended");
     }
     match action.as_str() {

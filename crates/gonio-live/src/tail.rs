@@ -117,8 +117,7 @@ impl Tail {
             reduced_at: None,
             reduce_cost: Duration::ZERO,
         };
-        let first = tail.refresh(Instant::now(), true)?;
-        tail.snapshot.apply(&first);
+        tail.refresh(Instant::now(), true)?;
         Ok(tail)
     }
 
@@ -132,6 +131,11 @@ impl Tail {
     /// and the last reduction is old enough (at least a second, and twenty times
     /// what it cost), or when `force` (the run's end).
     pub fn refresh(&mut self, now: Instant, force: bool) -> Result<Update, LiveError> {
+        if self.store.is_outdated() {
+            // A finished run resumed by another process while it was being viewed.
+            tracing::info!("live view: the run is being measured again; reopening it");
+            self.store = RunStore::open_read_only(self.store.path())?;
+        }
         let mut u = Update::default();
         let per_session = self.store.session_readings()?;
         // A session's instrument clock starts at 0: sessions follow each other.

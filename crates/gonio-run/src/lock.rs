@@ -166,7 +166,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("dir");
         let run = dir.path().join("r.gonio");
         assert_eq!(holder(&run), None);
-        let lock = RunLock::acquire(&run).ok().expect("locks");
+        let lock = RunLock::acquire(&run).expect("locks");
         assert_eq!(holder(&run), Some(std::process::id()));
         drop(lock);
         assert_eq!(holder(&run), None);

@@ -52,15 +52,20 @@ fn open_read_only(path: &Path) -> rusqlite::Result<Connection> {
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY
         | OpenFlags::SQLITE_OPEN_NO_MUTEX
         | OpenFlags::SQLITE_OPEN_URI;
-    let mut wal = path.as_os_str().to_owned();
-    wal.push("-wal");
-    let immutable = !Path::new(&wal).exists();
+    let immutable = !wal_of(path).exists();
     let uri = format!(
         "file:{}?mode=ro{}",
         uri_path(path),
         if immutable { "&immutable=1" } else { "" }
     );
     Connection::open_with_flags(uri, flags)
+}
+
+/// The write-ahead log beside the run file at `path`.
+fn wal_of(path: &Path) -> PathBuf {
+    let mut wal = path.as_os_str().to_owned();
+    wal.push("-wal");
+    PathBuf::from(wal)
 }
 
 /// `path` as the path of an SQLite `file:` URI: absolute, with every byte outside
@@ -116,6 +121,8 @@ pub struct RunStore {
     session: Option<i64>,
     /// The run's exclusive lock, when this store holds it (dropped after `conn`).
     lock: Option<RunLock>,
+    /// Opened read-only as `immutable` (no write-ahead log beside the file then).
+    immutable: bool,
 }
 
 impl std::fmt::Debug for RunStore {
@@ -247,6 +254,7 @@ impl RunStore {
             path: path.to_path_buf(),
             session: None,
             lock: None,
+            immutable: false,
         };
         store.migrate(0)?;
         let tx = store.conn.transaction().map_err(sql)?;
@@ -487,6 +495,7 @@ impl RunStore {
             path: path.to_path_buf(),
             session: None,
             lock: None,
+            immutable: read_only && !wal_of(path).exists(),
         };
         if version < 1 {
             return Err(not_run("schema version 0: never initialised".into()));
@@ -509,6 +518,14 @@ impl RunStore {
             })?;
         }
         Ok(())
+    }
+
+    /// True when this read-only store was opened on a finished file (`immutable`,
+    /// see [`RunStore::open_read_only`]) and a writer has started on it since: what
+    /// it reads no longer follows the file, and a reader that follows the run opens
+    /// it again.
+    pub fn is_outdated(&self) -> bool {
+        self.immutable && wal_of(&self.path).exists()
     }
 
     /// The process id of whoever measures into the run now (holds its lock), if

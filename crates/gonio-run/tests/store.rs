@@ -558,3 +558,22 @@ fn flag_bits_are_named() {
         "unlock, shadowed"
     );
 }
+
+#[test]
+fn a_reader_of_a_finished_run_knows_when_a_writer_starts_on_it() {
+    let scratch = tempfile::tempdir().expect("temp dir");
+    let p = scratch.path().join("r.gonio");
+    make(&p, 4, 2);
+    // Closed cleanly: no log beside it, so the reader opens it immutable.
+    let r = RunStore::open_read_only(&p).expect("reader");
+    assert!(!r.is_outdated());
+    let mut w = RunStore::open(&p).expect("writer");
+    w.begin_session("resume").expect("session");
+    w.commit(&reading(2, 3e-3), &[]).expect("commit");
+    // The immutable reader does not see the new reading: it must reopen.
+    assert!(r.is_outdated());
+    assert_eq!(r.readings().expect("readings").len(), 2);
+    let again = RunStore::open_read_only(&p).expect("reopens");
+    assert!(!again.is_outdated());
+    assert_eq!(again.readings().expect("readings").len(), 3);
+}
