@@ -298,3 +298,19 @@ fn a_killed_measurement_shows_as_stale() {
     assert_eq!(v["status"]["eta_s"], Value::Null);
     assert_eq!(view.term(), Some(0));
 }
+
+#[test]
+fn one_stop_signal_ends_a_served_session_and_the_process() {
+    let dir = scratch("serve-signal");
+    let sim = sim_at(&dir, 0.05);
+    let mut args = acquire_args(&dir, &sim);
+    args.push("--serve".into());
+    let acq = Proc::start(&args);
+    let l = acq.line("live view at ", Duration::from_secs(30));
+    let base = l.rsplit(' ').next().expect("a URL").to_string();
+    until(&base, Duration::from_secs(30), |v| done(v) >= 1);
+    // Whoever sends the signal wants the process to end: the page does not stay.
+    assert_eq!(acq.term(), Some(130));
+    let o = gonio(&["show", &s(&dir.join("run.gonio"))]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("interrupted"));
+}

@@ -236,7 +236,7 @@ impl Tail {
         // A run that has ended is reduced at once, so that the page's last picture
         // is the final one.
         if fresh && (force || due || !active) {
-            let brdf = self.reduce(active);
+            let brdf = self.reduce(active || status.state == "created");
             if brdf != self.snapshot.brdf {
                 u.brdf = Some(brdf);
             }

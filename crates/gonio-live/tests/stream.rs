@@ -381,3 +381,30 @@ fn control_needs_the_token_and_a_pause_shows_on_the_page() {
     assert_eq!(kinds.last().map(String::as_str), Some("stop"));
     rt.block_on(srv.stop());
 }
+
+#[test]
+fn a_run_that_cannot_be_reduced_offers_no_report_and_says_why() {
+    let dir = tempfile::tempdir().expect("dir");
+    let (run, engine) = setup(dir.path(), 0.0);
+    let created = gonio_live::Tail::open(&run, false, false).expect("opens");
+    let s = created.snapshot();
+    assert_eq!(s.status.state, "created");
+    assert!(s.report.is_none());
+    let note = s.brdf.note.as_deref().unwrap_or_default();
+    assert!(note.starts_with("not reduced yet"), "{note}");
+    // Stopped before its first step: nothing to reduce, so no report to offer.
+    engine.stopper().stop();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let (report, _) = rt.block_on(engine.run()).expect("runs");
+    assert_eq!(report.outcome, Outcome::Interrupted);
+    let tail = gonio_live::Tail::open(&run, false, false).expect("opens");
+    let s = tail.snapshot();
+    assert_eq!(s.status.state, "interrupted");
+    assert!(s.report.is_none());
+    assert!(s.brdf.samples.is_empty());
+    let note = s.brdf.note.as_deref().unwrap_or_default();
+    assert!(note.starts_with("the run cannot be reduced: "), "{note}");
+}

@@ -68,7 +68,8 @@ pub struct ResumeArgs {
 pub struct ServeFlag {
     /// Serve the run's live page while measuring, at ADDR: IP:PORT, a port, or an
     /// IP (default 127.0.0.1 at a free port); its address is printed on stderr.
-    /// After the session the page stays up, showing how it ended, until Ctrl-C.
+    /// After a session that ends by itself or by the page's Stop, the page stays up,
+    /// showing how it ended, until Ctrl-C.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "")]
     pub serve: Option<String>,
     /// Put Stop and Pause buttons on the page, allowed only with the random token
@@ -258,7 +259,8 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
 /// after a moment for the stop to reach the stages.
 ///
 /// With a live page, the page is served from the session's start; after its end
-/// it stays up, showing how the session ended, until the next stop signal.
+/// it stays up, showing how the session ended, until the next stop signal (unless a
+/// stop signal ended the session).
 fn drive<C, B>(
     engine: Engine<C, B>,
     run: &Path,
