@@ -12,9 +12,9 @@
 //! - **A**: the engine alone;
 //! - **B**: the engine and a [`gonio_live::Server`] fed by its events, no client;
 //! - **C**: as B, with 20 SSE clients on loopback that read everything, one that
-//!   asks for `/events` and then never reads (its receive buffer shrunk to 4 KiB, so
-//!   that the server's writes to it really stall), and one that disconnects in the
-//!   middle of the run.
+//!   asks for `/events` and then never reads (its receive buffer shrunk to 4 KiB;
+//!   within one run the kernel's send buffer still takes all it is owed), and one
+//!   that disconnects in the middle of the run.
 //!
 //! The clients are plain threads with blocking sockets, not tasks of the engine's
 //! runtime; each stops once the run's final state has reached it, at the end of its
@@ -524,8 +524,8 @@ fn round(
                 .into_iter()
                 .map(|h| decode(&h.join().expect("a reading client")))
                 .collect();
-            // The stalled client goes before the stop, which would otherwise wait a
-            // second for the bytes the server cannot send it.
+            // Released before the server stops: `Server::stop` gives a connection
+            // that will not finish a second.
             let _ = release.send(());
             stall.join().expect("the stalled client");
             Seen {
