@@ -15,74 +15,20 @@
 //! quotes them.
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome, SessionReport, setup_for};
+use gonio_acquire::engine::{Outcome, SessionReport, setup_for};
 use gonio_driver::InstrumentConfig;
 use gonio_driver::bench::Bench;
-use gonio_plan::{Plan, Prepared, Step};
-use gonio_run::Inputs;
-use gonio_sim::{SimBench, SimClock, SimConfig};
+use gonio_plan::{Plan, Step};
+use gonio_sim::SimBench;
 
-/// 3 incidence angles × 7 polar × 13 azimuthal outgoing angles, with a drift reference
-/// every 50 pairs, a dark and an incident-beam reading: a few hundred steps.
-const PLAN: &str = r#"
-name = "bench: isotropic, a few hundred pairs"
-[points]
-kind = "isotropic"
-phi_i = 0
-theta_i = [0, 30, 60]
-theta_o = { from = 10, to = 70, step = 10 }
-delta_phi = { from = 0, to = 180, step = 15 }
-[drift]
-every = 50
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
+#[path = "sim_run.rs"]
+mod sim_run;
 
-/// The same with θo up to 80° and 5° steps: 1 685 steps, long enough for SQLite to
-/// checkpoint its log (after ~490 commits) and rewind it, as a long run does.
-const LONG_PLAN: &str = r#"
-name = "bench: isotropic, long"
-[points]
-kind = "isotropic"
-phi_i = 0
-theta_i = [0, 30, 60]
-theta_o = { from = 10, to = 80, step = 5 }
-delta_phi = { from = 0, to = 180, step = 5 }
-[drift]
-every = 50
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
-
-const SEED: u64 = 7;
-
-type SimEngine = Engine<SimClock, SimBench>;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn instrument() -> (InstrumentConfig, String) {
-    InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml"))
-        .expect("example instrument")
-}
-
-fn sim() -> SimConfig {
-    let mut s = SimConfig::default_config().expect("embedded sim");
-    s.seed = SEED;
-    assert_eq!(
-        s.time_scale, 0.0,
-        "the bench needs the simulator at time scale 0"
-    );
-    s
-}
+use sim_run::{LONG_PLAN, PLAN, SimEngine, fresh, instrument, remove, sim};
 
 /// A directory for run files, removed when dropped: on /work's disk (cargo's target
 /// tmp) or on tmpfs.
@@ -91,21 +37,6 @@ fn scratch(base: &Path) -> tempfile::TempDir {
         .prefix("gonio-acquire-bench-engine-")
         .tempdir_in(base)
         .expect("scratch dir")
-}
-
-/// A fresh run file path in `dir`.
-fn fresh(dir: &Path) -> PathBuf {
-    static N: AtomicU64 = AtomicU64::new(0);
-    dir.join(format!("run-{}.gonio", N.fetch_add(1, Ordering::Relaxed)))
-}
-
-/// Removes a run file with its WAL and shared-memory files.
-fn remove(path: &Path) {
-    for suffix in ["", "-wal", "-shm"] {
-        let mut p = path.as_os_str().to_owned();
-        p.push(suffix);
-        let _ = std::fs::remove_file(PathBuf::from(p));
-    }
 }
 
 /// Wall time of each phase of one run, and what the run did.
@@ -131,37 +62,16 @@ fn acquire(
     out: &Path,
 ) -> Timed {
     let t = Instant::now();
-    let plan =
-        Plan::from_toml(plan_text, Some(&root().join("config/bench-plan.toml"))).expect("plan");
-    let mech = inst.0.mechanics().expect("mechanics");
-    let prepared: Prepared =
-        gonio_plan::prepare(&mech, inst.0.reading_seconds(), &plan).expect("prepares");
+    let (plan, mech, prepared) = sim_run::prepare(inst, plan_text);
     let prepare = t.elapsed();
 
     let t = Instant::now();
     let s = sim();
-    let inputs = Inputs {
-        instrument_text: inst.1.clone(),
-        plan_text: plan_text.to_string(),
-        sim: Some((
-            gonio_sim::config::DEFAULT_SIM.to_string(),
-            s.sample_model_text().expect("sample"),
-        )),
-        seed: Some(SEED),
-        software: "bench".into(),
-        ..Inputs::default()
-    };
-    let store = gonio_run::create(out, &plan, &prepared, &inputs).expect("creates");
+    let store = sim_run::create(inst, plan_text, (&plan, &prepared), &s, out);
     let create = t.elapsed();
 
     let t = Instant::now();
-    let (g, shared) = gonio_sim::connect(&inst.0, &s).expect("sim");
-    let stored = gonio_acquire::stored(&store).expect("stored");
-    let cfg = EngineConfig {
-        incident_transmittance: stored.transmittance,
-        ..EngineConfig::default()
-    };
-    let engine: SimEngine = Engine::new(g, SimBench::new(shared, None), store, mech, cfg);
+    let engine: SimEngine = sim_run::connect(inst, mech, &s, store);
     let connect = t.elapsed();
 
     let t = Instant::now();

@@ -34,58 +34,20 @@
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpStream};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group};
-use gonio_acquire::engine::{Engine, EngineConfig, Outcome};
+use gonio_acquire::engine::Outcome;
 use gonio_driver::InstrumentConfig;
-use gonio_plan::{Plan, Prepared};
-use gonio_run::Inputs;
-use gonio_sim::{SimBench, SimClock, SimConfig};
 
-/// gonio-acquire's engine bench's plan: 3 incidence angles × 7 polar × 13 azimuthal
-/// outgoing angles, a drift reference every 50 pairs, a dark and an incident-beam
-/// reading: 279 steps.
-const PLAN: &str = r#"
-name = "bench: isotropic, a few hundred pairs"
-[points]
-kind = "isotropic"
-phi_i = 0
-theta_i = [0, 30, 60]
-theta_o = { from = 10, to = 70, step = 10 }
-delta_phi = { from = 0, to = 180, step = 15 }
-[drift]
-every = 50
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
+#[path = "../../gonio-acquire/benches/sim_run.rs"]
+mod sim_run;
 
-/// The engine bench's long plan: θo up to 80° and Δφ by 5°, 1 685 steps. At time scale
-/// 0 it lasts about a second, long enough for the server to do, during the run, what
-/// it does all along a real one: five looks a second at the run file, a reduction a
-/// second, an update to every page after each look. [`PLAN`] runs for less than
-/// the server's [`gonio_live::MIN_GAP`] between two looks.
-const LONG_PLAN: &str = r#"
-name = "bench: isotropic, long"
-[points]
-kind = "isotropic"
-phi_i = 0
-theta_i = [0, 30, 60]
-theta_o = { from = 10, to = 80, step = 5 }
-delta_phi = { from = 0, to = 180, step = 5 }
-[drift]
-every = 50
-[calibration]
-dark = true
-incident = { transmittance = 1e-3 }
-"#;
+use sim_run::{LONG_PLAN, PLAN, SimEngine, fresh, instrument, remove, sim};
 
-const SEED: u64 = 7;
 /// Rounds of A, B, C, interleaved: [`PLAN`], [`LONG_PLAN`].
 const ROUNDS: [usize; 2] = [41, 21];
 /// Clients that read the whole stream.
@@ -104,70 +66,13 @@ const CLIENT_LIFE: Duration = Duration::from_secs(30);
 const STALLED_RCVBUF: u32 = 4096;
 const REQUEST: &[u8] = b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
 
-type SimEngine = Engine<SimClock, SimBench>;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn instrument() -> (InstrumentConfig, String) {
-    InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml"))
-        .expect("example instrument")
-}
-
-fn sim() -> SimConfig {
-    let mut s = SimConfig::default_config().expect("embedded sim");
-    s.seed = SEED;
-    assert_eq!(
-        s.time_scale, 0.0,
-        "the bench needs the simulator at time scale 0"
-    );
-    s
-}
-
-/// A fresh run file path in `dir`.
-fn fresh(dir: &Path) -> PathBuf {
-    static N: AtomicU64 = AtomicU64::new(0);
-    dir.join(format!("run-{}.gonio", N.fetch_add(1, Ordering::Relaxed)))
-}
-
-/// Removes a run file with its WAL and shared-memory files.
-fn remove(path: &Path) {
-    for suffix in ["", "-wal", "-shm"] {
-        let mut p = path.as_os_str().to_owned();
-        p.push(suffix);
-        let _ = std::fs::remove_file(PathBuf::from(p));
-    }
-}
-
 /// A run file created at `out` from `plan_text` and an engine on the simulator ready to
 /// measure it, as `gonio acquire --sim` makes them.
 fn engine(inst: &(InstrumentConfig, String), plan_text: &str, out: &Path) -> SimEngine {
-    let plan =
-        Plan::from_toml(plan_text, Some(&root().join("config/bench-plan.toml"))).expect("plan");
-    let mech = inst.0.mechanics().expect("mechanics");
-    let prepared: Prepared =
-        gonio_plan::prepare(&mech, inst.0.reading_seconds(), &plan).expect("prepares");
+    let (plan, mech, prepared) = sim_run::prepare(inst, plan_text);
     let s = sim();
-    let inputs = Inputs {
-        instrument_text: inst.1.clone(),
-        plan_text: plan_text.to_string(),
-        sim: Some((
-            gonio_sim::config::DEFAULT_SIM.to_string(),
-            s.sample_model_text().expect("sample"),
-        )),
-        seed: Some(SEED),
-        software: "bench".into(),
-        ..Inputs::default()
-    };
-    let store = gonio_run::create(out, &plan, &prepared, &inputs).expect("creates");
-    let (g, shared) = gonio_sim::connect(&inst.0, &s).expect("sim");
-    let stored = gonio_acquire::stored(&store).expect("stored");
-    let cfg = EngineConfig {
-        incident_transmittance: stored.transmittance,
-        ..EngineConfig::default()
-    };
-    Engine::new(g, SimBench::new(shared, None), store, mech, cfg)
+    let store = sim_run::create(inst, plan_text, (&plan, &prepared), &s, out);
+    sim_run::connect(inst, mech, &s, store)
 }
 
 /// The runtime `gonio acquire` runs the engine and the server on.
