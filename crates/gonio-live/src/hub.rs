@@ -80,8 +80,9 @@ impl Hub {
         let json = match &l.json {
             Some(j) => j.clone(),
             None => {
+                // Plain values serialise; should one not, the page is told in JSON.
                 let j: Arc<str> = serde_json::to_string(&*l.snapshot)
-                    .unwrap_or_else(|e| format!("{{\"error\":\"{e}\"}}"))
+                    .unwrap_or_else(|e| serde_json::json!({ "error": e.to_string() }).to_string())
                     .into();
                 l.json = Some(j.clone());
                 j

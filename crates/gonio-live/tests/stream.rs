@@ -408,3 +408,81 @@ fn a_run_that_cannot_be_reduced_offers_no_report_and_says_why() {
     let note = s.brdf.note.as_deref().unwrap_or_default();
     assert!(note.starts_with("the run cannot be reduced: "), "{note}");
 }
+
+/// A reading of step `id` at instrument time `t` (s since its session's start).
+fn reading_at(id: i64, t: f64, wall: f64) -> gonio_run::ReadingRecord {
+    use gonio_core::{SphericalDeg, dirfile::PairDeg};
+    gonio_run::ReadingRecord {
+        step_id: id,
+        commanded: None,
+        position: [0.0; 4],
+        read_pair: PairDeg {
+            incident: SphericalDeg::new(30.0, 0.0),
+            outgoing: SphericalDeg::new(20.0, 180.0),
+        },
+        sensitivity: 17,
+        sensitivity_v: 1e-3,
+        time_constant: 8,
+        time_constant_s: 0.1,
+        slope_db: 24,
+        r_mean: 1e-4,
+        r_std: 1e-8,
+        x_mean: 1e-4,
+        y_mean: 0.0,
+        n: 10,
+        autorange_steps: 0,
+        lias: 0,
+        flags: 0,
+        retries: 0,
+        physical_s: t,
+        wall_s: wall,
+    }
+}
+
+#[test]
+fn the_eta_is_the_runs_own_pace_without_each_sessions_start_up() {
+    let dir = tempfile::tempdir().expect("dir");
+    let (run, engine) = setup(dir.path(), 0.0);
+    drop(engine);
+    let mut w = RunStore::open(&run).expect("opens");
+    w.lock().expect("locks");
+    let ids: Vec<i64> = w.steps().expect("steps").iter().map(|s| s.id).collect();
+    let total = ids.len() as f64;
+    // Session 1: homing takes the first 100 s, then a step every 10 s.
+    w.begin_session("test").expect("session");
+    for (k, t) in [100.0, 110.0, 120.0].into_iter().enumerate() {
+        w.commit(&reading_at(ids[k], t, 1000.0 + t), &[])
+            .expect("commit");
+    }
+    let tail = gonio_live::Tail::open(&run, false, false).expect("opens");
+    let s = &tail.snapshot().status;
+    assert_eq!(s.state, "running");
+    assert_eq!(s.physical_s, 120.0);
+    let eta = s.eta_s.expect("an ETA");
+    assert!((eta - 10.0 * (total - 3.0)).abs() < 1e-9, "{eta}");
+    // Session 2 (after a stop): 50 s of start-up, then one step 5 s later. The pace
+    // is (20 + 5) s over 3 steps; instrument time adds up across the sessions.
+    w.end_session("interrupted").expect("end");
+    w.begin_session("test").expect("session");
+    w.commit(&reading_at(ids[3], 50.0, 2000.0), &[])
+        .expect("commit");
+    w.commit(&reading_at(ids[4], 55.0, 2005.0), &[])
+        .expect("commit");
+    let mut tail = tail;
+    tail.refresh(std::time::Instant::now(), false)
+        .expect("refresh");
+    let snap = tail.snapshot();
+    let s = &snap.status;
+    assert_eq!((s.state, s.sessions, s.done), ("running", 2, 5));
+    assert_eq!(s.physical_s, 175.0);
+    let eta = s.eta_s.expect("an ETA");
+    assert!((eta - 25.0 / 3.0 * (total - 5.0)).abs() < 1e-9, "{eta}");
+    let last: Vec<f64> = snap.trace.iter().map(|r| r.physical_s).collect();
+    assert_eq!(last, [100.0, 110.0, 120.0, 170.0, 175.0]);
+    // Ended: no ETA.
+    w.end_session("interrupted").expect("end");
+    tail.refresh(std::time::Instant::now(), false)
+        .expect("refresh");
+    assert_eq!(tail.snapshot().status.state, "interrupted");
+    assert_eq!(tail.snapshot().status.eta_s, None);
+}
