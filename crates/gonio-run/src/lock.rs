@@ -119,14 +119,38 @@ pub(crate) fn holder(run: &Path) -> Option<u32> {
     #[cfg(target_os = "linux")]
     {
         use std::os::unix::fs::MetadataExt;
-        let table = std::fs::read_to_string("/proc/locks").ok()?;
-        held_in(&table, meta.ino()).then(pid)
+        // The table is read whole in one call where it fits: the kernel walks it
+        // anew at each read, so entries that go between two reads can shift ours
+        // past the point already read. A lock seen missing is looked for again
+        // (a lock released stays missing; one held is seen at once).
+        let found = (0..3).any(|_| lock_table().is_some_and(|t| held_in(&t, meta.ino())));
+        found.then(pid)
     }
     #[cfg(not(target_os = "linux"))]
     {
         let _ = meta;
         Some(pid())
     }
+}
+
+/// The kernel's table of locks, read in as few calls as possible.
+#[cfg(target_os = "linux")]
+fn lock_table() -> Option<String> {
+    let mut f = File::open("/proc/locks").ok()?;
+    let mut buf = vec![0u8; 1 << 18];
+    let mut len = 0;
+    loop {
+        let n = f.read(&mut buf[len..]).ok()?;
+        if n == 0 {
+            break;
+        }
+        len += n;
+        if len == buf.len() {
+            buf.resize(buf.len() * 2, 0);
+        }
+    }
+    buf.truncate(len);
+    String::from_utf8(buf).ok()
 }
 
 /// Whether `/proc/locks` text lists a `FLOCK` lock on inode `ino`. Each line reads
