@@ -65,13 +65,19 @@ def test_two_fits_at_once_take_about_the_time_of_one(dense):
     """On two cores, two one-thread fits side by side finish in about the time one
     takes (1.0 ideally; 2.0 if the lock serialised them)."""
     one = min(fit_once(dense) for _ in range(3))
-    t0 = time.perf_counter()
-    threads = [threading.Thread(target=fit_once, args=(dense,)) for _ in range(2)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    both = time.perf_counter() - t0
+
+    def side_by_side():
+        t0 = time.perf_counter()
+        threads = [threading.Thread(target=fit_once, args=(dense,)) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        return time.perf_counter() - t0
+
+    # The best of three, as `one` is: a held lock makes every try take 2x, while a
+    # core busy elsewhere for a moment (this shared VM) slows only one.
+    both = min(side_by_side() for _ in range(3))
     assert both < 1.6 * one, (both, one)
 
 
