@@ -80,6 +80,24 @@ pub enum StoreError {
         /// The key.
         key: String,
     },
+    /// A batch of steps cannot be appended as given (no steps: a planner with
+    /// nothing to add ends the run instead).
+    #[error("{path}: cannot append the batch: {why}")]
+    BadBatch {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        why: String,
+    },
+    /// A write only the run's lock holder may make (appending steps), asked of a
+    /// store that does not hold the lock ([`crate::RunStore::lock`]).
+    #[error(
+        "{path}: this store does not hold the run's lock; only the process measuring the run appends to its schedule"
+    )]
+    NotLocked {
+        /// The file.
+        path: PathBuf,
+    },
     /// Damaged: structure or content fails its checks.
     #[error("{path}: corrupted: {why}")]
     Corrupt {
@@ -100,6 +118,8 @@ impl StoreError {
                 | StoreError::NotPending { .. }
                 | StoreError::MissingMeta { .. }
                 | StoreError::Busy { .. }
+                | StoreError::BadBatch { .. }
+                | StoreError::NotLocked { .. }
         )
     }
 }

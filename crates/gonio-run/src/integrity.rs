@@ -12,6 +12,10 @@
 //!   does not depend on the order of commits, so a re-measured step replaces its
 //!   term; a deleted or altered reading changes it.
 //!
+//! An adaptive run's `decisions` rows carry checksums too, and account for every
+//! step appended after the schedule (`check_batches`); a file without the table is
+//! checked as before.
+//!
 //! Files written before the record existed carry neither row: they are checked as
 //! before (row checksums, counts), and get the record when next resumed.
 
@@ -25,7 +29,7 @@ use gonio_core::rng::{GOLDEN_GAMMA, splitmix64};
 
 use crate::meta::keys;
 use crate::records::row_crc;
-use crate::schema::{READING_COLUMNS, STEP_COLUMNS};
+use crate::schema::{DECISION_COLUMNS, READING_COLUMNS, STEP_COLUMNS, has_decisions};
 
 /// `meta` rows that change during a run, and so are outside `integrity_meta`.
 pub(crate) const MUTABLE_META: [&str; 3] =
@@ -174,10 +178,15 @@ pub(crate) fn inspect(conn: &Connection, full: bool) -> rusqlite::Result<Integri
         return Ok(out);
     }
     let mut present = ReadingsRecord::default();
-    for (table, cols, key) in [
+    let adaptive = has_decisions(conn)?;
+    let mut tables = vec![
         ("steps", STEP_COLUMNS, "id"),
         ("readings", READING_COLUMNS, "step_id"),
-    ] {
+    ];
+    if adaptive {
+        tables.push(("decisions", DECISION_COLUMNS, "id"));
+    }
+    for (table, cols, key) in tables {
         let n = cols.split(',').count();
         let mut stmt = conn.prepare(&format!("SELECT {cols}, crc FROM {table} ORDER BY {key}"))?;
         let mut rows = stmt.query([])?;
@@ -221,6 +230,7 @@ pub(crate) fn inspect(conn: &Connection, full: bool) -> rusqlite::Result<Integri
     let steps = count(conn, "SELECT count(*) FROM steps")?;
     if let Some(want) = meta.get(keys::STEP_COUNT) {
         match want.parse::<i64>() {
+            Ok(w) if adaptive => check_batches(conn, w, steps, &mut out.damage)?,
             Ok(w) if w == steps => {}
             Ok(w) => out
                 .damage
@@ -290,6 +300,58 @@ pub(crate) fn inspect(conn: &Connection, full: bool) -> rusqlite::Result<Integri
         }
     }
     Ok(out)
+}
+
+/// The steps of an adaptive run against its schedule and batches: the batches are
+/// numbered 1, 2, … and each one's steps follow the schedule's and the earlier
+/// batches' without a gap, and the steps stored are the schedule's `scheduled`
+/// and every batch's, ids `0 .. total`.
+fn check_batches(
+    conn: &Connection,
+    scheduled: i64,
+    stored: i64,
+    damage: &mut Vec<String>,
+) -> rusqlite::Result<()> {
+    let mut stmt = conn.prepare("SELECT id, first_step, steps FROM decisions ORDER BY id")?;
+    let batches: Vec<(i64, i64, i64)> = stmt
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))?
+        .collect::<Result<_, _>>()?;
+    let mut next = scheduled;
+    for (k, (id, first, n)) in batches.iter().enumerate() {
+        if *id != k as i64 + 1 {
+            damage.push(format!(
+                "decisions row {id} is batch {} (a batch's row was deleted or renumbered)",
+                k + 1
+            ));
+        }
+        if *first != next {
+            damage.push(format!(
+                "batch {id} starts at step {first}, not at step {next} where the steps \
+                 before it end"
+            ));
+        }
+        next = first.saturating_add(*n);
+    }
+    // Saturating: the counts are read from a file that may have been edited.
+    let added = batches.iter().fold(0i64, |a, b| a.saturating_add(b.2));
+    let want = scheduled.saturating_add(added);
+    if stored != want {
+        damage.push(format!(
+            "{stored} steps stored, the schedule had {scheduled} and {} batch(es) added {added}",
+            batches.len()
+        ));
+    }
+    let outside = count(
+        conn,
+        &format!("SELECT count(*) FROM steps WHERE id < 0 OR id >= {want}"),
+    )?;
+    if outside != 0 {
+        damage.push(format!(
+            "{outside} step(s) with ids outside the schedule and its batches (0 to {})",
+            want.saturating_sub(1)
+        ));
+    }
+    Ok(())
 }
 
 /// The stored readings record, if any.

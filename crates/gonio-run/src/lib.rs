@@ -2,7 +2,8 @@
 //! resumed and reprocessed. Schema and guarantees in `docs/run-file.md`.
 //!
 //! - [`RunStore`]: opening (with every integrity check), creating atomically,
-//!   committing a step whole, events, sessions.
+//!   committing a step whole, events, sessions, an adaptive plan's batches
+//!   ([`RunStore::append_batch`], [`Batch`], [`DecisionRecord`]).
 //! - [`RunMeta`]: the metadata, typed; [`create()`] builds it from a prepared plan.
 //! - [`schema`]: tables, migrations, reading flags; [`records`]: rows as values.
 //! - [`summary()`]: what `gonio show` prints.
@@ -24,7 +25,9 @@ pub use create::{CreateError, Inputs, create};
 pub use error::StoreError;
 pub use integrity::Integrity;
 pub use meta::{Estimate, RunMeta, RunStatus, keys};
-pub use records::{EventRecord, ReadingRecord, SessionRow, StoredStep};
+pub use records::{
+    Batch, Decision, DecisionRecord, EventRecord, ReadingRecord, SessionRow, StoredStep,
+};
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION, flags};
 pub use store::{ColumnValues, RunStore, is_run_file};
 pub use summary::{SessionSummary, Summary, summary};

@@ -92,6 +92,55 @@ pub struct EventRecord {
     pub message: String,
 }
 
+/// What an adaptive plan's planner decided: the points it chose and why. The run
+/// file keeps it with the steps it added, without interpreting `detail`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decision {
+    /// How the points were chosen (the planner's name for its criterion).
+    pub method: String,
+    /// Sample geometry points chosen (a point may take several steps: bands,
+    /// repeats, references).
+    pub points: u32,
+    /// The planner's account of each point, JSON text.
+    pub detail: String,
+}
+
+/// A batch of steps an adaptive plan's planner appends to the run, with the decision
+/// that chose them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Batch {
+    /// Why.
+    pub decision: Decision,
+    /// The steps, in the order they are to be taken.
+    pub steps: Vec<Step>,
+}
+
+/// One row of the `decisions` table: a batch as stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DecisionRecord {
+    /// The batch's number: 1, 2, … in the order they were appended.
+    pub id: i64,
+    /// The session that appended it.
+    pub session: Option<i64>,
+    /// When, Unix seconds.
+    pub wall_s: f64,
+    /// Id of its first step; its steps are `first_step .. first_step + steps`.
+    pub first_step: i64,
+    /// Steps appended.
+    pub steps: u32,
+    /// Sample geometry points chosen ([`Decision::points`]).
+    pub points: u32,
+    /// [`Decision::method`].
+    pub method: String,
+    /// Readings committed when the decision was made: the data it was made from.
+    pub readings: u64,
+    /// The integrity record of those readings, `COUNT:DIGEST` (as the `meta` row
+    /// `integrity_readings` stood): which data, not only how many.
+    pub digest: String,
+    /// [`Decision::detail`], JSON text.
+    pub detail: String,
+}
+
 /// FNV-1a, 64 bits: the checksum of a row (corruption, not tampering, is the threat).
 fn fnv1a(h: &mut u64, bytes: &[u8]) {
     for b in bytes {
@@ -207,4 +256,19 @@ pub(crate) fn reading_values(r: &ReadingRecord, session: i64) -> Vec<Value> {
         real(r.wall_s),
     ]);
     v
+}
+
+pub(crate) fn decision_values(d: &DecisionRecord) -> Vec<Value> {
+    vec![
+        Value::Integer(d.id),
+        d.session.map_or(Value::Null, Value::Integer),
+        real(d.wall_s),
+        Value::Integer(d.first_step),
+        Value::Integer(i64::from(d.steps)),
+        Value::Integer(i64::from(d.points)),
+        Value::Text(d.method.clone()),
+        Value::Integer(d.readings as i64),
+        Value::Text(d.digest.clone()),
+        Value::Text(d.detail.clone()),
+    ]
 }

@@ -70,6 +70,41 @@ CREATE TABLE events (
 );
 ";
 
+/// The adaptive plans' decisions: one row per batch of steps a planner appended
+/// after the schedule fixed at creation. Created with the first batch, in its
+/// transaction, so that other runs' files stay as they were (and the schema version
+/// with them); `docs/run-file.md` describes the columns.
+pub(crate) const CREATE_DECISIONS: &str = "
+CREATE TABLE IF NOT EXISTS decisions (
+    id          INTEGER PRIMARY KEY,
+    session     INTEGER REFERENCES sessions(id),
+    wall_s      REAL NOT NULL,
+    first_step  INTEGER NOT NULL,
+    steps       INTEGER NOT NULL,
+    points      INTEGER NOT NULL,
+    method      TEXT NOT NULL,
+    readings    INTEGER NOT NULL,
+    digest      TEXT NOT NULL,
+    detail      TEXT NOT NULL,
+    crc         INTEGER NOT NULL
+);
+";
+
+/// Columns of `decisions` covered by its checksum, in hashing order.
+pub(crate) const DECISION_COLUMNS: &str =
+    "id, session, wall_s, first_step, steps, points, method, readings, digest, detail";
+
+/// True when the file has a `decisions` table (an adaptive run that appended a
+/// batch).
+pub(crate) fn has_decisions(conn: &rusqlite::Connection) -> rusqlite::Result<bool> {
+    conn.query_row(
+        "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'decisions'",
+        [],
+        |r| r.get::<_, i64>(0),
+    )
+    .map(|n| n > 0)
+}
+
 /// Columns of `steps` covered by its checksum, in hashing order.
 pub(crate) const STEP_COLUMNS: &str = "id, kind, channel, repeat, plan_index, theta_i, phi_i, theta_o, \
      phi_o, target_0, target_1, target_2, target_3";

@@ -25,11 +25,12 @@ use crate::integrity::{self, Integrity, ReadingsRecord, meta_digest, reading_ter
 use crate::lock::{LockError, RunLock};
 use crate::meta::{RunMeta, keys};
 use crate::records::{
-    EventRecord, ReadingRecord, SessionRow, StoredStep, reading_values, row_crc, step_values,
+    Batch, DecisionRecord, EventRecord, ReadingRecord, SessionRow, StoredStep, decision_values,
+    reading_values, row_crc, step_values,
 };
 use crate::schema::{
-    APPLICATION_ID, INSERT_EVENT, MIGRATIONS, READING_COLUMNS, SCHEMA_VERSION, SET_STATUS,
-    STEP_COLUMNS,
+    APPLICATION_ID, CREATE_DECISIONS, DECISION_COLUMNS, INSERT_EVENT, MIGRATIONS, READING_COLUMNS,
+    SCHEMA_VERSION, SET_STATUS, STEP_COLUMNS, has_decisions,
 };
 use crate::time::wall_now;
 
@@ -101,6 +102,27 @@ fn write_record(tx: &rusqlite::Transaction<'_>) -> rusqlite::Result<()> {
     put_meta(tx, keys::INTEGRITY_READINGS, &present.to_text())?;
     let digest = meta_digest(&integrity::meta_map(tx)?);
     put_meta(tx, keys::INTEGRITY_META, &format!("{digest:016x}"))
+}
+
+/// Inserts `steps` as pending, with ids from `first` on and their row checksums:
+/// the one way steps enter a run file (at creation, and in an adaptive plan's
+/// batches).
+fn insert_steps(
+    tx: &rusqlite::Transaction<'_>,
+    first: i64,
+    steps: &[Step],
+) -> rusqlite::Result<()> {
+    let mut s = tx.prepare(&format!(
+        "INSERT INTO steps ({STEP_COLUMNS}, crc) VALUES \
+         (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
+    ))?;
+    for (i, step) in steps.iter().enumerate() {
+        let mut v = step_values(first + i as i64, step);
+        let crc = row_crc(&v);
+        v.push(Value::Integer(crc));
+        s.execute(rusqlite::params_from_iter(v))?;
+    }
+    Ok(())
 }
 
 /// One column of a table of the run file.
@@ -280,18 +302,7 @@ impl RunStore {
             for (k, v) in &all {
                 m.execute(params![k, v]).map_err(sql)?;
             }
-            let mut s = tx
-                .prepare(&format!(
-                    "INSERT INTO steps ({STEP_COLUMNS}, crc) VALUES \
-                     (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
-                ))
-                .map_err(sql)?;
-            for (i, step) in steps.iter().enumerate() {
-                let mut v = step_values(i as i64, step);
-                let crc = row_crc(&v);
-                v.push(Value::Integer(crc));
-                s.execute(rusqlite::params_from_iter(v)).map_err(sql)?;
-            }
+            insert_steps(&tx, 0, steps).map_err(sql)?;
         }
         tx.commit().map_err(sql)?;
         Ok(())
@@ -762,6 +773,139 @@ impl RunStore {
                 step: reading.step_id,
             })
         }
+    }
+
+    /// The integrity record of the readings as the file records it now (what the
+    /// readings present make it, for a file from before the record existed).
+    fn readings_record(&self) -> Result<ReadingsRecord, StoreError> {
+        match integrity::stored_record(&self.conn).map_err(|e| self.sql(e))? {
+            Some(text) => ReadingsRecord::parse(&text).ok_or_else(|| StoreError::Corrupt {
+                path: self.path.clone(),
+                why: format!(
+                    "meta `{}` = {text:?} is unreadable",
+                    keys::INTEGRITY_READINGS
+                ),
+            }),
+            None => integrity::present_readings(&self.conn).map_err(|e| self.sql(e)),
+        }
+    }
+
+    /// Appends an adaptive plan's batch: its steps, pending, with ids after the last
+    /// step's, and its decision as the next row of the `decisions` table (created
+    /// with the first batch), with the readings it was made from (their count and
+    /// integrity record) and a `batch` event. One transaction: a kill leaves either
+    /// all of it or none. Only the run's lock holder appends ([`RunStore::lock`]);
+    /// a batch without steps is refused.
+    pub fn append_batch(
+        &mut self,
+        batch: &Batch,
+    ) -> Result<(DecisionRecord, Vec<StoredStep>), StoreError> {
+        let bad = |why: String| StoreError::BadBatch {
+            path: self.path.clone(),
+            why,
+        };
+        if batch.steps.is_empty() {
+            return Err(bad("it has no steps".into()));
+        }
+        let n_steps = u32::try_from(batch.steps.len())
+            .map_err(|_| bad(format!("{} steps are too many", batch.steps.len())))?;
+        if self.lock.is_none() {
+            return Err(StoreError::NotLocked {
+                path: self.path.clone(),
+            });
+        }
+        // Only the lock holder writes, so the record read here is the one the
+        // transaction sees.
+        let record = self.readings_record()?;
+        let session = self.session;
+        let decision = &batch.decision;
+        let d = self.in_tx(|tx| {
+            tx.execute_batch(CREATE_DECISIONS)?;
+            let first: i64 =
+                tx.query_row("SELECT coalesce(max(id) + 1, 0) FROM steps", [], |r| {
+                    r.get(0)
+                })?;
+            let id: i64 =
+                tx.query_row("SELECT coalesce(max(id) + 1, 1) FROM decisions", [], |r| {
+                    r.get(0)
+                })?;
+            insert_steps(tx, first, &batch.steps)?;
+            let d = DecisionRecord {
+                id,
+                session,
+                wall_s: wall_now(),
+                first_step: first,
+                steps: n_steps,
+                points: decision.points,
+                method: decision.method.clone(),
+                readings: record.count,
+                digest: record.to_text(),
+                detail: decision.detail.clone(),
+            };
+            let mut v = decision_values(&d);
+            let crc = row_crc(&v);
+            v.push(Value::Integer(crc));
+            let placeholders: Vec<String> = (1..=v.len()).map(|i| format!("?{i}")).collect();
+            tx.execute(
+                &format!(
+                    "INSERT INTO decisions ({DECISION_COLUMNS}, crc) VALUES ({})",
+                    placeholders.join(", ")
+                ),
+                rusqlite::params_from_iter(v),
+            )?;
+            tx.execute(
+                INSERT_EVENT,
+                params![
+                    session,
+                    d.wall_s,
+                    "batch",
+                    first,
+                    format!(
+                        "batch {id}: {} points, {n_steps} steps ({})",
+                        d.points, d.method
+                    )
+                ],
+            )?;
+            Ok(d)
+        })?;
+        let steps = batch
+            .steps
+            .iter()
+            .enumerate()
+            .map(|(i, step)| StoredStep {
+                id: d.first_step + i as i64,
+                step: step.clone(),
+                state: "pending".into(),
+                attempts: 0,
+            })
+            .collect();
+        Ok((d, steps))
+    }
+
+    /// The adaptive plan's decisions, oldest first: none for a run whose schedule
+    /// was all fixed at creation (its file has no `decisions` table).
+    pub fn decisions(&self) -> Result<Vec<DecisionRecord>, StoreError> {
+        if !has_decisions(&self.conn).map_err(|e| self.sql(e))? {
+            return Ok(Vec::new());
+        }
+        self.rows(
+            &format!("SELECT {DECISION_COLUMNS} FROM decisions ORDER BY id"),
+            [],
+            |r| {
+                Ok(DecisionRecord {
+                    id: r.get(0)?,
+                    session: r.get(1)?,
+                    wall_s: r.get::<_, Option<f64>>(2)?.unwrap_or(f64::NAN),
+                    first_step: r.get(3)?,
+                    steps: r.get(4)?,
+                    points: r.get(5)?,
+                    method: r.get(6)?,
+                    readings: r.get::<_, i64>(7)? as u64,
+                    digest: r.get(8)?,
+                    detail: r.get(9)?,
+                })
+            },
+        )
     }
 
     /// Marks a step failed (skipped for good) with the reason as an event.
