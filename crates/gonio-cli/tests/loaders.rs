@@ -76,7 +76,7 @@ fn a_kind_tagged_table_names_the_field_and_the_kinds() {
         refused(&["plan", "check", &s(&p), "--instrument", &inst]),
         format!(
             "gonio: {}:3:8: field `points.kind`: unknown kind \"spiral\", expected one of \
-             \"grid\", \"isotropic\", \"in-plane\" or \"list\"",
+             \"grid\", \"isotropic\", \"in-plane\", \"list\" or \"adaptive\"",
             s(&p)
         )
     );

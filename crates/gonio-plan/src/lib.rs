@@ -12,6 +12,7 @@
 //! Pure: the instrument comes in as a [`gonio_core::goniometer::Mechanics`] value,
 //! so this crate knows nothing of serial ports, controllers, run files or clocks.
 
+pub mod adaptive;
 pub mod order;
 pub mod plan;
 mod prepare;

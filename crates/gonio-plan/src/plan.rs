@@ -30,6 +30,8 @@
 //!
 //! Point kinds: `grid` (all combinations of `theta_i`, `phi_i`, `theta_o`, `phi_o`),
 //! `isotropic` (fixed `phi_i`, `theta_i` × `theta_o` × `delta_phi`, φo = φi + Δφ),
+//! `adaptive` (fixed `phi_i`, `theta_i`, a `budget`; outgoing directions chosen
+//! during the run: see [`crate::adaptive`]),
 //! `in-plane` (fixed `phi_i`; a signed `theta_o` > 0 lies on the mirror side,
 //! φo = φi + 180°, < 0 on the source's side, φo = φi) and `list` (a directions CSV
 //! file of `docs/CONVENTIONS.md`, relative to the plan).
@@ -42,6 +44,8 @@ use gonio_core::tomlfile::{self, FileError, Tagged};
 use gonio_core::{Channels, DirPair, SphericalDeg};
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
+
+use crate::adaptive::{Adaptive, AdaptiveFields, Budget};
 
 pub use gonio_core::goniometer::{Mechanics, MechanicsError, Rejection};
 
@@ -384,10 +388,13 @@ pub enum Points {
         /// The file.
         file: PathBuf,
     },
+    /// A coarse pass, then outgoing directions chosen during the run where the
+    /// reconstruction is least certain, within a budget ([`crate::adaptive`]).
+    Adaptive(Adaptive),
 }
 
 /// The kinds of [`Points`], as a plan names them.
-const POINT_KINDS: &[&str] = &["grid", "isotropic", "in-plane", "list"];
+const POINT_KINDS: &[&str] = &["grid", "isotropic", "in-plane", "list", "adaptive"];
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -456,6 +463,7 @@ impl<'de> Deserialize<'de> for Points {
             "list" => Points::List {
                 file: t.fields::<ListFields, _>()?.file,
             },
+            "adaptive" => Points::Adaptive(t.fields::<AdaptiveFields, _>()?.into_adaptive()),
             _ => return Err(t.unknown_kind()),
         })
     }
@@ -672,6 +680,10 @@ impl Plan {
                 theta_i, theta_o, ..
             } => vec![("theta_i", theta_i), ("theta_o", theta_o)],
             Points::List { .. } => vec![],
+            Points::Adaptive(a) => {
+                a.validate()?;
+                vec![("theta_i", &a.theta_i)]
+            }
         };
         let mut total = 1usize;
         for (name, v) in fields {
@@ -691,8 +703,32 @@ impl Plan {
             }
             total = total.saturating_mul(values.len());
         }
-        if let Points::Isotropic { phi_i, .. } | Points::InPlane { phi_i, .. } = &self.points {
+        if let Points::Isotropic { phi_i, .. }
+        | Points::InPlane { phi_i, .. }
+        | Points::Adaptive(Adaptive { phi_i, .. }) = &self.points
+        {
             PHI.at("points.phi_i", *phi_i)?;
+        }
+        if let Points::Adaptive(a) = &self.points {
+            if let Budget::Points(p) = a.budget {
+                total = p;
+            }
+            if self.calibration.incident.is_none() && self.calibration.standard.is_none() {
+                return bad(
+                    "calibration",
+                    "an adaptive plan chooses its points from the reduced BRDF: it needs \
+                     `calibration.incident` or `calibration.standard`"
+                        .into(),
+                );
+            }
+            if self.calibration.repeat_at_end {
+                return bad(
+                    "calibration.repeat_at_end",
+                    "an adaptive run's end is decided during the run: its calibrations are \
+                     taken once, before the coarse pass"
+                        .into(),
+                );
+            }
         }
         if total > MAX_POINTS {
             return bad(
@@ -873,6 +909,27 @@ impl Plan {
                     for &to in &c {
                         let po = if to > 0.0 { phi_i + 180.0 } else { *phi_i };
                         out.push(pair(ti, *phi_i, to.abs(), po));
+                    }
+                }
+            }
+            Points::Adaptive(a) => {
+                let at = |m: String| FileError {
+                    field: Some("points".into()),
+                    ..FileError::whole(KIND, self.source.as_deref(), m)
+                };
+                match a.budget {
+                    Budget::Points(p) => {
+                        out = a
+                            .coarse_per_incidence(p)
+                            .and_then(|n| a.coarse_pairs(n))
+                            .map_err(at)?;
+                    }
+                    Budget::Hours(_) => {
+                        return Err(at(
+                            "an adaptive plan with a budget in hours is expanded on an \
+                             instrument (its coarse pass depends on the time a point takes)"
+                                .into(),
+                        ));
                     }
                 }
             }

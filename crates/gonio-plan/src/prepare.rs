@@ -6,7 +6,8 @@ use std::collections::BTreeMap;
 use gonio_core::dirfile::PairDeg;
 use gonio_core::tomlfile::FileError;
 
-use crate::plan::{self, Checked, Mechanics, Plan};
+use crate::adaptive::{self, Pool};
+use crate::plan::{self, Checked, Mechanics, Plan, Points};
 use crate::schedule::{self, Schedule, ScheduleError};
 
 /// Why a plan cannot run on an instrument: bad input.
@@ -35,25 +36,65 @@ pub struct Prepared {
     pub pairs: Vec<PairDeg>,
     /// Accepted and rejected pairs.
     pub checked: Checked,
-    /// The steps and estimates.
+    /// The steps and estimates (of an adaptive plan: its coarse pass).
     pub schedule: Schedule,
+    /// An adaptive plan's budget, coarse pass, batches and candidates.
+    pub adaptive: Option<adaptive::Summary>,
 }
 
 /// Checks `plan` on the instrument `mech` and schedules it from the stages' home (0°,
 /// or the nearest limit), each reading estimated at `reading_s` seconds.
 pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared, PrepareError> {
-    let pairs = plan.pairs()?;
+    let name = || {
+        plan.source
+            .as_deref()
+            .map_or("<plan>".into(), |p| p.display().to_string())
+    };
+    let adaptive_error = |m: String| {
+        PrepareError::File(FileError {
+            field: Some("points".into()),
+            ..FileError::whole("plan", plan.source.as_deref(), m)
+        })
+    };
+    let (pairs, budget) = match &plan.points {
+        Points::Adaptive(a) => {
+            let budget =
+                adaptive::budget_points(plan, a, mech, reading_s).map_err(adaptive_error)?;
+            let pairs = a
+                .coarse_per_incidence(budget)
+                .and_then(|n| a.coarse_pairs(n))
+                .map_err(adaptive_error)?;
+            (pairs, Some((a, budget)))
+        }
+        _ => (plan.pairs()?, None),
+    };
     let checked = plan::check(mech, &pairs);
     let start = mech.limits.map(|(lo, hi)| 0f64.clamp(lo, hi));
     let schedule = schedule::build(plan, mech, &checked, start, reading_s).map_err(|source| {
         PrepareError::Schedule {
-            path: plan
-                .source
-                .as_deref()
-                .map_or("<plan>".into(), |p| p.display().to_string()),
+            path: name(),
             source,
         }
     })?;
+    let adaptive = match budget {
+        None => None,
+        Some((a, points)) => {
+            let pool = Pool::new(a, mech).map_err(adaptive_error)?;
+            let coarse = checked.accepted.len();
+            let point_s = schedule.duration_s() / coarse.max(1) as f64;
+            Some(adaptive::Summary {
+                budget: a.budget,
+                points,
+                coarse,
+                batch: a.batch_points(points),
+                pool: pool.candidates.len(),
+                refused: pool.refused,
+                point_s,
+                estimate_s: schedule.duration_s() + points.saturating_sub(coarse) as f64 * point_s,
+                method: a.method,
+            })
+        }
+    };
     tracing::debug!(
         pairs = pairs.len(),
         accepted = checked.accepted.len(),
@@ -69,6 +110,7 @@ pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared
         pairs,
         checked,
         schedule,
+        adaptive,
     })
 }
 

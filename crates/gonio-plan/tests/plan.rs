@@ -368,18 +368,18 @@ fn points_errors_name_the_field_and_what_is_accepted() {
     assert_eq!(
         plan("kind = \"spiral\"\n"),
         "<plan>:3:8: field `points.kind`: unknown kind \"spiral\", expected one of \"grid\", \
-         \"isotropic\", \"in-plane\" or \"list\""
+         \"isotropic\", \"in-plane\", \"list\" or \"adaptive\""
     );
     assert_eq!(
         plan("theta_i = [0]\n"),
-        "<plan>:2:1: field `points`: missing field `kind` (\"grid\", \"isotropic\", \"in-plane\" \
-         or \"list\")"
+        "<plan>:2:1: field `points`: missing field `kind` (\"grid\", \"isotropic\", \"in-plane\", \
+         \"list\" or \"adaptive\")"
     );
     let e = Plan::from_toml("points = 5\n", None).expect_err("a number");
     assert_eq!(
         e.to_string(),
         "<plan>:1:10: field `points`: invalid type: integer `5`, expected a table with kind = \
-         one of \"grid\", \"isotropic\", \"in-plane\" or \"list\""
+         one of \"grid\", \"isotropic\", \"in-plane\", \"list\" or \"adaptive\""
     );
     // Every form still reads.
     let p = Plan::from_toml(

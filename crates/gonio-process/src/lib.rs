@@ -19,6 +19,7 @@
 //! - [`file`](mod@file): the table and sample file (CSV with a sidecar JSON).
 //! - [`svd`]: the leading singular values and Frobenius tails P_s^(k) needs.
 
+pub mod adapt;
 pub mod columns;
 pub mod file;
 pub mod grid;

@@ -345,6 +345,11 @@ fn combine(it: impl Iterator<Item = (f64, Option<f64>)>) -> (f64, Option<f64>) {
     (mean, Some((var / n).sqrt()))
 }
 
+/// The R⁶ point of a pair (module docs), for the modules that search the same space.
+pub(crate) fn key_of(p: &PairDeg, isotropic: bool) -> [f64; 6] {
+    key(p, isotropic)
+}
+
 /// The R⁶ point of a pair (module docs).
 fn key(p: &PairDeg, isotropic: bool) -> [f64; 6] {
     let (mut wi, mut wo) = (Dir::from(p.incident), Dir::from(p.outgoing));
@@ -354,6 +359,20 @@ fn key(p: &PairDeg, isotropic: bool) -> [f64; 6] {
         wo = wo.rotate_about_normal(turn);
     }
     [wi.x, wi.y, wi.z, wo.x, wo.y, wo.z]
+}
+
+/// What the kernel sees around a pair ([`Interpolator::neighbours`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Neighbours {
+    /// The kernel's estimate per channel, 1/sr.
+    pub estimate: Vec<f64>,
+    /// Kernel-weighted mean square deviation of the j nearest samples from the
+    /// estimate, per channel, 1/sr².
+    pub spread2: Vec<f64>,
+    /// Kernel-weighted mean of their measurement variances, per channel, 1/sr².
+    pub noise2: Vec<f64>,
+    /// R⁶ distance to the nearest sample.
+    pub nearest: f64,
 }
 
 /// The nearest-j Gaussian kernel over a sample set (DeYoung Sec. 3.2.1). The j
@@ -401,6 +420,51 @@ impl Interpolator<'_> {
             }
         }
         (v, known.then(|| var.into_iter().map(f64::sqrt).collect()))
+    }
+
+    /// The kernel's view of a pair: its estimate per channel, the kernel-weighted
+    /// spread of the j nearest samples about it, their kernel-weighted measurement
+    /// variance (zero where unknown), and the R⁶ distance to the nearest sample.
+    pub fn neighbours(&self, pair: &PairDeg) -> Neighbours {
+        let q = key(pair, self.samples.isotropic);
+        let near = self.tree.nearest(&q, self.kernel.j);
+        let nc = self.samples.channels.len();
+        let nearest = near.first().map_or(f64::INFINITY, |(d2, _)| d2.sqrt());
+        let mean_d = near.iter().map(|(d2, _)| d2.sqrt()).sum::<f64>() / near.len().max(1) as f64;
+        let s2 = 2.0 * (self.kernel.width * mean_d).powi(2);
+        let weights: Vec<(f64, usize)> = if s2 > 0.0 {
+            near.iter().map(|&(d2, k)| ((-d2 / s2).exp(), k)).collect()
+        } else {
+            near.iter().map(|&(_, k)| (1.0, k)).collect()
+        };
+        let sw: f64 = weights
+            .iter()
+            .map(|w| w.0)
+            .sum::<f64>()
+            .max(f64::MIN_POSITIVE);
+        let mut estimate = vec![0.0; nc];
+        for &(w, k) in &weights {
+            for (o, x) in estimate.iter_mut().zip(&self.samples.samples[k].value) {
+                *o += w * x / sw;
+            }
+        }
+        let mut spread2 = vec![0.0; nc];
+        let mut noise2 = vec![0.0; nc];
+        for &(w, k) in &weights {
+            let s = &self.samples.samples[k];
+            for ch in 0..nc {
+                spread2[ch] += w * (s.value[ch] - estimate[ch]).powi(2) / sw;
+                if let Some(sg) = &s.sigma {
+                    noise2[ch] += w * sg[ch] * sg[ch] / sw;
+                }
+            }
+        }
+        Neighbours {
+            estimate,
+            spread2,
+            noise2,
+            nearest,
+        }
     }
 
     /// The R⁶ distance from a pair to the nearest sample.
