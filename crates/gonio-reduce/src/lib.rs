@@ -65,6 +65,7 @@
 //! The report's budget lines name amps; its `dark_v` ([I_dark, 0]) and `incident_v`
 //! fields, named for the lock-in, hold amps for a DC run.
 
+pub mod adaptive;
 pub mod spectral;
 
 use std::collections::BTreeMap;
