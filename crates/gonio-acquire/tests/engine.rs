@@ -292,6 +292,9 @@ fn planner(schedule: &[gonio_plan::Step], seen: Seen) -> gonio_acquire::Planner 
     })
 }
 
+/// What a session's listener returns: every event it heard.
+type Heard = std::pin::Pin<Box<dyn std::future::Future<Output = Vec<gonio_acquire::Event>> + Send>>;
+
 /// Every event of a session, until it finishes; `stop_at` raises the stopper on the
 /// first event it accepts.
 fn listen(
@@ -300,9 +303,7 @@ fn listen(
     tokio::sync::broadcast::Receiver<gonio_acquire::Event>,
     gonio_acquire::Pauser,
     gonio_acquire::Stopper,
-) -> std::pin::Pin<
-    Box<dyn std::future::Future<Output = Vec<gonio_acquire::Event>> + Send>,
-> {
+) -> Heard {
     move |mut rx, _, stopper| {
         Box::pin(async move {
             let mut heard = Vec::new();
