@@ -11,6 +11,6 @@ pub mod engine;
 mod stored;
 
 pub use engine::{
-    Engine, EngineConfig, EngineError, Event, Outcome, Pauser, SessionReport, Stopper,
+    Engine, EngineConfig, EngineError, Event, Outcome, Pauser, Planner, SessionReport, Stopper,
 };
 pub use stored::{Stored, stored};

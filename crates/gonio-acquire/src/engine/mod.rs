@@ -21,13 +21,19 @@
 //!   ends the session `faulted`, resumable once the cause is fixed;
 //! - raising the [`Stopper`] (Ctrl-C) aborts the move in flight, stops every stage,
 //!   and ends the session `interrupted`, resumable.
+//!
+//! An adaptive plan adds a [`Planner`] ([`Engine::with_planner`]): whenever no step
+//! is pending, it is asked for the next batch of steps, which is appended to the run
+//! file and measured like the schedule's, until it has nothing to add. A planner
+//! that fails ends the session `faulted`, resumable.
 
 use gonio_core::goniometer::Mechanics;
 use gonio_driver::bench::{Bench, Setup};
 use gonio_driver::smc100::AbortFlag;
 use gonio_driver::{Clock, Goniometer};
 use gonio_plan::StepKind;
-use gonio_run::{RunStore, StoreError};
+use gonio_run::{Batch, RunStore, StoreError, StoredStep};
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -35,7 +41,21 @@ use tokio::sync::broadcast;
 
 mod rig;
 
-use rig::{Rig, StepOutcome};
+use rig::{Planned, Rig, StepOutcome};
+
+/// An adaptive plan's planner: given the run file (every reading committed so far),
+/// the next batch of steps to measure, or `None` when the run needs no more; an
+/// error ends the session `faulted` (resumable), with the message.
+///
+/// Kill and resume make the same choices as an uninterrupted run, because the engine
+/// asks the planner only when no step is pending, and appends its batch (steps,
+/// decision, event) in one transaction ([`RunStore::append_batch`]): a kill before
+/// that commit leaves the file as if the planner had never been asked, and a resume
+/// asks it again on the same readings; a kill after it leaves the batch's steps
+/// pending, and a resume measures them. So a planner must decide from the file alone
+/// (the readings, its earlier decisions), never from state of its own that a kill
+/// would lose.
+pub type Planner = Box<dyn FnMut(&RunStore) -> Result<Option<Batch>, String> + Send>;
 
 /// How hard the engine tries.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,6 +153,17 @@ pub enum Event {
         /// True when the engine carries on.
         recovering: bool,
     },
+    /// An adaptive plan's planner appended a batch of steps to the run.
+    Batch {
+        /// The batch's number (1, 2, …; its row in the run's `decisions` table).
+        batch: i64,
+        /// Sample geometry points it chose.
+        points: u32,
+        /// Steps it added.
+        steps: usize,
+        /// Steps in the run now.
+        total: usize,
+    },
     /// The engine paused between steps on request ([`Pauser`]); the stages are idle.
     Paused,
     /// The pause ended; the next step follows.
@@ -226,6 +257,7 @@ pub struct Engine<C: Clock + Clone, B: Bench> {
     rig: Rig<C, B>,
     stopper: Stopper,
     pauser: Pauser,
+    planner: Option<Planner>,
 }
 
 impl<C, B> Engine<C, B>
@@ -264,7 +296,15 @@ where
             },
             stopper,
             pauser: Pauser::default(),
+            planner: None,
         }
+    }
+
+    /// The engine of an adaptive plan: once the pending steps run out, `planner` is
+    /// asked for more (see [`Planner`]).
+    pub fn with_planner(mut self, planner: Planner) -> Self {
+        self.planner = Some(planner);
+        self
     }
 
     /// The handle that stops the run.
@@ -283,12 +323,15 @@ where
     }
 
     /// Runs a session: start-up (identify, home what needs it, restore the detector),
-    /// then every pending step; returns the report and the run file.
+    /// then every pending step, and with a planner, its batches as they come (pauses
+    /// and stops are honoured between batches as between steps); returns the report
+    /// and the run file.
     pub async fn run(self) -> Result<(SessionReport, RunStore), EngineError> {
         let Engine {
             mut rig,
             stopper,
             pauser,
+            mut planner,
         } = self;
         rig.span = tracing::info_span!("run", file = %rig.store.path().display());
         let (mut rig, started) = blocking(rig, Rig::start).await?;
@@ -299,13 +342,16 @@ where
                 return Ok((r?, rig.store));
             }
         };
-        let total = start.total;
+        let mut total = start.total;
         let mut finished = start.finished;
         let (mut measured, mut skipped) = (0, 0);
         let mut outcome = Outcome::Complete;
-        let mut queue = start.pending.into_iter().peekable();
+        let mut queue: VecDeque<StoredStep> = start.pending.into();
         let mut attempts = 0u32;
-        while let Some(step) = queue.peek().cloned() {
+        loop {
+            if queue.is_empty() && planner.is_none() {
+                break;
+            }
             if pauser.is_paused() {
                 rig = pause(rig, &pauser, &stopper).await?;
             }
@@ -313,6 +359,32 @@ where
                 outcome = Outcome::Interrupted;
                 break;
             }
+            let Some(step) = queue.front().cloned() else {
+                // Nothing pending: the planner, if any, says whether more follows.
+                let Some(p) = planner.take() else {
+                    break;
+                };
+                let (r, (p, res)) = blocking(rig, move |rig| {
+                    let mut p = p;
+                    let res = rig.plan(&mut p, total);
+                    (p, res)
+                })
+                .await?;
+                rig = r;
+                planner = Some(p);
+                match res? {
+                    Planned::Batch { steps, total: now } => {
+                        queue.extend(steps);
+                        total = now;
+                        continue;
+                    }
+                    Planned::Done => break,
+                    Planned::Stop(o) => {
+                        outcome = o;
+                        break;
+                    }
+                }
+            };
             attempts += 1;
             let s = step.clone();
             let (r, res) = blocking(rig, move |rig| rig.step(&s)).await?;
@@ -331,7 +403,7 @@ where
                         flags: rec.flags,
                         physical_s: rec.physical_s,
                     });
-                    queue.next();
+                    queue.pop_front();
                     attempts = 0;
                 }
                 StepOutcome::Again(why) => {
@@ -356,7 +428,7 @@ where
                     });
                     skipped += 1;
                     finished += 1;
-                    queue.next();
+                    queue.pop_front();
                     attempts = 0;
                 }
                 StepOutcome::Stop(o) => {

@@ -17,7 +17,7 @@ use gonio_driver::bench::{Bench, BenchError, Setup};
 use gonio_plan::StepKind;
 use gonio_run::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
 
-use super::{EngineConfig, Event, Outcome, SessionReport, setup_for};
+use super::{EngineConfig, Event, Outcome, Planner, SessionReport, setup_for};
 
 /// How one step went.
 pub(super) enum StepOutcome {
@@ -25,6 +25,19 @@ pub(super) enum StepOutcome {
     /// Recovered from a fault; measure the step again.
     Again(String),
     Skip(String),
+    Stop(Outcome),
+}
+
+/// What asking the planner gave.
+pub(super) enum Planned {
+    /// A batch was appended: its steps, and the run's steps now.
+    Batch {
+        steps: Vec<StoredStep>,
+        total: usize,
+    },
+    /// No further batch: the run is complete.
+    Done,
+    /// The session ends so (the planner failed).
     Stop(Outcome),
 }
 
@@ -197,31 +210,114 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
                 .event("home", None, &format!("homed {}", unreferenced.join(", ")))?;
             let _ = self.events.send(Event::Homed { axes: unreferenced });
         }
-        // The detector's range where the run left it, so that autoranging takes the
-        // same path as it would have without the interruption.
         if let Some(first) = pending.first()
-            && let Some(last) = self.store.last_reading_before(first.id)?
-            && last.sensitivity != self.gonio.detector.range()
+            && let Err(outcome) = self.restore_range(first.id)?
         {
-            match self.gonio.detector.restore_range(last.sensitivity) {
-                Ok(Some(range)) => self.store.event(
-                    "detector",
-                    None,
-                    &format!("sensitivity restored to {range}"),
-                )?,
-                Ok(None) => {}
-                Err(e) => {
-                    let m = format!("restoring the sensitivity failed: {e}");
-                    self.fault(None, &m, false)?;
-                    return Ok(Err(Outcome::Faulted(m)));
-                }
-            }
+            return Ok(Err(outcome));
         }
         Ok(Ok(Start {
             pending,
             total,
             finished,
         }))
+    }
+
+    /// Puts the detector's range where the reading before step `next` left it, so
+    /// that autoranging takes the same path as it would have without an
+    /// interruption (nothing to do when it is there already).
+    fn restore_range(&mut self, next: i64) -> Result<Result<(), Outcome>, StoreError> {
+        let Some(last) = self.store.last_reading_before(next)? else {
+            return Ok(Ok(()));
+        };
+        if last.sensitivity == self.gonio.detector.range() {
+            return Ok(Ok(()));
+        }
+        match self.gonio.detector.restore_range(last.sensitivity) {
+            Ok(Some(range)) => self.store.event(
+                "detector",
+                None,
+                &format!("sensitivity restored to {range}"),
+            )?,
+            Ok(None) => {}
+            Err(e) => {
+                let m = format!("restoring the sensitivity failed: {e}");
+                self.fault(None, &m, false)?;
+                return Ok(Err(Outcome::Faulted(m)));
+            }
+        }
+        Ok(Ok(()))
+    }
+
+    /// Asks the adaptive plan's planner for the next batch (no step is pending) and
+    /// appends it to the run file in one transaction, with its decision and its
+    /// `batch` event. `total` is the run's steps before it.
+    pub(super) fn plan(
+        &mut self,
+        planner: &mut Planner,
+        total: usize,
+    ) -> Result<Planned, StoreError> {
+        let span = tracing::info_span!(parent: &self.span, "planner");
+        let _entered = span.enter();
+        let t = std::time::Instant::now();
+        let decided = planner(&self.store);
+        let took_s = t.elapsed().as_secs_f64();
+        let batch = match decided {
+            Ok(Some(b)) => b,
+            Ok(None) => {
+                tracing::info!(took_s, "planner: no further batch");
+                return Ok(Planned::Done);
+            }
+            Err(why) => return self.planner_failed(why, took_s),
+        };
+        tracing::debug!(
+            took_s,
+            steps = batch.steps.len(),
+            points = batch.decision.points,
+            "planner decided"
+        );
+        let (d, steps) = match self.store.append_batch(&batch) {
+            Ok(a) => a,
+            // The planner's fault (a batch without steps), not the file's.
+            Err(e @ StoreError::BadBatch { .. }) => {
+                return self.planner_failed(e.to_string(), took_s);
+            }
+            Err(e) => return Err(e),
+        };
+        let total = total + steps.len();
+        tracing::info!(
+            batch = d.id,
+            points = d.points,
+            steps = d.steps,
+            first_step = d.first_step,
+            readings = d.readings,
+            method = %d.method,
+            total,
+            took_s,
+            "batch {}: {} points, {} steps ({})",
+            d.id,
+            d.points,
+            d.steps,
+            d.method
+        );
+        let _ = self.events.send(Event::Batch {
+            batch: d.id,
+            points: d.points,
+            steps: steps.len(),
+            total,
+        });
+        if let Some(first) = steps.first()
+            && let Err(outcome) = self.restore_range(first.id)?
+        {
+            return Ok(Planned::Stop(outcome));
+        }
+        Ok(Planned::Batch { steps, total })
+    }
+
+    fn planner_failed(&mut self, why: String, took_s: f64) -> Result<Planned, StoreError> {
+        let m = format!("adaptive planner: {why}");
+        tracing::debug!(took_s, "planner failed");
+        self.fault(None, &m, false)?;
+        Ok(Planned::Stop(Outcome::Faulted(m)))
     }
 
     /// Takes one step: bench, motion, reading, commit.

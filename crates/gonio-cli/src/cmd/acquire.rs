@@ -242,6 +242,18 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
             Ok(Event::Bench { what }) => bar.println(format!("gonio: bench: {what}")),
             Ok(Event::Paused) => bar.println("gonio: paused (stages idle)"),
             Ok(Event::Resumed) => bar.println("gonio: pause ended"),
+            // An adaptive plan's batch: the run grows.
+            Ok(Event::Batch {
+                batch,
+                points,
+                steps,
+                total,
+            }) => {
+                bar.set_length(total as u64);
+                bar.println(format!(
+                    "gonio: batch {batch}: {points} points, {steps} steps"
+                ));
+            }
             // Logged by the engine (warn).
             Ok(Event::Skipped { .. }) => {}
             Ok(Event::Finished { .. }) | Err(tokio::sync::broadcast::error::RecvError::Closed) => {
