@@ -50,6 +50,30 @@ pub struct AcquireArgs {
 }
 
 /// `gonio resume`: continue an interrupted or killed run.
+impl AcquireArgs {
+    /// The arguments of a quiet acquisition on the simulator: `sim` (the embedded
+    /// default when none) with `seed`.
+    pub(crate) fn simulated(
+        instrument: PathBuf,
+        plan: PathBuf,
+        out: PathBuf,
+        sim: Option<PathBuf>,
+        seed: Option<u64>,
+    ) -> AcquireArgs {
+        AcquireArgs {
+            instrument,
+            plan,
+            out,
+            sim: SimFlag { sim },
+            seed,
+            notes: None,
+            log: LogFlag { log: None },
+            serve: ServeFlag::default(),
+            json: true,
+        }
+    }
+}
+
 #[derive(clap::Args)]
 pub struct ResumeArgs {
     /// The run file.
@@ -462,8 +486,12 @@ pub(crate) fn session(
             };
             let store = store()?;
             let run = store.path().to_path_buf();
+            let planner = planner_for(&store, &mech, instrument)?;
             drive(
-                Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
+                with_planner(
+                    Engine::new(g, SimBench::new(shared, standard), store, mech, cfg),
+                    planner,
+                ),
                 &run,
                 how,
             )
@@ -474,8 +502,42 @@ pub(crate) fn session(
                 OperatorBench::new(std::io::BufReader::new(std::io::stdin()), std::io::stderr());
             let store = store()?;
             let run = store.path().to_path_buf();
-            drive(Engine::new(g, bench, store, mech, cfg), &run, how)
+            let planner = planner_for(&store, &mech, instrument)?;
+            drive(
+                with_planner(Engine::new(g, bench, store, mech, cfg), planner),
+                &run,
+                how,
+            )
         }
+    }
+}
+
+/// The adaptive planner of the run in `store`, if its plan is adaptive: built from
+/// the plan the run file records, so that a resumed run decides as the first
+/// session would have.
+fn planner_for(
+    store: &RunStore,
+    mech: &gonio_plan::Mechanics,
+    instrument: &InstrumentConfig,
+) -> CliResult<Option<gonio_reduce::adaptive::Planner>> {
+    gonio_reduce::adaptive::Planner::for_run(store, mech, instrument.reading_seconds())
+        .map_err(|e| input(format!("{}: {e}", store.path().display())))
+}
+
+/// The engine, deciding an adaptive run's batches with `planner` when there is one.
+fn with_planner<C, B>(
+    engine: Engine<C, B>,
+    planner: Option<gonio_reduce::adaptive::Planner>,
+) -> Engine<C, B>
+where
+    C: Clock + Clone + Send + 'static,
+    B: Bench + 'static,
+{
+    match planner {
+        Some(mut p) => engine.with_planner(Box::new(move |store: &RunStore| {
+            p.next(store).map_err(|e| e.to_string())
+        })),
+        None => engine,
     }
 }
 

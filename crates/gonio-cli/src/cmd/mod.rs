@@ -4,6 +4,7 @@
 pub mod acquire;
 pub mod check;
 pub mod colour;
+pub mod compare;
 pub mod correct;
 pub mod demo;
 pub mod export;

@@ -20,6 +20,11 @@ pub enum Command {
     /// estimate the motion, band-change and detector time; with several bands, say
     /// which loop (wavelength or geometry) is inside and why.
     Check(CheckArgs),
+    /// Measure an adaptive plan and uniform plans of the same number of points on
+    /// the simulated instrument, and compare each reconstruction's error against the
+    /// simulated sample (cosine-weighted relative RMS on an outgoing grid at the
+    /// plan's incidences).
+    Compare(crate::cmd::compare::CompareArgs),
 }
 
 /// `gonio plan check`.
@@ -38,6 +43,7 @@ pub struct CheckArgs {
 pub fn run(c: Command) -> CliResult<()> {
     match c {
         Command::Check(a) => plan_check(&a.plan, &a.instrument, a.json.json),
+        Command::Compare(a) => crate::cmd::compare::compare(a),
     }
 }
 
@@ -146,6 +152,7 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
                 "band_s": s.band_s, "total_s": s.duration_s(),
             },
             "spectral": s.spectral,
+            "adaptive": p.adaptive,
         }));
     }
     let mut w = output::stdout();
@@ -188,6 +195,9 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             },
             hms(s.duration_s())
         )?;
+        if let Some(a) = &p.adaptive {
+            adaptive_summary(&mut w, a)?;
+        }
         if let Some(d) = &s.spectral {
             writeln!(
                 w,
@@ -203,4 +213,32 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
         }
         w.flush()
     })())
+}
+
+/// What `plan check` says of an adaptive plan: the budget, the coarse pass (the
+/// schedule above), the batches and their candidates, the whole run's estimate.
+fn adaptive_summary(w: &mut impl Write, a: &gonio_plan::adaptive::Summary) -> std::io::Result<()> {
+    use gonio_plan::adaptive::Budget;
+    let budget = match a.budget {
+        Budget::Points(p) => format!("{p} points"),
+        Budget::Hours(h) => format!(
+            "{} of instrument time, about {} points at {:.1} s a point",
+            hms(h * 3600.0),
+            a.points,
+            a.point_s
+        ),
+    };
+    writeln!(
+        w,
+        "adaptive: budget {budget}; the schedule above is the coarse pass ({} points, {:.0}% \
+         of the budget); then batches of {} points chosen by {} among {} measurable \
+         candidates ({} refused by the instrument); whole run estimated {}",
+        a.coarse,
+        100.0 * a.coarse as f64 / a.points.max(1) as f64,
+        a.batch,
+        a.method.as_str(),
+        a.pool,
+        a.refused,
+        hms(a.estimate_s)
+    )
 }
