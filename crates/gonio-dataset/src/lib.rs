@@ -465,7 +465,7 @@ impl Dataset {
                 };
                 let samples = || hemisphere::unfold(&Samples::from_table(t)).0;
                 let table = match step {
-                    Some(g) => samples().resample(g.grid(), Kernel::default()).map_err(p)?,
+                    Some(g) => samples().resample_step(g, Kernel::default()).map_err(p)?,
                     None if half => samples().to_table().ok_or_else(|| {
                         p(ProcessError::Unsupported(
                             "the unfolded half turn forms no complete grid".into(),
@@ -483,7 +483,7 @@ impl Dataset {
             Dataset::Samples(s) => {
                 let (s, symmetry) = hemisphere::unfold(s);
                 let (table, fill) = match step {
-                    Some(g) => (s.resample(g.grid(), Kernel::default()).map_err(p)?, None),
+                    Some(g) => (s.resample_step(g, Kernel::default()).map_err(p)?, None),
                     None => match s.to_table() {
                         Some(t) => (t, None),
                         None => {

@@ -12,7 +12,7 @@
 //! # coarse = 0.3                # share of the budget in the coarse pass
 //! # batch = 0.1                 # share of the budget in each later batch
 //! # candidates = 8192           # directions each batch chooses among, per incidence
-//! # method = "variation"        # or "value"
+//! # method = "residual"         # or "variation", "value"
 //! # seed = 0                    # turns the direction lattices
 //! ```
 //!
@@ -71,10 +71,14 @@ pub enum Budget {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
+    /// Where the kernel reconstruction mispredicts the measured neighbours of a
+    /// direction when each is left out (leave-one-out residuals), weighted by the area
+    /// a point would cover and by cos θo.
+    #[default]
+    Residual,
     /// Where the measured neighbours of a direction disagree most with the kernel
     /// reconstruction there (local variation), weighted by the area a point would
     /// cover and by cos θo.
-    #[default]
     Variation,
     /// Where the reconstructed BRDF is largest (a warp by the lobe the coarse pass
     /// found, as Dupuy & Jakob 2018 warp by the microfacet distribution), weighted
@@ -86,6 +90,7 @@ impl Method {
     /// The name a plan writes.
     pub fn as_str(self) -> &'static str {
         match self {
+            Method::Residual => "residual",
             Method::Variation => "variation",
             Method::Value => "value",
         }

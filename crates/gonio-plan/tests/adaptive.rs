@@ -24,7 +24,7 @@ fn an_adaptive_plan_reads_with_its_defaults() {
     };
     assert_eq!(a.budget, Budget::Points(600));
     assert_eq!((a.coarse, a.batch, a.candidates), (0.3, 0.1, 8192));
-    assert_eq!((a.method, a.seed, a.phi_i), (Method::Variation, 0, 0.0));
+    assert_eq!((a.method, a.seed, a.phi_i), (Method::Residual, 0, 0.0));
     // 600 × 0.3 / 2 = 90 lattice points and the mirror direction per incidence.
     let pairs = p.pairs().expect("pairs");
     assert_eq!(pairs.len(), 2 * 91);

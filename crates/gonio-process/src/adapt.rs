@@ -16,12 +16,18 @@
 //! about the region closer to c than to any measured sample, of area ≈ d(c)², d the
 //! chord to the nearest sample; how much it improves it there is the local
 //! uncertainty u(c). The expected drop of E's numerator is then
-//! cos θo · u(c)² · d(c)² — raised to a higher power of d ([`GAP_EXPONENT`]) in
+//! cos θo · u(c)² · d(c)² — raised to a higher power of d ([`gap_exponent`]) in
 //! practice — and a batch takes the n candidates of highest score
 //! greedily, each pick shrinking d (and so the score) of the candidates around it,
 //! which spreads a batch over the regions that need it rather than stacking it on
-//! one. Two estimates of u are offered ([`Aim`]):
+//! one. Three estimates of u are offered ([`Aim`]):
 //!
+//! - **residual** (the default of plans): the kernel's leave-one-out residuals at
+//!   the j nearest samples, f_k − f̂₋ₖ(x_k) (each sample predicted from its
+//!   neighbours without it; its measurement variance taken off), kernel-weighted,
+//!   with the same floor: a direct measure of the reconstruction's error at the
+//!   samples' own spacing — small where the kernel already predicts well, however
+//!   steep the BRDF, and large where a feature falls between samples;
 //! - **variation**: the spread of the j nearest samples' values about the kernel's
 //!   estimate at c (kernel-weighted, their own measurement variance taken off, so
 //!   that noise is not chased), with a floor of [`FLOOR`] × f̂ so that no region is
@@ -40,18 +46,24 @@ use crate::samples::{Interpolator, Kernel, Samples};
 /// (variation aim): what the kernel could miss between samples that agree.
 pub const FLOOR: f64 = 0.05;
 
-/// The power of the gap in a candidate's score. Area alone (2) is what one point
-/// covers; but u is itself measured by neighbours a gap apart, and grows with it
+/// The power of the gap d in a candidate's score. Area alone (2) is what one point
+/// covers; but u is itself measured by samples about a gap apart and grows with it
 /// wherever the BRDF is resolved, so a higher power favours filling gaps over
-/// crowding a feature already found. Chosen over 2, 3, 4, 6 and 8 on eleven samples
-/// from Lambertian to n = 500 (BENCHMARKS.md, "Adaptive acquisition"): 5 keeps
-/// the smooth samples no worse than a uniform lattice and the sharp ones 3–8×
-/// better.
-pub const GAP_EXPONENT: i32 = 5;
+/// crowding a feature already found. Chosen per aim over 2 to 8 on eleven samples
+/// from Lambertian to n = 500 (BENCHMARKS.md, "Adaptive acquisition"): 3 for the
+/// residuals (which already scale with the spacing squared), 5 for the others.
+pub fn gap_exponent(aim: Aim) -> i32 {
+    match aim {
+        Aim::Residual => 3,
+        Aim::Variation | Aim::Value => 5,
+    }
+}
 
 /// What a batch looks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Aim {
+    /// The kernel's leave-one-out residuals at the measured neighbours.
+    Residual,
     /// Local disagreement of the measured neighbours.
     Variation,
     /// The reconstructed value.
@@ -99,18 +111,40 @@ pub fn choose(
         .iter()
         .map(|p| crate::samples::key_of(p, samples.isotropic))
         .collect();
+    // Leave-one-out residuals², noise taken off, summed over channels.
+    let residual2: Vec<f64> = if aim == Aim::Residual {
+        (0..samples.samples.len())
+            .into_par_iter()
+            .map(|k| {
+                let s = &samples.samples[k];
+                interp.leave_one_out(k).map_or(0.0, |v| {
+                    v.iter()
+                        .zip(&s.value)
+                        .enumerate()
+                        .map(|(ch, (a, b))| {
+                            let noise = s.sigma.as_ref().map_or(0.0, |sg| sg[ch] * sg[ch]);
+                            ((a - b) * (a - b) - noise).max(0.0)
+                        })
+                        .sum()
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let base: Vec<Base> = candidates
         .par_iter()
-        .map(|c| base_of(&interp, c, aim))
+        .map(|c| base_of(&interp, c, aim, &residual2))
         .collect();
     let chord = |deg: f64| 2.0 * (deg.to_radians() / 2.0).sin();
     let min_gap = chord(min_gap_deg);
+    let q = gap_exponent(aim);
     let mut gap: Vec<f64> = base.iter().map(|b| b.gap).collect();
     let score = |i: usize, g: f64| {
         if g < min_gap {
             0.0
         } else {
-            base[i].weight * g.powi(GAP_EXPONENT)
+            base[i].weight * g.powi(q)
         }
     };
     let mut scores: Vec<f64> = (0..candidates.len()).map(|i| score(i, gap[i])).collect();
@@ -144,11 +178,20 @@ pub fn choose(
 }
 
 /// A candidate's weight, value, uncertainty and gap.
-fn base_of(interp: &Interpolator<'_>, c: &PairDeg, aim: Aim) -> Base {
+fn base_of(interp: &Interpolator<'_>, c: &PairDeg, aim: Aim, residual2: &[f64]) -> Base {
     let n = interp.neighbours(c);
     let cos_o = Dir::from(c.outgoing).z.max(0.0);
     let value: f64 = n.estimate.iter().sum();
+    let floor: f64 = n.estimate.iter().map(|f| (FLOOR * f).powi(2)).sum();
     let uncertainty = match aim {
+        Aim::Residual => {
+            let r2: f64 = n
+                .members
+                .iter()
+                .map(|&(k, w)| w * residual2.get(k).copied().unwrap_or(0.0))
+                .sum();
+            (r2 + floor).sqrt()
+        }
         Aim::Variation => {
             let spread: f64 = n
                 .spread2
@@ -156,7 +199,6 @@ fn base_of(interp: &Interpolator<'_>, c: &PairDeg, aim: Aim) -> Base {
                 .zip(&n.noise2)
                 .map(|(s, e)| (s - e).max(0.0))
                 .sum();
-            let floor: f64 = n.estimate.iter().map(|f| (FLOOR * f).powi(2)).sum();
             (spread + floor).sqrt()
         }
         Aim::Value => value.abs(),

@@ -198,6 +198,82 @@ impl Samples {
         Table::new(self.channels.clone(), grid, values, sigma)
     }
 
+    /// Resamples onto the hemisphere grid of `step` ([`crate::GridStep::grid`]); where
+    /// the samples do not cover its incidences — a run measures at a few incident
+    /// directions, not over the whole hemisphere of them — onto `step`'s outgoing
+    /// hemisphere at the incidences measured ([`Samples::incidence_grid`]), when
+    /// those form uniform axes. The finest table such a run supports.
+    pub fn resample_step(
+        &self,
+        step: crate::GridStep,
+        kernel: Kernel,
+    ) -> Result<Table, ProcessError> {
+        match self.resample(step.grid(), kernel) {
+            Err(ProcessError::Unsupported(why)) => match self.incidence_grid(step) {
+                Some(g) => {
+                    tracing::debug!(
+                        "the samples do not cover the hemisphere's incidences ({why}): \
+                         resampled at the {} measured",
+                        g.n_in()
+                    );
+                    self.resample(g, kernel)
+                }
+                None => Err(ProcessError::Unsupported(why)),
+            },
+            r => r,
+        }
+    }
+
+    /// `step`'s outgoing hemisphere (polar band midpoints, a full turn of azimuth, or
+    /// of φo − φi for isotropic samples) at the incident directions the samples were
+    /// measured at, when their polar angles and azimuths each form a uniform axis (or
+    /// a single value) and every combination was measured.
+    pub fn incidence_grid(&self, step: crate::GridStep) -> Option<Grid> {
+        self.validate().ok()?;
+        let q = |x: f64| (x * 1e6).round() as i64;
+        let mut incidences = std::collections::BTreeSet::new();
+        let (mut thetas, mut phis) = (
+            std::collections::BTreeSet::new(),
+            std::collections::BTreeSet::new(),
+        );
+        for s in &self.samples {
+            let t = q(s.pair.incident.theta_deg);
+            let p = if self.isotropic {
+                0
+            } else {
+                q(s.pair.incident.phi_deg.rem_euclid(360.0)) % 360_000_000
+            };
+            incidences.insert((t, p));
+            thetas.insert(t);
+            phis.insert(p);
+        }
+        if incidences.len() != thetas.len() * phis.len() {
+            return None;
+        }
+        let axis = |v: &std::collections::BTreeSet<i64>| -> Option<Axis> {
+            let v: Vec<i64> = v.iter().copied().collect();
+            if v.len() == 1 {
+                return Some(Axis::single((v[0] as f64 * 1e-6).to_radians()));
+            }
+            let d = v[1] - v[0];
+            v.windows(2)
+                .all(|w| w[1] - w[0] == d)
+                .then(|| Axis::from_deg(v[0] as f64 * 1e-6, d as f64 * 1e-6, v.len()))
+        };
+        let (ti, pi) = (axis(&thetas)?, axis(&phis)?);
+        let (to, po) = (
+            Axis::polar_midpoints(step.n_theta()),
+            Axis::full_turn(step.n_phi()),
+        );
+        let g = if self.isotropic {
+            Grid::isotropic(ti, po, to)
+        } else {
+            Grid::full(pi, ti, po, to)
+        };
+        g.validate().ok()?;
+        Some(g)
+    }
+
     /// The table these samples form when they lie on a complete uniform grid (each
     /// node measured at least once; repeats combined by their inverse-variance mean,
     /// or the plain mean with the spread as uncertainty when none is known). None
@@ -373,6 +449,8 @@ pub struct Neighbours {
     pub noise2: Vec<f64>,
     /// R⁶ distance to the nearest sample.
     pub nearest: f64,
+    /// The samples taking part and their normalised kernel weights.
+    pub members: Vec<(usize, f64)>,
 }
 
 /// The nearest-j Gaussian kernel over a sample set (DeYoung Sec. 3.2.1). The j
@@ -464,7 +542,39 @@ impl Interpolator<'_> {
             spread2,
             noise2,
             nearest,
+            members: weights.iter().map(|&(w, k)| (k, w / sw)).collect(),
         }
+    }
+
+    /// The kernel's estimate per channel at sample `k` from the others (every sample
+    /// at `k`'s pair left out, so that a repeat does not answer for it): the
+    /// leave-one-out prediction whose residual measures the reconstruction's error
+    /// at the samples' own spacing. None when no other sample exists.
+    pub fn leave_one_out(&self, k: usize) -> Option<Vec<f64>> {
+        let s = self.samples.samples.get(k)?;
+        let q = key(&s.pair, self.samples.isotropic);
+        // The j nearest others: a few more asked for, in case of repeats.
+        let near: Vec<(f64, usize)> = self
+            .tree
+            .nearest(&q, self.kernel.j + 4)
+            .into_iter()
+            .filter(|(d2, _)| *d2 >= 1e-24)
+            .take(self.kernel.j)
+            .collect();
+        if near.is_empty() {
+            return None;
+        }
+        let mean_d = near.iter().map(|(d2, _)| d2.sqrt()).sum::<f64>() / near.len() as f64;
+        let s2 = 2.0 * (self.kernel.width * mean_d).powi(2);
+        let w: Vec<(f64, usize)> = near.iter().map(|&(d2, i)| ((-d2 / s2).exp(), i)).collect();
+        let sw: f64 = w.iter().map(|x| x.0).sum::<f64>().max(f64::MIN_POSITIVE);
+        let mut v = vec![0.0; self.samples.channels.len()];
+        for &(wi, i) in &w {
+            for (o, x) in v.iter_mut().zip(&self.samples.samples[i].value) {
+                *o += wi * x / sw;
+            }
+        }
+        Some(v)
     }
 
     /// The R⁶ distance from a pair to the nearest sample.

@@ -8,8 +8,9 @@
 //! with the decision in one transaction.
 //!
 //! The decision depends on nothing but the plan, the instrument's mechanics and the
-//! readings committed (none is pending when it is asked): a run killed at any
-//! instant and resumed makes the same choices as one never interrupted. Each
+//! values of the readings committed (none is pending when it is asked; their times
+//! are not used): a run killed at any instant and resumed makes the same choices as
+//! one never interrupted. Each
 //! decision's `detail` records the budget's state, the data it was made from and,
 //! per point, its score, the reconstruction there, its uncertainty and its gap.
 
@@ -20,7 +21,7 @@ use gonio_plan::{Mechanics, Plan, StepKind};
 use gonio_process::adapt::{self, Aim};
 use gonio_run::{Batch, Decision, RunStore};
 
-use crate::{Options, ReduceError, reduce};
+use crate::{Drift, Options, ReduceError, reduce};
 
 /// Why the planner cannot decide.
 #[derive(Debug, thiserror::Error)]
@@ -114,8 +115,18 @@ impl Planner {
         }
         let decisions = store.decisions()?;
         let batch_no = decisions.len() + 1;
-        let red = reduce(store, &Options::default())?;
+        // Without drift correction: the level would be interpolated in instrument
+        // time, which a resumed session does not continue exactly (its clock starts
+        // again), and the choice must depend on the readings' values alone. The
+        // source's drift over a run is a fraction of a percent, far below the
+        // contrasts a batch is chosen by.
+        let options = Options {
+            drift: Drift::None,
+            ..Options::default()
+        };
+        let red = reduce(store, &options)?;
         let aim = match self.spec.method {
+            adaptive::Method::Residual => Aim::Residual,
             adaptive::Method::Variation => Aim::Variation,
             adaptive::Method::Value => Aim::Value,
         };

@@ -42,6 +42,12 @@ pub struct CompareArgs {
     /// Simulator seed.
     #[arg(long)]
     seed: Option<u64>,
+    /// The sample to simulate: a model file, in place of the simulator config's.
+    #[arg(long, value_name = "MODEL")]
+    sample: Option<PathBuf>,
+    /// The budget in points, in place of the plan's.
+    #[arg(long, value_name = "POINTS")]
+    budget: Option<usize>,
     /// The outgoing grid the error is taken on, DTHETA,DPHI degrees (DTHETA divides
     /// 90, DPHI 360).
     #[arg(long, value_parser = parse_outgoing_grid, default_value = "2,2")]
@@ -70,14 +76,20 @@ struct Compared {
 
 /// `gonio plan compare PLAN --instrument INSTR [--sim SIM] [--seed N] [--grid D,D]`.
 pub fn compare(a: CompareArgs) -> CliResult<()> {
-    let loaded = load_and_prepare(&a.instrument, &a.plan)?;
-    let Points::Adaptive(spec) = &loaded.plan.points else {
+    let mut loaded = load_and_prepare(&a.instrument, &a.plan)?;
+    if !matches!(loaded.plan.points, Points::Adaptive(_)) {
         return Err(input(format!(
             "{}: field `points.kind`: `plan compare` compares an adaptive plan with \
              uniform ones; this plan is not adaptive",
             a.plan.display()
         )));
-    };
+    }
+    if let Some(m) = &a.sample {
+        gonio_brdf::Model::load(m).map_err(input)?;
+    }
+    if a.budget == Some(0) {
+        return Err(input("--budget: at least one point"));
+    }
     let (dir, _tmp) = match &a.keep {
         Some(d) => {
             if !d.is_dir() {
@@ -96,7 +108,52 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
             (t.0.clone(), Some(t))
         }
     };
-    let table = plan_table(&loaded.plan_text, &a.plan)?;
+    let mut table = plan_table(&loaded.plan_text, &a.plan)?;
+    // The plan and simulator as measured: the plan's budget and the simulator's
+    // sample replaced where asked, written beside the runs.
+    let plan_path = match a.budget {
+        None => a.plan.clone(),
+        Some(b) => {
+            if let Some(toml::Value::Table(p)) = table.get_mut("points") {
+                p.insert(
+                    "budget".into(),
+                    toml::Value::Table(toml::Table::from_iter([(
+                        "points".to_string(),
+                        toml::Value::Integer(i64::try_from(b).map_err(input)?),
+                    )])),
+                );
+            }
+            let p = dir.join("adaptive-plan.toml");
+            write_new(&p, &toml::to_string(&table).map_err(input)?)?;
+            loaded = load_and_prepare(&a.instrument, &p)?;
+            p
+        }
+    };
+    let Points::Adaptive(spec) = &loaded.plan.points else {
+        return Err(input("the plan is no longer adaptive"));
+    };
+    let sim = match &a.sample {
+        None => a.sim.sim.clone(),
+        Some(model) => {
+            let text = match &a.sim.sim {
+                Some(p) => gonio_core::input::read_text(p, gonio_core::input::MAX_CONFIG_BYTES)
+                    .map_err(input)?,
+                None => gonio_sim::config::DEFAULT_SIM.to_string(),
+            };
+            let mut t: toml::Table = text.parse().map_err(input)?;
+            let abs = std::path::absolute(model).map_err(input)?;
+            t.insert(
+                "sample".into(),
+                toml::Value::Table(toml::Table::from_iter([(
+                    "model".to_string(),
+                    toml::Value::String(abs.display().to_string()),
+                )])),
+            );
+            let p = dir.join("sim.toml");
+            write_new(&p, &toml::to_string(&t).map_err(input)?)?;
+            Some(p)
+        }
+    };
     let n_theta = (90.0 / a.grid.0).round() as usize;
     let n_phi = (360.0 / a.grid.1).round() as usize;
     let mech = loaded
@@ -107,7 +164,7 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
     let stop = StopBy::Signals;
 
     let mut runs = Vec::new();
-    let adaptive = measure(&a, &dir, "adaptive", &a.plan, &stop)?;
+    let adaptive = measure(&a, &sim, &dir, "adaptive", &plan_path, &stop)?;
     let target = adaptive.1;
     runs.push(adaptive);
     // The uniform plans, sized to the adaptive run's points.
@@ -126,11 +183,11 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
     );
     let lattice_plan = dir.join("lattice-plan.toml");
     write_new(&lattice_plan, &toml::to_string(&t).map_err(input)?)?;
-    runs.push(measure(&a, &dir, "lattice", &lattice_plan, &stop)?);
+    runs.push(measure(&a, &sim, &dir, "lattice", &lattice_plan, &stop)?);
     let grid_text = grid_plan(&mech, &table, spec, target)?;
     let grid_plan = dir.join("grid-plan.toml");
     write_new(&grid_plan, &grid_text)?;
-    runs.push(measure(&a, &dir, "grid", &grid_plan, &stop)?);
+    runs.push(measure(&a, &sim, &dir, "grid", &grid_plan, &stop)?);
 
     let mut out = Vec::new();
     for (name, points, file) in runs {
@@ -163,6 +220,7 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
 /// Measures one plan into `DIR/NAME.gonio`: the run's name, sample points and file.
 fn measure(
     a: &CompareArgs,
+    sim: &Option<PathBuf>,
     dir: &Path,
     name: &'static str,
     plan: &Path,
@@ -173,7 +231,7 @@ fn measure(
         a.instrument.clone(),
         plan.to_path_buf(),
         out.clone(),
-        a.sim.sim.clone(),
+        sim.clone(),
         a.seed,
     );
     let r = acquire_with(&args, true, stop)?;

@@ -89,7 +89,7 @@ pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
         (Some(t), None) => Content::Table(t),
         (_, Some(g)) => Content::Table(
             red.samples
-                .resample(g.grid(), Kernel::default())
+                .resample_step(g, Kernel::default())
                 .map_err(|e| CliError::process(path, e))?,
         ),
         (None, None) => Content::Samples(red.samples.clone()),
