@@ -220,11 +220,14 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     Ok(c)
 }
 
+/// A sample direction and its batch (0 = the coarse pass).
+type BatchPoint = (usize, PairDeg);
+
 /// What the run file holds of an adaptive run's choices.
 struct AdaptiveRecord {
     decisions: Vec<DecisionRecord>,
     /// Every sample point with its batch (0 = the coarse pass).
-    points: Vec<(usize, PairDeg)>,
+    points: Vec<BatchPoint>,
     /// The sample directions with at least one reading done, as the bits of their
     /// four angles (the same numbers the steps were stored with).
     measured: BTreeSet<[u64; 4]>,
@@ -301,7 +304,7 @@ fn adaptive_part(rec: AdaptiveRecord, notes: &mut Vec<String>) -> report::Adapti
         .collect();
     let coarse_points = rec.points.iter().filter(|(b, _)| *b == 0).count();
     let batches = rec.decisions.len();
-    let (shown, left): (Vec<(usize, PairDeg)>, Vec<(usize, PairDeg)>) = rec
+    let (shown, left): (Vec<BatchPoint>, Vec<BatchPoint>) = rec
         .points
         .into_iter()
         .partition(|(_, p)| rec.measured.contains(&pair_key(p)));
@@ -347,11 +350,7 @@ fn adaptive_part(rec: AdaptiveRecord, notes: &mut Vec<String>) -> report::Adapti
 
 /// The sample directions as SVG: a few hundred circles are smaller and sharper as
 /// vectors than as pixels.
-fn points_svg(
-    points: &[(usize, PairDeg)],
-    batches: usize,
-    incidences: usize,
-) -> Result<Image, String> {
+fn points_svg(points: &[BatchPoint], batches: usize, incidences: usize) -> Result<Image, String> {
     svg_of(|o| {
         plot::sample_points(
             o,

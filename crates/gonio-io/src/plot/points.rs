@@ -179,7 +179,7 @@ impl PointsFig {
             (270.0, (HPos::Center, VPos::Top)),
         ] {
             let (lx, ly) = to_px(90.0, phi);
-            let a = (phi as f64).to_radians();
+            let a = phi.to_radians();
             let off = sz.px(5.0) as f64;
             draw::text(
                 area,
