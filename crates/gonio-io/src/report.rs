@@ -48,6 +48,39 @@ pub fn base64(bytes: &[u8]) -> String {
     o
 }
 
+/// One decision of an adaptive run: a batch of points chosen during the run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DecisionRow {
+    /// The batch's number (1, 2, …; the coarse pass is 0).
+    pub batch: i64,
+    /// Sample points it chose.
+    pub points: u32,
+    /// Steps it appended (its points, and the drift references and moves between).
+    pub steps: u32,
+    /// How it chose them (`variation`, `value`).
+    pub method: String,
+    /// Readings committed when it was decided: the data it was decided from.
+    pub readings: u64,
+    /// Its schedule's estimated instrument time, s; `None` when the run file's
+    /// decision does not record one.
+    pub estimate_s: Option<f64>,
+}
+
+/// Where an adaptive run's points went: the budget, the coarse pass, each batch, and
+/// the figure of the sample directions.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Adaptive {
+    /// The budget in points, as the decisions record it; `None` when they do not.
+    pub budget_points: Option<u64>,
+    /// Points of the coarse pass (batch 0).
+    pub coarse_points: usize,
+    /// The decisions, in order.
+    pub decisions: Vec<DecisionRow>,
+    /// The sample directions by batch; `None` when it could not be drawn (the
+    /// report's notes say why).
+    pub figure: Option<Figure>,
+}
+
 /// Everything a report shows; each part is optional.
 #[derive(Clone, Debug, Default)]
 pub struct Contents {
@@ -69,6 +102,20 @@ pub struct Contents {
     pub notes: Vec<String>,
     /// The figures.
     pub figures: Vec<Figure>,
+    /// An adaptive run's decisions and the figure of where its points went; `None`
+    /// for a run whose schedule was all fixed at creation.
+    pub adaptive: Option<Adaptive>,
+}
+
+impl Contents {
+    /// The figures the page shows: [`Contents::figures`] and the adaptive run's.
+    pub fn figure_count(&self) -> usize {
+        self.figures.len()
+            + self
+                .adaptive
+                .as_ref()
+                .map_or(0, |a| usize::from(a.figure.is_some()))
+    }
 }
 
 /// Escapes text for HTML.
@@ -110,6 +157,83 @@ fn inline_svg(svg: &str) -> String {
     out
 }
 
+/// A duration in seconds, in the unit that reads best.
+fn duration(s: f64) -> String {
+    if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.1} min", s / 60.0)
+    } else {
+        format!("{:.2} h", s / 3600.0)
+    }
+}
+
+/// A figure as HTML: its title, the image inlined, the caption.
+fn figure_html(h: &mut String, f: &Figure) {
+    let img = match &f.image {
+        Image::Svg(s) => inline_svg(s),
+        Image::Png(b) => format!(
+            "<img alt=\"{}\" src=\"data:image/png;base64,{}\">",
+            escape(&f.title),
+            base64(b)
+        ),
+    };
+    let _ = writeln!(
+        h,
+        "<figure><h3>{}</h3>{img}<figcaption>{}</figcaption></figure>",
+        escape(&f.title),
+        escape(&f.caption)
+    );
+}
+
+/// The adaptive run's section: the budget and what each stage took, the decisions'
+/// table, the figure.
+fn adaptive_html(h: &mut String, a: &Adaptive) {
+    h.push_str("<h2>Adaptive sampling</h2>\n");
+    let chosen: u64 = a.decisions.iter().map(|d| u64::from(d.points)).sum();
+    let total = a.coarse_points as u64 + chosen;
+    let budget = match a.budget_points {
+        Some(b) => format!("The budget was {b} points"),
+        None => "The decisions record no budget".into(),
+    };
+    let stages: Vec<String> = a
+        .decisions
+        .iter()
+        .map(|d| format!("batch {} took {}", d.batch, d.points))
+        .collect();
+    let _ = writeln!(
+        h,
+        "<p>{budget}: the coarse pass took {} points, {}; {total} points in all, {chosen} of \
+         them chosen during the run.</p>",
+        a.coarse_points,
+        if stages.is_empty() {
+            "no batch followed".to_string()
+        } else {
+            stages.join(", ")
+        }
+    );
+    h.push_str(
+        "<table><tr><th>batch</th><th>points</th><th>steps</th><th class=\"k\">method</th>\
+         <th>decided from (readings)</th><th>estimated time</th></tr>\n",
+    );
+    for d in &a.decisions {
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td class=\"k\">{}</td><td>{}</td><td>{}</td></tr>",
+            d.batch,
+            d.points,
+            d.steps,
+            escape(&d.method),
+            d.readings,
+            d.estimate_s.map_or_else(|| "—".to_string(), duration)
+        );
+    }
+    h.push_str("</table>\n");
+    if let Some(f) = &a.figure {
+        figure_html(h, f);
+    }
+}
+
 fn num(x: f64) -> String {
     if x == 0.0 {
         "0".into()
@@ -147,6 +271,9 @@ pub fn html(c: &Contents) -> String {
             );
         }
         h.push_str("</table>\n");
+    }
+    if let Some(a) = &c.adaptive {
+        adaptive_html(&mut h, a);
     }
     if let Some(r) = &c.reduction {
         h.push_str("<h2>Calibration and reduction</h2>\n");
@@ -371,20 +498,7 @@ pub fn html(c: &Contents) -> String {
     if !c.figures.is_empty() {
         h.push_str("<h2>Figures</h2>\n");
         for f in &c.figures {
-            let img = match &f.image {
-                Image::Svg(s) => inline_svg(s),
-                Image::Png(b) => format!(
-                    "<img alt=\"{}\" src=\"data:image/png;base64,{}\">",
-                    escape(&f.title),
-                    base64(b)
-                ),
-            };
-            let _ = writeln!(
-                h,
-                "<figure><h3>{}</h3>{img}<figcaption>{}</figcaption></figure>",
-                escape(&f.title),
-                escape(&f.caption)
-            );
+            figure_html(&mut h, f);
         }
     }
     if !c.notes.is_empty() {
@@ -449,5 +563,58 @@ mod tests {
             let outside_svg_ns = h.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
             assert!(!outside_svg_ns.contains(bad), "{bad}");
         }
+    }
+
+    /// The adaptive section, byte for byte: the sentence states the budget and what
+    /// each stage took, the table has a row a decision, and times read in their unit.
+    #[test]
+    fn the_adaptive_section_states_the_budget_and_each_decision() {
+        let row = |batch, points, steps, readings, estimate_s| DecisionRow {
+            batch,
+            points,
+            steps,
+            method: "variation".into(),
+            readings,
+            estimate_s,
+        };
+        let c = Contents {
+            adaptive: Some(Adaptive {
+                budget_points: Some(120),
+                coarse_points: 36,
+                decisions: vec![
+                    row(1, 12, 14, 80, Some(95.4)),
+                    row(2, 12, 13, 96, Some(430.0)),
+                    row(3, 9, 10, 111, None),
+                ],
+                figure: Some(Figure {
+                    title: "Where the points went".into(),
+                    caption: "θo & φo".into(),
+                    image: Image::Svg("<svg><circle/></svg>".into()),
+                }),
+            }),
+            ..Contents::default()
+        };
+        assert_eq!(c.figure_count(), 1);
+        let h = html(&c);
+        let want = "<h2>Adaptive sampling</h2>\n\
+<p>The budget was 120 points: the coarse pass took 36 points, batch 1 took 12, batch 2 took 12, \
+batch 3 took 9; 69 points in all, 33 of them chosen during the run.</p>\n\
+<table><tr><th>batch</th><th>points</th><th>steps</th><th class=\"k\">method</th>\
+<th>decided from (readings)</th><th>estimated time</th></tr>\n\
+<tr><td>1</td><td>12</td><td>14</td><td class=\"k\">variation</td><td>80</td><td>95 s</td></tr>\n\
+<tr><td>2</td><td>12</td><td>13</td><td class=\"k\">variation</td><td>96</td><td>7.2 min</td></tr>\n\
+<tr><td>3</td><td>9</td><td>10</td><td class=\"k\">variation</td><td>111</td><td>—</td></tr>\n\
+</table>\n\
+<figure><h3>Where the points went</h3><svg><circle/></svg><figcaption>θo &amp; φo</figcaption></figure>\n\
+</body></html>\n";
+        assert!(h.ends_with(want), "{h}");
+        // Without an adaptive part, no trace of it.
+        let plain = html(&Contents {
+            title: "t".into(),
+            ..Contents::default()
+        });
+        assert!(!plain.contains("Adaptive"));
+        assert_eq!(Contents::default().figure_count(), 0);
+        assert_eq!(duration(7200.0), "2.00 h");
     }
 }

@@ -1,14 +1,17 @@
 //! `gonio report`: the run's one self-contained HTML page — metadata, calibration,
 //! measures, fit and plots.
 
+use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
+use gonio_core::dirfile::PairDeg;
 use gonio_io::plot::{self, Output, Source};
 use gonio_io::report::{self, Contents, Figure, Image};
+use gonio_plan::StepKind;
 use gonio_process::{Samples, Table, measure};
-use gonio_run::RunStore;
+use gonio_run::{DecisionRecord, RunStore};
 use serde_json::json;
 
 use crate::error::{CliError, CliResult};
@@ -76,13 +79,13 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
     if json_out {
         output::json(&json!({
             "out": path.display().to_string(),
-            "figures": page.figures.len(),
+            "figures": page.figure_count(),
             "notes": page.notes,
         }))?;
     } else {
         let mut w = output::stdout();
         output::finish((|| {
-            writeln!(w, "{}: {} figures", path.display(), page.figures.len())?;
+            writeln!(w, "{}: {} figures", path.display(), page.figure_count())?;
             for n in &page.notes {
                 writeln!(w, "note: {n}")?;
             }
@@ -98,6 +101,7 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     gonio_core::input::regular_file(run).map_err(|e| CliError::Input(e.to_string()))?;
     let store = RunStore::open_read_only(run)?;
     let meta = store.meta().map_err(|e| CliError::Runtime(e.to_string()))?;
+    let adaptive = adaptive_record(&store);
     drop(store);
     let opened = gonio_dataset::open(run, &reduction.open_options()?)?;
     let red = opened.reduction.as_ref();
@@ -112,6 +116,13 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     };
     c.metadata
         .push(("run file".into(), run.display().to_string()));
+    match adaptive {
+        Ok(Some(rec)) => c.adaptive = Some(adaptive_part(rec, &mut c.notes)),
+        Ok(None) => {}
+        Err(e) => c.notes.push(format!(
+            "the adaptive run's decisions could not be read: {e}"
+        )),
+    }
     // Each key with a label that says what its value is (a key's own name, such as
     // `created_s`, is not a label: the value shown is a UTC date, not seconds).
     for (k, label) in [
@@ -207,6 +218,150 @@ pub fn build_report(run: &Path, reduction: &ReduceFlags) -> CliResult<Contents> 
     };
     figures(&mut c, &samples, table.as_ref(), fitted.as_ref());
     Ok(c)
+}
+
+/// A sample direction and its batch (0 = the coarse pass).
+type BatchPoint = (usize, PairDeg);
+
+/// What the run file holds of an adaptive run's choices.
+struct AdaptiveRecord {
+    decisions: Vec<DecisionRecord>,
+    /// Every sample point with its batch (0 = the coarse pass).
+    points: Vec<BatchPoint>,
+    /// The sample directions with at least one reading done, as the bits of their
+    /// four angles (the same numbers the steps were stored with).
+    measured: BTreeSet<[u64; 4]>,
+}
+
+fn pair_key(p: &PairDeg) -> [u64; 4] {
+    [
+        p.incident.theta_deg.to_bits(),
+        p.incident.phi_deg.to_bits(),
+        p.outgoing.theta_deg.to_bits(),
+        p.outgoing.phi_deg.to_bits(),
+    ]
+}
+
+/// The decisions and the points by batch; `None` for a run without decisions (its
+/// schedule was all fixed at creation).
+fn adaptive_record(store: &RunStore) -> Result<Option<AdaptiveRecord>, String> {
+    let decisions = store.decisions().map_err(|e| e.to_string())?;
+    if decisions.is_empty() {
+        return Ok(None);
+    }
+    let points = gonio_reduce::adaptive::points_by_batch(store).map_err(|e| e.to_string())?;
+    let measured = store
+        .steps()
+        .map_err(|e| e.to_string())?
+        .iter()
+        .filter(|s| s.step.kind == StepKind::Sample && s.state == "done")
+        .filter_map(|s| s.step.pair.as_ref().map(pair_key))
+        .collect();
+    Ok(Some(AdaptiveRecord {
+        decisions,
+        points,
+        measured,
+    }))
+}
+
+/// The report's adaptive section: the decisions as rows (the budget and each batch's
+/// estimated time from its `detail`), and the figure of the measured directions; a
+/// figure that cannot be drawn becomes a note.
+fn adaptive_part(rec: AdaptiveRecord, notes: &mut Vec<String>) -> report::Adaptive {
+    let details: Vec<Option<serde_json::Value>> = rec
+        .decisions
+        .iter()
+        .map(|d| serde_json::from_str(&d.detail).ok())
+        .collect();
+    for (d, v) in rec.decisions.iter().zip(&details) {
+        if v.is_none() {
+            notes.push(format!(
+                "adaptive batch {}: its decision's detail is not JSON; its estimated time is \
+                 not shown",
+                d.id
+            ));
+        }
+    }
+    let budget_points = details
+        .iter()
+        .flatten()
+        .find_map(|v| v.get("budget_points")?.as_u64());
+    let decisions: Vec<report::DecisionRow> = rec
+        .decisions
+        .iter()
+        .zip(&details)
+        .map(|(d, v)| report::DecisionRow {
+            batch: d.id,
+            points: d.points,
+            steps: d.steps,
+            method: d.method.clone(),
+            readings: d.readings,
+            estimate_s: v
+                .as_ref()
+                .and_then(|v| v.get("estimate_s")?.as_f64())
+                .filter(|s| s.is_finite()),
+        })
+        .collect();
+    let coarse_points = rec.points.iter().filter(|(b, _)| *b == 0).count();
+    let batches = rec.decisions.len();
+    let (shown, left): (Vec<BatchPoint>, Vec<BatchPoint>) = rec
+        .points
+        .into_iter()
+        .partition(|(_, p)| rec.measured.contains(&pair_key(p)));
+    let mut incidences: Vec<(f64, f64)> = shown
+        .iter()
+        .map(|(_, p)| (p.incident.theta_deg, p.incident.phi_deg))
+        .collect();
+    incidences.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    incidences.dedup();
+    let title = "Where the points went";
+    let figure = match points_svg(&shown, batches, incidences.len()) {
+        Ok(image) => Some(Figure {
+            title: title.into(),
+            caption: format!(
+                "The measured sample directions on the outgoing hemisphere, a panel per \
+                 incidence: radius ∝ θo (azimuthal equidistant, the rim is θo = 90°), angle \
+                 φo counter-clockwise from the sample's +x; ○ marks the direction towards \
+                 the light and × the mirror direction. Grey points are the coarse pass; \
+                 batches 1 to {batches} follow the colour bar (viridis, later is lighter).{}",
+                if left.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " {} scheduled direction(s) not yet measured are not drawn.",
+                        left.len()
+                    )
+                }
+            ),
+            image,
+        }),
+        Err(e) => {
+            notes.push(format!("{title}: {e}"));
+            None
+        }
+    };
+    report::Adaptive {
+        budget_points,
+        coarse_points,
+        decisions,
+        figure,
+    }
+}
+
+/// The sample directions as SVG: a few hundred circles are smaller and sharper as
+/// vectors than as pixels.
+fn points_svg(points: &[BatchPoint], batches: usize, incidences: usize) -> Result<Image, String> {
+    svg_of(|o| {
+        plot::sample_points(
+            o,
+            points,
+            batches,
+            &plot::PointsOptions {
+                size: plot::PointsOptions::size_for(incidences),
+                ..plot::PointsOptions::default()
+            },
+        )
+    })
 }
 
 /// The report's figures; a figure that cannot be drawn becomes a note.

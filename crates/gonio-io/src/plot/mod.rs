@@ -20,6 +20,9 @@
 //! - [`sphere`]: a sphere rendered under a directional light, for the data and the
 //!   fit side by side (see [`SphereOptions`] for the camera, the local frames and the
 //!   tone mapping).
+//! - [`sample_points`]: where an adaptive run's points went — the sample directions
+//!   on the outgoing hemisphere, a panel per incidence, coloured by the stage that
+//!   chose them ([`batch_colour`]).
 //!
 //! **Inputs.** The data is a [`Source`]: any [`Brdf`] (a model, a table, a MERL file),
 //! an analytic [`Model`] (whose terms the albedo plot can split), or scattered
@@ -48,6 +51,7 @@ mod font;
 pub use font::dejavu_sans;
 mod hemisphere;
 mod output;
+mod points;
 mod polar;
 mod separability;
 mod sphere;
@@ -409,6 +413,60 @@ impl Default for SphereOptions {
             fit_label: "fit".into(),
         }
     }
+}
+
+/// Options of [`sample_points`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointsOptions {
+    /// Image size in pixels ([`PointsOptions::size_for`] fits it to the incidences).
+    pub size: (u32, u32),
+    /// The title; `None` for the default one.
+    pub title: Option<String>,
+}
+
+impl Default for PointsOptions {
+    fn default() -> Self {
+        PointsOptions {
+            size: (900, 560),
+            title: None,
+        }
+    }
+}
+
+impl PointsOptions {
+    /// An image size that gives each of `incidences` panels room (two a row past two).
+    pub fn size_for(incidences: usize) -> (u32, u32) {
+        if incidences <= 2 {
+            (900, 560)
+        } else {
+            let rows = incidences.div_ceil(2).min(16) as u32;
+            (900, 160 + 400 * rows)
+        }
+    }
+}
+
+/// Sample directions on the outgoing hemisphere, one panel per incidence (θi, φi):
+/// each `(batch, pair)` is a point at radius ∝ θo and angle φo (azimuthal
+/// equidistant), coloured by its batch ([`batch_colour`]; 0 is the coarse pass,
+/// `batches` the last batch), with the light's direction (○) and the mirror
+/// direction (×) marked, a colour bar of the batches and a legend. The panels are
+/// labelled `θi = …, φi = …: N points`.
+pub fn sample_points(
+    out: Output<'_>,
+    points: &[(usize, gonio_core::dirfile::PairDeg)],
+    batches: usize,
+    opts: &PointsOptions,
+) -> Result<Drawn, PlotError> {
+    let fig = points::build(points, batches, opts).map_err(|k| err(&out, k))?;
+    output::emit(out, opts.size, &fig)
+}
+
+/// The colour [`sample_points`] draws `batch` in (0 = the coarse pass) when the run
+/// has `batches` batches after it, as 8-bit sRGB: grey for the coarse pass, viridis
+/// from its dark end (batch 1) towards its light end (the last batch).
+pub fn batch_colour(batch: usize, batches: usize) -> [u8; 3] {
+    let c = points::colour(batch, batches);
+    [c.0, c.1, c.2]
 }
 
 /// Polar plot of f_r in the plane of incidence, one curve per θi (degrees, in
