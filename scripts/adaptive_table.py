@@ -74,7 +74,7 @@ def main():
             ad, la, gr = r["adaptive"], r["lattice"], r["grid"]
             print(
                 f"| {name} | {ad['points']} / {la['points']} / {gr['points']} "
-                f"| {ad['error']:.4f} | {la['error']:.4f} | {gr['error']:.4f} "
+                f"| {ad['error']:.3g} | {la['error']:.3g} | {gr['error']:.3g} "
                 f"| {la['error'] / ad['error']:.2f}× | {gr['error'] / ad['error']:.2f}× |"
             )
             sys.stdout.flush()

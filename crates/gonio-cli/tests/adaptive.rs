@@ -146,7 +146,7 @@ fn plan_check_states_the_budget_the_coarse_pass_and_the_batches() {
     assert_eq!(a["coarse"], v["accepted"]);
     assert_eq!(
         a["pool"].as_u64().expect("pool") + a["refused"].as_u64().expect("refused"),
-        2 * 8192
+        2 * 32768
     );
     let point_s = a["point_s"].as_f64().expect("point_s");
     let total = v["estimate"]["total_s"].as_f64().expect("total");

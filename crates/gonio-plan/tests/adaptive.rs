@@ -23,7 +23,7 @@ fn an_adaptive_plan_reads_with_its_defaults() {
         panic!("not adaptive: {:?}", p.points)
     };
     assert_eq!(a.budget, Budget::Points(600));
-    assert_eq!((a.coarse, a.batch, a.candidates), (0.3, 0.1, 8192));
+    assert_eq!((a.coarse, a.batch, a.candidates), (0.3, 0.1, 32768));
     assert_eq!((a.method, a.seed, a.phi_i), (Method::Residual, 0, 0.0));
     // 600 × 0.3 / 2 = 90 lattice points and the mirror direction per incidence.
     let pairs = p.pairs().expect("pairs");
@@ -114,8 +114,8 @@ fn prepare_schedules_the_coarse_pass_and_states_the_budget() {
     assert_eq!(prepared.pairs.len(), 182);
     assert!(a.coarse > 160 && a.coarse < 182, "{}", a.coarse);
     // Every candidate the instrument refuses is counted, and the pool is what is left.
-    assert_eq!(a.pool + a.refused, 2 * 8192);
-    assert!(a.refused > 0 && a.refused < 2 * 8192 / 10, "{}", a.refused);
+    assert_eq!(a.pool + a.refused, 2 * 32768);
+    assert!(a.refused > 0 && a.refused < 2 * 32768 / 10, "{}", a.refused);
     // The whole run: the coarse schedule and the points left at its time per point.
     let s = &prepared.schedule;
     assert!((a.point_s - s.duration_s() / a.coarse as f64).abs() < 1e-9);
