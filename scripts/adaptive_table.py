@@ -101,8 +101,8 @@ def main():
                 lattice = r["lattice"]["error"]
             print(
                 f"| {name} | "
-                + " | ".join(f"{e:.4f}" for e in errors)
-                + f" | {lattice:.4f} |"
+                + " | ".join(f"{e:.3g}" for e in errors)
+                + f" | {lattice:.3g} |"
             )
             sys.stdout.flush()
 
