@@ -264,7 +264,7 @@ fn a_run_spends_its_budget_never_more_and_records_every_decision() {
     // what the arms cannot reach; then full batches of 24, and the rest.
     assert!(coarse.len() <= 38 && coarse.len() >= 34, "{}", coarse.len());
     let rest = 120 - coarse.len() as i64 - 72;
-    assert!(rest >= 4 && rest < 24);
+    assert!((4..24).contains(&rest));
     assert_eq!(
         ds.iter().map(|d| d.3).collect::<Vec<_>>(),
         vec![24, 24, 24, rest]
