@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{config, gonio, scratch, stderr};
+use common::{config, gonio, scratch, status, stderr};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -95,16 +95,6 @@ fn send(sig: &str, pid: u32) {
         .expect("kill runs")
         .success();
     assert!(ok, "kill {sig} {pid}");
-}
-
-/// The run's status, read directly (not through gonio, which refuses a damaged file).
-fn status(path: &Path) -> String {
-    Connection::open(path)
-        .expect("opens")
-        .query_row("SELECT value FROM meta WHERE key = 'status'", [], |r| {
-            r.get(0)
-        })
-        .expect("status")
 }
 
 /// The chaos test: SIGTERM, SIGHUP, SIGINT and SIGKILL at pseudo-random instants,

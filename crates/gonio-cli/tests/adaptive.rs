@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{config, gonio, ok, ok_json, s, scratch, stderr};
+use common::{config, gonio, ok, ok_json, s, scratch, status, stderr};
 use rusqlite::Connection;
 use serde_json::Value;
 
@@ -58,76 +58,66 @@ type StepRow = (
 );
 
 fn steps(path: &Path) -> Vec<StepRow> {
+    rows(
+        path,
+        "SELECT id, kind, plan_index, theta_i, phi_i, theta_o, phi_o FROM steps ORDER BY id",
+        |r| {
+            Ok((
+                r.get(0)?,
+                r.get(1)?,
+                r.get(2)?,
+                r.get(3)?,
+                r.get(4)?,
+                r.get(5)?,
+                r.get(6)?,
+            ))
+        },
+    )
+}
+
+/// Every row of `sql` on the run file at `path`, read by `f`.
+fn rows<T>(
+    path: &Path,
+    sql: &str,
+    f: impl FnMut(&rusqlite::Row<'_>) -> rusqlite::Result<T>,
+) -> Vec<T> {
     let c = Connection::open(path).expect("opens");
-    let mut q = c
-        .prepare(
-            "SELECT id, kind, plan_index, theta_i, phi_i, theta_o, phi_o FROM steps ORDER BY id",
-        )
-        .expect("query");
-    q.query_map([], |r| {
-        Ok((
-            r.get(0)?,
-            r.get(1)?,
-            r.get(2)?,
-            r.get(3)?,
-            r.get(4)?,
-            r.get(5)?,
-            r.get(6)?,
-        ))
-    })
-    .expect("rows")
-    .collect::<Result<_, _>>()
-    .expect("steps")
+    let mut q = c.prepare(sql).expect("query");
+    q.query_map([], f)
+        .expect("rows")
+        .collect::<Result<_, _>>()
+        .expect("values")
 }
 
 /// `(id, first_step, steps, points, method, readings, detail)` of every decision.
 type DecisionRow = (i64, i64, i64, i64, String, i64, String);
 
 fn decisions(path: &Path) -> Vec<DecisionRow> {
-    let c = Connection::open(path).expect("opens");
-    let mut q = c
-        .prepare(
-            "SELECT id, first_step, steps, points, method, readings, detail FROM decisions \
-             ORDER BY id",
-        )
-        .expect("query");
-    q.query_map([], |r| {
-        Ok((
-            r.get(0)?,
-            r.get(1)?,
-            r.get(2)?,
-            r.get(3)?,
-            r.get(4)?,
-            r.get(5)?,
-            r.get(6)?,
-        ))
-    })
-    .expect("rows")
-    .collect::<Result<_, _>>()
-    .expect("decisions")
+    rows(
+        path,
+        "SELECT id, first_step, steps, points, method, readings, detail FROM decisions \
+         ORDER BY id",
+        |r| {
+            Ok((
+                r.get(0)?,
+                r.get(1)?,
+                r.get(2)?,
+                r.get(3)?,
+                r.get(4)?,
+                r.get(5)?,
+                r.get(6)?,
+            ))
+        },
+    )
 }
 
 /// Every reading's values (not its times or session) by step.
 fn readings(path: &Path) -> Vec<(i64, f64, f64, i64, i64)> {
-    let c = Connection::open(path).expect("opens");
-    let mut q = c
-        .prepare("SELECT step_id, r_mean, r_std, sensitivity, flags FROM readings ORDER BY step_id")
-        .expect("query");
-    q.query_map([], |r| {
-        Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?))
-    })
-    .expect("rows")
-    .collect::<Result<_, _>>()
-    .expect("readings")
-}
-
-fn status(path: &Path) -> String {
-    Connection::open(path)
-        .expect("opens")
-        .query_row("SELECT value FROM meta WHERE key = 'status'", [], |r| {
-            r.get(0)
-        })
-        .expect("status")
+    rows(
+        path,
+        "SELECT step_id, r_mean, r_std, sensitivity, flags FROM readings ORDER BY step_id",
+        |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)),
+    )
 }
 
 #[test]

@@ -191,6 +191,21 @@ impl SphericalDeg {
             phi: self.phi_deg.to_radians(),
         }
     }
+
+    /// `n` directions of the upper hemisphere on a spherical Fibonacci lattice turned
+    /// by `turn` (a fraction of a full turn): direction k at cos θ = 1 − (k + ½)/n and
+    /// φ = 360° · frac(k/Φ + turn), Φ the golden ratio. Equal-area (each direction
+    /// stands for 2π/n sr) and without a cluster at the pole.
+    pub fn fibonacci_hemisphere(n: usize, turn: f64) -> Vec<SphericalDeg> {
+        let golden = (1.0 + 5f64.sqrt()) / 2.0;
+        (0..n)
+            .map(|k| {
+                let z = 1.0 - (k as f64 + 0.5) / n as f64;
+                let phi = (k as f64 / golden + turn).fract() * 360.0;
+                SphericalDeg::new(z.clamp(-1.0, 1.0).acos().to_degrees(), phi)
+            })
+            .collect()
+    }
 }
 
 impl From<SphericalDeg> for Dir {

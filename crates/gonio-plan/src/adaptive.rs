@@ -30,198 +30,19 @@
 //! Each incidence's coarse pass also holds its mirror direction, where a specular
 //! peak of any sharpness stands.
 
+use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
-use gonio_core::limits::Range;
 use gonio_core::rng::splitmix64;
-use gonio_core::{DirPair, SphericalDeg};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use crate::plan::{Accepted, Checked, Mechanics, Plan, Values};
+use crate::plan::{Accepted, Checked, Mechanics, Plan};
+pub use crate::plan::{
+    Adaptive, BATCH_SHARE, BUDGET_HOURS, Budget, CANDIDATES, COARSE_SHARE, MAX_BUDGET_POINTS,
+    MIN_BATCH, MIN_SPACING_DEG, Method,
+};
 use crate::schedule::{self, Schedule, ScheduleError};
 
-/// Most points an adaptive budget may name.
-pub const MAX_BUDGET_POINTS: usize = 1_000_000;
-/// An adaptive budget in hours: up to a month of instrument time.
-pub const BUDGET_HOURS: Range = Range::closed(1e-3, 744.0, "h");
-/// The coarse pass's share of the budget (`coarse`).
-pub const COARSE_SHARE: Range = Range::closed(0.01, 1.0, "");
-/// A batch's share of the budget (`batch`).
-pub const BATCH_SHARE: Range = Range::closed(0.001, 1.0, "");
-/// Candidate directions per incidence (`candidates`).
-pub const CANDIDATES: (usize, usize) = (64, 262_144);
-/// Fewest points a batch takes (a smaller remainder of the budget is left unspent).
-pub const MIN_BATCH: usize = 4;
-/// Two directions closer than this, degrees, are one: a candidate nearer a measured
-/// point is not taken (far below any detector's aperture).
-pub const MIN_SPACING_DEG: f64 = 0.1;
-
-/// How many points, or how much time, an adaptive run may spend.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", try_from = "BudgetFields")]
-pub enum Budget {
-    /// Sample points (geometry points, every incidence; channels and repeats of a
-    /// point count once), the coarse pass included.
-    Points(usize),
-    /// Instrument hours as the planner estimates them (motion, band changes,
-    /// readings; calibrations and drift references included).
-    Hours(f64),
-}
-
-/// What a batch looks for.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// Where the kernel reconstruction mispredicts the measured neighbours of a
-    /// direction when each is left out (leave-one-out residuals), weighted by the area
-    /// a point would cover and by cos θo.
-    #[default]
-    Residual,
-    /// Where the measured neighbours of a direction disagree most with the kernel
-    /// reconstruction there (local variation), weighted by the area a point would
-    /// cover and by cos θo.
-    Variation,
-    /// Where the reconstructed BRDF is largest (a warp by the lobe the coarse pass
-    /// found, as Dupuy & Jakob 2018 warp by the microfacet distribution), weighted
-    /// the same way.
-    Value,
-}
-
-impl Method {
-    /// The name a plan writes.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Method::Residual => "residual",
-            Method::Variation => "variation",
-            Method::Value => "value",
-        }
-    }
-}
-
-/// The `[points]` table of an adaptive plan.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Adaptive {
-    /// Incident azimuth, degrees.
-    pub phi_i: f64,
-    /// Incident polar angles, degrees.
-    pub theta_i: Values,
-    /// The budget.
-    pub budget: Budget,
-    /// Share of the budget's points measured in the coarse pass.
-    pub coarse: f64,
-    /// Share of the budget's points in each later batch.
-    pub batch: f64,
-    /// Candidate directions per incidence.
-    pub candidates: usize,
-    /// What a batch looks for.
-    pub method: Method,
-    /// Turns the lattices (and so which directions exist to choose from).
-    pub seed: u64,
-}
-
-/// Defaults of the optional fields.
-pub(crate) mod defaults {
-    /// `coarse`.
-    pub const COARSE: f64 = 0.3;
-    /// `batch`.
-    pub const BATCH: f64 = 0.1;
-    /// `candidates`: 1.1° apart on the hemisphere, about the simulated detector's
-    /// aperture (0.95° in half-angle), below which a sharper choice means little;
-    /// 8192 (2.2° apart) left the error of an n = 500 lobe no better at 1200 points
-    /// than at 600 (BENCHMARKS.md, "Adaptive acquisition").
-    pub const CANDIDATES: usize = 32768;
-}
-
-/// The adaptive fields as read, before defaults.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct AdaptiveFields {
-    #[serde(default)]
-    phi_i: f64,
-    theta_i: Values,
-    budget: Budget,
-    #[serde(default)]
-    coarse: Option<f64>,
-    #[serde(default)]
-    batch: Option<f64>,
-    #[serde(default)]
-    candidates: Option<usize>,
-    #[serde(default)]
-    method: Method,
-    #[serde(default)]
-    seed: u64,
-}
-
-/// `budget = { points = N }` or `{ hours = H }`, as read.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct BudgetFields {
-    #[serde(default)]
-    points: Option<usize>,
-    #[serde(default)]
-    hours: Option<f64>,
-}
-
-impl TryFrom<BudgetFields> for Budget {
-    type Error = String;
-
-    fn try_from(b: BudgetFields) -> Result<Budget, String> {
-        match (b.points, b.hours) {
-            (Some(p), None) => Ok(Budget::Points(p)),
-            (None, Some(h)) => Ok(Budget::Hours(h)),
-            _ => Err(
-                "`budget` takes one of `points` and `hours`: { points = 1200 } or \
-                 { hours = 2.5 }"
-                    .into(),
-            ),
-        }
-    }
-}
-
-impl AdaptiveFields {
-    /// The table with its defaults.
-    pub(crate) fn into_adaptive(self) -> Adaptive {
-        Adaptive {
-            phi_i: self.phi_i,
-            theta_i: self.theta_i,
-            budget: self.budget,
-            coarse: self.coarse.unwrap_or(defaults::COARSE),
-            batch: self.batch.unwrap_or(defaults::BATCH),
-            candidates: self.candidates.unwrap_or(defaults::CANDIDATES),
-            method: self.method,
-            seed: self.seed,
-        }
-    }
-}
-
 impl Adaptive {
-    /// Checks the fields other than the angles: the fault's field and message.
-    pub(crate) fn validate(&self) -> Result<(), (String, String)> {
-        match self.budget {
-            Budget::Points(p) if !(1..=MAX_BUDGET_POINTS).contains(&p) => {
-                return Err((
-                    "points.budget.points".into(),
-                    format!("{p} is not in 1..={MAX_BUDGET_POINTS}"),
-                ));
-            }
-            Budget::Hours(h) => {
-                BUDGET_HOURS.at("points.budget.hours", h)?;
-            }
-            Budget::Points(_) => {}
-        }
-        COARSE_SHARE.at("points.coarse", self.coarse)?;
-        BATCH_SHARE.at("points.batch", self.batch)?;
-        if !(CANDIDATES.0..=CANDIDATES.1).contains(&self.candidates) {
-            return Err((
-                "points.candidates".into(),
-                format!(
-                    "{} is not in {}..={}",
-                    self.candidates, CANDIDATES.0, CANDIDATES.1
-                ),
-            ));
-        }
-        Ok(())
-    }
-
     /// The incident directions, degrees, in the plan's order.
     pub fn incidences(&self) -> Result<Vec<SphericalDeg>, String> {
         Ok(self
@@ -275,16 +96,10 @@ impl Adaptive {
 }
 
 /// `n` directions of the upper hemisphere on a spherical Fibonacci lattice turned by
-/// `turn` (a fraction of a full turn), degrees; equal-area: cos θ = 1 − (k + ½)/n.
+/// `turn` (a fraction of a full turn), degrees
+/// ([`SphericalDeg::fibonacci_hemisphere`]).
 pub fn lattice(n: usize, turn: f64) -> Vec<SphericalDeg> {
-    let golden = (1.0 + 5f64.sqrt()) / 2.0;
-    (0..n)
-        .map(|k| {
-            let z = 1.0 - (k as f64 + 0.5) / n as f64;
-            let phi = ((k as f64 / golden + turn).fract()) * 360.0;
-            SphericalDeg::new(z.clamp(-1.0, 1.0).acos().to_degrees(), phi)
-        })
-        .collect()
+    SphericalDeg::fibonacci_hemisphere(n, turn)
 }
 
 /// The measurable candidates of a run: per incidence, the pool lattice's directions
@@ -412,22 +227,10 @@ pub fn budget_points(
     }
 }
 
-/// The chord between two pairs' outgoing directions, as the minimum spacing is
-/// measured (same incidence assumed).
-pub fn outgoing_chord(a: &PairDeg, b: &PairDeg) -> f64 {
-    let (x, y) = (a.to_dirs(), b.to_dirs());
-    (x.wo.vec() - y.wo.vec()).norm()
-}
-
-/// Whether a pair is the same direction pair as another (component-wise within
-/// 1e-9 on the unit vectors).
-pub fn same_pair(a: DirPair, b: DirPair) -> bool {
-    (a.wi.vec() - b.wi.vec()).norm() < 1e-9 && (a.wo.vec() - b.wo.vec()).norm() < 1e-9
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plan::Values;
 
     #[test]
     fn the_lattice_is_equal_area_on_the_hemisphere() {

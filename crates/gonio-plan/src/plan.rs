@@ -31,7 +31,7 @@
 //! Point kinds: `grid` (all combinations of `theta_i`, `phi_i`, `theta_o`, `phi_o`),
 //! `isotropic` (fixed `phi_i`, `theta_i` × `theta_o` × `delta_phi`, φo = φi + Δφ),
 //! `adaptive` (fixed `phi_i`, `theta_i`, a `budget`; outgoing directions chosen
-//! during the run: see [`crate::adaptive`]),
+//! during the run: see the `adaptive` module),
 //! `in-plane` (fixed `phi_i`; a signed `theta_o` > 0 lies on the mirror side,
 //! φo = φi + 180°, < 0 on the source's side, φo = φi) and `list` (a directions CSV
 //! file of `docs/CONVENTIONS.md`, relative to the plan).
@@ -44,8 +44,6 @@ use gonio_core::tomlfile::{self, FileError, Tagged};
 use gonio_core::{Channels, DirPair, SphericalDeg};
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
-
-use crate::adaptive::{Adaptive, AdaptiveFields, Budget};
 
 pub use gonio_core::goniometer::{Mechanics, MechanicsError, Rejection};
 
@@ -389,7 +387,7 @@ pub enum Points {
         file: PathBuf,
     },
     /// A coarse pass, then outgoing directions chosen during the run where the
-    /// reconstruction is least certain, within a budget ([`crate::adaptive`]).
+    /// reconstruction is least certain, within a budget (the `adaptive` module).
     Adaptive(Adaptive),
 }
 
@@ -466,6 +464,193 @@ impl<'de> Deserialize<'de> for Points {
             "adaptive" => Points::Adaptive(t.fields::<AdaptiveFields, _>()?.into_adaptive()),
             _ => return Err(t.unknown_kind()),
         })
+    }
+}
+
+// The `adaptive` kind's table: read and checked here with the other kinds; its
+// geometry (lattices, pool, batches) is the `adaptive` module's.
+
+/// Most points an adaptive budget may name.
+pub const MAX_BUDGET_POINTS: usize = 1_000_000;
+/// An adaptive budget in hours: up to a month of instrument time.
+pub const BUDGET_HOURS: Range = Range::closed(1e-3, 744.0, "h");
+/// The coarse pass's share of the budget (`coarse`).
+pub const COARSE_SHARE: Range = Range::closed(0.01, 1.0, "");
+/// A batch's share of the budget (`batch`).
+pub const BATCH_SHARE: Range = Range::closed(0.001, 1.0, "");
+/// Candidate directions per incidence (`candidates`).
+pub const CANDIDATES: (usize, usize) = (64, 262_144);
+/// Fewest points a batch takes (a smaller remainder of the budget is left unspent).
+pub const MIN_BATCH: usize = 4;
+/// Two directions closer than this, degrees, are one: a candidate nearer a measured
+/// point is not taken (far below any detector's aperture).
+pub const MIN_SPACING_DEG: f64 = 0.1;
+
+/// How many points, or how much time, an adaptive run may spend.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", try_from = "BudgetFields")]
+pub enum Budget {
+    /// Sample points (geometry points, every incidence; channels and repeats of a
+    /// point count once), the coarse pass included.
+    Points(usize),
+    /// Instrument hours as the planner estimates them (motion, band changes,
+    /// readings; calibrations and drift references included).
+    Hours(f64),
+}
+
+/// What a batch looks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Where the kernel reconstruction mispredicts the measured neighbours of a
+    /// direction when each is left out (leave-one-out residuals), weighted by the area
+    /// a point would cover and by cos θo.
+    #[default]
+    Residual,
+    /// Where the measured neighbours of a direction disagree most with the kernel
+    /// reconstruction there (local variation), weighted by the area a point would
+    /// cover and by cos θo.
+    Variation,
+    /// Where the reconstructed BRDF is largest (a warp by the lobe the coarse pass
+    /// found, as Dupuy & Jakob 2018 warp by the microfacet distribution), weighted
+    /// the same way.
+    Value,
+}
+
+impl Method {
+    /// The name a plan writes.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Residual => "residual",
+            Method::Variation => "variation",
+            Method::Value => "value",
+        }
+    }
+}
+
+/// The `[points]` table of an adaptive plan.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Adaptive {
+    /// Incident azimuth, degrees.
+    pub phi_i: f64,
+    /// Incident polar angles, degrees.
+    pub theta_i: Values,
+    /// The budget.
+    pub budget: Budget,
+    /// Share of the budget's points measured in the coarse pass.
+    pub coarse: f64,
+    /// Share of the budget's points in each later batch.
+    pub batch: f64,
+    /// Candidate directions per incidence.
+    pub candidates: usize,
+    /// What a batch looks for.
+    pub method: Method,
+    /// Turns the lattices (and so which directions exist to choose from).
+    pub seed: u64,
+}
+
+/// Defaults of the optional fields.
+mod adaptive_defaults {
+    /// `coarse`.
+    pub const COARSE: f64 = 0.3;
+    /// `batch`.
+    pub const BATCH: f64 = 0.1;
+    /// `candidates`: 1.1° apart on the hemisphere, about the simulated detector's
+    /// aperture (0.95° in half-angle), below which a sharper choice means little;
+    /// 8192 (2.2° apart) left the error of an n = 500 lobe no better at 1200 points
+    /// than at 600 (BENCHMARKS.md, "Adaptive acquisition").
+    pub const CANDIDATES: usize = 32768;
+}
+
+/// The adaptive fields as read, before defaults.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AdaptiveFields {
+    #[serde(default)]
+    phi_i: f64,
+    theta_i: Values,
+    budget: Budget,
+    #[serde(default)]
+    coarse: Option<f64>,
+    #[serde(default)]
+    batch: Option<f64>,
+    #[serde(default)]
+    candidates: Option<usize>,
+    #[serde(default)]
+    method: Method,
+    #[serde(default)]
+    seed: u64,
+}
+
+/// `budget = { points = N }` or `{ hours = H }`, as read.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BudgetFields {
+    #[serde(default)]
+    points: Option<usize>,
+    #[serde(default)]
+    hours: Option<f64>,
+}
+
+impl TryFrom<BudgetFields> for Budget {
+    type Error = String;
+
+    fn try_from(b: BudgetFields) -> Result<Budget, String> {
+        match (b.points, b.hours) {
+            (Some(p), None) => Ok(Budget::Points(p)),
+            (None, Some(h)) => Ok(Budget::Hours(h)),
+            _ => Err(
+                "`budget` takes one of `points` and `hours`: { points = 1200 } or \
+                 { hours = 2.5 }"
+                    .into(),
+            ),
+        }
+    }
+}
+
+impl AdaptiveFields {
+    /// The table with its defaults.
+    fn into_adaptive(self) -> Adaptive {
+        Adaptive {
+            phi_i: self.phi_i,
+            theta_i: self.theta_i,
+            budget: self.budget,
+            coarse: self.coarse.unwrap_or(adaptive_defaults::COARSE),
+            batch: self.batch.unwrap_or(adaptive_defaults::BATCH),
+            candidates: self.candidates.unwrap_or(adaptive_defaults::CANDIDATES),
+            method: self.method,
+            seed: self.seed,
+        }
+    }
+}
+
+impl Adaptive {
+    /// Checks the fields other than the angles: the fault's field and message.
+    fn validate(&self) -> Result<(), (String, String)> {
+        match self.budget {
+            Budget::Points(p) if !(1..=MAX_BUDGET_POINTS).contains(&p) => {
+                return Err((
+                    "points.budget.points".into(),
+                    format!("{p} is not in 1..={MAX_BUDGET_POINTS}"),
+                ));
+            }
+            Budget::Hours(h) => {
+                BUDGET_HOURS.at("points.budget.hours", h)?;
+            }
+            Budget::Points(_) => {}
+        }
+        COARSE_SHARE.at("points.coarse", self.coarse)?;
+        BATCH_SHARE.at("points.batch", self.batch)?;
+        if !(CANDIDATES.0..=CANDIDATES.1).contains(&self.candidates) {
+            return Err((
+                "points.candidates".into(),
+                format!(
+                    "{} is not in {}..={}",
+                    self.candidates, CANDIDATES.0, CANDIDATES.1
+                ),
+            ));
+        }
+        Ok(())
     }
 }
 

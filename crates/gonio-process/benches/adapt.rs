@@ -21,18 +21,6 @@ use gonio_process::samples::{Sample, Samples};
 const LOBE: &str = "kind = \"lafortune\"\nchannels = [\"value\"]\n[diffuse]\nrho = [0.1]\n\
                     [[lobes]]\ncx = [-1.0074]\ncy = [-1.0074]\ncz = [1.0074]\nn = [500]\n";
 
-/// An equal-area spherical Fibonacci lattice of the hemisphere, turned by `turn`.
-fn lattice(n: usize, turn: f64) -> Vec<SphericalDeg> {
-    let golden = (1.0 + 5f64.sqrt()) / 2.0;
-    (0..n)
-        .map(|k| {
-            let z = 1.0 - (k as f64 + 0.5) / n as f64;
-            let phi = ((k as f64 / golden + turn).fract()) * 360.0;
-            SphericalDeg::new(z.acos().to_degrees(), phi)
-        })
-        .collect()
-}
-
 fn at(inc: f64, dirs: &[SphericalDeg]) -> Vec<PairDeg> {
     dirs.iter()
         .map(|o| PairDeg {
@@ -46,7 +34,7 @@ fn batch(c: &mut Criterion) {
     let model = Model::from_toml(LOBE, None).expect("model");
     let pairs: Vec<PairDeg> = [30.0, 60.0]
         .iter()
-        .flat_map(|&i| at(i, &lattice(210, 0.3)))
+        .flat_map(|&i| at(i, &SphericalDeg::fibonacci_hemisphere(210, 0.3)))
         .collect();
     let samples = Samples {
         channels: model.channels().clone(),
@@ -68,7 +56,7 @@ fn batch(c: &mut Criterion) {
     };
     let candidates: Vec<PairDeg> = [30.0, 60.0]
         .iter()
-        .flat_map(|&i| at(i, &lattice(32768, 0.7)))
+        .flat_map(|&i| at(i, &SphericalDeg::fibonacci_hemisphere(32768, 0.7)))
         .collect();
     let mut g = c.benchmark_group("adaptive batch: 420 samples, 65536 candidates, 60 picks");
     g.sample_size(10).measurement_time(Duration::from_secs(10));

@@ -278,13 +278,7 @@ mod tests {
     use gonio_core::Channels;
 
     fn lattice(n: usize) -> Vec<SphericalDeg> {
-        let golden = (1.0 + 5f64.sqrt()) / 2.0;
-        (0..n)
-            .map(|k| {
-                let z = 1.0 - (k as f64 + 0.5) / n as f64;
-                SphericalDeg::new(z.acos().to_degrees(), (k as f64 / golden).fract() * 360.0)
-            })
-            .collect()
+        SphericalDeg::fibonacci_hemisphere(n, 0.0)
     }
 
     fn samples_of(f: impl Fn(&PairDeg) -> f64, pairs: &[PairDeg]) -> Samples {

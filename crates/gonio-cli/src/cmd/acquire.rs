@@ -13,7 +13,7 @@ use gonio_sim::SimBench;
 use serde_json::json;
 
 use crate::cmd::instrument::{SimFlag, is_simulated, sim_config};
-use crate::cmd::plan::{Loaded, hms, load_and_prepare};
+use crate::cmd::prepare::{Loaded, hms, load_and_prepare};
 use crate::error::{CliError, CliResult};
 use crate::output;
 

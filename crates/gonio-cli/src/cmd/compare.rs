@@ -24,7 +24,7 @@ use serde_json::json;
 
 use crate::cmd::acquire::{AcquireArgs, StopBy, acquire_with};
 use crate::cmd::instrument::SimFlag;
-use crate::cmd::plan::{hms, load_and_prepare};
+use crate::cmd::prepare::{hms, load_and_prepare};
 use crate::error::{CliError, CliResult};
 use crate::flags::JsonFlag;
 use crate::output;

@@ -15,6 +15,7 @@ pub mod micro;
 pub mod model;
 pub mod plan;
 pub mod plot;
+pub mod prepare;
 pub mod reduce;
 pub mod report;
 pub mod runs;

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use gonio_run::RunStore;
 use serde_json::json;
 
-use crate::cmd::plan::hms;
+use crate::cmd::prepare::hms;
 use crate::error::{CliError, CliResult};
 use crate::flags::JsonFlag;
 use crate::output;

@@ -106,3 +106,13 @@ pub fn acquire(dir: &Path, plan: &str) -> PathBuf {
     ]);
     run
 }
+
+/// The run's status, read directly (not through gonio, which refuses a damaged file).
+pub fn status(path: &Path) -> String {
+    rusqlite::Connection::open(path)
+        .expect("opens")
+        .query_row("SELECT value FROM meta WHERE key = 'status'", [], |r| {
+            r.get(0)
+        })
+        .expect("status")
+}

@@ -186,6 +186,34 @@ pub(crate) fn dot<DB: DrawingBackend>(
         .map_err(de)
 }
 
+/// The light's direction (a ring at `light`) and the mirror direction (a cross at
+/// `mirror`), `r` pixels across, each drawn twice — `halo` wide in one colour, then
+/// `core` wide in the other — so that they read over any colour map.
+pub(crate) fn light_and_mirror<DB: DrawingBackend>(
+    area: &Area<DB>,
+    light: (i32, i32),
+    mirror: (i32, i32),
+    r: i32,
+    [(halo, halo_w), (core, core_w)]: [(RGBColor, i32); 2],
+) -> Result<(), String> {
+    let (mx, my) = mirror;
+    for (color, width) in [(halo, halo_w), (core, core_w)] {
+        let st = color.stroke_width(width.max(1) as u32);
+        area.draw(&Circle::new(light, r, st)).map_err(de)?;
+        area.draw(&PathElement::new(
+            vec![(mx - r, my - r), (mx + r, my + r)],
+            st,
+        ))
+        .map_err(de)?;
+        area.draw(&PathElement::new(
+            vec![(mx - r, my + r), (mx + r, my - r)],
+            st,
+        ))
+        .map_err(de)?;
+    }
+    Ok(())
+}
+
 /// A filled triangle.
 pub(crate) fn triangle<DB: DrawingBackend>(
     area: &Area<DB>,

@@ -383,21 +383,13 @@ impl HemiFig<'_> {
         let mirror = self.projection.to_map(self.wi.mirror());
         let (lx, ly) = to_px(light.0, light.1);
         let (mx, my) = to_px(mirror.0, mirror.1);
-        for (color, width) in [(BLACK, sz.px(4.0)), (WHITE, sz.px(2.0))] {
-            let st = color.stroke_width(width.max(1) as u32);
-            area.draw(&Circle::new((lx, ly), r, st)).map_err(draw::de)?;
-            area.draw(&PathElement::new(
-                vec![(mx - r, my - r), (mx + r, my + r)],
-                st,
-            ))
-            .map_err(draw::de)?;
-            area.draw(&PathElement::new(
-                vec![(mx - r, my + r), (mx + r, my - r)],
-                st,
-            ))
-            .map_err(draw::de)?;
-        }
-        Ok(())
+        draw::light_and_mirror(
+            area,
+            (lx, ly),
+            (mx, my),
+            r,
+            [(BLACK, sz.px(4.0)), (WHITE, sz.px(2.0))],
+        )
     }
 }
 

@@ -202,21 +202,13 @@ impl PointsFig {
         let m = sz.px(6.0);
         let (lx, ly) = to_px(p.theta_i, p.phi_i);
         let (mx, my) = to_px(p.theta_i, p.phi_i + 180.0);
-        for (color, width) in [(WHITE, sz.px(4.0)), (INK, sz.px(2.0))] {
-            let st = color.stroke_width(width.max(1) as u32);
-            area.draw(&Circle::new((lx, ly), m, st)).map_err(draw::de)?;
-            area.draw(&PathElement::new(
-                vec![(mx - m, my - m), (mx + m, my + m)],
-                st,
-            ))
-            .map_err(draw::de)?;
-            area.draw(&PathElement::new(
-                vec![(mx - m, my + m), (mx + m, my - m)],
-                st,
-            ))
-            .map_err(draw::de)?;
-        }
-        Ok(())
+        draw::light_and_mirror(
+            area,
+            (lx, ly),
+            (mx, my),
+            m,
+            [(WHITE, sz.px(4.0)), (INK, sz.px(2.0))],
+        )
     }
 
     /// The batches' colour bar: one band a batch, batch 1 at the bottom.
