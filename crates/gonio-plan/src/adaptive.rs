@@ -84,9 +84,18 @@ impl Adaptive {
     }
 
     /// The coarse pass's lattice size per incidence for a budget of `points`.
+    /// Capped so that the lattices and the mirror directions never pass the budget;
+    /// refused below two points per incidence (one direction and the mirror).
     pub fn coarse_per_incidence(&self, points: usize) -> Result<usize, String> {
         let n = self.incidences()?.len().max(1);
-        Ok(((points as f64 * self.coarse / n as f64).round() as usize).max(1))
+        let most = (points / n).saturating_sub(1);
+        if most == 0 {
+            return Err(format!(
+                "a budget of {points} points cannot hold a coarse pass at {n} incidences: \
+                 it takes at least two points per incidence (a direction and the mirror)"
+            ));
+        }
+        Ok(((points as f64 * self.coarse / n as f64).round() as usize).clamp(1, most))
     }
 
     /// Points in each batch after the coarse pass, for a budget of `points`.
@@ -222,7 +231,10 @@ pub fn budget_points(
                 .map_err(|e| e.to_string())?;
             let per = s.duration_s() / n.max(1) as f64;
             let points = (h * 3600.0 / per.max(1e-3)).floor();
-            Ok((points as usize).clamp(1, MAX_BUDGET_POINTS))
+            // At least the smallest coarse pass (a direction and the mirror per
+            // incidence), whose time is then held to the budget.
+            let least = 2 * spec.incidences()?.len().max(1);
+            Ok((points as usize).clamp(least, MAX_BUDGET_POINTS))
         }
     }
 }

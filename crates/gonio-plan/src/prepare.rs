@@ -52,7 +52,7 @@ pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared
     };
     let adaptive_error = |m: String| {
         PrepareError::File(FileError {
-            field: Some("points".into()),
+            field: Some("points.budget".into()),
             ..FileError::whole("plan", plan.source.as_deref(), m)
         })
     };
@@ -76,6 +76,17 @@ pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared
             source,
         }
     })?;
+    if let Some((a, _)) = budget
+        && let adaptive::Budget::Hours(h) = a.budget
+        && schedule.duration_s() > h * 3600.0
+    {
+        return Err(adaptive_error(format!(
+            "the coarse pass alone is estimated at {:.0} s, more than the budget of {h} h \
+             ({:.0} s): raise the budget or lower `coarse`",
+            schedule.duration_s(),
+            h * 3600.0
+        )));
+    }
     let adaptive = match budget {
         None => None,
         Some((a, points)) => {
@@ -90,7 +101,15 @@ pub fn prepare(mech: &Mechanics, reading_s: f64, plan: &Plan) -> Result<Prepared
                 pool: pool.candidates.len(),
                 refused: pool.refused,
                 point_s,
-                estimate_s: schedule.duration_s() + points.saturating_sub(coarse) as f64 * point_s,
+                // With a budget in hours the batches are cut to the time left.
+                estimate_s: match a.budget {
+                    adaptive::Budget::Hours(h) => (h * 3600.0).min(
+                        schedule.duration_s() + points.saturating_sub(coarse) as f64 * point_s,
+                    ),
+                    adaptive::Budget::Points(_) => {
+                        schedule.duration_s() + points.saturating_sub(coarse) as f64 * point_s
+                    }
+                },
                 method: a.method,
             })
         }

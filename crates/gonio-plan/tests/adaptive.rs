@@ -140,6 +140,43 @@ fn prepare_schedules_the_coarse_pass_and_states_the_budget() {
 }
 
 #[test]
+fn the_coarse_pass_never_passes_the_budget() {
+    // The whole budget in the coarse pass: 49 lattice directions and the mirror at
+    // each incidence, 100 points, not 102.
+    let p = common::plan(&text(
+        "theta_i = [30, 60]\nbudget = { points = 100 }\ncoarse = 1.0\n",
+    ));
+    let prepared = common::prepare(&p).expect("prepared");
+    assert_eq!(prepared.pairs.len(), 100);
+    assert!(prepared.adaptive.expect("summary").coarse <= 100);
+    // Too small a budget for a coarse pass, and a coarse pass longer than the time.
+    let e = common::prepare(&common::plan(&text(
+        "theta_i = [30, 60]\nbudget = { points = 3 }\n",
+    )))
+    .expect_err("3 points for 2 incidences")
+    .to_string();
+    assert!(
+        e.ends_with(
+            ": field `points.budget`: a budget of 3 points cannot hold a coarse pass at 2 \
+         incidences: it takes at least two points per incidence (a direction and the mirror)"
+        ),
+        "{e}"
+    );
+    let e = common::prepare(&common::plan(&text(
+        "theta_i = [30, 60]\nbudget = { hours = 0.005 }\n",
+    )))
+    .expect_err("18 s")
+    .to_string();
+    assert!(
+        e.contains(": field `points.budget`: the coarse pass alone is estimated at ")
+            && e.ends_with(
+                "more than the budget of 0.005 h (18 s): raise the budget or lower `coarse`"
+            ),
+        "{e}"
+    );
+}
+
+#[test]
 fn the_lattice_is_deterministic() {
     assert_eq!(lattice(100, 0.3), lattice(100, 0.3));
     assert_ne!(lattice(100, 0.3), lattice(100, 0.4));
