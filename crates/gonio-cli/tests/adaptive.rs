@@ -262,6 +262,9 @@ fn a_run_spends_its_budget_never_more_and_records_every_decision() {
     // The run file reads like any: show, reduce, check, fit, export, report.
     let v = ok_json(&["show", &s(&run), "--json"]);
     assert_eq!(v["status"], "complete");
+    assert_eq!(v["batches"]["decided"], ds.len());
+    assert_eq!(v["batches"]["points"], 120 - coarse.len());
+    assert_eq!(v["batches"]["steps"], st.len() as i64 - meta_steps);
     let samples = dir.join("samples.csv");
     ok(&["reduce", &s(&run), "--out", &s(&samples)]);
     let csv = std::fs::read_to_string(&samples).expect("samples");

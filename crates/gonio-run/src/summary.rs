@@ -25,6 +25,17 @@ pub struct SessionSummary {
     pub physical_s: f64,
 }
 
+/// An adaptive run's batches, for reports.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct BatchesSummary {
+    /// Batches decided during the run.
+    pub decided: usize,
+    /// Sample points they chose.
+    pub points: u64,
+    /// Steps they added.
+    pub steps: u64,
+}
+
 /// What `gonio show` prints.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
@@ -66,6 +77,9 @@ pub struct Summary {
     pub plan: String,
     /// Simulator config, verbatim.
     pub sim: Option<String>,
+    /// An adaptive run's batches (absent for other runs, and from their JSON).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub batches: Option<BatchesSummary>,
 }
 
 /// Summarises a run file.
@@ -96,6 +110,12 @@ pub fn summary(store: &RunStore) -> Result<Summary, StoreError> {
             }
         })
         .collect();
+    let decisions = store.decisions()?;
+    let batches = (!decisions.is_empty()).then(|| BatchesSummary {
+        decided: decisions.len(),
+        points: decisions.iter().map(|d| u64::from(d.points)).sum(),
+        steps: decisions.iter().map(|d| u64::from(d.steps)).sum(),
+    });
     let mut events = BTreeMap::new();
     for e in store.events()? {
         *events.entry(e.kind).or_insert(0) += 1;
@@ -123,5 +143,6 @@ pub fn summary(store: &RunStore) -> Result<Summary, StoreError> {
         instrument: meta.instrument,
         plan: meta.plan,
         sim: meta.sim,
+        batches,
     })
 }

@@ -96,6 +96,14 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
                 hms(d)
             )?;
         }
+        if let Some(b) = &s.batches {
+            writeln!(
+                w,
+                "adaptive: {} batches decided during the run, {} points in {} steps (the \
+                 estimate above is the coarse pass's)",
+                b.decided, b.points, b.steps
+            )?;
+        }
         for (k, x) in s.sessions.iter().enumerate() {
             writeln!(
                 w,
