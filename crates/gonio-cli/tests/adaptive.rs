@@ -494,3 +494,60 @@ fn compare_headline_rows() {
         assert!(e[1] >= e[0] && e[2] >= e[0], "{broad}: {e:?}");
     }
 }
+
+/// `plan compare` refuses, with exit 2 and before measuring anything, a plan that is
+/// not adaptive, a real instrument, a missing sample, and a `--keep` directory that
+/// holds one of its files already (left as it was).
+#[test]
+fn compare_refuses_bad_input_before_measuring() {
+    let dir = scratch("adaptive-compare-bad");
+    let inst = config("instrument-sim.toml");
+    let plan = config("plan-adaptive.toml");
+    let refused = |args: &[&str], want: &str| {
+        let o = gonio(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+    };
+    let grid = config("plan-hemisphere.toml");
+    refused(
+        &["plan", "compare", &grid, "--instrument", &inst],
+        "field `points.kind`: `plan compare` compares an adaptive plan",
+    );
+    let real = config("instrument-example.toml");
+    refused(
+        &["plan", "compare", &plan, "--instrument", &real],
+        "this instrument's ports are real",
+    );
+    let missing = s(&dir.join("missing.toml"));
+    refused(
+        &[
+            "plan",
+            "compare",
+            &plan,
+            "--instrument",
+            &inst,
+            "--sample",
+            &missing,
+        ],
+        "missing.toml",
+    );
+    std::fs::write(dir.join("lattice.csv"), "mine\n").expect("write");
+    let keep = s(&dir);
+    refused(
+        &[
+            "plan",
+            "compare",
+            &plan,
+            "--instrument",
+            &inst,
+            "--keep",
+            &keep,
+        ],
+        "lattice.csv: exists already",
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("lattice.csv")).expect("kept"),
+        "mine\n"
+    );
+    assert!(!dir.join("adaptive.gonio").exists());
+}

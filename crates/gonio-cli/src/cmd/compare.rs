@@ -22,8 +22,8 @@ use gonio_plan::{Plan, StepKind};
 use gonio_run::RunStore;
 use serde_json::json;
 
-use crate::cmd::acquire::{AcquireArgs, StopBy, acquire_with};
-use crate::cmd::instrument::SimFlag;
+use crate::cmd::acquire::{AcquireArgs, StopBy, acquire_with, session_result};
+use crate::cmd::instrument::{SimFlag, is_simulated};
 use crate::cmd::prepare::{hms, load_and_prepare};
 use crate::error::{CliError, CliResult};
 use crate::flags::JsonFlag;
@@ -84,6 +84,13 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
             a.plan.display()
         )));
     }
+    if !is_simulated(&loaded.instrument, &a.instrument)? {
+        return Err(input(format!(
+            "{}: `plan compare` measures on the simulator, whose sample is the truth the \
+             plans are judged by; this instrument's ports are real",
+            a.instrument.display()
+        )));
+    }
     if let Some(m) = &a.sample {
         gonio_brdf::Model::load(m).map_err(input)?;
     }
@@ -95,10 +102,24 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
             if !d.is_dir() {
                 return Err(input(format!("{}: not a directory", d.display())));
             }
-            for n in ["adaptive", "lattice", "grid"] {
-                let f = d.join(format!("{n}.gonio"));
+            // Everything the comparison writes, refused before anything is measured.
+            for n in [
+                "adaptive.gonio",
+                "lattice.gonio",
+                "grid.gonio",
+                "lattice.csv",
+                "lattice-plan.toml",
+                "grid-plan.toml",
+                "adaptive-plan.toml",
+                "sim.toml",
+            ] {
+                let f = d.join(n);
                 if f.exists() {
-                    return Err(CliError::from(gonio_run::StoreError::Exists(f)));
+                    return Err(input(format!(
+                        "{}: exists already; --keep needs a directory without the \
+                         comparison's files",
+                        f.display()
+                    )));
                 }
             }
             (d.clone(), None)
@@ -235,13 +256,8 @@ fn measure(
         a.seed,
     );
     let r = acquire_with(&args, true, stop)?;
-    if r.outcome.status() != "complete" {
-        return Err(CliError::Runtime(format!(
-            "{}: the {name} run ended {}",
-            out.display(),
-            r.outcome.status()
-        )));
-    }
+    // Stopped (exit 130) or faulted as `gonio acquire` would be.
+    session_result(&out, &r)?;
     let store = RunStore::open_read_only(&out)?;
     Ok((name, sample_points(&store)?, out))
 }
