@@ -30,8 +30,11 @@ pub const REPORT: &str = "/report.html";
 /// A run file being followed.
 pub struct Tail {
     store: RunStore,
-    /// Each step's kind and channel (the schedule does not change).
+    /// Each step's kind and channel (read again when an adaptive run's planner has
+    /// appended steps).
     steps: BTreeMap<i64, (String, Option<String>)>,
+    /// An adaptive run's budget, for the time its batches to come will take.
+    adaptive: Option<AdaptiveLeft>,
     snapshot: Snapshot,
     /// The latest reading's commit time seen.
     last_wall: f64,
@@ -58,11 +61,8 @@ impl Tail {
     pub fn open(path: &Path, control: bool, live: bool) -> Result<Tail, LiveError> {
         let store = RunStore::open_read_only(path)?;
         let meta = store.run_meta()?;
-        let steps = store
-            .steps()?
-            .into_iter()
-            .map(|s| (s.id, (s.step.kind.as_str().to_string(), s.step.channel)))
-            .collect();
+        let steps = kinds(&store)?;
+        let adaptive = AdaptiveLeft::of(&store, &meta)?;
         let detector = Detector::of_instrument(&meta.instrument);
         let axes = axes_of(&meta.instrument);
         let info = RunInfo {
@@ -87,6 +87,7 @@ impl Tail {
         let mut tail = Tail {
             store,
             steps,
+            adaptive,
             snapshot: Snapshot {
                 schema: SCHEMA,
                 run: info,
@@ -150,6 +151,10 @@ impl Tail {
             readings += n;
         }
         for (session, r) in self.store.readings_since(self.last_wall)? {
+            if !self.steps.contains_key(&r.step_id) {
+                // A batch appended since the schedule was read.
+                self.steps = kinds(&self.store)?;
+            }
             self.last_wall = r.wall_s;
             self.first_physical.entry(session).or_insert(r.physical_s);
             let (kind, channel) = self
@@ -365,9 +370,14 @@ impl Tail {
                 .filter(|_| total > 0)
                 .map(|e| e / total as f64),
         };
+        // An adaptive run also has the batches its budget has left to come.
+        let to_come = match &self.adaptive {
+            Some(a) => a.to_come(&self.store, per_step)?,
+            None => 0.0,
+        };
         let eta_s = per_step
             .filter(|_| matches!(state, "running" | "paused"))
-            .map(|p| p * remaining);
+            .map(|p| p * remaining + to_come);
         Ok(Status {
             state,
             message,
@@ -377,6 +387,95 @@ impl Tail {
             physical_s,
             eta_s,
             sessions,
+        })
+    }
+}
+
+/// Each step's kind and channel.
+fn kinds(store: &RunStore) -> Result<BTreeMap<i64, (String, Option<String>)>, LiveError> {
+    Ok(store
+        .steps()?
+        .into_iter()
+        .map(|s| (s.id, (s.step.kind.as_str().to_string(), s.step.channel)))
+        .collect())
+}
+
+/// What an adaptive run's budget leaves to its batches to come.
+#[derive(Clone, Debug)]
+struct AdaptiveLeft {
+    budget: gonio_plan::adaptive::Budget,
+    /// Sample points and steps of the coarse pass (the schedule the run was created
+    /// with).
+    coarse_points: usize,
+    coarse_steps: usize,
+    /// The coarse pass's estimated time, s.
+    coarse_s: f64,
+}
+
+impl AdaptiveLeft {
+    /// The budget of the run in `store`, when its plan is adaptive.
+    fn of(store: &RunStore, meta: &gonio_run::RunMeta) -> Result<Option<AdaptiveLeft>, LiveError> {
+        let Ok(plan) = gonio_plan::Plan::from_toml(&meta.plan, None) else {
+            return Ok(None);
+        };
+        let gonio_plan::plan::Points::Adaptive(a) = plan.points else {
+            return Ok(None);
+        };
+        let first = meta.step_count.unwrap_or(0) as i64;
+        let coarse: Vec<_> = store
+            .steps()?
+            .into_iter()
+            .filter(|s| s.id < first)
+            .collect();
+        let coarse_points = coarse
+            .iter()
+            .filter(|s| s.step.kind == gonio_plan::StepKind::Sample)
+            .filter_map(|s| s.step.plan_index)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        Ok(Some(AdaptiveLeft {
+            budget: a.budget,
+            coarse_points,
+            coarse_steps: coarse.len(),
+            coarse_s: meta
+                .estimate
+                .map_or(0.0, |e| e.motion_s + e.detector_s + e.band_s),
+        }))
+    }
+
+    /// The instrument time the batches to come will take, s: with a budget in points,
+    /// the points left at the steps per point of the batches so far (before the first,
+    /// the coarse pass's) and the run's pace per step; with a budget in hours, the time
+    /// the planner has not planned yet.
+    fn to_come(&self, store: &RunStore, per_step: Option<f64>) -> Result<f64, LiveError> {
+        let decisions = store.decisions()?;
+        let chosen: u64 = decisions.iter().map(|d| u64::from(d.points)).sum();
+        Ok(match self.budget {
+            gonio_plan::adaptive::Budget::Points(p) => {
+                let left = (p as u64).saturating_sub(self.coarse_points as u64 + chosen);
+                let (steps, points) = if chosen > 0 {
+                    (
+                        decisions.iter().map(|d| u64::from(d.steps)).sum::<u64>(),
+                        chosen,
+                    )
+                } else {
+                    (self.coarse_steps as u64, self.coarse_points.max(1) as u64)
+                };
+                per_step.unwrap_or(0.0) * left as f64 * steps as f64 / points as f64
+            }
+            gonio_plan::adaptive::Budget::Hours(h) => {
+                let planned: f64 = self.coarse_s
+                    + decisions
+                        .iter()
+                        .filter_map(|d| {
+                            serde_json::from_str::<serde_json::Value>(&d.detail)
+                                .ok()?
+                                .get("estimate_s")?
+                                .as_f64()
+                        })
+                        .sum::<f64>();
+                (h * 3600.0 - planned).max(0.0)
+            }
         })
     }
 }

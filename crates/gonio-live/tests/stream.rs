@@ -35,10 +35,19 @@ fn root() -> PathBuf {
 /// A run file of [`PLAN`] and an engine on the simulator, whose clock runs at
 /// `time_scale` of real time.
 fn setup(dir: &Path, time_scale: f64) -> (PathBuf, Engine<SimClock, SimBench>) {
+    setup_plan(dir, time_scale, PLAN)
+}
+
+/// [`setup`] with another plan.
+fn setup_plan(
+    dir: &Path,
+    time_scale: f64,
+    plan_text: &str,
+) -> (PathBuf, Engine<SimClock, SimBench>) {
     let (inst, inst_text) =
         InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml"))
             .expect("instrument");
-    let plan = gonio_plan::Plan::from_toml(PLAN, Some(&root().join("config/test-plan.toml")))
+    let plan = gonio_plan::Plan::from_toml(plan_text, Some(&root().join("config/test-plan.toml")))
         .expect("plan");
     let mech = inst.mechanics().expect("mechanics");
     let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).expect("prepares");
@@ -47,7 +56,7 @@ fn setup(dir: &Path, time_scale: f64) -> (PathBuf, Engine<SimClock, SimBench>) {
     sim.time_scale = time_scale;
     let inputs = Inputs {
         instrument_text: inst_text,
-        plan_text: PLAN.into(),
+        plan_text: plan_text.into(),
         sim: Some((
             gonio_sim::config::DEFAULT_SIM.to_string(),
             sim.sample_model_text().expect("sample"),
@@ -485,4 +494,81 @@ fn the_eta_is_the_runs_own_pace_without_each_sessions_start_up() {
         .expect("refresh");
     assert_eq!(tail.snapshot().status.state, "interrupted");
     assert_eq!(tail.snapshot().status.eta_s, None);
+}
+
+/// An adaptive run's ETA adds the batches its budget has left, at the steps per
+/// point of the coarse pass until a batch exists and of the batches after; a batch
+/// appended while the page follows the run has its steps' kinds known (its drift
+/// reference is a drift row, not a sample).
+#[test]
+fn an_adaptive_runs_eta_counts_the_batches_its_budget_has_left() {
+    const ADAPTIVE: &str = "[points]\nkind = \"adaptive\"\ntheta_i = [30]\n\
+                            budget = { points = 40 }\ncandidates = 1024\n[drift]\nevery = 50\n\
+                            [calibration]\ndark = true\nincident = { transmittance = 1e-3 }\n";
+    let dir = tempfile::tempdir().expect("dir");
+    let (run, engine) = setup_plan(dir.path(), 0.0, ADAPTIVE);
+    drop(engine);
+    let mut w = RunStore::open(&run).expect("opens");
+    w.lock().expect("locks");
+    let steps = w.steps().expect("steps");
+    let coarse_steps = steps.len() as f64;
+    let samples: Vec<&gonio_run::StoredStep> = steps
+        .iter()
+        .filter(|s| s.step.kind == gonio_plan::StepKind::Sample)
+        .collect();
+    let coarse_points = samples.len() as f64;
+    w.begin_session("test").expect("session");
+    for (k, t) in [100.0, 110.0, 120.0].into_iter().enumerate() {
+        w.commit(&reading_at(steps[k].id, t, 1000.0 + t), &[])
+            .expect("commit");
+    }
+    let mut tail = gonio_live::Tail::open(&run, false, false).expect("opens");
+    let eta = tail.snapshot().status.eta_s.expect("an ETA");
+    // 10 s a step: the steps scheduled, and the 40 − coarse points to come at the
+    // coarse pass's steps per point.
+    let want =
+        10.0 * (coarse_steps - 3.0) + 10.0 * (40.0 - coarse_points) * coarse_steps / coarse_points;
+    assert!((eta - want).abs() < 1e-6, "{eta} against {want}");
+    // A batch of 5 points in 7 steps: a drift reference, the points, the reference.
+    let reference = steps
+        .iter()
+        .find(|s| s.step.kind == gonio_plan::StepKind::Reference)
+        .expect("a reference")
+        .step
+        .clone();
+    let mut batch = vec![reference.clone()];
+    for (k, s) in samples.iter().take(5).enumerate() {
+        let mut x = s.step.clone();
+        x.plan_index = Some(1000 + k);
+        batch.push(x);
+    }
+    batch.push(reference);
+    let (d, appended) = w
+        .append_batch(&gonio_run::Batch {
+            decision: gonio_run::Decision {
+                method: "residual".into(),
+                points: 5,
+                detail: "{}".into(),
+            },
+            steps: batch,
+        })
+        .expect("appended");
+    assert_eq!(d.steps, 7);
+    // Every coarse step measured, and the batch's first (its reference).
+    let mut t = 120.0;
+    for s in steps.iter().skip(3).chain(appended.iter().take(1)) {
+        t += 10.0;
+        w.commit(&reading_at(s.id, t, 1000.0 + t), &[])
+            .expect("commit");
+    }
+    tail.refresh(Instant::now(), false).expect("refresh");
+    let snap = tail.snapshot();
+    assert_eq!(snap.status.total as f64, coarse_steps + 7.0);
+    assert_eq!(
+        snap.drift.back().expect("a drift row").step_id,
+        appended[0].id
+    );
+    let eta = snap.status.eta_s.expect("an ETA");
+    let want = 10.0 * 6.0 + 10.0 * (40.0 - coarse_points - 5.0) * 7.0 / 5.0;
+    assert!((eta - want).abs() < 1e-6, "{eta} against {want}");
 }
