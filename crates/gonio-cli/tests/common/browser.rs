@@ -6,7 +6,7 @@
 #![allow(dead_code)]
 
 use std::fmt;
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -15,7 +15,7 @@ use fantoccini::{Client, ClientBuilder, Locator};
 use hyper_util::client::legacy::connect::HttpConnector;
 use serde_json::{Value, json};
 
-use crate::live::{DEADLINE, request};
+use crate::live::{DEADLINE, try_request};
 
 /// Where the tests leave their screenshots and chromedriver's log:
 /// `target/artifacts/` of the workspace.
@@ -80,7 +80,7 @@ impl Driver {
         let mut driver = Driver { child, port };
         let addr = format!("127.0.0.1:{port}");
         let t = Instant::now();
-        let mut last = String::from("no connection");
+        let mut last;
         loop {
             if let Some(status) = driver.child.try_wait().expect("try_wait") {
                 panic!(
@@ -88,15 +88,18 @@ impl Driver {
                     log.display()
                 );
             }
-            if TcpStream::connect(&addr).is_ok() {
-                let r = request(&addr, "GET", "/status", "127.0.0.1", &[], None);
-                let ready = serde_json::from_str::<Value>(&r.body)
-                    .ok()
-                    .and_then(|v| v["value"]["ready"].as_bool());
-                if r.status == 200 && ready == Some(true) {
-                    return driver;
+            // A driver still starting may refuse or reset a connection: not ready yet.
+            match try_request(&addr, "GET", "/status", "127.0.0.1", &[], None) {
+                Ok(r) => {
+                    let ready = serde_json::from_str::<Value>(&r.body)
+                        .ok()
+                        .and_then(|v| v["value"]["ready"].as_bool());
+                    if r.status == 200 && ready == Some(true) {
+                        return driver;
+                    }
+                    last = format!("{} {}", r.status, r.body);
                 }
-                last = format!("{} {}", r.status, r.body);
+                Err(e) => last = e,
             }
             assert!(
                 t.elapsed() < Duration::from_secs(30),

@@ -259,9 +259,22 @@ pub fn request(
     extra: &[&str],
     until: Option<&str>,
 ) -> Response {
-    let mut s = TcpStream::connect(addr).unwrap_or_else(|e| panic!("connect {addr}: {e}"));
+    try_request(addr, method, path, host, extra, until).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// [`request`], with what went wrong as an error rather than a panic: for a server
+/// still starting, whose connections may be refused or reset.
+pub fn try_request(
+    addr: &str,
+    method: &str,
+    path: &str,
+    host: &str,
+    extra: &[&str],
+    until: Option<&str>,
+) -> Result<Response, String> {
+    let mut s = TcpStream::connect(addr).map_err(|e| format!("connect {addr}: {e}"))?;
     s.set_read_timeout(Some(Duration::from_secs(10)))
-        .expect("timeout");
+        .map_err(|e| format!("timeout: {e}"))?;
     let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n");
     for h in extra {
         req.push_str(h);
@@ -271,18 +284,21 @@ pub fn request(
         req.push_str("Content-Length: 0\r\n");
     }
     req.push_str("\r\n");
-    s.write_all(req.as_bytes()).expect("send");
+    s.write_all(req.as_bytes())
+        .map_err(|e| format!("{method} {path}: send: {e}"))?;
     let t = Instant::now();
     let mut raw = Vec::new();
     let mut buf = [0u8; 4096];
     loop {
         let n = match s.read(&mut buf) {
             Ok(n) => n,
-            Err(e) => panic!(
-                "{method} {path}: read failed after {:?} ({e}); so far: {:?}",
-                t.elapsed(),
-                String::from_utf8_lossy(&raw)
-            ),
+            Err(e) => {
+                return Err(format!(
+                    "{method} {path}: read failed after {:?} ({e}); so far: {:?}",
+                    t.elapsed(),
+                    String::from_utf8_lossy(&raw)
+                ));
+            }
         };
         raw.extend_from_slice(&buf[..n]);
         let text = String::from_utf8_lossy(&raw);
@@ -306,27 +322,28 @@ pub fn request(
                 break;
             }
         }
-        assert!(
-            t.elapsed() < Duration::from_secs(10),
-            "{method} {path}: no complete response in 10 s: {text:?}"
-        );
+        if t.elapsed() >= Duration::from_secs(10) {
+            return Err(format!(
+                "{method} {path}: no complete response in 10 s: {text:?}"
+            ));
+        }
     }
     let text = String::from_utf8_lossy(&raw).into_owned();
     let (head, body) = text
         .split_once("\r\n\r\n")
-        .unwrap_or_else(|| panic!("{method} {path}: no header end in {text:?}"));
+        .ok_or_else(|| format!("{method} {path}: no header end in {text:?}"))?;
     let mut lines = head.lines();
     let first = lines.next().unwrap_or_default();
     let status = first
         .split_whitespace()
         .nth(1)
         .and_then(|c| c.parse().ok())
-        .unwrap_or_else(|| panic!("{method} {path}: status line {first:?}"));
-    Response {
+        .ok_or_else(|| format!("{method} {path}: status line {first:?}"))?;
+    Ok(Response {
         status,
         headers: lines.map(String::from).collect(),
         body: body.to_string(),
-    }
+    })
 }
 
 /// `GET path` with `Host: 127.0.0.1`.
