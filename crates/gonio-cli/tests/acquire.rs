@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{config, gonio, scratch, status, stderr};
+use common::{config, gonio, kill_and_resume_until_complete, scratch, status, stderr};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -305,51 +305,23 @@ fn mixed_instrument_run_is_identical_after_kill_and_resume() {
     let slow = sim_file_at(&dir, "sim-mixed.toml", 0.02);
     let out = dir.join("killed.gonio");
     let out_s = out.display().to_string();
-    let mut rng = Lcg(7);
-    let mut kills = 0;
-    for session in 0.. {
-        assert!(session < 100, "no progress after {session} sessions");
-        let mut child = if out.exists() {
-            spawn(&["resume", &out_s])
-        } else {
-            spawn(&[
-                "acquire",
-                "--instrument",
-                &inst,
-                "--plan",
-                &plan,
-                "--out",
-                &out_s,
-                "--sim",
-                &slow,
-                "--seed",
-                "11",
-            ])
-        };
-        // Longer each time, so that a slow machine still gets past start-up and
-        // homing and makes progress.
-        let delay = Duration::from_millis(150 + rng.next() % 500 + 100 * session);
-        let sig = ["-KILL", "-TERM"][(rng.next() % 2) as usize];
-        let start = Instant::now();
-        let mut done = None;
-        while start.elapsed() < delay {
-            if let Some(s) = child.try_wait().expect("wait") {
-                done = Some(s);
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
-        if let Some(s) = done {
-            assert!(s.success(), "session {session}: {s:?}");
-            break;
-        }
-        send(sig, child.id());
-        let _ = child.wait_with_output().expect("reaped");
-        kills += 1;
-        if out.exists() && status(&out) == "complete" {
-            break;
-        }
-    }
+    let kills = kill_and_resume_until_complete(
+        &out,
+        &[
+            "--instrument",
+            &inst,
+            "--plan",
+            &plan,
+            "--out",
+            &out_s,
+            "--sim",
+            &slow,
+            "--seed",
+            "11",
+        ],
+        7,
+        (150, 500),
+    );
     assert!(
         kills >= 3,
         "{kills} interruptions: the run was too quick to interrupt"

@@ -480,7 +480,9 @@ pub const COARSE_SHARE: Range = Range::closed(0.01, 1.0, "");
 pub const BATCH_SHARE: Range = Range::closed(0.001, 1.0, "");
 /// Candidate directions per incidence (`candidates`).
 pub const CANDIDATES: (usize, usize) = (64, 262_144);
-/// Fewest points a batch takes (a smaller remainder of the budget is left unspent).
+/// Fewest points a batch is written for, and cut to under a budget in hours (below
+/// it the time counts as spent); a budget in points takes its last few points in
+/// a batch of what is left.
 pub const MIN_BATCH: usize = 4;
 /// Two directions closer than this, degrees, are one: a candidate nearer a measured
 /// point is not taken (far below any detector's aperture).

@@ -415,8 +415,9 @@ impl<'a> Cost<'a> {
     }
 }
 
-/// Seconds as `1h02m03s`, for reasons.
-fn hms(s: f64) -> String {
+/// Seconds as `1h02m03s` (`?` for a negative or non-finite value), as reasons and
+/// reports write durations.
+pub fn hms(s: f64) -> String {
     if !s.is_finite() || s < 0.0 {
         return "?".into();
     }

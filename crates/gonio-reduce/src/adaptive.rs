@@ -109,7 +109,7 @@ impl Planner {
         let taken = sample_points.len();
         let left = self.points.saturating_sub(taken);
         let mut n = self.spec.batch_points(self.points).min(left);
-        if n < MIN_BATCH.min(left.max(1)) || left == 0 {
+        if left == 0 {
             tracing::info!(taken, budget = self.points, "adaptive budget spent");
             return Ok(None);
         }

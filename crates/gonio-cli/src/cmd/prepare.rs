@@ -8,6 +8,9 @@ use gonio_plan::{Plan, Prepared};
 
 use crate::error::{CliError, CliResult};
 
+/// Seconds as `1h02m03s`.
+pub use gonio_plan::schedule::hms;
+
 fn input(e: impl std::fmt::Display) -> CliError {
     CliError::Input(e.to_string())
 }
@@ -61,17 +64,4 @@ pub fn load_and_prepare(instrument: &Path, plan: &Path) -> CliResult<Loaded> {
         plan_text,
         prepared,
     })
-}
-
-/// Seconds as `1h02m03s`.
-pub fn hms(s: f64) -> String {
-    if !s.is_finite() || s < 0.0 {
-        return "?".into();
-    }
-    let t = s.round() as u64;
-    match (t / 3600, t % 3600 / 60, t % 60) {
-        (0, 0, s) => format!("{s}s"),
-        (0, m, s) => format!("{m}m{s:02}s"),
-        (h, m, s) => format!("{h}h{m:02}m{s:02}s"),
-    }
 }

@@ -116,3 +116,69 @@ pub fn status(path: &Path) -> String {
         })
         .expect("status")
 }
+
+/// Starts `gonio acquire` with `acquire` (whose `--out` is `out`), kills it with SIGKILL
+/// or SIGTERM after a pseudo-random delay of `base_ms` plus up to `spread_ms` (longer
+/// each session, so that a slow machine still gets past start-up and homing), then
+/// `gonio resume`s and kills it the same way, until a session completes the run. The
+/// delays and signals come from a generator seeded with `seed`. Returns the number of
+/// kills; every session that was not killed must have succeeded.
+pub fn kill_and_resume_until_complete(
+    out: &Path,
+    acquire: &[&str],
+    seed: u64,
+    (base_ms, spread_ms): (u64, u64),
+) -> usize {
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let spawn = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_gonio"))
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the gonio binary starts")
+    };
+    let mut state = seed;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        state >> 33
+    };
+    let out_s = s(out);
+    let mut first = vec!["acquire"];
+    first.extend_from_slice(acquire);
+    let mut kills = 0;
+    for session in 0.. {
+        assert!(session < 100, "no progress after {session} sessions");
+        let mut child = if out.exists() {
+            spawn(&["resume", &out_s])
+        } else {
+            spawn(&first)
+        };
+        let delay = Duration::from_millis(base_ms + next() % spread_ms + 100 * session);
+        let sig = ["-KILL", "-TERM"][(next() % 2) as usize];
+        let start = Instant::now();
+        while start.elapsed() < delay {
+            if let Some(st) = child.try_wait().expect("wait") {
+                assert!(st.success(), "session {session}: {st:?}");
+                return kills;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let killed = Command::new("kill")
+            .args([sig, &child.id().to_string()])
+            .status()
+            .expect("kill runs")
+            .success();
+        assert!(killed, "kill {sig} {}", child.id());
+        let _ = child.wait_with_output().expect("reaped");
+        kills += 1;
+        if out.exists() && status(out) == "complete" {
+            return kills;
+        }
+    }
+    kills
+}
