@@ -57,7 +57,7 @@ impl Bench for SimBench {
         }
     }
 
-    fn at_step(&mut self, step_id: i64) {
-        lock(&self.sim).begin_point(step_id as u64);
+    fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
+        lock(&self.sim).begin_point(step_id as u64, previous);
     }
 }

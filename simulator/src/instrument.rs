@@ -207,7 +207,9 @@ impl SimInstrument {
     /// The stages are at the point identified by `key`: restart the lock-in's filters
     /// and noise (see [`LockIn::restart`]) from a seed that depends only on the
     /// config's seed and `key`, so the point reads the same however the run got there.
-    pub fn begin_point(&mut self, key: u64) {
+    /// `previous` is the lock-in's X and Y (V) of the reading before this point.
+    pub fn begin_point(&mut self, key: u64, previous: Option<[f64; 2]>) {
+        let _ = previous;
         let now = self.clock.seconds();
         self.sync(now);
         let seed = splitmix64(self.seed ^ splitmix64(key));

@@ -78,8 +78,8 @@ impl Bench for FaultBench {
         self.inner.select_channel(channel)
     }
 
-    fn at_step(&mut self, step_id: i64) {
-        self.inner.at_step(step_id);
+    fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
+        self.inner.at_step(step_id, previous);
         for (at, hook) in &mut self.hooks {
             if *at == step_id
                 && let Some(h) = hook.take()

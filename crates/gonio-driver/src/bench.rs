@@ -61,9 +61,12 @@ pub trait Bench: Send {
     fn select_channel(&mut self, channel: &str) -> Result<(), BenchError>;
 
     /// The stages are at step `step_id` and the detector is about to read: the hook
-    /// where a simulator makes the reading reproducible. Nothing on real hardware.
-    fn at_step(&mut self, step_id: i64) {
-        let _ = step_id;
+    /// where a simulator makes the reading reproducible. `previous` is the lock-in's
+    /// mean X and Y (V) of the last reading the run committed before this step, what
+    /// the filters held before the move: a simulator starts the point's transient
+    /// from it. Nothing on real hardware.
+    fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
+        let _ = (step_id, previous);
     }
 }
 

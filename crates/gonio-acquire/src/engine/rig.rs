@@ -399,7 +399,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             Err(e) => return self.motion_failed(id, e),
         };
         let position = [positions[0], positions[1], positions[2], positions[3]];
-        self.bench.at_step(id);
+        self.bench.at_step(id, None);
         self.gonio.detector.input_changed();
         let mut reading = match self.gonio.detector.read() {
             Ok(r) => r,
