@@ -37,6 +37,7 @@ fn config() -> Sr830Config {
         reconnect_delay_ms: 200,
         retries: 0,
         settle_residual: 0.01,
+        ..Sr830Config::default()
     }
 }
 

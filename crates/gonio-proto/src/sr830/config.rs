@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use super::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
+use super::{FilterSlope, NoiseDensity, Sensitivity, TimeConstant, UnknownLabel};
 
 /// How an [`Sr830Session`](super::Sr830Session) sets the instrument up and reads it.
 /// Embeddable in an instrument config file (TOML); every field has a default, and
@@ -21,6 +21,9 @@ use super::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
 /// reconnect_delay_ms = 1000
 /// retries = 2
 /// settle_residual = 0.01
+/// # Only for plans with a [reading] target:
+/// noise = { floor = 20e-9, shot = 2e-6 }
+/// time_constant_range = ["10 ms", "300 ms"]
 /// ```
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -57,6 +60,41 @@ pub struct Sr830Config {
     /// fraction of the step: the manual's tables are for 0.01 (99 %); precision work
     /// asks for less (1e-4 waits 15.9 time constants at 24 dB/oct). In (0, 0.5].
     pub settle_residual: f64,
+    /// The output noise as white densities (`noise = { floor = 20e-9, shot = 2e-6 }`,
+    /// V/√Hz and V/√Hz per √V): what a reading to a precision target predicts its
+    /// scatter from, and chooses its time constant by. Absent, a targeted reading
+    /// trusts its own scatter and keeps `time_constant`.
+    pub noise: Option<NoiseDensity>,
+    /// Time constants a targeted reading may choose from, the shortest and longest
+    /// (labels or `OFLT` indices); it needs `noise`. Absent: `time_constant` always.
+    #[serde(deserialize_with = "de_time_constant_range")]
+    pub time_constant_range: Option<[TimeConstant; 2]>,
+    /// Seconds one `SNAP?` exchange takes on the wire (36 characters both ways at the
+    /// port's baud rate): set from the instrument config, never read from a file.
+    #[serde(skip)]
+    pub exchange_s: f64,
+}
+
+/// One `SNAP?` exchange's characters, both ways, at 10 bits a character.
+const EXCHANGE_BITS: f64 = 36.0 * 10.0;
+
+impl Sr830Config {
+    /// Sets [`exchange_s`](Self::exchange_s) for a port at `baud`.
+    pub fn with_baud(mut self, baud: u32) -> Self {
+        self.exchange_s = EXCHANGE_BITS / f64::from(baud.max(1));
+        self
+    }
+
+    /// The time constants a targeted reading may choose from, shortest first: the
+    /// range's, or `time_constant` alone.
+    pub fn time_constant_choices(&self) -> Vec<TimeConstant> {
+        match self.time_constant_range {
+            Some([lo, hi]) => (lo.index()..=hi.index())
+                .filter_map(TimeConstant::new)
+                .collect(),
+            None => vec![self.time_constant],
+        }
+    }
 }
 
 impl Sr830Config {
@@ -97,6 +135,9 @@ impl Default for Sr830Config {
             reconnect_delay_ms: 1000,
             retries: 2,
             settle_residual: 0.01,
+            noise: None,
+            time_constant_range: None,
+            exchange_s: EXCHANGE_BITS / 9600.0,
         }
     }
 }
@@ -144,6 +185,33 @@ impl Sr830Config {
                 "settle_residual",
                 format!("{} is not in (0, 0.5]", self.settle_residual),
             );
+        }
+        if let Some(n) = &self.noise {
+            for (field, v) in [("noise.floor", n.floor), ("noise.shot", n.shot)] {
+                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                    return bad(field, format!("{v} is not in [0, 1]"));
+                }
+            }
+            if n.floor == 0.0 && n.shot == 0.0 {
+                return bad(
+                    "noise",
+                    "floor and shot are both 0: no reading is noiseless".into(),
+                );
+            }
+        }
+        if let Some([lo, hi]) = self.time_constant_range {
+            if lo > hi {
+                return bad(
+                    "time_constant_range",
+                    format!("{lo} is longer than {hi}: give the shortest first"),
+                );
+            }
+            if self.noise.is_none() {
+                return bad(
+                    "time_constant_range",
+                    "needs `noise`: the choice weighs settling against the noise".into(),
+                );
+            }
         }
         if self.retries > 10 {
             return bad("retries", format!("{} is not in 0..=10", self.retries));
@@ -215,6 +283,21 @@ fn de_time_constant<'de, D: serde::Deserializer<'de>>(d: D) -> Result<TimeConsta
         from_index: TimeConstant::new,
         from_label: str::parse,
     })
+}
+
+fn de_time_constant_range<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<Option<[TimeConstant; 2]>, D::Error> {
+    use serde::Deserialize;
+    /// One entry, as a label or an index.
+    struct Tc(TimeConstant);
+    impl<'de> Deserialize<'de> for Tc {
+        fn deserialize<D2: serde::Deserializer<'de>>(d: D2) -> Result<Self, D2::Error> {
+            de_time_constant(d).map(Tc)
+        }
+    }
+    let [lo, hi] = <[Tc; 2]>::deserialize(d)?;
+    Ok(Some([lo.0, hi.0]))
 }
 
 fn de_slope<'de, D: serde::Deserializer<'de>>(d: D) -> Result<FilterSlope, D::Error> {

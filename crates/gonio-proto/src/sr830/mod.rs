@@ -34,6 +34,7 @@ mod reply;
 mod session;
 mod status;
 mod tables;
+pub mod target;
 
 pub mod fuzz;
 
@@ -47,6 +48,7 @@ pub use reply::{Identity, Reply, ReplyError};
 pub use session::Sr830Session;
 pub use status::{ErrorStatus, EventStatus, LiaStatus};
 pub use tables::{FilterSlope, Sensitivity, TimeConstant, UnknownLabel};
+pub use target::{NoiseDensity, ReadTarget};
 
 /// The line terminator the host sends. The manual allows `\n` or `\r` on RS-232
 /// (p. 5-1); `\n` is chosen because GPIB takes it as well, so one line suits either port.

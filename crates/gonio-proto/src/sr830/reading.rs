@@ -68,6 +68,9 @@ pub struct Reading {
     pub flags: ReadingFlags,
     /// Range changes autoranging made before this reading.
     pub autorange_steps: usize,
+    /// A targeted reading reached its time cap before its target precision: kept, at
+    /// the precision it reached.
+    pub capped: bool,
 }
 
 impl Reading {

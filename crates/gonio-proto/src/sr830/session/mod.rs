@@ -13,6 +13,7 @@ mod exchange;
 mod ops;
 mod read;
 mod script;
+mod targeted;
 
 use std::time::Duration;
 
@@ -59,6 +60,9 @@ pub struct Sr830Session {
     slope: FilterSlope,
     /// From this time on, readings are trustworthy.
     settled_at: Duration,
+    /// When the light or a setting last changed: where a targeted reading's transient
+    /// starts.
+    changed_at: Duration,
     reconnects: usize,
     retried: u64,
     identity: Option<Identity>,
@@ -81,6 +85,7 @@ impl Sr830Session {
             slope: config.slope,
             config,
             settled_at: now,
+            changed_at: now,
             reconnects: 0,
             retried: 0,
             identity: None,
@@ -106,6 +111,25 @@ impl Sr830Session {
         now: Duration,
     ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
         Run::new("sr830.read", self, Exec::new(read::Read::default()), now)
+    }
+
+    /// One reading to a precision target (see [`super::target`]): with a noise law
+    /// and a time-constant range, the time constant that reads a signal of
+    /// `expected` V fastest is set first; snapshots are then taken one time constant
+    /// apart from [`FIRST_SNAPSHOT_TC`](super::target::FIRST_SNAPSHOT_TC) after the
+    /// last change, the filter's transient fitted from them, and a window averaged
+    /// once the transient is under a fraction of the target, until its mean meets the
+    /// target or the reading has taken `target.max_s` (then it is flagged capped).
+    /// Autoranging steps one range less sensitive on an output clipped after the
+    /// transient, and straight to the range that fits on a small signal.
+    pub fn start_read_targeted(
+        &mut self,
+        target: super::ReadTarget,
+        expected: Option<f64>,
+        now: Duration,
+    ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
+        let op = targeted::TargetedRead::new(target, expected);
+        Run::new("sr830.read_targeted", self, Exec::new(op), now)
     }
 
     /// Sends any command and, for a query, reads its reply. A vanished port is
@@ -244,6 +268,7 @@ impl Sr830Session {
     /// settings, so a mistaken 30 ks set and undone does not cost days.
     fn mark_unsettled(&mut self, now: Duration) {
         self.settled_at = now.saturating_add(self.settle_time());
+        self.changed_at = now;
         tracing::debug!(
             settle = ?self.settle_time(),
             time_constant = %self.time_constant,

@@ -49,7 +49,7 @@ impl Op for Read {
     }
 }
 
-fn snap() -> Command {
+pub(super) fn snap() -> Command {
     Command::Snap(SnapParams::XY)
 }
 
@@ -166,6 +166,7 @@ impl Read {
             status,
             flags: ReadingFlags::from_status(status),
             autorange_steps: 0,
+            capped: false,
         }
     }
 
@@ -235,7 +236,7 @@ impl Read {
 }
 
 /// X and Y from a `SNAP? 1,2` answer.
-fn xy(reply: Option<Reply>) -> Result<(f64, f64), Sr830Error> {
+pub(super) fn xy(reply: Option<Reply>) -> Result<(f64, f64), Sr830Error> {
     match reply {
         Some(Reply::Snap(v)) => match v.as_slice() {
             [x, y] => Ok((*x, *y)),

@@ -1,0 +1,406 @@
+//! A reading to a precision target: the time constant chosen for the signal, the
+//! settling measured from the snapshots, the window grown until its mean is precise
+//! enough ([`crate::sr830::target`] holds the rule).
+
+use std::time::Duration;
+
+use tracing::{debug, trace, warn};
+
+use super::read::{snap, xy};
+use super::script::{Next, Op};
+use super::{Sr830Session, is_transient, lia_status};
+use crate::machine::{Cx, secs};
+use crate::sr830::target::{FIRST_SNAPSHOT_TC, ReadTarget, Sequential, choose_time_constant};
+use crate::sr830::{
+    Command, LiaStatus, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, Sensitivity, Sr830Error,
+};
+
+/// An output clips at this multiple of full scale (manual, OUTPUT OVLD: 1.09 × full
+/// scale); a snapshot within 1e-5 of it is taken as clipped.
+const CLIP: f64 = 1.09 * (1.0 - 1e-5);
+
+/// A clipped snapshot this many time constants after the change means the value
+/// itself is over range: a 24 dB/oct step has come within 1 % by then (manual's
+/// settling table, 10 T), so only a step of over a hundred full scales still clips.
+const CLIP_SETTLED_TC: f64 = 10.0;
+
+/// Most times one read starts over after the port was lost and reopened.
+const MAX_RESTARTS: usize = 2;
+
+/// Autoranging on a small signal goes straight to the most sensitive range whose full
+/// scale times this holds the mean (as the instrument's own auto gain does).
+const RANGE_FILL: f64 = 0.9;
+
+/// The targeted read operation.
+#[derive(Debug)]
+pub(super) struct TargetedRead {
+    target: ReadTarget,
+    expected: Option<f64>,
+    /// When the read began (for `max_s`).
+    started: Duration,
+    steps: usize,
+    restarts: usize,
+    reconnects: usize,
+    left: u32,
+    seq: Sequential,
+    /// The change this segment's transient starts from, and its time constant, s.
+    t0: Duration,
+    tc_s: f64,
+    /// The status read when the window was fixed, and whether it has been.
+    early: LiaStatus,
+    window_checked: bool,
+    capped: bool,
+}
+
+impl Op for TargetedRead {
+    type Value = Reading;
+
+    fn start(&mut self, s: &mut Sr830Session, cx: &mut Cx) -> Next<Self> {
+        self.started = cx.now;
+        let choice = match (self.expected, &s.config.noise) {
+            (Some(e), Some(noise)) if s.config.time_constant_range.is_some() => {
+                choose_time_constant(
+                    e.abs(),
+                    &self.target,
+                    noise,
+                    s.slope,
+                    s.config.time_constant_choices(),
+                    s.config.exchange_s,
+                )
+            }
+            _ => None,
+        };
+        if let Some(c) = choice
+            && c.time_constant != s.time_constant
+        {
+            debug!(
+                expected = self.expected,
+                from = %s.time_constant,
+                to = %c.time_constant,
+                settle_s = c.settle_s,
+                averaging_s = c.averaging_s,
+                "sr830: time constant for the expected signal"
+            );
+            return Next::exchange(Command::SetTimeConstant(c.time_constant), Self::tc_set);
+        }
+        self.begin_segment(s, cx)
+    }
+}
+
+impl TargetedRead {
+    pub(super) fn new(target: ReadTarget, expected: Option<f64>) -> Self {
+        TargetedRead {
+            target,
+            expected,
+            started: Duration::ZERO,
+            steps: 0,
+            restarts: 0,
+            reconnects: 0,
+            left: 0,
+            seq: Sequential::new(1, 0.0),
+            t0: Duration::ZERO,
+            tc_s: 0.0,
+            early: LiaStatus(0),
+            window_checked: false,
+            capped: false,
+        }
+    }
+
+    fn tc_set(
+        &mut self,
+        s: &mut Sr830Session,
+        cx: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        if let Err(e) = r {
+            return Next::Done(Err(e));
+        }
+        self.begin_segment(s, cx)
+    }
+
+    /// A new transient: from the last change, at the present time constant.
+    fn begin_segment(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
+        self.reconnects = s.reconnects;
+        self.t0 = s.changed_at;
+        self.tc_s = s.time_constant.seconds();
+        let first = self.t0.saturating_add(secs(FIRST_SNAPSHOT_TC * self.tc_s));
+        let first_tau = (first.max(cx.now) - self.t0).as_secs_f64() / self.tc_s;
+        self.seq = Sequential::new(usize::from(s.slope.index()) + 1, first_tau);
+        self.early = LiaStatus(0);
+        self.window_checked = false;
+        if cx.now < first {
+            return Next::Pause {
+                until: first,
+                then: Self::first_due,
+            };
+        }
+        self.clear_flags(s)
+    }
+
+    fn first_due(&mut self, s: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
+        self.clear_flags(s)
+    }
+
+    fn clear_flags(&mut self, s: &Sr830Session) -> Next<Self> {
+        self.left = s.config.retries;
+        Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
+    }
+
+    fn flags_cleared(
+        &mut self,
+        s: &mut Sr830Session,
+        _: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
+            Ok(_) => Next::exchange(snap(), Self::snapped),
+            Err(e) if self.left > 0 && is_transient(&e) => {
+                self.left -= 1;
+                s.retried += 1;
+                Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
+            }
+            Err(e) => Next::Done(Err(e)),
+        }
+    }
+
+    fn snapped(
+        &mut self,
+        s: &mut Sr830Session,
+        cx: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        let (x, y) = match r.and_then(xy) {
+            Ok(v) => v,
+            Err(e) => return Next::Done(Err(e)),
+        };
+        if s.reconnects != self.reconnects {
+            return self.interrupted(s, cx);
+        }
+        let tau = (cx.now.saturating_sub(self.t0)).as_secs_f64() / self.tc_s;
+        let fs = s.sensitivity.volts();
+        let clipped = x.abs() >= CLIP * fs || y.abs() >= CLIP * fs;
+        if clipped {
+            if (self.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC)
+                && let Some(next) = s.sensitivity.less_sensitive()
+            {
+                debug!(tau, x, y, "sr830: output clipped after the transient");
+                return self.range_to(s, next);
+            }
+            trace!(
+                tau,
+                "sr830: snapshot clipped during the transient, not used"
+            );
+            return self.next_snapshot(s, cx);
+        }
+        let had_window = self.seq.window_start().is_some();
+        self.seq.push(tau, x, y);
+        let noise = s.config.noise;
+        let (slope, tc) = (s.slope, s.time_constant);
+        let law = noise.map(|n| move |r: f64| n.snapshot_variance(r, slope, tc));
+        let a = self
+            .seq
+            .assess(&self.target, law.as_ref().map(|f| f as &dyn Fn(f64) -> f64));
+        trace!(
+            tau,
+            r = x.hypot(y),
+            window = ?a.window_start,
+            sigma_mean = a.sigma_mean,
+            target = a.target,
+            "sr830: snapshot"
+        );
+        if !had_window && a.window_start.is_some() && !self.window_checked {
+            // What latched during the transient is read and cleared now; the window's
+            // own snapshots were checked for clipping one by one.
+            self.window_checked = true;
+            debug!(
+                settle_s = tau * self.tc_s,
+                window_start = a.window_start,
+                "sr830: settled (transient under its bound)"
+            );
+            return Next::exchange(Command::LiaStatus(None), Self::early_read);
+        }
+        if a.done {
+            return Next::exchange(Command::LiaStatus(None), Self::flags_read);
+        }
+        self.next_snapshot(s, cx)
+    }
+
+    fn early_read(
+        &mut self,
+        s: &mut Sr830Session,
+        cx: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
+            // An output overload before the window is the transient's; anything else
+            // (an input overload, an unlock) may have touched the window.
+            Ok(st) => self.early = LiaStatus(st.0 & !LiaStatus::OUTPUT_OVERLOAD),
+            Err(e) if s.config.retries > 0 && is_transient(&e) => {
+                warn!(error = %e, "sr830: the flags' answer was lost; reading again");
+                s.retried += 1;
+                return self.interrupted(s, cx);
+            }
+            Err(e) => return Next::Done(Err(e)),
+        }
+        let law = s.config.noise.map(|n| {
+            let (slope, tc) = (s.slope, s.time_constant);
+            move |r: f64| n.snapshot_variance(r, slope, tc)
+        });
+        let a = self
+            .seq
+            .assess(&self.target, law.as_ref().map(|f| f as &dyn Fn(f64) -> f64));
+        if a.done {
+            return Next::exchange(Command::LiaStatus(None), Self::flags_read);
+        }
+        self.next_snapshot(s, cx)
+    }
+
+    /// The next snapshot one time constant on, unless that would pass the cap.
+    fn next_snapshot(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
+        let next = cx.now.saturating_add(secs(self.tc_s));
+        let finish = next.saturating_add(secs(s.config.exchange_s));
+        let cap = self.started.saturating_add(secs(self.target.max_s));
+        if finish > cap {
+            warn!(
+                max_s = self.target.max_s,
+                snapshots = self.seq.len(),
+                "sr830: reading capped before its target"
+            );
+            self.capped = true;
+            return Next::exchange(Command::LiaStatus(None), Self::flags_read);
+        }
+        Next::Pause {
+            until: next,
+            then: Self::spaced,
+        }
+    }
+
+    fn spaced(&mut self, _: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
+        Next::exchange(snap(), Self::snapped)
+    }
+
+    fn flags_read(
+        &mut self,
+        s: &mut Sr830Session,
+        cx: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        let status = match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
+            Ok(status) => LiaStatus(status.0 | self.early.0),
+            Err(e) if s.config.retries > 0 && is_transient(&e) => {
+                warn!(error = %e, "sr830: the flags' answer was lost; reading again");
+                s.retried += 1;
+                return self.interrupted(s, cx);
+            }
+            Err(e) => return Next::Done(Err(e)),
+        };
+        if s.reconnects != self.reconnects {
+            return self.interrupted(s, cx);
+        }
+        let Some(w) = self.seq.result() else {
+            // Every snapshot clipped until the cap: an overload.
+            return self.finish(s, self.reading_of(s, status, None));
+        };
+        let reading = self.reading_of(s, status, Some(w));
+        self.finish(s, reading)
+    }
+
+    fn reading_of(
+        &self,
+        s: &Sr830Session,
+        status: LiaStatus,
+        w: Option<crate::sr830::target::WindowMean>,
+    ) -> Reading {
+        let mut status = status;
+        if w.is_none() {
+            status = LiaStatus(status.0 | LiaStatus::OUTPUT_OVERLOAD);
+        }
+        let nan = f64::NAN;
+        Reading {
+            r_mean: w.map_or(nan, |w| w.r_mean),
+            r_std: w.map_or(nan, |w| w.r_std),
+            x_mean: w.map_or(nan, |w| w.x_mean),
+            y_mean: w.map_or(nan, |w| w.y_mean),
+            n: w.map_or(0, |w| w.n),
+            sensitivity: s.sensitivity,
+            time_constant: s.time_constant,
+            slope: s.slope,
+            status,
+            flags: ReadingFlags::from_status(status),
+            autorange_steps: self.steps,
+            capped: self.capped,
+        }
+    }
+
+    fn finish(&mut self, s: &Sr830Session, reading: Reading) -> Next<Self> {
+        self.restarts = 0;
+        if !s.config.autorange || self.capped {
+            return Next::Done(Ok(reading));
+        }
+        let f = reading.flags;
+        let next = if f.input_overload || f.output_overload {
+            s.sensitivity.less_sensitive()
+        } else if !f.any() && reading.r_mean < s.config.min_fraction * s.sensitivity.volts() {
+            Sensitivity::all()
+                .find(|x| x.volts() * RANGE_FILL >= reading.r_mean)
+                .filter(|x| *x < s.sensitivity)
+                .or_else(|| s.sensitivity.more_sensitive())
+        } else {
+            None
+        };
+        let Some(next) = next else {
+            return Next::Done(Ok(reading));
+        };
+        if self.steps >= MAX_AUTORANGE_STEPS {
+            warn!(steps = self.steps, "sr830: autorange gives up");
+            return Next::Done(Err(Sr830Error::Autorange {
+                steps: self.steps,
+                last: Box::new(reading),
+            }));
+        }
+        debug!(from = %s.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange");
+        self.range_to(s, next)
+    }
+
+    fn range_to(&mut self, _: &Sr830Session, next: Sensitivity) -> Next<Self> {
+        Next::exchange(Command::SetSensitivity(next), Self::ranged)
+    }
+
+    fn ranged(
+        &mut self,
+        s: &mut Sr830Session,
+        cx: &mut Cx,
+        r: Result<Option<Reply>, Sr830Error>,
+    ) -> Next<Self> {
+        if let Err(e) = r {
+            return Next::Done(Err(e));
+        }
+        self.steps += 1;
+        if self.steps > MAX_AUTORANGE_STEPS {
+            warn!(steps = self.steps, "sr830: autorange gives up");
+            let w = self.seq.result();
+            let last = self.reading_of(s, LiaStatus(0), w);
+            return Next::Done(Err(Sr830Error::Autorange {
+                steps: self.steps,
+                last: Box::new(last),
+            }));
+        }
+        self.begin_segment(s, cx)
+    }
+
+    /// The port was reopened during the segment, or the flags' answer was lost: start
+    /// the segment again, unless that has happened too often in a row.
+    fn interrupted(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
+        self.restarts += 1;
+        if self.restarts > MAX_RESTARTS {
+            warn!(
+                restarts = self.restarts,
+                "sr830: reading interrupted too often"
+            );
+            let restarts = self.restarts;
+            return Next::Done(Err(Sr830Error::Interrupted { restarts }));
+        }
+        debug!(restarts = self.restarts, "sr830: read segment starts again");
+        self.begin_segment(s, cx)
+    }
+}

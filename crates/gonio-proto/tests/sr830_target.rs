@@ -1,0 +1,329 @@
+//! Reading to a precision target, on virtual time: the transient fit against the
+//! filter cascade's analytic response, the sequential rule against synthetic noise of
+//! known law, and the expected times.
+
+use gonio_proto::sr830::target::{
+    NoiseDensity, ReadTarget, Sequential, TRANSIENT_FRACTION, choose_time_constant, estimate,
+    fit_transient, step_residual,
+};
+use gonio_proto::sr830::{FilterSlope, TimeConstant};
+
+/// The output of an N-stage RC cascade (time constant 1) with constant input `u`,
+/// from stage deviations `z0` (stage 1 first) at τ = 0: stage k's deviation is
+/// e^(−τ) Σ_{j<k} z_{k−j}(0) τ^j/j! — each stage's free decay passed through the
+/// stages after it. Written out here, independently of the code under test.
+fn cascade(u: f64, z0: &[f64], tau: f64) -> f64 {
+    let n = z0.len();
+    let mut sum = 0.0;
+    let mut term = 1.0;
+    for j in 0..n {
+        sum += z0[n - 1 - j] * term;
+        term *= tau / (j + 1) as f64;
+    }
+    u + (-tau).exp() * sum
+}
+
+#[test]
+fn the_fit_recovers_the_settled_value_and_extrapolates_the_transient_exactly() {
+    // Arbitrary stage states (not a settled step): what a move sweeping the beam leaves.
+    for z0 in [
+        vec![0.8],
+        vec![-0.3, 0.5],
+        vec![0.2, -0.7, 1.1],
+        vec![1.5, -0.4, 0.9, 2.0],
+    ] {
+        let u = 0.42;
+        let taus: Vec<f64> = (0..14).map(|k| 1.7 + 1.35 * k as f64).collect();
+        let ys: Vec<f64> = taus.iter().map(|t| cascade(u, &z0, *t)).collect();
+        let fit = fit_transient(&taus, &ys, z0.len()).expect("fits");
+        assert!((fit.value - u).abs() < 1e-9, "{z0:?}: {}", fit.value);
+        for tau in [2.0, 5.0, 12.0, 25.0, 40.0] {
+            let truth = cascade(u, &z0, tau) - u;
+            assert!(
+                (fit.transient(tau) - truth).abs() < 1e-9,
+                "{z0:?} at τ {tau}: {} vs {truth}",
+                fit.transient(tau)
+            );
+        }
+    }
+}
+
+#[test]
+fn a_constant_time_offset_is_absorbed() {
+    // Snapshots stamped 0.3 T late (a reply's latency): the same polynomial family.
+    let z0 = [0.0, 0.0, 0.0, -1.0];
+    let u = 1.0;
+    let taus: Vec<f64> = (0..12).map(|k| 2.0 + 1.4 * k as f64).collect();
+    let ys: Vec<f64> = taus.iter().map(|t| cascade(u, &z0, t - 0.3)).collect();
+    let fit = fit_transient(&taus, &ys, 4).expect("fits");
+    assert!((fit.value - u).abs() < 1e-9, "{}", fit.value);
+}
+
+#[test]
+fn step_residual_matches_the_manual_and_the_settling_factors() {
+    // Manual, "SR830 Basics": 99 % after 5, 7, 9, 10 T at 6, 12, 18, 24 dB/oct (the
+    // table rounds: 0.67 %, 0.73 %, 0.62 %, 1.03 %).
+    for (order, tau, left) in [
+        (1, 5.0, 0.0067),
+        (2, 7.0, 0.0073),
+        (3, 9.0, 0.0062),
+        (4, 10.0, 0.0103),
+    ] {
+        assert!((step_residual(order, tau) - left).abs() < 5e-5, "{order}");
+    }
+    let f = FilterSlope::Db24.settle_factor_for(1e-4);
+    assert!((step_residual(4, f) - 1e-4).abs() < 1e-9);
+}
+
+/// A seeded normal generator (splitmix64 and Box–Muller), for reproducible noise.
+struct Normal(u64);
+
+impl Normal {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn next(&mut self) -> f64 {
+        let (a, b) = (self.uniform(), self.uniform());
+        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+    }
+}
+
+/// One simulated reading: a step from `y0` to `u` at τ = 0 through a 24 dB/oct
+/// cascade, first-order noise of standard deviation `sigma` (correlation e^(−Δτ)),
+/// snapshots from τ = 2 every `spacing`, until the rule says done. Returns the
+/// window's mean, its snapshot times, and the snapshots taken.
+fn one_reading(
+    seq: &mut Sequential,
+    target: &ReadTarget,
+    law: Option<&dyn Fn(f64) -> f64>,
+    (u, y0, sigma, spacing): (f64, f64, f64, f64),
+    rng: &mut Normal,
+) -> (f64, Vec<f64>, usize) {
+    let mut noise = sigma * rng.next();
+    let mut tau = 2.0;
+    let mut taus = Vec::new();
+    for k in 0..100_000 {
+        if k > 0 {
+            let rho = (-spacing).exp();
+            noise = rho * noise + sigma * (1.0 - rho * rho).sqrt() * rng.next();
+            tau += spacing;
+        }
+        let clean = u + (y0 - u) * step_residual(4, tau);
+        seq.push(tau, clean + noise, 0.0);
+        taus.push(tau);
+        if seq.assess(target, law).done {
+            let start = seq.window_start().expect("a window");
+            let w = seq.result().expect("a mean");
+            return (w.r_mean, taus[start..].to_vec(), taus.len());
+        }
+    }
+    panic!("never done");
+}
+
+/// Σ_{i,j} e^(−|τᵢ − τⱼ|): the exact variance of a sum of first-order noise, in σ².
+fn correlation_sum(taus: &[f64]) -> f64 {
+    taus.iter()
+        .map(|a| taus.iter().map(|b| (-(a - b).abs()).exp()).sum::<f64>())
+        .sum()
+}
+
+#[test]
+fn the_rule_never_stops_before_the_target_on_noise_of_known_law() {
+    let (u, sigma) = (1e-3, 1e-5);
+    let target = ReadTarget {
+        sigma_relative: 1e-3,
+        sigma_absolute: 0.0,
+        max_s: 1e9,
+        min_samples: 2,
+    };
+    let law = |_: f64| sigma * sigma;
+    let mut rng = Normal(24);
+    let (mut zs, mut total) = (Vec::new(), 0usize);
+    for trial in 0..300 {
+        // Steps up and down, of up to 3 values.
+        let y0 = u * [0.0, 4.0, 0.5, 2.0][trial % 4];
+        let mut seq = Sequential::new(4, 2.0);
+        let (mean, window, taken) =
+            one_reading(&mut seq, &target, Some(&law), (u, y0, sigma, 1.4), &mut rng);
+        let n = window.len() as f64;
+        // The true σ of the window's mean, from the law and the snapshots' times.
+        let true_sigma = sigma * correlation_sum(&window).sqrt() / n;
+        let goal = target.sigma(mean);
+        assert!(
+            true_sigma <= goal * (1.0 + 1e-12),
+            "trial {trial}: stopped at σ {true_sigma:e} > target {goal:e} ({} snapshots)",
+            window.len()
+        );
+        zs.push((mean - u) / goal);
+        total += taken;
+    }
+    // The realised errors: unbiased within the transient's allowance, and spread as
+    // stated (300 trials: the RMS is good to about 4 %).
+    let m = zs.len() as f64;
+    let mean_z = zs.iter().sum::<f64>() / m;
+    let rms = (zs.iter().map(|z| z * z).sum::<f64>() / m).sqrt();
+    assert!(mean_z.abs() < TRANSIENT_FRACTION + 0.15, "mean z {mean_z}");
+    assert!((0.85..=1.12).contains(&rms), "rms z {rms}");
+    // The noise needs 100 (1 + ρ)/(1 − ρ) = 166 snapshots (ρ = e^−1.4); settling adds
+    // the 10 to 14 snapshots before the transient is under 0.2 of the target.
+    let per = total as f64 / 300.0;
+    assert!(
+        (166.0..=166.0 + 16.0).contains(&per),
+        "{per} snapshots a reading"
+    );
+}
+
+#[test]
+fn without_a_law_the_window_scatter_decides_from_five_snapshots() {
+    let (u, sigma) = (2e-3, 4e-6);
+    let target = ReadTarget {
+        sigma_relative: 1e-3,
+        sigma_absolute: 0.0,
+        max_s: 1e9,
+        min_samples: 2,
+    };
+    let mut rng = Normal(7);
+    let mut zs = Vec::new();
+    for _ in 0..200 {
+        let mut seq = Sequential::new(4, 2.0);
+        let (mean, window, _) =
+            one_reading(&mut seq, &target, None, (u, 0.0, sigma, 1.4), &mut rng);
+        assert!(window.len() >= 5, "{}", window.len());
+        zs.push((mean - u) / target.sigma(mean));
+    }
+    let rms = (zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64).sqrt();
+    // Its own scatter from a handful of snapshots can be low by chance; the error
+    // stays near the target.
+    assert!(rms < 1.35, "rms z {rms}");
+}
+
+#[test]
+fn a_noiseless_step_opens_the_window_where_the_analytic_residual_allows() {
+    let (u, y0) = (1.0, 3.0);
+    let target = ReadTarget {
+        sigma_relative: 1e-4,
+        sigma_absolute: 0.0,
+        max_s: 1e9,
+        min_samples: 1,
+    };
+    let law = |_: f64| 1e-30;
+    let mut seq = Sequential::new(4, 2.0);
+    let allowed = TRANSIENT_FRACTION * target.sigma(u);
+    let mut tau = 2.0;
+    let mut taus = Vec::new();
+    while seq.window_start().is_none() {
+        seq.push(tau, u + (y0 - u) * step_residual(4, tau), 0.0);
+        taus.push(tau);
+        seq.assess(&target, Some(&law));
+        tau += 0.5;
+        assert!(tau < 100.0);
+    }
+    let start = seq.window_start().expect("window");
+    let first_ok = taus
+        .iter()
+        .position(|t| ((y0 - u) * step_residual(4, *t)).abs() <= allowed)
+        .expect("settles");
+    assert_eq!(start, first_ok, "window at τ {}", taus[start]);
+    // A step of 2 to within 2e-5: the residual 1e-5, 18.6 T at 24 dB/oct.
+    let want = FilterSlope::Db24.settle_factor_for(1e-5);
+    assert!(
+        taus[start] >= want && taus[start] < want + 0.5,
+        "{} vs {want}",
+        taus[start]
+    );
+}
+
+#[test]
+fn a_change_long_past_is_not_fitted() {
+    let target = ReadTarget {
+        sigma_relative: 1e-3,
+        sigma_absolute: 0.0,
+        max_s: 1e9,
+        min_samples: 1,
+    };
+    let mut seq = Sequential::new(4, 80.0);
+    seq.push(80.0, 0.5, 0.0);
+    let a = seq.assess(&target, Some(&|_| 1e-12));
+    assert_eq!(a.window_start, Some(0));
+    assert!(a.done);
+}
+
+fn noise() -> NoiseDensity {
+    NoiseDensity {
+        floor: 20e-9,
+        shot: 2e-6,
+    }
+}
+
+fn target() -> ReadTarget {
+    ReadTarget {
+        sigma_relative: 1e-4,
+        sigma_absolute: 0.0,
+        max_s: 30.0,
+        min_samples: 2,
+    }
+}
+
+#[test]
+fn the_estimate_adds_settling_and_the_snapshots_the_noise_needs() {
+    let tc = TimeConstant::new(8).expect("100 ms");
+    let ex = 0.0375;
+    // A dim signal, 1e-4 V: d² = (20 nV)² + (2 µV)²·1e-4 = 8e-16 V²/Hz, ENBW 0.78125 Hz,
+    // σ² = 6.25e-16 V²; target 1e-8 V; snapshots 1.375 T apart, ρ = e^−1.375.
+    let e = estimate(1e-4, 1e-4, &target(), &noise(), FilterSlope::Db24, tc, ex);
+    let rho = (-1.375f64).exp();
+    let n = (6.25e-16 * (1.0 + rho) / (1.0 - rho) / 1e-16).ceil() as usize;
+    assert_eq!(e.samples, n);
+    assert!((e.averaging_s - (n - 1) as f64 * 0.1375).abs() < 1e-12);
+    // Settling: the step's residual to 2e-5 (17.9 T) exceeds 2 + 5 snapshots (8.9 T).
+    let want = FilterSlope::Db24.settle_factor_for(2e-5) * 0.1;
+    assert!((e.settle_s - want).abs() < 1e-9, "{} vs {want}", e.settle_s);
+    // A bright one needs only its minimum of 2.
+    let b = estimate(0.5, 0.5, &target(), &noise(), FilterSlope::Db24, tc, ex);
+    assert_eq!(b.samples, 2);
+}
+
+#[test]
+fn the_time_constant_is_the_fastest_for_the_signal() {
+    let choices: Vec<TimeConstant> = (6..=11).filter_map(TimeConstant::new).collect();
+    for expected in [1e-5, 1e-4, 1e-3, 1e-1] {
+        let best = choose_time_constant(
+            expected,
+            &target(),
+            &noise(),
+            FilterSlope::Db24,
+            choices.clone(),
+            0.0375,
+        )
+        .expect("a choice");
+        for tc in &choices {
+            let e = estimate(
+                expected,
+                expected,
+                &target(),
+                &noise(),
+                FilterSlope::Db24,
+                *tc,
+                0.0375,
+            );
+            assert!(best.total_s() <= e.total_s(), "{expected}: {tc}");
+        }
+    }
+    // A bright signal takes the shortest: settling is all its time.
+    let bright = choose_time_constant(
+        0.1,
+        &target(),
+        &noise(),
+        FilterSlope::Db24,
+        choices.clone(),
+        0.0375,
+    )
+    .expect("choice");
+    assert_eq!(bright.time_constant, choices[0]);
+}
