@@ -20,7 +20,7 @@ use crate::config::{RoleStage, SimConfig, SimConfigError};
 use crate::controller::{Controller, addressed_to};
 use crate::faults::{FaultConfig, Port};
 use crate::filterwheel::Fw102cTwin;
-use crate::lockin::LockIn;
+use crate::lockin::{LockIn, PointStart};
 use crate::monochromator::Cs130Twin;
 use crate::optics::{LightPath, Optics};
 use crate::picoammeter::Picoammeter;
@@ -205,15 +205,20 @@ impl SimInstrument {
     }
 
     /// The stages are at the point identified by `key`: restart the lock-in's filters
-    /// and noise (see [`LockIn::restart`]) from a seed that depends only on the
-    /// config's seed and `key`, so the point reads the same however the run got there.
-    /// `previous` is the lock-in's X and Y (V) of the reading before this point.
+    /// and noise from a seed that depends only on the config's seed and `key`, so the
+    /// point reads the same however the run got there. `previous` is the lock-in's
+    /// mean X and Y (V) of the reading the run committed before this point (`None`
+    /// before its first): the filters start there with `point_start = "previous"`
+    /// ([`LockIn::restart_from`]), settled on the present signal otherwise
+    /// ([`LockIn::restart`]). The picoammeter restarts the same way in both.
     pub fn begin_point(&mut self, key: u64, previous: Option<[f64; 2]>) {
-        let _ = previous;
         let now = self.clock.seconds();
         self.sync(now);
         let seed = splitmix64(self.seed ^ splitmix64(key));
-        self.lockin.restart(now, seed);
+        match self.lockin.config().point_start {
+            PointStart::Settled => self.lockin.restart(now, seed),
+            PointStart::Previous => self.lockin.restart_from(now, seed, previous),
+        }
         if let Some(p) = &mut self.pico {
             p.restart(now, seed);
         }

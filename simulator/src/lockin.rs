@@ -26,6 +26,8 @@
 //!   changes T from then on. Its ENBW is the manual's 1/(4T), 1/(8T), 3/(32T), 5/(64T).
 //!   A step leaves 0.67 %, 0.73 %, 0.62 % after 5, 7, 9 T (6, 12, 18 dB/oct), but 1.03 %
 //!   after 10 T at 24 dB/oct (99 % at 10.05 T): the manual's settling table rounds.
+//! - A point's start ([`LockIn::restart`], [`LockIn::restart_from`]; chosen by
+//!   [`LockInConfig::point_start`]): see "Where a point starts" below.
 //! - Noise: an Ornstein–Uhlenbeck process per channel with correlation time T and
 //!   standard deviation density·√ENBW, density = √(amplifier² + shot²·R_signal), advanced
 //!   exactly with normals from a `ChaCha8Rng` seeded at construction: the same seed and
@@ -35,6 +37,25 @@
 //!   the fault is forced; OUTPUT (bit 2) while |X|, |Y| or R (noise included) exceeds
 //!   1.09 × full scale; UNLOCK (bit 3) while the unlock fault is on; RANGE (bit 4) and
 //!   TC (bit 5) when the reference frequency crosses 200 Hz. Reading clears what it reads.
+//!
+//! # Where a point starts
+//! A run reads each point after a move; a resumed run must read what the uninterrupted
+//! one read, so the filters' state at a point's start may depend only on what the run
+//! file records, never on the history of polls and moves that led there. Two
+//! idealisations, chosen by [`LockInConfig::point_start`]:
+//! - [`PointStart::Settled`] (the default): the filters start settled on the present
+//!   input; the outputs are flat at the new value from the start.
+//! - [`PointStart::Previous`]: every stage of X and of Y starts at the previous
+//!   reading's mean X and Y (zero for a run's first reading, a dark output), and the
+//!   input is the present signal from then on, so each output is the cascade's exact
+//!   step response y(t) = u + (y₀ − u)·e^(−a)·Σ_{j<N} a^j/j!, a = (t − t₀)/T, from
+//!   t₀ = the call's time. What this leaves out: the light swept during the move (the
+//!   filters' real path through it), the time between the move's end and the call, and
+//!   the difference between a reading's mean and the filters' state at its end (noise,
+//!   or a residue of the previous transient averaged in). It is exact when the filters
+//!   had settled on the previous reading and the move is short against T; after a move
+//!   long against T the real filters are already partly on their way (and may carry a
+//!   residue of a peak swept through), so the real transient differs from this one.
 //!
 //! # Choices where the manual is silent (or that are not modelled)
 //! - During an output overload the manual does not say what the outputs read
@@ -102,6 +123,7 @@ const RESET_AMPLITUDE_V: f64 = 1.0;
 /// chopper_hz = 1000.0
 /// serial = "s/n00111"
 /// firmware = "ver1.07"
+/// point_start = "settled"
 /// ```
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -126,6 +148,21 @@ pub struct LockInConfig {
     pub serial: String,
     /// Firmware field of `*IDN?`. Default `ver1.07`.
     pub firmware: String,
+    /// How the filters start at each point (`"settled"` or `"previous"`; see the module
+    /// docs, "Where a point starts"). Default `"settled"`.
+    pub point_start: PointStart,
+}
+
+/// How the output filters start at a point ([`LockInConfig::point_start`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PointStart {
+    /// Settled on the present input: no transient ([`LockIn::restart`]).
+    #[default]
+    Settled,
+    /// Every stage at the previous reading's X and Y, then the step response to the
+    /// present input ([`LockIn::restart_from`]).
+    Previous,
 }
 
 impl Default for LockInConfig {
@@ -139,6 +176,7 @@ impl Default for LockInConfig {
             chopper_hz: 1000.0,
             serial: "s/n00111".to_string(),
             firmware: "ver1.07".to_string(),
+            point_start: PointStart::Settled,
         }
     }
 }
@@ -371,7 +409,7 @@ impl LockIn {
 
     /// Starts a measurement afresh at `now_s`: the filters as if settled on the
     /// present input, the noise redrawn from its stationary law with a generator
-    /// seeded by `seed`.
+    /// seeded by `seed` ([`PointStart::Settled`]).
     ///
     /// An idealisation for reproducibility: a real lock-in keeps a residue of its
     /// history (the driver waits until it is below `settle_residual`); here a reading
@@ -382,13 +420,46 @@ impl LockIn {
         let (ux, uy) = self.filter_input();
         self.x_stages = [ux; STAGES];
         self.y_stages = [uy; STAGES];
+        self.redraw_noise(seed);
+        self.latch();
+    }
+
+    /// Starts a measurement at `now_s` with every filter stage of X and Y at `from`
+    /// (the previous reading's X and Y, volts; `None`, a run's first reading, is a
+    /// dark output, zero), the noise redrawn as [`restart`](Self::restart) does
+    /// ([`PointStart::Previous`]). From then on the outputs follow the cascade's step
+    /// response from `from` to the present input (module docs, "Where a point
+    /// starts"); the same `from`, `seed` and calls give the same bytes.
+    ///
+    /// No output reads beyond ±1.09 × the largest full scale (1 V), so a `from` beyond
+    /// that (only a damaged run file can hold one) is taken at that limit, and a
+    /// non-finite one as zero.
+    pub fn restart_from(&mut self, now_s: f64, seed: u64, from: Option<[f64; 2]>) {
+        self.advance(now_s);
+        let limit = OVERLOAD_FACTOR * Sensitivity::LEAST.volts();
+        let start = |v: f64| {
+            if v.is_finite() {
+                v.clamp(-limit, limit)
+            } else {
+                0.0
+            }
+        };
+        let [x0, y0] = from.unwrap_or([0.0, 0.0]);
+        self.x_stages = [start(x0); STAGES];
+        self.y_stages = [start(y0); STAGES];
+        self.redraw_noise(seed);
+        self.latch();
+    }
+
+    /// Reseeds the generator with `seed` and draws both noise channels from their
+    /// stationary law.
+    fn redraw_noise(&mut self, seed: u64) {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
         let sigma = self.noise_sigma();
         for k in 0..2 {
             let xi: f64 = self.rng.sample(StandardNormal);
             self.noise[k] = sigma * xi;
         }
-        self.latch();
     }
 
     /// Fault: reference unlock. LIAS bit 3 latches at once and at every event while on;

@@ -8,7 +8,8 @@ use std::time::Duration;
 use gonio_driver::sr830::{ReadingFlags, Sr830, Sr830Config};
 use gonio_driver::{Clock, ManualClock, Transport, TransportError};
 use gonio_proto::sr830::{Command, FilterSlope, Reply, Sensitivity, SnapParams, TimeConstant};
-use gonio_sim::lockin::{LockIn, LockInConfig, OVERLOAD_FACTOR, advance_cascade};
+use gonio_sim::lockin::{LockIn, LockInConfig, OVERLOAD_FACTOR, PointStart, advance_cascade};
+use gonio_sim::{SimClock, SimConfig, SimInstrument};
 
 /// A lock-in without noise.
 fn quiet() -> LockInConfig {
@@ -825,5 +826,267 @@ fn restart_forgets_history() {
     assert_ne!(
         send(&mut a, 5.1, "SNAP? 1,2"),
         send(&mut b, 5.1, "SNAP? 1,2")
+    );
+}
+
+// ---------------------------------------------------------------------------------
+// Where a point starts: settled, or at the previous reading (the step response).
+
+/// The step response of `n` identical RC stages all starting at `y0`, with input `u`,
+/// after `a` time constants: u + (y0 − u)·e^(−a)·Σ_{j<n} a^j/j!.
+fn step_response(y0: f64, u: f64, a: f64, n: usize) -> f64 {
+    let (mut sum, mut term) = (0.0, 1.0);
+    for j in 0..n {
+        sum += term;
+        term *= a / (j + 1) as f64;
+    }
+    u + (y0 - u) * (-a).exp() * sum
+}
+
+/// `reply` is `exact` to a reply's 6 significant digits: within half a unit of the
+/// sixth digit (and a hair for the arithmetic on either side).
+fn assert_six_digits(reply: f64, exact: f64, what: &str) {
+    let unit = 10f64.powf(exact.abs().log10().floor() - 5.0);
+    assert!(
+        (reply - exact).abs() <= 0.5 * unit * (1.0 + 1e-9),
+        "{what}: replied {reply}, exact {exact}"
+    );
+}
+
+/// X and Y a 0.02 V signal at 30° makes: 0.45 × 0.02 V × (cos 30°, sin 30°).
+const U30: (f64, f64) = (0.007_794_228_634_059_948, 0.0045);
+
+/// A noise-free lock-in at 30°, on `OFSL slope` and 100 ms, fed 0.02 V since t = 0.
+fn at_30_degrees(slope: u8) -> LockIn {
+    let mut l = on_rs232(
+        LockInConfig {
+            phase_deg: 30.0,
+            ..quiet()
+        },
+        1,
+    );
+    assert_eq!(send(&mut l, 0.0, &format!("OFSL {slope};OFLT 8")), "");
+    l.set_input(0.0, 0.02);
+    l
+}
+
+#[test]
+fn a_point_from_the_previous_reading_follows_the_cascade_step_response() {
+    let (t0, tc) = (2.0, 0.1);
+    let (x0, y0) = (-0.004, 0.012);
+    for (slope, n) in [(1u8, 2usize), (3, 4)] {
+        let mut l = at_30_degrees(slope);
+        l.restart_from(t0, 5, Some([x0, y0]));
+        // At the start the outputs read the previous reading exactly.
+        assert_eq!(send(&mut l, t0, "SNAP? 1,2"), "-0.004,0.012\r");
+        for a in [0.05, 0.3, 0.5, 1.0, 1.7, 2.5, 4.0, 6.3, 9.0, 15.0] {
+            let (x, y) = snap_xy(&mut l, t0 + a * tc);
+            let what = format!("{}dB/oct at {a} T", 6 * n);
+            assert_six_digits(x, step_response(x0, U30.0, a, n), &format!("X {what}"));
+            assert_six_digits(y, step_response(y0, U30.1, a, n), &format!("Y {what}"));
+        }
+        // Long after, the new value, exactly as a settled start reads it.
+        assert_eq!(send(&mut l, t0 + 100.0, "SNAP? 1,2"), "0.00779423,0.0045\r");
+    }
+    // One value worked by hand: 24 dB/oct, X after 2 T: e^-2 (1 + 2 + 2 + 4/3) =
+    // 0.8571235 of the step left, X = 0.007794229 − 0.011794229 × 0.8571235 =
+    // −0.002314881.
+    let mut l = at_30_degrees(3);
+    l.restart_from(t0, 5, Some([x0, y0]));
+    assert_eq!(send(&mut l, t0 + 2.0 * tc, "OUTP? 1"), "-0.00231488\r");
+}
+
+#[test]
+fn the_first_point_of_a_run_starts_from_a_dark_output() {
+    let (t0, tc) = (1.0, 0.1);
+    let mut l = at_30_degrees(1);
+    l.restart_from(t0, 5, None);
+    assert_eq!(send(&mut l, t0, "SNAP? 1,2"), "0,0\r");
+    for a in [0.2, 1.0, 3.0, 7.0] {
+        let (x, y) = snap_xy(&mut l, t0 + a * tc);
+        // From zero: u (1 − e^-a (1 + a)) at 12 dB/oct.
+        let left = (-a).exp() * (1.0 + a);
+        assert_six_digits(x, U30.0 * (1.0 - left), &format!("X at {a} T"));
+        assert_six_digits(y, U30.1 * (1.0 - left), &format!("Y at {a} T"));
+    }
+}
+
+#[test]
+fn a_settled_point_is_flat_at_the_new_value_from_the_start() {
+    let t0 = 2.0;
+    for slope in [1u8, 3] {
+        let mut l = at_30_degrees(slope);
+        // A history far from the present input: a step to 0.5 V just before.
+        l.set_input(1.9, 0.5);
+        l.set_input(t0, 0.02);
+        l.restart(t0, 5);
+        for t in [t0, t0 + 0.005, t0 + 0.1, t0 + 0.37, t0 + 2.0] {
+            assert_eq!(
+                send(&mut l, t, "SNAP? 1,2"),
+                "0.00779423,0.0045\r",
+                "OFSL {slope} at {t} s"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_point_from_the_previous_reading_is_deterministic() {
+    // Noise on: the same seed, key and previous reading give the same bytes whatever
+    // came before; another previous reading, other bytes.
+    let run = |history: f64, from: Option<[f64; 2]>, seed: u64| {
+        let mut l = on_rs232(LockInConfig::default(), 7);
+        l.set_input(0.0, history);
+        l.set_input(0.4, 0.02);
+        l.restart_from(0.5, seed, from);
+        (1..30)
+            .map(|k| send(&mut l, 0.5 + 0.01 * f64::from(k), "SNAP? 1,2"))
+            .collect::<String>()
+    };
+    let a = run(0.9, Some([0.001, -0.002]), 42);
+    assert_eq!(a, run(0.001, Some([0.001, -0.002]), 42));
+    assert_ne!(a, run(0.9, Some([0.002, -0.002]), 42));
+    assert_ne!(a, run(0.9, Some([0.001, -0.002]), 43));
+    assert_eq!(run(0.9, None, 42), run(0.3, Some([0.0, 0.0]), 42));
+}
+
+#[test]
+fn a_previous_reading_out_of_any_range_starts_at_the_largest_output() {
+    // ±1.09 × 1 V, the most any output reads; a non-finite value is taken as zero.
+    let mut l = at_30_degrees(1);
+    assert_eq!(send(&mut l, 0.0, "SENS 26"), "");
+    l.restart_from(1.0, 5, Some([1e300, f64::NAN]));
+    assert_eq!(send(&mut l, 1.0, "SNAP? 1,2;LIAS? 2"), "1.09,0\r0\r");
+    l.restart_from(1.0, 5, Some([f64::NEG_INFINITY, -5.0]));
+    assert_eq!(send(&mut l, 1.0, "SNAP? 1,2"), "0,-1.09\r");
+}
+
+// ---------------------------------------------------------------------------------
+// The point start through the whole simulated instrument and its config.
+
+fn config_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../config")
+}
+
+/// The simulator of `config/sim-transient.toml` without noise, replying on RS-232 at
+/// 24 dB/oct and 100 ms, its input settled; the lock-in's X and Y of the signal.
+fn transient_sim(point_start: PointStart) -> (SimInstrument, f64, f64) {
+    let mut cfg = SimConfig::load(&config_dir().join("sim-transient.toml")).expect("sim config");
+    cfg.lockin.amplifier_noise = 0.0;
+    cfg.lockin.shot_noise = 0.0;
+    cfg.lockin.point_start = point_start;
+    let mut sim = SimInstrument::new(&cfg, SimClock::driven(0.0)).expect("simulator");
+    assert_eq!(sim.lockin_bytes(b"OUTX 0\nOFSL 3\nOFLT 8\n"), b"");
+    sim.clock().advance(Duration::from_secs(50));
+    let v = sim.signal(sim.clock().seconds());
+    // The arms at their power-up angles see the paint: a signal to step to.
+    assert!(v > 1e-4, "{v}");
+    let r = cfg.lockin.chop_gain * v;
+    let phase = cfg.lockin.phase_deg.to_radians();
+    (sim, r * phase.cos(), r * phase.sin())
+}
+
+/// `SNAP? 1,2` through the instrument, `after_s` seconds later.
+fn sim_snap(sim: &mut SimInstrument, after_s: f64) -> (f64, f64) {
+    sim.clock().advance(Duration::from_secs_f64(after_s));
+    let text = String::from_utf8(sim.lockin_bytes(b"SNAP? 1,2\n")).expect("ASCII");
+    let (x, y) = text.trim_end().split_once(',').expect("two values");
+    (x.parse().expect("X"), y.parse().expect("Y"))
+}
+
+#[test]
+fn the_instrument_starts_a_point_as_its_config_says() {
+    let tc = 0.1;
+    let previous = [0.0125, -0.003];
+    let (mut sim, ux, uy) = transient_sim(PointStart::Previous);
+    sim.begin_point(17, Some(previous));
+    let mut elapsed = 0.0;
+    for a in [0.0, 0.4, 1.5, 3.0, 6.0, 12.0] {
+        let (x, y) = sim_snap(&mut sim, a * tc - elapsed);
+        elapsed = a * tc;
+        assert_six_digits(x, step_response(previous[0], ux, a, 4), &format!("X {a} T"));
+        if a > 0.0 {
+            assert_six_digits(y, step_response(previous[1], uy, a, 4), &format!("Y {a} T"));
+        } else {
+            assert_eq!((x, y), (0.0125, -0.003));
+        }
+    }
+    // Settled: the previous reading is ignored, the outputs read the signal at once.
+    let (mut sim, ux, _) = transient_sim(PointStart::Settled);
+    sim.begin_point(17, Some(previous));
+    for dt in [0.0, 0.04, 0.3] {
+        let (x, y) = sim_snap(&mut sim, dt);
+        assert_six_digits(x, ux, &format!("settled X after {dt} s"));
+        assert_eq!(y, 0.0);
+    }
+}
+
+#[test]
+fn instruments_with_the_same_seed_key_and_previous_read_the_same_bytes() {
+    let root = config_dir();
+    let cfg = SimConfig::load(&root.join("sim-transient.toml")).expect("sim config");
+    let session = |previous: Option<[f64; 2]>, key: u64| {
+        let mut sim = SimInstrument::new(&cfg, SimClock::driven(0.0)).expect("simulator");
+        let mut out = sim.lockin_bytes(b"OUTX 0\n");
+        sim.clock().advance(Duration::from_secs(3));
+        sim.begin_point(key, previous);
+        for _ in 0..20 {
+            sim.clock().advance(Duration::from_millis(30));
+            out.extend(sim.lockin_bytes(b"SNAP? 1,2\n"));
+        }
+        out
+    };
+    let a = session(Some([0.01, 0.002]), 5);
+    assert_eq!(a, session(Some([0.01, 0.002]), 5));
+    assert_ne!(a, session(Some([0.011, 0.002]), 5));
+    assert_ne!(a, session(Some([0.01, 0.002]), 6));
+    assert_ne!(a, session(None, 5));
+}
+
+#[test]
+fn sim_transient_is_the_default_with_point_start_previous() {
+    let root = config_dir();
+    let mut transient = SimConfig::load(&root.join("sim-transient.toml")).expect("transient");
+    let mut example = SimConfig::load(&root.join("sim-example.toml")).expect("example");
+    assert_eq!(transient.lockin.point_start, PointStart::Previous);
+    assert_eq!(example.lockin.point_start, PointStart::Settled);
+    assert_eq!(
+        SimConfig::default_config()
+            .expect("default")
+            .lockin
+            .point_start,
+        PointStart::Settled
+    );
+    transient.lockin.point_start = PointStart::Settled;
+    (transient.source, example.source) = (None, None);
+    assert_eq!(transient, example);
+}
+
+#[test]
+fn point_start_accepts_settled_or_previous_only() {
+    let parse = |v: &str| toml::from_str::<LockInConfig>(&format!("point_start = \"{v}\""));
+    assert_eq!(
+        parse("previous").expect("previous").point_start,
+        PointStart::Previous
+    );
+    assert_eq!(
+        parse("settled").expect("settled").point_start,
+        PointStart::Settled
+    );
+    let text = gonio_sim::config::DEFAULT_SIM.replacen(
+        "shot_noise = 2e-6",
+        "shot_noise = 2e-6\npoint_start = \"at-once\"",
+        1,
+    );
+    let e = SimConfig::from_toml(&text, None).expect_err("an unknown start");
+    assert_eq!(e.field.as_deref(), Some("lockin.point_start"), "{e}");
+    let line = text[..text.find("point_start").expect("in text")]
+        .matches('\n')
+        .count()
+        + 1;
+    assert_eq!(e.line, Some(line), "{e}");
+    assert_eq!(
+        e.message,
+        "unknown variant `at-once`, expected `settled` or `previous`"
     );
 }
