@@ -17,6 +17,8 @@ pub struct Stored {
     pub standard_model: Option<String>,
     /// The incident filter's transmittance.
     pub transmittance: f64,
+    /// The plan's `[reading]` target, if it has one.
+    pub reading: Option<crate::engine::ReadTarget>,
     /// All the metadata.
     pub meta: RunMeta,
 }
@@ -33,8 +35,14 @@ pub fn stored(store: &RunStore) -> Result<Stored, StoreError> {
         (Some(a), Some(b)) => Some((a.clone(), b.clone())),
         _ => None,
     };
+    // The table is new with targeted readings: a stored plan that no longer parses
+    // predates it, and read a fixed number of snapshots.
+    let reading = gonio_plan::Plan::from_toml(&meta.plan, None)
+        .ok()
+        .and_then(|p| p.reading.as_ref().map(crate::engine::read_target));
     Ok(Stored {
         instrument,
+        reading,
         sim,
         seed: meta.seed,
         standard_model: meta.standard_model.clone(),

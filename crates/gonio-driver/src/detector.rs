@@ -11,7 +11,7 @@ use crate::k6485::K6485;
 use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
 use crate::transport::Transport;
 use gonio_proto::k6485::{K6485Error, PicoReading, Range as PicoRange};
-use gonio_proto::sr830::Sensitivity;
+use gonio_proto::sr830::{ReadTarget, Sensitivity};
 
 /// A detector on its serial line, whatever its family: what the run engine needs of
 /// it. A family plugs in by implementing it over its session's pump ([`Sr830`],
@@ -23,6 +23,24 @@ pub trait DetectorDevice: Send {
     fn setup(&mut self) -> Result<String, DetectorError>;
     /// One reading.
     fn read(&mut self) -> Result<Reading, DetectorError>;
+    /// One reading to a precision target, the signal expected about `expected` (the
+    /// last reading's, in the reading's unit). A family without a targeted mode reads
+    /// as [`read`](Self::read) does.
+    fn read_to(
+        &mut self,
+        target: &ReadTarget,
+        expected: Option<f64>,
+    ) -> Result<Reading, DetectorError> {
+        let _ = (target, expected);
+        self.read()
+    }
+    /// The absolute floor of `target` when the plan gives none: the precision its
+    /// cap allows on the dimmest signal, from the detector's noise law; `None`
+    /// without one.
+    fn target_floor(&self, target: &ReadTarget) -> Option<f64> {
+        let _ = target;
+        None
+    }
     /// The light changed (a stage moved): the next reading waits for it to settle.
     fn input_changed(&mut self);
     /// The range index in force ([`Columns::range`]).
@@ -81,6 +99,8 @@ pub struct Columns {
     pub autorange_steps: usize,
     /// The instrument's status byte as read (`lias`).
     pub status: u8,
+    /// The reading reached its time cap before its target precision.
+    pub capped: bool,
 }
 
 impl Reading {
@@ -124,6 +144,7 @@ impl Reading {
                 n: r.n,
                 autorange_steps: r.autorange_steps,
                 status: r.status.0,
+                capped: r.capped,
             },
             Reading::Current(r, line_hz) => Columns {
                 range: r.range.index(),
@@ -139,6 +160,7 @@ impl Reading {
                 n: r.n,
                 autorange_steps: r.autorange_steps,
                 status: dc_status(r),
+                capped: false,
             },
         }
     }
@@ -207,6 +229,16 @@ impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> 
     }
     fn read(&mut self) -> Result<Reading, DetectorError> {
         Ok(Reading::Lockin(Sr830::read(self)?))
+    }
+    fn read_to(
+        &mut self,
+        target: &ReadTarget,
+        expected: Option<f64>,
+    ) -> Result<Reading, DetectorError> {
+        Ok(Reading::Lockin(Sr830::read_targeted(self, target, expected)?))
+    }
+    fn target_floor(&self, target: &ReadTarget) -> Option<f64> {
+        Sr830::target_floor(self, target)
     }
     fn input_changed(&mut self) {
         Sr830::input_changed(self);

@@ -32,8 +32,9 @@ use gonio_proto::sr830::{
     TimeConstant,
 };
 pub use gonio_proto::sr830::{
-    ConfigError, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Sr830Config, Sr830Error,
+    ConfigError, MAX_AUTORANGE_STEPS, ReadTarget, Reading, ReadingFlags, Sr830Config, Sr830Error,
 };
+use gonio_proto::sr830::target::floor_sigma;
 use tracing::debug_span;
 
 use crate::clock::Clock;
@@ -102,6 +103,40 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         )
         .entered();
         run!(self, start_read())
+    }
+
+    /// One reading to `target`, the signal expected about `expected` V (for the time
+    /// constant); see [`gonio_proto::sr830::Sr830Session::start_read_targeted`].
+    pub fn read_targeted(
+        &mut self,
+        target: &ReadTarget,
+        expected: Option<f64>,
+    ) -> Result<Reading, Sr830Error> {
+        let _span = debug_span!(
+            "sr830.read_targeted",
+            port = %self.port,
+            sensitivity = %self.session.sensitivity(),
+            sigma_relative = target.sigma_relative,
+            sigma_absolute = target.sigma_absolute,
+            expected,
+        )
+        .entered();
+        run!(self, start_read_targeted(*target, expected))
+    }
+
+    /// The absolute floor of a target without one: the precision the cap allows on
+    /// the dimmest signal, by the configured noise law
+    /// ([`gonio_proto::sr830::target::floor_sigma`]); `None` without a law.
+    pub fn target_floor(&self, target: &ReadTarget) -> Option<f64> {
+        let c = self.session.config();
+        let noise = c.noise.as_ref()?;
+        floor_sigma(
+            target,
+            noise,
+            self.session.slope(),
+            &c.time_constant_choices(),
+            c.exchange_s,
+        )
     }
 
     /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.

@@ -18,6 +18,6 @@ pub mod plan;
 mod prepare;
 pub mod schedule;
 
-pub use plan::{Checked, Inner, Mechanics, Plan, Rejection, Wavelengths};
+pub use plan::{Checked, Inner, Mechanics, Plan, ReadingConfig, Rejection, Wavelengths};
 pub use prepare::{PrepareError, Prepared, prepare, rejection_counts};
 pub use schedule::{Loop, LoopEstimate, Schedule, SpectralDecision, Step, StepKind};

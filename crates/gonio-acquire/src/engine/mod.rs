@@ -29,6 +29,7 @@
 
 use gonio_core::goniometer::Mechanics;
 use gonio_driver::bench::{Bench, Setup};
+pub use gonio_driver::sr830::ReadTarget;
 use gonio_driver::smc100::AbortFlag;
 use gonio_driver::{Clock, Goniometer};
 use gonio_plan::StepKind;
@@ -68,6 +69,20 @@ pub struct EngineConfig {
     pub incident_transmittance: f64,
     /// Software version written with each session.
     pub software: String,
+    /// The plan's `[reading]` target for a sample reading (`sigma_absolute` 0: the
+    /// detector's own floor); `None` reads a fixed number of snapshots.
+    pub reading: Option<ReadTarget>,
+}
+
+/// A plan's `[reading]` table as the detector's target (`sigma_absolute` 0 when the
+/// plan leaves the floor to the detector).
+pub fn read_target(r: &gonio_plan::ReadingConfig) -> ReadTarget {
+    ReadTarget {
+        sigma_relative: r.sigma_relative,
+        sigma_absolute: r.sigma_absolute.unwrap_or(0.0),
+        max_s: r.max_s,
+        min_samples: r.min_samples as usize,
+    }
 }
 
 impl Default for EngineConfig {
@@ -77,6 +92,7 @@ impl Default for EngineConfig {
             flagged_rereads: 2,
             incident_transmittance: 1.0,
             software: concat!("gonio ", env!("CARGO_PKG_VERSION")).into(),
+            reading: None,
         }
     }
 }
@@ -293,6 +309,7 @@ where
                 t0,
                 events,
                 span: tracing::Span::none(),
+                floor: None,
             },
             stopper,
             pauser: Pauser::default(),

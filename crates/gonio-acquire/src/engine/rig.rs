@@ -17,7 +17,7 @@ use gonio_driver::bench::{Bench, BenchError, Setup};
 use gonio_plan::StepKind;
 use gonio_run::{EventRecord, ReadingRecord, RunStore, StoreError, StoredStep, flags, wall_now};
 
-use super::{EngineConfig, Event, Outcome, Planner, SessionReport, setup_for};
+use super::{EngineConfig, Event, Outcome, Planner, ReadTarget, SessionReport, setup_for};
 
 /// How one step went.
 pub(super) enum StepOutcome {
@@ -56,6 +56,8 @@ pub(super) struct Rig<C: Clock + Clone, B: Bench> {
     pub(super) events: broadcast::Sender<Event>,
     /// The session's span: each step's span is its child, on whichever thread runs it.
     pub(super) span: tracing::Span,
+    /// The targets' absolute floor from the detector, once asked this session.
+    pub(super) floor: Option<f64>,
 }
 
 /// What start-up found.
@@ -399,9 +401,22 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             Err(e) => return self.motion_failed(id, e),
         };
         let position = [positions[0], positions[1], positions[2], positions[3]];
-        self.bench.at_step(id, None);
+        // What the filters held before the move, and the level to expect: the last
+        // reading before this step in the run file, so a resumed run sees what an
+        // uninterrupted one saw.
+        let previous = self.store.last_reading_before(id)?;
+        let held = previous
+            .as_ref()
+            .map(|r| [r.x_mean, r.y_mean])
+            .filter(|v| v.iter().all(|x| x.is_finite()));
+        let expected = previous
+            .as_ref()
+            .map(|r| r.r_mean)
+            .filter(|r| r.is_finite() && *r > 0.0);
+        let target = self.target_for(s.step.kind);
+        self.bench.at_step(id, held);
         self.gonio.detector.input_changed();
-        let mut reading = match self.gonio.detector.read() {
+        let mut reading = match self.read(target.as_ref(), expected) {
             Ok(r) => r,
             Err(e) => return self.detector_failed(id, e),
         };
@@ -416,7 +431,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             // What flagged it (an unlock: nothing demodulated; an overload) upset the
             // filters: the next reading waits a full settling time, as after a move.
             self.gonio.detector.input_changed();
-            reading = match self.gonio.detector.read() {
+            reading = match self.read(target.as_ref(), expected) {
                 Ok(r) => r,
                 Err(e) => return self.detector_failed(id, e),
             };
@@ -442,6 +457,46 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         Ok(StepOutcome::Measured(Box::new(record)))
     }
 
+    /// One reading: to `target` when the plan sets one, else the detector's fixed
+    /// reading.
+    fn read(
+        &mut self,
+        target: Option<&ReadTarget>,
+        expected: Option<f64>,
+    ) -> Result<Reading, DetectorError> {
+        match target {
+            Some(t) => self.gonio.detector.read_to(t, expected),
+            None => self.gonio.detector.read(),
+        }
+    }
+
+    /// The target of a step's reading: the plan's for a sample or a dark, a third of
+    /// it for a calibration or drift reference, whose error every sample it
+    /// calibrates shares. The absolute floor is the plan's, else the detector's (the
+    /// precision the cap allows on the dimmest signal), computed once a session.
+    fn target_for(&mut self, kind: StepKind) -> Option<ReadTarget> {
+        let base = self.cfg.reading?;
+        if base.sigma_absolute <= 0.0 && self.floor.is_none() {
+            let floor = self.gonio.detector.target_floor(&base).unwrap_or(0.0);
+            tracing::info!(floor, "reading: the targets' absolute floor");
+            self.floor = Some(floor);
+        }
+        let floor = if base.sigma_absolute > 0.0 {
+            base.sigma_absolute
+        } else {
+            self.floor.unwrap_or(0.0)
+        };
+        let share = match kind {
+            StepKind::Sample | StepKind::Dark => 1.0,
+            StepKind::Reference | StepKind::Incident | StepKind::Standard => 1.0 / 3.0,
+        };
+        Some(ReadTarget {
+            sigma_relative: base.sigma_relative * share,
+            sigma_absolute: floor,
+            ..base
+        })
+    }
+
     fn record(
         &self,
         s: &StoredStep,
@@ -462,6 +517,9 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         }
         if sample_lit && dirs.wi.z > 0.0 && g.beam_diameter_m / dirs.wi.z > g.sample_length_m {
             bits |= flags::OVERFILLED;
+        }
+        if c.capped {
+            bits |= flags::CAPPED;
         }
         ReadingRecord {
             step_id: s.id,

@@ -460,6 +460,7 @@ pub(crate) fn session(
     rig: Rig,
     standard: Option<String>,
     transmittance: f64,
+    reading: Option<gonio_acquire::engine::ReadTarget>,
     how: Driving<'_>,
 ) -> CliResult<(SessionReport, RunStore)> {
     let mech = instrument
@@ -468,6 +469,7 @@ pub(crate) fn session(
     let cfg = EngineConfig {
         incident_transmittance: transmittance,
         software: SOFTWARE.into(),
+        reading,
         ..EngineConfig::default()
     };
     match rig {
@@ -631,6 +633,7 @@ pub(crate) fn acquire_with(
         rig,
         meta.standard_model.clone(),
         meta.transmittance,
+        plan.reading.as_ref().map(gonio_acquire::engine::read_target),
         Driving { quiet, stop, serve },
     )?;
     Ok(report)
@@ -701,6 +704,7 @@ fn resume_served(
         rig,
         stored.standard_model.clone(),
         stored.transmittance,
+        stored.reading,
         Driving { quiet, stop, serve },
     )?;
     Ok(report)

@@ -24,11 +24,17 @@ const CLIP: f64 = 1.09 * (1.0 - 1e-5);
 /// settling table, 10 T), so only a step of over a hundred full scales still clips.
 const CLIP_SETTLED_TC: f64 = 10.0;
 
+/// An overload steps this many ranges less sensitive (a decade in the 1-2-5
+/// sequence): it only says the signal is over full scale, and the small-signal jump
+/// comes back down to the range that fits in one step.
+const OVERLOAD_STEPS: u8 = 3;
+
 /// Most times one read starts over after the port was lost and reopened.
 const MAX_RESTARTS: usize = 2;
 
 /// Autoranging on a small signal goes straight to the most sensitive range whose full
-/// scale times this holds the mean (as the instrument's own auto gain does).
+/// scale times this holds the mean and four standard deviations of its snapshots
+/// (the instrument's own auto gain aims at the same fill).
 const RANGE_FILL: f64 = 0.9;
 
 /// The targeted read operation.
@@ -41,14 +47,15 @@ pub(super) struct TargetedRead {
     steps: usize,
     restarts: usize,
     reconnects: usize,
-    left: u32,
     seq: Sequential,
     /// The change this segment's transient starts from, and its time constant, s.
     t0: Duration,
     tc_s: f64,
-    /// The status read when the window was fixed, and whether it has been.
-    early: LiaStatus,
-    window_checked: bool,
+    /// The segment began with a range change of this read's: the light is as it was,
+    /// so a clipped snapshot is over range at once.
+    after_range: bool,
+    /// A snapshot clipped at the least sensitive range.
+    clipped: bool,
     capped: bool,
 }
 
@@ -70,9 +77,10 @@ impl Op for TargetedRead {
             }
             _ => None,
         };
-        if let Some(c) = choice
-            && c.time_constant != s.time_constant
-        {
+        // Sent even when it is already set: the transient then always starts at the
+        // same instant after a move, so a resumed run reads what an uninterrupted one
+        // did whatever the time constant was left at.
+        if let Some(c) = choice {
             debug!(
                 expected = self.expected,
                 from = %s.time_constant,
@@ -96,12 +104,11 @@ impl TargetedRead {
             steps: 0,
             restarts: 0,
             reconnects: 0,
-            left: 0,
             seq: Sequential::new(1, 0.0),
             t0: Duration::ZERO,
             tc_s: 0.0,
-            early: LiaStatus(0),
-            window_checked: false,
+            after_range: false,
+            clipped: false,
             capped: false,
         }
     }
@@ -126,41 +133,18 @@ impl TargetedRead {
         let first = self.t0.saturating_add(secs(FIRST_SNAPSHOT_TC * self.tc_s));
         let first_tau = (first.max(cx.now) - self.t0).as_secs_f64() / self.tc_s;
         self.seq = Sequential::new(usize::from(s.slope.index()) + 1, first_tau);
-        self.early = LiaStatus(0);
-        self.window_checked = false;
+        self.clipped = false;
         if cx.now < first {
             return Next::Pause {
                 until: first,
                 then: Self::first_due,
             };
         }
-        self.clear_flags(s)
+        Next::exchange(snap(), Self::snapped)
     }
 
-    fn first_due(&mut self, s: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
-        self.clear_flags(s)
-    }
-
-    fn clear_flags(&mut self, s: &Sr830Session) -> Next<Self> {
-        self.left = s.config.retries;
-        Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
-    }
-
-    fn flags_cleared(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
-            Ok(_) => Next::exchange(snap(), Self::snapped),
-            Err(e) if self.left > 0 && is_transient(&e) => {
-                self.left -= 1;
-                s.retried += 1;
-                Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
-            }
-            Err(e) => Next::Done(Err(e)),
-        }
+    fn first_due(&mut self, _: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
+        Next::exchange(snap(), Self::snapped)
     }
 
     fn snapped(
@@ -178,13 +162,14 @@ impl TargetedRead {
         }
         let tau = (cx.now.saturating_sub(self.t0)).as_secs_f64() / self.tc_s;
         let fs = s.sensitivity.volts();
-        let clipped = x.abs() >= CLIP * fs || y.abs() >= CLIP * fs;
+        let clipped = [x, y, x.hypot(y)].iter().any(|v| v.abs() >= CLIP * fs);
         if clipped {
-            if (self.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC)
-                && let Some(next) = s.sensitivity.less_sensitive()
-            {
-                debug!(tau, x, y, "sr830: output clipped after the transient");
-                return self.range_to(s, next);
+            if self.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC || self.after_range {
+                if let Some(next) = less_sensitive(s.sensitivity) {
+                    debug!(tau, x, y, "sr830: output clipped after the transient");
+                    return self.range_to(s, next);
+                }
+                self.clipped = true;
             }
             trace!(
                 tau,
@@ -193,6 +178,7 @@ impl TargetedRead {
             return self.next_snapshot(s, cx);
         }
         let had_window = self.seq.window_start().is_some();
+        self.after_range = false;
         self.seq.push(tau, x, y);
         let noise = s.config.noise;
         let (slope, tc) = (s.slope, s.time_constant);
@@ -208,16 +194,12 @@ impl TargetedRead {
             target = a.target,
             "sr830: snapshot"
         );
-        if !had_window && a.window_start.is_some() && !self.window_checked {
-            // What latched during the transient is read and cleared now; the window's
-            // own snapshots were checked for clipping one by one.
-            self.window_checked = true;
+        if !had_window && a.window_start.is_some() {
             debug!(
                 settle_s = tau * self.tc_s,
                 window_start = a.window_start,
                 "sr830: settled (transient under its bound)"
             );
-            return Next::exchange(Command::LiaStatus(None), Self::early_read);
         }
         if a.done {
             return Next::exchange(Command::LiaStatus(None), Self::flags_read);
@@ -225,40 +207,11 @@ impl TargetedRead {
         self.next_snapshot(s, cx)
     }
 
-    fn early_read(
-        &mut self,
-        s: &mut Sr830Session,
-        cx: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
-            // An output overload before the window is the transient's; anything else
-            // (an input overload, an unlock) may have touched the window.
-            Ok(st) => self.early = LiaStatus(st.0 & !LiaStatus::OUTPUT_OVERLOAD),
-            Err(e) if s.config.retries > 0 && is_transient(&e) => {
-                warn!(error = %e, "sr830: the flags' answer was lost; reading again");
-                s.retried += 1;
-                return self.interrupted(s, cx);
-            }
-            Err(e) => return Next::Done(Err(e)),
-        }
-        let law = s.config.noise.map(|n| {
-            let (slope, tc) = (s.slope, s.time_constant);
-            move |r: f64| n.snapshot_variance(r, slope, tc)
-        });
-        let a = self
-            .seq
-            .assess(&self.target, law.as_ref().map(|f| f as &dyn Fn(f64) -> f64));
-        if a.done {
-            return Next::exchange(Command::LiaStatus(None), Self::flags_read);
-        }
-        self.next_snapshot(s, cx)
-    }
-
-    /// The next snapshot one time constant on, unless that would pass the cap.
+    /// The next snapshot at once, unless it would pass the cap: snapshots go back to
+    /// back, one exchange apart, their correlation counted by the rule (and by the
+    /// reduction, from the reading's `sequential` flag) rather than spaced out.
     fn next_snapshot(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
-        let next = cx.now.saturating_add(secs(self.tc_s));
-        let finish = next.saturating_add(secs(s.config.exchange_s));
+        let finish = cx.now.saturating_add(secs(s.config.exchange_s));
         let cap = self.started.saturating_add(secs(self.target.max_s));
         if finish > cap {
             warn!(
@@ -269,13 +222,6 @@ impl TargetedRead {
             self.capped = true;
             return Next::exchange(Command::LiaStatus(None), Self::flags_read);
         }
-        Next::Pause {
-            until: next,
-            then: Self::spaced,
-        }
-    }
-
-    fn spaced(&mut self, _: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
         Next::exchange(snap(), Self::snapped)
     }
 
@@ -286,7 +232,12 @@ impl TargetedRead {
         r: Result<Option<Reply>, Sr830Error>,
     ) -> Next<Self> {
         let status = match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
-            Ok(status) => LiaStatus(status.0 | self.early.0),
+            // The output overload bit latched during the transient too; the window's
+            // snapshots were checked against the clip level one by one instead.
+            Ok(status) => {
+                let own = if self.clipped { LiaStatus::OUTPUT_OVERLOAD } else { 0 };
+                LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own)
+            }
             Err(e) if s.config.retries > 0 && is_transient(&e) => {
                 warn!(error = %e, "sr830: the flags' answer was lost; reading again");
                 s.retried += 1;
@@ -339,10 +290,11 @@ impl TargetedRead {
         }
         let f = reading.flags;
         let next = if f.input_overload || f.output_overload {
-            s.sensitivity.less_sensitive()
+            less_sensitive(s.sensitivity)
         } else if !f.any() && reading.r_mean < s.config.min_fraction * s.sensitivity.volts() {
+            // Room for the snapshots' scatter: a range the noise clips is no range.
             Sensitivity::all()
-                .find(|x| x.volts() * RANGE_FILL >= reading.r_mean)
+                .find(|x| x.volts() * RANGE_FILL >= reading.r_mean + 4.0 * reading.r_std)
                 .filter(|x| *x < s.sensitivity)
                 .or_else(|| s.sensitivity.more_sensitive())
         } else {
@@ -376,6 +328,7 @@ impl TargetedRead {
             return Next::Done(Err(e));
         }
         self.steps += 1;
+        self.after_range = true;
         if self.steps > MAX_AUTORANGE_STEPS {
             warn!(steps = self.steps, "sr830: autorange gives up");
             let w = self.seq.result();
@@ -403,4 +356,10 @@ impl TargetedRead {
         debug!(restarts = self.restarts, "sr830: read segment starts again");
         self.begin_segment(s, cx)
     }
+}
+
+/// [`OVERLOAD_STEPS`] ranges less sensitive, or the least sensitive; `None` there.
+fn less_sensitive(s: Sensitivity) -> Option<Sensitivity> {
+    let up = s.index().saturating_add(OVERLOAD_STEPS).min(Sensitivity::LEAST.index());
+    Sensitivity::new(up).filter(|n| *n > s)
 }
