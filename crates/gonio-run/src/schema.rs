@@ -135,15 +135,19 @@ pub mod flags {
     pub const SHADOWED: u32 = 1 << 8;
     /// The read-back incidence makes the beam overfill the sample.
     pub const OVERFILLED: u32 = 1 << 9;
+    /// The reading reached the plan's `reading.max_s` before its target precision:
+    /// kept, with the precision it reached.
+    pub const CAPPED: u32 = 1 << 10;
 
     /// Every bit with its name, in bit order.
-    pub const NAMES: [(u32, &str); 6] = [
+    pub const NAMES: [(u32, &str); 7] = [
         (INPUT_OVERLOAD, "input overload"),
         (FILTER_OVERLOAD, "filter overload"),
         (OUTPUT_OVERLOAD, "output overload"),
         (UNLOCK, "unlock"),
         (SHADOWED, "shadowed"),
         (OVERFILLED, "overfilled"),
+        (CAPPED, "capped"),
     ];
 
     /// The names of the bits set in `bits`, joined by ", " (empty for none).
@@ -154,5 +158,29 @@ pub mod flags {
             .map(|(_, n)| *n)
             .collect::<Vec<_>>()
             .join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::flags;
+
+    /// The bits are distinct, in bit order, and the plan's cap is bit 10, named
+    /// `capped` (docs/run-file.md).
+    #[test]
+    fn flag_bits_are_distinct_ordered_and_capped_is_bit_10() {
+        for w in flags::NAMES.windows(2) {
+            assert!(w[0].0 < w[1].0, "{:?} before {:?}", w[0], w[1]);
+        }
+        let all = flags::NAMES.iter().fold(0u32, |acc, (b, _)| {
+            assert_eq!(acc & b, 0, "bit {b:#x} named twice");
+            acc | b
+        });
+        assert_eq!(all, 0b111_0000_1111);
+        assert_eq!(flags::CAPPED, 1024);
+        assert_eq!(
+            flags::text(flags::SHADOWED | flags::CAPPED),
+            "shadowed, capped"
+        );
     }
 }
