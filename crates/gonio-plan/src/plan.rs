@@ -39,7 +39,7 @@
 use std::path::{Path, PathBuf};
 
 use gonio_core::dirfile::{self, PairDeg};
-use gonio_core::limits::{Fault, Range, num};
+use gonio_core::limits::{Fault, Range, count_at, num};
 use gonio_core::tomlfile::{self, FileError, Tagged};
 use gonio_core::{Channels, DirPair, SphericalDeg};
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
@@ -656,6 +656,70 @@ impl Adaptive {
     }
 }
 
+/// The target relative uncertainty of a reading (`reading.sigma_relative`): from
+/// 1e-7 to 10 %.
+pub const READING_SIGMA_RELATIVE: Range = Range::closed(1e-7, 0.1, "");
+/// The absolute floor of a reading's target (`reading.sigma_absolute`), in the
+/// reading's unit (V, A): positive, at most 1.
+pub const READING_SIGMA_ABSOLUTE: Range = Range::positive(1.0, "");
+/// The time cap of one reading (`reading.max_s`), s: positive, at most an hour.
+pub const READING_MAX_S: Range = Range::positive(3600.0, "s");
+/// The fewest and most snapshots a reading may be asked to average at least
+/// (`reading.min_samples`).
+pub const READING_MIN_SAMPLES: (u64, u64) = (1, 10_000);
+
+/// Reading time: each reading averages snapshots until the standard uncertainty of
+/// its mean reaches a target, or its time cap. Absent from a plan, every reading
+/// takes the detector's fixed number of snapshots.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReadingConfig {
+    /// Target standard uncertainty of a reading's mean, relative to its magnitude
+    /// (dimensionless), in [1e-7, 0.1].
+    pub sigma_relative: f64,
+    /// Floor of the target in the reading's unit (V for a lock-in, A for a
+    /// picoammeter): the target is max(`sigma_relative`·|value|, `sigma_absolute`),
+    /// so that a reading near zero does not chase a vanishing target. In (0, 1].
+    #[serde(default)]
+    pub sigma_absolute: Option<f64>,
+    /// Cap on one reading's time, s, in (0, 3600]; a reading that reaches it before
+    /// its target is kept and flagged `capped`. 30 s unless given.
+    #[serde(default = "reading_max_s")]
+    pub max_s: f64,
+    /// Fewest snapshots a reading averages, in 1..=10000 (2 unless given: two are
+    /// the fewest that show their own scatter).
+    #[serde(default = "reading_min_samples")]
+    pub min_samples: u32,
+}
+
+fn reading_max_s() -> f64 {
+    30.0
+}
+
+fn reading_min_samples() -> u32 {
+    2
+}
+
+impl ReadingConfig {
+    /// Checks each field against its range: the fault's field and message.
+    fn validate(&self) -> Result<(), Fault> {
+        READING_SIGMA_RELATIVE.at("reading.sigma_relative", self.sigma_relative)?;
+        if let Some(a) = self.sigma_absolute {
+            READING_SIGMA_ABSOLUTE.at("reading.sigma_absolute", a)?;
+        }
+        READING_MAX_S.at("reading.max_s", self.max_s)?;
+        let (lo, hi) = READING_MIN_SAMPLES;
+        count_at(
+            "reading.min_samples",
+            u64::from(self.min_samples),
+            lo,
+            hi,
+            "",
+        )?;
+        Ok(())
+    }
+}
+
 /// Re-measuring a reference point to follow the source's and detector's drift.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -762,6 +826,10 @@ pub struct Plan {
     /// Ordering.
     #[serde(default)]
     pub order: OrderConfig,
+    /// Reading time: each reading averages until its target precision (absent:
+    /// a fixed number of snapshots per reading).
+    #[serde(default)]
+    pub reading: Option<ReadingConfig>,
     /// The file it was read from (anchors relative paths).
     #[serde(skip)]
     pub source: Option<PathBuf>,
@@ -958,6 +1026,9 @@ impl Plan {
             }
         }
         BUDGET.at("order.budget_s", self.order.budget_s)?;
+        if let Some(r) = &self.reading {
+            r.validate()?;
+        }
         Ok(())
     }
 
