@@ -63,4 +63,14 @@ pub struct Report {
     pub max_position_error_deg: f64,
     /// Sample steps not measured (pending or failed).
     pub unmeasured: usize,
+    /// Readings used that reached the plan's `reading.max_s` before their target
+    /// precision (flag `capped`): kept, with the precision they reached. Absent
+    /// from the JSON when 0, as in every report before reading time.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub capped: usize,
+}
+
+/// Whether a count is 0 (serde's `skip_serializing_if` takes a reference).
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }

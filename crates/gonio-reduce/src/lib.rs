@@ -30,10 +30,23 @@
 //! is shared between samples:
 //! - `noise`: the lock-in's noise in the sample reading. Per snapshot its variance is
 //!   pooled over the run's readings as a + b·R (amplifier and shot noise) rather
-//!   than taken from each reading's own ten correlated snapshots, whose scatter is
-//!   itself uncertain by a third; the variance of the mean of n snapshots spaced
-//!   one time constant plus [`Options::snapshot_gap_s`] apart is then exact for
-//!   the first-order correlation ρ = e^−(1 + gap/T) ([`variance_factors`]).
+//!   than taken from each reading's own few correlated snapshots, whose scatter is
+//!   itself uncertain (by a third for ten, entirely for two); the variance of the
+//!   mean of n snapshots spaced one time constant plus [`Options::snapshot_gap_s`]
+//!   apart is then exact for the first-order correlation ρ = e^−(1 + gap/T)
+//!   ([`variance_factors`]). The pool spans time constants and snapshot counts:
+//!   the output noise is white noise of density d(R)² = a' + b'·R through the
+//!   filter, so a snapshot's variance is d²·ENBW(T, slope) (ENBW ∝ 1/T at one
+//!   slope, `gonio_proto::sr830::FilterSlope::enbw_hz`), and n enters only through
+//!   each reading's own variance factors. One line is fitted per filter slope, at
+//!   the time constant of its first reading, each reading's variance divided by its
+//!   ENBW ratio to it (exactly 1 in a run at one time constant). A slope with fewer
+//!   than eight usable readings takes each reading's own scatter; a reading of one
+//!   snapshot, which has none, borrows the nearest slope's line scaled by the
+//!   ratio of the two ENBWs, and keeps a noise term of 0 (with a warning) only when
+//!   the run has no line at all. A reading that reached the plan's
+//!   `reading.max_s` before its target (flag `capped`) is reduced like any other,
+//!   with the precision it reached; the report counts them.
 //! - `resolution`: the lock-in's six-digit replies (a rounding step /√12).
 //! - `dark`: the dark vector's own noise, subtracted from every reading: one error
 //!   shared by all samples, larger for weak signals (it is additive).
@@ -286,25 +299,57 @@ pub fn variance_factors(n: u32, rho: f64) -> (f64, f64) {
     (1.0 + 2.0 * s, 1.0 - 2.0 * s / (nf - 1.0))
 }
 
-/// The lock-in's noise per snapshot, pooled over the readings taken with the same
-/// time constant, slope and snapshot count: variance a + b·R.
+/// A noise law pooled over a group of readings: the variance per snapshot (lock-in)
+/// or per sample (picoammeter) is a + b·R at the group's reference time constant.
 #[derive(Clone, Copy, Debug)]
 struct NoiseLine {
     a: f64,
     b: f64,
+    /// The time constant of the group's first reading, s: a lock-in reading at
+    /// time constant T has the variance (a + b·R)·[`enbw_ratio`]`(T, t_ref)`.
+    t_ref: f64,
+    /// Whether the readings fitted span more than one time constant.
+    spans_time_constants: bool,
 }
 
 /// The key of readings that share a noise law.
 type NoiseKey = (u64, u8, u32);
 
-/// A lock-in's noise depends on its time constant, slope and snapshot count; a
-/// picoammeter's on its integration time, sample count and range (each range has
+/// A lock-in's output noise is white noise of density d(R)² (V²/Hz) through its
+/// output filter, so a snapshot's variance is d²·ENBW(T, slope): readings of one
+/// slope share a law whatever their time constant, and their snapshot count enters
+/// only through [`variance_factors`]. The key is the slope alone. A picoammeter's
+/// noise depends on its integration time, sample count and range (each range has
 /// its own feedback resistor, hence its own noise floor).
 fn noise_key(r: &ReadingRecord, detector: Detector) -> NoiseKey {
     match detector {
-        Detector::LockIn => (r.time_constant_s.to_bits(), r.slope_db, r.n),
+        Detector::LockIn => (0, r.slope_db, 0),
         Detector::Dc => (r.time_constant_s.to_bits(), r.sensitivity, r.n),
     }
+}
+
+/// ENBW(T)/ENBW(t_ref) at one filter slope: t_ref/T, as the SR830's equivalent
+/// noise bandwidth is k(slope)/T (`gonio_proto::sr830::FilterSlope::enbw_hz`).
+/// Exactly 1.0 when T is t_ref (x/x is exact in IEEE 754, and so are a product and
+/// a quotient by 1.0): a run at one time constant pools bit for bit as it did when
+/// the key held the time constant. `None` for a time constant that is not finite
+/// and positive (such a reading is not pooled with others).
+fn enbw_ratio(t: f64, t_ref: f64) -> Option<f64> {
+    if t.to_bits() == t_ref.to_bits() {
+        Some(1.0)
+    } else if t.is_finite() && t > 0.0 && t_ref.is_finite() && t_ref > 0.0 {
+        Some(t_ref / t)
+    } else {
+        None
+    }
+}
+
+/// The ENBW of a slope at T = 1 s, Hz (the manual's 1/4, 1/8, 3/32, 5/64; SR830
+/// manual "Noise Measurements", as `FilterSlope::enbw_hz` states them).
+fn enbw_per_second(slope_db: u8) -> Option<f64> {
+    let slope = gonio_proto::sr830::FilterSlope::from_db(slope_db)?;
+    let tc = gonio_proto::sr830::TimeConstant::all().find(|t| t.seconds() == 1.0)?;
+    Some(slope.enbw_hz(tc))
 }
 
 /// The detector's noise: pooled lines where enough readings share a setting, and
@@ -321,15 +366,22 @@ const MIN_POOL: usize = 8;
 impl Noise {
     /// Fits a + b·R to the readings' snapshot variances: bright readings give
     /// s²/B, dark readings (R pure noise, Rayleigh-distributed) half their mean R²,
-    /// both unbiased for the snapshot variance σ² of X. Weighted least squares,
-    /// re-weighted by the fitted variance (the scatter of a variance estimate
-    /// grows with it).
+    /// both unbiased for the snapshot variance σ² of X. A lock-in's points are
+    /// divided by [`enbw_ratio`] of their time constant to the group's first, so
+    /// that the line is the variance at that one time constant. Weighted least
+    /// squares, re-weighted by the fitted variance (the scatter of a variance
+    /// estimate grows with it).
     ///
     /// A DC reading's samples are independent conversions and its mean current is
     /// signed: every reading (the darks too) gives the point (I, s²), I clamped at
     /// 0 (a dark current a little below zero has the noise of zero current).
     fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64, detector: Detector) -> Noise {
-        let mut groups: BTreeMap<NoiseKey, Vec<(f64, f64)>> = BTreeMap::new();
+        // Per key: the reference time constant and snapshot count (the first
+        // reading's), whether another time constant was seen, the points.
+        let mut groups: BTreeMap<NoiseKey, (f64, u32, bool, Vec<(f64, f64, f64)>)> =
+            BTreeMap::new();
+        // Per key: whether every reading took one snapshot count, of at least 3.
+        let mut uniform: BTreeMap<NoiseKey, bool> = BTreeMap::new();
         for (r, dark) in readings {
             if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
                 continue;
@@ -344,19 +396,104 @@ impl Noise {
             } else {
                 None
             };
-            if let Some(p) = point {
-                groups.entry(noise_key(r, detector)).or_default().push(p);
+            let Some((x, y)) = point else { continue };
+            let group = groups
+                .entry(noise_key(r, detector))
+                .or_insert_with(|| (r.time_constant_s, r.n, false, Vec::new()));
+            let ratio = if detector == Detector::Dc {
+                Some(1.0)
+            } else {
+                enbw_ratio(r.time_constant_s, group.0)
+            };
+            // A variance from n snapshots has about n − 1 degrees of freedom: its
+            // weight relative to the first reading's (exactly 1 when every reading
+            // takes the same number, as every run before reading time did).
+            let dof = if r.n == group.1 {
+                1.0
+            } else {
+                f64::from(r.n - 1) / f64::from(group.1 - 1)
+            };
+            if let Some(k) = ratio {
+                group.2 |= k != 1.0;
+                group.3.push((x, y / k, dof));
+                let u = uniform.entry(noise_key(r, detector)).or_insert(true);
+                *u &= r.n == group.1 && r.n >= 3;
             }
         }
         let lines = groups
             .into_iter()
-            .filter(|(_, v)| v.len() >= MIN_POOL)
-            .filter_map(|(k, v)| fit_line(&v).map(|l| (k, l)))
+            .filter(|(_, (_, _, _, v))| v.len() >= MIN_POOL)
+            .filter_map(|(k, (t_ref, _, spans, v))| {
+                let own_start = uniform.get(&k).copied().unwrap_or(true);
+                fit_line(&v, own_start).map(|(a, b)| {
+                    let line = NoiseLine {
+                        a,
+                        b,
+                        t_ref,
+                        spans_time_constants: spans,
+                    };
+                    (k, line)
+                })
+            })
             .collect();
-        Noise {
+        let noise = Noise {
             lines,
             gap_s,
             detector,
+        };
+        let uncovered = readings
+            .iter()
+            .filter(|(r, dark)| r.n < 2 && !(*dark && detector == Detector::LockIn))
+            .filter(|(r, _)| noise.line_for(r).is_none())
+            .count();
+        if uncovered > 0 {
+            tracing::warn!(
+                readings = uncovered,
+                "single-snapshot readings with no pooled noise line to take their σ from: their noise term is 0"
+            );
+        }
+        noise
+    }
+
+    /// The pooled line for a reading and the factor its variance takes from it:
+    /// its own group's line (scaled by [`enbw_ratio`] for a lock-in). A reading of
+    /// one snapshot (n < 2, whose own scatter says nothing) without one borrows
+    /// the nearest group's: for a lock-in, the line of the nearest slope scaled by
+    /// the ratio of the two filters' ENBW (the density d² behind them is the same);
+    /// for a picoammeter, the line of the same range and integration time at the
+    /// nearest sample count (its samples are independent, so the variance of one
+    /// does not depend on how many are taken).
+    fn line_for(&self, r: &ReadingRecord) -> Option<(NoiseLine, f64)> {
+        let key = noise_key(r, self.detector);
+        if let Some(l) = self.lines.get(&key) {
+            let k = match self.detector {
+                Detector::LockIn => enbw_ratio(r.time_constant_s, l.t_ref),
+                Detector::Dc => Some(1.0),
+            };
+            if let Some(k) = k {
+                return Some((*l, k));
+            }
+        }
+        if r.n >= 2 {
+            return None;
+        }
+        match self.detector {
+            Detector::LockIn => {
+                let own = enbw_per_second(r.slope_db)? / r.time_constant_s;
+                let (&(_, slope, _), l) = self
+                    .lines
+                    .iter()
+                    .min_by_key(|((_, slope, _), _)| slope.abs_diff(r.slope_db))?;
+                let theirs = enbw_per_second(slope)? / l.t_ref;
+                let k = own / theirs;
+                (k.is_finite() && k > 0.0).then_some((*l, k))
+            }
+            Detector::Dc => self
+                .lines
+                .iter()
+                .filter(|((t, range, _), _)| *t == key.0 && *range == key.1)
+                .min_by_key(|((_, _, n), _)| n.abs_diff(r.n))
+                .map(|(_, l)| (*l, 1.0)),
         }
     }
 
@@ -366,8 +503,8 @@ impl Noise {
         if self.detector == Detector::Dc {
             return self.sigma_mean_dc(r, dark);
         }
-        let var = match self.lines.get(&noise_key(r, self.detector)) {
-            Some(l) if !dark => l.a + l.b * r.r_mean.max(0.0),
+        let var = match self.line_for(r) {
+            Some((l, k)) if !dark => (l.a + l.b * r.r_mean.max(0.0)) * k,
             _ if dark => rayleigh_variance(r),
             _ => {
                 let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
@@ -382,11 +519,12 @@ impl Noise {
     /// conversions (ρ = 0, [`variance_factors`] gives A = B = 1), so the sample
     /// variance s² (n − 1 in the denominator) is unbiased and needs no correction.
     /// s² is the pooled a + b·I where the reading's setting has a line, else the
-    /// reading's own; a dark keeps its own s (its σ is that of the dark readings).
+    /// reading's own; a dark keeps its own s (its σ is that of the dark readings)
+    /// unless it is a single sample, which has none.
     fn sigma_mean_dc(&self, r: &ReadingRecord, dark: bool) -> f64 {
         let own = r.r_std * r.r_std;
-        let var = match self.lines.get(&noise_key(r, self.detector)) {
-            Some(l) if !dark => l.a + l.b * r.x_mean.max(0.0),
+        let var = match self.line_for(r) {
+            Some((l, _)) if !dark || r.n < 2 => l.a + l.b * r.x_mean.max(0.0),
             _ => own,
         };
         (var.max(0.0) / f64::from(r.n.max(1))).sqrt()
@@ -410,13 +548,28 @@ fn rayleigh_variance(r: &ReadingRecord) -> f64 {
     (r.r_mean * r.r_mean + r.r_std * r.r_std * (n - 1.0) / n) / 2.0
 }
 
-/// Weighted least squares of y = a + b x (a, b ≥ 0), re-weighted by the fit.
-fn fit_line(p: &[(f64, f64)]) -> Option<NoiseLine> {
-    let mut w: Vec<f64> = p.iter().map(|(_, y)| 1.0 / (y * y).max(1e-300)).collect();
+/// Weighted least squares of y = a + b x (a, b ≥ 0), re-weighted by the fit: a
+/// point (x, y, f) weighs f/m², m the fitted variance at x and f its relative
+/// degrees of freedom (a variance from more snapshots scatters less).
+///
+/// The first pass weighs each point by its own 1/y² when `own_start` (every run
+/// before reading time: one snapshot count of at least three, and the fit as it
+/// always was), else by f/ȳ², ȳ the points' mean: a variance from two snapshots
+/// (one degree of freedom) can lie arbitrarily near zero, and weighted by its own
+/// 1/y² it would pin the line there.
+fn fit_line(p: &[(f64, f64, f64)], own_start: bool) -> Option<(f64, f64)> {
+    let mean = p.iter().map(|(_, y, _)| y).sum::<f64>() / p.len().max(1) as f64;
+    let mut w: Vec<f64> = p
+        .iter()
+        .map(|(_, y, f)| {
+            let y = if own_start { *y } else { mean };
+            1.0 / (y * y).max(1e-300) * f
+        })
+        .collect();
     let mut line = None;
     for _ in 0..4 {
         let (mut s, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for ((x, y), w) in p.iter().zip(&w) {
+        for ((x, y, _), w) in p.iter().zip(&w) {
             s += w;
             sx += w * x;
             sy += w * y;
@@ -440,11 +593,11 @@ fn fit_line(p: &[(f64, f64)]) -> Option<NoiseLine> {
         if !(a.is_finite() && b.is_finite()) || a + b <= 0.0 {
             return None;
         }
-        for ((x, _), w) in p.iter().zip(w.iter_mut()) {
+        for ((x, _, f), w) in p.iter().zip(w.iter_mut()) {
             let m = a + b * x;
-            *w = 1.0 / (m * m).max(1e-300);
+            *w = 1.0 / (m * m).max(1e-300) * f;
         }
-        line = Some(NoiseLine { a, b });
+        line = Some((a, b));
     }
     line
 }
@@ -768,6 +921,11 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         }
         noise
     };
+    // Readings kept although they reached the plan's time cap before their target.
+    let capped = by_step
+        .values()
+        .filter(|r| r.flags & opts.reject_flags == 0 && r.flags & flags::CAPPED != 0)
+        .count();
     let channel_names: Vec<Option<String>> = {
         let mut v: Vec<Option<String>> = Vec::new();
         for s in &steps {
@@ -1131,6 +1289,13 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             "the {} calibration reading(s)' noise (scaled by their Birge ratio when they disagree), and the source's level at their time",
             cal.len()
         );
+        let capped_note = if capped > 0 {
+            format!(
+                "; {capped} reading(s) reached the plan's reading.max_s before their target precision (flagged capped) and carry the precision they reached"
+            )
+        } else {
+            String::new()
+        };
         let sources: Vec<String> = match detector {
             Detector::Dc => {
                 let cal_readings = if use_standard {
@@ -1162,7 +1327,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                                     .join("; ")
                             )
                         }
-                    ),
+                    ) + &capped_note,
                     "the 6485's seven-digit replies (step/√12)".into(),
                     format!(
                         "the dark current's noise ({} reading(s), mean {:.3e} A subtracted as a scalar, σ {:.3e} A from s/√n)",
@@ -1186,13 +1351,19 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                     "the lock-in's noise, {} (variance of a mean of correlated snapshots, ρ = e^−(1 + {:.4} s/T))",
                     match noise.lines.values().next() {
                         None => "each reading's own snapshot scatter".to_string(),
+                        Some(l) if l.spans_time_constants => format!(
+                            "pooled over the run's readings and their time constants as a + b·R per snapshot at T = {} s, a = {:.3e} V², b = {:.3e} V, scaled to each reading's T by the filter's ENBW (∝ 1/T)",
+                            gonio_core::limits::num(l.t_ref),
+                            l.a,
+                            l.b
+                        ),
                         Some(l) => format!(
                             "pooled over the run's readings as a + b·R per snapshot, a = {:.3e} V², b = {:.3e} V",
                             l.a, l.b
                         ),
                     },
                     opts.snapshot_gap_s
-                ),
+                ) + &capped_note,
                 "the lock-in's six-digit replies (step/√12)".into(),
                 format!(
                     "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
@@ -1306,6 +1477,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             rejected,
             max_position_error_deg: max_pos,
             unmeasured,
+            capped,
         },
         budget,
         detector,
@@ -1339,6 +1511,11 @@ fn position_error(a: &PairDeg, b: &PairDeg) -> f64 {
 fn flag_reason(f: u32) -> String {
     if f & flags::UNLOCK != 0 {
         "unlock".into()
+    } else if f & (flags::INPUT_OVERLOAD | flags::FILTER_OVERLOAD | flags::OUTPUT_OVERLOAD) != 0 {
+        "overload".into()
+    } else if f & flags::CAPPED != 0 {
+        // Only when the caller asks for capped readings to be left out.
+        "capped".into()
     } else {
         "overload".into()
     }
@@ -1365,14 +1542,16 @@ mod tests {
 
     #[test]
     fn a_noise_line_is_recovered_from_exact_variances() {
-        let p: Vec<(f64, f64)> = (0..12)
+        let p: Vec<(f64, f64, f64)> = (0..12)
             .map(|k| {
                 let x = 1e-4 * f64::from(k);
-                (x, 3e-16 + 3e-12 * x)
+                (x, 3e-16 + 3e-12 * x, 1.0)
             })
             .collect();
-        let l = fit_line(&p).expect("fits");
-        assert!((l.a / 3e-16 - 1.0).abs() < 1e-9 && (l.b / 3e-12 - 1.0).abs() < 1e-9);
+        let (a, b) = fit_line(&p, true).expect("fits");
+        let (a2, b2) = fit_line(&p, false).expect("fits");
+        assert!((a2 / 3e-16 - 1.0).abs() < 1e-9 && (b2 / 3e-12 - 1.0).abs() < 1e-9);
+        assert!((a / 3e-16 - 1.0).abs() < 1e-9 && (b / 3e-12 - 1.0).abs() < 1e-9);
     }
 
     #[test]
