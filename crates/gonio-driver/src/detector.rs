@@ -235,7 +235,9 @@ impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> 
         target: &ReadTarget,
         expected: Option<f64>,
     ) -> Result<Reading, DetectorError> {
-        Ok(Reading::Lockin(Sr830::read_targeted(self, target, expected)?))
+        Ok(Reading::Lockin(Sr830::read_targeted(
+            self, target, expected,
+        )?))
     }
     fn target_floor(&self, target: &ReadTarget) -> Option<f64> {
         Sr830::target_floor(self, target)

@@ -229,10 +229,21 @@ fn a_noiseless_step_opens_the_window_where_the_analytic_transient_allows() {
     let start = seq.window_start().expect("window");
     let share = |from: usize| {
         let w = &taus[from..];
-        w.iter().map(|t| (y0 - u) * step_residual(4, *t)).sum::<f64>() / w.len() as f64
+        w.iter()
+            .map(|t| (y0 - u) * step_residual(4, *t))
+            .sum::<f64>()
+            / w.len() as f64
     };
-    assert!(share(start) <= allowed * (1.0 + 1e-6), "{} > {allowed}", share(start));
-    assert!(start == 0 || share(start - 1) > allowed, "window at τ {}", taus[start]);
+    assert!(
+        share(start) <= allowed * (1.0 + 1e-6),
+        "{} > {allowed}",
+        share(start)
+    );
+    assert!(
+        start == 0 || share(start - 1) > allowed,
+        "window at τ {}",
+        taus[start]
+    );
     // A step of 2 within 2e-5 on average: the last snapshot is past 18 T at 24 dB/oct.
     let last = taus[taus.len() - 1];
     assert!((18.0..19.5).contains(&last), "{last}");

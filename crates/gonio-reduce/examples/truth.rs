@@ -2,7 +2,7 @@
 //! sample, reduced, against the sample's own BRDF, with the simulator's noise and
 //! effects switched on and off one at a time.
 //!
-//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct SEED [quiet] [integrate]`
+//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct SEED [quiet] [integrate] [transient] [percentiles]`
 
 #[path = "../tests/truth/mod.rs"]
 mod truth;
@@ -22,6 +22,7 @@ fn main() {
     let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(11);
     let quiet = args.iter().any(|a| a == "quiet");
     let integrate = args.iter().any(|a| a == "integrate");
+    let transient = args.iter().any(|a| a == "transient");
     let plan = std::fs::read_to_string(truth::root().join(&plan_path)).expect("plan");
     let (store, model) = truth::measure("example", &plan, sample, seed, |s| {
         if quiet {
@@ -29,6 +30,9 @@ fn main() {
             s.lockin.shot_noise = 0.0;
         }
         s.optics.integrate_aperture = integrate;
+        if transient {
+            s.lockin.point_start = gonio_sim::lockin::PointStart::Previous;
+        }
     });
     if args.iter().any(|a| a == "cal") {
         let steps = store.steps().expect("steps");
@@ -119,6 +123,30 @@ fn main() {
             chi_s += zz * zz;
         }
         println!("   chi2/n with the common scale removed {:.3}", chi_s / n);
+        if name == "auto" {
+            let mut rel: Vec<f64> = red
+                .samples
+                .samples
+                .iter()
+                .map(|s| s.sigma.as_ref().expect("sigma")[0] / s.value[0])
+                .collect();
+            rel.sort_by(f64::total_cmp);
+            let q = |p: f64| rel[((rel.len() - 1) as f64 * p).round() as usize];
+            let within = rel.iter().filter(|x| **x <= 1.1e-4).count() as f64 / rel.len() as f64;
+            let physical = store
+                .readings()
+                .expect("readings")
+                .iter()
+                .map(|r| r.physical_s)
+                .fold(0.0, f64::max);
+            println!(
+                "   sigma/f median {:.3e} p90 {:.3e} p95 {:.3e}; {:.1} % within 1.1e-4; physical time {physical:.1} s",
+                q(0.5),
+                q(0.9),
+                q(0.95),
+                100.0 * within
+            );
+        }
         if args.iter().any(|a| a == "detail") && name == "auto" {
             let mut v: Vec<(f64, f64, f64, String)> = red
                 .samples

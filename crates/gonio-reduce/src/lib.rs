@@ -531,10 +531,16 @@ impl Noise {
     }
 }
 
-/// The snapshots' correlation ρ = e^−(T + gap)/T.
+/// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
+/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause.
 fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
     if r.time_constant_s > 0.0 {
-        (-(r.time_constant_s + gap_s.max(0.0)) / r.time_constant_s).exp()
+        let pause = if r.flags & flags::TARGETED != 0 {
+            0.0
+        } else {
+            r.time_constant_s
+        };
+        (-(pause + gap_s.max(0.0)) / r.time_constant_s).exp()
     } else {
         0.0
     }

@@ -138,9 +138,13 @@ pub mod flags {
     /// The reading reached the plan's `reading.max_s` before its target precision:
     /// kept, with the precision it reached.
     pub const CAPPED: u32 = 1 << 10;
+    /// Read to the plan's `[reading]` target: snapshots back to back (one serial
+    /// exchange apart, not a time constant plus one), averaged over the window the
+    /// settling rule chose. The reduction's snapshot correlation follows.
+    pub const TARGETED: u32 = 1 << 11;
 
     /// Every bit with its name, in bit order.
-    pub const NAMES: [(u32, &str); 7] = [
+    pub const NAMES: [(u32, &str); 8] = [
         (INPUT_OVERLOAD, "input overload"),
         (FILTER_OVERLOAD, "filter overload"),
         (OUTPUT_OVERLOAD, "output overload"),
@@ -148,6 +152,7 @@ pub mod flags {
         (SHADOWED, "shadowed"),
         (OVERFILLED, "overfilled"),
         (CAPPED, "capped"),
+        (TARGETED, "targeted"),
     ];
 
     /// The names of the bits set in `bits`, joined by ", " (empty for none).

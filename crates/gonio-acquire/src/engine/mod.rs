@@ -29,8 +29,8 @@
 
 use gonio_core::goniometer::Mechanics;
 use gonio_driver::bench::{Bench, Setup};
-pub use gonio_driver::sr830::ReadTarget;
 use gonio_driver::smc100::AbortFlag;
+pub use gonio_driver::sr830::ReadTarget;
 use gonio_driver::{Clock, Goniometer};
 use gonio_plan::StepKind;
 use gonio_run::{Batch, RunStore, StoreError, StoredStep};
@@ -82,6 +82,27 @@ pub fn read_target(r: &gonio_plan::ReadingConfig) -> ReadTarget {
         sigma_absolute: r.sigma_absolute.unwrap_or(0.0),
         max_s: r.max_s,
         min_samples: r.min_samples as usize,
+    }
+}
+
+/// The target of a step's reading, from the plan's (`base`) and the absolute floor
+/// in force (the plan's, else the detector's): the plan's own for a sample or a dark,
+/// a third of it for a calibration or drift reference, whose error every sample it
+/// calibrates shares (so that it adds a ninth at most to a sample's variance).
+pub fn target_for_kind(base: &ReadTarget, kind: gonio_plan::StepKind, floor: f64) -> ReadTarget {
+    use gonio_plan::StepKind;
+    let share = match kind {
+        StepKind::Sample | StepKind::Dark => 1.0,
+        StepKind::Reference | StepKind::Incident | StepKind::Standard => 1.0 / 3.0,
+    };
+    ReadTarget {
+        sigma_relative: base.sigma_relative * share,
+        sigma_absolute: if base.sigma_absolute > 0.0 {
+            base.sigma_absolute
+        } else {
+            floor
+        },
+        ..*base
     }
 }
 

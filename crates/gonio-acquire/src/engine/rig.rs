@@ -436,7 +436,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
                 Err(e) => return self.detector_failed(id, e),
             };
         }
-        let record = self.record(s, position, &reading, retried_before);
+        let record = self.record(s, position, &reading, retried_before, target.is_some());
         let mut events = Vec::new();
         if record.retries > 0 {
             events.push(EventRecord {
@@ -470,10 +470,8 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         }
     }
 
-    /// The target of a step's reading: the plan's for a sample or a dark, a third of
-    /// it for a calibration or drift reference, whose error every sample it
-    /// calibrates shares. The absolute floor is the plan's, else the detector's (the
-    /// precision the cap allows on the dimmest signal), computed once a session.
+    /// The target of a step's reading ([`super::target_for_kind`]); the detector's
+    /// floor is asked once a session.
     fn target_for(&mut self, kind: StepKind) -> Option<ReadTarget> {
         let base = self.cfg.reading?;
         if base.sigma_absolute <= 0.0 && self.floor.is_none() {
@@ -481,20 +479,11 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             tracing::info!(floor, "reading: the targets' absolute floor");
             self.floor = Some(floor);
         }
-        let floor = if base.sigma_absolute > 0.0 {
-            base.sigma_absolute
-        } else {
-            self.floor.unwrap_or(0.0)
-        };
-        let share = match kind {
-            StepKind::Sample | StepKind::Dark => 1.0,
-            StepKind::Reference | StepKind::Incident | StepKind::Standard => 1.0 / 3.0,
-        };
-        Some(ReadTarget {
-            sigma_relative: base.sigma_relative * share,
-            sigma_absolute: floor,
-            ..base
-        })
+        Some(super::target_for_kind(
+            &base,
+            kind,
+            self.floor.unwrap_or(0.0),
+        ))
     }
 
     fn record(
@@ -503,6 +492,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         position: [f64; 4],
         r: &Reading,
         retried_before: u64,
+        targeted: bool,
     ) -> ReadingRecord {
         let dirs = self.mech.layout.forward(position);
         let g = &self.mech.geometry;
@@ -520,6 +510,9 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         }
         if c.capped {
             bits |= flags::CAPPED;
+        }
+        if targeted && r.lockin().is_some() {
+            bits |= flags::TARGETED;
         }
         ReadingRecord {
             step_id: s.id,

@@ -633,7 +633,9 @@ pub(crate) fn acquire_with(
         rig,
         meta.standard_model.clone(),
         meta.transmittance,
-        plan.reading.as_ref().map(gonio_acquire::engine::read_target),
+        plan.reading
+            .as_ref()
+            .map(gonio_acquire::engine::read_target),
         Driving { quiet, stop, serve },
     )?;
     Ok(report)

@@ -489,7 +489,9 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         crate::cmd::acquire::Rig::Sim(Box::new(sim)),
         None,
         transmittance,
-        plan.reading.as_ref().map(gonio_acquire::engine::read_target),
+        plan.reading
+            .as_ref()
+            .map(gonio_acquire::engine::read_target),
         crate::cmd::acquire::Driving {
             quiet: true,
             stop: &crate::cmd::acquire::StopBy::Signals,

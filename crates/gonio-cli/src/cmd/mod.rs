@@ -16,6 +16,7 @@ pub mod model;
 pub mod plan;
 pub mod plot;
 pub mod prepare;
+pub mod reading_time;
 pub mod reduce;
 pub mod report;
 pub mod runs;

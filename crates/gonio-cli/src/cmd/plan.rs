@@ -2,12 +2,13 @@
 //! why, and how long it takes.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use gonio_plan::rejection_counts;
 use serde_json::json;
 
 use crate::cmd::prepare::{hms, load_and_prepare};
+use crate::cmd::reading_time::{ReadingTime, Source, estimate_plan};
 use crate::error::CliResult;
 use crate::flags::JsonFlag;
 use crate::output;
@@ -35,6 +36,13 @@ pub struct CheckArgs {
     /// The instrument config (TOML).
     #[arg(long)]
     instrument: PathBuf,
+    /// For a plan with a `[reading]` target: a previous run whose readings give the
+    /// signal expected at each step (the nearest reading of the same kind), instead
+    /// of the simulated sample.
+    #[arg(long, value_name = "RUN")]
+    like: Option<PathBuf>,
+    #[command(flatten)]
+    sim: crate::cmd::instrument::SimFlag,
     #[command(flatten)]
     json: JsonFlag,
 }
@@ -42,14 +50,31 @@ pub struct CheckArgs {
 /// Runs `gonio plan …`.
 pub fn run(c: Command) -> CliResult<()> {
     match c {
-        Command::Check(a) => plan_check(&a.plan, &a.instrument, a.json.json),
+        Command::Check(a) => plan_check(&a),
         Command::Compare(a) => crate::cmd::compare::compare(a),
     }
 }
 
-/// `gonio plan check PLAN --instrument INSTR [--json]`.
-fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
-    let p = load_and_prepare(instrument, plan)?.prepared;
+/// `gonio plan check PLAN --instrument INSTR [--like RUN] [--sim SIM] [--json]`.
+fn plan_check(a: &CheckArgs) -> CliResult<()> {
+    let (plan, instrument, json) = (a.plan.as_path(), a.instrument.as_path(), a.json.json);
+    let loaded = load_and_prepare(instrument, plan)?;
+    let reading = match (&loaded.plan.reading, &a.like) {
+        (None, _) => None,
+        (Some(_), Some(run)) => estimate_plan(&loaded, Source::Run(run))?,
+        (Some(_), None) => {
+            if a.sim.sim.is_some()
+                || crate::cmd::instrument::is_simulated(&loaded.instrument, instrument)?
+            {
+                let cfg = crate::cmd::instrument::sim_config(a.sim.sim.as_deref())?;
+                estimate_plan(&loaded, Source::Sim(Box::new(cfg)))?
+            } else {
+                None
+            }
+        }
+    };
+    let targeted = loaded.plan.reading.is_some();
+    let p = loaded.prepared;
     let s = &p.schedule;
     let gain = if s.raster_motion_s > 0.0 {
         1.0 - s.motion_s / s.raster_motion_s
@@ -85,6 +110,7 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
             },
             "spectral": s.spectral,
             "adaptive": p.adaptive,
+            "reading": reading,
         }));
     }
     let mut w = output::stdout();
@@ -130,6 +156,16 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
         if let Some(a) = &p.adaptive {
             adaptive_summary(&mut w, a)?;
         }
+        if let Some(r) = &reading {
+            reading_summary(&mut w, r, s)?;
+        } else if targeted {
+            writeln!(
+                w,
+                "reading to a target: the detector time above is the fixed reading's; give \
+                 --like RUN (or --sim SIM, with a noise law in the instrument's \
+                 [detector.lockin]) for the targeted estimate"
+            )?;
+        }
         if let Some(d) = &s.spectral {
             writeln!(
                 w,
@@ -145,6 +181,44 @@ fn plan_check(plan: &Path, instrument: &Path, json: bool) -> CliResult<()> {
         }
         w.flush()
     })())
+}
+
+/// What `plan check` says of a targeted plan: the detector's time, split, against the
+/// fixed reading's, and the run's total with it.
+fn reading_summary(
+    w: &mut impl Write,
+    r: &ReadingTime,
+    s: &gonio_plan::Schedule,
+) -> std::io::Result<()> {
+    let tcs: Vec<String> = r
+        .time_constants
+        .iter()
+        .map(|(tc, n)| format!("{tc} × {n}"))
+        .collect();
+    writeln!(
+        w,
+        "reading to σ/f {:e} (floor {:.2e} V), signals from {}: detector {} (settling {}, \
+         averaging {}, serial {}) against {} for fixed readings; total {}",
+        r.sigma_relative,
+        r.sigma_absolute,
+        r.source,
+        hms(r.detector_s),
+        hms(r.settle_s),
+        hms(r.averaging_s),
+        hms(r.serial_s),
+        hms(s.detector_s),
+        hms(s.duration_s() - s.detector_s + r.detector_s),
+    )?;
+    writeln!(
+        w,
+        "  time constants: {}{}",
+        tcs.join(", "),
+        if r.capped > 0 {
+            format!("; {} reading(s) expected to reach the cap", r.capped)
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// What `plan check` says of an adaptive plan: the budget, the coarse pass (the

@@ -418,7 +418,11 @@ impl Sequential {
     /// noise law the fit's residuals bound the transient and the window's own
     /// scatter, corrected for its correlation, gives its noise, from
     /// [`MIN_OWN_SCATTER`] snapshots on.
-    pub fn assess(&mut self, target: &ReadTarget, noise: Option<&dyn Fn(f64) -> f64>) -> Assessment {
+    pub fn assess(
+        &mut self,
+        target: &ReadTarget,
+        noise: Option<&dyn Fn(f64) -> f64>,
+    ) -> Assessment {
         let k = self.snaps.len();
         let none = Assessment {
             window_start: None,
@@ -443,9 +447,10 @@ impl Sequential {
         let value = self.fit.as_ref().map_or(self.snaps[k - 1].r, |f| f.value);
         let var = match noise {
             Some(f) => Some(f(value)),
-            None => self.fit.as_ref().and_then(|f| {
-                (f.dof >= 2).then(|| f.residual_variance()).flatten()
-            }),
+            None => self
+                .fit
+                .as_ref()
+                .and_then(|f| (f.dof >= 2).then(|| f.residual_variance()).flatten()),
         };
         let var_bias = match (&self.fit, var) {
             (None, _) => 0.0,
@@ -696,7 +701,17 @@ pub fn choose_time_constant(
 ) -> Option<ReadEstimate> {
     choices
         .into_iter()
-        .map(|tc| estimate(expected, 0.25 * expected, target, noise, slope, tc, exchange_s))
+        .map(|tc| {
+            estimate(
+                expected,
+                0.25 * expected,
+                target,
+                noise,
+                slope,
+                tc,
+                exchange_s,
+            )
+        })
         .min_by(|a, b| a.total_s().total_cmp(&b.total_s()))
 }
 

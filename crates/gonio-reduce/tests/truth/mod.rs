@@ -113,6 +113,10 @@ impl Run<'_> {
         let (g, shared) = gonio_sim::connect(inst, &sim).expect("sim");
         let cfg = EngineConfig {
             incident_transmittance: meta.transmittance,
+            reading: plan
+                .reading
+                .as_ref()
+                .map(gonio_acquire::engine::read_target),
             ..EngineConfig::default()
         };
         let engine = Engine::new(g, SimBench::new(shared, standard), store, mech, cfg);

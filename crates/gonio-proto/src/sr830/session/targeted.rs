@@ -235,7 +235,11 @@ impl TargetedRead {
             // The output overload bit latched during the transient too; the window's
             // snapshots were checked against the clip level one by one instead.
             Ok(status) => {
-                let own = if self.clipped { LiaStatus::OUTPUT_OVERLOAD } else { 0 };
+                let own = if self.clipped {
+                    LiaStatus::OUTPUT_OVERLOAD
+                } else {
+                    0
+                };
                 LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own)
             }
             Err(e) if s.config.retries > 0 && is_transient(&e) => {
@@ -360,6 +364,9 @@ impl TargetedRead {
 
 /// [`OVERLOAD_STEPS`] ranges less sensitive, or the least sensitive; `None` there.
 fn less_sensitive(s: Sensitivity) -> Option<Sensitivity> {
-    let up = s.index().saturating_add(OVERLOAD_STEPS).min(Sensitivity::LEAST.index());
+    let up = s
+        .index()
+        .saturating_add(OVERLOAD_STEPS)
+        .min(Sensitivity::LEAST.index());
     Sensitivity::new(up).filter(|n| *n > s)
 }
