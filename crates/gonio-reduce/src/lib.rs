@@ -40,7 +40,8 @@
 //!   slope, `gonio_proto::sr830::FilterSlope::enbw_hz`), and n enters only through
 //!   each reading's own variance factors. One line is fitted per filter slope, at
 //!   the time constant of its first reading, each reading's variance divided by its
-//!   ENBW ratio to it (exactly 1 in a run at one time constant). A slope with fewer
+//!   ENBW ratio to it (exactly 1 in a run at one time constant) and weighted by its
+//!   n − 1 degrees of freedom relative to the first reading's. A slope with fewer
 //!   than eight usable readings takes each reading's own scatter; a reading of one
 //!   snapshot, which has none, borrows the nearest slope's line scaled by the
 //!   ratio of the two ENBWs, and keeps a noise term of 0 (with a warning) only when
@@ -352,6 +353,21 @@ fn enbw_per_second(slope_db: u8) -> Option<f64> {
     Some(slope.enbw_hz(tc))
 }
 
+/// The readings of one noise key while the noise is fitted.
+struct Pool {
+    /// The first reading's time constant, s: the line is the variance at it.
+    t_ref: f64,
+    /// The first reading's snapshot count.
+    n_ref: u32,
+    /// Whether another time constant was seen.
+    spans_time_constants: bool,
+    /// Whether every reading took `n_ref` snapshots, at least 3 ([`fit_line`]'s
+    /// `own_start`).
+    one_count: bool,
+    /// (R, variance at `t_ref`, relative degrees of freedom) per reading.
+    points: Vec<(f64, f64, f64)>,
+}
+
 /// The detector's noise: pooled lines where enough readings share a setting, and
 /// the lock-in's snapshot correlation.
 struct Noise {
@@ -376,12 +392,7 @@ impl Noise {
     /// signed: every reading (the darks too) gives the point (I, s²), I clamped at
     /// 0 (a dark current a little below zero has the noise of zero current).
     fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64, detector: Detector) -> Noise {
-        // Per key: the reference time constant and snapshot count (the first
-        // reading's), whether another time constant was seen, the points.
-        let mut groups: BTreeMap<NoiseKey, (f64, u32, bool, Vec<(f64, f64, f64)>)> =
-            BTreeMap::new();
-        // Per key: whether every reading took one snapshot count, of at least 3.
-        let mut uniform: BTreeMap<NoiseKey, bool> = BTreeMap::new();
+        let mut groups: BTreeMap<NoiseKey, Pool> = BTreeMap::new();
         for (r, dark) in readings {
             if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
                 continue;
@@ -397,40 +408,43 @@ impl Noise {
                 None
             };
             let Some((x, y)) = point else { continue };
-            let group = groups
-                .entry(noise_key(r, detector))
-                .or_insert_with(|| (r.time_constant_s, r.n, false, Vec::new()));
+            let pool = groups.entry(noise_key(r, detector)).or_insert(Pool {
+                t_ref: r.time_constant_s,
+                n_ref: r.n,
+                spans_time_constants: false,
+                one_count: true,
+                points: Vec::new(),
+            });
             let ratio = if detector == Detector::Dc {
                 Some(1.0)
             } else {
-                enbw_ratio(r.time_constant_s, group.0)
+                enbw_ratio(r.time_constant_s, pool.t_ref)
             };
             // A variance from n snapshots has about n − 1 degrees of freedom: its
             // weight relative to the first reading's (exactly 1 when every reading
-            // takes the same number, as every run before reading time did).
-            let dof = if r.n == group.1 {
+            // takes the same number, as every run before reading time did; n and
+            // n_ref are at least 2 here).
+            let dof = if r.n == pool.n_ref {
                 1.0
             } else {
-                f64::from(r.n - 1) / f64::from(group.1 - 1)
+                f64::from(r.n - 1) / f64::from(pool.n_ref - 1)
             };
             if let Some(k) = ratio {
-                group.2 |= k != 1.0;
-                group.3.push((x, y / k, dof));
-                let u = uniform.entry(noise_key(r, detector)).or_insert(true);
-                *u &= r.n == group.1 && r.n >= 3;
+                pool.spans_time_constants |= k != 1.0;
+                pool.one_count &= r.n == pool.n_ref && r.n >= 3;
+                pool.points.push((x, y / k, dof));
             }
         }
         let lines = groups
             .into_iter()
-            .filter(|(_, (_, _, _, v))| v.len() >= MIN_POOL)
-            .filter_map(|(k, (t_ref, _, spans, v))| {
-                let own_start = uniform.get(&k).copied().unwrap_or(true);
-                fit_line(&v, own_start).map(|(a, b)| {
+            .filter(|(_, p)| p.points.len() >= MIN_POOL)
+            .filter_map(|(k, p)| {
+                fit_line(&p.points, p.one_count).map(|(a, b)| {
                     let line = NoiseLine {
                         a,
                         b,
-                        t_ref,
-                        spans_time_constants: spans,
+                        t_ref: p.t_ref,
+                        spans_time_constants: p.spans_time_constants,
                     };
                     (k, line)
                 })
