@@ -30,7 +30,6 @@ use std::time::Duration;
 /// Reading to a precision target: the transient fit, the sequential rule, the time
 /// estimates.
 pub use gonio_proto::sr830::target;
-use target::floor_sigma;
 use gonio_proto::sr830::{
     Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, Sensitivity, Sr830Session,
     TimeConstant,
@@ -38,6 +37,7 @@ use gonio_proto::sr830::{
 pub use gonio_proto::sr830::{
     ConfigError, MAX_AUTORANGE_STEPS, ReadTarget, Reading, ReadingFlags, Sr830Config, Sr830Error,
 };
+use target::floor_sigma;
 use tracing::debug_span;
 
 use crate::clock::Clock;

@@ -9,8 +9,8 @@ use std::path::Path;
 use gonio_acquire::engine::{ReadTarget, read_target, setup_for, target_for_kind};
 use gonio_driver::bench::Bench;
 use gonio_driver::config::DetectorKind;
-use gonio_plan::StepKind;
 use gonio_driver::sr830::target::{choose_time_constant, estimate, floor_sigma};
+use gonio_plan::StepKind;
 use serde::Serialize;
 
 use crate::cmd::prepare::Loaded;
@@ -57,11 +57,7 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
         return Ok(None);
     };
     let inst = &loaded.instrument;
-    let lockin = inst
-        .detector
-        .lockin
-        .clone()
-        .with_baud(inst.detector.baud);
+    let lockin = inst.detector.lockin.clone().with_baud(inst.detector.baud);
     let Some(noise) = lockin.noise else {
         return Ok(None);
     };
@@ -70,10 +66,14 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
     }
     let base: ReadTarget = read_target(reading);
     let choices = lockin.time_constant_choices();
-    let floor = floor_sigma(&base, &noise, lockin.slope, &choices, lockin.exchange_s).unwrap_or(0.0);
+    let floor =
+        floor_sigma(&base, &noise, lockin.slope, &choices, lockin.exchange_s).unwrap_or(0.0);
     let steps = &loaded.prepared.schedule.steps;
     let (signals, what) = match source {
-        Source::Sim(cfg) => (sim_signals(loaded, &cfg)?, "the simulated sample".to_string()),
+        Source::Sim(cfg) => (
+            sim_signals(loaded, &cfg)?,
+            "the simulated sample".to_string(),
+        ),
         Source::Run(path) => (run_signals(steps, path)?, path.display().to_string()),
     };
     let mut out = ReadingTime {
@@ -99,14 +99,27 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
         let target = target_for_kind(&base, step.kind, floor);
         // The driver chooses from the level the last reading had, then meets this one.
         let tc = match previous {
-            Some(p) if p > 0.0 => {
-                choose_time_constant(p, &target, &noise, lockin.slope, choices.iter().copied(), lockin.exchange_s)
-                    .map_or(lockin.time_constant, |e| e.time_constant)
-            }
+            Some(p) if p > 0.0 => choose_time_constant(
+                p,
+                &target,
+                &noise,
+                lockin.slope,
+                choices.iter().copied(),
+                lockin.exchange_s,
+            )
+            .map_or(lockin.time_constant, |e| e.time_constant),
             _ => lockin.time_constant,
         };
         let step_v = previous.map_or(*r, |p| (p - r).abs());
-        let e = estimate(*r, step_v, &target, &noise, lockin.slope, tc, lockin.exchange_s);
+        let e = estimate(
+            *r,
+            step_v,
+            &target,
+            &noise,
+            lockin.slope,
+            tc,
+            lockin.exchange_s,
+        );
         let (settle, averaging) = if e.total_s() > target.max_s {
             out.capped += 1;
             let settle = e.settle_s.min(target.max_s);
@@ -172,10 +185,17 @@ fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
         .readings()?
         .into_iter()
         .filter(|r| r.r_mean.is_finite())
-        .filter_map(|r| kinds.get(&r.step_id).map(|k| (*k, Some(r.read_pair), r.r_mean)))
+        .filter_map(|r| {
+            kinds
+                .get(&r.step_id)
+                .map(|k| (*k, Some(r.read_pair), r.r_mean))
+        })
         .collect();
     if readings.is_empty() {
-        return Err(CliError::Input(format!("{}: the run has no readings", path.display())));
+        return Err(CliError::Input(format!(
+            "{}: the run has no readings",
+            path.display()
+        )));
     }
     let chord = |a: &gonio_core::dirfile::PairDeg, b: &gonio_core::dirfile::PairDeg| {
         let (da, db) = (a.to_dirs(), b.to_dirs());
