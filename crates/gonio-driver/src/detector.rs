@@ -11,7 +11,7 @@ use crate::k6485::K6485;
 use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
 use crate::transport::Transport;
 use gonio_proto::k6485::{K6485Error, PicoReading, Range as PicoRange};
-use gonio_proto::sr830::{ReadTarget, Sensitivity};
+use gonio_proto::sr830::{ReadTarget, Sensitivity, TimeConstant};
 
 /// A detector on its serial line, whatever its family: what the run engine needs of
 /// it. A family plugs in by implementing it over its session's pump ([`Sr830`],
@@ -49,6 +49,19 @@ pub trait DetectorDevice: Send {
     /// run left it at, so that autoranging takes the same path. Returns its name, or
     /// `None` for an index the detector does not have.
     fn restore_range(&mut self, index: u8) -> Result<Option<String>, DetectorError>;
+    /// The integration setting in force ([`Columns::integration`]: the lock-in's time
+    /// constant index).
+    fn integration(&self) -> u8 {
+        0
+    }
+    /// Sets the integration setting by its index: after a resume, the one the run's
+    /// last reading took, so that a targeted reading starts from the filter state an
+    /// uninterrupted run had. Returns its name, or `None` where there is nothing to
+    /// set.
+    fn restore_integration(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
+        let _ = index;
+        Ok(None)
+    }
     /// Exchanges re-sent after a lost, late or garbled reply.
     fn retried(&self) -> u64;
     /// The detector as `Any`, to reach a family's own operations.
@@ -253,6 +266,18 @@ impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> 
             Some(s) => {
                 self.set_sensitivity(s)?;
                 Ok(Some(s.to_string()))
+            }
+            None => Ok(None),
+        }
+    }
+    fn integration(&self) -> u8 {
+        self.time_constant().index()
+    }
+    fn restore_integration(&mut self, index: u8) -> Result<Option<String>, DetectorError> {
+        match TimeConstant::new(index) {
+            Some(t) => {
+                self.set_time_constant(t)?;
+                Ok(Some(t.to_string()))
             }
             None => Ok(None),
         }

@@ -224,13 +224,29 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         }))
     }
 
-    /// Puts the detector's range where the reading before step `next` left it, so
-    /// that autoranging takes the same path as it would have without an
-    /// interruption (nothing to do when it is there already).
+    /// Puts the detector's range (and time constant) where the reading before step
+    /// `next` left them, so that autoranging takes the same path, and a point starts
+    /// from the same filter state, as without an interruption (nothing to do when
+    /// they are there already).
     fn restore_range(&mut self, next: i64) -> Result<Result<(), Outcome>, StoreError> {
         let Some(last) = self.store.last_reading_before(next)? else {
             return Ok(Ok(()));
         };
+        if last.time_constant != self.gonio.detector.integration() {
+            match self.gonio.detector.restore_integration(last.time_constant) {
+                Ok(Some(tc)) => self.store.event(
+                    "detector",
+                    None,
+                    &format!("time constant restored to {tc}"),
+                )?,
+                Ok(None) => {}
+                Err(e) => {
+                    let m = format!("restoring the time constant failed: {e}");
+                    self.fault(None, &m, false)?;
+                    return Ok(Err(Outcome::Faulted(m)));
+                }
+            }
+        }
         if last.sensitivity == self.gonio.detector.range() {
             return Ok(Ok(()));
         }

@@ -182,3 +182,36 @@ pub fn kill_and_resume_until_complete(
     }
     kills
 }
+
+/// A shipped simulator config at another time scale, written into `dir`.
+pub fn sim_file_at(dir: &Path, name: &str, scale: f64) -> String {
+    let text = std::fs::read_to_string(config(name)).expect("sim config");
+    let text = text.replace("time_scale = 0.0 ", &format!("time_scale = {scale} "));
+    assert!(text.contains(&format!("time_scale = {scale}")));
+    let p = dir.join(format!("{name}-{scale}.toml"));
+    std::fs::write(&p, text).expect("write");
+    p.display().to_string()
+}
+
+/// Every reading's values (not its times) by step, from a run file.
+pub fn readings(path: &Path) -> Vec<Vec<String>> {
+    let c = rusqlite::Connection::open(path).expect("opens");
+    let mut stmt = c
+        .prepare(
+            "SELECT step_id, pos_0, pos_1, pos_2, pos_3, theta_i, phi_i, theta_o, phi_o, \
+             sensitivity, time_constant, r_mean, r_std, x_mean, y_mean, n, autorange_steps, \
+             lias, flags FROM readings ORDER BY step_id",
+        )
+        .expect("query");
+    let rows = stmt
+        .query_map([], |r| {
+            (0..19)
+                .map(|i| {
+                    r.get::<_, rusqlite::types::Value>(i)
+                        .map(|v| format!("{v:?}"))
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .expect("rows");
+    rows.collect::<Result<_, _>>().expect("values")
+}
