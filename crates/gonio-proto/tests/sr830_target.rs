@@ -281,23 +281,58 @@ fn target() -> ReadTarget {
 }
 
 #[test]
-fn the_estimate_adds_settling_and_the_snapshots_the_noise_needs() {
-    let tc = TimeConstant::new(8).expect("100 ms");
+fn the_estimate_is_what_the_rule_takes_on_noise_of_the_law() {
+    // The estimate runs the rule on two fixed seeds; the same rule on forty other
+    // seeds takes, on average, the same time to within a tenth.
     let ex = 0.0375;
-    // A dim signal, 1e-4 V: d² = (20 nV)² + (2 µV)²·1e-4 = 8e-16 V²/Hz, ENBW 0.78125 Hz,
-    // σ² = 6.25e-16 V²; target 1e-8 V; snapshots 1.375 T apart, ρ = e^−1.375.
-    let e = estimate(1e-4, 1e-4, &target(), &noise(), FilterSlope::Db24, tc, ex);
-    let rho = (-1.375f64).exp();
-    let n = (6.25e-16 * (1.0 + rho) / (1.0 - rho) / 1e-16).ceil() as usize;
-    assert_eq!(e.samples, n);
-    assert!((e.averaging_s - (n - 1) as f64 * 0.1375).abs() < 1e-12);
-    // Settling: the step's residual to 2e-5 (17.9 T) exceeds the first snapshot (2 T
-    // and an exchange) and 4 more (8.5 T).
-    let want = FilterSlope::Db24.settle_factor_for(2e-5) * 0.1;
-    assert!((e.settle_s - want).abs() < 1e-9, "{} vs {want}", e.settle_s);
-    // A bright one needs only its minimum of 2.
-    let b = estimate(0.5, 0.5, &target(), &noise(), FilterSlope::Db24, tc, ex);
-    assert_eq!(b.samples, 2);
+    for (r, tc) in [(1e-4, 7u8), (3e-4, 7), (3e-4, 8), (1e-3, 6)] {
+        let tc = TimeConstant::new(tc).expect("OFLT");
+        let t = tc.seconds();
+        let e = estimate(r, 0.25 * r, &target(), &noise(), FilterSlope::Db24, tc, ex);
+        let var = noise().snapshot_variance(r, FilterSlope::Db24, tc);
+        let law = |_: f64| var;
+        let spacing = ex / t;
+        let mut total = 0.0;
+        for seed in 0..40 {
+            let mut rng = Normal(1000 + seed);
+            let mut seq = Sequential::new(4, 0.0);
+            let sigma = var.sqrt();
+            let mut n = sigma * rng.next();
+            let mut tau = spacing;
+            loop {
+                seq.push(tau, r + 0.25 * r * step_residual(4, tau) + n, 0.0);
+                if seq.assess(&target(), Some(&law)).done {
+                    break;
+                }
+                let rho = (-spacing).exp();
+                n = rho * n + sigma * (1.0 - rho * rho).sqrt() * rng.next();
+                tau += spacing;
+            }
+            total += tau * t;
+        }
+        let mean = total / 40.0;
+        assert!(
+            (e.total_s() / mean - 1.0).abs() < 0.1,
+            "{r} at {tc}: estimate {} s, the rule {mean} s",
+            e.total_s()
+        );
+        // Averaging is the window; settling what came before it.
+        assert!(e.settle_s >= 0.0 && e.averaging_s >= 0.0);
+    }
+    // Dimmer is longer; a bright signal takes what its transient takes: a step of a
+    // quarter of 0.5 V to within 0.2 of 5e-5 V, 15.4 T at 24 dB/oct, give or take a
+    // few snapshots.
+    let tc = TimeConstant::new(7).expect("30 ms");
+    let dim = estimate(1e-4, 2.5e-5, &target(), &noise(), FilterSlope::Db24, tc, ex);
+    let mid = estimate(1e-3, 2.5e-4, &target(), &noise(), FilterSlope::Db24, tc, ex);
+    let bright = estimate(0.5, 0.125, &target(), &noise(), FilterSlope::Db24, tc, ex);
+    assert!(dim.total_s() > mid.total_s() && mid.total_s() >= bright.total_s());
+    let settle = FilterSlope::Db24.settle_factor_for(0.2 * 5e-5 / 0.125) * 0.03;
+    assert!(
+        (bright.total_s() - settle).abs() < 4.0 * ex,
+        "{} vs {settle}",
+        bright.total_s()
+    );
 }
 
 #[test]

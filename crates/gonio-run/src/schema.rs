@@ -170,8 +170,8 @@ pub mod flags {
 mod tests {
     use super::flags;
 
-    /// The bits are distinct, in bit order, and the plan's cap is bit 10, named
-    /// `capped` (docs/run-file.md).
+    /// The bits are distinct, in bit order, the plan's cap is bit 10, named `capped`,
+    /// and a targeted reading bit 11 (docs/run-file.md).
     #[test]
     fn flag_bits_are_distinct_ordered_and_capped_is_bit_10() {
         for w in flags::NAMES.windows(2) {
@@ -181,8 +181,9 @@ mod tests {
             assert_eq!(acc & b, 0, "bit {b:#x} named twice");
             acc | b
         });
-        assert_eq!(all, 0b111_0000_1111);
+        assert_eq!(all, 0b1111_0000_1111);
         assert_eq!(flags::CAPPED, 1024);
+        assert_eq!(flags::TARGETED, 2048);
         assert_eq!(
             flags::text(flags::SHADOWED | flags::CAPPED),
             "shadowed, capped"
