@@ -126,7 +126,7 @@ fn drive(inst: &InstrumentConfig, steps: &[Step], transmittance: f64) -> Duratio
             None => axes.iter().map(|a| g.motion.position(a)).collect(),
         }
         .expect("moves");
-        bench.at_step(id as i64);
+        bench.at_step(id as i64, None);
         g.detector.input_changed();
         let mut r = g.detector.read().expect("reads");
         for _ in 0..2 {

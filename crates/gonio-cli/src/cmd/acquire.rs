@@ -443,6 +443,17 @@ pub(crate) struct Driving<'a> {
     pub serve: Option<Serve>,
 }
 
+/// What a session takes from the run's plan: the reference standard's model text,
+/// the incident filter's transmittance, the `[reading]` target.
+pub(crate) struct RunSetup {
+    /// The reference standard's model text.
+    pub standard: Option<String>,
+    /// The incident-beam filter's transmittance.
+    pub transmittance: f64,
+    /// The reading target.
+    pub reading: Option<gonio_acquire::engine::ReadTarget>,
+}
+
 pub(crate) enum Rig {
     /// The in-process simulator, built from these configs.
     Sim(Box<gonio_sim::SimConfig>),
@@ -458,11 +469,14 @@ pub(crate) fn session(
     instrument: &InstrumentConfig,
     instrument_name: &str,
     rig: Rig,
-    standard: Option<String>,
-    transmittance: f64,
-    reading: Option<gonio_acquire::engine::ReadTarget>,
+    run: RunSetup,
     how: Driving<'_>,
 ) -> CliResult<(SessionReport, RunStore)> {
+    let RunSetup {
+        standard,
+        transmittance,
+        reading,
+    } = run;
     let mech = instrument
         .mechanics()
         .map_err(|e| input(format!("{instrument_name}: {e}")))?;
@@ -631,11 +645,14 @@ pub(crate) fn acquire_with(
         &inst,
         &a.instrument.display().to_string(),
         rig,
-        meta.standard_model.clone(),
-        meta.transmittance,
-        plan.reading
-            .as_ref()
-            .map(gonio_acquire::engine::read_target),
+        RunSetup {
+            standard: meta.standard_model.clone(),
+            transmittance: meta.transmittance,
+            reading: plan
+                .reading
+                .as_ref()
+                .map(gonio_acquire::engine::read_target),
+        },
         Driving { quiet, stop, serve },
     )?;
     Ok(report)
@@ -704,9 +721,11 @@ fn resume_served(
         &stored.instrument,
         &format!("{} (stored instrument config)", path.display()),
         rig,
-        stored.standard_model.clone(),
-        stored.transmittance,
-        stored.reading,
+        RunSetup {
+            standard: stored.standard_model.clone(),
+            transmittance: stored.transmittance,
+            reading: stored.reading,
+        },
         Driving { quiet, stop, serve },
     )?;
     Ok(report)

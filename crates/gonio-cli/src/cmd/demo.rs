@@ -487,11 +487,14 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
         &inst,
         "instrument-sim.toml",
         crate::cmd::acquire::Rig::Sim(Box::new(sim)),
-        None,
-        transmittance,
-        plan.reading
-            .as_ref()
-            .map(gonio_acquire::engine::read_target),
+        crate::cmd::acquire::RunSetup {
+            standard: None,
+            transmittance,
+            reading: plan
+                .reading
+                .as_ref()
+                .map(gonio_acquire::engine::read_target),
+        },
         crate::cmd::acquire::Driving {
             quiet: true,
             stop: &crate::cmd::acquire::StopBy::Signals,
