@@ -620,7 +620,7 @@ fn correlation_sum(n: usize, rho: f64) -> f64 {
 /// constant `tc` and `slope`, with `exchange_s` the time of one `SNAP?` exchange. The
 /// rule itself is run ([`Sequential`]) on snapshots back to back from
 /// [`FIRST_SNAPSHOT_TC`] on, the step's exact response plus first-order noise of the
-/// law's variance, for two fixed seeds; past [`ESTIMATE_SNAPSHOTS`] the window's
+/// law's variance, for two fixed seeds; past 48 snapshots the window's
 /// start is taken as found and its length as the noise needs (the exact correlation
 /// sum). The mean of the two is returned; the cap is not applied.
 pub fn estimate(
