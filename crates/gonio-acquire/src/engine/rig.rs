@@ -429,7 +429,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             .as_ref()
             .map(|r| r.r_mean)
             .filter(|r| r.is_finite() && *r > 0.0);
-        let target = self.target_for(s.step.kind);
+        let target = self.target_for(s.step.kind)?;
         self.bench.at_step(id, held);
         self.gonio.detector.input_changed();
         let mut reading = match self.read(target.as_ref(), expected) {
@@ -488,18 +488,28 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
 
     /// The target of a step's reading ([`super::target_for_kind`]); the detector's
     /// floor is asked once a session.
-    fn target_for(&mut self, kind: StepKind) -> Option<ReadTarget> {
-        let base = self.cfg.reading?;
-        if base.sigma_absolute <= 0.0 && self.floor.is_none() {
+    fn target_for(&mut self, kind: StepKind) -> Result<Option<ReadTarget>, StoreError> {
+        let Some(base) = self.cfg.reading else {
+            return Ok(None);
+        };
+        if self.floor.is_none() {
             let floor = self.gonio.detector.target_floor(&base).unwrap_or(0.0);
             tracing::info!(floor, "reading: the targets' absolute floor");
             self.floor = Some(floor);
+            if self.gonio.detector.family() != "sr830" {
+                let m = format!(
+                    "the plan's [reading] target is for a lock-in; the {} reads its fixed samples",
+                    self.gonio.detector.family()
+                );
+                tracing::warn!("{m}");
+                self.store.event("note", None, &m)?;
+            }
         }
-        Some(super::target_for_kind(
+        Ok(Some(super::target_for_kind(
             &base,
             kind,
             self.floor.unwrap_or(0.0),
-        ))
+        )))
     }
 
     fn record(

@@ -161,9 +161,9 @@ fn plan_check(a: &CheckArgs) -> CliResult<()> {
         } else if targeted {
             writeln!(
                 w,
-                "reading to a target: the detector time above is the fixed reading's; give \
-                 --like RUN (or --sim SIM, with a noise law in the instrument's \
-                 [detector.lockin]) for the targeted estimate"
+                "reading to a target: the detector time above is the fixed reading's; the \
+                 targeted estimate needs an SR830 with `noise` in [detector.lockin] and the \
+                 signals to expect (--like RUN, or --sim SIM for a simulated instrument)"
             )?;
         }
         if let Some(d) = &s.spectral {
