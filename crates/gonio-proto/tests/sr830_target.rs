@@ -2,6 +2,7 @@
 //! filter cascade's analytic response, the sequential rule against synthetic noise of
 //! known law, and the expected times.
 
+use gonio_core::rng::SplitMix64;
 use gonio_proto::sr830::target::{
     NoiseDensity, ReadTarget, Sequential, TRANSIENT_FRACTION, choose_time_constant, estimate,
     fit_transient, step_residual,
@@ -75,25 +76,6 @@ fn step_residual_matches_the_manual_and_the_settling_factors() {
     assert!((step_residual(4, f) - 1e-4).abs() < 1e-9);
 }
 
-/// A seeded normal generator (splitmix64 and Box–Muller), for reproducible noise.
-struct Normal(u64);
-
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn next(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
-}
-
 /// One simulated reading: a step from `y0` to `u` at τ = 0 through a 24 dB/oct
 /// cascade, first-order noise of standard deviation `sigma` (correlation e^(−Δτ)),
 /// snapshots from τ = 2 every `spacing`, until the rule says done. Returns the
@@ -103,15 +85,15 @@ fn one_reading(
     target: &ReadTarget,
     law: Option<&dyn Fn(f64) -> f64>,
     (u, y0, sigma, spacing): (f64, f64, f64, f64),
-    rng: &mut Normal,
+    rng: &mut SplitMix64,
 ) -> (f64, Vec<f64>, usize) {
-    let mut noise = sigma * rng.next();
+    let mut noise = sigma * rng.next_normal();
     let mut tau = 2.0;
     let mut taus = Vec::new();
     for k in 0..100_000 {
         if k > 0 {
             let rho = (-spacing).exp();
-            noise = rho * noise + sigma * (1.0 - rho * rho).sqrt() * rng.next();
+            noise = rho * noise + sigma * (1.0 - rho * rho).sqrt() * rng.next_normal();
             tau += spacing;
         }
         let clean = u + (y0 - u) * step_residual(4, tau);
@@ -143,7 +125,7 @@ fn the_rule_never_stops_before_the_target_on_noise_of_known_law() {
         min_samples: 2,
     };
     let law = |_: f64| sigma * sigma;
-    let mut rng = Normal(24);
+    let mut rng = SplitMix64::new(24);
     let (mut zs, mut total) = (Vec::new(), 0usize);
     for trial in 0..300 {
         // Steps up and down, of up to 3 values.
@@ -188,7 +170,7 @@ fn without_a_law_the_window_scatter_decides_from_five_snapshots() {
         max_s: 1e9,
         min_samples: 2,
     };
-    let mut rng = Normal(7);
+    let mut rng = SplitMix64::new(7);
     let mut zs = Vec::new();
     for _ in 0..200 {
         let mut seq = Sequential::new(4, 2.0);
@@ -294,10 +276,10 @@ fn the_estimate_is_what_the_rule_takes_on_noise_of_the_law() {
         let spacing = ex / t;
         let mut total = 0.0;
         for seed in 0..40 {
-            let mut rng = Normal(1000 + seed);
+            let mut rng = SplitMix64::new(1000 + seed);
             let mut seq = Sequential::new(4, 0.0);
             let sigma = var.sqrt();
-            let mut n = sigma * rng.next();
+            let mut n = sigma * rng.next_normal();
             let mut tau = spacing;
             loop {
                 seq.push(tau, r + 0.25 * r * step_residual(4, tau) + n, 0.0);
@@ -305,7 +287,7 @@ fn the_estimate_is_what_the_rule_takes_on_noise_of_the_law() {
                     break;
                 }
                 let rho = (-spacing).exp();
-                n = rho * n + sigma * (1.0 - rho * rho).sqrt() * rng.next();
+                n = rho * n + sigma * (1.0 - rho * rho).sqrt() * rng.next_normal();
                 tau += spacing;
             }
             total += tau * t;

@@ -10,6 +10,7 @@
 
 mod truth;
 
+use gonio_core::rng::SplitMix64;
 use gonio_driver::InstrumentConfig;
 use gonio_plan::{Plan, StepKind};
 use gonio_proto::sr830::{FilterSlope, TimeConstant};
@@ -69,25 +70,6 @@ fn sigma_of_mean(r: f64, t: f64, n: u32) -> f64 {
     (snapshot_variance(r, t) * a / f64::from(n)).sqrt()
 }
 
-/// A small deterministic generator (SplitMix64) with Box–Muller normals.
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
-
 /// How a reading's snapshot statistics are made.
 #[derive(Clone, Copy)]
 enum Snapshots {
@@ -99,7 +81,13 @@ enum Snapshots {
 }
 
 /// (r_mean, r_std, x_mean, y_mean) of `n` snapshots of a signal `r` along X.
-fn statistics(r: f64, t: f64, n: u32, how: Snapshots, rng: &mut Rng) -> (f64, f64, f64, f64) {
+fn statistics(
+    r: f64,
+    t: f64,
+    n: u32,
+    how: Snapshots,
+    rng: &mut SplitMix64,
+) -> (f64, f64, f64, f64) {
     let var = snapshot_variance(r, t);
     match how {
         Snapshots::Expected if r == 0.0 => ((2.0 * var).sqrt(), 0.0, 0.0, 0.0),
@@ -111,13 +99,13 @@ fn statistics(r: f64, t: f64, n: u32, how: Snapshots, rng: &mut Rng) -> (f64, f6
             let p = rho(t);
             let sd = var.sqrt();
             let innovation = (1.0 - p * p).sqrt();
-            let (mut ex, mut ey) = (sd * rng.normal(), sd * rng.normal());
+            let (mut ex, mut ey) = (sd * rng.next_normal(), sd * rng.next_normal());
             let mut rs = Vec::new();
             let (mut sx, mut sy) = (0.0, 0.0);
             for k in 0..n {
                 if k > 0 {
-                    ex = p * ex + innovation * sd * rng.normal();
-                    ey = p * ey + innovation * sd * rng.normal();
+                    ex = p * ex + innovation * sd * rng.next_normal();
+                    ey = p * ey + innovation * sd * rng.next_normal();
                 }
                 sx += r + ex;
                 sy += ey;
@@ -173,7 +161,7 @@ fn synthetic_run(
         .iter()
         .filter(|s| s.step.kind == StepKind::Sample)
         .count();
-    let mut rng = Rng(match how {
+    let mut rng = SplitMix64::new(match how {
         Snapshots::Expected => 0,
         Snapshots::Drawn(seed) => seed,
     });

@@ -29,6 +29,8 @@
 //! snapshots, not σ/√n — meets the target. Early snapshots, which carry the
 //! transient, join the window once it is long enough to dilute it.
 
+use gonio_core::rng::SplitMix64;
+
 use super::{FilterSlope, TimeConstant};
 
 /// The largest transient left in an averaged window, as a fraction of the target
@@ -588,25 +590,6 @@ const ESTIMATE_SNAPSHOTS: usize = 48;
 /// its arguments.
 const ESTIMATE_SEEDS: [u64; 2] = [0x5EED_0001, 0x5EED_0002];
 
-/// A seeded normal generator (splitmix64 and Box–Muller) for [`estimate`].
-struct Normals(u64);
-
-impl Normals {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn next(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
-}
-
 /// Σ_{i,j<n} ρ^|i−j| for snapshots equally spaced with correlation ρ.
 fn correlation_sum(n: usize, rho: f64) -> f64 {
     let nf = n as f64;
@@ -649,14 +632,14 @@ pub fn estimate(
     };
     let (mut settle, mut total, mut samples) = (0.0, 0.0, 0.0);
     for seed in ESTIMATE_SEEDS {
-        let mut rng = Normals(seed);
+        let mut rng = SplitMix64::new(seed);
         let mut seq = Sequential::new(order, FIRST_SNAPSHOT_TC);
-        let mut n_v = sigma * rng.next();
+        let mut n_v = sigma * rng.next_normal();
         let mut outcome = None;
         let mut tau = FIRST_SNAPSHOT_TC + spacing;
         for k in 0..ESTIMATE_SNAPSHOTS {
             if k > 0 {
-                n_v = rho * n_v + sigma * (1.0 - rho * rho).sqrt() * rng.next();
+                n_v = rho * n_v + sigma * (1.0 - rho * rho).sqrt() * rng.next_normal();
                 tau += spacing;
             }
             seq.push(tau, expected + step * step_residual(order, tau) + n_v, 0.0);

@@ -138,11 +138,7 @@ impl Read {
         let status = match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
             Ok(status) => status,
             // Reading cleared the flags: the cycle starts again.
-            Err(e) if s.config.retries > 0 && is_transient(&e) => {
-                warn!(error = %e, "sr830: the flags' answer was lost; reading again");
-                s.retried += 1;
-                return self.interrupted(s, cx);
-            }
+            Err(e) if flags_lost(s, &e) => return self.interrupted(s, cx),
             Err(e) => return Next::Done(Err(e)),
         };
         if s.reconnects != self.reconnects {
@@ -173,16 +169,9 @@ impl Read {
     /// The port was reopened during the cycle, or the flags' answer was lost: start
     /// again, unless that has happened too often in a row.
     fn interrupted(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
-        self.restarts += 1;
-        if self.restarts > MAX_RESTARTS {
-            warn!(
-                restarts = self.restarts,
-                "sr830: reading interrupted too often"
-            );
-            let restarts = self.restarts;
-            return Next::Done(Err(Sr830Error::Interrupted { restarts }));
+        if let Err(e) = restart(&mut self.restarts) {
+            return Next::Done(Err(e));
         }
-        debug!(restarts = self.restarts, "sr830: read cycle starts again");
         self.begin_cycle(s, cx)
     }
 
@@ -205,11 +194,7 @@ impl Read {
             return Next::Done(Ok(reading));
         };
         if self.steps >= MAX_AUTORANGE_STEPS {
-            warn!(steps = self.steps, "sr830: autorange gives up");
-            return Next::Done(Err(Sr830Error::Autorange {
-                steps: self.steps,
-                last: Box::new(reading),
-            }));
+            return Next::Done(Err(gave_up(self.steps, reading)));
         }
         debug!(
             from = %s.sensitivity,
@@ -232,6 +217,42 @@ impl Read {
         }
         self.steps += 1;
         self.begin_cycle(s, cx)
+    }
+}
+
+/// One more restart of a read after the port was reopened or the flags' answer was
+/// lost: an error once that has happened more than [`MAX_RESTARTS`] times in a row.
+pub(super) fn restart(restarts: &mut usize) -> Result<(), Sr830Error> {
+    *restarts += 1;
+    if *restarts > MAX_RESTARTS {
+        warn!(restarts = *restarts, "sr830: reading interrupted too often");
+        return Err(Sr830Error::Interrupted {
+            restarts: *restarts,
+        });
+    }
+    debug!(restarts = *restarts, "sr830: read starts again");
+    Ok(())
+}
+
+/// Whether a failed `LIAS?` after the snapshots is worth reading again for: a lost or
+/// garbled answer, with re-asks allowed. Reading cleared the flags, so the read starts
+/// over; counted as a retry.
+pub(super) fn flags_lost(s: &mut Sr830Session, e: &Sr830Error) -> bool {
+    if s.config.retries > 0 && is_transient(e) {
+        warn!(error = %e, "sr830: the flags' answer was lost; reading again");
+        s.retried += 1;
+        true
+    } else {
+        false
+    }
+}
+
+/// Autoranging gives up after `steps` range changes; `last` is the last reading.
+pub(super) fn gave_up(steps: usize, last: Reading) -> Sr830Error {
+    warn!(steps, "sr830: autorange gives up");
+    Sr830Error::Autorange {
+        steps,
+        last: Box::new(last),
     }
 }
 

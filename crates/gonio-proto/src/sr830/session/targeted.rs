@@ -6,9 +6,9 @@ use std::time::Duration;
 
 use tracing::{debug, trace, warn};
 
-use super::read::{snap, xy};
+use super::read::{flags_lost, gave_up, restart, snap, xy};
 use super::script::{Next, Op};
-use super::{Sr830Session, is_transient, lia_status};
+use super::{Sr830Session, lia_status};
 use crate::machine::{Cx, secs};
 use crate::sr830::target::{FIRST_SNAPSHOT_TC, ReadTarget, Sequential, choose_time_constant};
 use crate::sr830::{
@@ -28,9 +28,6 @@ const CLIP_SETTLED_TC: f64 = 10.0;
 /// sequence): it only says the signal is over full scale, and the small-signal jump
 /// comes back down to the range that fits in one step.
 const OVERLOAD_STEPS: u8 = 3;
-
-/// Most times one read starts over after the port was lost and reopened.
-const MAX_RESTARTS: usize = 2;
 
 /// Autoranging on a small signal goes straight to the most sensitive range whose full
 /// scale times this holds the mean and four standard deviations of its snapshots
@@ -242,11 +239,7 @@ impl TargetedRead {
                 };
                 LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own)
             }
-            Err(e) if s.config.retries > 0 && is_transient(&e) => {
-                warn!(error = %e, "sr830: the flags' answer was lost; reading again");
-                s.retried += 1;
-                return self.interrupted(s, cx);
-            }
+            Err(e) if flags_lost(s, &e) => return self.interrupted(s, cx),
             Err(e) => return Next::Done(Err(e)),
         };
         if s.reconnects != self.reconnects {
@@ -308,11 +301,7 @@ impl TargetedRead {
             return Next::Done(Ok(reading));
         };
         if self.steps >= MAX_AUTORANGE_STEPS {
-            warn!(steps = self.steps, "sr830: autorange gives up");
-            return Next::Done(Err(Sr830Error::Autorange {
-                steps: self.steps,
-                last: Box::new(reading),
-            }));
+            return Next::Done(Err(gave_up(self.steps, reading)));
         }
         debug!(from = %s.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange");
         self.range_to(s, next)
@@ -334,13 +323,9 @@ impl TargetedRead {
         self.steps += 1;
         self.after_range = true;
         if self.steps > MAX_AUTORANGE_STEPS {
-            warn!(steps = self.steps, "sr830: autorange gives up");
             let w = self.seq.result();
             let last = self.reading_of(s, LiaStatus(0), w);
-            return Next::Done(Err(Sr830Error::Autorange {
-                steps: self.steps,
-                last: Box::new(last),
-            }));
+            return Next::Done(Err(gave_up(self.steps, last)));
         }
         self.begin_segment(s, cx)
     }
@@ -348,16 +333,9 @@ impl TargetedRead {
     /// The port was reopened during the segment, or the flags' answer was lost: start
     /// the segment again, unless that has happened too often in a row.
     fn interrupted(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
-        self.restarts += 1;
-        if self.restarts > MAX_RESTARTS {
-            warn!(
-                restarts = self.restarts,
-                "sr830: reading interrupted too often"
-            );
-            let restarts = self.restarts;
-            return Next::Done(Err(Sr830Error::Interrupted { restarts }));
+        if let Err(e) = restart(&mut self.restarts) {
+            return Next::Done(Err(e));
         }
-        debug!(restarts = self.restarts, "sr830: read segment starts again");
         self.begin_segment(s, cx)
     }
 }
