@@ -37,6 +37,29 @@ max_s = {max_s}
     s(&p)
 }
 
+/// `gonio acquire` of `plan` into `out` at `seed`, on the simulator `sim` (a config
+/// file) or the default one.
+fn acquire(plan: &str, out: &Path, sim: Option<&str>, seed: &str) -> std::process::Output {
+    let inst = config("instrument-sim.toml");
+    let out = s(out);
+    let mut args = vec![
+        "acquire",
+        "--instrument",
+        &inst,
+        "--plan",
+        plan,
+        "--out",
+        &out,
+    ];
+    args.extend(["--seed", seed, "--json"]);
+    if let Some(sim) = sim {
+        args.extend(["--sim", sim]);
+    }
+    let o = gonio(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
 /// Every reading's flags, by step.
 fn flag_bits(path: &Path) -> Vec<u32> {
     readings(path)
@@ -72,18 +95,8 @@ fn plan_check_estimates_a_targeted_run_within_a_fifth_of_its_time() {
     // Against the run itself (seed 11): the estimate's total within 20 % (the fixed
     // plan's estimate is 8 % under its run, the motion polls being the difference).
     let out = dir.join("run.gonio");
-    let run = ok_json(&[
-        "acquire",
-        "--instrument",
-        &inst,
-        "--plan",
-        &plan,
-        "--out",
-        &s(&out),
-        "--seed",
-        "11",
-        "--json",
-    ]);
+    let run: serde_json::Value =
+        serde_json::from_slice(&acquire(&plan, &out, None, "11").stdout).expect("JSON");
     let physical = run["physical_s"].as_f64().expect("physical_s");
     let ratio = (motion + detector) / physical;
     assert!(
@@ -117,18 +130,7 @@ fn a_reading_that_reaches_its_cap_is_kept_and_flagged() {
     // 1e-7 of the value within 0.4 s: no reading gets there.
     let plan = plan(&dir, 1e-7, 0.4);
     let out = dir.join("run.gonio");
-    let o = gonio(&[
-        "acquire",
-        "--instrument",
-        &config("instrument-sim.toml"),
-        "--plan",
-        &plan,
-        "--out",
-        &s(&out),
-        "--seed",
-        "3",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    acquire(&plan, &out, None, "3");
     let bits = flag_bits(&out);
     assert_eq!(bits.len(), 37, "every step has its reading");
     assert!(bits.iter().all(|f| f & flags::CAPPED != 0), "{bits:?}");
@@ -155,20 +157,7 @@ fn a_targeted_run_killed_and_resumed_reads_what_an_uninterrupted_one_did() {
     let plan = plan(&dir, 1e-4, 30.0);
     let fast = sim_file_at(&dir, "sim-transient.toml", 0.0);
     let whole = dir.join("whole.gonio");
-    let o = gonio(&[
-        "acquire",
-        "--instrument",
-        &inst,
-        "--plan",
-        &plan,
-        "--out",
-        &s(&whole),
-        "--sim",
-        &fast,
-        "--seed",
-        "11",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    acquire(&plan, &whole, Some(&fast), "11");
     let want = readings(&whole);
     assert_eq!(want.len(), 37);
     let slow = sim_file_at(&dir, "sim-transient.toml", 0.02);
