@@ -178,7 +178,7 @@ impl Tail {
                 channel: channel.clone(),
                 r_mean: r.r_mean,
                 r_std: r.r_std,
-                flags: r.flags,
+                flags: r.flags & !flags::HOW_READ,
                 physical_s,
                 wall_s: r.wall_s,
             });
@@ -196,8 +196,9 @@ impl Tail {
                 ],
                 r_mean: r.r_mean,
                 r_std: r.r_std,
-                flags: r.flags,
-                flag_text: flags::text(r.flags),
+                // The page marks what questions a reading, not how it was read.
+                flags: r.flags & !flags::HOW_READ,
+                flag_text: flags::text(r.flags & !flags::HOW_READ),
             });
         }
         self.pace = per_session

@@ -1297,7 +1297,8 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 .entry((index, s.step.repeat))
                 .or_insert_with(|| (pair, vec![None; nc], 0));
             entry.1[ci] = Some((f, abs));
-            entry.2 |= r.flags;
+            // How a reading was taken is no concern of the sample's.
+            entry.2 |= r.flags & !flags::HOW_READ;
             count += 1;
         }
         let standard_source = if use_standard {

@@ -142,6 +142,15 @@ pub mod flags {
     /// exchange apart, not a time constant plus one), averaged over the window the
     /// settling rule chose. The reduction's snapshot correlation follows.
     pub const TARGETED: u32 = 1 << 11;
+    /// Bits that say how a reading was taken, not that anything is wrong with it: a
+    /// reading carrying only these is not "flagged".
+    pub const HOW_READ: u32 = TARGETED;
+
+    /// True when `bits` holds a flag that questions the reading (any but
+    /// [`HOW_READ`]'s).
+    pub fn questioned(bits: u32) -> bool {
+        bits & !HOW_READ != 0
+    }
 
     /// Every bit with its name, in bit order.
     pub const NAMES: [(u32, &str); 8] = [

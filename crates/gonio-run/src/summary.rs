@@ -51,7 +51,7 @@ pub struct Summary {
     pub states: BTreeMap<String, u64>,
     /// Done steps by kind.
     pub done_by_kind: BTreeMap<String, usize>,
-    /// Readings with a flag.
+    /// Readings with a flag that questions them (not how they were read).
     pub flagged: usize,
     /// Exchanges retried.
     pub retries: u64,
@@ -127,7 +127,10 @@ pub fn summary(store: &RunStore) -> Result<Summary, StoreError> {
         steps: steps.len(),
         states: store.state_counts()?,
         done_by_kind,
-        flagged: readings.iter().filter(|r| r.flags != 0).count(),
+        flagged: readings
+            .iter()
+            .filter(|r| crate::flags::questioned(r.flags))
+            .count(),
         retries: readings.iter().map(|r| r.retries).sum(),
         sessions,
         estimate: meta

@@ -257,7 +257,11 @@ async fn progress(mut rx: tokio::sync::broadcast::Receiver<Event>, quiet: bool) 
                     kind.as_str(),
                     r_mean,
                     r_std,
-                    if flags != 0 { " (flagged)" } else { "" }
+                    if gonio_run::flags::questioned(flags) {
+                        " (flagged)"
+                    } else {
+                        ""
+                    }
                 ));
             }
             // The engine logs faults (warn); the log writes around the bar.
