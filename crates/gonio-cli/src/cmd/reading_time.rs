@@ -167,6 +167,9 @@ fn sim_signals(loaded: &Loaded, cfg: &gonio_sim::SimConfig) -> CliResult<Vec<f64
         bench
             .set_up(setup_for(step.kind, transmittance))
             .map_err(|e| input(&e))?;
+        if let Some(ch) = &step.channel {
+            bench.select_channel(ch).map_err(|e| input(&e))?;
+        }
         let v = match (&step.pair, step.kind) {
             (_, StepKind::Dark) | (None, _) => 0.0,
             (Some(p), _) => gonio_sim::lock(&shared).optics().signal(0.0, p.to_dirs()),
@@ -181,15 +184,11 @@ fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
     let store = gonio_run::RunStore::open(path)?;
     let stored = store.steps()?;
     let kinds: BTreeMap<i64, StepKind> = stored.iter().map(|s| (s.id, s.step.kind)).collect();
-    let readings: Vec<(StepKind, Option<gonio_core::dirfile::PairDeg>, f64)> = store
+    let readings: Vec<(StepKind, gonio_core::dirfile::PairDeg, f64)> = store
         .readings()?
         .into_iter()
         .filter(|r| r.r_mean.is_finite())
-        .filter_map(|r| {
-            kinds
-                .get(&r.step_id)
-                .map(|k| (*k, Some(r.read_pair), r.r_mean))
-        })
+        .filter_map(|r| kinds.get(&r.step_id).map(|k| (*k, r.read_pair, r.r_mean)))
         .collect();
     if readings.is_empty() {
         return Err(CliError::Input(format!(
@@ -197,6 +196,7 @@ fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
             path.display()
         )));
     }
+    // The squared chord between two pairs' directions, incident and outgoing.
     let chord = |a: &gonio_core::dirfile::PairDeg, b: &gonio_core::dirfile::PairDeg| {
         let (da, db) = (a.to_dirs(), b.to_dirs());
         let d = |x: gonio_core::Dir, y: gonio_core::Dir| {
@@ -210,7 +210,7 @@ fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
             let same = readings.iter().filter(|(k, _, _)| *k == s.kind);
             let best = match &s.pair {
                 Some(p) => same
-                    .filter_map(|(_, q, r)| q.as_ref().map(|q| (chord(p, q), *r)))
+                    .map(|(_, q, r)| (chord(p, q), *r))
                     .min_by(|a, b| a.0.total_cmp(&b.0))
                     .map(|x| x.1),
                 None => same.map(|x| x.2).next(),

@@ -352,8 +352,11 @@ pub struct WindowMean {
     pub settle_tc: f64,
 }
 
-/// Refits stop after this many snapshots: by then the transient's basis is below
-/// 1e-15 at the new snapshots (60 time constants), and the last fit stands.
+/// Refits stop after this many snapshots, a bound on the rule's cost (each fit is
+/// linear in the snapshots); the last fit stands. Snapshots come at least an
+/// eighth of a time constant apart on the shipped range (a 37.5 ms exchange at
+/// 300 ms), so by then they are 50 time constants on, where a step's residual is
+/// 4e-18 at 24 dB/oct.
 const MAX_REFITS: usize = 400;
 
 /// The sequential rule for one reading after a change: snapshots go in as they come

@@ -164,7 +164,7 @@ impl TargetedRead {
             if self.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC || self.after_range {
                 if let Some(next) = less_sensitive(s.sensitivity) {
                     debug!(tau, x, y, "sr830: output clipped after the transient");
-                    return self.range_to(s, next);
+                    return Self::range_to(next);
                 }
                 self.clipped = true;
             }
@@ -304,10 +304,10 @@ impl TargetedRead {
             return Next::Done(Err(gave_up(self.steps, reading)));
         }
         debug!(from = %s.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange");
-        self.range_to(s, next)
+        Self::range_to(next)
     }
 
-    fn range_to(&mut self, _: &Sr830Session, next: Sensitivity) -> Next<Self> {
+    fn range_to(next: Sensitivity) -> Next<Self> {
         Next::exchange(Command::SetSensitivity(next), Self::ranged)
     }
 
