@@ -11,10 +11,21 @@
 //! - Standard mode only: no status byte after statements (`HANDSHAKE 1`, §15.5, is
 //!   not modelled, nor USB).
 //! - Errors (§15.9): a statement it cannot run sets the status byte to 32 and the
-//!   error code (1 not understood, 2 bad parameter, 3 destination not allowed);
-//!   `STB?` answers `20` (hexadecimal, see [`StatusByte`]) and clears it, `ERROR?`
-//!   answers the code and resets it to 0. One code is kept, the latest (the manual's
-//!   `SYSTEM:ERROR?` queue is not modelled).
+//!   error code (1 not understood, 2 bad parameter, 3 destination not allowed, 6
+//!   accessory not present); `STB?` answers `32` and clears it, `00` when clear, in
+//!   decimal ("The response will be 32 when an error occurred or 00 when no error is
+//!   present. Reading this code clears the status byte", Model 74000 command table;
+//!   see [`StatusByte`]), and `ERROR?` answers the code and resets it to 0. One code
+//!   is kept, the latest (the manual's `SYSTEM:ERROR?` queue is not modelled).
+//! - Filter wheel (`filter_wheel`, default on): `FILTER n` takes 1 to 6 ("Acceptable
+//!   values range from 1 through 6", Model 74000 command table; else error 2).
+//!   Without a wheel, `FILTER?` answers `0` and sets the status byte: "if there is no
+//!   filter wheel connected, or if the wheel is out of position, 0 is returned and an
+//!   error is set in the status byte" (same table). The table does not give the code;
+//!   the twin sets 6, §15.9's "accessory not present (usually filter wheel)"
+//!   (**assumed**: the code list's own example). `FILTER n` without a wheel sets the
+//!   same error (**assumed**: the table is silent; code 6 is the one that names the
+//!   wheel) and moves nothing. A wheel out of position is not modelled.
 //! - Timing: statements run when they arrive, also during a move, except after
 //!   `*WAI`, which holds every later statement until the moves under way have ended
 //!   (§15.8); a held query is answered then. Moves run one after the other: a
@@ -25,9 +36,13 @@
 //!   interpolated during a move. The real instrument reports where it believes the
 //!   drive is; the twin reports where the light is, so that a driver can be tested
 //!   against a known error (the twin's choice).
-//! - `ABORT` stops the drive where it is; `SHUTTER O|C` acts at once; `UNITS NM|UM|WN`
-//!   converts `GOWAVE` and `WAVE?`; `INFO?` answers `info`; `GRAT?` answers
-//!   `n,lines,BLAZEnnn` (**UNCONFIRMED** format).
+//! - `ABORT` stops the drive where it is ("Stops any wavelength motion immediately");
+//!   `SHUTTER O|C` acts at once and `SHUTTER?` answers `O` or `C`; `UNITS NM|UM|WN`
+//!   converts `GOWAVE` and `WAVE?`; `GRAT?` answers `n,lines,label` with the label
+//!   `BLAZEnnn` ("three parameters separated by commas without spaces … grating
+//!   number, then the lines/mm, then the label"): all from the Model 74000 command
+//!   table. `INFO?` answers `info` (the 74000 answers `Oriel, Model 74000 Cornerstone
+//!   130,SNXXX,VYY.YY.YY`; the CS130B's form was not found, so the twin's is its own).
 //!
 //! # Optics
 //! The actual wavelength is the one asked for, plus `accuracy_nm` (a fixed
@@ -82,6 +97,7 @@ pub struct SimFilter {
 /// filter_change_s = 1.5
 /// home_nm = 400.0
 /// echo = true
+/// filter_wheel = true       # false: a unit without a wheel (FILTER? answers 0)
 /// info = "CORNERSTONE 130 TWIN"
 ///
 /// [[gratings]]
@@ -119,6 +135,10 @@ pub struct MonochromatorSim {
     pub home_nm: f64,
     /// Echo on RS-232 (§15.4; the factory setting).
     pub echo: bool,
+    /// A filter wheel is fitted (default true). Without one, `FILTER?` answers `0`
+    /// and flags error 6, `FILTER n` flags error 6 (see the module docs), `filters`
+    /// is not used and the light passes no order-sorting filter.
+    pub filter_wheel: bool,
     /// What `INFO?` answers: printable ASCII, 1 to 200 characters.
     pub info: String,
 }
@@ -158,6 +178,7 @@ impl Default for MonochromatorSim {
             filter_change_s: 1.5,
             home_nm: 400.0,
             echo: true,
+            filter_wheel: true,
             info: "CORNERSTONE 130 TWIN".into(),
         }
     }
@@ -264,7 +285,7 @@ pub struct MonoOptical {
     pub actual_nm: f64,
     /// The grating in the beam.
     pub grating: u8,
-    /// The filter wheel position.
+    /// The filter wheel position; 0 without a wheel.
     pub filter: u8,
     /// True when the shutter is open.
     pub shutter_open: bool,
@@ -323,8 +344,9 @@ pub struct Cs130Twin {
 
 impl Cs130Twin {
     /// A monochromator just powered up and homed at `home_nm`, grating 1 (or the
-    /// first listed), filter position 1, shutter closed (**UNCONFIRMED** power-up
-    /// state), at time 0. `config` should have been validated.
+    /// first listed), filter position 1 (0 without a wheel, what `FILTER?` answers
+    /// then), shutter closed (**UNCONFIRMED** power-up state), at time 0. `config`
+    /// should have been validated.
     pub fn new(config: &MonochromatorSim) -> Self {
         let grating = config.gratings.iter().map(|g| g.index).min().unwrap_or(1);
         Cs130Twin {
@@ -333,7 +355,7 @@ impl Cs130Twin {
             outbox: VecDeque::new(),
             units: Units::Nm,
             grating,
-            filter: 1,
+            filter: if config.filter_wheel { 1 } else { 0 },
             shutter_open: false,
             asked_nm: config.home_nm,
             motion: Motion {
@@ -514,6 +536,10 @@ impl Cs130Twin {
                 }
             }
             Command::Filter(n) => {
+                if !self.config.filter_wheel {
+                    return self.fail(ErrorCode::NO_ACCESSORY);
+                }
+                // "Acceptable values range from 1 through 6" (Model 74000 table).
                 if !(1..=6).contains(&n) {
                     return self.fail(ErrorCode::BAD_PARAMETER);
                 }
@@ -549,7 +575,14 @@ impl Cs130Twin {
                 };
                 self.answer(t, &reply);
             }
-            Command::FilterQuery => self.answer(t, &Reply::Filter(self.filter)),
+            Command::FilterQuery => {
+                // No wheel: "0 is returned and an error is set in the status byte"
+                // (Model 74000 table); the code, 6, is assumed (module docs).
+                if !self.config.filter_wheel {
+                    self.fail(ErrorCode::NO_ACCESSORY);
+                }
+                self.answer(t, &Reply::Filter(self.filter));
+            }
             Command::ShutterQuery => self.answer(t, &Reply::Shutter(self.shutter_open)),
             Command::Stb => {
                 let s = std::mem::take(&mut self.status);

@@ -32,7 +32,8 @@
 //!   scaled as white noise by 1/NPLC in variance (the manual's Figure 4-1 shows it
 //!   rising again at long integrations: not modelled). The repeat filter averages
 //!   `count` conversions; the moving filter averages the last `count` (fewer until its
-//!   stack fills; cleared by a range or filter change).
+//!   stack fills; cleared by a range or filter change). `count` is 1 to 100: "Both are
+//!   a simple average of one to 100 reading conversions" (p. 4-8).
 //! - The meter adds an input offset current, `input_offset_a`, the same on every
 //!   range. Zero check shunts the input: readings are the offset and the meter's
 //!   noise only. `SYST:ZCOR:ACQ` stores the last zero-checked reading (or takes one),
@@ -496,6 +497,8 @@ impl Picoammeter {
                 None
             }
             Command::FilterCount(n) => {
+                // 1 to 100 (p. 4-8: "a simple average of one to 100 reading
+                // conversions"); the codec has refused the rest with −222.
                 self.settings.filter_count = (*n).clamp(*FILTER_COUNT.start(), *FILTER_COUNT.end());
                 self.stack.clear();
                 None

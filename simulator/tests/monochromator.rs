@@ -2,11 +2,12 @@
 //! error codes, `*WAI`), and the real driver (`gonio_driver::cs130::Cs130`) talking to
 //! the twin over an in-memory transport on virtual time: wavelengths, the automatic
 //! grating and order-filter changes at the documented crossovers, the shutter, the
-//! actual wavelength read back, move times, and refusals before any byte.
+//! actual wavelength read back, move times, refusals before any byte, and a unit with
+//! and without a filter wheel.
 
 use std::time::Duration;
 
-use gonio_driver::cs130::{Cs130, Cs130Config, Cs130Error, MonoState};
+use gonio_driver::cs130::{Cs130, Cs130Config, Cs130Error, ErrorCode, MonoState};
 use gonio_driver::{Clock, ManualClock, Transport, TransportError};
 use gonio_proto::LineFramer;
 use gonio_sim::monochromator::{Cs130Twin, MonoOptical, MonochromatorSim};
@@ -224,10 +225,7 @@ fn a_destination_the_twin_refuses_is_reported_with_error_3() {
     let (mut d, _) = rig(&sim);
     d.init().unwrap();
     let e = d.go_to(260.0).unwrap_err();
-    assert_eq!(
-        e,
-        Cs130Error::Rejected(gonio_proto::cs130::ErrorCode::DESTINATION)
-    );
+    assert_eq!(e, Cs130Error::Rejected(ErrorCode::DESTINATION));
 }
 
 /// The twin's bytes at the time they leave.
@@ -267,7 +265,8 @@ fn the_twin_echoes_answers_and_reports_errors_as_the_manual_says() {
         exchange(&mut twin, 2.0, b"GOWAVE 5000\r\n"),
         b"GOWAVE 5000\r\n"
     );
-    assert_eq!(exchange(&mut twin, 2.0, b"STB?\r\n"), b"STB?\r\n20\r\n");
+    // Decimal, as the Model 74000 table gives it: "32 when an error occurred or 00".
+    assert_eq!(exchange(&mut twin, 2.0, b"STB?\r\n"), b"STB?\r\n32\r\n");
     assert_eq!(exchange(&mut twin, 2.0, b"STB?\r\n"), b"STB?\r\n00\r\n");
     assert_eq!(exchange(&mut twin, 2.0, b"ERROR?\r\n"), b"ERROR?\r\n3\r\n");
     assert_eq!(exchange(&mut twin, 2.0, b"ERROR?\r\n"), b"ERROR?\r\n0\r\n");
@@ -323,6 +322,10 @@ fn the_sim_config_refuses_bad_fields_by_name() {
     let parsed: MonochromatorSim = toml::from_str("accuracy_nm = 0.1\nbacklash_nm = 0.2").unwrap();
     assert_eq!(parsed.accuracy_nm, 0.1);
     parsed.validate().unwrap();
+    assert!(parsed.filter_wheel, "a wheel unless said otherwise");
+    let no_wheel: MonochromatorSim = toml::from_str("filter_wheel = false").unwrap();
+    no_wheel.validate().unwrap();
+    assert!(!no_wheel.filter_wheel);
     assert!(toml::from_str::<MonochromatorSim>("speed = 3").is_err());
     let mut bad = MonochromatorSim::default();
     bad.gratings[1].slew_nm_per_s = 0.0;
@@ -335,4 +338,137 @@ fn the_sim_config_refuses_bad_fields_by_name() {
         ..MonochromatorSim::default()
     };
     assert_eq!(bad.validate().unwrap_err().field, "backlash_nm");
+}
+
+/// A twin without a filter wheel.
+fn wheel_less_twin() -> MonochromatorSim {
+    MonochromatorSim {
+        filter_wheel: false,
+        ..MonochromatorSim::default()
+    }
+}
+
+/// A session config for a unit without a filter wheel.
+fn wheel_less_session() -> Cs130Config {
+    Cs130Config {
+        filter_wheel: false,
+        auto_order_filter: false,
+        ..Cs130Config::default()
+    }
+}
+
+#[test]
+fn the_twin_answers_filter_as_the_model_74000_table_says_with_and_without_a_wheel() {
+    // With a wheel: "The response to FILTER? is the integer value describing the
+    // current filter position"; "Acceptable values range from 1 through 6".
+    let mut twin = Cs130Twin::new(&MonochromatorSim::default());
+    assert_eq!(
+        exchange(&mut twin, 0.0, b"FILTER?\r\n"),
+        b"FILTER?\r\n1\r\n"
+    );
+    assert_eq!(exchange(&mut twin, 0.0, b"STB?\r\n"), b"STB?\r\n00\r\n");
+    exchange(&mut twin, 0.0, b"FILTER 6\r\n");
+    assert_eq!(
+        exchange(&mut twin, 9.0, b"FILTER?\r\n"),
+        b"FILTER?\r\n6\r\n"
+    );
+    exchange(&mut twin, 9.0, b"FILTER 7\r\n");
+    assert_eq!(exchange(&mut twin, 9.0, b"STB?\r\n"), b"STB?\r\n32\r\n");
+    assert_eq!(exchange(&mut twin, 9.0, b"ERROR?\r\n"), b"ERROR?\r\n2\r\n");
+    // Without: "if there is no filter wheel connected … 0 is returned and an error is
+    // set in the status byte"; the code is §15.9's 6, "accessory not present (usually
+    // filter wheel)".
+    let mut twin = Cs130Twin::new(&wheel_less_twin());
+    assert_eq!(
+        exchange(&mut twin, 0.0, b"FILTER?\r\n"),
+        b"FILTER?\r\n0\r\n"
+    );
+    assert_eq!(exchange(&mut twin, 0.0, b"STB?\r\n"), b"STB?\r\n32\r\n");
+    assert_eq!(exchange(&mut twin, 0.0, b"STB?\r\n"), b"STB?\r\n00\r\n");
+    assert_eq!(exchange(&mut twin, 0.0, b"ERROR?\r\n"), b"ERROR?\r\n6\r\n");
+    assert_eq!(exchange(&mut twin, 0.0, b"FILTER 2\r\n"), b"FILTER 2\r\n");
+    assert_eq!(exchange(&mut twin, 0.0, b"STB?\r\n"), b"STB?\r\n32\r\n");
+    assert_eq!(exchange(&mut twin, 0.0, b"ERROR?\r\n"), b"ERROR?\r\n6\r\n");
+    // Nothing moved: no wheel, no filter in the beam.
+    assert_eq!(twin.optical(5.0).filter, 0);
+}
+
+/// Gonio's start-up before the `filter_wheel` field: `FILTER?` always, then a clean
+/// `STB?` demanded. On a unit without a wheel the status byte is 32 by then, so that
+/// start-up could never succeed; on a unit with one it was clean.
+#[test]
+fn the_old_start_up_fails_on_a_wheel_less_unit() {
+    let old_init: &[&[u8]] = &[
+        b"INFO?\r\n",
+        b"UNITS NM\r\n",
+        b"GRAT?\r\n",
+        b"FILTER?\r\n",
+        b"SHUTTER?\r\n",
+        b"WAVE?\r\n",
+    ];
+    for (sim, status) in [
+        (MonochromatorSim::default(), &b"STB?\r\n00\r\n"[..]),
+        (wheel_less_twin(), b"STB?\r\n32\r\n"),
+    ] {
+        let mut twin = Cs130Twin::new(&sim);
+        for statement in old_init {
+            exchange(&mut twin, 0.0, statement);
+        }
+        assert_eq!(exchange(&mut twin, 0.0, b"STB?\r\n"), status);
+    }
+    // And the same through the session: a wheel configured on a wheel-less unit.
+    let (mut d, _) = rig(&wheel_less_twin());
+    let e = d.init().unwrap_err();
+    assert_eq!(
+        e,
+        Cs130Error::NoFilterWheel {
+            code: Some(ErrorCode::NO_ACCESSORY)
+        }
+    );
+}
+
+#[test]
+fn without_a_wheel_the_driver_starts_moves_and_never_sends_filter() {
+    let sim = wheel_less_twin();
+    let acc = sim.accuracy_nm;
+    let (mut d, _) = rig_with(&sim, wheel_less_session());
+    assert_eq!(d.init().unwrap(), state(400.0, 1, 0, false));
+    for (nm, grating) in [(480.0, 1), (650.0, 1), (1100.0, 2), (1600.0, 2)] {
+        assert_eq!(d.go_to(nm).unwrap(), state(nm + acc, grating, 0, false));
+    }
+    assert!(d.shutter(true).unwrap().shutter_open);
+    let (optical, wire) = optics(d);
+    assert_eq!(optical.filter, 0);
+    let wire = String::from_utf8(wire).unwrap();
+    assert!(!wire.contains("FILTER"), "{wire}");
+    assert!(wire.starts_with("INFO?\r\nUNITS NM\r\nGRAT?\r\nSHUTTER?\r\nWAVE?\r\nSTB?\r\n"));
+}
+
+#[test]
+fn a_wheel_configured_on_a_wheel_less_unit_fails_start_up_and_leaves_it_clean() {
+    let (mut d, _) = rig(&wheel_less_twin());
+    let e = d.init().unwrap_err();
+    let text = e.to_string();
+    assert!(text.contains("no filter wheel answered"), "{text}");
+    assert!(text.contains("filter_wheel = false"), "{text}");
+    let (link, clock) = d.into_inner();
+    let wire = String::from_utf8(link.wire.clone()).unwrap();
+    assert!(
+        wire.ends_with("GRAT?\r\nFILTER?\r\nSTB?\r\nERROR?\r\n"),
+        "{wire}"
+    );
+    // The error was read back: the next start-up (config fixed) finds a clean unit.
+    let mut twin = link.twin;
+    let t = clock.now().as_secs_f64();
+    assert_eq!(exchange(&mut twin, t, b"STB?\r\n"), b"STB?\r\n00\r\n");
+}
+
+#[test]
+fn a_session_without_a_wheel_works_on_a_unit_with_one_and_leaves_it_alone() {
+    let (mut d, _) = rig_with(&MonochromatorSim::default(), wheel_less_session());
+    assert_eq!(d.init().unwrap().filter, 0);
+    d.go_to(1100.0).unwrap();
+    let (optical, wire) = optics(d);
+    assert_eq!(optical.filter, 1);
+    assert!(!String::from_utf8(wire).unwrap().contains("FILTER"));
 }

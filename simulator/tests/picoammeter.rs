@@ -502,3 +502,46 @@ fn protocol_errors_and_queries() {
     p.handle_line(2.0, b"SYST:ZCH OFF;SYST:ZCOR:ACQ;SYST:ERR?", &mut out);
     assert_eq!(out, b"-221,\"Settings conflict\"\r");
 }
+
+/// The averaging filter count per p. 4-8, "Both are a simple average of one to 100
+/// reading conversions": the twin takes `AVER:COUN 1` without an error, and a repeat
+/// filter of one conversion takes one conversion per `READ?`; 0 and 101 are refused
+/// with −222.
+#[test]
+fn the_filter_count_runs_from_one_to_100() {
+    let pc = PicoammeterConfig::default();
+    let mut p = Picoammeter::new(&pc, 0);
+    let mut out = Vec::new();
+    let no_error = |out: &[u8]| {
+        let body = out.strip_suffix(b"\r").expect("CR");
+        assert_eq!(
+            Reply::parse(&Command::NextError, body),
+            Ok(Reply::Error(ScpiError::none())),
+            "{:?}",
+            String::from_utf8_lossy(out)
+        );
+    };
+    p.handle_line(
+        0.0,
+        b"AVER:TCON REP;AVER:COUN 1;AVER ON;SYST:ERR?",
+        &mut out,
+    );
+    no_error(&out);
+    // Power-up NPLC 5 at 50 Hz (SLOW, p. 4-6): one conversion is 100 ms.
+    out.clear();
+    p.handle_line(1.0, b"READ?", &mut out);
+    assert!((p.busy_until() - 1.1).abs() < 1e-12, "{}", p.busy_until());
+    let body = out.strip_suffix(b"\r").expect("CR");
+    let Ok(Reply::Sample(sample)) = Reply::parse(&Command::Read, body) else {
+        panic!("{out:?}");
+    };
+    assert!(sample.status.has(gonio_proto::k6485::StatusWord::FILTER));
+    out.clear();
+    p.handle_line(2.0, b"AVER:COUN 100;SYST:ERR?", &mut out);
+    no_error(&out);
+    for bad in [&b"AVER:COUN 0;SYST:ERR?"[..], b"AVER:COUN 101;SYST:ERR?"] {
+        out.clear();
+        p.handle_line(3.0, bad, &mut out);
+        assert_eq!(out, b"-222,\"Parameter data out of range\"\r");
+    }
+}

@@ -94,7 +94,8 @@ fn a_refused_destination_is_reported_with_its_code() {
     echo(&h, "GOWAVE 260", None);
     echo(&h, "*WAI", None);
     echo(&h, "WAVE?", Some("400.00"));
-    echo(&h, "STB?", Some("20"));
+    // Decimal: "32 when an error occurred" (Model 74000 table; CS130B §15.9).
+    echo(&h, "STB?", Some("32"));
     echo(&h, "ERROR?", Some("3"));
     assert_eq!(
         d.go_to(260.0),

@@ -24,6 +24,93 @@ fn the_manuals_examples_byte_for_byte() {
     assert_eq!(Command::parse(b"shutter o"), Ok(Command::Shutter(true)));
 }
 
+/// `STB?` as both manuals give it, in decimal: CS130B §15.9 "Whenever any error is
+/// encountered it is set to the value 32"; Model 74000 table "STB? … The response will
+/// be 32 when an error occurred or 00 when no error is present. Reading this code
+/// clears the status byte."
+#[test]
+fn the_status_byte_is_read_in_decimal_and_any_nonzero_value_is_an_error() {
+    assert_eq!(Command::Stb.to_bytes(), b"STB?\r\n");
+    for (line, value, error) in [
+        (&b"32"[..], 32, true),
+        (b"00", 0, false),
+        (b"0", 0, false),
+        (b" 32 ", 32, true),
+        // Never printed per the manuals, but safe: nonzero is an error in any base,
+        // so the CS260's hexadecimal `20` (= 32) is still seen as one.
+        (b"20", 20, true),
+        (b"1", 1, true),
+        (b"255", 255, true),
+    ] {
+        let Ok(Reply::Status(sb)) = Reply::parse(&Command::Stb, line) else {
+            panic!("{line:?}")
+        };
+        assert_eq!(sb, StatusByte(value), "{line:?}");
+        assert_eq!(sb.error(), error, "{line:?}");
+    }
+    // What the twin sends back: the manual's two answers, CR LF (§15.3).
+    assert_eq!(Reply::Status(StatusByte(32)).to_bytes(), b"32\r\n");
+    assert_eq!(Reply::Status(StatusByte(0)).to_bytes(), b"00\r\n");
+}
+
+/// `FILTER` per the Model 74000 table: "Acceptable values range from 1 through 6. The
+/// response to FILTER? is the integer value describing the current filter position; if
+/// there is no filter wheel connected, or if the wheel is out of position, 0 is
+/// returned and an error is set in the status byte".
+#[test]
+fn the_filter_statements_and_the_no_wheel_answer() {
+    assert_eq!(Command::Filter(1).to_bytes(), b"FILTER 1\r\n");
+    assert_eq!(Command::Filter(6).to_bytes(), b"FILTER 6\r\n");
+    assert_eq!(Command::FilterQuery.to_bytes(), b"FILTER?\r\n");
+    assert_eq!(
+        Reply::parse(&Command::FilterQuery, b"6"),
+        Ok(Reply::Filter(6))
+    );
+    assert_eq!(
+        Reply::parse(&Command::FilterQuery, b"0"),
+        Ok(Reply::Filter(0))
+    );
+    assert_eq!(Reply::Filter(0).to_bytes(), b"0\r\n");
+    assert_eq!(gonio_proto::cs130::MAX_FILTER_POSITION, 6);
+    assert_eq!(gonio_proto::cs130::NO_FILTER_WHEEL, 0);
+}
+
+/// The other Model 74000 table entries Gonio relies on, byte for byte.
+#[test]
+fn the_model_74000_table_entries() {
+    // "UNITS tt … NM for nanometers, UM for micrometers, WN for wavenumbers (cm-1)".
+    assert_eq!(Command::parse(b"UNITS NM"), Ok(Command::Units(Units::Nm)));
+    assert_eq!(Command::parse(b"UNITS UM"), Ok(Command::Units(Units::Um)));
+    assert_eq!(Command::parse(b"UNITS WN"), Ok(Command::Units(Units::Wn)));
+    // "The response to GRAT? contains three parameters separated by commas without
+    // spaces. The first parameter is the grating number, then the lines/mm, then the
+    // label for that grating".
+    assert_eq!(
+        Reply::parse(&Command::GratQuery, b"2,600,IR"),
+        Ok(Reply::Grating {
+            number: 2,
+            lines_per_mm: Some(600),
+            label: Some("IR".into())
+        })
+    );
+    // "Closing the shutter requires "C", whereas opening it requires "O". The response
+    // to SHUTTER? is simply the one character parameter".
+    assert_eq!(Command::Shutter(false).to_bytes(), b"SHUTTER C\r\n");
+    assert_eq!(
+        Reply::parse(&Command::ShutterQuery, b"O"),
+        Ok(Reply::Shutter(true))
+    );
+    // INFO? "Oriel, Model 74000 Cornerstone 130,SNXXX,VYY.YY.YY".
+    let info = "Oriel, Model 74000 Cornerstone 130,SN123,V1.02.03";
+    assert_eq!(
+        Reply::parse(&Command::Info, info.as_bytes()),
+        Ok(Reply::Info(info.into()))
+    );
+    // "ABORT Stops any wavelength motion immediately".
+    assert_eq!(Command::Abort.to_bytes(), b"ABORT\r\n");
+    assert_eq!(Command::parse(b"abort"), Ok(Command::Abort));
+}
+
 #[test]
 fn every_statement_the_session_sends() {
     let cases: [(Command, &[u8]); 12] = [
@@ -51,7 +138,10 @@ fn the_status_byte_and_error_table() {
     // §15.9: 0 at power-up, 32 after any error.
     assert!(!StatusByte(0).error());
     assert!(StatusByte(32).error());
-    assert_eq!(StatusByte(32).to_string(), "20");
+    assert_eq!(StatusByte::ERROR, 32);
+    // Printed in decimal, as the Model 74000 table writes both answers.
+    assert_eq!(StatusByte(32).to_string(), "32");
+    assert_eq!(StatusByte(0).to_string(), "00");
     let table = [
         (0, "no error"),
         (1, "command not understood"),
@@ -91,7 +181,11 @@ fn lenient_where_the_instrument_is_and_strict_where_it_matters() {
         Err(ReplyError::BadValue)
     );
     assert_eq!(
-        Reply::parse(&Command::Stb, b"100"),
+        Reply::parse(&Command::Stb, b"256"),
+        Err(ReplyError::BadValue)
+    );
+    assert_eq!(
+        Reply::parse(&Command::Stb, b"2A"),
         Err(ReplyError::BadValue)
     );
     assert_eq!(

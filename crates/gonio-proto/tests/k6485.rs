@@ -103,6 +103,8 @@ fn scpi_forms_parse_like_the_instrument() {
             Command::FilterType(FilterType::Moving),
         ),
         ("AVER:COUNT 100", Command::FilterCount(100)),
+        // The low end of p. 4-8's "one to 100".
+        ("AVER:COUN 1", Command::FilterCount(1)),
         ("AVER:STAT 1", Command::Filter(true)),
         (
             "FORMat:ELEMents READing,TIME,STATus",
@@ -122,10 +124,38 @@ fn scpi_forms_parse_like_the_instrument() {
     );
 }
 
+/// The averaging filter count: "Both are a simple average of one to 100 reading
+/// conversions" (Model 6485 Instruction Manual, p. 4-8): `AVER:COUN 1` and
+/// `AVER:COUN 100` are accepted and sent as written, 0 and 101 refused with −222.
+#[test]
+fn the_filter_count_is_one_to_100_as_page_4_8_says() {
+    assert_eq!(k6485::FILTER_COUNT, 1..=100);
+    for n in [1, 2, 100] {
+        let line = format!("AVER:COUN {n}");
+        assert_eq!(Command::parse(line.as_bytes()), Ok(Command::FilterCount(n)));
+        assert_eq!(
+            Command::FilterCount(n).to_bytes(),
+            format!("{line}\r").into_bytes()
+        );
+    }
+    for text in ["AVER:COUN 0", "AVER:COUN 101", "AVER:COUN 1.5"] {
+        let e = Command::parse(text.as_bytes()).expect_err(text);
+        assert_eq!(e.code(), -222, "{text}");
+    }
+    // Gonio's own count 1 still means "filter off", and validates.
+    let off = K6485Config {
+        filter_count: 1,
+        ..K6485Config::default()
+    };
+    off.validate().unwrap();
+    assert!(!off.filter_on());
+    assert_eq!(off.conversions_per_reading(), 1);
+}
+
 /// Refused commands name the SCPI error and the `*ESR?` bit.
 #[test]
 fn refused_commands_name_their_error() {
-    let cases: [(&str, i32, u8); 11] = [
+    let cases: [(&str, i32, u8); 12] = [
         ("FOO", -113, EventStatus::CME),
         ("SYST:ZCHX ON", -113, EventStatus::CME),
         ("SYST:ZCH MAYBE", -102, EventStatus::CME),
@@ -135,7 +165,9 @@ fn refused_commands_name_their_error() {
         ("CURR:RANG 0.03", -222, EventStatus::EXE),
         ("CURR:NPLC 0.001", -222, EventStatus::EXE),
         ("CURR:NPLC 61", -222, EventStatus::EXE),
-        ("AVER:COUN 1", -222, EventStatus::EXE),
+        // p. 4-8: "a simple average of one to 100 reading conversions".
+        ("AVER:COUN 0", -222, EventStatus::EXE),
+        ("AVER:COUN 101", -222, EventStatus::EXE),
         ("TRIG:COUN 2049", -222, EventStatus::EXE),
     ];
     for (text, code, bit) in cases {
@@ -914,7 +946,7 @@ fn any_command() -> impl Strategy<Value = Command> {
         (0.01..=60.0f64).prop_map(Command::SetNplc),
         prop_oneof![Just(FilterType::Repeat), Just(FilterType::Moving)]
             .prop_map(Command::FilterType),
-        (2..=100u32).prop_map(Command::FilterCount),
+        (1..=100u32).prop_map(Command::FilterCount),
         any::<bool>().prop_map(Command::Filter),
         Just(Command::FormatElements),
         (1..=2048u32).prop_map(Command::TriggerCount),

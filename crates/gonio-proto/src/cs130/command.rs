@@ -6,9 +6,10 @@ use super::TERMINATOR;
 /// The units `GOWAVE` takes and `WAVE?` answers in (the `UNITS` command). The session
 /// always selects nanometres.
 ///
-/// **UNCONFIRMED**: the command reference page that lists the `UNITS` parameters was
-/// not found in the stored CS130B manual; `NM`, `UM` and `WN` (wavenumbers, cm⁻¹) are
-/// the Cornerstone family's names.
+/// "UNITS tt … Possible parameters are: NM for nanometers, UM for micrometers, WN for
+/// wavenumbers (cm-1)" (the Cornerstone 130, Model 74000, command table, transcribed in
+/// a public driver; not in the stored CS130B manual; G. Salvato's `cornerstone130.cpp`
+/// sends `UNITS NM` too).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Units {
     /// Nanometres.
@@ -62,21 +63,27 @@ pub enum Command {
     /// `WAVE?`: the wavelength, in the present units (§15.4's example answers
     /// `500.01`).
     Wave,
-    /// `GRAT <n>`: select grating n (the drive turns the turret). **UNCONFIRMED**:
-    /// syntax from the task brief and the Cornerstone family, not a stored page.
+    /// `GRAT <n>`: select grating n (the drive turns the turret): "GRAT x Moves the
+    /// wavelength drive to the grating specified in the integer parameter" (Model
+    /// 74000 command table, whose turret has gratings 1 and 2).
     Grat(u8),
-    /// `GRAT?`: the grating in use. **UNCONFIRMED** answer format (see
+    /// `GRAT?`: the grating in use, `n,lines,label` (Model 74000 command table; see
     /// [`Reply::Grating`](super::Reply::Grating)).
     GratQuery,
-    /// `FILTER <n>`: move the filter wheel to position n. A missing wheel is error 6
-    /// (§15.9). **UNCONFIRMED** syntax, as for `GRAT`.
+    /// `FILTER <n>`: move the filter wheel to position n, "Acceptable values range
+    /// from 1 through 6" (Model 74000 command table). Without a wheel the instrument
+    /// flags an error (§15.9's code 6, "accessory not present (usually filter
+    /// wheel)"), so a session configured without one never sends it.
     Filter(u8),
-    /// `FILTER?`: the filter wheel's position.
+    /// `FILTER?`: the filter wheel's position; `0`, with an error set in the status
+    /// byte, "if there is no filter wheel connected, or if the wheel is out of
+    /// position" (Model 74000 command table).
     FilterQuery,
     /// `SHUTTER O` / `SHUTTER C`: open or close the shutter (§15.8's example
     /// `shutter o`).
     Shutter(bool),
-    /// `SHUTTER?`: `O` or `C`. **UNCONFIRMED** answer format.
+    /// `SHUTTER?`: `O` or `C`, "simply the one character parameter describing the
+    /// current state" (Model 74000 command table).
     ShutterQuery,
     /// `UNITS <u>`: the wavelength units.
     Units(Units),
@@ -84,10 +91,12 @@ pub enum Command {
     Stb,
     /// `ERROR?`: the latest error code; reading it resets it to 0 (§15.9).
     Error,
-    /// `INFO?`: the model and firmware. **UNCONFIRMED** answer format: any text is
-    /// accepted.
+    /// `INFO?`: the model and firmware, `Oriel, Model 74000 Cornerstone
+    /// 130,SNXXX,VYY.YY.YY` on the Model 74000 (its command table); any printable
+    /// text is accepted, since the CS130B's exact answer was not found.
     Info,
-    /// `ABORT`: stop the wavelength drive. **UNCONFIRMED**: from the brief.
+    /// `ABORT`: "Stops any wavelength motion immediately, i.e. GOSCAN, GOWAVE, STEP"
+    /// (Model 74000 command table).
     Abort,
     /// `*WAI`: hold every later statement until the pending operations (a move) are
     /// finished (§15.8). The session's way of knowing a move is done: the query sent

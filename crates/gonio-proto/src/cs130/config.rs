@@ -5,8 +5,9 @@
 
 use std::time::Duration;
 
-/// Most gratings a turret holds, as far as the config accepts. **UNCONFIRMED**: the
-/// CS130B's turret size was not found in the stored manual; 3 is a generous bound.
+/// Most gratings a turret holds, as far as the config accepts. **UNCONFIRMED** for the
+/// CS130B: its turret size was not found in the stored manual (the older Model 74000
+/// takes "either '1' or '2'"); 3 is a generous bound.
 pub const MAX_GRATINGS: u8 = 3;
 
 /// The standard uncertainty of a Cornerstone 130's wavelength scale that the
@@ -18,9 +19,14 @@ pub const WAVELENGTH_UNCERTAINTY_NM: f64 = 0.2;
 /// config states none, nm.
 pub const BANDWIDTH_NM: f64 = 2.0;
 
-/// Filter wheel positions, as far as the config accepts. **UNCONFIRMED**: the wheel's
-/// size was not found in the stored manual; the Cornerstone wheels have 6.
+/// Filter wheel positions: "FILTER x … Acceptable values range from 1 through 6"
+/// (Cornerstone 130, Model 74000, command table).
 pub const MAX_FILTER_POSITION: u8 = 6;
+
+/// The filter position a session reports when the config has no filter wheel
+/// (`filter_wheel = false`): 0, what `FILTER?` answers when "there is no filter wheel
+/// connected" (Model 74000 command table).
+pub const NO_FILTER_WHEEL: u8 = 0;
 
 /// One grating on the turret: its number (`GRAT n`), groove density and the range
 /// the session uses it for.
@@ -51,6 +57,7 @@ pub struct OrderFilterSpec {
 /// has a default and unknown fields are refused:
 ///
 /// ```toml
+/// filter_wheel = true        # false: the unit has no filter wheel (see the field)
 /// auto_order_filter = true
 /// open_filter = 1            # the wheel position with no filter
 /// shortest_nm = 250.0        # shortest wavelength in the beam (lamp, optics)
@@ -90,7 +97,19 @@ pub struct Cs130Config {
     pub filters: Vec<OrderFilterSpec>,
     /// The wheel position with no filter (the open position), 1..=6. Default 1.
     pub open_filter: u8,
-    /// Choose and set the order-sorting filter before every move (`FILTER`).
+    /// The monochromator has a filter wheel (default true, so configs written before
+    /// this field keep their meaning). A unit without one answers `FILTER?` with `0`
+    /// and flags an error in the status byte (Model 74000 command table), so with
+    /// `false` the session never sends `FILTER?` or `FILTER n`, and reports filter
+    /// position [`NO_FILTER_WHEEL`]. It needs `auto_order_filter = false`: there is no
+    /// wheel to sort orders with, and above 2 × `shortest_nm` the second order must
+    /// then be blocked some other way (the config says so rather than letting it pass
+    /// silently). `filters` and `open_filter` are not used. With `true`, a `FILTER?`
+    /// answered `0` fails the operation with
+    /// [`Cs130Error::NoFilterWheel`](super::Cs130Error::NoFilterWheel).
+    pub filter_wheel: bool,
+    /// Choose and set the order-sorting filter before every move (`FILTER`). Needs
+    /// `filter_wheel`.
     pub auto_order_filter: bool,
     /// The shortest wavelength present in the beam, nm (the lamp's, or the optics'
     /// cut-off): below twice it there is no second-order light, and the open position
@@ -149,6 +168,7 @@ impl Default for Cs130Config {
                 })
                 .collect(),
             open_filter: 1,
+            filter_wheel: true,
             auto_order_filter: true,
             shortest_nm: 250.0,
             filter_margin_nm: 10.0,
@@ -233,6 +253,15 @@ impl Cs130Config {
                     ),
                 );
             }
+        }
+        if !self.filter_wheel && self.auto_order_filter {
+            return bad(
+                "auto_order_filter".into(),
+                "filter_wheel = false: there is no wheel to set order-sorting filters \
+                 with; set auto_order_filter = false (and block the second order above \
+                 2 × shortest_nm some other way)"
+                    .into(),
+            );
         }
         if !(1..=MAX_FILTER_POSITION).contains(&self.open_filter) {
             return bad(
@@ -464,6 +493,22 @@ mod tests {
         assert_eq!(c.timeout_ms, 1000);
         assert!(toml::from_str::<Cs130Config>("speed = 1").is_err());
         assert!(toml::from_str::<Cs130Config>("[[filters]]\nposition = 2\ncut_on = 3.0").is_err());
+    }
+
+    #[test]
+    fn the_filter_wheel_defaults_to_present_and_without_it_needs_no_auto_filter() {
+        // A config written before the field: a wheel, as before.
+        let c: Cs130Config = toml::from_str("auto_order_filter = true").unwrap();
+        assert!(c.filter_wheel);
+        c.validate().unwrap();
+        // No wheel: order sorting must be turned off in so many words.
+        let c: Cs130Config = toml::from_str("filter_wheel = false").unwrap();
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.field, "auto_order_filter");
+        assert!(e.reason.contains("set auto_order_filter = false"), "{e}");
+        let c: Cs130Config =
+            toml::from_str("filter_wheel = false\nauto_order_filter = false").unwrap();
+        c.validate().unwrap();
     }
 
     #[test]

@@ -15,7 +15,8 @@
 //! ```
 //!
 //! Errors set the status byte to 32 until `STB?` reads it, and `ERROR?` tells which
-//! (§15.9). `*WAI` holds every later statement until pending operations (a move) are
+//! (§15.9); `STB?` prints it in decimal, `32` or `00` (§15.9; the Model 74000 command
+//! table), and any nonzero answer counts as an error ([`StatusByte`]). `*WAI` holds every later statement until pending operations (a move) are
 //! done (§15.8), which is how the session knows that a move has ended.
 //!
 //! ```
@@ -37,7 +38,7 @@ pub mod fuzz;
 pub use command::{Command, CommandError, Units};
 pub use config::{
     BANDWIDTH_NM, ConfigError, Cs130Config, GratingSpec, MAX_FILTER_POSITION, MAX_GRATINGS,
-    OrderFilterSpec, SelectError, WAVELENGTH_UNCERTAINTY_NM,
+    NO_FILTER_WHEEL, OrderFilterSpec, SelectError, WAVELENGTH_UNCERTAINTY_NM,
 };
 pub use reply::{Reply, ReplyError, is_echo};
 pub use session::Cs130Session;
@@ -69,7 +70,8 @@ pub struct MonoState {
     pub wavelength_nm: f64,
     /// The grating in use.
     pub grating: u8,
-    /// The filter wheel position.
+    /// The filter wheel position, 1..=6; [`NO_FILTER_WHEEL`] (0) when the config says
+    /// the unit has no wheel.
     pub filter: u8,
     /// True when the shutter is open.
     pub shutter_open: bool,
@@ -116,6 +118,23 @@ pub enum Cs130Error {
     /// The status byte reported an error, and `ERROR?` this code (§15.9).
     #[error("the CS130 refused a statement: error {0}")]
     Rejected(ErrorCode),
+    /// The config has a filter wheel (`filter_wheel = true`, the default), but
+    /// `FILTER?` answered `0`: "if there is no filter wheel connected, or if the wheel
+    /// is out of position, 0 is returned and an error is set in the status byte"
+    /// (Model 74000 command table). The session has read that error back (`STB?`,
+    /// then `ERROR?`), so the unit is left with a clear status byte.
+    #[error(
+        "CS130: no filter wheel answered (FILTER? gave 0{}: no wheel connected, or the \
+         wheel out of position); fit or seat the wheel, or, if this unit has none, set \
+         filter_wheel = false and auto_order_filter = false in [monochromator.cs130]",
+        no_wheel_code(.code)
+    )]
+    NoFilterWheel {
+        /// What `ERROR?` answered after it (6, "accessory not present (usually filter
+        /// wheel)", §15.9), when the status byte flagged an error and `ERROR?` was
+        /// read.
+        code: Option<ErrorCode>,
+    },
     /// The move ended, but `WAVE?` reads back a wavelength too far from the one asked.
     #[error("CS130 asked for {asked_nm} nm, reads back {read_nm} nm (tolerance {tolerance_nm} nm)")]
     NotReached {
@@ -127,3 +146,33 @@ pub enum Cs130Error {
         tolerance_nm: f64,
     },
 }
+
+/// The error code part of [`Cs130Error::NoFilterWheel`]'s message.
+fn no_wheel_code(code: &Option<ErrorCode>) -> String {
+    code.map(|c| format!(", error {c}")).unwrap_or_default()
+}
+
+/// What Gonio relies on about the Cornerstone 130 that no manual page confirms, with
+/// how to check it on the unit: `docs/instruments/cs130.md` lists the same.
+pub const UNCONFIRMED: &[crate::Unconfirmed] = &[
+    crate::Unconfirmed {
+        fact: "Serial settings (9600 8N1, no flow control) and echo on at the factory",
+        check: "open the port at 9600 8N1 and send `INFO?`: the statement echoed back, then the answer",
+    },
+    crate::Unconfirmed {
+        fact: "That the CS130B answers exactly as the older Model 74000 table says",
+        check: "`INFO?`, `GRAT?`, and `FILTER?` with no wheel fitted followed by `STB?` and `ERROR?`",
+    },
+    crate::Unconfirmed {
+        fact: "Error code 7 on the CS130B",
+        check: "`GOWAVE` to the wavelength the drive is at, then `ERROR?`",
+    },
+    crate::Unconfirmed {
+        fact: "Turret size (the 74000 has 2 gratings; Gonio accepts 3)",
+        check: "`GRAT 3` then `ERROR?`; time `GOWAVE`, `GRAT` and `FILTER` with `*WAI`",
+    },
+    crate::Unconfirmed {
+        fact: "Whether the CS130 echoes at once while a mechanism moves",
+        check: "send `GRAT`, `FILTER` and `GOWAVE` back to back and log when each echo arrives",
+    },
+];

@@ -8,9 +8,12 @@ use super::{Command, ErrorCode, REPLY_TERMINATOR, StatusByte};
 pub enum Reply {
     /// `WAVE?`: the wavelength in the present units (§15.4: `500.01`).
     Wavelength(f64),
-    /// `GRAT?`: the grating number, then optionally its lines/mm and label, separated
-    /// by commas (`1,1200,UV`). **UNCONFIRMED** format: the command reference page
-    /// was not found; only the leading number is relied on.
+    /// `GRAT?`: the grating number, then its lines/mm and label, separated by commas
+    /// (`1,1200,UV`): "The response to GRAT? contains three parameters separated by
+    /// commas without spaces … grating number, then the lines/mm, then the label"
+    /// (Model 74000 command table; the Tango CornerStone130 and oriel-cornerstone-260
+    /// drivers read it so). Only the leading number is relied on, and a bare number
+    /// is accepted too.
     Grating {
         /// The grating's number.
         number: u8,
@@ -19,11 +22,15 @@ pub enum Reply {
         /// Its label, when answered.
         label: Option<String>,
     },
-    /// `FILTER?`: the filter wheel's position.
+    /// `FILTER?`: the filter wheel's position, 1 to 6; `0` when "there is no filter
+    /// wheel connected, or … the wheel is out of position", which also sets an error
+    /// in the status byte (Model 74000 command table, `FILTER`).
     Filter(u8),
-    /// `SHUTTER?`: true when open (`O`), false when closed (`C`). **UNCONFIRMED**.
+    /// `SHUTTER?`: true when open (`O`), false when closed (`C`): "The response to
+    /// SHUTTER? is simply the one character parameter" (Model 74000 command table).
     Shutter(bool),
-    /// `STB?`: the status byte (§15.9).
+    /// `STB?`: the status byte (§15.9), printed in decimal: `32` after an error, `00`
+    /// otherwise (see [`StatusByte`] for the parsing rule).
     Status(StatusByte),
     /// `ERROR?`: the latest error code (§15.9).
     Error(ErrorCode),
@@ -101,14 +108,8 @@ impl Reply {
                 "C" | "c" => Ok(Reply::Shutter(false)),
                 _ => Err(bad),
             },
-            Command::Stb => {
-                if text.is_empty() || text.len() > 2 {
-                    return Err(bad);
-                }
-                u8::from_str_radix(text, 16)
-                    .map(|v| Reply::Status(StatusByte(v)))
-                    .map_err(|_| bad)
-            }
+            // Decimal, `32` or `00` (§15.9; Model 74000 table): see StatusByte.
+            Command::Stb => StatusByte::parse(text).map(Reply::Status).ok_or(bad),
             Command::Error => int::<u8>(Some(text))
                 .map(|v| Reply::Error(ErrorCode(v)))
                 .ok_or(bad),
@@ -182,15 +183,27 @@ mod tests {
             Reply::parse(&Command::Stb, b"00"),
             Ok(Reply::Status(StatusByte(0)))
         );
+        // Decimal (§15.9, Model 74000 table): `32` after an error, `00` or `0` without.
+        assert_eq!(
+            Reply::parse(&Command::Stb, b"32"),
+            Ok(Reply::Status(StatusByte(32)))
+        );
+        assert_eq!(
+            Reply::parse(&Command::Stb, b"0"),
+            Ok(Reply::Status(StatusByte(0)))
+        );
+        // The CS260's hexadecimal `20` is nonzero, so still an error.
         let Ok(Reply::Status(s)) = Reply::parse(&Command::Stb, b"20") else {
             panic!()
         };
         assert!(s.error());
-        // A decimal 32 still shows the error bit.
-        let Ok(Reply::Status(s)) = Reply::parse(&Command::Stb, b"32") else {
-            panic!()
-        };
-        assert!(s.error());
+        for not_a_byte in [&b"2A"[..], b"256", b"-1", b"3.2", b"", b"0032"] {
+            assert_eq!(
+                Reply::parse(&Command::Stb, not_a_byte),
+                Err(ReplyError::BadValue),
+                "{not_a_byte:?}"
+            );
+        }
         assert_eq!(
             Reply::parse(&Command::Error, b"3"),
             Ok(Reply::Error(ErrorCode::DESTINATION))
@@ -242,7 +255,8 @@ mod tests {
         for (q, r) in [
             (Command::Wave, Reply::Wavelength(500.25)),
             (Command::FilterQuery, Reply::Filter(3)),
-            (Command::Stb, Reply::Status(StatusByte(0x20))),
+            (Command::Stb, Reply::Status(StatusByte(32))),
+            (Command::Stb, Reply::Status(StatusByte(0))),
             (Command::Error, Reply::Error(ErrorCode(6))),
             (Command::Info, Reply::Info("CORNERSTONE 130 TWIN".into())),
         ] {
@@ -250,7 +264,8 @@ mod tests {
             assert!(bytes.ends_with(b"\r\n"));
             assert_eq!(Reply::parse(&q, &bytes[..bytes.len() - 2]), Ok(r));
         }
-        assert_eq!(Reply::Status(StatusByte(0x20)).to_bytes(), b"20\r\n");
+        assert_eq!(Reply::Status(StatusByte(32)).to_bytes(), b"32\r\n");
+        assert_eq!(Reply::Status(StatusByte(0)).to_bytes(), b"00\r\n");
         assert_eq!(Reply::Wavelength(500.0).to_bytes(), b"500.00\r\n");
     }
 }

@@ -6,27 +6,57 @@ use std::fmt;
 /// encountered it is set to the value 32. It is cleared again when the CS130B
 /// receives a `STB?` query" (§15.9).
 ///
-/// Written on the wire as two hexadecimal digits, `00` or `20`: the Cornerstone 260
-/// manual (§16.7, "Read Status Byte with: STB? 00 indicates no error, 20 indicates
-/// error condition") prints 32 that way. **UNCONFIRMED** for the CS130B, which gives
-/// the value only; parsing as hexadecimal still finds the error bit if it prints
-/// decimal `32` (0x32 has bit 5 set too).
+/// # On the wire: decimal
+///
+/// Both manuals give the value in decimal: the CS130B's §15.9 ("set to the value
+/// 32"), and the older Cornerstone 130 (Model 74000) command table: "STB? … The
+/// response will be 32 when an error occurred or 00 when no error is present. Reading
+/// this code clears the status byte." (second-hand text, see
+/// `docs/instruments/cs130.md`). So the instrument prints `32` or `00`. (Gonio once
+/// read it as two hexadecimal digits, `00`/`20`, after the Cornerstone 260 manual's
+/// §16.7; both CS130 texts contradict that.)
+///
+/// [`StatusByte::parse`]'s rule, which is right for everything the manuals say the
+/// unit prints and safe for anything else:
+///
+/// - the answer is 1 to 3 decimal digits, read as a decimal number 0..=255 (`0`,
+///   `00`, `32`); anything else (a sign, a hex letter, a fraction) is not a status
+///   byte and the exchange fails, so it is never taken for a clean one;
+/// - **zero means no error; any nonzero value means an error is flagged**, and the
+///   session then reads `ERROR?`. The manuals name one nonzero value, 32, but the
+///   test does not depend on it: zero is zero in every base and a number whose
+///   digits are not all zero is nonzero in every base, so a unit that printed 32 as
+///   the CS260's hexadecimal `20` is still seen to flag an error (it is kept as the
+///   decimal value 20, which only changes what the log shows).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StatusByte(pub u8);
 
 impl StatusByte {
-    /// Bit 5 (value 32): an error was encountered since the last `STB?` (§15.9).
-    pub const ERROR: u8 = 0x20;
+    /// The value the status byte takes on any error (§15.9: "set to the value 32"),
+    /// bit 5. The twin sets this; [`error`](Self::error) accepts any nonzero value.
+    pub const ERROR: u8 = 32;
 
-    /// True when the error bit is set: `ERROR?` tells which error.
+    /// Reads an `STB?` answer (terminator and surrounding blanks removed) by the rule
+    /// above: 1 to 3 decimal digits, 0..=255; `None` for anything else.
+    pub fn parse(text: &str) -> Option<StatusByte> {
+        if text.is_empty() || text.len() > 3 || !text.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        text.parse::<u8>().ok().map(StatusByte)
+    }
+
+    /// True when an error is flagged: any nonzero value (32 is the manual's, §15.9),
+    /// after which `ERROR?` tells which error.
     pub fn error(self) -> bool {
-        self.0 & Self::ERROR != 0
+        self.0 != 0
     }
 }
 
 impl fmt::Display for StatusByte {
+    /// Decimal, at least two digits: `00` and `32`, as the Model 74000 table writes
+    /// the two answers.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{:02X}", self.0)
+        write!(f, "{:02}", self.0)
     }
 }
 

@@ -46,7 +46,8 @@ pub enum Command {
     SetNplc(f64),
     /// `AVER:TCON REP|MOV`: the averaging filter type.
     FilterType(FilterType),
-    /// `AVER:COUN <n>`: the averaging filter count, 2 to 100.
+    /// `AVER:COUN <n>`: the averaging filter count, 1 to 100 ("a simple average of
+    /// one to 100 reading conversions", p. 4-8; [`FILTER_COUNT`](super::FILTER_COUNT)).
     FilterCount(u32),
     /// `AVER ON|OFF`: the averaging filter.
     Filter(bool),

@@ -47,8 +47,15 @@ pub struct K6485Config {
     /// The mains frequency, Hz (50 or 60): what 1 PLC is, and what `SYST:LFR?` must
     /// answer at set-up.
     pub line_frequency_hz: u32,
-    /// Averaging filter count: 1 turns the filter off, 2..=100 turn it on
-    /// (`AVER:COUN`).
+    /// Averaging filter count, 1..=100, the instrument's range for `AVER:COUN`
+    /// ("a simple average of one to 100 reading conversions", p. 4-8). 1 turns the
+    /// filter off (`AVER OFF`), 2..=100 turn it on (`AVER:COUN n`, `AVER ON`).
+    ///
+    /// Why off rather than `AVER:COUN 1` with the filter on: an average of one
+    /// conversion is that conversion, so the readings are the same, but with the
+    /// filter off every reading's status word keeps its filter bit
+    /// ([`StatusWord::FILTER`](super::StatusWord::FILTER)) clear, so a run's log shows
+    /// that no averaging was done, and set-up sends one command instead of three.
     pub filter_count: u32,
     /// Averaging filter type: `"repeat"` (independent readings) or `"moving"`.
     pub filter_type: FilterType,
@@ -133,10 +140,15 @@ impl K6485Config {
                 ),
             );
         }
-        if self.filter_count != 1 && !FILTER_COUNT.contains(&self.filter_count) {
+        if !FILTER_COUNT.contains(&self.filter_count) {
             return bad(
                 "filter_count",
-                format!("{} is not 1 (off) or 2..=100", self.filter_count),
+                format!(
+                    "{} is not in {}..={} (1: filter off)",
+                    self.filter_count,
+                    FILTER_COUNT.start(),
+                    FILTER_COUNT.end()
+                ),
             );
         }
         if !(1..=10_000).contains(&self.samples) {
@@ -192,7 +204,8 @@ impl K6485Config {
         LineFrequency::from_hz(self.line_frequency_hz).unwrap_or_default()
     }
 
-    /// True when the averaging filter is on.
+    /// True when the averaging filter is on: a count of 2 or more (1 is sent as
+    /// `AVER OFF`, see [`filter_count`](Self::filter_count)).
     pub fn filter_on(&self) -> bool {
         self.filter_count >= 2
     }

@@ -60,3 +60,28 @@ pub const REPLY_TERMINATOR: u8 = b'\r';
 /// 43 characters and an `*IDN?` about 70; the manual gives no input buffer size for
 /// RS-232, so this is a generous bound for framing, not an instrument limit.
 pub const MAX_LINE: usize = 256;
+
+/// What Gonio relies on about the Keithley 6485 that no manual page checked confirms,
+/// with how to check it on the unit: `docs/instruments/k6485.md` lists the same.
+pub const UNCONFIRMED: &[crate::Unconfirmed] = &[
+    crate::Unconfirmed {
+        fact: "Appendix A numbers (accuracy, rms noise, rise time) as used by the code.",
+        check: "compare `gonio instrument selftest`'s dark noise floor and the unit's calibration sheet with `k6485/tables.rs`",
+    },
+    crate::Unconfirmed {
+        fact: "The `*RST` defaults the twin assumes",
+        check: "`*RST` then query `CURR:RANG?`, `CURR:NPLC?`, `AVER?`, `SYST:ZCH?` on the unit",
+    },
+    crate::Unconfirmed {
+        fact: "The exact SCPI error code for a misused known header",
+        check: "send `CURR:RANG:AUTO` with a bad value, then `SYST:ERR?`",
+    },
+    crate::Unconfirmed {
+        fact: "The factory default baud rate (p. 9-17 does not state it).",
+        check: "read the front panel's RS-232 menu of a unit after `SYST:PRES`",
+    },
+    crate::Unconfirmed {
+        fact: "The status word's bit meanings (p. 13-7 not found)",
+        check: "read with `FORM:ELEM READ,TIME,STAT` while overloaded, filtered and in zero check",
+    },
+];

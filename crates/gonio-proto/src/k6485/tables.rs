@@ -204,10 +204,12 @@ impl LineFrequency {
 /// The smallest NPLC (p. 4-6).
 pub const MIN_NPLC: f64 = 0.01;
 
-/// The averaging filter's count limits, `AVER:COUN` (Section 4, "Filters": 2 to 100).
-pub const FILTER_COUNT: std::ops::RangeInclusive<u32> = 2..=100;
+/// The averaging filter's count limits, `AVER:COUN`: "Both are a simple average of
+/// one to 100 reading conversions" (Model 6485 Instruction Manual, p. 4-8, "Filters",
+/// of the repeating and moving filters).
+pub const FILTER_COUNT: std::ops::RangeInclusive<u32> = 1..=100;
 
-/// The averaging filter's type, `AVER:TCON` (Section 4, "Filters").
+/// The averaging filter's type, `AVER:TCON` (p. 4-8, "Filters").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FilterType {

@@ -12,7 +12,7 @@ mod script;
 
 use std::time::Duration;
 
-use super::{Command, Cs130Config, Cs130Error, MonoState};
+use super::{Command, Cs130Config, Cs130Error, MonoState, NO_FILTER_WHEEL};
 use crate::link::Operation;
 use crate::machine::Run;
 use ops::Sequence;
@@ -28,6 +28,16 @@ pub(crate) struct Known {
 }
 
 impl Known {
+    /// Nothing known, except the filter position of a unit without a wheel, which
+    /// never changes and is never asked (`FILTER?` would flag an error, Model 74000
+    /// command table).
+    fn fresh(filter_wheel: bool) -> Self {
+        Known {
+            filter: (!filter_wheel).then_some(NO_FILTER_WHEEL),
+            ..Known::default()
+        }
+    }
+
     fn state(&self) -> Option<MonoState> {
         Some(MonoState {
             wavelength_nm: self.wavelength_nm?,
@@ -83,9 +93,9 @@ impl Cs130Session {
     pub fn new(config: Cs130Config, port: impl Into<String>) -> Result<Self, Cs130Error> {
         config.validate()?;
         Ok(Cs130Session {
+            known: Known::fresh(config.filter_wheel),
             config,
             port: port.into(),
-            known: Known::default(),
             held: false,
             reconnects: 0,
             retried: 0,
@@ -94,13 +104,19 @@ impl Cs130Session {
     }
 
     /// Takes the instrument over: input cleared; `INFO?` (any answer is accepted and
-    /// kept); `UNITS NM`; `GRAT?`, `FILTER?`, `SHUTTER?`, `WAVE?`; then `STB?`, which
-    /// must show no error (else `ERROR?`, and [`Cs130Error::Rejected`]).
+    /// kept); `UNITS NM`; `GRAT?`, `FILTER?` (only with `filter_wheel`), `SHUTTER?`,
+    /// `WAVE?`; then `STB?`, which must show no error (else `ERROR?`, and
+    /// [`Cs130Error::Rejected`]).
+    ///
+    /// A unit without a filter wheel answers `FILTER?` with `0` and flags an error
+    /// (Model 74000 command table), so a config with `filter_wheel = false` does not
+    /// ask; with a wheel configured, a `0` is read back through `STB?` and `ERROR?`
+    /// and reported as [`Cs130Error::NoFilterWheel`], which names the config field.
     pub fn start_init(
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::init();
+        let op = Sequence::init(self);
         Run::new("cs130.init", self, Exec::new(op), now)
     }
 
@@ -109,7 +125,8 @@ impl Cs130Session {
     /// ([`Cs130Config::order_filter_for`]); a wavelength either refuses ends the
     /// operation with [`Cs130Error::Select`] and nothing sent. Then, in order:
     /// `GRAT n` if the grating differs from the one in use (or is unknown),
-    /// `FILTER n` likewise, `GOWAVE nm`, `*WAI` (later statements wait for the move,
+    /// `FILTER n` likewise (never without `filter_wheel`), `GOWAVE nm`, `*WAI` (later
+    /// statements wait for the move,
     /// §15.8), `WAVE?` (answered once the move is done, within `move_timeout`), the
     /// queries of any setting still unknown, and `STB?`: an error bit is reported
     /// with `ERROR?`'s code. The read-back wavelength must lie within
@@ -134,12 +151,13 @@ impl Cs130Session {
         Run::new("cs130.shutter", self, Exec::new(op), now)
     }
 
-    /// Reads every setting back: `GRAT?`, `FILTER?`, `SHUTTER?`, `WAVE?`.
+    /// Reads every setting back: `GRAT?`, `FILTER?` (only with `filter_wheel`),
+    /// `SHUTTER?`, `WAVE?`.
     pub fn start_read_state(
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::read_state();
+        let op = Sequence::read_state(self);
         Run::new("cs130.read_state", self, Exec::new(op), now)
     }
 
@@ -178,6 +196,12 @@ impl Cs130Session {
     /// Statements sent again after a lost, late or garbled echo or answer.
     pub fn retried(&self) -> u64 {
         self.retried
+    }
+
+    /// Forgets every setting (after an error, or a statement that may change them),
+    /// so that the next operation reads or sets them again.
+    fn forget(&mut self) {
+        self.known = Known::fresh(self.config.filter_wheel);
     }
 }
 

@@ -2,9 +2,9 @@
 
 use tracing::{debug, warn};
 
+use super::Cs130Session;
 use super::script::{Answer, Next, Op};
-use super::{Cs130Session, Known};
-use crate::cs130::{Command, Cs130Error, MonoState, Reply, ReplyError, Units};
+use crate::cs130::{Command, Cs130Error, ErrorCode, MonoState, Reply, ReplyError, Units};
 use crate::machine::Cx;
 
 /// A sequence of statements, then (for the operations that set anything) the status
@@ -23,17 +23,10 @@ pub(super) struct Sequence {
 }
 
 impl Sequence {
-    pub(super) fn init() -> Self {
+    /// An empty sequence.
+    fn empty() -> Self {
         Sequence {
-            commands: vec![
-                Command::Info,
-                Command::Units(Units::Nm),
-                Command::GratQuery,
-                Command::FilterQuery,
-                Command::ShutterQuery,
-                Command::Wave,
-                Command::Stb,
-            ],
+            commands: Vec::new(),
             k: 0,
             target: None,
             refused: None,
@@ -41,24 +34,37 @@ impl Sequence {
         }
     }
 
-    pub(super) fn read_state() -> Self {
+    pub(super) fn init(s: &Cs130Session) -> Self {
+        let mut commands = vec![Command::Info, Command::Units(Units::Nm), Command::GratQuery];
+        // A unit without a wheel answers `FILTER?` with 0 and flags an error (Model
+        // 74000 command table): not asked, or the `STB?` below would fail the init.
+        if s.config.filter_wheel {
+            commands.push(Command::FilterQuery);
+        }
+        commands.extend([Command::ShutterQuery, Command::Wave, Command::Stb]);
         Sequence {
-            commands: vec![
-                Command::GratQuery,
-                Command::FilterQuery,
-                Command::ShutterQuery,
-                Command::Wave,
-            ],
-            ..Self::init()
+            commands,
+            ..Self::empty()
+        }
+    }
+
+    pub(super) fn read_state(s: &Cs130Session) -> Self {
+        let mut commands = vec![Command::GratQuery];
+        if s.config.filter_wheel {
+            commands.push(Command::FilterQuery);
+        }
+        commands.extend([Command::ShutterQuery, Command::Wave]);
+        Sequence {
+            commands,
+            ..Self::empty()
         }
     }
 
     pub(super) fn go(s: &Cs130Session, nm: f64) -> Self {
         let mut seq = Sequence {
-            commands: Vec::new(),
             target: Some(nm),
             fill_unknown: true,
-            ..Self::init()
+            ..Self::empty()
         };
         let c = &s.config;
         let grating = match c.grating_for(nm) {
@@ -68,7 +74,9 @@ impl Sequence {
                 return seq;
             }
         };
-        let filter = if c.auto_order_filter {
+        // Never a `FILTER n` without a wheel: it would only flag an error (§15.9's
+        // code 6). The config refuses `auto_order_filter` without `filter_wheel`.
+        let filter = if c.auto_order_filter && c.filter_wheel {
             match c.order_filter_for(nm) {
                 Ok(f) => Some(f),
                 Err(e) => {
@@ -104,7 +112,7 @@ impl Sequence {
         Sequence {
             commands: vec![Command::Shutter(open)],
             fill_unknown: true,
-            ..Self::init()
+            ..Self::empty()
         }
     }
 
@@ -115,7 +123,8 @@ impl Sequence {
             if k.grating.is_none() {
                 self.commands.push(Command::GratQuery);
             }
-            if k.filter.is_none() {
+            // Without a wheel the filter is known from the start (`Known::fresh`).
+            if k.filter.is_none() && s.config.filter_wheel {
                 self.commands.push(Command::FilterQuery);
             }
             if k.shutter_open.is_none() {
@@ -140,7 +149,7 @@ impl Sequence {
             Ok(reply) => reply,
             Err(e) => {
                 // Whatever this sequence was setting is unknown now.
-                s.known = Known::default();
+                s.forget();
                 return Next::Done(Err(e));
             }
         };
@@ -151,6 +160,18 @@ impl Sequence {
         match (&command, reply) {
             (Command::Wave, Some(Reply::Wavelength(v))) => k.wavelength_nm = Some(v),
             (Command::GratQuery, Some(Reply::Grating { number, .. })) => k.grating = Some(number),
+            (Command::FilterQuery, Some(Reply::Filter(0))) if s.config.filter_wheel => {
+                // "if there is no filter wheel connected, or if the wheel is out of
+                // position, 0 is returned and an error is set in the status byte"
+                // (Model 74000 command table). The config says there is a wheel: read
+                // the error back, so the unit is left clean, and fail naming the field.
+                warn!("cs130: a filter wheel is configured but FILTER? answered 0");
+                s.forget();
+                return Next::Exchange {
+                    command: Command::Stb,
+                    then: Self::no_wheel_status,
+                };
+            }
             (Command::FilterQuery, Some(Reply::Filter(n))) => k.filter = Some(n),
             (Command::ShutterQuery, Some(Reply::Shutter(o))) => k.shutter_open = Some(o),
             (Command::Info, Some(Reply::Info(text))) => {
@@ -178,9 +199,40 @@ impl Sequence {
         self.next(s)
     }
 
+    /// The `STB?` after a `FILTER?` that answered 0 with a wheel configured: the
+    /// error it flagged is read with `ERROR?`, for the message.
+    fn no_wheel_status(&mut self, _: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
+        match r {
+            Ok(Some(Reply::Status(sb))) if sb.error() => Next::Exchange {
+                command: Command::Error,
+                then: Self::no_wheel_error,
+            },
+            // The status byte is clean (the unit set no error) or could not be read:
+            // the wheel is missing all the same, which is the error worth reporting.
+            other => {
+                if let Err(e) = other {
+                    warn!(error = %e, "cs130: the status byte after FILTER? 0 was not read");
+                }
+                Next::Done(Err(Cs130Error::NoFilterWheel { code: None }))
+            }
+        }
+    }
+
+    /// The `ERROR?` after [`no_wheel_status`](Self::no_wheel_status).
+    fn no_wheel_error(&mut self, _: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
+        let code: Option<ErrorCode> = match r {
+            Ok(Some(Reply::Error(code))) => Some(code),
+            other => {
+                warn!(answer = ?other, "cs130: the error after FILTER? 0 was not read");
+                None
+            }
+        };
+        Next::Done(Err(Cs130Error::NoFilterWheel { code }))
+    }
+
     fn errored(&mut self, s: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
         // Which statement failed is unknown: forget every setting.
-        s.known = Known::default();
+        s.forget();
         match r {
             Ok(Some(Reply::Error(code))) => Next::Done(Err(Cs130Error::Rejected(code))),
             Ok(other) => Next::Done(Err(unexpected(&Command::Error, other))),
@@ -240,7 +292,7 @@ impl Single {
 
     fn got(&mut self, s: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
         if !self.command.is_query() || r.is_err() {
-            s.known = Known::default();
+            s.forget();
         }
         Next::Done(r)
     }

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use super::Cs130Session;
 use crate::TransportError;
-use crate::cs130::{Cs130Config, Cs130Error, ErrorCode, MonoState};
+use crate::cs130::{Cs130Config, Cs130Error, ErrorCode, MonoState, NO_FILTER_WHEEL};
 use crate::link::{Deadline, Io, Operation};
 
 /// One statement expected on the wire and the lines that answer it (`None`: the
@@ -174,7 +174,8 @@ fn an_error_bit_is_reported_with_its_code_and_forgets_the_settings() {
             (b"GOWAVE 450\r\n", &[b"GOWAVE 450"]),
             (b"*WAI\r\n", &[b"*WAI"]),
             (b"WAVE?\r\n", &[b"WAVE?", b"400.00"]),
-            (b"STB?\r\n", &[b"STB?", b"20"]),
+            // §15.9 / Model 74000 table: "32 when an error occurred".
+            (b"STB?\r\n", &[b"STB?", b"32"]),
             (b"ERROR?\r\n", &[b"ERROR?", b"3"]),
         ],
     );
@@ -380,4 +381,131 @@ fn a_vanished_port_is_reopened_a_bounded_number_of_times() {
         op.poll_output(),
         Some(Err(Cs130Error::Disconnected { attempts: 1, .. }))
     ));
+}
+
+/// A config for a unit without a filter wheel.
+fn wheel_less() -> Cs130Config {
+    Cs130Config {
+        filter_wheel: false,
+        auto_order_filter: false,
+        ..Cs130Config::default()
+    }
+}
+
+#[test]
+fn without_a_wheel_init_go_and_read_state_never_send_filter() {
+    let mut s = Cs130Session::new(wheel_less(), "test").unwrap();
+    let (out, _, _) = drive(
+        s.start_init(Duration::ZERO),
+        &[
+            (
+                b"INFO?\r\n",
+                &[
+                    b"INFO?",
+                    b"Oriel, Model 74000 Cornerstone 130,SN123,V1.02.03",
+                ],
+            ),
+            (b"UNITS NM\r\n", &[b"UNITS NM"]),
+            (b"GRAT?\r\n", &[b"GRAT?", b"1,1200,UV"]),
+            // No FILTER?: a unit without a wheel would answer 0 and flag an error.
+            (b"SHUTTER?\r\n", &[b"SHUTTER?", b"C"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"400.00"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    let ready = MonoState {
+        wavelength_nm: 400.0,
+        grating: 1,
+        filter: NO_FILTER_WHEEL,
+        shutter_open: false,
+    };
+    assert_eq!(out.unwrap(), ready);
+    // 1100 nm: with a wheel this would be FILTER 4; without, only the grating.
+    let (out, _, _) = drive(
+        s.start_go(1100.0, Duration::ZERO),
+        &[
+            (b"GRAT 2\r\n", &[b"GRAT 2"]),
+            (b"GOWAVE 1100\r\n", &[b"GOWAVE 1100"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"1100.25"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    assert_eq!(out.unwrap().filter, 0);
+    // After an error every setting is forgotten, the (absent) filter excepted: the
+    // next go asks for what it does not know, and still not for the filter.
+    let (out, _, _) = drive(
+        s.start_go(1200.0, Duration::ZERO),
+        &[
+            (b"GOWAVE 1200\r\n", &[b"GOWAVE 1200"]),
+            (b"*WAI\r\n", &[b"*WAI"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"1100.25"]),
+            (b"STB?\r\n", &[b"STB?", b"32"]),
+            (b"ERROR?\r\n", &[b"ERROR?", b"3"]),
+        ],
+    );
+    assert_eq!(out, Err(Cs130Error::Rejected(ErrorCode::DESTINATION)));
+    let (out, _, _) = drive(
+        s.start_shutter(true, Duration::ZERO),
+        &[
+            (b"SHUTTER O\r\n", &[b"SHUTTER O"]),
+            (b"GRAT?\r\n", &[b"GRAT?", b"2,600,IR"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"1100.25"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    assert_eq!(out.unwrap().filter, NO_FILTER_WHEEL);
+    let (out, _, _) = drive(
+        s.start_read_state(Duration::ZERO),
+        &[
+            (b"GRAT?\r\n", &[b"GRAT?", b"2,600,IR"]),
+            (b"SHUTTER?\r\n", &[b"SHUTTER?", b"O"]),
+            (b"WAVE?\r\n", &[b"WAVE?", b"1100.25"]),
+        ],
+    );
+    assert_eq!(out.unwrap().filter, NO_FILTER_WHEEL);
+}
+
+#[test]
+fn a_wheel_configured_but_not_answering_fails_init_naming_the_field() {
+    let mut s = Cs130Session::new(Cs130Config::default(), "test").unwrap();
+    let (out, _, _) = drive(
+        s.start_init(Duration::ZERO),
+        &[
+            (b"INFO?\r\n", &[b"INFO?", b"CS130B VER 1.2"]),
+            (b"UNITS NM\r\n", &[b"UNITS NM"]),
+            (b"GRAT?\r\n", &[b"GRAT?", b"1,1200,UV"]),
+            // Model 74000 table: no wheel (or out of position) → 0, error set.
+            (b"FILTER?\r\n", &[b"FILTER?", b"0"]),
+            // Read back at once, so the unit is left with a clean status byte.
+            (b"STB?\r\n", &[b"STB?", b"32"]),
+            (b"ERROR?\r\n", &[b"ERROR?", b"6"]),
+        ],
+    );
+    let e = out.unwrap_err();
+    assert_eq!(
+        e,
+        Cs130Error::NoFilterWheel {
+            code: Some(ErrorCode::NO_ACCESSORY)
+        }
+    );
+    let text = e.to_string();
+    assert!(text.contains("no filter wheel answered"), "{text}");
+    assert!(text.contains("filter_wheel = false"), "{text}");
+    assert!(text.contains("error 6 (accessory not present"), "{text}");
+    assert_eq!(s.state(), None);
+}
+
+#[test]
+fn a_filter_answer_of_0_without_an_error_flag_is_still_no_wheel() {
+    let mut s = Cs130Session::new(Cs130Config::default(), "test").unwrap();
+    let (out, _, _) = drive(
+        s.start_read_state(Duration::ZERO),
+        &[
+            (b"GRAT?\r\n", &[b"GRAT?", b"1"]),
+            (b"FILTER?\r\n", &[b"FILTER?", b"0"]),
+            (b"STB?\r\n", &[b"STB?", b"00"]),
+        ],
+    );
+    assert_eq!(out, Err(Cs130Error::NoFilterWheel { code: None }));
 }
