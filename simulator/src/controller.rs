@@ -14,6 +14,25 @@
 //! force, which `PW1` (CONFIGURATION, from NOT REFERENCED only) lets the configuration
 //! commands change, `PW0` saves (silent meanwhile, then NOT REFERENCED from
 //! CONFIGURATION), and `ZT` lists. Changes not saved are lost at the next boot.
+//!
+//! # Sources
+//! "The manual" is Newport's *SMC100CC & SMC100PP User's Manual* EDH0206En2054 (06/23),
+//! the edition `docs/instruments/smc100.md` cites; its pages are those checked in
+//! `/work/shared/reference/protocol-findings.md` §3. Every behaviour below names its
+//! source beside the code; "assumed" marks the twin's own choice where no source
+//! says, with the reason. `docs/instruments/smc100.md` ("The twin") keeps the same
+//! list. In short:
+//! - §5.2: power-up and `RS` take under 5 s, ending NOT REFERENCED (`0A`).
+//! - §5.3, §5.5: only queries reply; a refused command is not executed and stores an
+//!   error letter, read (and cleared) with `TE` (p. 59, letters confirmed).
+//! - §5.5 command/state table: which states accept which command.
+//! - TS (p. 62–63): the error bits and states; reading clears the latched bits.
+//! - OR (p. 39), PA (p. 41), PW (p. 44), SA (p. 49), ZT (p. 67), and the PR, PT, ST,
+//!   MM, VA, AC, OT, HT, SL, SR command pages: what each command does and its range.
+//! - Assumed: the letter for `PA`/`PR` while MOVING or HOMING (`M`/`L`: the PA page,
+//!   p. 41-42, lists no such letter), `RS` refused in CONFIGURATION (the RS page,
+//!   p. 48, contradicts itself), the state after `ST` in HOMING and after a homing
+//!   time-out (`0B`), `ID?` answered in every state, silence while booting.
 
 use gonio_proto::smc100::{
     Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody,
@@ -55,9 +74,16 @@ pub struct ControllerConfig {
     /// Mechanical angle of the stage when the simulation starts.
     pub start_position: f64,
     /// Time to boot after power-up or `RS`, during which the controller is silent, s.
+    /// The manual gives "less than 5 s" (§5.2); the default 3 s is pySMC100's wait
+    /// after `RS` (instruments.md §1.3). Silence meanwhile is assumed: the manual says
+    /// nothing of the interface while it initialises, and drivers retry `TS` on
+    /// timeouts after `RS` (pySMC100).
     pub boot_time_s: f64,
     /// How long a stalled stage lags its set-point before the controller disables
-    /// (following error), s.
+    /// (following error), s. Assumed: the manual's following-error limit `FE` is not
+    /// for a PP (its page: error `W`), so how a PP notices a stall is not documented;
+    /// pySMC100 reports a stuck move ending in DISABLE from MOVING (`3D`), which the
+    /// twin reproduces after this lag.
     pub following_error_s: f64,
     /// How long `PW0` keeps the controller silent while it saves, s: the manual's
     /// "up to 10 s" (PW command), taken whole.
@@ -81,7 +107,8 @@ impl Default for ControllerConfig {
             negative_limit: -170.0,
             positive_limit: 170.0,
             // A URS100 with a 1/100 micro-stepped 1.8° motor and 1:... gearing resolves
-            // about 0.0005°: 2000 counts a degree.
+            // about 0.0005°: 2000 counts a degree (assumed: a nominal resolution; the
+            // manual's PA page says only that targets round to an encoder count).
             counts_per_unit: 2000.0,
             start_position: 0.0,
             boot_time_s: 3.0,
@@ -102,14 +129,18 @@ impl ControllerConfig {
     /// home type 2 (MZ switch only, which is the search the twin makes), the full step
     /// `FRS` what `counts_per_unit` and `FRM` imply. No backlash, hysteresis or base
     /// velocity; the current limits and jerk time are nominal values (UNCONFIRMED).
+    /// Which lines `ZT` lists, and in which order, is [`Param::PP_DUMP`] (ZT page,
+    /// p. 67, and hvl_ccb's SMC100PP driver).
     pub fn factory_parameters(&self) -> Smc100Parameters {
         let values = Param::CONFIGURATION
             .iter()
             .map(|p| {
                 let v = match p {
+                    // In CONFIGURATION `VA` and `AC` are the maxima (VA, AC pages).
                     Param::Acceleration => self.max_acceleration,
                     Param::MicroSteps => MICRO_STEPS,
                     Param::FullStep => MICRO_STEPS / self.counts_per_unit,
+                    // HT2, MZ switch only (HT page): the search this twin makes.
                     Param::HomeType => 2.0,
                     Param::JerkTime => 0.04,
                     Param::HomeVelocity => self.home_velocity,
@@ -117,10 +148,15 @@ impl ControllerConfig {
                     Param::PeakCurrent => 1.0,
                     Param::RmsCurrent => 0.5,
                     Param::RmsTime => 1.0,
-                    Param::RsAddress => f64::from(self.address),
+                    // The manual's range for SA is 2–31 (p. 49): the controller on
+                    // RS-232 is address 1 whatever its SA, so its SA is one a chain
+                    // could use, 2 (assumed; hvl_ccb's default too). The others hold
+                    // the address they answer to.
+                    Param::RsAddress => f64::from(self.address.max(2)),
                     Param::NegativeLimit => self.negative_limit,
                     Param::PositiveLimit => self.positive_limit,
                     Param::Velocity => self.max_velocity,
+                    // ZX3, stage check at power-up (ZX page; the p. 67 example ends `1ZX3`).
                     Param::StageCheck => 3.0,
                     _ => 0.0,
                 };
@@ -277,14 +313,22 @@ impl Controller {
         c
     }
 
+    /// Power-up or `RS`: the saved configuration loaded, NOT REFERENCED from reset
+    /// (`0A`), silent for `boot_time` (manual §5.2: "less than 5 s"; RS page: a reset
+    /// is a power-up; silence assumed, see [`ControllerConfig::boot_time_s`]).
     fn boot(&mut self, now: f64, boot_time: f64) {
         let m = self.mechanical(now);
         self.activity = Activity::Idle;
         self.at_rest = m;
         self.state = ControllerState::NotReferencedFromReset;
-        // An unreferenced counter starts at 0 wherever the stage stands.
+        // An unreferenced counter starts at 0 wherever the stage stands (assumed: an
+        // SMC100PP drives a stepper open loop, so it cannot know where it stands
+        // before a home search; the manual's example start-up reads `1TP0`).
         self.offset = -m;
         self.target = 0.0;
+        // PW page (p. 44): the configuration saved by PW0 is what a boot loads; the
+        // working values (VA, AC, SL, SR in READY/DISABLE) are lost (VA, AC, SL, SR
+        // pages: "working value").
         self.params = self.saved.clone();
         self.load_working();
         self.last_error = ErrorCode::None;
@@ -365,7 +409,9 @@ impl Controller {
         }
     }
 
-    /// Stores an error letter for `TE` (a line the controller could not parse).
+    /// Stores an error letter for `TE` (a line the controller could not parse: `A` for
+    /// an unknown code or a non-integer address, `C` for a missing or bad value, as
+    /// the manual's per-command error lists say; instruments.md §1.6).
     pub fn set_error(&mut self, code: ErrorCode) {
         self.last_error = code;
     }
@@ -376,12 +422,16 @@ impl Controller {
     }
 
     /// Fault: power loss and recovery; the controller reboots (silent for its boot
-    /// time) and comes back NOT REFERENCED from reset.
+    /// time) and comes back NOT REFERENCED from reset (§5.2, as `RS`). The NUL byte the
+    /// simulator puts on the line when it fires is assumed (no source; it is what a
+    /// UART sees when its sender's supply collapses).
     pub fn power_cycle(&mut self, now: f64) {
         let b = self.cfg.boot_time_s;
         self.boot(now, b);
     }
 
+    /// A position rounded to the closest encoder (motor step) count: PA page (p. 41),
+    /// "always rounds the new target position to the closest encoder position".
     fn quantise(&self, v: f64) -> f64 {
         (v * self.cfg.counts_per_unit).round() / self.cfg.counts_per_unit
     }
@@ -399,7 +449,9 @@ impl Controller {
                     let planned = p.position(now) - self.offset;
                     if (start - s) * (planned - s) < 0.0 {
                         // The set-point ran past the stuck stage: a following error after
-                        // the configured lag disables the motor.
+                        // the configured lag disables the motor: DISABLE from MOVING
+                        // (`3D`, TS p. 63) with bit 5 (TS p. 62). Assumed from pySMC100
+                        // ("a stuck move ends in 3D"); no manual page describes it.
                         let passed = p.t0 + crossing_time(&p, s + self.offset);
                         if now >= passed + self.cfg.following_error_s {
                             self.activity = Activity::Idle;
@@ -411,6 +463,7 @@ impl Controller {
                     }
                 }
                 if now >= p.end() {
+                    // READY from MOVING (`33`, TS p. 63).
                     self.activity = Activity::Idle;
                     self.at_rest = p.to - self.offset;
                     self.state = ControllerState::ReadyFromMoving;
@@ -421,16 +474,21 @@ impl Controller {
                     self.activity = Activity::Idle;
                     self.at_rest = p.to - self.offset;
                     if p.duration > self.param(Param::HomeTimeout) {
+                        // OT exceeded: bit 6, homing time-out (TS p. 62); the state
+                        // after it, NOT REFERENCED from HOMING (`0B`), is assumed
+                        // (instruments.md §1.7 infers it; UNCONFIRMED).
                         self.state = ControllerState::NotReferencedFromHoming;
                         self.latched |= PositionerErrors::HOMING_TIMEOUT;
                     } else {
-                        // Referenced: the counter now reads the home position here.
+                        // Referenced: the counter now reads the home position here;
+                        // READY from HOMING (`32`, TS p. 63).
                         self.offset = self.cfg.home_position - self.at_rest;
                         self.target = self.cfg.home_position;
                         self.state = ControllerState::ReadyFromHoming;
                     }
                 } else if now - p.t0 > self.param(Param::HomeTimeout) {
-                    // The search gives up where it is.
+                    // The search gives up where it is (OT page: the home search
+                    // time-out; `0B` and bit 6 as above).
                     self.at_rest = p.position(now) - self.offset;
                     self.activity = Activity::Idle;
                     self.state = ControllerState::NotReferencedFromHoming;
@@ -441,7 +499,14 @@ impl Controller {
         }
     }
 
-    /// The error letter for a command refused in the current state.
+    /// The error letter for a command refused in the current state: `H`–`M` for NOT
+    /// REFERENCED, CONFIGURATION, DISABLE, READY, HOMING, MOVING (TE page, p. 59; the
+    /// letters are the manual's). Which letter a given command stores in a given state
+    /// is the manual's per-command error lists where they name one; for `PA`/`PR` in
+    /// MOVING or HOMING they name none (PA page, p. 41-42: A, B, C, D, G, H, I, J only),
+    /// so `M`/`L` there is assumed, by analogy with the other commands (`D`, "execution
+    /// not allowed", is as likely; Gonio's session accepts either). JOGGING is not
+    /// modelled (keypad only), hence the `D` fallback, unused.
     fn refused(&self) -> ErrorCode {
         let s = self.state;
         if s.is_not_referenced() {
@@ -461,6 +526,9 @@ impl Controller {
         }
     }
 
+    /// MOVING (`28`, TS p. 63) along a trapezoidal profile at the working `VA` and `AC`
+    /// (assumed: the manual gives no profile for a PP; `PT` answers this profile's
+    /// time, and the moves do not block the interface, §5.4).
     fn start_move(&mut self, now: f64, to: f64) {
         let from = self.counter(now);
         let to = self.quantise(to);
@@ -472,14 +540,27 @@ impl Controller {
 
     /// Executes a command addressed to this controller at `now`, as
     /// [`handle`](Self::handle) does, and returns every reply line, terminators
-    /// included: the many lines of a `ZT` dump (manual, ZT command: `PW1`, `ID`, one
-    /// line a parameter in alphabetical order of its command, reals with six decimals,
-    /// `PW0`), or the one line of a query.
+    /// included: the many lines of a `ZT` dump, or the one line of a query.
+    ///
+    /// The dump is an SMC100PP's: `PW1`, `ID`, then `AC BA BH FRM FRS HT JR OH OT QIL SA
+    /// SL SR VA VB ZX` ([`Param::PP_DUMP`]: what hvl_ccb's driver, written against real
+    /// SMC100PPs, requires line for line; the manual gives only an example, p. 67),
+    /// reals with six decimals as in that example, and `PW0` (hvl_ccb; the manual's
+    /// example shows a second `PW1`, which Gonio's reader also takes). `ZT` answers in
+    /// every state the twin has (§5.5 table: NR, CF, DIS, RDY, MOT).
     pub fn respond(&mut self, now: f64, command: &Command) -> Vec<Vec<u8>> {
         if *command == Command::DumpConfiguration {
             self.update(now);
+            let listed = Smc100Parameters {
+                stage: self.params.stage.clone(),
+                values: Param::PP_DUMP
+                    .iter()
+                    .filter_map(|p| self.params.get(*p).map(|v| (*p, v)))
+                    .collect(),
+                other: self.params.other.clone(),
+            };
             let mut bytes = Vec::new();
-            self.params.encode_dump(self.cfg.address, &mut bytes);
+            listed.encode_dump(self.cfg.address, &mut bytes);
             return bytes
                 .split_inclusive(|b| *b == b'\n')
                 .map(<[u8]>::to_vec)
@@ -501,6 +582,9 @@ impl Controller {
         let reply = |body| Some(Reply { address: a, body });
         let s = self.state;
         match command {
+            // TP, TH, TS, TE, VE answer in every state: the §5.5 table marks TP and TH
+            // "all" (their error lists name H and I, but drivers read TP in any state:
+            // instruments.md §1.4), TS (p. 62-63), TE (p. 59), VE (table: all).
             Command::TellPosition => return reply(ReplyBody::Position(self.counter(now))),
             Command::TellSetpoint => {
                 let sp = match self.activity {
@@ -510,16 +594,23 @@ impl Controller {
                 return reply(ReplyBody::Setpoint(sp));
             }
             Command::TellStatus => {
+                // TS p. 63: "reads the error buffer and clears the error buffer".
                 let errors = PositionerErrors(self.latched);
                 self.latched = 0;
                 return reply(ReplyBody::Status(Status { errors, state: s }));
             }
             Command::TellError => {
+                // TE p. 59: "after the execution of a TE command, the error buffer
+                // gets erased"; a newer error overwrites an unread one (below).
                 let e = std::mem::replace(&mut self.last_error, ErrorCode::None);
                 return reply(ReplyBody::Error(e));
             }
             Command::Version => return reply(ReplyBody::Version(self.cfg.version.clone())),
             Command::DumpConfiguration => return None,
+            // A query answers in every state (assumed: the §5.5 table gives states for
+            // the sets; `ID?`, marked CONFIGURATION only there, is read in NOT
+            // REFERENCED by drivers and field notes, instruments.md §1.4; UNCONFIRMED).
+            // The reply echoes address and code, then the value (§5.5).
             Command::Query(p) => {
                 let v = match p {
                     Param::StageId => return reply(ReplyBody::StageId(self.params.stage.clone())),
@@ -547,6 +638,10 @@ impl Controller {
                 };
                 return reply(ReplyBody::Value(*p, v));
             }
+            // PT: the time of a relative move of |d| at the working VA and AC, no
+            // motion (PT page); accepted in DISABLE, READY and MOVING/HOMING (§5.5
+            // table; instruments.md §1.4), else the state's letter and no reply (§5.3);
+            // d in (1e-6, 1e12) else `C` (PT page).
             Command::MotionTime(d) => {
                 if !(s.is_ready() || s.is_disabled() || s.is_moving() || s.is_homing()) {
                     self.last_error = self.refused();
@@ -564,7 +659,8 @@ impl Controller {
             }
             _ => {}
         }
-        // Set and action commands: no reply; errors go to TE.
+        // Set and action commands: no reply, even when refused; errors go to TE
+        // (§5.3, §5.5), the newest overwriting an unread one (TE p. 59).
         self.last_error = self.execute(now, command).err().unwrap_or(ErrorCode::None);
         None
     }
@@ -573,21 +669,28 @@ impl Controller {
         let s = self.state;
         match command {
             Command::Home => {
+                // OR during a home search: `E`, "home sequence already started" (the
+                // letter is TE p. 59's; that OR gets it rather than `L` is assumed,
+                // instruments.md §1.7).
                 if s.is_homing() {
                     return Err(ErrorCode::HomeStarted);
                 }
+                // OR page (p. 39): "accepted only in NOT REFERENCED state".
                 if !s.is_not_referenced() {
                     return Err(self.refused());
                 }
                 if self.param(Param::HomeType) == 1.0 {
-                    // HT1: the current position is home, at once.
+                    // HT1: the current position is home, at once (HT page: "use
+                    // current position as HOME").
                     self.offset = self.cfg.home_position - self.at_rest;
                     self.target = self.cfg.home_position;
                     self.state = ControllerState::ReadyFromHoming;
                     return Ok(());
                 }
                 let from = self.counter(now);
-                // Drive to the switch at the home velocity, counted in the current counter.
+                // Drive to the switch at the home velocity `OH` (OH page), counted in the
+                // current counter: HOMING from RS-232 (`1E`, TS p. 63). HT2's search is
+                // simplified to one pass onto the switch (assumed).
                 let to = self.cfg.home_switch + self.offset;
                 let oh = self.param(Param::HomeVelocity);
                 let p = Profile::new(from, to, now, oh, self.acceleration);
@@ -596,6 +699,10 @@ impl Controller {
                 Ok(())
             }
             Command::MoveAbsolute(t) => {
+                // PA page (p. 41): "only accepted in READY state, AND when the new
+                // target position is higher or equal to ... SL, AND lower or equal to
+                // ... SR", else `G`; the target rounds to an encoder count. The letter
+                // in MOVING/HOMING is assumed (see `refused`).
                 if !s.is_ready() {
                     return Err(self.refused());
                 }
@@ -606,6 +713,8 @@ impl Controller {
                 Ok(())
             }
             Command::MoveRelative(d) => {
+                // PR page: relative to the current target, READY only, the result
+                // within [SL, SR] else `G` (instruments.md §1.4); letters as PA's.
                 if !s.is_ready() {
                     return Err(self.refused());
                 }
@@ -620,6 +729,9 @@ impl Controller {
             Command::Stop => {
                 match self.activity {
                     Activity::Moving(p) => {
+                        // ST page: "decelerating the positioner immediately with the
+                        // acceleration defined by the AC command"; it ends READY from
+                        // MOVING (`33`, as drivers observe: instruments.md §1.7).
                         // Decelerate with AC from the current speed: the second half of a
                         // symmetric profile that peaks at that speed right now.
                         let x = p.position(now);
@@ -640,16 +752,25 @@ impl Controller {
                         Ok(())
                     }
                     Activity::Homing(p) => {
+                        // ST in HOMING: the search stops where it is, NOT REFERENCED
+                        // from HOMING (`0B`): assumed (UNCONFIRMED; instruments.md
+                        // §1.7 "probably 0B").
                         self.at_rest = p.position(now) - self.offset;
                         self.activity = Activity::Idle;
                         self.state = ControllerState::NotReferencedFromHoming;
                         Ok(())
                     }
+                    // §5.5 table: ST is accepted in DISABLE, READY and MOVING/HOMING.
                     Activity::Idle if s.is_ready() || s.is_disabled() => Ok(()),
                     Activity::Idle => Err(self.refused()),
                 }
             }
             Command::Reset => {
+                // RS page (p. 48) contradicts itself: its state row allows NOT
+                // REFERENCED, CONFIGURATION, DISABLE, READY and MOTION, its error list
+                // names H, I, L, M. Assumed: refused in CONFIGURATION (`I`), HOMING
+                // (`L`) and MOVING (`M`), as the §5.5 table (NR, DIS, RDY) reads; the
+                // way out of CONFIGURATION is PW0 (p. 44). UNCONFIRMED.
                 if s.is_moving() || s.is_homing() || s.is_configuration() {
                     return Err(self.refused());
                 }
@@ -657,6 +778,10 @@ impl Controller {
                 self.boot(now, b);
                 Ok(())
             }
+            // MM page: MM0 READY → DISABLE (`3C`), MM1 DISABLE → READY (`34`) with the
+            // set-point at the current position. MM0 in DISABLE and MM1 in READY are
+            // taken as no-ops (assumed: the page names no error for them); any other
+            // state stores its letter.
             Command::Enable(on) => match (on, s.is_ready(), s.is_disabled()) {
                 (false, true, _) => {
                     self.state = ControllerState::DisableFromReady;
@@ -678,12 +803,15 @@ impl Controller {
                     Param::Acceleration
                 };
                 if s.is_configuration() {
-                    // In CONFIGURATION, `VA` and `AC` set the maxima (saved by PW0).
+                    // In CONFIGURATION, `VA` and `AC` set the maxima (saved by PW0):
+                    // VA and AC pages.
                     return self.configure(param, *v);
                 }
                 if !(s.is_ready() || s.is_disabled()) {
                     return Err(self.refused());
                 }
+                // In DISABLE or READY, a working value in (1e-6, the configured maximum]
+                // else `C` (VA, AC pages: "> 10-6 and < 1012", working value ≤ max).
                 let max = self.param(param);
                 if !(*v > 1e-6 && *v <= max) {
                     return Err(ErrorCode::BadParameter);
@@ -708,7 +836,9 @@ impl Controller {
                 if !(s.is_ready() || s.is_disabled()) {
                     return Err(self.refused());
                 }
-                // A working limit must bracket the set-point.
+                // A working limit must bracket the set-point (assumed: PyMeasure's
+                // validators and instruments.md §1.4; the SL/SR pages give SL ≤ 0 ≤ SR
+                // only for the configured values).
                 let ok = if neg {
                     *v <= self.target
                 } else {
@@ -724,6 +854,8 @@ impl Controller {
                 }
                 Ok(())
             }
+            // Configuration parameters change in CONFIGURATION only (PW page, p. 44;
+            // §5.5 table "CF"), else the state's letter.
             Command::Set(p, v) => {
                 if !s.is_configuration() {
                     return Err(self.refused());
@@ -738,7 +870,9 @@ impl Controller {
                 Ok(())
             }
             Command::ConfigurationMode(true) => {
-                // PW1: NOT REFERENCED to CONFIGURATION, from nowhere else.
+                // PW1: NOT REFERENCED to CONFIGURATION (`14`), from nowhere else (PW
+                // page, p. 44: "changes the controller's state from NOT REFERENCED to
+                // CONFIGURATION").
                 if !s.is_not_referenced() {
                     return Err(self.refused());
                 }
@@ -746,7 +880,9 @@ impl Controller {
                 Ok(())
             }
             Command::ConfigurationMode(false) => {
-                // PW0: save, silent meanwhile, then NOT REFERENCED from CONFIGURATION.
+                // PW0: save, silent meanwhile, then NOT REFERENCED from CONFIGURATION
+                // (`0C`). PW page (p. 44): "saves them in the flash memory ... may take
+                // up to 10 seconds. During that time the controller will not respond".
                 if !s.is_configuration() {
                     return Err(self.refused());
                 }
@@ -756,11 +892,14 @@ impl Controller {
                 self.booting_until = now + self.cfg.save_time_s;
                 Ok(())
             }
+            // Anything else (SE, JD, the analog and TTL I/O, CC-only commands) is
+            // not modelled: stored as `A`, "unknown message code" (TE p. 59).
             _ => Err(ErrorCode::UnknownCommand),
         }
     }
 
-    /// A configuration parameter set in CONFIGURATION: `C` outside the manual's range.
+    /// A configuration parameter set in CONFIGURATION: `C` outside the manual's range
+    /// ([`Param::accepts`]: the AC, HT, JR, OT, QIL/QIR/QIT, SA, SL, SR, VA pages).
     fn configure(&mut self, p: Param, v: f64) -> Result<(), ErrorCode> {
         if !(p.is_configuration() && p.accepts(v)) {
             return Err(ErrorCode::BadParameter);
@@ -785,7 +924,9 @@ fn crossing_time(p: &Profile, x: f64) -> f64 {
     hi
 }
 
-/// Frames addressed to a controller: `true` when `frame` is for `address` (or for all).
+/// Frames addressed to a controller: `true` when `frame` is for `address` (or for all:
+/// a broadcast, which the codec allows for `ST`, `MM` and `SE` only, as their pages
+/// say).
 pub fn addressed_to(frame: &Frame, address: u8) -> bool {
     frame.address.is_none_or(|a| a == address)
 }

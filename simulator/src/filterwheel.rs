@@ -1,14 +1,33 @@
 //! The simulated Thorlabs FW102C (FW212C) filter wheel, device side: command bytes in,
 //! the exact bytes the wheel sends out, on virtual time (seconds). Wire format:
-//! [`gonio_proto::fw102c`], whose facts are UNCONFIRMED against the manual (see
-//! `docs/instruments/fw102c.md`).
+//! [`gonio_proto::fw102c`].
+//!
+//! # Sources
+//! The FW102C manual Rev H (2014), §5.2 (terminal settings, the empty line's answer)
+//! and §5.2.3, p. 11 (the command table); the FW102C User Guide Rev M (2023) as quoted
+//! by ISIS's EPICS driver; drivers written against real wheels (ISIS, Odemis) where
+//! the manual is silent, named as "driver only"; "assumed" marks the twin's own choice,
+//! with the reason (`/work/shared/reference/protocol-findings.md` §7 checked these).
+//! `docs/instruments/fw102c.md` ("The twin") keeps the same list.
 //!
 //! # Protocol
-//! - Every byte received is echoed as the wheel reads it, CR included; at CR the line
-//!   is run ([`Command::parse`]). A query answers its value and CR; a refusal answers
-//!   `Command error CMD_NOT_DEFINED` (unknown word, empty line) or
-//!   `Command error CMD_ARG_INVALID` (bad value, a position beyond `pcount`) and CR;
-//!   then the prompt `"> "`, unterminated.
+//! - At power-up the wheel sends its prompt `"> "`, once: "The prompt symbol '>' will
+//!   appear on power-up and after a command is accepted" (User Guide Rev M). It waits
+//!   in the host's input until read; its exact bytes are the post-command prompt's
+//!   (assumed, UNCONFIRMED).
+//! - Every byte received is echoed as the wheel reads it, CR included (driver only:
+//!   ISIS, "each read returns the sent query string, too"; Odemis strips it); at CR the
+//!   line is run (§5.2: "All strings ... must be terminated by a carriage return"). A
+//!   query answers its value and CR (ISIS: terminator CR, driver only); a refusal
+//!   answers `Command error CMD_NOT_DEFINED` (unknown word, empty line: §5.2, p. 11) or
+//!   `Command error CMD_ARG_INVALID` (bad value, a position beyond `pcount`: Odemis
+//!   only, UNCONFIRMED) and CR; then the prompt `"> "`, unterminated (`>`: User Guide
+//!   Rev M; the space: Odemis only).
+//! - "All commands and queries are in lower case letters" (p. 11): a line with an
+//!   upper-case letter is not a defined command, `CMD_NOT_DEFINED` ("If the keyword,
+//!   format, or argument are incorrect ... the unit will return an error string",
+//!   p. 11; which string is the twin's reading). The manual's own table prints `Trig?`;
+//!   the twin holds the rule. Surrounding spaces are ignored (assumed).
 //! - `pos=n` turns the wheel the shortest way round and sends its prompt when it
 //!   stops. Bytes received meanwhile wait, unechoed, and are read when it stops (the
 //!   firmware is taken as busy while it turns: the twin's choice, UNCONFIRMED; so a
@@ -17,9 +36,14 @@
 //! - A move takes `slots × slot time` of the speed (`slot_time_high_s`,
 //!   `slot_time_low_s`): the per-slot times and the linear model are the twin's,
 //!   **UNCONFIRMED** (no manual figure was available).
-//! - `pcount=`, `speed=`, `trig=`, `sensors=` are stored and read back; `save`
-//!   answers the prompt (power cycles are not modelled). `baud=` is not modelled
-//!   (refused as undefined).
+//! - `pcount=`, `speed=`, `trig=`, `sensors=`, `baud=` are stored and read back with
+//!   their queries (p. 11); `save` answers the prompt (power cycles are not modelled).
+//!   `baud=0|1` (9600 | 115200, p. 11) is recorded and read back by `baud?`, but the
+//!   line keeps its speed: a pseudo-terminal or an in-memory line has no baud rate to
+//!   change, so the prompt after `baud=` is sent as if at the old speed (assumed:
+//!   whether a real wheel answers at the old or the new speed is UNCONFIRMED).
+//! - Not modelled: the arrow keys' special functions (p. 11), the trigger input, the
+//!   front-panel buttons.
 //!
 //! # Optics
 //! [`Fw102cTwin::transmittance`] is the transmittance of the filter in the beam:
@@ -37,8 +61,9 @@ use gonio_proto::fw102c::{
     TERMINATOR, TriggerMode,
 };
 
-/// The identification string the twin answers to `*idn?`, in the form Odemis quotes
-/// from a real wheel (UNCONFIRMED).
+/// The identification string the twin answers to `*idn?`: "Returns the model number
+/// and firmware version" (p. 11), in the form Odemis quotes from a real wheel (driver
+/// only).
 pub const IDENTITY: &str = "THORLABS FW102C/FW212C Filter Wheel version 1.04";
 
 /// The simulated wheel, as a sim config file writes it. Every field is optional and
@@ -76,7 +101,7 @@ pub struct FilterWheelSim {
     pub slot_time_low_s: f64,
     /// A long-pass filter's 10–90 % rise, nm, (0, 200].
     pub longpass_rise_nm: f64,
-    /// The wheel's time to answer a byte, s, [0, 1].
+    /// The wheel's time to answer a byte, s, [0, 1] (assumed: no manual figure).
     pub latency_s: f64,
 }
 
@@ -184,12 +209,17 @@ pub struct Fw102cTwin {
     line: Vec<u8>,
     /// Bytes to send, with the times they leave, in order.
     outbox: VecDeque<(f64, Vec<u8>)>,
+    /// The rate `baud=` last chose: 0 for 9600, 1 for 115200 (p. 11). Recorded only:
+    /// the line keeps its speed (module docs).
+    baud: u8,
 }
 
 impl Fw102cTwin {
-    /// A wheel just powered up at time 0, at `initial_position`. `config` should have
-    /// passed [`FilterWheelSim::validate`]; an initial position out of range is taken
-    /// as 1.
+    /// A wheel just powered up at time 0, at `initial_position`, its power-up prompt
+    /// waiting to be read (module docs). `config` should have passed
+    /// [`FilterWheelSim::validate`]; an initial position out of range is taken as 1.
+    /// At power-up: `pcount` = `positions`, trigger input, sensors on, 115200 baud
+    /// (§5.2: the factory settings; what `save` would change is not modelled).
     pub fn new(config: &FilterWheelSim) -> Self {
         let position = if (1..=config.positions).contains(&config.initial_position) {
             config.initial_position
@@ -207,7 +237,9 @@ impl Fw102cTwin {
             move_end: 0.0,
             input: VecDeque::new(),
             line: Vec::new(),
-            outbox: VecDeque::new(),
+            // The power-up prompt (User Guide Rev M), sent once at time 0.
+            outbox: VecDeque::from([(0.0, PROMPT.to_vec())]),
+            baud: 1,
             config: config.clone(),
         }
     }
@@ -286,13 +318,19 @@ impl Fw102cTwin {
         self.sensors
     }
 
+    /// The baud rate `baud=` last chose, 0 (9600) or 1 (115200): recorded, not applied.
+    pub fn baud(&self) -> u8 {
+        self.baud
+    }
+
     /// The configuration.
     pub fn config(&self) -> &FilterWheelSim {
         &self.config
     }
 
     /// How long a move from `from` to `to` takes at the present speed: the slots of
-    /// the shortest way round × the speed's slot time.
+    /// the shortest way round × the speed's slot time (assumed: no manual figure;
+    /// Odemis counts slots the shortest way round; UNCONFIRMED).
     pub fn move_time(&self, from: u8, to: u8) -> f64 {
         let n = i32::from(self.config.positions);
         let d = (i32::from(to) - i32::from(from)).rem_euclid(n);
@@ -343,6 +381,9 @@ impl Fw102cTwin {
                 break;
             }
             self.input.pop_front();
+            // Every byte echoed as it is read (driver only: ISIS, Odemis); CR runs the
+            // line (§5.2); an LF is echoed and ignored (assumed: a host ending lines
+            // CR LF).
             self.send(t, vec![byte]);
             if byte == TERMINATOR {
                 let line = std::mem::take(&mut self.line);
@@ -364,16 +405,50 @@ impl Fw102cTwin {
     fn execute(&mut self, t: f64, line: &[u8]) {
         let mut out = Vec::new();
         let mut prompt_at = t;
+        if line.iter().any(u8::is_ascii_uppercase) {
+            // p. 11: "All commands and queries are in lower case letters".
+            DeviceError {
+                code: ErrorCode::NotDefined,
+            }
+            .encode(&mut out);
+        } else if let Some(answer) = self.baud_command(line) {
+            // `baud=` and `baud?` (p. 11), which Gonio's codec does not encode.
+            match answer {
+                Ok(Some(digit)) => {
+                    out.push(b'0' + digit);
+                    out.push(TERMINATOR);
+                }
+                Ok(None) => {}
+                Err(code) => DeviceError { code }.encode(&mut out),
+            }
+        } else {
+            prompt_at = self.run_command(t, line, &mut out);
+        }
+        self.send(t, out);
+        // The prompt follows every answer, a refusal's too (§5.2: "This message will
+        // be followed immediately by the prompt").
+        self.send(prompt_at, PROMPT.to_vec());
+    }
+
+    /// Runs a lower-case line the codec parses at `t`, its answer appended to `out`;
+    /// returns when its prompt is due (a move's end, or `t`).
+    fn run_command(&mut self, t: f64, line: &[u8], out: &mut Vec<u8>) -> f64 {
+        let mut prompt_at = t;
         match Command::parse(line) {
+            // Unknown word or empty line: CMD_NOT_DEFINED (§5.2); a bad value:
+            // CMD_ARG_INVALID (Odemis only).
             Err(e) => DeviceError {
                 code: ErrorCode::from(e),
             }
-            .encode(&mut out),
+            .encode(out),
             Ok(command) => match command {
+                // A position beyond `pcount`: CMD_ARG_INVALID (Odemis only).
                 Command::SetPosition(n) if n > self.pcount => DeviceError {
                     code: ErrorCode::ArgInvalid,
                 }
-                .encode(&mut out),
+                .encode(out),
+                // "Moves the wheel to filter position n" (p. 11); the prompt when it
+                // stops (Odemis; UNCONFIRMED).
                 Command::SetPosition(n) => {
                     if n != self.position {
                         let d = self.move_time(self.position, n);
@@ -390,21 +465,41 @@ impl Fw102cTwin {
                         prompt_at = self.move_end;
                     }
                 }
+                // The settings of p. 11, stored and read back by their queries.
                 Command::SetPositionCount(n) => self.pcount = n,
                 Command::SetSpeed(s) => self.speed = s,
                 Command::SetTrigger(m) => self.trigger = m,
                 Command::SetSensors(m) => self.sensors = m,
+                // "save all the settings as default on power up" (p. 11): power
+                // cycles are not modelled, so nothing to keep.
                 Command::Save => {}
-                Command::Identify => Reply::Identity(IDENTITY.into()).encode(&mut out),
-                Command::QueryPosition => Reply::Position(self.position).encode(&mut out),
-                Command::QueryPositionCount => Reply::PositionCount(self.pcount).encode(&mut out),
-                Command::QuerySpeed => Reply::Speed(self.speed).encode(&mut out),
-                Command::QueryTrigger => Reply::Trigger(self.trigger).encode(&mut out),
-                Command::QuerySensors => Reply::Sensors(self.sensors).encode(&mut out),
+                Command::Identify => Reply::Identity(IDENTITY.into()).encode(out),
+                Command::QueryPosition => Reply::Position(self.position).encode(out),
+                Command::QueryPositionCount => Reply::PositionCount(self.pcount).encode(out),
+                Command::QuerySpeed => Reply::Speed(self.speed).encode(out),
+                Command::QueryTrigger => Reply::Trigger(self.trigger).encode(out),
+                Command::QuerySensors => Reply::Sensors(self.sensors).encode(out),
             },
         }
-        self.send(t, out);
-        self.send(prompt_at, PROMPT.to_vec());
+        prompt_at
+    }
+
+    /// `baud=0`, `baud=1` (stored; no answer) and `baud?` (the digit), p. 11; `None`
+    /// for any other line. Another value is `CMD_ARG_INVALID`, as for the other
+    /// commands' values (Odemis only).
+    fn baud_command(&mut self, line: &[u8]) -> Option<Result<Option<u8>, ErrorCode>> {
+        let text = line.trim_ascii();
+        if text == b"baud?" {
+            return Some(Ok(Some(self.baud)));
+        }
+        let value = text.strip_prefix(b"baud=")?;
+        Some(match value {
+            b"0" | b"1" => {
+                self.baud = value[0] - b'0';
+                Ok(None)
+            }
+            _ => Err(ErrorCode::ArgInvalid),
+        })
     }
 }
 
@@ -412,8 +507,13 @@ impl Fw102cTwin {
 mod tests {
     use super::*;
 
+    /// A wheel just powered up, its power-up prompt already read.
     fn wheel() -> Fw102cTwin {
-        Fw102cTwin::new(&FilterWheelSim::default())
+        let mut w = Fw102cTwin::new(&FilterWheelSim::default());
+        let mut out = Vec::new();
+        w.poll(0.0, &mut out);
+        assert_eq!(out, PROMPT);
+        w
     }
 
     /// Sends `tx` at `t` and returns what comes back by `t`.
@@ -438,6 +538,47 @@ mod tests {
         assert_eq!(exchange(&mut w, 0.6, b"sensors?\r"), b"sensors?\r0\r> ");
         assert_eq!(exchange(&mut w, 0.7, b"trig?\r"), b"trig?\r0\r> ");
         assert_eq!(exchange(&mut w, 0.8, b"save\r"), b"save\r> ");
+    }
+
+    #[test]
+    fn power_up_sends_the_prompt_once() {
+        let mut w = Fw102cTwin::new(&FilterWheelSim::default());
+        assert_eq!(w.next_event(), Some(0.0));
+        // Unread, it comes before the first answer.
+        assert_eq!(exchange(&mut w, 1.0, b"pos?\r"), b"> pos?\r1\r> ");
+        assert_eq!(w.next_event(), None);
+        assert_eq!(exchange(&mut w, 2.0, b"pos?\r"), b"pos?\r1\r> ");
+    }
+
+    #[test]
+    fn upper_case_is_not_a_command() {
+        let mut w = wheel();
+        for line in [&b"*IDN?\r"[..], b"POS=3\r", b"Pos?\r", b"Trig?\r"] {
+            let mut want = line.to_vec();
+            want.extend_from_slice(b"Command error CMD_NOT_DEFINED\r> ");
+            assert_eq!(exchange(&mut w, 0.0, line), want);
+        }
+        assert_eq!(w.position_at(0.0), Some(1), "POS=3 did not move");
+        assert_eq!(exchange(&mut w, 0.0, b" pos? \r"), b" pos? \r1\r> ");
+    }
+
+    #[test]
+    fn baud_is_recorded_and_read_back() {
+        let mut w = wheel();
+        assert_eq!(w.baud(), 1, "115200 from the factory");
+        assert_eq!(exchange(&mut w, 0.0, b"baud?\r"), b"baud?\r1\r> ");
+        assert_eq!(exchange(&mut w, 0.0, b"baud=0\r"), b"baud=0\r> ");
+        assert_eq!(w.baud(), 0);
+        assert_eq!(exchange(&mut w, 0.0, b"baud?\r"), b"baud?\r0\r> ");
+        assert_eq!(
+            exchange(&mut w, 0.0, b"baud=2\r"),
+            b"baud=2\rCommand error CMD_ARG_INVALID\r> "
+        );
+        assert_eq!(
+            exchange(&mut w, 0.0, b"BAUD=1\r"),
+            b"BAUD=1\rCommand error CMD_NOT_DEFINED\r> "
+        );
+        assert_eq!(w.baud(), 0);
     }
 
     #[test]

@@ -9,8 +9,8 @@
 use gonio_core::DirPair;
 use gonio_core::kinematics::Layout;
 use gonio_core::rng::splitmix64;
-use gonio_proto::LineFramer;
 use gonio_proto::smc100::{Frame, MAX_LINE};
+use gonio_proto::{FrameError, LineFramer};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -36,6 +36,11 @@ const ORDER_FILTER_EDGE_NM: f64 = 15.0;
 const ORDER_FILTER_PEAK: f64 = 0.9;
 /// The monochromator line's baud rate (`gonio_driver::spectral::MonochromatorConfig`).
 const MONOCHROMATOR_BAUD: u32 = 9_600;
+/// The longest line the lock-in's wire framer hands on: well beyond the SR830's
+/// 256-character input buffer, so that an over-long line reaches the twin, which
+/// models the overflow ([`LockIn::handle_line`]); a longer one is dropped here and
+/// reported to it as an overflow ([`LockIn::input_overflow`]).
+const LOCKIN_WIRE_MAX: usize = 16 * gonio_proto::sr830::MAX_LINE;
 
 /// Counters of what the simulator did.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -153,7 +158,16 @@ impl SimInstrument {
             faults: cfg.faults.clone(),
             rng: ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_fa17),
             motion_framer: LineFramer::new(b'\n', MAX_LINE),
-            lockin_framer: LineFramer::new(b'\n', gonio_proto::sr830::MAX_LINE),
+            // The lock-in's own buffer decides what an over-long line does; the
+            // picoammeter's line keeps the framer's bound.
+            lockin_framer: LineFramer::new(
+                b'\n',
+                if cfg.picoammeter.is_some() {
+                    gonio_proto::sr830::MAX_LINE
+                } else {
+                    LOCKIN_WIRE_MAX
+                },
+            ),
             last_sync: 0.0,
             link: cfg.link.clone(),
             stats: SimStats::default(),
@@ -647,7 +661,8 @@ impl SimInstrument {
     pub fn lockin_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
         let now = self.clock.seconds();
         self.sync(now);
-        // The SR830 ends a command at CR or LF.
+        // The SR830 ends a command at CR or LF ("a linefeed <lf> or carriage return
+        // <cr> on RS232": manual p. 5-2, quoted in a public driver).
         let unified: Vec<u8> = bytes
             .iter()
             .map(|b| if *b == b'\r' { b'\n' } else { *b })
@@ -655,7 +670,17 @@ impl SimInstrument {
         self.lockin_framer.push(&unified);
         let mut out = Vec::new();
         while let Some(line) = self.lockin_framer.next_line() {
-            let Ok(line) = line else { continue };
+            let line = match line {
+                Ok(line) => line,
+                // Longer than the framer keeps: an input-buffer overflow.
+                Err(FrameError::TooLong(_)) => {
+                    self.stats.detector_lines += 1;
+                    self.lockin.input_overflow(now);
+                    continue;
+                }
+                // A line with a NUL byte is dropped (not modelled).
+                Err(_) => continue,
+            };
             if line.is_empty() {
                 continue;
             }

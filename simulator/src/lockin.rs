@@ -1,21 +1,33 @@
 //! The simulated SR830 DSP lock-in amplifier, device side: command lines in, the exact
 //! reply bytes a real SR830 sends on RS-232 out (facts: manual Rev. 2.5, ch. 5, as
-//! summarised in `instruments.md` §2; wire format: [`gonio_proto::sr830`]).
+//! summarised in `instruments.md` §2 and checked in `protocol-findings.md` §4; wire
+//! format: [`gonio_proto::sr830`]). Each behaviour names its source beside the code
+//! ("assumed" where none says, with the reason); `docs/instruments/sr830.md` ("The
+//! twin") keeps the same list.
 //!
 //! # Protocol
 //! - Lines are parsed with [`parse_line`]: `;`-separated commands, case and spaces
-//!   ignored. Only queries reply, each with its own `\r`-terminated line; set commands
-//!   reply nothing. An illegal command sets CMD (bit 5) of `*ESR?`, an out-of-range or
-//!   unexecutable one sets EXE (bit 4), silently ([`gonio_proto::sr830::CommandError::event_status`]). An
-//!   illegal query answers nothing (the manual leaves it open; see `instruments.md`).
-//!   A line that, with its terminator, overflows the 256-character input buffer is
-//!   discarded and sets INP.
-//! - Power-up is the `*RST` state (p. 4-4) with replies going to **GPIB**: every command
-//!   runs, but no reply reaches RS-232 until `OUTX 0`. `*ESR?` carries PON (bit 7)
-//!   after power-up until read or `*CLS`ed, as on the instrument.
+//!   ignored (manual p. 5-1, 5-2: "Commands may be in either UPPER or lower case and
+//!   may contain any number of embedded space characters ... Multiple commands may be
+//!   sent on one command line by separating them with semicolons"). Only queries
+//!   reply, each with its own `\r`-terminated line (p. 5-2); set commands reply
+//!   nothing. An illegal command sets CMD (bit 5) of `*ESR?`, an out-of-range or
+//!   unexecutable one sets EXE (bit 4), silently (SR850 manual p. 1-10, the SR830's
+//!   page not found; [`gonio_proto::sr830::CommandError::event_status`]). An illegal
+//!   query answers nothing (assumed: the manual leaves it open; see `instruments.md`).
+//! - The 256-character input buffer (p. 5-2, quoted second-hand): a line that, with
+//!   its terminator, does not fit overflows it, sets INP and loses what it held; the
+//!   characters after the overflow fill it afresh (`input_buffer`, which lists the
+//!   twin's assumptions).
+//! - Power-up is the `*RST` state (p. 4-4, not re-checked: UNCONFIRMED) with replies
+//!   going to **GPIB**: every command runs, but no reply reaches RS-232 until `OUTX 0`
+//!   (OUTX: "sets the output interface to RS232 (i=0) or GPIB (i=1) ... should be sent
+//!   before any query", a driver quoting the manual; GPIB the factory default, p. 4-4).
+//!   `*ESR?` carries PON (bit 7) after power-up until read or `*CLS`ed (SR850 p. 1-10).
 //! - Float replies are rounded to 6 significant digits, the resolution of every value the
 //!   manual prints (`0.951359`, `-1.01026`, `1000.00`, `-4.17234e-007`), then written by
-//!   [`Reply::encode`] (so `1000.00` is sent as `1000`, which every parser reads the same).
+//!   [`Reply::encode`] (so `1000.00` is sent as `1000`, which every parser reads the same):
+//!   assumed, the firmware's printing rule is UNCONFIRMED.
 //!
 //! # Physics
 //! - The detector signal (volts, amplitude of the chopped signal) becomes the lock-in
@@ -26,17 +38,22 @@
 //!   changes T from then on. Its ENBW is the manual's 1/(4T), 1/(8T), 3/(32T), 5/(64T).
 //!   A step leaves 0.67 %, 0.73 %, 0.62 % after 5, 7, 9 T (6, 12, 18 dB/oct), but 1.03 %
 //!   after 10 T at 24 dB/oct (99 % at 10.05 T): the manual's settling table rounds.
+//!   (Identical first-order stages are assumed: the manual's tables, p. 3-21 and
+//!   p. 3-25, were read only second-hand, UNCONFIRMED; the cascade reproduces them.)
 //! - A point's start ([`LockIn::restart`], [`LockIn::restart_from`]; chosen by
 //!   [`LockInConfig::point_start`]): see "Where a point starts" below.
 //! - Noise: an Ornstein–Uhlenbeck process per channel with correlation time T and
 //!   standard deviation density·√ENBW, density = √(amplifier² + shot²·R_signal), advanced
 //!   exactly with normals from a `ChaCha8Rng` seeded at construction: the same seed and
 //!   the same calls give the same bytes.
-//! - Status (`LIAS?`), latched at every event instant (each [`LockIn::set_input`], each
-//!   command): INPUT (bit 0) while the detector amplitude exceeds `input_overload_v` or
-//!   the fault is forced; OUTPUT (bit 2) while |X|, |Y| or R (noise included) exceeds
-//!   1.09 × full scale; UNLOCK (bit 3) while the unlock fault is on; RANGE (bit 4) and
-//!   TC (bit 5) when the reference frequency crosses 200 Hz. Reading clears what it reads.
+//! - Status (`LIAS?`, bits and latching p. 5-23), latched at every event instant (each
+//!   [`LockIn::set_input`], each command): INPUT (bit 0) while the detector amplitude
+//!   exceeds `input_overload_v` (1.4 V peak, `instruments.md` §2.5, UNCONFIRMED) or the
+//!   fault is forced; OUTPUT (bit 2) while |X|, |Y| or R (noise included) exceeds
+//!   1.09 × full scale (§2.5, UNCONFIRMED); UNLOCK (bit 3) while the unlock fault is on;
+//!   RANGE (bit 4) and TC (bit 5) when the reference frequency crosses 200 Hz (p. 5-23).
+//!   Bits "stay set until cleared by reading or by the CLS command" (p. 5-23): reading
+//!   clears what it reads.
 //!
 //! # Where a point starts
 //! A run reads each point after a move; a resumed run must read what the uninterrupted
@@ -68,10 +85,18 @@
 //! - An input overload does not change the readings: only the status bit shows it.
 //! - `AGAN` is instantaneous: it picks the most sensitive range with R ≤ 0.9 × full scale,
 //!   which puts R between 36 % and 90 % of full scale (1-2-5 steps are at most 2.5×);
-//!   it does nothing when T > 1 s (manual, AGAN).
+//!   it does nothing when T > 1 s (the AGAN command as `instruments.md` §2.4 reads it;
+//!   found only in second-hand code comments, UNCONFIRMED). Its timing and the 0.9
+//!   target are assumed (the manual says only that it "can take long").
 //! - `OFLT` above 30 s while the detection frequency is above 200 Hz is refused with EXE
-//!   (manual: "cannot be set"). `FREQ` is refused with EXE on the external reference,
-//!   where `FREQ?` reads [`LockInConfig::chopper_hz`].
+//!   (manual, OFLT: "cannot be set"; LIAS RANGE, p. 5-23: "TCs > 30 s ... are turned
+//!   off in the upper range"; EXE as "cannot execute", assumed). `FREQ` is refused with
+//!   EXE on the external reference (FREQ sets the internal oscillator only; EXE
+//!   assumed), where `FREQ?` reads [`LockInConfig::chopper_hz`].
+//! - `ERRS?` always reads 0: no self-test failure is modelled (assumed).
+//! - Commands run as soon as their line arrives: the manual's "processes commands in the
+//!   order received" holds, but a command's own run time (`*RST` "takes some time",
+//!   `AGAN`) is not modelled.
 //! - Time never runs backwards: a `now_s` before the last one is taken as the last one.
 
 use gonio_proto::sr830::{
@@ -82,32 +107,37 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-/// An output overloads above this multiple of full scale (manual, OUTPUT OVLD).
+/// An output overloads above this multiple of full scale (manual, OUTPUT OVLD, as
+/// `instruments.md` §2.5 summarises it; the page was not re-checked: UNCONFIRMED).
 pub const OVERLOAD_FACTOR: f64 = 1.09;
 
 /// RC stages in the time-constant filter (24 dB/oct uses all of them).
 pub const STAGES: usize = 4;
 
-/// Significant digits of a float reply.
+/// Significant digits of a float reply (assumed: the resolution of every value the
+/// manual prints; the firmware's rule is UNCONFIRMED).
 pub const REPLY_DIGITS: usize = 6;
 
-/// `AGAN` picks the most sensitive range whose full scale times this is at least R.
+/// `AGAN` picks the most sensitive range whose full scale times this is at least R
+/// (assumed: the manual does not say where auto gain leaves R).
 pub const AUTO_GAIN_TARGET: f64 = 0.9;
 
-/// `AGAN` does nothing when the time constant is over this, seconds (manual, AGAN).
+/// `AGAN` does nothing when the time constant is over this, seconds (the AGAN command
+/// as `instruments.md` §2.4 reads it; only second-hand, UNCONFIRMED).
 pub const AUTO_GAIN_MAX_TC_S: f64 = 1.0;
 
-/// The detection frequency splitting the low and high ranges, Hz (LIAS bit 4). The
-/// manual's hysteresis (199.21 / 203.12 Hz) is not modelled.
+/// The detection frequency splitting the low and high ranges, Hz (LIAS bit 4, p. 5-23).
+/// The manual's hysteresis (below 199.21 Hz, above 203.12 Hz) is not modelled.
 pub const RANGE_SPLIT_HZ: f64 = 200.0;
 
-/// Longest time constant allowed above [`RANGE_SPLIT_HZ`], seconds.
+/// Longest time constant allowed above [`RANGE_SPLIT_HZ`], seconds (OFLT command;
+/// p. 5-23: "TCs > 30 s ... are turned off in the upper range").
 pub const MAX_TC_HIGH_RANGE_S: f64 = 30.0;
 
-/// The `*RST` internal oscillator frequency, Hz (p. 4-4).
+/// The `*RST` internal oscillator frequency, Hz (p. 4-4, not re-checked: UNCONFIRMED).
 const RESET_FREQUENCY_HZ: f64 = 1000.0;
 
-/// The `*RST` sine output amplitude, V rms (p. 4-4).
+/// The `*RST` sine output amplitude, V rms (p. 4-4, not re-checked: UNCONFIRMED).
 const RESET_AMPLITUDE_V: f64 = 1.0;
 
 /// Physics and noise of the simulated lock-in and its detector front end.
@@ -287,13 +317,14 @@ fn round_reply(v: f64) -> f64 {
 }
 
 /// The internal oscillator frequency as the instrument stores it: 5 significant digits
-/// or 0.0001 Hz, whichever is coarser (manual, FREQ).
+/// or 0.0001 Hz, whichever is coarser (manual, FREQ command; instruments.md §2.4).
 fn round_frequency(f: f64) -> f64 {
     let step = 10f64.powi(f.log10().floor() as i32 - 4).max(1e-4);
     (f / step).round() * step
 }
 
-/// The sine output amplitude as stored: a multiple of 2 mV (manual, SLVL).
+/// The sine output amplitude as stored: a multiple of 2 mV (manual, SLVL command;
+/// instruments.md §2.4).
 fn round_amplitude(x: f64) -> f64 {
     (x / 0.002).round() * 0.002
 }
@@ -339,8 +370,9 @@ pub struct LockIn {
 
 impl LockIn {
     /// A lock-in just powered up: the `*RST` state (1 V, 100 ms, 12 dB/oct, internal
-    /// reference at 1 kHz), replies to GPIB (silent on RS-232 until `OUTX 0`), no
-    /// signal, PON set in `*ESR?`, the noise drawn from its stationary distribution.
+    /// reference at 1 kHz: p. 4-4, UNCONFIRMED), replies to GPIB (silent on RS-232
+    /// until `OUTX 0`: GPIB is the factory default, p. 4-4), no signal, PON set in
+    /// `*ESR?` (SR850 p. 1-10), the noise drawn from its stationary distribution.
     pub fn new(config: LockInConfig, seed: u64) -> Self {
         let mut lockin = LockIn {
             config,
@@ -384,14 +416,20 @@ impl LockIn {
     /// it like the instrument (several `;`-separated commands, errors setting ESR CMD/EXE
     /// bits silently, no reply to set commands) and appends reply bytes (each terminated
     /// by CR) to `out` — none while replies go to GPIB (`OUTX 1`).
+    ///
+    /// The line passes through the 256-character input buffer first (see
+    /// `input_buffer`): a line of 256 characters or more overflows it, which sets INP
+    /// and loses what the buffer held.
     pub fn handle_line(&mut self, now_s: f64, line: &[u8], out: &mut Vec<u8>) {
         self.advance(now_s);
         self.latch();
-        // The buffer holds 256 characters, terminator included.
-        if line.len() >= MAX_LINE {
+        let (overflows, line) = input_buffer(line);
+        if overflows > 0 {
             self.esr |= EventStatus::INP;
-            return;
         }
+        let Some(line) = line else {
+            return;
+        };
         for parsed in parse_line(line) {
             self.latch();
             let reply = match parsed {
@@ -405,6 +443,16 @@ impl LockIn {
             }
         }
         self.latch();
+    }
+
+    /// A line longer than the wire's framer keeps (far beyond the 256-character input
+    /// buffer) arrived at `now_s` and was dropped before reaching
+    /// [`handle_line`](Self::handle_line): it overflowed the buffer, so INP is set
+    /// (manual p. 5-2; see `input_buffer`). Its tail is not run.
+    pub fn input_overflow(&mut self, now_s: f64) {
+        self.advance(now_s);
+        self.latch();
+        self.esr |= EventStatus::INP;
     }
 
     /// Starts a measurement afresh at `now_s`: the filters as if settled on the
@@ -462,8 +510,8 @@ impl LockIn {
         }
     }
 
-    /// Fault: reference unlock. LIAS bit 3 latches at once and at every event while on;
-    /// the signal is not demodulated meanwhile. There is no time argument: the change
+    /// Fault: reference unlock. LIAS bit 3 (p. 5-23) latches at once and at every event
+    /// while on; the signal is not demodulated meanwhile (assumed: the filters see zero). There is no time argument: the change
     /// applies from the last event (call [`set_input`](Self::set_input) first to make
     /// that now).
     pub fn set_unlocked(&mut self, on: bool) {
@@ -471,8 +519,9 @@ impl LockIn {
         self.latch();
     }
 
-    /// Fault: input overload (LIAS bit 0) regardless of the signal: latches at once and
-    /// at every event while on. The readings are not changed.
+    /// Fault: input overload (LIAS bit 0, p. 5-23) regardless of the signal: latches at
+    /// once and at every event while on. The readings are not changed (assumed: the
+    /// manual does not say what an overloaded input reads).
     pub fn force_overload(&mut self, on: bool) {
         self.forced_overload = on;
         self.latch();
@@ -574,7 +623,8 @@ impl LockIn {
         )
     }
 
-    /// The outputs as read: each of X, Y, R clipped at ±1.09 × full scale.
+    /// The outputs as read: each of X, Y, R clipped at ±1.09 × full scale (assumed: what
+    /// an overloaded output reads is UNCONFIRMED).
     fn outputs(&self) -> Outputs {
         let (x, y) = self.raw_xy();
         let limit = OVERLOAD_FACTOR * self.sensitivity.volts();
@@ -624,6 +674,7 @@ impl LockIn {
     fn execute(&mut self, command: &Command) -> Result<Option<Reply>, u8> {
         let exe = EventStatus::EXE;
         let reply = match command {
+            // OUTX: where replies go (a driver quoting the manual; findings §4).
             Command::SetInterface(i) => {
                 self.interface = *i;
                 None
@@ -634,6 +685,8 @@ impl LockIn {
                 None
             }
             Command::QueryReferenceSource => Some(Reply::ReferenceSource(self.reference)),
+            // FREQ sets the internal oscillator only (FREQ command); refused with EXE on
+            // the external reference (assumed: "cannot execute").
             Command::SetFrequency(f) => {
                 if self.reference != ReferenceSource::Internal {
                     return Err(exe);
@@ -642,6 +695,7 @@ impl LockIn {
                 None
             }
             Command::QueryFrequency => Some(Reply::Frequency(round_reply(self.detection_hz()))),
+            // SLVL: rounded to 2 mV (SLVL command).
             Command::SetAmplitude(x) => {
                 self.amplitude = round_amplitude(*x);
                 None
@@ -652,6 +706,7 @@ impl LockIn {
                 None
             }
             Command::QuerySensitivity => Some(Reply::Sensitivity(self.sensitivity)),
+            // OFLT: over 30 s "cannot be set" above 200 Hz (OFLT command); EXE assumed.
             Command::SetTimeConstant(t) => {
                 if t.seconds() > MAX_TC_HIGH_RANGE_S && self.detection_hz() > RANGE_SPLIT_HZ {
                     return Err(exe);
@@ -665,6 +720,8 @@ impl LockIn {
                 None
             }
             Command::QuerySlope => Some(Reply::Slope(self.slope)),
+            // AGAN: see the module docs (instantaneous, 0.9 target: assumed; nothing
+            // above 1 s: UNCONFIRMED).
             Command::AutoGain => {
                 if self.time_constant.seconds() <= AUTO_GAIN_MAX_TC_S {
                     let (x, y) = self.raw_xy();
@@ -675,6 +732,7 @@ impl LockIn {
                 }
                 None
             }
+            // OUTP?: one output, volts or degrees (p. 5-15).
             Command::ReadOutput(o) => {
                 let v = self.outputs();
                 let value = match o {
@@ -685,6 +743,9 @@ impl LockIn {
                 };
                 Some(Reply::Output(round_reply(value)))
             }
+            // SNAP?: the asked values at one instant (p. 5-16). Aux inputs read 0 (assumed:
+            // nothing connected); the displays read X and Y (assumed: the p. 4-4
+            // default displays, CH1 X and CH2 Y).
             Command::Snap(params) => {
                 let v = self.outputs();
                 let values = params
@@ -705,9 +766,12 @@ impl LockIn {
                     .collect();
                 Some(Reply::Snap(values))
             }
+            // LIAS?, *ESR?: reading clears what it reads, the whole byte or one bit
+            // (p. 5-23; *ESR? command).
             Command::LiaStatus(bit) => Some(read_clear(&mut self.lias, *bit, |b| {
                 Reply::LiaStatus(LiaStatus(b))
             })),
+            // ERRS?: always clear (assumed: no self-test failure is modelled).
             Command::ErrorStatus(bit) => Some(match bit {
                 Some(_) => Reply::Bit(false),
                 None => Reply::ErrorStatus(Default::default()),
@@ -715,6 +779,7 @@ impl LockIn {
             Command::EventStatus(bit) => Some(read_clear(&mut self.esr, *bit, |b| {
                 Reply::EventStatus(EventStatus(b))
             })),
+            // *IDN?: the manual's form, `Stanford_Research_Systems,SR830,s/n…,ver…`.
             Command::Identify => Some(Reply::Identity(Identity {
                 manufacturer: "Stanford_Research_Systems".to_string(),
                 model: "SR830".to_string(),
@@ -722,7 +787,8 @@ impl LockIn {
                 firmware: self.config.firmware.clone(),
             })),
             Command::Reset => {
-                // Communication settings and status bytes are kept (p. 4-4, *RST).
+                // Factory defaults (p. 4-4, UNCONFIRMED); communication settings and
+                // status bytes are kept (*RST command; instruments.md §2.4, §2.6).
                 self.sensitivity = Sensitivity::default();
                 self.time_constant = TimeConstant::default();
                 self.slope = FilterSlope::default();
@@ -731,6 +797,7 @@ impl LockIn {
                 self.amplitude = RESET_AMPLITUDE_V;
                 None
             }
+            // *CLS clears the status bytes (not the enable registers, not modelled).
             Command::Clear => {
                 self.lias = 0;
                 self.esr = 0;
@@ -739,6 +806,45 @@ impl LockIn {
         };
         Ok(reply)
     }
+}
+
+/// What of a received line (terminator removed) survives the input buffer: the number
+/// of times it overflowed, and the characters left in the buffer when the terminator
+/// arrived (`None` when the terminator itself overflowed it, losing the line).
+///
+/// Manual, ch. 5 command syntax (p. 5-2; read as quoted verbatim in a public SR830
+/// driver): "The SR830 has a 256 character input buffer and processes commands in the
+/// order received ... If either buffer overflows, both buffers are cleared and an
+/// error reported" (INP, `*ESR?` bit 0: SR850 manual p. 1-10), and "No command
+/// processing occurs until a command terminator is received", so a line's characters,
+/// terminator included, fill the buffer until it runs. The twin's choices where the
+/// manual is silent (assumed):
+/// - every byte counts, spaces included (the front panel's queue display drops them,
+///   which may or may not be how the buffer stores them);
+/// - the character that finds the buffer full is lost with it, and the characters after
+///   it fill the emptied buffer afresh: the tail of an over-long line runs as a line of
+///   its own (the manual says the buffer is cleared, not that input is ignored until a
+///   terminator);
+/// - the hardware handshake that would hold the host off before an overflow (the
+///   manual: "attempt to hold off handshaking on RS232") is not modelled: a three-wire
+///   link, Gonio's default, has none;
+/// - the output buffer's clearing is not modelled: the twin's replies leave at once,
+///   so there is nothing in it to clear (nor is its own overflow, QRY).
+fn input_buffer(line: &[u8]) -> (usize, Option<&[u8]>) {
+    let mut held = 0;
+    let mut start = 0;
+    let mut overflows = 0;
+    // Index `line.len()` is the terminator.
+    for i in 0..=line.len() {
+        if held == MAX_LINE {
+            overflows += 1;
+            held = 0;
+            start = i + 1;
+        } else {
+            held += 1;
+        }
+    }
+    (overflows, line.get(start..))
 }
 
 /// Reads a status byte and clears what was read: the whole byte (replied as `whole`
@@ -775,6 +881,23 @@ mod tests {
         assert_eq!(round_reply(round_frequency(0.0012345)), 0.0012);
         assert_eq!(round_reply(round_frequency(137.5)), 137.5);
         assert_eq!(round_reply(round_amplitude(0.5011)), 0.502);
+    }
+
+    #[test]
+    fn the_input_buffer_holds_256_characters_terminator_included() {
+        let a = |n: usize| vec![b'a'; n];
+        assert_eq!(input_buffer(&a(255)), (0, Some(&a(255)[..])));
+        // The terminator finds the buffer full: the line is lost.
+        assert_eq!(input_buffer(&a(256)), (1, None));
+        // The 257th character overflows it and is lost; the terminator then runs an
+        // empty line, and a longer tail runs as a line of its own.
+        assert_eq!(input_buffer(&a(257)), (1, Some(&b""[..])));
+        let mut long = a(256);
+        long.extend_from_slice(b"xSENS?");
+        assert_eq!(input_buffer(&long), (1, Some(&b"SENS?"[..])));
+        // 256 + 1 + 256 characters: the second buffer-full overflows at the terminator.
+        assert_eq!(input_buffer(&a(513)), (2, None));
+        assert_eq!(input_buffer(b""), (0, Some(&b""[..])));
     }
 
     #[test]

@@ -10,10 +10,12 @@ use gonio_proto::smc100::{Command, ErrorCode, Param, ReplyBody};
 use gonio_sim::controller::{Controller, ControllerConfig};
 use session_rig::*;
 
-/// The factory dump of controller 1 with the default config, byte for byte.
+/// The factory dump of controller 1 with the default config, byte for byte: an
+/// SMC100PP's lines, as hvl_ccb's driver (written against real controllers) requires
+/// them: `PW1 ID AC BA BH FRM FRS HT JR OH OT QIL SA SL SR VA VB ZX PW0`.
 const DUMP_1: &str = "1PW1\r\n1IDURS100PP\r\n1AC160.000000\r\n1BA0.000000\r\n\
 1BH0.000000\r\n1FRM100\r\n1FRS0.050000\r\n1HT2\r\n1JR0.040000\r\n1OH10.000000\r\n\
-1OT60.000000\r\n1QIL1.000000\r\n1QIR0.500000\r\n1QIT1.000000\r\n1SA1\r\n\
+1OT60.000000\r\n1QIL1.000000\r\n1SA2\r\n\
 1SL-170.000000\r\n1SR170.000000\r\n1VA40.000000\r\n1VB0.000000\r\n1ZX3\r\n1PW0\r\n";
 
 fn te(c: &mut Controller, t: f64) -> ErrorCode {
@@ -44,9 +46,13 @@ fn dump(c: &mut Controller, t: f64) -> String {
 fn zt_lists_the_factory_configuration_line_by_line() {
     let mut c = Controller::new(ControllerConfig::default());
     let lines = c.respond(0.0, &Command::DumpConfiguration);
-    assert_eq!(lines.len(), 21, "PW1, ID, 18 parameters, PW0");
+    assert_eq!(lines.len(), 19, "PW1, ID, 16 parameters, PW0");
     assert_eq!(lines[0], b"1PW1\r\n");
-    assert_eq!(lines[20], b"1PW0\r\n");
+    assert_eq!(lines[18], b"1PW0\r\n");
+    let want = "PW1 ID AC BA BH FRM FRS HT JR OH OT QIL SA SL SR VA VB ZX PW0";
+    for (line, code) in lines.iter().zip(want.split(' ')) {
+        assert!(line.starts_with(format!("1{code}").as_bytes()), "{line:?}");
+    }
     assert_eq!(dump(&mut c, 0.0), DUMP_1);
     // Through the wire, in every state that allows it (here NOT REFERENCED and READY).
     let mut rig = Rig::new(1, |_| {});
@@ -222,7 +228,14 @@ fn session_configures_the_twin() {
         .expect("controller 2")
         .parameters()
         .clone();
-    assert_eq!(before, twin);
+    // The dump lists what an SMC100PP lists: QIR and QIT are held, not listed.
+    assert_eq!(before.stage, twin.stage);
+    let listed: Vec<(Param, f64)> = Param::PP_DUMP
+        .iter()
+        .map(|p| (*p, twin.get(*p).expect("held")))
+        .collect();
+    assert_eq!(before.values, listed);
+    assert!(twin.get(Param::RmsCurrent).is_some() && before.get(Param::RmsCurrent).is_none());
     assert_eq!(before.stage, "URS100PP");
     assert_eq!(before.get(Param::RsAddress), Some(2.0));
     assert_eq!(before.get(Param::Backlash), Some(0.0));

@@ -191,3 +191,59 @@ fn stall_becomes_a_following_error() {
     }
     assert_eq!(c.mechanical(3.0), 5.0);
 }
+
+/// Each refusal the manual names, with its letter (TE p. 59): `PT` and `PA` in NOT
+/// REFERENCED (`PT`: no reply, §5.3), `OR` outside NOT REFERENCED (p. 39) and `E`
+/// during a search, `PA` in DISABLE (p. 41), `PW1` outside NOT REFERENCED (p. 44),
+/// `PA` while MOVING (`M`, assumed: the PA page names no letter), `RS` while MOVING
+/// (assumed, the RS page contradicts itself), a `PA` outside [SL, SR] (`G`), `PT`
+/// outside (1e-6, 1e12) (`C`).
+#[test]
+fn every_state_refuses_with_its_letter() {
+    let mut c = ctl();
+    assert!(
+        c.handle(0.0, &Command::MotionTime(10.0)).is_none(),
+        "no reply"
+    );
+    assert_eq!(te(&mut c, 0.0), ErrorCode::NotReferenced);
+    let mut c = homed();
+    // HOMING: OR again is `E`; PA is `L`.
+    assert!(c.handle(0.1, &Command::Home).is_none());
+    assert_eq!(te(&mut c, 0.1), ErrorCode::HomeStarted);
+    assert!(c.handle(0.1, &Command::MoveAbsolute(1.0)).is_none());
+    assert_eq!(te(&mut c, 0.1), ErrorCode::InHoming);
+    // READY: OR and PW1 are `K`; out of limits `G`; a PT of 0 is `C`.
+    let t = 2.0;
+    assert_eq!(state(&mut c, t), ControllerState::ReadyFromHoming);
+    for cmd in [Command::Home, Command::ConfigurationMode(true)] {
+        assert!(c.handle(t, &cmd).is_none());
+        assert_eq!(te(&mut c, t), ErrorCode::InReady, "{cmd:?}");
+    }
+    assert!(c.handle(t, &Command::MoveAbsolute(171.0)).is_none());
+    assert_eq!(te(&mut c, t), ErrorCode::OutOfLimits);
+    assert!(c.handle(t, &Command::MotionTime(0.0)).is_none());
+    assert_eq!(te(&mut c, t), ErrorCode::BadParameter);
+    // MOVING: PA and RS are `M`; PT still answers.
+    assert!(c.handle(t, &Command::MoveAbsolute(20.0)).is_none());
+    assert_eq!(te(&mut c, t), ErrorCode::None);
+    assert_eq!(state(&mut c, t + 0.1), ControllerState::Moving);
+    for cmd in [Command::MoveAbsolute(30.0), Command::Reset] {
+        assert!(c.handle(t + 0.1, &cmd).is_none());
+        assert_eq!(te(&mut c, t + 0.1), ErrorCode::InMoving, "{cmd:?}");
+    }
+    assert!(matches!(
+        ask(&mut c, t + 0.1, Command::MotionTime(5.0)),
+        ReplyBody::MotionTime(_)
+    ));
+    // DISABLE: PA is `J`, PT answers.
+    let t = 10.0;
+    assert_eq!(state(&mut c, t), ControllerState::ReadyFromMoving);
+    assert!(c.handle(t, &Command::Enable(false)).is_none());
+    assert_eq!(state(&mut c, t), ControllerState::DisableFromReady);
+    assert!(c.handle(t, &Command::MoveAbsolute(0.0)).is_none());
+    assert_eq!(te(&mut c, t), ErrorCode::InDisable);
+    assert!(matches!(
+        ask(&mut c, t, Command::MotionTime(5.0)),
+        ReplyBody::MotionTime(_)
+    ));
+}

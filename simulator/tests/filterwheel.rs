@@ -14,10 +14,12 @@ use gonio_sim::filterwheel::{
     FilterWheelSim, Fw102cTwin, IDENTITY, bandpass_transmittance, longpass_transmittance,
 };
 
-/// The twin behind a CR-framed line, on a manual clock; every write is logged.
+/// The twin behind a CR-framed line, on a manual clock; every write and every byte
+/// received is logged.
 struct Line {
     twin: Arc<Mutex<Fw102cTwin>>,
     sent: Arc<Mutex<Vec<Vec<u8>>>>,
+    received: Arc<Mutex<Vec<u8>>>,
     clock: ManualClock,
     framer: LineFramer,
 }
@@ -30,6 +32,7 @@ impl Line {
     fn deliver(&mut self, at: f64) {
         let mut out = Vec::new();
         self.twin.lock().expect("lock").poll(at, &mut out);
+        self.received.lock().expect("lock").extend_from_slice(&out);
         self.framer.push(&out);
     }
 }
@@ -42,6 +45,7 @@ impl Transport for Line {
             .lock()
             .expect("lock")
             .receive(secs(&self.clock), bytes, &mut out);
+        self.received.lock().expect("lock").extend_from_slice(&out);
         self.framer.push(&out);
         Ok(())
     }
@@ -91,6 +95,7 @@ struct Rig {
     wheel: Fw102c<Line, ManualClock>,
     twin: Arc<Mutex<Fw102cTwin>>,
     sent: Arc<Mutex<Vec<Vec<u8>>>>,
+    received: Arc<Mutex<Vec<u8>>>,
     clock: ManualClock,
 }
 
@@ -122,10 +127,12 @@ fn rig(sim: FilterWheelSim, config: Fw102cConfig) -> Rig {
     sim.validate().expect("valid");
     let twin = Arc::new(Mutex::new(Fw102cTwin::new(&sim)));
     let sent = Arc::new(Mutex::new(Vec::new()));
+    let received = Arc::new(Mutex::new(Vec::new()));
     let clock = ManualClock::new();
     let line = Line {
         twin: twin.clone(),
         sent: sent.clone(),
+        received: received.clone(),
         clock: clock.clone(),
         framer: LineFramer::new(TERMINATOR, MAX_LINE),
     };
@@ -134,6 +141,7 @@ fn rig(sim: FilterWheelSim, config: Fw102cConfig) -> Rig {
         wheel,
         twin,
         sent,
+        received,
         clock,
     }
 }
@@ -358,6 +366,46 @@ fn same_commands_same_bytes() {
     assert_eq!(a, run());
     assert_eq!(
         a,
-        b"pos=3\r> pos?\r3\r> speed=0\r> pos=6\r> bogus\rCommand error CMD_NOT_DEFINED\r> "
+        b"> pos=3\r> pos?\r3\r> speed=0\r> pos=6\r> bogus\rCommand error CMD_NOT_DEFINED\r> "
     );
+}
+
+/// The manual's hazards against Gonio's session (through the driver):
+///
+/// - The power-up prompt: "The prompt symbol '>' will appear on power-up and after a
+///   command is accepted" (User Guide Rev M). A freshly powered wheel has `"> "`
+///   waiting before anything is asked; a session that took it for the end of its first
+///   answer (as a reader splitting on the prompt would) would read an empty identity
+///   and be one answer out of step from then on. Gonio's must identify the wheel and
+///   read every later answer in step.
+/// - Lower case: "All commands and queries are in lower case letters" (p. 11). The
+///   twin refuses upper case, so a session sending `*IDN?` would fail to identify.
+#[test]
+fn the_session_copes_with_the_power_up_prompt_and_sends_lower_case_only() {
+    let mut r = standard();
+    assert_eq!(r.wheel.init().unwrap(), IDENTITY);
+    let received = r.received.lock().unwrap().clone();
+    // The prompt came first, then the echo of the first command.
+    assert!(
+        received.starts_with(b"> *idn?\r"),
+        "{:?}",
+        String::from_utf8_lossy(&received)
+    );
+    // Every answer read in step: the last query of the set-up read the position.
+    assert_eq!(r.wheel.last_position(), Some(1));
+    assert_eq!(r.wheel.retried(), 0, "no answer was lost or misread");
+    r.wheel.select(3).unwrap();
+    assert_eq!(r.wheel.position().unwrap(), 3);
+    let all: Vec<u8> = sent(&r).concat().into_bytes();
+    assert!(!all.is_empty());
+    assert!(
+        !all.iter().any(u8::is_ascii_uppercase),
+        "upper case sent: {:?}",
+        String::from_utf8_lossy(&all)
+    );
+    // And the twin does refuse upper case, with the error string before the prompt.
+    let mut out = Vec::new();
+    let t = secs(&r.clock);
+    r.twin.lock().unwrap().receive(t, b"*IDN?\r", &mut out);
+    assert_eq!(out, b"*IDN?\rCommand error CMD_NOT_DEFINED\r> ");
 }

@@ -1090,3 +1090,41 @@ fn point_start_accepts_settled_or_previous_only() {
         "unknown variant `at-once`, expected `settled` or `previous`"
     );
 }
+
+/// The input buffer over the wire (`SimInstrument::lockin_bytes`), as the manual's
+/// p. 5-2 describes it: 256 characters, terminator included; an overflow clears it and
+/// sets INP, and what arrives after it fills it afresh (the twin's reading).
+#[test]
+fn an_over_long_line_overflows_the_input_buffer_over_the_wire() {
+    let cfg = SimConfig::load(&config_dir().join("sim-example.toml")).expect("sim config");
+    let mut sim = SimInstrument::new(&cfg, SimClock::driven(0.0)).expect("simulator");
+    let mut say = |line: &[u8]| String::from_utf8(sim.lockin_bytes(line)).expect("ASCII");
+    assert_eq!(say(b"OUTX 0\n*CLS\n"), "");
+    // 255 characters and the terminator fit: the line runs.
+    let mut fits = format!("SENS 3;{}", " ".repeat(248)).into_bytes();
+    assert_eq!(fits.len(), 255);
+    fits.push(b'\r');
+    assert_eq!(say(&fits), "");
+    assert_eq!(say(b"*ESR?;SENS?\n"), "0\r3\r");
+    // 256 characters: the terminator overflows the buffer; the line is lost.
+    let mut full = format!("SENS 5;{}", "#".repeat(249)).into_bytes();
+    full.push(b'\n');
+    assert_eq!(say(&full), "");
+    assert_eq!(say(b"*ESR?;SENS?\n"), "1\r3\r");
+    // 300 characters: the 257th overflows it; the 43 after it run as a line of their
+    // own, an illegal command (CMD as well as INP).
+    let mut long = format!("SENS 7;{}", "#".repeat(293)).into_bytes();
+    long.push(b'\n');
+    assert_eq!(say(&long), "");
+    assert_eq!(say(b"*ESR?;SENS?\n"), "33\r3\r");
+    // A tail that is a command runs: 256 characters, one lost, then `SENS?`.
+    let mut tail = vec![b'#'; 257];
+    tail.extend_from_slice(b"SENS?\n");
+    assert_eq!(say(&tail), "3\r");
+    assert_eq!(say(b"*ESR?\n"), "1\r");
+    // Far longer than the wire's framer keeps (16 buffers' worth): INP all the same.
+    let mut huge = vec![b'#'; 10_000];
+    huge.push(b'\n');
+    assert_eq!(say(&huge), "");
+    assert_eq!(say(b"*ESR?;SENS?\n"), "1\r3\r");
+}

@@ -275,3 +275,96 @@ fn detector_port_outage_restarts_the_reading() {
     assert_eq!(lines.iter().filter(|l| *l == "LIAS?\n").count(), 3);
     assert_eq!(lines[outx + 1], "SNAP? 1,2\n");
 }
+
+// ---------------------------------------------------------------------------------
+// The manual's hazards.
+
+/// Runs `op` on the detector line as [`Rig::run`] does, but writes `noise` (bytes
+/// without a terminator) to the lock-in just before the first line that starts with
+/// `before`.
+fn run_with_noise<O: Operation>(
+    rig: &mut Rig,
+    mut op: O,
+    before: &[u8],
+    noise: &[u8],
+) -> O::Output {
+    let port = Port::Detector;
+    let mut pending = Some(noise.to_vec());
+    loop {
+        while let Some(io) = op.poll_io() {
+            match io {
+                Io::Transmit(bytes) => {
+                    if bytes.starts_with(before)
+                        && let Some(n) = pending.take()
+                    {
+                        assert_eq!(rig.sim.lockin_bytes(&n), b"", "noise has no answer");
+                    }
+                    let r = rig.transmit(port, bytes);
+                    op.handle_sent(rig.now, r);
+                }
+                Io::ClearInput => rig.clear(port),
+                Io::Reconnect => panic!("no reconnection expected"),
+            }
+        }
+        if let Some(out) = op.poll_output() {
+            return out;
+        }
+        match op.poll_timeout().expect("waits for something") {
+            Deadline::Reply(at) => match rig.receive(port, at) {
+                Some(Ok(line)) => op.handle_line(rig.now, &line),
+                Some(Err(e)) => op.handle_link_error(rig.now, e),
+                None => op.handle_timeout(rig.now),
+            },
+            Deadline::Poll(at) | Deadline::Sleep(at) => {
+                rig.advance_to(at);
+                op.handle_timeout(rig.now);
+            }
+        }
+    }
+}
+
+/// The 256-character input buffer: "If either buffer overflows, both buffers are
+/// cleared and an error reported" (manual p. 5-2, quoted second-hand), INP in `*ESR?`
+/// (bit 0). Line noise without a terminator (249 bytes: a cable plugged in, a
+/// crashed program's half line) fills the buffer so that the terminator of the
+/// set-up's `SENS 20` overflows it: that command is lost, and INP is the only sign. The
+/// set-up must fail on it; a session checking only CMD and EXE would report the
+/// lock-in set up while it still stands at 1 V full scale.
+#[test]
+fn setup_reports_a_command_lost_to_an_input_buffer_overflow() {
+    use gonio_proto::sr830::{EventStatus, MAX_LINE, Sr830Error};
+    let mut rig = Rig::new(31, |_| {});
+    let config = Sr830Config {
+        sensitivity: Sensitivity::new(20).expect("10 mV"),
+        ..lockin_config()
+    };
+    let mut lockin = Sr830Session::new(config, "sim:detector", rig.now).expect("valid config");
+    let noise = vec![b'#'; MAX_LINE - "SENS 20".len()];
+    let from = rig.sent.len();
+    let op = lockin.start_setup(rig.now);
+    match run_with_noise(&mut rig, op, b"SENS", &noise) {
+        Err(Sr830Error::Rejected(esr)) => assert_eq!(esr, EventStatus(EventStatus::INP)),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        rig.lines_since(from, Port::Detector),
+        [
+            "OUTX 0\n",
+            "*IDN?\n",
+            "*CLS\n",
+            "SENS 20\n",
+            "OFLT 8\n",
+            "OFSL 3\n",
+            "*ESR?\n"
+        ]
+    );
+    assert_eq!(
+        rig.sim.lockin_mut().sensitivity(),
+        Sensitivity::LEAST,
+        "SENS 20 never ran"
+    );
+    // On a clean line the set-up runs whole (reading *ESR? cleared INP).
+    rig.run(Port::Detector, lockin.start_setup(rig.now))
+        .expect("set up");
+    assert_eq!(rig.sim.lockin_mut().sensitivity().index(), 20);
+}

@@ -436,3 +436,166 @@ fn motion_port_outage_and_reconnection() {
         AxisError::Transport(TransportError::Disconnected { .. })
     ));
 }
+
+// ---------------------------------------------------------------------------------
+// The manual's refusals: a command the controller's state does not allow is not
+// executed and stores the state's letter for `TE` (manual §5.3, TE p. 59). The twin
+// models them; each test would fail against a session that ignored the refusal (and,
+// say, polled `TS` as if the move had started).
+
+/// A controller reset behind the session's back (another program's `RS`) is NOT
+/// REFERENCED. `PT` is accepted only in DISABLE, READY and MOVING (§5.5 table), so the
+/// twin refuses it silently and stores `H`: the session asks `PT` its `retries` + 1
+/// times, then `TE`, and ends with the controller's refusal, typed, not a link
+/// timeout; no `PA` goes out, and every stage is stopped.
+#[test]
+fn a_move_after_a_reset_behind_its_back_is_refused_with_h() {
+    let (mut rig, mut chain, _) = ready(21, |_| {});
+    assert_eq!(rig.sim.motion_bytes(b"1RS\r\n"), b"", "RS replies nothing");
+    // The controller boots (3 s) before the session asks anything.
+    rig.advance_to(rig.now + Duration::from_secs(4));
+    let t = rig.secs();
+    let c = rig.sim.controller_mut(1).expect("controller 1");
+    assert_eq!(c.state(t), ControllerState::NotReferencedFromReset);
+    let from = rig.sent.len();
+    let e = rig
+        .run(Port::Motion, chain.start_move(&[("source", 30.0)], rig.now))
+        .expect_err("refused");
+    assert_eq!(
+        at_axis(e),
+        (
+            "source".into(),
+            AxisError::Controller {
+                command: "1PT30".into(),
+                code: gonio_proto::smc100::ErrorCode::NotReferenced
+            }
+        )
+    );
+    assert_eq!(
+        rig.lines_since(from, Port::Motion),
+        [
+            "1TP\r\n",
+            "1PT30\r\n",
+            "1PT30\r\n",
+            "1PT30\r\n",
+            "1TE\r\n",
+            "ST\r\n"
+        ]
+    );
+    assert!(rig.all_stopped());
+    let t = rig.secs() + 10.0;
+    assert_eq!(rig.sim.stage_angles(t)[0], 0.0, "the stage never moved");
+}
+
+/// A controller put in DISABLE behind the session's back (`MM0` from the keypad or
+/// another program): `PT` is allowed there, `PA` is not (PA page, p. 41: READY only),
+/// so the `PA`'s `TE` reads `J` and the session ends with that refusal and stops every
+/// stage, rather than polling a move that never started.
+#[test]
+fn a_move_on_a_controller_disabled_behind_its_back_is_refused_with_j() {
+    let (mut rig, mut chain, _) = ready(22, |_| {});
+    assert_eq!(rig.sim.motion_bytes(b"1MM0\r\n"), b"");
+    let from = rig.sent.len();
+    let e = rig
+        .run(Port::Motion, chain.start_move(&[("source", 30.0)], rig.now))
+        .expect_err("refused");
+    assert_eq!(
+        at_axis(e),
+        (
+            "source".into(),
+            AxisError::Controller {
+                command: "1PA30".into(),
+                code: gonio_proto::smc100::ErrorCode::InDisable
+            }
+        )
+    );
+    assert_eq!(
+        rig.lines_since(from, Port::Motion),
+        ["1TP\r\n", "1PT30\r\n", "1PA30\r\n", "1TE\r\n", "ST\r\n"]
+    );
+    let t = rig.secs();
+    let c = rig.sim.controller_mut(1).expect("controller 1");
+    assert_eq!(c.state(t), ControllerState::DisableFromReady);
+}
+
+/// The acknowledgement (`TE`) of a `PA` is lost, so the session sends the move again;
+/// the first one was accepted and the stage moves, so the twin refuses the second with
+/// `M` (the letter is assumed: the PA page names none for MOVING). The session reads
+/// the held target (`PA?`), finds its own, and waits for the move as usual.
+#[test]
+fn a_resent_move_refused_while_moving_is_taken_when_the_target_is_held() {
+    let (mut rig, mut chain, _) = ready(23, |_| {});
+    rig.sim.faults_mut().silent = vec!["1TE".into()];
+    // The first TE goes unanswered; by the time the move is re-sent (100 ms later) the
+    // line is clean again.
+    let at = rig.now + Duration::from_millis(50);
+    rig.injections.push((
+        at,
+        Box::new(|sim: &mut SimInstrument, _: f64| sim.faults_mut().silent.clear()),
+    ));
+    let from = rig.sent.len();
+    let positions = rig
+        .run(Port::Motion, chain.start_move(&[("source", 30.0)], rig.now))
+        .expect("the first move stands");
+    assert!((positions[0] - 30.0).abs() <= 0.0005, "{positions:?}");
+    let lines = rig.lines_since(from, Port::Motion);
+    assert_eq!(
+        &lines[..7],
+        [
+            "1TP\r\n",
+            "1PT30\r\n",
+            "1PA30\r\n",
+            "1TE\r\n",
+            "1PA30\r\n",
+            "1TE\r\n",
+            "1PA?\r\n"
+        ]
+    );
+    assert!(!lines.iter().any(|l| l == "ST\r\n"));
+    assert_eq!(chain.retried(), 1);
+}
+
+/// `PW1` is accepted only in NOT REFERENCED (PW page, p. 44). The session reads the
+/// state first; if it changes between that `TS` and the `PW1` (a home search started
+/// from the keypad), the twin refuses `PW1` with `L` and the session ends with that
+/// refusal before sending a single configuration value.
+#[test]
+fn configure_is_refused_when_the_state_changes_behind_its_back() {
+    use gonio_proto::smc100::{Command, ErrorCode, Param};
+    let mut rig = Rig::new(24, |_| {});
+    let mut chain = Smc100Session::new(axes(), ChainPolicy::default()).expect("valid axes");
+    // Between the TS (sent at once, answered 10 ms later) and the PW1.
+    let at = rig.now + Duration::from_millis(5);
+    rig.injections.push((
+        at,
+        Box::new(|sim: &mut SimInstrument, t: f64| {
+            let c = sim.controller_mut(2).expect("controller 2");
+            assert!(c.handle(t, &Command::Home).is_none());
+        }),
+    ));
+    let from = rig.sent.len();
+    let e = rig
+        .run(
+            Port::Motion,
+            chain.start_configure("detector", &[(Param::Backlash, 0.01)], rig.now),
+        )
+        .expect_err("refused");
+    assert_eq!(
+        at_axis(e),
+        (
+            "detector".into(),
+            AxisError::Controller {
+                command: "2PW1".into(),
+                code: ErrorCode::InHoming
+            }
+        )
+    );
+    assert_eq!(
+        rig.lines_since(from, Port::Motion),
+        ["2TS\r\n", "2PW1\r\n", "2TE\r\n"]
+    );
+    let t = rig.secs();
+    let c = rig.sim.controller_mut(2).expect("controller 2");
+    assert_eq!(c.saved_parameters().get(Param::Backlash), Some(0.0));
+    assert!(c.state(t).is_homing());
+}

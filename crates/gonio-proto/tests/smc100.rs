@@ -394,7 +394,8 @@ proptest! {
 
 use gonio_proto::link::{Deadline, Io, Operation};
 use gonio_proto::smc100::{
-    AxisConfig, AxisError, ChainPolicy, DumpError, MotionError, Smc100Parameters, Smc100Session,
+    AxisConfig, AxisError, ChainPolicy, DumpError, DumpReader, MotionError, Smc100Parameters,
+    Smc100Session,
 };
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -478,21 +479,22 @@ fn parameter_ranges_follow_the_manual() {
 }
 
 /// The dump of an SMC100PP with a rotation stage, byte for byte: `PW1`, `ID`, the
-/// parameters alphabetically, reals with six decimals (as the manual's
-/// `1AC320.000000`), whole numbers without, `PW0`.
+/// parameters hvl_ccb's SMC100PP driver (written against real controllers) requires,
+/// in its order (`AC BA BH FRM FRS HT JR OH OT QIL SA SL SR VA VB ZX`), reals with six
+/// decimals (as the manual's `1AC320.000000`, p. 67), whole numbers without, `PW0`.
 const PP_DUMP: &str = "1PW1\r\n1IDURS100PP\r\n1AC160.000000\r\n1BA0.000000\r\n\
 1BH0.000000\r\n1FRM100\r\n1FRS0.050000\r\n1HT2\r\n1JR0.040000\r\n1OH10.000000\r\n\
-1OT60.000000\r\n1QIL1.000000\r\n1QIR0.500000\r\n1QIT1.000000\r\n1SA1\r\n\
+1OT60.000000\r\n1QIL1.000000\r\n1SA2\r\n\
 1SL-170.000000\r\n1SR170.000000\r\n1VA40.000000\r\n1VB0.000000\r\n1ZX3\r\n1PW0\r\n";
 
 fn pp_parameters() -> Smc100Parameters {
     let v = [
-        160.0, 0.0, 0.0, 100.0, 0.05, 2.0, 0.04, 10.0, 60.0, 1.0, 0.5, 1.0, 1.0, -170.0, 170.0,
-        40.0, 0.0, 3.0,
+        160.0, 0.0, 0.0, 100.0, 0.05, 2.0, 0.04, 10.0, 60.0, 1.0, 2.0, -170.0, 170.0, 40.0, 0.0,
+        3.0,
     ];
     Smc100Parameters {
         stage: "URS100PP".into(),
-        values: Param::CONFIGURATION.iter().copied().zip(v).collect(),
+        values: Param::PP_DUMP.iter().copied().zip(v).collect(),
         other: Vec::new(),
     }
 }
@@ -547,6 +549,57 @@ fn zt_dump_encodes_and_parses_byte_for_byte() {
         Smc100Parameters::parse_dump(1, lines("1PW1\r\n2AC1\r\n1PW0\r\n")),
         Err(DumpError::OtherAddress(2))
     );
+}
+
+#[test]
+fn the_manuals_zt_example_closing_with_pw1_is_a_whole_dump() {
+    // ZT page (p. 67), the manual's only example, as printed: it ends with a second
+    // `1PW1`, where real SMC100PPs (hvl_ccb) end with `1PW0`. Either closes the dump;
+    // before, this waited for a `PW0` that never came.
+    let manual = "1PW1\r\n1AC320.000000\r\n1BA0.000000\r\n1VA80.000000\r\n1ZX3\r\n1PW1\r\n";
+    let read = Smc100Parameters::parse_dump(1, lines(manual)).expect("a dump");
+    assert_eq!(
+        read.values,
+        vec![
+            (Param::Acceleration, 320.0),
+            (Param::Backlash, 0.0),
+            (Param::Velocity, 80.0),
+            (Param::StageCheck, 3.0)
+        ]
+    );
+    // Line by line, as the session reads it: done at the closing line, not before.
+    let mut r = DumpReader::new(1);
+    let ls = lines(manual);
+    for l in &ls[..ls.len() - 1] {
+        assert_eq!(r.push(l), Ok(None));
+    }
+    assert!(r.push(ls[ls.len() - 1]).expect("ends").is_some());
+}
+
+#[test]
+fn configuration_ranges_are_the_manuals() {
+    // QI page (p. 45), JR (p. 32), SA (p. 49), FR (p. 27): each bound in and out.
+    let cases = [
+        (Param::PeakCurrent, 0.05, true),
+        (Param::PeakCurrent, 3.0, true),
+        (Param::PeakCurrent, 0.049, false),
+        (Param::PeakCurrent, 3.01, false),
+        (Param::RmsCurrent, 1.5, true),
+        (Param::RmsCurrent, 1.51, false),
+        (Param::RmsTime, 100.0, true),
+        (Param::RmsTime, 0.01, false),
+        (Param::JerkTime, 0.001, false),
+        (Param::JerkTime, 0.0011, true),
+        (Param::RsAddress, 1.0, false),
+        (Param::RsAddress, 2.0, true),
+        (Param::RsAddress, 31.0, true),
+        (Param::RsAddress, 32.0, false),
+        (Param::MicroSteps, 2000.0, true),
+        (Param::MicroSteps, 2001.0, false),
+    ];
+    for (p, v, ok) in cases {
+        assert_eq!(p.accepts(v), ok, "{} {v}", p.code());
+    }
 }
 
 // --- session transcripts, against a controller played by a closure ---
@@ -782,4 +835,102 @@ fn configure_leaves_configuration_after_a_refusal() {
             "1TS", "1PW1", "1TE", "1BA0.01", "1TE", "1QIL2", "1TE", "1PW0"
         ]
     );
+}
+
+// --- the manual's refusals against the session ---
+
+/// A `PA` whose `TE` answer is lost is sent again; the first was accepted and the stage
+/// moves, so the controller refuses the second. Which letter it stores is not in the
+/// manual (PA page, p. 41-42: no letter for MOVING): `M` by analogy, or `D`, "execution
+/// not allowed". With either, the session reads the held target and, finding its own,
+/// waits for the move; a different held target is the refusal.
+#[test]
+fn a_resent_move_refused_with_m_or_d_is_taken_when_the_target_is_held() {
+    for (letter, code) in [("M", ErrorCode::InMoving), ("D", ErrorCode::NotAllowed)] {
+        for held in ["10", "12"] {
+            let mut s = session();
+            let mut tes = 0;
+            let op = s.start_move(&[("source", 10.0)], Duration::ZERO);
+            let (out, sent) = transcript(op, |line, _| -> Vec<String> {
+                match line {
+                    "1TP" if tes < 2 => vec!["1TP0".into()],
+                    "1TP" => vec!["1TP10".into()],
+                    "1PT10" => vec!["1PT2".into()],
+                    "1PA10" | "ST" => vec![],
+                    // The first acknowledgement is lost.
+                    "1TE" => {
+                        tes += 1;
+                        if tes == 1 {
+                            vec![]
+                        } else {
+                            vec![format!("1TE{letter}")]
+                        }
+                    }
+                    "1PA?" => vec![format!("1PA{held}")],
+                    "1TS" => vec!["1TS000033".into()],
+                    other => panic!("unexpected {other}"),
+                }
+            });
+            let texts: Vec<&str> = sent.iter().map(|(_, l)| l.as_str()).collect();
+            assert_eq!(
+                &texts[..7],
+                ["1TP", "1PT10", "1PA10", "1TE", "1PA10", "1TE", "1PA?"],
+                "{letter} {held}"
+            );
+            if held == "10" {
+                assert_eq!(out, Ok(vec![10.0]), "{letter}");
+                assert!(!texts.contains(&"ST"));
+            } else {
+                match out {
+                    Err(MotionError::AtAxis {
+                        source: AxisError::Controller { command, code: c },
+                        ..
+                    }) => assert_eq!((command.as_str(), c), ("1PA10", code)),
+                    other => panic!("{letter} {held}: {other:?}"),
+                }
+                assert_eq!(texts.last(), Some(&"ST"));
+            }
+        }
+    }
+}
+
+/// `PT` outside DISABLE, READY and MOVING (§5.5 table) is refused like any command:
+/// no answer, the state's letter stored (manual §5.3). When every `PT` goes
+/// unanswered the session reads `TE`: a letter makes the refusal the error (typed,
+/// naming the `PT`), `@` leaves the timeout; either way every stage is stopped and no
+/// `PA` is sent.
+#[test]
+fn an_unanswered_pt_is_read_as_the_refusal_te_reports() {
+    for (te, refused) in [("1TEH", true), ("1TE@", false)] {
+        let mut s = session();
+        let op = s.start_move(&[("source", 10.0)], Duration::ZERO);
+        let (out, sent) = transcript(op, |line, _| match line {
+            "1TP" => vec!["1TP0".into()],
+            "1PT10" | "ST" => vec![],
+            "1TE" => vec![te.into()],
+            other => panic!("unexpected {other}"),
+        });
+        let texts: Vec<&str> = sent.iter().map(|(_, l)| l.as_str()).collect();
+        assert_eq!(texts, ["1TP", "1PT10", "1PT10", "1PT10", "1TE", "ST"]);
+        let source = match out {
+            Err(MotionError::AtAxis { source, .. }) => source,
+            other => panic!("{other:?}"),
+        };
+        if refused {
+            assert_eq!(
+                source,
+                AxisError::Controller {
+                    command: "1PT10".into(),
+                    code: ErrorCode::NotReferenced
+                }
+            );
+        } else {
+            assert_eq!(
+                source,
+                AxisError::Transport(gonio_proto::TransportError::Timeout(Duration::from_millis(
+                    100
+                )))
+            );
+        }
+    }
 }

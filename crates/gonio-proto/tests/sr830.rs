@@ -777,3 +777,21 @@ fn exact_settling_against_the_manual_table() {
     }
     assert!((FilterSlope::Db6.settle_factor_for(1e-4) - 1e4f64.ln()).abs() < 1e-9);
 }
+
+/// Every line Gonio's session sends fits the instrument's 256-character input buffer
+/// with room to spare (manual p. 5-2): the longest command it encodes, a six-value
+/// `SNAP?`, is far shorter.
+#[test]
+fn every_command_fits_the_input_buffer() {
+    let six = SnapParams::new(&[
+        SnapParam::X,
+        SnapParam::Y,
+        SnapParam::R,
+        SnapParam::Theta,
+        SnapParam::Frequency,
+        SnapParam::AuxIn1,
+    ])
+    .expect("six values");
+    let bytes = Command::Snap(six).to_bytes();
+    assert!(bytes.len() < gonio_proto::sr830::MAX_LINE / 4, "{bytes:?}");
+}

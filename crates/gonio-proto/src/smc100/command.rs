@@ -102,8 +102,9 @@ const PARAMS: [(Param, &str, Kind, bool); 23] = [
 ];
 
 impl Param {
-    /// The numeric configuration parameters of an SMC100PP, in the order its `ZT` dump
-    /// lists them (after `PW1` and `ID`, before `PW0`).
+    /// Every numeric configuration parameter of an SMC100PP (the manual's command
+    /// table, p. 18, less the CC-only `DV`, `FD`, `FE`, `FF`, `KD`, `KI`, `KP`, `KV`, `SC`,
+    /// `SU`), in alphabetical order of its code.
     pub const CONFIGURATION: [Param; 18] = [
         Param::Acceleration,
         Param::Backlash,
@@ -117,6 +118,30 @@ impl Param {
         Param::PeakCurrent,
         Param::RmsCurrent,
         Param::RmsTime,
+        Param::RsAddress,
+        Param::NegativeLimit,
+        Param::PositiveLimit,
+        Param::Velocity,
+        Param::BaseVelocity,
+        Param::StageCheck,
+    ];
+
+    /// The parameters an SMC100PP's `ZT` dump lists, in its order (after `PW1` and
+    /// `ID`, before the closing line). The manual gives only an example (p. 67); this
+    /// is the list hvl_ccb's `NewportSMC100PP` (0.19.6), written against real
+    /// controllers, requires line for line. `QIR` and `QIT` (p. 45) are set and asked
+    /// for, but not listed.
+    pub const PP_DUMP: [Param; 16] = [
+        Param::Acceleration,
+        Param::Backlash,
+        Param::Hysteresis,
+        Param::MicroSteps,
+        Param::FullStep,
+        Param::HomeType,
+        Param::JerkTime,
+        Param::HomeVelocity,
+        Param::HomeTimeout,
+        Param::PeakCurrent,
         Param::RsAddress,
         Param::NegativeLimit,
         Param::PositiveLimit,
@@ -152,7 +177,9 @@ impl Param {
 
     /// True when a controller takes `value` for this parameter in CONFIGURATION: the
     /// ranges of the manual's command pages (a value outside is refused with `C`).
-    /// Where the manual gives only "> 1E-6 and < 1E12" that is the range.
+    /// Where the manual gives only "> 1E-6 and < 1E12" that is the range. Relations
+    /// between parameters (`QIR` ≤ `QIL`, `VB` ≤ `VA`, `BA` and `BH` not both) are not
+    /// checked here.
     pub fn accepts(self, value: f64) -> bool {
         let open = |lo: f64, hi: f64| value > lo && value < hi;
         let whole = |lo: f64, hi: f64| value.fract() == 0.0 && value >= lo && value <= hi;
@@ -160,14 +187,16 @@ impl Param {
             return false;
         }
         match self {
-            Param::Acceleration
-            | Param::Velocity
-            | Param::HomeVelocity
-            | Param::FullStep
-            | Param::PeakCurrent
-            | Param::RmsCurrent
-            | Param::RmsTime
-            | Param::JerkTime => open(1e-6, 1e12),
+            Param::Acceleration | Param::Velocity | Param::HomeVelocity | Param::FullStep => {
+                open(1e-6, 1e12)
+            }
+            // QI page (p. 45): QIL "≥ 0.05 and ≤ 3.0" A, QIR "≥ 0.05 and ≤ 1.5" A,
+            // QIT "> 0.01 and ≤ 100" s.
+            Param::PeakCurrent => (0.05..=3.0).contains(&value),
+            Param::RmsCurrent => (0.05..=1.5).contains(&value),
+            Param::RmsTime => value > 0.01 && value <= 100.0,
+            // JR page (p. 32): "> 0.001 and < 1E12" s.
+            Param::JerkTime => open(1e-3, 1e12),
             Param::Backlash | Param::Hysteresis | Param::BaseVelocity => {
                 (0.0..1e12).contains(&value)
             }
@@ -176,7 +205,9 @@ impl Param {
             Param::PositiveLimit => (0.0..1e12).contains(&value),
             Param::HomeType => whole(0.0, 4.0),
             Param::MicroSteps => whole(1.0, 2000.0),
-            Param::RsAddress => whole(1.0, 31.0),
+            // SA page (p. 49): "2 to 31"; the controller on RS-232 is address 1
+            // whatever its SA.
+            Param::RsAddress => whole(2.0, 31.0),
             Param::StageCheck => whole(1.0, 3.0),
             Param::Enabled | Param::ConfigurationMode => whole(0.0, 1.0),
             Param::AbsoluteTarget | Param::RelativeTarget => open(-1e12, 1e12),

@@ -1,10 +1,12 @@
 //! A controller's configuration as its `ZT` dump lists it ([`Smc100Parameters`]), and
 //! the reading of a dump line by line ([`DumpReader`]).
 //!
-//! The dump (manual, ZT command) is a script: it opens with `nnPW1`, names the stage
-//! with `nnIDxx`, gives one `nnAAvalue` line per configuration parameter in
-//! alphabetical order of its command, and closes with `nnPW0`. Sent back to a
-//! controller in NOT REFERENCED, those lines would restore the configuration. A CC
+//! The dump (manual, ZT command, p. 67) is a script: it opens with `nnPW1`, names the
+//! stage with `nnIDxx`, gives one `nnAAvalue` line per configuration parameter in
+//! alphabetical order of its command, and closes. How it closes, the sources
+//! disagree: the manual's only example ends with a second `nnPW1`; hvl_ccb's
+//! SMC100PP driver, written against real controllers, requires `nnPW0` (which, sent
+//! back, would also save what the lines before set). Either ends a dump here. A CC
 //! controller lists parameters a PP does not have (`KP`, `SC`, `SU`…); they are kept
 //! as text in [`Smc100Parameters::other`], so a dump from either model reads.
 
@@ -81,8 +83,8 @@ pub enum DumpError {
     /// A second `ID` line, or a line after `PW1` that a dump never holds (`TS`, `TE`).
     #[error("unexpected line {0:?} in the ZT dump")]
     Unexpected(String),
-    /// The lines ended before `PW0`.
-    #[error("the ZT dump ended before PW0")]
+    /// The lines ended before the closing `PW0` (or `PW1`).
+    #[error("the ZT dump ended before its closing PW0 (or PW1)")]
     Incomplete,
 }
 
@@ -110,9 +112,9 @@ impl DumpReader {
         self.started
     }
 
-    /// Takes one line (terminator removed): `Ok(Some(_))` at the dump's `PW0`,
-    /// `Ok(None)` while it goes on (or before it began), `Err` for a line that cannot
-    /// belong to it.
+    /// Takes one line (terminator removed): `Ok(Some(_))` at the dump's closing line
+    /// (`PW0`, or a second `PW1` as in the manual's example), `Ok(None)` while it goes
+    /// on (or before it began), `Err` for a line that cannot belong to it.
     pub fn push(&mut self, line: &[u8]) -> Result<Option<Smc100Parameters>, DumpError> {
         let reply = Reply::parse(line);
         if !self.started {
@@ -138,7 +140,7 @@ impl DumpReader {
             return Err(DumpError::OtherAddress(reply.address));
         }
         match reply.body {
-            ReplyBody::Value(Param::ConfigurationMode, 0.0) => {
+            ReplyBody::Value(Param::ConfigurationMode, v) if v == 0.0 || v == 1.0 => {
                 self.started = false;
                 Ok(Some(std::mem::take(&mut self.params)))
             }

@@ -134,8 +134,9 @@ pub enum Sr830Error {
     /// `*IDN?` named another instrument.
     #[error("not an SR830: *IDN? answered {0}")]
     WrongInstrument(Identity),
-    /// `*ESR?` reports a refused command (EXE or CMD) after set-up.
-    #[error("the SR830 refused a command (*ESR? = {0})")]
+    /// `*ESR?` reports a refused command (EXE or CMD) or a lost one (INP or QRY: a
+    /// buffer overflowed and was cleared) after set-up.
+    #[error("the SR830 refused or lost a command (*ESR? = {0})")]
     Rejected(EventStatus),
     /// Autoranging changed range [`MAX_AUTORANGE_STEPS`] times without settling on one.
     #[error("autorange gave up after {steps} range changes (last reading at {})", .last.sensitivity)]

@@ -303,8 +303,13 @@ impl Machine<Smc100Session> for Dump {
 
 /// A set or action command, then `TE`. An idempotent command whose `TE` answer is lost
 /// is sent again with a new `TE`; any other is [`AxisError::Ambiguous`]. A re-sent
-/// absolute move that `TE` refuses with `M` (the first one was accepted and the stage
-/// is moving) is fine if the controller holds this very target.
+/// absolute move that `TE` refuses as not allowed while moving (the first one was
+/// accepted and the stage is moving) is fine if the controller holds this very target.
+///
+/// Which letter a `PA` sent while MOVING stores is not in the manual (the PA page,
+/// p. 41-42, lists A, B, C, D, G, H, I, J only): `M` ("not allowed in MOVING") by
+/// analogy with the other commands, or `D` ("execution not allowed"), is as likely; both
+/// are taken as that refusal ([`refused_while_moving`]).
 #[derive(Debug)]
 pub(super) struct Checked {
     axis: usize,
@@ -318,8 +323,15 @@ pub(super) struct Checked {
 enum CheckedState {
     Sending(Transfer),
     AskingError(Query),
-    /// Reading the held target of an absolute move to this target.
-    CheckingTarget(Query, f64),
+    /// Reading the held target of an absolute move to this target, after the re-sent
+    /// move was refused with this letter.
+    CheckingTarget(Query, f64, ErrorCode),
+}
+
+/// Whether `code` is what a `PA` sent while the stage moves may store: `M` or `D`
+/// (UNCONFIRMED which; see [`Checked`]).
+fn refused_while_moving(code: ErrorCode) -> bool {
+    matches!(code, ErrorCode::InMoving | ErrorCode::NotAllowed)
 }
 
 impl Checked {
@@ -366,13 +378,15 @@ impl Machine<Smc100Session> for Checked {
                 }
                 CheckedState::AskingError(q) => match drive!(q, s, cx, ev) {
                     Ok(ReplyBody::Error(ErrorCode::None)) => return Step::Done(Ok(())),
-                    Ok(ReplyBody::Error(ErrorCode::InMoving)) if self.attempt > 0 => {
+                    Ok(ReplyBody::Error(code))
+                        if self.attempt > 0 && refused_while_moving(code) =>
+                    {
                         let Command::MoveAbsolute(t) = self.frame.command else {
-                            return Step::Done(Err(self.refused(ErrorCode::InMoving)));
+                            return Step::Done(Err(self.refused(code)));
                         };
                         let pa = Command::Query(Param::AbsoluteTarget);
                         let q = Query::new(s, self.axis, pa, true);
-                        self.state = CheckedState::CheckingTarget(q, t);
+                        self.state = CheckedState::CheckingTarget(q, t, code);
                     }
                     Ok(ReplyBody::Error(code)) => {
                         warn!(
@@ -419,8 +433,8 @@ impl Machine<Smc100Session> for Checked {
                     }
                     Err(e) => return Step::Done(Err(e)),
                 },
-                CheckedState::CheckingTarget(q, target) => {
-                    let target = *target;
+                CheckedState::CheckingTarget(q, target, code) => {
+                    let (target, code) = (*target, *code);
                     let r = drive!(q, s, cx, ev);
                     let held = match s.number(self.axis, "PA", r) {
                         Ok(held) => held,
@@ -430,7 +444,7 @@ impl Machine<Smc100Session> for Checked {
                         debug!(target, "smc100: the first absolute move was accepted");
                         Ok(())
                     } else {
-                        Err(self.refused(ErrorCode::InMoving))
+                        Err(self.refused(code))
                     });
                 }
             }

@@ -155,6 +155,23 @@ impl Smc100Session {
         )
     }
 
+    /// How long the named axis' controller says a move of `distance` units takes with
+    /// its working velocity, acceleration and jerk time (`PT`, manual p. 43: "The
+    /// controller does not execute any motion"), s.
+    pub fn start_motion_time<'s>(
+        &'s mut self,
+        name: &str,
+        distance: f64,
+        now: Duration,
+    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+        Run::new(
+            "smc100.motion_time",
+            self,
+            Exec::new(ops::AxisQuery::motion_time(name, distance.abs())),
+            now,
+        )
+    }
+
     /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
     /// broadcast could not be sent. Every stage gets its stop; the first failure is
     /// returned.

@@ -7,10 +7,11 @@ use std::time::Duration;
 
 use tracing::{debug, warn};
 
-use super::Smc100Session;
 use super::script::{Aborted, Next, Op, Overdue};
+use super::{Smc100Session, line_text};
+use crate::TransportError;
 use crate::machine::{Cx, secs};
-use crate::smc100::{AxisError, Command, ControllerState, ReplyBody};
+use crate::smc100::{AxisError, Command, ControllerState, ErrorCode, ReplyBody};
 
 /// What was asked.
 #[derive(Debug)]
@@ -26,6 +27,14 @@ enum Request {
 /// controller's estimate of the move's duration (`PT`) and the move itself (`PA` or
 /// `PR`, checked with `TE`); then polling every moving axis until READY; then every
 /// position read and checked against its target.
+///
+/// A controller refuses what its state does not allow, silently, and stores the
+/// state's letter for `TE` (manual §5.3, TE p. 59): `PA` and `PR` only in READY (PA
+/// page, p. 41), `PT` only in DISABLE, READY and MOVING (§5.5 table). A refused `PA`
+/// or `PR` shows in its `TE`; a refused `PT` is a query that never answers, so when
+/// every attempt went unanswered `TE` is read once to tell a refusal (a typed
+/// [`AxisError::Controller`] naming the `PT`) from a lost link (the timeout). Either
+/// way every stage is stopped and the move ends.
 #[derive(Debug)]
 pub(super) struct Motion<T> {
     request: Request,
@@ -45,6 +54,11 @@ pub(super) struct Motion<T> {
     j: usize,
     /// Final positions.
     out: Vec<f64>,
+    /// The `PT` last sent.
+    pt: Command,
+    /// The timeout a `PT` ended with, kept while `TE` says whether the controller
+    /// refused it.
+    silence: Option<AxisError>,
     finish: fn(Vec<f64>) -> T,
 }
 
@@ -60,6 +74,8 @@ impl<T> Motion<T> {
             still: Vec::new(),
             j: 0,
             out: Vec::new(),
+            pt: Command::MotionTime(0.0),
+            silence: None,
             finish,
         }
     }
@@ -142,7 +158,8 @@ impl<T> Motion<T> {
         };
         let dist = (t - from).abs();
         if dist > 1e-6 {
-            Next::query(i, Command::MotionTime(dist), Self::got_estimate)
+            self.pt = Command::MotionTime(dist);
+            Next::query(i, self.pt.clone(), Self::got_estimate)
         } else {
             self.move_with_estimate(s, 0.0)
         }
@@ -157,7 +174,46 @@ impl<T> Motion<T> {
         let i = self.moves[self.k].0;
         match s.number(i, "PT", r) {
             Ok(est) => self.move_with_estimate(s, est),
-            Err(e) => Next::fail(i, e),
+            Err(e) => self.explain_silence(i, e),
+        }
+    }
+
+    /// `PT` failed with `e`. A silence may be a refusal (see [`Motion`]): ask `TE`
+    /// once; any other failure ends the move.
+    fn explain_silence(&mut self, i: usize, e: AxisError) -> Next<Self> {
+        if !matches!(e, AxisError::Transport(TransportError::Timeout(_))) {
+            return Next::fail(i, e);
+        }
+        self.silence = Some(e);
+        Next::Probe {
+            axis: i,
+            command: Command::TellError,
+            then: Self::explained,
+        }
+    }
+
+    /// `TE` after an unanswered `PT`: a letter is the refusal, `@` (or no answer)
+    /// leaves the timeout as the error. Both end the move, stopping every stage.
+    fn explained(
+        &mut self,
+        s: &mut Smc100Session,
+        _: &mut Cx,
+        r: Result<ReplyBody, AxisError>,
+    ) -> Next<Self> {
+        let i = self.moves[self.k].0;
+        let silence = self
+            .silence
+            .take()
+            .unwrap_or(AxisError::Transport(TransportError::Timeout(
+                s.policy.reply_timeout,
+            )));
+        match r {
+            Ok(ReplyBody::Error(code)) if code != ErrorCode::None => {
+                let command = line_text(&s.frame(i, self.pt.clone()).to_bytes());
+                warn!(%command, %code, "smc100: PT refused; the state does not allow a move");
+                Next::fail(i, AxisError::Controller { command, code })
+            }
+            _ => Next::fail(i, silence),
         }
     }
 
@@ -208,8 +264,8 @@ impl<T> Motion<T> {
             return Next::Done(Err(s.at(i, e)));
         }
         self.moves[0].1 = target;
-        let pt = Command::MotionTime(delta.abs().max(1e-6));
-        Next::query(i, pt, Self::got_relative_estimate)
+        self.pt = Command::MotionTime(delta.abs().max(1e-6));
+        Next::query(i, self.pt.clone(), Self::got_relative_estimate)
     }
 
     fn got_relative_estimate(
@@ -225,7 +281,7 @@ impl<T> Motion<T> {
                 let pr = Command::MoveRelative(self.delta());
                 Next::command(i, pr, Self::moved_relative)
             }
-            Err(e) => Next::fail(i, e),
+            Err(e) => self.explain_silence(i, e),
         }
     }
 

@@ -147,6 +147,15 @@ impl AxisQuery<f64> {
             read: |s, i, r| s.number(i, "TP", r),
         }
     }
+
+    /// `PT`: the time, s, the controller's profile takes for a move of `distance`.
+    pub(super) fn motion_time(name: &str, distance: f64) -> Self {
+        AxisQuery {
+            axis: Named::new(name),
+            command: Command::MotionTime(distance),
+            read: |s, i, r| s.number(i, "PT", r),
+        }
+    }
 }
 
 impl<T> AxisQuery<T> {

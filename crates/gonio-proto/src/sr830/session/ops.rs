@@ -6,10 +6,12 @@ use tracing::debug;
 use super::script::{Next, Op};
 use super::{Sr830Session, event_status, unexpected};
 use crate::machine::Cx;
-use crate::sr830::{Command, Identity, Interface, Reply, Sr830Error};
+use crate::sr830::{Command, EventStatus, Identity, Interface, Reply, Sr830Error};
 
 /// Set-up: input cleared, then each of [`Setup::command`] in turn; `*IDN?` must name an
-/// SR830 and `*ESR?` must show no refused command.
+/// SR830 and `*ESR?` must show no refused command (EXE, CMD) and no lost one: an
+/// overflowed input or output buffer clears both (manual p. 5-2), so INP or QRY means
+/// a command of the set-up may never have run.
 #[derive(Debug, Default)]
 pub(super) struct Setup {
     /// The command being exchanged.
@@ -75,7 +77,8 @@ impl Setup {
             }
             Some(c @ Command::EventStatus(_)) => {
                 let esr = ok_or_done!(event_status(&c, reply));
-                if esr.has_command_error() {
+                let lost = EventStatus::INP | EventStatus::QRY;
+                if esr.has_command_error() || esr.0 & lost != 0 {
                     return Next::Done(Err(Sr830Error::Rejected(esr)));
                 }
                 s.identity.clone_from(&self.identity);
