@@ -8,17 +8,33 @@
 //! zeroed); moves follow a trapezoidal profile with the velocity parameters; a move
 //! ends with `MOT_MOVE_COMPLETED`, a home search with `MOT_MOVE_HOMED`, a stop with
 //! `MOT_MOVE_STOPPED`; positions are whole counts. After `HW_START_UPDATEMSGS` the
-//! controller sends its status every `update_period_s` (the manual: every 100 ms), and
-//! stops sending them when the host's keep-alive (`MOT_ACK_DCSTATUSUPDATE`) has not
-//! come for `keepalive_timeout_s` (the manual asks for one at least every second).
+//! controller sends its status every `update_period_s` (APT protocol manual, Issue 28,
+//! p. 51: "every 100 msec").
+//!
+//! The server-alive rule (p. 130, `MOT_ACK_DCSTATUSUPDATE`): "this message … must be
+//! sent by the server to the controller at least once a second or the controller will
+//! stop responding after ~50 commands. The controller keeps track of the number of
+//! 'status update' type of messages (e.g. move complete message) and if it has sent 50
+//! of these without the server sending a 'server alive' message, it will stop sending
+//! any more 'status update' messages." The twin counts the status-type messages it
+//! sends since the last server-alive ([`KeepAliveRule`] says which count) and, past
+//! `status_without_ack` of them, sends none: no status reply, no update, no move
+//! completion. A server-alive resets the count (assumed: the manual says no more).
+//! The once-a-second obligation itself is the host's: the twin records every gap
+//! between server-alive messages longer than `keepalive_timeout_s`, for tests to
+//! hold a driver to it.
+//!
+//! The stepper status (`0x0481`) has 28 data bytes in the manual (p. 123) and 14 from a
+//! K10CR1 (PnPQ, tested on K10CR1s); `stepper_status_bytes` chooses.
+//!
 //! Both stages turn continuously, so there are no limit switches unless the config
 //! places some.
 
 use gonio_proto::Framer;
 use gonio_proto::apt::{
     AptFramer, AptInfo, CHANNEL, DcStatus, Direction, GenMoveParams, HomeParams, JogParams,
-    LimSwitchParams, Message, Packet, StageKind, StepperStatus, StopMode, USB_UNIT, VelParams,
-    status,
+    LimSwitchParams, Message, Packet, STEPPER_STATUS_EXTRA, StageKind, StepperStatus, StopMode,
+    USB_UNIT, VelParams, status,
 };
 
 use crate::controller::Profile;
@@ -44,6 +60,23 @@ impl AptModel {
     }
 }
 
+/// Which messages count towards the server-alive limit (p. 130).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KeepAliveRule {
+    /// The status messages the controller sends on its own: periodic updates, and the
+    /// move-completed, homed and stopped messages (the manual's example). Replies to
+    /// status requests do not count, but are withheld once the limit is passed. A
+    /// public client used with real KDC101s, thorlabs-apt-device in its "polled" mode,
+    /// polls the status 100 times a second and never sends the server-alive, which a
+    /// controller counting its replies would not survive for a second.
+    #[default]
+    Unsolicited,
+    /// Every status message, replies to status requests included: the manual read
+    /// literally.
+    All,
+}
+
 /// How one simulated APT controller and its stage behave.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -67,8 +100,17 @@ pub struct AptDeviceConfig {
     pub acceleration: f64,
     /// Period of the status updates after `HW_START_UPDATEMSGS`, s.
     pub update_period_s: f64,
-    /// Updates stop when no keep-alive has come for this long, s.
+    /// The longest gap between server-alive messages the manual allows, s ("at
+    /// least once a second", p. 130); longer ones are recorded.
     pub keepalive_timeout_s: f64,
+    /// Status messages sent without a server-alive before the controller sends no
+    /// more (p. 130: "if it has sent 50 of these"); 0 never stops.
+    pub status_without_ack: u32,
+    /// Which status messages count towards it.
+    pub keepalive_rule: KeepAliveRule,
+    /// Data bytes of the stepper status `0x0481`: 14 (a K10CR1, as PnPQ saw it) or 28
+    /// (the manual, p. 123).
+    pub stepper_status_bytes: u16,
 }
 
 impl Default for AptDeviceConfig {
@@ -84,6 +126,9 @@ impl Default for AptDeviceConfig {
             acceleration: 10.0,
             update_period_s: 0.1,
             keepalive_timeout_s: 1.0,
+            status_without_ack: 50,
+            keepalive_rule: KeepAliveRule::Unsolicited,
+            stepper_status_bytes: 14,
         }
     }
 }
@@ -142,8 +187,39 @@ pub struct AptDevice {
     move_abs: i32,
     updates: bool,
     next_update: f64,
-    last_ack: f64,
     stall_at: Option<f64>,
+    keepalive: KeepAliveRecord,
+}
+
+/// What the twin saw of the host's server-alive messages, and what it withheld.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KeepAliveRecord {
+    /// When the host first wrote to the controller, s.
+    pub first_contact: Option<f64>,
+    /// When the last server-alive came, s.
+    pub last_ack: Option<f64>,
+    /// Server-alive messages received.
+    pub acks: u64,
+    /// Status messages counted since the last server-alive.
+    pub unacked: u32,
+    /// Status messages withheld because the limit was passed.
+    pub withheld: u64,
+    /// Gaps longer than `keepalive_timeout_s` between server-alive messages (from the
+    /// first contact to the first one too).
+    pub late: u64,
+    /// The longest such gap so far, s.
+    pub longest_gap: f64,
+}
+
+impl KeepAliveRecord {
+    /// The longest gap without a server-alive up to `now`, counting the one still
+    /// open, s; 0 before any contact.
+    pub fn longest_gap_until(&self, now: f64) -> f64 {
+        match self.last_ack.or(self.first_contact) {
+            Some(t) => self.longest_gap.max(now - t),
+            None => 0.0,
+        }
+    }
 }
 
 fn put(m: &Message, out: &mut Vec<u8>) {
@@ -202,8 +278,8 @@ impl AptDevice {
             move_abs: 0,
             updates: false,
             next_update: 0.0,
-            last_ack: 0.0,
             stall_at: None,
+            keepalive: KeepAliveRecord::default(),
             cfg: cfg.clone(),
         };
         d.boot(cfg.start_position_deg);
@@ -228,7 +304,54 @@ impl AptDevice {
         self.home.offset = s.to_counts(s.home_offset());
         self.genmove.backlash = 0;
         self.updates = false;
+        // A controller that restarts has counted nothing yet (assumed).
+        self.keepalive.unacked = 0;
         self.framer.clear();
+    }
+
+    /// What the twin saw of the server-alive messages.
+    pub fn keepalive(&self) -> &KeepAliveRecord {
+        &self.keepalive
+    }
+
+    /// True once the controller has stopped sending status messages.
+    pub fn is_silenced(&self) -> bool {
+        let n = self.cfg.status_without_ack;
+        n > 0 && self.keepalive.unacked >= n
+    }
+
+    /// Sends `m`, a status-type message, under the server-alive rule: withheld once
+    /// the limit is passed; counted when `counted` (see [`KeepAliveRule`]).
+    fn status(&mut self, m: &Message, counted: bool, out: &mut Vec<u8>) {
+        if self.is_silenced() {
+            self.keepalive.withheld += 1;
+            return;
+        }
+        if counted {
+            self.keepalive.unacked += 1;
+        }
+        put(m, out);
+    }
+
+    /// Sends a reply to a status request: counted only under [`KeepAliveRule::All`].
+    fn status_reply(&mut self, m: &Message, out: &mut Vec<u8>) {
+        let counted = self.cfg.keepalive_rule == KeepAliveRule::All;
+        self.status(m, counted, out);
+    }
+
+    /// The server-alive message came at `now`.
+    fn server_alive(&mut self, now: f64) {
+        let k = &mut self.keepalive;
+        if let Some(t) = k.last_ack.or(k.first_contact) {
+            let gap = now - t;
+            if gap > self.cfg.keepalive_timeout_s {
+                k.late += 1;
+            }
+            k.longest_gap = k.longest_gap.max(gap);
+        }
+        k.last_ack = Some(now);
+        k.acks += 1;
+        k.unacked = 0;
     }
 
     /// The configuration.
@@ -396,16 +519,23 @@ impl AptDevice {
         }
     }
 
+    fn stepper_status(&self, t: f64) -> StepperStatus {
+        StepperStatus {
+            chan: CHANNEL,
+            position: self.counts(t),
+            encoder: 0,
+            bits: self.bits(t),
+            // The manual's second half: a second channel ident and three words "for
+            // future use", zero here (assumed: the manual gives no values).
+            extra: (self.cfg.stepper_status_bytes == 28).then_some([0; STEPPER_STATUS_EXTRA]),
+        }
+    }
+
     fn update_message(&self, t: f64) -> Message {
         if self.stage.is_dc_servo() {
             Message::GetDcStatusUpdate(self.dc_status(t))
         } else {
-            Message::GetStatusUpdate(StepperStatus {
-                chan: CHANNEL,
-                position: self.counts(t),
-                encoder: 0,
-                bits: self.bits(t),
-            })
+            Message::GetStatusUpdate(self.stepper_status(t))
         }
     }
 
@@ -427,12 +557,9 @@ impl AptDevice {
                 self.finish(t, out);
                 continue;
             }
-            // A status update.
-            if t - self.last_ack > self.cfg.keepalive_timeout_s {
-                self.updates = false;
-                continue;
-            }
-            put(&self.update_message(t), out);
+            // A status update: sent unasked, so counted.
+            let m = self.update_message(t);
+            self.status(&m, true, out);
             self.next_update = t + self.cfg.update_period_s.max(1e-3);
         }
     }
@@ -444,44 +571,41 @@ impl AptDevice {
         };
         self.at_rest = self.mechanical(t);
         self.activity = Activity::Idle;
-        match kind {
+        // Each end of a motion is a status-type message, counted (the manual's own
+        // example is the move-complete message).
+        let m = match kind {
             Some(Kind::Home) => {
                 self.homed = true;
                 // The home position is counter 0.
                 self.offset = -self.at_rest;
-                put(&Message::MoveHomed { chan: 1 }, out);
+                Message::MoveHomed { chan: 1 }
             }
-            Some(Kind::Move) => put(
-                &Message::MoveCompleted {
-                    chan: CHANNEL,
-                    status: Some(self.dc_status(t)),
-                },
-                out,
-            ),
+            Some(Kind::Move) => Message::MoveCompleted {
+                chan: CHANNEL,
+                status: Some(self.dc_status(t)),
+            },
             Some(Kind::ToLimit(bit)) => {
                 self.limit_bits |= bit;
-                put(
-                    &Message::MoveStopped {
-                        chan: CHANNEL,
-                        status: Some(self.dc_status(t)),
-                    },
-                    out,
-                );
-            }
-            Some(Kind::Velocity) | None => put(
-                &Message::MoveStopped {
+                Message::MoveStopped {
                     chan: CHANNEL,
                     status: Some(self.dc_status(t)),
-                },
-                out,
-            ),
-        }
+                }
+            }
+            Some(Kind::Velocity) | None => Message::MoveStopped {
+                chan: CHANNEL,
+                status: Some(self.dc_status(t)),
+            },
+        };
+        self.status(&m, true, out);
     }
 
     /// Takes the bytes the host wrote at `now` and appends the controller's answers
     /// (after anything that fell due before them).
     pub fn receive(&mut self, now: f64, bytes: &[u8], out: &mut Vec<u8>) {
         self.poll(now, out);
+        if !bytes.is_empty() && self.keepalive.first_contact.is_none() {
+            self.keepalive.first_contact = Some(now);
+        }
         self.framer.push(bytes);
         while let Some(frame) = self.framer.next_frame() {
             let Ok(frame) = frame else { continue };
@@ -536,13 +660,11 @@ impl AptDevice {
             _ => {
                 self.at_rest = m;
                 self.activity = Activity::Idle;
-                put(
-                    &Message::MoveStopped {
-                        chan: CHANNEL,
-                        status: Some(self.dc_status(now)),
-                    },
-                    out,
-                );
+                let m = Message::MoveStopped {
+                    chan: CHANNEL,
+                    status: Some(self.dc_status(now)),
+                };
+                self.status(&m, true, out);
             }
         }
     }
@@ -562,15 +684,12 @@ impl AptDevice {
                 }),
                 out,
             ),
-            Message::HwStartUpdateMsgs => {
-                if !self.updates {
-                    self.updates = true;
-                    self.next_update = now + self.cfg.update_period_s.max(1e-3);
-                }
-                self.last_ack = now;
+            Message::HwStartUpdateMsgs if !self.updates => {
+                self.updates = true;
+                self.next_update = now + self.cfg.update_period_s.max(1e-3);
             }
             Message::HwStopUpdateMsgs => self.updates = false,
-            Message::AckDcStatusUpdate => self.last_ack = now,
+            Message::AckDcStatusUpdate => self.server_alive(now),
             Message::SetChanEnableState { enable, .. } => {
                 self.enabled = *enable;
                 if !enable && !matches!(self.activity, Activity::Idle) {
@@ -634,27 +753,23 @@ impl AptDevice {
             Message::ReqLimSwitchParams { .. } => {
                 put(&Message::GetLimSwitchParams(self.lim), out);
             }
-            Message::ReqStatusBits { .. } => put(
-                &Message::GetStatusBits {
+            Message::ReqStatusBits { .. } => {
+                let m = Message::GetStatusBits {
                     chan: CHANNEL,
                     bits: self.bits(now),
-                },
-                out,
-            ),
+                };
+                self.status_reply(&m, out);
+            }
             // Both status requests are answered, whatever the drive: clients differ in
             // which they send.
             Message::ReqDcStatusUpdate { .. } => {
-                put(&Message::GetDcStatusUpdate(self.dc_status(now)), out);
+                let m = Message::GetDcStatusUpdate(self.dc_status(now));
+                self.status_reply(&m, out);
             }
-            Message::ReqStatusUpdate { .. } => put(
-                &Message::GetStatusUpdate(StepperStatus {
-                    chan: CHANNEL,
-                    position: self.counts(now),
-                    encoder: 0,
-                    bits: self.bits(now),
-                }),
-                out,
-            ),
+            Message::ReqStatusUpdate { .. } => {
+                let m = Message::GetStatusUpdate(self.stepper_status(now));
+                self.status_reply(&m, out);
+            }
             Message::MoveHome { .. } if self.enabled => {
                 let from = self.mechanical(now);
                 // In reverse onto the switch, then forward by the offset.

@@ -434,6 +434,21 @@ impl SimConfig {
             if a.update_period_s < 1e-3 {
                 return Err((f("update_period_s"), "must be at least 0.001 s".into()));
             }
+            if !matches!(a.stepper_status_bytes, 14 | 28) {
+                return Err((
+                    f("stepper_status_bytes"),
+                    format!(
+                        "{} is neither 14 (a K10CR1) nor 28 (the manual)",
+                        a.stepper_status_bytes
+                    ),
+                ));
+            }
+            if a.status_without_ack > 1_000_000 {
+                return Err((
+                    f("status_without_ack"),
+                    "must be at most 1000000 (0: never stops)".into(),
+                ));
+            }
         }
         if self.monochromator.is_some() && self.filter_wheel.is_some() {
             return Err((

@@ -9,8 +9,9 @@ use gonio_core::kinematics::Layout;
 use gonio_core::{DirPair, SphericalDeg};
 use gonio_driver::config::LineKind;
 use gonio_driver::detector::Reading;
-use gonio_driver::{Goniometer, InstrumentConfig, PortUse, SerialTransport};
-use gonio_sim::{SimConfig, lock};
+use gonio_driver::{Clock, Goniometer, InstrumentConfig, PortUse, SerialTransport};
+use gonio_sim::SimConfig;
+use gonio_sim::lock;
 
 fn cfgs() -> (InstrumentConfig, SimConfig) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
@@ -178,4 +179,125 @@ fn mixed_lines_through_real_pseudo_terminals() {
     let r = g.detector.read().expect("reads");
     assert!(r.is_valid(), "{r:?}");
     assert!(r.columns().mean > 0.0);
+}
+
+/// What the APT twins saw of the server-alive messages (APT manual p. 130), by role.
+fn keepalive_records(sim: &gonio_sim::SharedSim, n: usize) -> Vec<gonio_sim::apt::KeepAliveRecord> {
+    let mut s = lock(sim);
+    (0..n)
+        .map(|i| s.apt_mut(i).expect("an APT twin").keepalive().clone())
+        .collect()
+}
+
+/// 220 moves of the two APT stages, detector readings between them, a pause of ten
+/// minutes of instrument time with nothing moving: the keep-alive goes out on both APT
+/// lines at least once a second throughout (the twins record every gap), no status
+/// message is ever withheld, and the stages move again after the pause.
+#[test]
+fn apt_lines_are_kept_alive_through_moves_readings_and_a_ten_minute_pause() {
+    let (icfg, scfg) = cfgs();
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).expect("connects");
+    g.start().expect("starts");
+    g.home().expect("homes");
+    let t0 = lock(&sim).clock().seconds();
+    for i in 0..220 {
+        let (rot, tilt) = if i % 2 == 0 {
+            (12.0, 6.0)
+        } else {
+            (-12.0, 1.0)
+        };
+        g.motion
+            .move_to(&[("sample_rot", rot), ("sample_tilt", tilt)])
+            .unwrap_or_else(|e| panic!("move {i}: {e}"));
+        if i % 10 == 0 {
+            g.detector.read().expect("reads");
+        }
+        if i == 100 {
+            let now = g.motion.clock().now();
+            g.idle_until(now + std::time::Duration::from_secs(600));
+        }
+    }
+    let t1 = lock(&sim).clock().seconds();
+    assert!(t1 - t0 > 600.0 + 220.0, "{}", t1 - t0);
+    for (role, k) in ["sample_rot", "sample_tilt"]
+        .iter()
+        .zip(keepalive_records(&sim, 2))
+    {
+        assert_eq!(k.late, 0, "{role}: {k:?}");
+        assert!(k.longest_gap_until(t1) <= 1.0, "{role}: {k:?}");
+        assert_eq!(k.withheld, 0, "{role}: {k:?}");
+        // One every 0.5 s of the session, give or take the waits' granularity.
+        let expect = (t1 / 0.5) as u64;
+        assert!(
+            k.acks + 5 >= expect && k.acks <= expect + 5,
+            "{role}: {} vs {expect}",
+            k.acks
+        );
+    }
+    // The driver's side of the same count.
+    let report = g.heartbeat().report();
+    assert_eq!(report.len(), 2, "{report:?}");
+    for (port, sent, gap) in &report {
+        assert!(*sent > 1000, "{port}: {sent}");
+        assert!(*gap <= std::time::Duration::from_secs(1), "{port}: {gap:?}");
+    }
+}
+
+#[test]
+fn without_the_keepalive_the_k10cr1_falls_silent_within_a_run() {
+    // The same run with the keep-alive turned off on the APT axes: the controllers
+    // count their move completions (the manual's example) and stop talking after 50.
+    let (mut icfg, scfg) = cfgs();
+    for a in &mut icfg.motion.axes {
+        if a.apt_stage().is_some() {
+            a.keepalive = false;
+        }
+    }
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).expect("connects");
+    g.start().expect("starts");
+    g.home().expect("homes");
+    let mut failed = None;
+    for i in 0..220 {
+        let tilt = if i % 2 == 0 { 6.0 } else { 1.0 };
+        if let Err(e) = g.motion.move_to(&[("sample_tilt", tilt)]) {
+            failed = Some((i, e.to_string()));
+            break;
+        }
+    }
+    let (i, e) = failed.expect("a controller without the keep-alive falls silent");
+    assert!((45..=50).contains(&i), "failed at move {i}: {e}");
+    assert!(e.contains("sample_tilt") && e.contains("no reply"), "{e}");
+    let k = &keepalive_records(&sim, 2)[1];
+    assert_eq!(k.acks, 0);
+    assert!(k.withheld > 0, "{k:?}");
+}
+
+#[test]
+fn the_manual_read_literally_and_its_28_byte_stepper_status_are_survived() {
+    // Every status message counted, the replies to status requests too, and the
+    // K10CR1 sending the manual's 28-byte 0x0481 (p. 123) rather than the 14 bytes
+    // real K10CR1s send: the keep-alive and the framer take both.
+    let (icfg, mut scfg) = cfgs();
+    for a in scfg.apt.values_mut() {
+        a.keepalive_rule = gonio_sim::apt::KeepAliveRule::All;
+        a.stepper_status_bytes = 28;
+    }
+    let (mut g, sim) = gonio_sim::connect(&icfg, &scfg).expect("connects");
+    g.start().expect("starts");
+    g.home().expect("homes");
+    for i in 0..220 {
+        let (rot, tilt) = if i % 2 == 0 {
+            (12.0, 6.0)
+        } else {
+            (-12.0, 1.0)
+        };
+        let got = g
+            .motion
+            .move_to(&[("sample_rot", rot), ("sample_tilt", tilt)])
+            .unwrap_or_else(|e| panic!("move {i}: {e}"));
+        assert!((got[1] - tilt).abs() < 0.01, "{got:?}");
+    }
+    for k in keepalive_records(&sim, 2) {
+        assert_eq!((k.late, k.withheld), (0, 0), "{k:?}");
+    }
 }

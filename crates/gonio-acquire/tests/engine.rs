@@ -630,3 +630,57 @@ fn a_failing_planner_faults_the_session_and_loses_nothing() {
     assert_eq!(store.decisions().expect("decisions").len(), 2);
     assert!(store.integrity(true).expect("checks").is_intact());
 }
+
+#[test]
+fn a_paused_run_keeps_its_apt_lines_alive_and_moves_on_after() {
+    // The mixed instrument: the sample rotation and tilt on Thorlabs APT controllers,
+    // which stop sending status messages after ~50 without the host's server-alive
+    // (APT protocol manual, Issue 28, p. 130). A pause idles the instrument for as long
+    // as the person waits, and the keep-alive goes on through it.
+    use gonio_acquire::Event;
+    const MIXED_PLAN: &str = r#"
+name = "mixed in-plane"
+[points]
+kind = "in-plane"
+theta_i = [30]
+theta_o = { from = -60, to = 60, step = 10 }
+"#;
+    let dir = common::scratch();
+    let out = dir.path().join("run.gonio");
+    let plan = common::plan(MIXED_PLAN);
+    let (store, _) = common::create_on(common::MIXED, &out, &plan, MIXED_PLAN, 5);
+    let (engine, sim) = common::engine_on(common::MIXED, store, 5, |_| {});
+    let clock = gonio_sim::lock(&sim).clock().clone();
+    let paused_at = std::sync::Arc::new(std::sync::Mutex::new((0.0, 0.0)));
+    let seen = paused_at.clone();
+    let (report, _store, _) = run_watched(engine, move |mut rx, pauser, _| {
+        Box::pin(async move {
+            while let Ok(e) = rx.recv().await {
+                match &e {
+                    Event::Measured { done: 4, .. } => pauser.pause(),
+                    Event::Paused => {
+                        let t0 = clock.seconds();
+                        tokio::time::sleep(std::time::Duration::from_millis(1500)).await;
+                        *seen.lock().unwrap() = (t0, clock.seconds());
+                        pauser.resume();
+                    }
+                    Event::Finished { .. } => break,
+                    _ => {}
+                }
+            }
+            Vec::new()
+        })
+    });
+    assert_eq!(report.outcome, Outcome::Complete);
+    assert_eq!(report.measured, report.total);
+    // The pause took instrument time as it took the person's: about 1.5 s.
+    let (t0, t1) = *paused_at.lock().unwrap();
+    assert!(t1 - t0 >= 1.4, "{t0} → {t1}");
+    let end = gonio_sim::lock(&sim).clock().seconds();
+    let mut s = gonio_sim::lock(&sim);
+    for n in 0..2 {
+        let k = s.apt_mut(n).expect("an APT twin").keepalive().clone();
+        assert_eq!((k.late, k.withheld), (0, 0), "line {n}: {k:?}");
+        assert!(k.longest_gap_until(end) <= 1.0, "line {n}: {k:?}");
+    }
+}

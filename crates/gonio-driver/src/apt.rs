@@ -4,9 +4,11 @@
 //! [`AptAxis`] owns the transport, the clock and the controller's session
 //! ([`gonio_proto::apt::AptSession`]); each method starts an operation on the session
 //! and pumps it. The policy is the session's: soft limits checked before any byte,
-//! completion by `MOVE_COMPLETED` or a settled status, keep-alive acknowledgements of
-//! status updates, re-sends of what may be repeated only, and a stop on any fault or
-//! abort. Dropping the axis stops the stage.
+//! completion by `MOVE_COMPLETED` or a settled status, re-sends of what may be
+//! repeated only, and a stop on any fault or abort. The session's keep-alive (the
+//! manual's "server alive", at least once a second) goes into the axis'
+//! [`Heartbeat`], which sends it through every wait of every line of the instrument
+//! once the axis joins one. Dropping the axis stops the stage.
 
 use gonio_proto::apt::AptSession;
 pub use gonio_proto::apt::{AptAxisConfig, AptInfo, AptStatus, StageKind};
@@ -15,7 +17,8 @@ use gonio_proto::smc100::ChainPolicy;
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::{AbortFlag, Mapped, Slot, pump};
+use crate::heartbeat::{Heartbeat, SharedLink};
+use crate::pump::{AbortFlag, Mapped, Slot, pump, pumped};
 use crate::transport::Transport;
 
 /// The framing and link settings every APT controller uses: 115 200 baud, 8N1,
@@ -24,8 +27,10 @@ pub const BAUD: u32 = 115_200;
 
 /// One APT controller with its stage.
 pub struct AptAxis<T: Transport, C: Clock> {
-    transport: T,
+    /// Shared with the heartbeat, which writes the keep-alive between exchanges.
+    transport: SharedLink<T>,
     clock: C,
+    beats: Heartbeat,
     session: AptSession,
     abort: AbortFlag,
     port: String,
@@ -47,11 +52,11 @@ macro_rules! run {
     ($a:ident, $start:ident($($arg:expr),*)) => {{
         let now = $a.clock.now();
         let op = $a.session.$start($($arg,)* now);
-        pump(&mut $a.transport, &$a.clock, Some(&$a.abort), &$a.port, op)
+        pump(pumped!($a), Some(&$a.abort), op)
     }};
 }
 
-impl<T: Transport, C: Clock> AptAxis<T, C> {
+impl<T: Transport + 'static, C: Clock> AptAxis<T, C> {
     /// An axis over `transport`; `serial`, when given, must be the controller's.
     pub fn new(
         transport: T,
@@ -62,14 +67,32 @@ impl<T: Transport, C: Clock> AptAxis<T, C> {
     ) -> Result<Self, MotionError> {
         let session = AptSession::new(axis, policy)?;
         let port = transport.name();
+        let transport = SharedLink::new(transport);
+        let beats = Heartbeat::new();
+        if let Some(duty) = session.keepalive() {
+            beats.add(&port, Box::new(transport.clone()), duty);
+        }
         Ok(AptAxis {
             transport,
             clock,
+            beats,
             session,
             abort: AbortFlag::new(),
             port,
             serial,
         })
+    }
+
+    /// The heartbeat the axis' waits keep beating (its own keep-alive among them).
+    pub fn heartbeat(&self) -> &Heartbeat {
+        &self.beats
+    }
+
+    /// Joins `beats`, an instrument's heartbeat: the axis' keep-alive moves into it,
+    /// and the axis' waits keep every line's beating.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// The axis with `flag` as its abort flag.
@@ -91,6 +114,16 @@ impl<T: Transport, C: Clock> AptAxis<T, C> {
     /// Exchanges re-sent after a lost or garbled reply.
     pub fn retried(&self) -> u64 {
         self.session.retried()
+    }
+
+    /// `MOT_MOVE_COMPLETED` messages received since the axis was built.
+    pub fn completions_received(&self) -> u64 {
+        self.session.completions_received()
+    }
+
+    /// The status-kind messages received, by name and data length, with their counts.
+    pub fn status_lengths(&self) -> Vec<(&'static str, usize, u64)> {
+        self.session.status_lengths()
     }
 
     /// `HW_REQ_INFO`: the controller's identity (its model must drive the configured
@@ -155,7 +188,7 @@ impl<T: Transport, C: Clock> AptAxis<T, C> {
         let now = self.clock.now();
         let op = self.session.start_stop(profiled, now);
         // A stop is never itself aborted.
-        pump(&mut self.transport, &self.clock, None, &self.port, op)
+        pump(pumped!(self), None, op)
     }
 
     /// The velocity and acceleration the controller holds, deg/s and deg/s².
@@ -177,6 +210,8 @@ impl<T: Transport, C: Clock> AptAxis<T, C> {
 impl<T: Transport, C: Clock> Drop for AptAxis<T, C> {
     fn drop(&mut self) {
         // An axis going away must not leave its stage moving.
-        let _ = self.stop(true);
+        let now = self.clock.now();
+        let op = self.session.start_stop(true, now);
+        let _ = pump(pumped!(self), None, op);
     }
 }

@@ -68,6 +68,12 @@ pub trait Bench: Send {
     fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
         let _ = (step_id, previous);
     }
+
+    /// True when a person makes the changes, so that a call may take minutes: the
+    /// engine then keeps the instrument's lines alive meanwhile (the APT keep-alive).
+    fn waits_for_a_person(&self) -> bool {
+        false
+    }
 }
 
 /// An operator at a terminal: each change is asked for on `prompt` and confirmed by
@@ -105,5 +111,9 @@ impl<R: BufRead + Send, W: Write + Send> Bench for OperatorBench<R, W> {
 
     fn select_channel(&mut self, channel: &str) -> Result<(), BenchError> {
         self.ask(format!("select the band {channel:?}"))
+    }
+
+    fn waits_for_a_person(&self) -> bool {
+        true
     }
 }

@@ -146,6 +146,15 @@ pub struct AxisSpec {
     /// Backlash distance an APT controller is set to, deg; its own when absent.
     #[serde(default)]
     pub backlash_deg: Option<f64>,
+    /// An APT controller gets the server-alive message every 0.5 s for the whole
+    /// session (the protocol manual requires one at least once a second on USB,
+    /// p. 130). `false` only to see what a controller does without it.
+    #[serde(default = "default_keepalive")]
+    pub keepalive: bool,
+}
+
+fn default_keepalive() -> bool {
+    true
 }
 
 fn default_units() -> String {
@@ -176,6 +185,7 @@ impl AxisSpec {
             tolerance: self.tolerance,
             home_timeout_s: self.home_timeout_s,
             backlash_deg: self.backlash_deg,
+            keepalive: self.keepalive,
             ..AptAxisConfig::new(&self.name, stage, self.min, self.max)
         }
     }
@@ -759,10 +769,14 @@ impl InstrumentConfig {
                     ));
                 }
             } else {
-                if a.stage.is_some() || a.serial_number.is_some() || a.backlash_deg.is_some() {
+                if a.stage.is_some()
+                    || a.serial_number.is_some()
+                    || a.backlash_deg.is_some()
+                    || !a.keepalive
+                {
                     return err(
                         f("kind"),
-                        "`stage`, `serial_number` and `backlash_deg` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
+                        "`stage`, `serial_number`, `backlash_deg` and `keepalive` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
                     );
                 }
                 if let Some(j) = m.axes[..i].iter().position(|b| {

@@ -22,7 +22,8 @@ pub use gonio_proto::cs130::{
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::pump;
+use crate::heartbeat::Heartbeat;
+use crate::pump::{pump, pumped};
 use crate::transport::Transport;
 
 /// The Cornerstone 130 on a transport, waiting on a clock.
@@ -30,6 +31,8 @@ use crate::transport::Transport;
 pub struct Cs130<T: Transport, C: Clock> {
     transport: T,
     clock: C,
+    /// The instrument's heartbeat, kept beating through every wait.
+    beats: Heartbeat,
     session: Cs130Session,
     /// The port's name, for the wire log.
     port: String,
@@ -41,7 +44,7 @@ macro_rules! run {
     ($d:ident, $start:ident($($arg:expr),*)) => {{
         let now = $d.clock.now();
         let op = $d.session.$start($($arg,)* now);
-        pump(&mut $d.transport, &$d.clock, None, &$d.port, op)
+        pump(pumped!($d), None, op)
     }};
 }
 
@@ -54,9 +57,17 @@ impl<T: Transport, C: Clock> Cs130<T, C> {
         Ok(Cs130 {
             transport,
             clock,
+            beats: Heartbeat::new(),
             session,
             port,
         })
+    }
+
+    /// Joins `beats`, the instrument's heartbeat: every wait of this device keeps the
+    /// instrument's keep-alives going.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// Identifies the instrument (`INFO?`), selects nanometres and reads every

@@ -7,6 +7,7 @@
 //! file's reading row.
 
 use crate::clock::Clock;
+use crate::heartbeat::Heartbeat;
 use crate::k6485::K6485;
 use crate::sr830::{Reading as LockinReading, Sr830, Sr830Error};
 use crate::transport::Transport;
@@ -64,6 +65,8 @@ pub trait DetectorDevice: Send {
     }
     /// Exchanges re-sent after a lost, late or garbled reply.
     fn retried(&self) -> u64;
+    /// Joins the instrument's heartbeat, which its waits keep going.
+    fn set_heartbeat(&mut self, beats: Heartbeat);
     /// The detector as `Any`, to reach a family's own operations.
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
 }
@@ -234,6 +237,9 @@ impl DetectorError {
 }
 
 impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> {
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        Sr830::set_heartbeat(self, beats);
+    }
     fn family(&self) -> &'static str {
         "sr830"
     }
@@ -291,6 +297,9 @@ impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> 
 }
 
 impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for K6485<T, C> {
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        K6485::set_heartbeat(self, beats);
+    }
     fn family(&self) -> &'static str {
         "k6485"
     }

@@ -21,7 +21,8 @@ pub use gonio_proto::fw102c::{
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::pump;
+use crate::heartbeat::Heartbeat;
+use crate::pump::{pump, pumped};
 use crate::transport::Transport;
 
 /// The wheel on a transport, waiting on a clock.
@@ -29,6 +30,8 @@ use crate::transport::Transport;
 pub struct Fw102c<T: Transport, C: Clock> {
     transport: T,
     clock: C,
+    /// The instrument's heartbeat, kept beating through every wait.
+    beats: Heartbeat,
     session: Fw102cSession,
     /// The port's name, for the wire log.
     port: String,
@@ -39,7 +42,7 @@ macro_rules! run {
     ($d:ident, $start:ident($($arg:expr),*)) => {{
         let now = $d.clock.now();
         let op = $d.session.$start($($arg,)* now);
-        pump(&mut $d.transport, &$d.clock, None, &$d.port, op)
+        pump(pumped!($d), None, op)
     }};
 }
 
@@ -52,9 +55,17 @@ impl<T: Transport, C: Clock> Fw102c<T, C> {
         Ok(Fw102c {
             transport,
             clock,
+            beats: Heartbeat::new(),
             session,
             port,
         })
+    }
+
+    /// Joins `beats`, the instrument's heartbeat: every wait of this device keeps the
+    /// instrument's keep-alives going.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// Identifies and configures the wheel; returns its identification string. See

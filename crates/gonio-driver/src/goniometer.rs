@@ -1,11 +1,14 @@
 //! A goniometer: named axes on whatever controllers the lab owns, and a detector.
 
+use std::time::Duration;
+
 use crate::apt::AptAxis;
 use crate::clock::{Clock, SystemClock};
 use crate::config::{DetectorConfig, DetectorKind, InstrumentConfig, LineKind, MotionLine};
 use crate::cs130::Cs130;
 use crate::detector::{DetectorDevice, DetectorError, Reading};
 use crate::fw102c::Fw102c;
+use crate::heartbeat::Heartbeat;
 use crate::k6485::K6485;
 use crate::motion::{AxisInfo, Motion, MotionDevice};
 use crate::smc100::{MotionError, Smc100Chain};
@@ -119,7 +122,8 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
             motion: Motion::new(lines, clock)?,
             detector,
             spectral,
-        })
+        }
+        .beating())
     }
 
     /// Builds the instrument over given transports (a simulator, a script), for a
@@ -144,7 +148,19 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
             motion: Motion::new(vec![line], motion_clock)?,
             detector,
             spectral: None,
-        })
+        }
+        .beating())
+    }
+
+    /// The instrument with one heartbeat on every device: the motion lines' (which
+    /// holds their keep-alives), so that every wait of every device keeps them going.
+    fn beating(mut self) -> Self {
+        let beats = self.motion.heartbeat().clone();
+        self.detector.set_heartbeat(beats.clone());
+        if let Some(s) = &mut self.spectral {
+            s.set_heartbeat(beats);
+        }
+        self
     }
 
     fn line(
@@ -258,5 +274,18 @@ impl<C: Clock + Clone> Goniometer<C> {
     /// Stops every stage.
     pub fn stop(&mut self) -> Result<(), GoniometerError> {
         Ok(self.motion.stop_all()?)
+    }
+
+    /// The heartbeat every device's waits keep going (the APT lines' keep-alives).
+    pub fn heartbeat(&self) -> &Heartbeat {
+        self.motion.heartbeat()
+    }
+
+    /// Waits on the instrument's clock until `at`, sending every line's keep-alive as
+    /// it falls due: how the instrument spends time doing nothing (a paused run, a
+    /// controller booting, an operator's answer). With `at` already past it sends
+    /// only what is due.
+    pub fn idle_until(&self, at: Duration) {
+        self.heartbeat().sleep_until(self.motion.clock(), at);
     }
 }

@@ -28,7 +28,8 @@ pub use gonio_proto::k6485::{
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::pump;
+use crate::heartbeat::Heartbeat;
+use crate::pump::{pump, pumped};
 use crate::transport::Transport;
 
 /// The 6485 on a transport, waiting on a clock.
@@ -36,6 +37,8 @@ use crate::transport::Transport;
 pub struct K6485<T: Transport, C: Clock> {
     transport: T,
     clock: C,
+    /// The instrument's heartbeat, kept beating through every wait.
+    beats: Heartbeat,
     session: K6485Session,
     /// The port's name, for the wire log.
     port: String,
@@ -47,7 +50,7 @@ macro_rules! run {
     ($d:ident, $start:ident($($arg:expr),*)) => {{
         let now = $d.clock.now();
         let op = $d.session.$start($($arg,)* now);
-        pump(&mut $d.transport, &$d.clock, None, &$d.port, op)
+        pump(pumped!($d), None, op)
     }};
 }
 
@@ -61,9 +64,17 @@ impl<T: Transport, C: Clock> K6485<T, C> {
         Ok(K6485 {
             transport,
             clock,
+            beats: Heartbeat::new(),
             session,
             port,
         })
+    }
+
+    /// Joins `beats`, the instrument's heartbeat: every wait of this device keeps the
+    /// instrument's keep-alives going.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// Identifies, resets and configures the instrument and acquires its zero

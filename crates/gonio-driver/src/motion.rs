@@ -13,6 +13,7 @@ use std::any::Any;
 
 use crate::apt::{AptAxis, StageKind};
 use crate::clock::Clock;
+use crate::heartbeat::Heartbeat;
 pub use crate::pump::Slot;
 use crate::pump::{AbortFlag, pump_many};
 use crate::smc100::{AxisError, MotionError, Smc100Chain};
@@ -32,6 +33,9 @@ pub trait MotionDevice: Send + std::fmt::Debug {
     fn retried(&self) -> u64;
     /// Takes the motion system's abort flag, read at every abort point.
     fn set_abort_flag(&mut self, flag: AbortFlag);
+    /// Joins the instrument's heartbeat: the line's keep-alives, if it has any, go
+    /// into it, and its waits keep every line's going.
+    fn set_heartbeat(&mut self, beats: Heartbeat);
     /// Identifies (and, where the family needs it, sets up) every controller. Nothing
     /// moves.
     fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError>;
@@ -74,6 +78,9 @@ impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for Smc100Chain<T,
     }
     fn set_abort_flag(&mut self, flag: AbortFlag) {
         Smc100Chain::set_abort_flag(self, flag);
+    }
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        Smc100Chain::set_heartbeat(self, beats);
     }
     fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
         let infos = Smc100Chain::identify(self)?;
@@ -148,6 +155,9 @@ impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for AptAxis<T, C> 
     }
     fn set_abort_flag(&mut self, flag: AbortFlag) {
         AptAxis::set_abort_flag(self, flag);
+    }
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        AptAxis::set_heartbeat(self, beats);
     }
     fn identify(&mut self) -> Result<Vec<(String, AxisInfo)>, MotionError> {
         let info = AptAxis::identify(self)?;
@@ -262,15 +272,18 @@ pub struct Motion<C: Clock + Clone> {
     axes: Vec<(String, usize)>,
     clock: C,
     abort: AbortFlag,
+    beats: Heartbeat,
 }
 
 impl<C: Clock + Clone> Motion<C> {
     /// The motion system of `lines`, waiting on `clock`. Every line takes the one abort
-    /// flag. Axis names must be distinct across lines.
+    /// flag and joins one heartbeat. Axis names must be distinct across lines.
     pub fn new(mut lines: Vec<Box<dyn MotionDevice>>, clock: C) -> Result<Self, MotionError> {
         let abort = AbortFlag::new();
+        let beats = Heartbeat::new();
         for l in &mut lines {
             l.set_abort_flag(abort.clone());
+            l.set_heartbeat(beats.clone());
         }
         let mut axes: Vec<(String, usize)> = Vec::new();
         for (i, l) in lines.iter().enumerate() {
@@ -286,7 +299,14 @@ impl<C: Clock + Clone> Motion<C> {
             axes,
             clock,
             abort,
+            beats,
         })
+    }
+
+    /// The heartbeat every line's waits keep going: hand it to the instrument's other
+    /// devices ([`Goniometer`](crate::Goniometer) does).
+    pub fn heartbeat(&self) -> &Heartbeat {
+        &self.beats
     }
 
     /// The flag that aborts waits on every line; clone it to raise it from elsewhere.
@@ -419,7 +439,13 @@ impl<C: Clock + Clone> Motion<C> {
                 );
                 slots.push(line.move_slot(&per_line[i]));
             }
-            let results = pump_many(slots, &self.clock, Some(&self.abort), Result::is_err);
+            let results = pump_many(
+                slots,
+                &self.clock,
+                &self.beats,
+                Some(&self.abort),
+                Result::is_err,
+            );
             let mut errors = Vec::new();
             for (names, r) in names.into_iter().zip(results) {
                 match r {

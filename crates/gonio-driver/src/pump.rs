@@ -8,15 +8,16 @@
 //! the target `gonio_driver::wire`, with the port, the direction (`tx`, `rx`) and the
 //! line with its control bytes escaped (`1PA12.5\r\n`).
 
-use std::fmt;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 use gonio_proto::link::{Deadline, Io, Operation};
 use tracing::{debug, trace};
 
 use crate::clock::Clock;
-use crate::transport::{Transport, TransportError};
+use crate::heartbeat::Heartbeat;
+use crate::transport::{Escaped, Transport, TransportError};
 
 /// A flag that, once raised from anywhere (a signal handler, a UI thread), makes the
 /// running and every later wait stop all stages and return `AxisError::Aborted`.
@@ -44,18 +45,39 @@ impl AbortFlag {
     }
 }
 
-/// Runs `op` to its end over `link`, waiting on `clock`. At each abort point
+/// Where a line's operation runs: its transport, the clock it waits on, the port's
+/// name for the log, and the instrument's heartbeat, kept beating through every wait.
+pub(crate) struct Pumped<'a, L: ?Sized, C> {
+    pub(crate) link: &'a mut L,
+    pub(crate) clock: &'a C,
+    pub(crate) port: &'a str,
+    pub(crate) beats: &'a Heartbeat,
+}
+
+/// The [`Pumped`] of a device struct with the fields `transport`, `clock`, `port`
+/// and `beats`, borrowing only those (its session stays free for the operation).
+macro_rules! pumped {
+    ($d:expr) => {
+        $crate::pump::Pumped {
+            link: &mut $d.transport,
+            clock: &$d.clock,
+            port: &$d.port,
+            beats: &$d.beats,
+        }
+    };
+}
+pub(crate) use pumped;
+
+/// Runs `op` to its end over `at.link`, waiting on `at.clock`. At each abort point
 /// ([`Deadline::Poll`]) a raised `abort` flag is handed to the operation instead of
 /// the wait.
-pub(crate) fn pump<O: Operation>(
-    link: &mut impl Transport,
-    clock: &impl Clock,
+pub(crate) fn pump<L: Transport + ?Sized, C: Clock, O: Operation>(
+    mut at: Pumped<'_, L, C>,
     abort: Option<&AbortFlag>,
-    port: &str,
     mut op: O,
 ) -> O::Output {
     loop {
-        do_io(link, clock, port, &mut op);
+        do_io(at.link, at.clock, at.port, &mut op);
         if let Some(out) = op.poll_output() {
             return out;
         }
@@ -64,7 +86,7 @@ pub(crate) fn pump<O: Operation>(
             continue;
         };
         let aborting = abort.is_some_and(AbortFlag::is_raised);
-        wait(link, clock, port, &mut op, deadline, aborting);
+        wait(&mut at, &mut op, deadline, aborting);
     }
 }
 
@@ -87,6 +109,7 @@ pub type Slot<'a, T> = (
 pub(crate) fn pump_many<T>(
     mut slots: Vec<Slot<'_, T>>,
     clock: &impl Clock,
+    beats: &Heartbeat,
     abort: Option<&AbortFlag>,
     failed: impl Fn(&T) -> bool,
 ) -> Vec<T> {
@@ -134,7 +157,13 @@ pub(crate) fn pump_many<T>(
             continue;
         };
         let (link, port, op) = &mut slots[i];
-        wait(&mut **link, clock, port, op.as_mut(), deadline, aborting);
+        let mut at = Pumped {
+            link: &mut **link,
+            clock,
+            port,
+            beats,
+        };
+        wait(&mut at, op.as_mut(), deadline, aborting);
     }
 }
 
@@ -165,22 +194,22 @@ impl<O: Operation, T, F: FnOnce(O::Output) -> T> Operation for Mapped<O, F> {
         // An operation yields its output once; `map` is there until then.
         self.map.take().map(|f| f(out))
     }
-    fn handle_sent(&mut self, now: std::time::Duration, r: Result<(), TransportError>) {
+    fn handle_sent(&mut self, now: Duration, r: Result<(), TransportError>) {
         self.op.handle_sent(now, r);
     }
-    fn handle_reconnected(&mut self, now: std::time::Duration, r: Result<(), TransportError>) {
+    fn handle_reconnected(&mut self, now: Duration, r: Result<(), TransportError>) {
         self.op.handle_reconnected(now, r);
     }
-    fn handle_line(&mut self, now: std::time::Duration, line: &[u8]) {
+    fn handle_line(&mut self, now: Duration, line: &[u8]) {
         self.op.handle_line(now, line);
     }
-    fn handle_link_error(&mut self, now: std::time::Duration, e: TransportError) {
+    fn handle_link_error(&mut self, now: Duration, e: TransportError) {
         self.op.handle_link_error(now, e);
     }
-    fn handle_timeout(&mut self, now: std::time::Duration) {
+    fn handle_timeout(&mut self, now: Duration) {
         self.op.handle_timeout(now);
     }
-    fn handle_abort(&mut self, now: std::time::Duration) {
+    fn handle_abort(&mut self, now: Duration) {
         self.op.handle_abort(now);
     }
 }
@@ -217,18 +246,19 @@ fn do_io<L: Transport + ?Sized, O: Operation + ?Sized>(
 }
 
 /// Waits as `deadline` says and hands in what happened; at an abort point with
-/// `aborting`, hands in the abort instead.
-fn wait<L: Transport + ?Sized, O: Operation + ?Sized>(
-    link: &mut L,
-    clock: &impl Clock,
-    port: &str,
+/// `aborting`, hands in the abort instead. The keep-alives due meanwhile go out on
+/// time: the wait is cut at each, and a reply still on its way is waited for again.
+fn wait<L: Transport + ?Sized, C: Clock, O: Operation + ?Sized>(
+    at: &mut Pumped<'_, L, C>,
     op: &mut O,
     deadline: Deadline,
     aborting: bool,
 ) {
+    let (clock, port) = (at.clock, at.port);
+    at.beats.beat(clock.now());
     match deadline {
-        Deadline::Reply(at) => {
-            let r = link.receive_line(at.saturating_sub(clock.now()));
+        Deadline::Reply(end) => {
+            let r = receive(at, end);
             let now = clock.now();
             match r {
                 Ok(line) => {
@@ -247,36 +277,36 @@ fn wait<L: Transport + ?Sized, O: Operation + ?Sized>(
             }
         }
         Deadline::Poll(_) if aborting => op.handle_abort(clock.now()),
-        Deadline::Poll(at) | Deadline::Sleep(at) => {
-            clock.sleep(at.saturating_sub(clock.now()));
+        Deadline::Poll(end) | Deadline::Sleep(end) => {
+            at.beats.sleep_until(clock, end);
             op.handle_timeout(clock.now());
         }
     }
 }
 
-/// A line as log text: printable ASCII as is, `\r`, `\n`, `\0`, `\\` and other bytes
-/// escaped.
-pub(crate) struct Escaped<'a>(pub(crate) &'a [u8]);
-
-impl fmt::Display for Escaped<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for &b in self.0 {
-            match b {
-                b'\r' => f.write_str("\\r")?,
-                b'\n' => f.write_str("\\n")?,
-                0 => f.write_str("\\0")?,
-                b'\\' => f.write_str("\\\\")?,
-                0x20..=0x7e => fmt::Write::write_char(f, char::from(b))?,
-                _ => write!(f, "\\x{b:02x}")?,
+/// The next line by `end`, the wait cut at each keep-alive due meanwhile; a timeout
+/// reports the whole wait.
+fn receive<L: Transport + ?Sized, C: Clock>(
+    at: &mut Pumped<'_, L, C>,
+    end: Duration,
+) -> Result<Vec<u8>, TransportError> {
+    let started = at.clock.now();
+    loop {
+        let now = at.clock.now();
+        let until = at.beats.due().map_or(end, |d| d.clamp(now, end));
+        match at.link.receive_line(until.saturating_sub(now)) {
+            Err(TransportError::Timeout(_)) if until < end => at.beats.beat(at.clock.now()),
+            Err(TransportError::Timeout(_)) => {
+                return Err(TransportError::Timeout(end.saturating_sub(started)));
             }
+            r => return r,
         }
-        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::Escaped;
+    use crate::transport::Escaped;
 
     #[test]
     fn escapes_control_bytes() {

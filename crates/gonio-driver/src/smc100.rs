@@ -25,14 +25,17 @@ use gonio_proto::smc100::{Smc100Session, Status};
 use tracing::debug_span;
 
 use crate::clock::Clock;
+use crate::heartbeat::Heartbeat;
 pub use crate::pump::AbortFlag;
-use crate::pump::{Slot, pump};
+use crate::pump::{Slot, pump, pumped};
 use crate::transport::Transport;
 
 /// A chain of SMC100 controllers sharing one serial line.
 pub struct Smc100Chain<T: Transport, C: Clock> {
     transport: T,
     clock: C,
+    /// The instrument's heartbeat, kept beating through every wait.
+    beats: Heartbeat,
     session: Smc100Session,
     abort: AbortFlag,
     /// The port's name, for the wire log.
@@ -54,7 +57,7 @@ macro_rules! run {
     ($chain:ident, $start:ident($($arg:expr),*)) => {{
         let now = $chain.clock.now();
         let op = $chain.session.$start($($arg,)* now);
-        pump(&mut $chain.transport, &$chain.clock, Some(&$chain.abort), &$chain.port, op)
+        pump(pumped!($chain), Some(&$chain.abort), op)
     }};
 }
 
@@ -72,10 +75,18 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         Ok(Smc100Chain {
             transport,
             clock,
+            beats: Heartbeat::new(),
             session,
             abort: AbortFlag::new(),
             port,
         })
+    }
+
+    /// Joins `beats`, the instrument's heartbeat: every wait of this device keeps the
+    /// instrument's keep-alives going.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// The flag that aborts waits; clone it to raise it from elsewhere.
@@ -184,8 +195,15 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         run!(self, start_move_by(name, delta))
     }
 
-    /// Reads the named controller's configuration (`ZT`, its dump up to `PW0`): the
-    /// stage name and every parameter, in the dump's order.
+    /// How long the controller says a move of `distance` units of the named axis takes
+    /// (`PT`), s; nothing moves.
+    pub fn motion_time(&mut self, name: &str, distance: f64) -> Result<f64, MotionError> {
+        let _span = debug_span!("smc100.motion_time", port = %self.port, axis = name).entered();
+        run!(self, start_motion_time(name, distance))
+    }
+
+    /// Reads the named controller's configuration (`ZT`, its dump up to its closing
+    /// line): the stage name and every parameter, in the dump's order.
     pub fn read_config(&mut self, name: &str) -> Result<Smc100Parameters, MotionError> {
         let _span = debug_span!("smc100.read_config", port = %self.port, axis = name).entered();
         run!(self, start_read_config(name))

@@ -10,6 +10,7 @@ use serde::Deserialize;
 use crate::clock::Clock;
 use crate::cs130::{Cs130, Cs130Error};
 use crate::fw102c::{Filter, Fw102c};
+use crate::heartbeat::Heartbeat;
 use crate::transport::{FlowControl, Framing, SerialSettings, Transport};
 use gonio_proto::cs130::Cs130Config;
 use gonio_proto::fw102c::Fw102cConfig;
@@ -76,6 +77,8 @@ pub trait BandSelector: Send {
     fn set_shutter(&mut self, open: bool) -> Result<(), SpectralError>;
     /// Exchanges re-sent after a lost, late or garbled reply.
     fn retried(&self) -> u64;
+    /// Joins the instrument's heartbeat, which its waits keep going.
+    fn set_heartbeat(&mut self, beats: Heartbeat);
 }
 
 impl std::fmt::Debug for dyn BandSelector {
@@ -276,6 +279,9 @@ fn device(device: &'static str) -> impl Fn(&dyn std::fmt::Display) -> SpectralEr
 }
 
 impl<T: Transport, C: Clock> BandSelector for Cs130<T, C> {
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        Cs130::set_heartbeat(self, beats);
+    }
     fn family(&self) -> &'static str {
         "cs130"
     }
@@ -304,7 +310,11 @@ impl<T: Transport, C: Clock> BandSelector for Cs130<T, C> {
         Ok(Band {
             nm,
             reported_nm: st.wavelength_nm,
-            detail: format!("grating {}, order filter {}", st.grating, st.filter),
+            detail: if st.filter == gonio_proto::cs130::NO_FILTER_WHEEL {
+                format!("grating {}, no order filter wheel", st.grating)
+            } else {
+                format!("grating {}, order filter {}", st.grating, st.filter)
+            },
         })
     }
 
@@ -352,6 +362,9 @@ impl<T: Transport, C: Clock> WheelBands<T, C> {
 }
 
 impl<T: Transport, C: Clock> BandSelector for WheelBands<T, C> {
+    fn set_heartbeat(&mut self, beats: Heartbeat) {
+        self.wheel.set_heartbeat(beats);
+    }
     fn family(&self) -> &'static str {
         "fw102c"
     }

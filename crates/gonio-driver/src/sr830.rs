@@ -41,7 +41,8 @@ use target::floor_sigma;
 use tracing::debug_span;
 
 use crate::clock::Clock;
-use crate::pump::pump;
+use crate::heartbeat::Heartbeat;
+use crate::pump::{pump, pumped};
 use crate::transport::Transport;
 
 /// The SR830 on a transport, waiting on a clock.
@@ -49,6 +50,8 @@ use crate::transport::Transport;
 pub struct Sr830<T: Transport, C: Clock> {
     transport: T,
     clock: C,
+    /// The instrument's heartbeat, kept beating through every wait.
+    beats: Heartbeat,
     session: Sr830Session,
     /// The port's name, for the wire log.
     port: String,
@@ -60,7 +63,7 @@ macro_rules! run {
     ($d:ident, $start:ident($($arg:expr),*)) => {{
         let now = $d.clock.now();
         let op = $d.session.$start($($arg,)* now);
-        pump(&mut $d.transport, &$d.clock, None, &$d.port, op)
+        pump(pumped!($d), None, op)
     }};
 }
 
@@ -73,9 +76,17 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         Ok(Sr830 {
             transport,
             clock,
+            beats: Heartbeat::new(),
             session,
             port,
         })
+    }
+
+    /// Joins `beats`, the instrument's heartbeat: every wait of this device keeps the
+    /// instrument's keep-alives going.
+    pub fn set_heartbeat(&mut self, beats: Heartbeat) {
+        beats.absorb(&self.beats);
+        self.beats = beats;
     }
 
     /// Takes the link and applies the configuration: `OUTX 0`, `*IDN?` (must be an

@@ -1,5 +1,6 @@
 //! Moving bytes and lines to and from an instrument.
 
+use std::fmt;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
@@ -224,5 +225,25 @@ impl Transport for SerialTransport {
 
     fn name(&self) -> String {
         self.settings.path.clone()
+    }
+}
+
+/// A line as log text: printable ASCII as is, `\r`, `\n`, `\0`, `\\` and other bytes
+/// escaped.
+pub(crate) struct Escaped<'a>(pub(crate) &'a [u8]);
+
+impl fmt::Display for Escaped<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for &b in self.0 {
+            match b {
+                b'\r' => f.write_str("\\r")?,
+                b'\n' => f.write_str("\\n")?,
+                0 => f.write_str("\\0")?,
+                b'\\' => f.write_str("\\\\")?,
+                0x20..=0x7e => fmt::Write::write_char(f, char::from(b))?,
+                _ => write!(f, "\\x{b:02x}")?,
+            }
+        }
+        Ok(())
     }
 }

@@ -140,3 +140,17 @@ pub trait Operation {
     /// moves and the operation ends with its `Aborted` error.
     fn handle_abort(&mut self, now: Duration);
 }
+
+/// A message a line must carry at least every `every` for as long as it is open,
+/// whatever else is going on: a session declares it (the APT controllers' "server
+/// alive", [`AptSession::keepalive`](crate::apt::AptSession::keepalive)) and the pump
+/// sends it from its clock, between and during the session's operations.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct KeepAlive {
+    /// The message, as sent.
+    pub bytes: Vec<u8>,
+    /// The longest time allowed between two of them.
+    pub every: Duration,
+    /// Its name, for the log.
+    pub name: &'static str,
+}

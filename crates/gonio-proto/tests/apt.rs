@@ -317,10 +317,26 @@ fn long_messages_byte_for_byte() {
                 position: 136_533,
                 encoder: 0,
                 bits: status::HOMED,
+                extra: None,
             }),
             vec![
                 0x81, 0x04, 14, 0, 0x81, 0x50, 1, 0, 0x55, 0x15, 0x02, 0x00, 0, 0, 0, 0, 0x00,
                 0x04, 0, 0,
+            ],
+        ),
+        // The manual's form (p. 123: "34 bytes", `81 04 1C 00`): the same 14 bytes, then
+        // channel 2's ident and three reserved words.
+        (
+            Message::GetStatusUpdate(StepperStatus {
+                chan: 1,
+                position: 136_533,
+                encoder: 0,
+                bits: status::HOMED,
+                extra: Some([2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]),
+            }),
+            vec![
+                0x81, 0x04, 0x1C, 0, 0x81, 0x50, 1, 0, 0x55, 0x15, 0x02, 0x00, 0, 0, 0, 0, 0x00,
+                0x04, 0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
             ],
         ),
         (
@@ -841,18 +857,16 @@ fn move_transcript_and_keepalive() {
     let out = op.poll_output().unwrap().unwrap();
     assert!((out - 45.0).abs() < 1e-3, "{out}");
     drop(op);
-    // No status updates were asked for: none acknowledged.
-    assert_eq!(s.keepalives_sent(), 0);
 
-    // Unsolicited updates while a reply is awaited are acknowledged (at most every
-    // 0.5 s), and the awaited reply still ends the wait.
+    // Unsolicited updates while a reply is awaited are counted and skipped: the
+    // awaited reply ends the wait, and nothing is sent in between (the keep-alive is
+    // the pump's, on its clock).
     let mut op = s.start_position(t0);
     expect_tx(&mut op, &Message::ReqPosCounter { chan: 1 }, t0);
     op.handle_line(t0 + MS, &dc(86_384, READY).to_bytes());
-    expect_tx(&mut op, &Message::AckDcStatusUpdate, t0 + MS);
+    assert_eq!(op.poll_io(), None);
     assert_eq!(op.poll_timeout(), Some(Deadline::Reply(t0 + 100 * MS)));
     op.handle_line(t0 + 2 * MS, &dc(86_384, READY).to_bytes());
-    // Too soon for another keep-alive.
     assert_eq!(op.poll_io(), None);
     op.handle_line(
         t0 + 3 * MS,
@@ -864,7 +878,23 @@ fn move_transcript_and_keepalive() {
     );
     assert!((op.poll_output().unwrap().unwrap() - 45.0).abs() < 1e-3);
     drop(op);
-    assert_eq!((s.keepalives_sent(), s.updates_received()), (1, 2));
+    assert_eq!(s.updates_received(), 2);
+}
+
+#[test]
+fn the_session_declares_the_server_alive_message_for_the_whole_session() {
+    // APT manual, Issue 28, p. 130 (`MGMSG_MOT_ACK_DCSTATUSUPDATE`, 0x0492): "must be
+    // sent by the server to the controller at least once a second"; header only, to
+    // the generic USB unit from the host.
+    let s = session(StageKind::K10cr1);
+    let k = s.keepalive().expect("on by default");
+    assert_eq!(k.bytes, [0x92, 0x04, 0x00, 0x00, 0x50, 0x01]);
+    assert!(k.every <= Duration::from_secs(1), "{:?}", k.every);
+    assert_eq!(k.name, "MOT_ACK_DCSTATUSUPDATE");
+    let mut a = AptAxisConfig::new("rot", StageKind::Prm1Z8, -170.0, 170.0);
+    a.keepalive = false;
+    let s = AptSession::new(a, ChainPolicy::default()).unwrap();
+    assert_eq!(s.keepalive(), None);
 }
 
 #[test]
@@ -911,6 +941,7 @@ fn relative_move_with_lost_outcome_is_ambiguous_and_stops() {
             position,
             encoder: 0,
             bits,
+            extra: None,
         })
     };
     op.handle_line(MS, &st(136_533 * 10, READY).to_bytes());

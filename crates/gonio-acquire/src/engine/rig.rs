@@ -362,7 +362,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
                     }
                 }
                 None => {
-                    if let Err(e) = self.bench.select_channel(ch) {
+                    if let Err(e) = self.ask_bench(|b| b.select_channel(ch)) {
                         return self.bench_failed(id, e);
                     }
                     format!("band {ch}")
@@ -395,7 +395,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             self.shutter_open = Some(open);
         }
         if !by_shutter && self.setup != Some(setup) {
-            if let Err(e) = self.bench.set_up(setup) {
+            if let Err(e) = self.ask_bench(|b| b.set_up(setup)) {
                 return self.bench_failed(id, e);
             }
             let what = setup.instruction();
@@ -634,6 +634,26 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
     /// only the axis the error named: a power loss's NUL byte arrives on the shared
     /// line in answer to whichever controller was being polled, so it does not say
     /// which one rebooted. Returns the axes homed.
+    /// Asks the bench for a change. When a person answers, that may take minutes: the
+    /// question is asked on a thread of its own while the instrument idles here, its
+    /// lines kept alive.
+    fn ask_bench<T: Send>(&mut self, f: impl FnOnce(&mut B) -> T + Send) -> T {
+        if !self.bench.waits_for_a_person() {
+            return f(&mut self.bench);
+        }
+        let (gonio, bench) = (&self.gonio, &mut self.bench);
+        std::thread::scope(|scope| {
+            let asked = scope.spawn(move || f(bench));
+            while !asked.is_finished() {
+                let now = gonio.motion.clock().now();
+                gonio.idle_until(now + Duration::from_millis(50));
+            }
+            asked
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p))
+        })
+    }
+
     fn rehome_lost(&mut self) -> Result<Vec<String>, MotionError> {
         const BOOT: Duration = Duration::from_secs(10);
         let names: Vec<String> = self.gonio.motion.axis_names();
@@ -664,7 +684,8 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
                         source: waiting,
                     });
                 }
-                self.gonio.motion.clock().sleep(Duration::from_millis(500));
+                let now = self.gonio.motion.clock().now();
+                self.gonio.idle_until(now + Duration::from_millis(500));
             }
         }
         let refs: Vec<&str> = lost.iter().map(String::as_str).collect();

@@ -39,19 +39,70 @@ pub fn scratch() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
 }
 
+/// An instrument and its simulator: config files under `config/`.
+#[derive(Clone, Copy)]
+pub struct Setup {
+    pub instrument: &'static str,
+    /// `None`: the embedded default simulator.
+    pub sim: Option<&'static str>,
+}
+
+/// `config/instrument-sim.toml` on the embedded simulator.
+pub const DEFAULT: Setup = Setup {
+    instrument: "config/instrument-sim.toml",
+    sim: None,
+};
+
+/// The mixed-family instrument: SMC100 arms, a KDC101 and a K10CR1 on APT lines, a
+/// K6485.
+pub const MIXED: Setup = Setup {
+    instrument: "config/instrument-mixed.toml",
+    sim: Some("config/sim-mixed.toml"),
+};
+
+impl Setup {
+    fn instrument(self) -> (InstrumentConfig, String) {
+        InstrumentConfig::load_with_text(&root().join(self.instrument)).expect("instrument")
+    }
+
+    fn sim(self, seed: u64) -> (SimConfig, String) {
+        let (mut s, text) = match self.sim {
+            None => (
+                SimConfig::default_config().expect("embedded sim"),
+                gonio_sim::config::DEFAULT_SIM.to_string(),
+            ),
+            Some(p) => {
+                let path = root().join(p);
+                let text = std::fs::read_to_string(&path).expect("sim text");
+                (SimConfig::load(&path).expect("sim config"), text)
+            }
+        };
+        s.seed = seed;
+        (s, text)
+    }
+}
+
 /// Prepares `plan` and creates its run file at `out`.
 pub fn create(out: &Path, plan: &Plan, plan_text: &str, seed: u64) -> (RunStore, Prepared) {
-    let (inst, inst_text) = instrument();
+    create_on(DEFAULT, out, plan, plan_text, seed)
+}
+
+/// Prepares `plan` for `setup` and creates its run file at `out`.
+pub fn create_on(
+    setup: Setup,
+    out: &Path,
+    plan: &Plan,
+    plan_text: &str,
+    seed: u64,
+) -> (RunStore, Prepared) {
+    let (inst, inst_text) = setup.instrument();
     let mech = inst.mechanics().expect("mechanics");
     let prepared = gonio_plan::prepare(&mech, inst.reading_seconds(), plan).expect("prepares");
-    let s = sim(seed);
+    let (s, sim_text) = setup.sim(seed);
     let inputs = Inputs {
         instrument_text: inst_text,
         plan_text: plan_text.to_string(),
-        sim: Some((
-            gonio_sim::config::DEFAULT_SIM.to_string(),
-            s.sample_model_text().expect("sample"),
-        )),
+        sim: Some((sim_text, s.sample_model_text().expect("sample"))),
         seed: Some(seed),
         software: "test".into(),
         ..Inputs::default()
@@ -66,8 +117,18 @@ pub fn engine(
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
 ) -> (Engine<gonio_sim::SimClock, SimBench>, SharedSim) {
-    let (inst, _) = instrument();
-    let mut s = sim(seed);
+    engine_on(DEFAULT, store, seed, tweak)
+}
+
+/// An engine on a fresh simulator of `setup` for `store`.
+pub fn engine_on(
+    setup: Setup,
+    store: RunStore,
+    seed: u64,
+    tweak: impl FnOnce(&mut SimConfig),
+) -> (Engine<gonio_sim::SimClock, SimBench>, SharedSim) {
+    let (inst, _) = setup.instrument();
+    let (mut s, _) = setup.sim(seed);
     tweak(&mut s);
     let (g, shared) = gonio_sim::connect(&inst, &s).expect("sim");
     let mech = inst.mechanics().expect("mechanics");

@@ -221,7 +221,13 @@ pub struct DcStatus {
     pub bits: u32,
 }
 
-/// The 14-byte status of a stepper channel: `MGMSG_MOT_GET_STATUSUPDATE` (`0x0481`).
+/// The status of a stepper channel: `MGMSG_MOT_GET_STATUSUPDATE` (`0x0481`).
+///
+/// It comes in two lengths. The manual (Issue 28, p. 123) gives 28 data bytes: the
+/// channel, position, encoder count and status bits, then a second channel ident and
+/// three words "for future use". A K10CR1 sends only the first 14 (PnPQ, tested on
+/// K10CR1s: "K10CR1 uses a 20-byte message; K10CR2 uses a 34-byte message"). Both are
+/// read; the second half is kept as it came, so a message re-encodes to its bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StepperStatus {
     /// The channel.
@@ -232,7 +238,13 @@ pub struct StepperStatus {
     pub encoder: i32,
     /// Status bits.
     pub bits: u32,
+    /// The 28-byte form's second half (a second channel ident and three reserved
+    /// words), as received; `None` for the 14-byte form.
+    pub extra: Option<[u8; STEPPER_STATUS_EXTRA]>,
 }
+
+/// Bytes of the stepper status' second half in the manual's 28-byte form.
+pub const STEPPER_STATUS_EXTRA: usize = 14;
 
 /// `MGMSG_HW_GET_INFO` (`0x0006`): 84 bytes identifying the controller.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -539,7 +551,7 @@ pub struct Packet {
 }
 
 /// Message ids.
-mod id {
+pub(super) mod id {
     pub const IDENTIFY: u16 = 0x0223;
     pub const HW_DISCONNECT: u16 = 0x0002;
     pub const HW_REQ_INFO: u16 = 0x0005;
@@ -604,6 +616,8 @@ pub(super) enum Form {
     Long(u16),
     /// Either header only or this data packet (moves, completions).
     Either(u16),
+    /// A data packet of either length (the stepper status: 14 or 28 bytes).
+    Lengths(u16, u16),
 }
 
 impl Form {
@@ -612,6 +626,7 @@ impl Form {
             Form::Short => "a short message".into(),
             Form::Long(n) => format!("{n} data bytes"),
             Form::Either(n) => format!("a short message or {n} data bytes"),
+            Form::Lengths(a, b) => format!("{a} or {b} data bytes"),
         }
     }
 
@@ -620,6 +635,7 @@ impl Form {
         match (self, data_len) {
             (Form::Short, None) | (Form::Either(_), None) => true,
             (Form::Long(n) | Form::Either(n), Some(l)) => n == l,
+            (Form::Lengths(a, b), Some(l)) => l == a || l == b,
             _ => false,
         }
     }
@@ -640,8 +656,10 @@ pub(super) fn form_of(message_id: u16) -> Option<Form> {
         SET_POSCOUNTER | GET_POSCOUNTER | GET_STATUSBITS | SET_GENMOVEPARAMS
         | GET_GENMOVEPARAMS | SET_MOVERELPARAMS | GET_MOVERELPARAMS | SET_MOVEABSPARAMS
         | GET_MOVEABSPARAMS => Form::Long(6),
-        SET_VELPARAMS | GET_VELPARAMS | SET_HOMEPARAMS | GET_HOMEPARAMS | GET_STATUSUPDATE
-        | GET_DCSTATUSUPDATE => Form::Long(14),
+        SET_VELPARAMS | GET_VELPARAMS | SET_HOMEPARAMS | GET_HOMEPARAMS | GET_DCSTATUSUPDATE => {
+            Form::Long(14)
+        }
+        GET_STATUSUPDATE => Form::Lengths(14, 28),
         SET_JOGPARAMS | GET_JOGPARAMS => Form::Long(22),
         SET_LIMSWITCHPARAMS | GET_LIMSWITCHPARAMS => Form::Long(16),
         MOVE_RELATIVE | MOVE_ABSOLUTE => Form::Either(6),
@@ -1097,6 +1115,9 @@ impl Message {
                 data.extend_from_slice(&s.position.to_le_bytes());
                 data.extend_from_slice(&s.encoder.to_le_bytes());
                 data.extend_from_slice(&s.bits.to_le_bytes());
+                if let Some(extra) = &s.extra {
+                    data.extend_from_slice(extra);
+                }
             }
         }
         // Every data packet built above is at most 84 bytes, and an unknown message's
@@ -1163,6 +1184,7 @@ impl Packet {
                     Form::Short => "a short message",
                     Form::Long(_) => "a long message of its data length",
                     Form::Either(_) => "a short message or a long one of its data length",
+                    Form::Lengths(..) => "a long message of one of its data lengths",
                 },
                 found: match h.data_len {
                     None => "a short message".into(),
@@ -1324,6 +1346,7 @@ impl Packet {
                 position: r.i32(),
                 encoder: r.i32(),
                 bits: r.u32(),
+                extra: (data.len() == 28).then(|| r.take::<STEPPER_STATUS_EXTRA>()),
             }),
             id::REQ_DCSTATUSUPDATE => M::ReqDcStatusUpdate { chan: p1 },
             id::GET_DCSTATUSUPDATE => M::GetDcStatusUpdate(dc_status(r)),

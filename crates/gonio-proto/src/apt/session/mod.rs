@@ -2,9 +2,8 @@
 //! [`AptSession`]. Built like the SMC100 session, on `crate::machine`:
 //!
 //! - `wire`: one message on the wire: a send (reopening a vanished port a bounded
-//!   number of times), a wait for a message (answering the controller's status
-//!   updates with the keep-alive, noting completions, skipping the rest), a query
-//!   (asked again after a lost or garbled reply);
+//!   number of times), a wait for a message (noting completions and status updates,
+//!   skipping the rest), a query (asked again after a lost or garbled reply);
 //! - `exec`: operations written as steps, each asking for one exchange or pause;
 //! - `ops`: the operations.
 
@@ -15,7 +14,7 @@ mod wire;
 use std::time::Duration;
 
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
-use crate::link::Operation;
+use crate::link::{KeepAlive, Operation};
 use crate::machine::Run;
 use crate::motion::{AxisError, MotionError};
 use crate::smc100::ChainPolicy;
@@ -49,9 +48,25 @@ pub struct AptAxisConfig {
     #[serde(default)]
     pub backlash_deg: Option<f64>,
     /// Ask the controller for its periodic status updates at set-up
-    /// (`HW_START_UPDATEMSGS`), which the session then keeps alive.
+    /// (`HW_START_UPDATEMSGS`).
     #[serde(default)]
     pub status_updates: bool,
+    /// Send the "server alive" message (`MOT_ACK_DCSTATUSUPDATE`) every
+    /// [`KEEPALIVE_EVERY`] for the whole session ([`AptSession::keepalive`]). The
+    /// manual requires it on USB (p. 130); off only to show what a controller does
+    /// without it.
+    #[serde(default = "default_keepalive")]
+    pub keepalive: bool,
+}
+
+/// How often the session's keep-alive goes out. The manual asks for one at least
+/// once a second on USB (Issue 28, p. 130: otherwise the controller stops sending
+/// status messages, move completions included, after about 50 of them); half that
+/// leaves room for a second of host work between two waits.
+pub const KEEPALIVE_EVERY: Duration = Duration::from_millis(500);
+
+fn default_keepalive() -> bool {
+    true
 }
 
 fn default_tolerance() -> f64 {
@@ -75,6 +90,7 @@ impl AptAxisConfig {
             home_timeout_s: default_home_timeout(),
             backlash_deg: None,
             status_updates: false,
+            keepalive: true,
         }
     }
 
@@ -224,12 +240,16 @@ pub struct AptSession {
     axis: AptAxisConfig,
     policy: ChainPolicy,
     retried: u64,
-    /// Status updates were asked for (or arrived unasked): keep them alive.
+    /// Status updates were asked for (or arrived unasked): a status request is
+    /// answered by the next update.
     updates_on: bool,
-    /// When the last keep-alive went out.
-    last_ack: Option<Duration>,
-    acks: u64,
     updates: u64,
+    /// `MOVE_COMPLETED` messages received.
+    completions: u64,
+    /// Every status-kind message received, by id and data length: what a first day on
+    /// the hardware records (the stepper status is 14 bytes on a K10CR1, 28 in the
+    /// manual).
+    lengths: std::collections::BTreeMap<(u16, usize), u64>,
     seen: Seen,
 }
 
@@ -247,9 +267,9 @@ impl AptSession {
             policy,
             retried: 0,
             updates_on: false,
-            last_ack: None,
-            acks: 0,
             updates: 0,
+            completions: 0,
+            lengths: std::collections::BTreeMap::new(),
             seen: Seen::default(),
         })
     }
@@ -269,9 +289,45 @@ impl AptSession {
         self.retried
     }
 
-    /// Keep-alives (`MOT_ACK_DCSTATUSUPDATE`) sent since the session began.
-    pub fn keepalives_sent(&self) -> u64 {
-        self.acks
+    /// `MOT_MOVE_COMPLETED` messages received since the session began: one a move on a
+    /// controller that keeps talking (they stop without the keep-alive).
+    pub fn completions_received(&self) -> u64 {
+        self.completions
+    }
+
+    /// The status-kind messages received (statuses, completions, homed), by name and
+    /// data length in bytes, with their counts, in order of message id.
+    pub fn status_lengths(&self) -> Vec<(&'static str, usize, u64)> {
+        self.lengths
+            .iter()
+            .map(|(&(id, len), &n)| (status_name(id), len, n))
+            .collect()
+    }
+
+    fn heard(&mut self, m: &Message, data_len: usize) {
+        if matches!(
+            m,
+            Message::GetStatusUpdate(_)
+                | Message::GetDcStatusUpdate(_)
+                | Message::GetStatusBits { .. }
+                | Message::MoveCompleted { .. }
+                | Message::MoveStopped { .. }
+                | Message::MoveHomed { .. }
+        ) {
+            *self.lengths.entry((m.id(), data_len)).or_default() += 1;
+        }
+    }
+
+    /// The message the line must carry for as long as it is open, whatever else is
+    /// going on: `MOT_ACK_DCSTATUSUPDATE` every [`KEEPALIVE_EVERY`] (the manual's
+    /// "server alive", p. 130), from the start of the session. The pump sends it;
+    /// `None` when the axis' `keepalive` is off.
+    pub fn keepalive(&self) -> Option<KeepAlive> {
+        self.axis.keepalive.then(|| KeepAlive {
+            bytes: Message::AckDcStatusUpdate.to_bytes(),
+            every: KEEPALIVE_EVERY,
+            name: Message::AckDcStatusUpdate.name(),
+        })
     }
 
     /// Status updates that arrived unasked since the session began.
@@ -423,6 +479,20 @@ impl AptSession {
                 units: "deg".into(),
             })
         }
+    }
+}
+
+/// The name of a status-kind message id.
+fn status_name(id: u16) -> &'static str {
+    use crate::apt::message::id;
+    match id {
+        id::GET_STATUSUPDATE => "MOT_GET_STATUSUPDATE",
+        id::GET_DCSTATUSUPDATE => "MOT_GET_DCSTATUSUPDATE",
+        id::GET_STATUSBITS => "MOT_GET_STATUSBITS",
+        id::MOVE_COMPLETED => "MOT_MOVE_COMPLETED",
+        id::MOVE_STOPPED => "MOT_MOVE_STOPPED",
+        id::MOVE_HOMED => "MOT_MOVE_HOMED",
+        _ => "other",
     }
 }
 

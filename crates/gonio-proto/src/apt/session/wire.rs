@@ -1,7 +1,8 @@
 //! One message on the wire, with the link policy: a vanished port is reopened a
 //! bounded number of times; while a reply is awaited, the controller's status updates
-//! are answered with the keep-alive and its completion messages are noted; a lost,
-//! late or garbled reply is asked again only for queries.
+//! and completion messages are noted; a lost, late or garbled reply is asked again
+//! only for queries. The keep-alive is not an exchange: the pump sends it on its
+//! clock ([`AptSession::keepalive`]).
 
 use std::time::Duration;
 
@@ -12,10 +13,6 @@ use crate::TransportError;
 use crate::apt::{Message, Packet};
 use crate::machine::{Cx, Event, Machine, Pending, Step, drive};
 use crate::motion::AxisError;
-
-/// How often, at most, the keep-alive goes out: the manual asks for one at least
-/// every second while status updates flow.
-const KEEPALIVE_EVERY: Duration = Duration::from_millis(500);
 
 /// Sends one message. When the port has vanished, reopens it (one attempt, then up to
 /// `reconnect_attempts` more, `reconnect_delay` apart) and sends once more: the bytes
@@ -90,67 +87,36 @@ impl Machine<AptSession> for Transfer {
 pub(super) type Want = fn(&Message) -> bool;
 
 /// Waits until `until` for a message that `want` accepts. On the way: a status update
-/// is noted and, when due, answered with `MOT_ACK_DCSTATUSUPDATE`; `MOVE_COMPLETED`,
-/// `MOVE_STOPPED` and `MOVE_HOMED` are noted for the operation; an error report
-/// (`HW_RESPONSE`, `HW_RICHRESPONSE`) ends the wait with [`AxisError::Device`]; anything
-/// else is skipped.
+/// is counted; `MOVE_COMPLETED`, `MOVE_STOPPED` and `MOVE_HOMED` are noted for the
+/// operation; an error report (`HW_RESPONSE`, `HW_RICHRESPONSE`) ends the wait with
+/// [`AxisError::Device`]; anything else is skipped.
 #[derive(Debug)]
 pub(super) struct Wait {
     want: Want,
     until: Duration,
     /// What the wait answers, by name, for errors.
     after: &'static str,
-    /// Sending a keep-alive; then the wait ends with the answer, if it had one.
-    acking: Option<(Transfer, Option<Message>)>,
 }
 
 impl Wait {
     pub(super) fn new(want: Want, until: Duration, after: &'static str) -> Self {
-        Wait {
-            want,
-            until,
-            after,
-            acking: None,
-        }
-    }
-
-    /// Starts a keep-alive when one is due, finishing with `then` afterwards.
-    fn maybe_ack(&mut self, s: &mut AptSession, cx: &Cx, then: Option<Message>) -> bool {
-        if !s.updates_on {
-            return false;
-        }
-        if s.last_ack
-            .is_some_and(|t| cx.now.saturating_sub(t) < KEEPALIVE_EVERY)
-        {
-            return false;
-        }
-        s.last_ack = Some(cx.now);
-        s.acks += 1;
-        debug!("apt: status update acknowledged (keep-alive)");
-        self.acking = Some((Transfer::new(&Message::AckDcStatusUpdate), then));
-        true
+        Wait { want, until, after }
     }
 }
 
 impl Machine<AptSession> for Wait {
     type Output = Result<Message, AxisError>;
 
-    fn step(&mut self, s: &mut AptSession, cx: &mut Cx, mut ev: Event<'_>) -> Step<Self::Output> {
-        if let Some((t, then)) = &mut self.acking {
-            if let Err(e) = drive!(t, s, cx, ev) {
-                self.acking = None;
-                return Step::Done(Err(e));
-            }
-            let then = then.take();
-            self.acking = None;
-            if let Some(m) = then {
-                return Step::Done(Ok(m));
-            }
-            ev = Event::Start;
-        }
+    fn step(&mut self, s: &mut AptSession, _cx: &mut Cx, ev: Event<'_>) -> Step<Self::Output> {
         let message = match ev {
             Event::Line(bytes) => match Packet::parse(bytes) {
-                Ok(p) => p.message,
+                Ok(p) => {
+                    s.heard(
+                        &p.message,
+                        bytes.len().saturating_sub(crate::apt::HEADER_LEN),
+                    );
+                    p.message
+                }
                 Err(e) => {
                     debug!(error = %e, "apt: skipping a message that does not parse");
                     return Step::Wait(Pending::Reply(self.until));
@@ -165,22 +131,17 @@ impl Machine<AptSession> for Wait {
             s.updates += 1;
         }
         if wanted {
-            if update && self.maybe_ack(s, cx, Some(message.clone())) {
-                return self.step(s, cx, Event::Start);
-            }
             return Step::Done(Ok(message));
         }
         match &message {
             Message::GetDcStatusUpdate(_) | Message::GetStatusUpdate(_) if update => {
                 // Updates flow only when asked for (or left on by another host).
                 s.updates_on = true;
-                if self.maybe_ack(s, cx, None) {
-                    return self.step(s, cx, Event::Start);
-                }
             }
             Message::MoveCompleted { status, .. } => {
                 debug!("apt: move completed");
                 s.seen.completed = Some(*status);
+                s.completions += 1;
             }
             Message::MoveStopped { status, .. } => {
                 debug!("apt: move stopped");
