@@ -37,6 +37,134 @@ fn a_mixed_instrument_checks_and_connects() {
             .expect("idn")
             .contains("MODEL 6485")
     );
+    // What stays unconfirmed is named for every family found, as its doc lists it.
+    let families: Vec<&str> = v["connected"]["unconfirmed"]
+        .as_array()
+        .expect("unconfirmed")
+        .iter()
+        .map(|f| f["family"].as_str().expect("family"))
+        .collect();
+    assert_eq!(families, ["smc100", "apt", "k6485"]);
+    let apt = &v["connected"]["unconfirmed"][1]["unconfirmed"];
+    assert!(
+        apt.as_array().expect("facts").iter().any(|u| u["fact"]
+            .as_str()
+            .expect("fact")
+            .contains("stepper status `0x0481`")),
+        "{apt}"
+    );
+    let o = common::ok(&["instrument", "check", &inst, "--connect", "--sim", &sim]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("unconfirmed for apt"), "{text}");
+}
+
+/// The first-day check on the simulated mixed instrument: it passes, with 60 APT
+/// moves a stage each answered by its completion, the status lengths recorded and
+/// the report written; with the keep-alive removed from the APT axes it fails on the
+/// twin, at the moves; an existing report is not overwritten without `--force`.
+#[test]
+fn selftest_passes_on_the_simulator_and_fails_without_the_keepalive() {
+    let dir = scratch("selftest");
+    let inst = config("instrument-mixed.toml");
+    let sim = config("sim-mixed.toml");
+    let out = dir.join("selftest.json");
+    let out_s = out.display().to_string();
+    let o = gonio(&[
+        "instrument",
+        "selftest",
+        &inst,
+        "--sim",
+        &sim,
+        "--out",
+        &out_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("checks passed"), "{text}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).expect("report")).expect("json");
+    let r = &v["report"];
+    assert_eq!(r["passed"], true);
+    let checks = r["checks"].as_array().expect("checks");
+    let by = |check: &str, device: &str| {
+        checks
+            .iter()
+            .find(|c| c["check"] == check && c["device"] == device)
+            .unwrap_or_else(|| panic!("{check} {device}: {checks:?}"))
+    };
+    for axis in ["sample_rot", "sample_tilt"] {
+        let m = by("apt moves", axis);
+        assert!(
+            m["answered"]
+                .as_str()
+                .expect("text")
+                .contains("60 of 60 moves"),
+            "{m}"
+        );
+        assert!(
+            m["answered"]
+                .as_str()
+                .expect("text")
+                .contains("60 MOT_MOVE_COMPLETED"),
+            "{m}"
+        );
+        by("move time", axis);
+    }
+    for axis in ["source", "detector"] {
+        by("configuration", axis);
+        by("move time", axis);
+    }
+    by("noise floor", "k6485");
+    assert_eq!(
+        checks.iter().filter(|c| c["check"] == "keep-alive").count(),
+        2
+    );
+    // The K10CR1 twin sends the 14-byte stepper status, as real K10CR1s do.
+    let lengths = r["status_lengths"].as_array().expect("lengths");
+    assert!(lengths.iter().any(|l| l["axis"] == "sample_tilt"
+        && l["message"] == "MOT_GET_STATUSUPDATE"
+        && l["data_bytes"] == 14));
+    assert!(lengths.iter().any(|l| l["axis"] == "sample_rot"
+        && l["message"] == "MOT_GET_DCSTATUSUPDATE"
+        && l["data_bytes"] == 14));
+
+    // The report is not overwritten.
+    let o = gonio(&[
+        "instrument",
+        "selftest",
+        &inst,
+        "--sim",
+        &sim,
+        "--out",
+        &out_s,
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
+
+    // Without the keep-alive on the APT axes, the controllers fall silent within the
+    // 60 moves: the self-test fails there, and says so.
+    let text = std::fs::read_to_string(&inst).expect("config");
+    let off = text
+        .replace("kind = \"kdc101\"", "kind = \"kdc101\"\nkeepalive = false")
+        .replace("kind = \"k10cr1\"", "kind = \"k10cr1\"\nkeepalive = false");
+    let p = dir.join("no-keepalive.toml");
+    std::fs::write(&p, off).expect("write");
+    let o = gonio(&[
+        "instrument",
+        "selftest",
+        &p.display().to_string(),
+        "--sim",
+        &sim,
+        "--json",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("the self-test failed: apt moves on sample_rot"),
+        "{e}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["report"]["passed"], false);
 }
 
 /// Each refusal names the file, line and field, exits 2, and opens no port.

@@ -12,6 +12,9 @@
 //!   what it asks, reads a line until its deadline or sleeps until it, reads the abort
 //!   flag at its abort points, and hands back what happened. It logs every line sent and
 //!   received at `trace` under the target `gonio_driver::wire`.
+//! - The [`Heartbeat`] sends the keep-alives sessions declare (the APT controllers'
+//!   server-alive) on time through every wait of every line, and through the
+//!   instrument's idle time ([`Goniometer::idle_until`]).
 //! - [`smc100::Smc100Chain`] drives a chain of SMC100 controllers (the pump around
 //!   [`gonio_proto::smc100::Smc100Session`]): homing, moves with soft limits enforced
 //!   before any byte goes out, completion by status polling, error checks, stops.
@@ -29,11 +32,13 @@ pub mod cs130;
 pub mod detector;
 pub mod fw102c;
 mod goniometer;
+pub mod heartbeat;
 pub mod k6485;
 pub mod motion;
 pub mod ports;
 mod pump;
 pub mod script;
+pub mod selftest;
 pub mod smc100;
 pub mod spectral;
 pub mod sr830;
@@ -44,6 +49,7 @@ pub use clock::{Clock, ManualClock, SystemClock};
 pub use config::{ConfigFileError, InstrumentConfig};
 pub use detector::{DetectorDevice, DetectorError};
 pub use goniometer::{Goniometer, GoniometerError, PortUse, StartupReport};
+pub use heartbeat::Heartbeat;
 pub use motion::{Motion, MotionDevice};
 pub use script::ScriptedTransport;
 pub use spectral::{BandSelector, SpectralError};

@@ -45,6 +45,7 @@
 
 pub mod apt;
 pub mod cs130;
+mod facts;
 mod framing;
 pub mod fw102c;
 pub mod k6485;
@@ -60,5 +61,6 @@ mod number;
 pub mod smc100;
 pub mod sr830;
 
+pub use facts::Unconfirmed;
 pub use framing::{FrameError, Framer, LineFramer};
 pub use link::TransportError;

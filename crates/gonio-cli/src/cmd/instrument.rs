@@ -1,4 +1,4 @@
-//! `gonio instrument check` and `gonio sim`.
+//! `gonio instrument check`, `ports`, `selftest`, and `gonio sim`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -22,6 +22,32 @@ pub enum Command {
     /// number of USB adapters and instruments. A config may name a port
     /// `usb:SERIAL` by that serial number instead of a path that reorders on reboot.
     Ports(PortsArgs),
+    /// A first day on the hardware: identify every device, read its configuration
+    /// back, home what needs it, run 60 short moves on each APT stage checking every
+    /// completion arrives, record the status messages' lengths, time a move per axis
+    /// against its trapezoid, and read the detector's noise floor with the beam
+    /// blocked. Moves stay inside the soft limits. Exit status 1 when a check fails.
+    Selftest(SelftestArgs),
+}
+
+/// `gonio instrument selftest`.
+#[derive(clap::Args)]
+pub struct SelftestArgs {
+    /// The instrument config (TOML).
+    config: PathBuf,
+    /// Write the report (JSON: every check, what the hardware answered and what the
+    /// manual says) to this file.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Short moves on each APT stage.
+    #[arg(long, default_value_t = 60)]
+    apt_moves: usize,
+    #[command(flatten)]
+    sim: SimFlag,
+    #[command(flatten)]
+    force: crate::output::ForceFlag,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 /// `gonio instrument ports`.
@@ -58,6 +84,113 @@ pub fn run(c: Command) -> CliResult<()> {
     match c {
         Command::Check(a) => check(&a.config, a.connect, a.sim.sim.as_deref(), a.json.json),
         Command::Ports(a) => ports(a.json.json),
+        Command::Selftest(a) => selftest(&a),
+    }
+}
+
+/// `gonio instrument selftest CONFIG [--out REPORT.json] [--sim SIM] [--json]`.
+fn selftest(a: &SelftestArgs) -> CliResult<()> {
+    let path = &a.config;
+    let cfg = InstrumentConfig::load(path).map_err(|e| CliError::Input(e.to_string()))?;
+    if !(1..=100_000).contains(&a.apt_moves) {
+        return Err(CliError::Input(format!(
+            "--apt-moves: {} is outside [1, 100000]",
+            a.apt_moves
+        )));
+    }
+    // The report's file is checked before anything is opened.
+    let target = a
+        .out
+        .as_deref()
+        .map(|o| crate::output::Target::new(o, a.force.force))
+        .transpose()?;
+    let opts = gonio_driver::selftest::SelftestOptions {
+        apt_moves: a.apt_moves,
+        ..Default::default()
+    };
+    let simulated = is_simulated(&cfg, path)?;
+    let report = if simulated {
+        let scfg = sim_config(a.sim.sim.as_deref())?;
+        let (mut g, shared) = gonio_sim::connect(&cfg, &scfg).map_err(|e| match e {
+            gonio_sim::SimError::Mismatch(m) => CliError::Input(format!("{}: {m}", path.display())),
+            other => CliError::Runtime(other.to_string()),
+        })?;
+        let mut bench = gonio_sim::SimBench::new(shared, None);
+        gonio_driver::selftest::selftest(&mut g, &cfg, &mut bench, &opts)
+    } else {
+        let mut g = Goniometer::open(&cfg).map_err(|e| CliError::Runtime(e.to_string()))?;
+        let mut bench = gonio_driver::OperatorBench::new(
+            std::io::BufReader::new(std::io::stdin()),
+            std::io::stderr(),
+        );
+        gonio_driver::selftest::selftest(&mut g, &cfg, &mut bench, &opts)
+    };
+    let doc = json!({
+        "config": path.display().to_string(),
+        "name": cfg.name,
+        "simulated": simulated,
+        "report": report,
+    });
+    if let Some(t) = &target {
+        let mut text = serde_json::to_vec_pretty(&doc)
+            .map_err(|e| CliError::Runtime(format!("the report: {e}")))?;
+        text.push(b'\n');
+        t.write(&text)?;
+    }
+    if a.json.json {
+        output::json(&doc)?;
+    } else {
+        let mut w = output::stdout();
+        output::finish((|| {
+            for c in &report.checks {
+                writeln!(
+                    w,
+                    "{} {:<15} {:<12} {}",
+                    if c.passed { "pass" } else { "FAIL" },
+                    c.check,
+                    c.device,
+                    c.answered
+                )?;
+                if !c.passed {
+                    writeln!(w, "     expected: {} ({})", c.expected, c.source)?;
+                }
+            }
+            for f in &report.unconfirmed {
+                writeln!(w, "unconfirmed for {}:", f.family)?;
+                for u in f.unconfirmed {
+                    writeln!(w, "  - {} (check: {})", u.fact, u.check)?;
+                }
+            }
+            let failed = report.checks.iter().filter(|c| !c.passed).count();
+            writeln!(
+                w,
+                "{}: {} of {} checks passed in {:.1} s of instrument time{}",
+                path.display(),
+                report.checks.len() - failed,
+                report.checks.len(),
+                report.duration_s,
+                target
+                    .as_ref()
+                    .map(|t| format!("; report in {}", t.path().display()))
+                    .unwrap_or_default()
+            )?;
+            w.flush()
+        })())?;
+    }
+    if report.passed {
+        Ok(())
+    } else {
+        let failed: Vec<String> = report
+            .checks
+            .iter()
+            .filter(|c| !c.passed)
+            .map(|c| format!("{} on {}", c.check, c.device))
+            .collect();
+        Err(CliError::Runtime(format!(
+            "{}: the self-test failed: {}",
+            path.display(),
+            failed.join(", ")
+        )))
     }
 }
 
@@ -232,6 +365,26 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             let mut g = Goniometer::open(&cfg).map_err(|e| CliError::Runtime(e.to_string()))?;
             g.start().map_err(|e| CliError::Runtime(e.to_string()))?
         };
+        let mut families: Vec<&str> = start.axes.iter().map(|(_, i)| i.family).collect();
+        families.push(match cfg.detector.kind {
+            DetectorKind::Sr830 => "sr830",
+            DetectorKind::K6485 => "k6485",
+        });
+        if cfg.monochromator.is_some() {
+            families.push("cs130");
+        }
+        if cfg.filter_wheel.is_some() {
+            families.push("fw102c");
+        }
+        let mut unconfirmed: Vec<gonio_driver::selftest::FamilyFacts> = Vec::new();
+        for f in families
+            .iter()
+            .filter_map(|f| gonio_driver::selftest::unconfirmed(f))
+        {
+            if !unconfirmed.iter().any(|u| u.family == f.family) {
+                unconfirmed.push(f);
+            }
+        }
         report["connected"] = json!({
             "controllers": start.axes.iter().map(|(n, i)| json!({
                 "axis": n, "version": i.version, "stage": i.stage,
@@ -239,6 +392,7 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             })).collect::<Vec<_>>(),
             "detector": start.detector,
             "wavelength": start.spectral,
+            "unconfirmed": unconfirmed,
         });
     }
     if json {
@@ -331,7 +485,26 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             )?;
         }
         if let Some(c) = report.get("connected") {
-            writeln!(w, "connected: {c}")?;
+            let mut shown = c.clone();
+            if let Some(o) = shown.as_object_mut() {
+                o.remove("unconfirmed");
+            }
+            writeln!(w, "connected: {shown}")?;
+            for f in c["unconfirmed"].as_array().into_iter().flatten() {
+                writeln!(
+                    w,
+                    "unconfirmed for {} (check these on the hardware; docs/instruments/):",
+                    f["family"].as_str().unwrap_or("?")
+                )?;
+                for u in f["unconfirmed"].as_array().into_iter().flatten() {
+                    writeln!(
+                        w,
+                        "  - {} (check: {})",
+                        u["fact"].as_str().unwrap_or(""),
+                        u["check"].as_str().unwrap_or("")
+                    )?;
+                }
+            }
         }
         w.flush()
     })())
