@@ -191,6 +191,13 @@ impl<T: Transport + 'static, C: Clock> AptAxis<T, C> {
         pump(pumped!(self), None, op)
     }
 
+    /// Waits up to `wait` for the last move's `MOT_MOVE_COMPLETED` if it has not come
+    /// yet; `true` once it is in.
+    pub fn await_completion(&mut self, wait: std::time::Duration) -> Result<bool, MotionError> {
+        let _span = debug_span!("apt.await_completion", port = %self.port).entered();
+        run!(self, start_await_completion(wait))
+    }
+
     /// The velocity and acceleration the controller holds, deg/s and deg/s².
     pub fn velocity_params(&mut self) -> Result<(f64, f64), MotionError> {
         let _span = debug_span!("apt.velocity_params", port = %self.port).entered();

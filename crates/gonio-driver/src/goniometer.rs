@@ -282,10 +282,33 @@ impl<C: Clock + Clone> Goniometer<C> {
     }
 
     /// Waits on the instrument's clock until `at`, sending every line's keep-alive as
-    /// it falls due: how the instrument spends time doing nothing (a paused run, a
-    /// controller booting, an operator's answer). With `at` already past it sends
-    /// only what is due.
+    /// it falls due: how the instrument spends a wait of its own (a controller
+    /// booting). With `at` already past it sends only what is due.
     pub fn idle_until(&self, at: Duration) {
         self.heartbeat().sleep_until(self.motion.clock(), at);
+    }
+
+    /// Sends the keep-alives due now, waiting for nothing: what a loop paced by a
+    /// person (a paused run) calls at each turn. On a simulated clock that only moves
+    /// when the instrument waits, nothing falls due, so the run stays the same bytes
+    /// however long the person took.
+    pub fn keep_alive(&self) {
+        self.heartbeat().beat(self.motion.clock().now());
+    }
+
+    /// Runs `f`, which waits for a person (an operator's answer), on a thread of its
+    /// own, and keeps the instrument's lines alive here meanwhile, every 50 ms of wall
+    /// time ([`keep_alive`](Self::keep_alive)).
+    pub fn while_a_person_answers<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        std::thread::scope(|scope| {
+            let answer = scope.spawn(f);
+            while !answer.is_finished() {
+                std::thread::sleep(Duration::from_millis(50));
+                self.keep_alive();
+            }
+            answer
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p))
+        })
     }
 }

@@ -67,22 +67,31 @@ struct Beat {
     port: String,
     link: Box<dyn Transport>,
     duty: KeepAlive,
-    /// When it last went out.
-    last: Option<Duration>,
+    /// When it was last tried: the next is due a period later.
+    tried: Option<Duration>,
+    /// When the first went out.
+    first_sent: Option<Duration>,
+    /// When one last went out.
+    sent_at: Option<Duration>,
     sent: u64,
-    /// The longest time between two that went out, or from the first to now.
+    /// The longest time between two that went out.
     longest_gap: Duration,
 }
 
 impl Beat {
     fn due(&self) -> Duration {
-        self.last
+        self.tried
             .map_or(Duration::ZERO, |t| t.saturating_add(self.duty.every))
     }
 }
 
+/// The shortest period a keep-alive is sent at, whatever a session declares: a zero
+/// period would make every wait a busy loop.
+const MIN_PERIOD: Duration = Duration::from_millis(1);
+
 /// Every line's keep-alive, sent when due at each wait of any line. Clones share the
-/// duties: the instrument's lines hold one heartbeat between them.
+/// duties: the instrument's lines hold one heartbeat between them, and their clocks
+/// one time frame (every `now` handed in is the instrument's clock's).
 #[derive(Clone, Default)]
 pub struct Heartbeat(Arc<Mutex<Vec<Beat>>>);
 
@@ -106,12 +115,15 @@ impl Heartbeat {
     }
 
     /// Adds `port`'s duty, sent over `link`; the first is due at once.
-    pub(crate) fn add(&self, port: &str, link: Box<dyn Transport>, duty: KeepAlive) {
+    pub(crate) fn add(&self, port: &str, link: Box<dyn Transport>, mut duty: KeepAlive) {
+        duty.every = duty.every.max(MIN_PERIOD);
         self.lock().push(Beat {
             port: port.to_string(),
             link,
             duty,
-            last: None,
+            tried: None,
+            first_sent: None,
+            sent_at: None,
             sent: 0,
             longest_gap: Duration::ZERO,
         });
@@ -151,12 +163,14 @@ impl Heartbeat {
                 debug!(port = %b.port, error = %e, "keep-alive not sent");
             } else {
                 b.sent += 1;
-                if let Some(t) = b.last {
+                if let Some(t) = b.sent_at {
                     b.longest_gap = b.longest_gap.max(now.saturating_sub(t));
                 }
-                debug!(port = %b.port, message = b.duty.name, "keep-alive sent");
+                b.sent_at = Some(now);
+                b.first_sent.get_or_insert(now);
+                trace!(port = %b.port, message = b.duty.name, "keep-alive sent");
             }
-            b.last = Some(now);
+            b.tried = Some(now);
         }
     }
 
@@ -174,12 +188,17 @@ impl Heartbeat {
         }
     }
 
-    /// Per line with a duty: the port, how many keep-alives went out and the longest
-    /// time between two of them so far.
-    pub fn report(&self) -> Vec<(String, u64, Duration)> {
+    /// Per line with a duty: the port, how many keep-alives went out, and the longest
+    /// time without one from `since` to `now` (before the first, between two, after
+    /// the last; all of it when none went out).
+    pub fn report(&self, since: Duration, now: Duration) -> Vec<(String, u64, Duration)> {
         self.lock()
             .iter()
-            .map(|b| (b.port.clone(), b.sent, b.longest_gap))
+            .map(|b| {
+                let before = b.first_sent.unwrap_or(now).saturating_sub(since);
+                let after = now.saturating_sub(b.sent_at.unwrap_or(since));
+                (b.port.clone(), b.sent, b.longest_gap.max(before).max(after))
+            })
             .collect()
     }
 }

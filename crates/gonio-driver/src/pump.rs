@@ -292,8 +292,11 @@ fn receive<L: Transport + ?Sized, C: Clock>(
 ) -> Result<Vec<u8>, TransportError> {
     let started = at.clock.now();
     loop {
+        // The deadline may already have passed (another line was served first, or a
+        // write took the time): then one last look at what has arrived.
         let now = at.clock.now();
-        let until = at.beats.due().map_or(end, |d| d.clamp(now, end));
+        let end = end.max(now);
+        let until = at.beats.due().map_or(end, |d| d.max(now).min(end));
         match at.link.receive_line(until.saturating_sub(now)) {
             Err(TransportError::Timeout(_)) if until < end => at.beats.beat(at.clock.now()),
             Err(TransportError::Timeout(_)) => {
@@ -313,5 +316,186 @@ mod tests {
         assert_eq!(Escaped(b"1PA12.5\r\n").to_string(), "1PA12.5\\r\\n");
         assert_eq!(Escaped(b"SNAP? 1,2\n").to_string(), "SNAP? 1,2\\n");
         assert_eq!(Escaped(b"\0\xff\\").to_string(), "\\0\\xff\\\\");
+    }
+}
+
+#[cfg(test)]
+mod beats {
+    //! A wait cut at each keep-alive: the reply still arrives, a timeout reports the
+    //! whole wait, and a deadline already past is one last look, not a panic.
+
+    use std::collections::VecDeque;
+    use std::sync::{Arc, Mutex};
+    use std::time::Duration;
+
+    use gonio_proto::link::{Deadline, Io, KeepAlive, Operation};
+
+    use super::{Pumped, pump};
+    use crate::clock::{Clock, ManualClock};
+    use crate::heartbeat::{Heartbeat, SharedLink};
+    use crate::transport::{Transport, TransportError};
+
+    type Log = Arc<Mutex<Vec<(Duration, Vec<u8>)>>>;
+
+    /// A line whose frames arrive at set times on a manual clock; what is sent is
+    /// logged with its time.
+    struct Timed {
+        clock: ManualClock,
+        frames: VecDeque<(Duration, Vec<u8>)>,
+        sent: Log,
+    }
+
+    impl Transport for Timed {
+        fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+            let mut sent = self.sent.lock().unwrap_or_else(|p| p.into_inner());
+            sent.push((self.clock.now(), bytes.to_vec()));
+            Ok(())
+        }
+        fn receive_line(&mut self, timeout: Duration) -> Result<Vec<u8>, TransportError> {
+            let now = self.clock.now();
+            match self.frames.front() {
+                Some((t, _)) if *t <= now + timeout => {
+                    let (t, f) = self.frames.pop_front().unwrap_or_default();
+                    self.clock.advance(t.saturating_sub(now));
+                    Ok(f)
+                }
+                _ => {
+                    self.clock.advance(timeout);
+                    Err(TransportError::Timeout(timeout))
+                }
+            }
+        }
+        fn clear_input(&mut self) -> Result<(), TransportError> {
+            Ok(())
+        }
+        fn reconnect(&mut self) -> Result<(), TransportError> {
+            Ok(())
+        }
+        fn name(&self) -> String {
+            "timed".into()
+        }
+    }
+
+    /// An operation that waits for one line until `until`.
+    struct WaitLine {
+        until: Duration,
+        out: Option<Result<Vec<u8>, TransportError>>,
+    }
+
+    impl Operation for WaitLine {
+        type Output = Result<Vec<u8>, TransportError>;
+        fn poll_io(&mut self) -> Option<Io<'_>> {
+            None
+        }
+        fn poll_timeout(&self) -> Option<Deadline> {
+            self.out.is_none().then_some(Deadline::Reply(self.until))
+        }
+        fn poll_output(&mut self) -> Option<Self::Output> {
+            self.out.take()
+        }
+        fn handle_sent(&mut self, _: Duration, _: Result<(), TransportError>) {}
+        fn handle_reconnected(&mut self, _: Duration, _: Result<(), TransportError>) {}
+        fn handle_line(&mut self, _: Duration, line: &[u8]) {
+            self.out = Some(Ok(line.to_vec()));
+        }
+        fn handle_link_error(&mut self, _: Duration, e: TransportError) {
+            self.out = Some(Err(e));
+        }
+        fn handle_timeout(&mut self, _: Duration) {}
+        fn handle_abort(&mut self, _: Duration) {}
+    }
+
+    const MS: Duration = Duration::from_millis(1);
+
+    /// A detector line with `frames`, and an APT line's keep-alive every 0.5 s.
+    fn rig(clock: &ManualClock, frames: &[(Duration, &[u8])]) -> (Timed, Heartbeat, Log) {
+        let line = Timed {
+            clock: clock.clone(),
+            frames: frames.iter().map(|(t, f)| (*t, f.to_vec())).collect(),
+            sent: Log::default(),
+        };
+        let apt_log = Log::default();
+        let apt = Timed {
+            clock: clock.clone(),
+            frames: VecDeque::new(),
+            sent: apt_log.clone(),
+        };
+        let beats = Heartbeat::new();
+        let duty = KeepAlive {
+            bytes: vec![0x92, 0x04, 0, 0, 0x50, 0x01],
+            every: 500 * MS,
+            name: "MOT_ACK_DCSTATUSUPDATE",
+        };
+        beats.add("apt", Box::new(SharedLink::new(apt)), duty);
+        (line, beats, apt_log)
+    }
+
+    fn run(
+        clock: &ManualClock,
+        line: &mut Timed,
+        beats: &Heartbeat,
+        until: Duration,
+    ) -> Result<Vec<u8>, TransportError> {
+        let at = Pumped {
+            link: line,
+            clock,
+            port: "detector",
+            beats,
+        };
+        pump(at, None, WaitLine { until, out: None })
+    }
+
+    fn times(log: &Log) -> Vec<Duration> {
+        let log = log.lock().unwrap_or_else(|p| p.into_inner());
+        log.iter().map(|(t, _)| *t).collect()
+    }
+
+    #[test]
+    fn a_reply_after_the_cuts_still_arrives_and_the_keepalives_went_out_on_time() {
+        let clock = ManualClock::new();
+        let (mut line, beats, apt) = rig(&clock, &[(2300 * MS, b"0.951359")]);
+        let got = run(&clock, &mut line, &beats, 3000 * MS);
+        assert_eq!(got, Ok(b"0.951359".to_vec()));
+        assert_eq!(clock.now(), 2300 * MS);
+        assert_eq!(
+            times(&apt),
+            [0, 500, 1000, 1500, 2000].map(|m| m * MS).to_vec()
+        );
+    }
+
+    #[test]
+    fn a_timeout_reports_the_whole_wait() {
+        let clock = ManualClock::new();
+        let (mut line, beats, apt) = rig(&clock, &[]);
+        let got = run(&clock, &mut line, &beats, 1200 * MS);
+        assert_eq!(got, Err(TransportError::Timeout(1200 * MS)));
+        assert_eq!(clock.now(), 1200 * MS);
+        assert_eq!(times(&apt), [0, 500, 1000].map(|m| m * MS).to_vec());
+    }
+
+    #[test]
+    fn a_deadline_already_past_is_one_last_look() {
+        let clock = ManualClock::new();
+        clock.advance(5000 * MS);
+        let (mut line, beats, apt) = rig(&clock, &[(4000 * MS, b"late")]);
+        // The line that came in meanwhile is still taken.
+        assert_eq!(
+            run(&clock, &mut line, &beats, 4000 * MS),
+            Ok(b"late".to_vec())
+        );
+        // Nothing more: a timeout of nothing waited, at once.
+        assert_eq!(
+            run(&clock, &mut line, &beats, 4000 * MS),
+            Err(TransportError::Timeout(Duration::ZERO))
+        );
+        assert_eq!(clock.now(), 5000 * MS);
+        assert_eq!(times(&apt), [5000 * MS]);
+        // The heartbeat's own account: one sent, five seconds without one before it.
+        let r = beats.report(Duration::ZERO, clock.now());
+        assert_eq!(r, [("apt".to_string(), 1, 5000 * MS)]);
+        assert_eq!(
+            beats.report(4800 * MS, clock.now()),
+            [("apt".to_string(), 1, 200 * MS)]
+        );
     }
 }

@@ -7,10 +7,11 @@
 //! `MOT_MOVE_COMPLETED` arrives (the controllers stop sending them without the host's
 //! keep-alive, manual p. 130) and recording the length of every status message
 //! (`0x0481` is 14 data bytes on a K10CR1, 28 in the manual); times one move per axis
-//! against the trapezoid of the speeds the controller reports; and reads the
-//! detector's noise floor with the beam blocked (the band selector's shutter, or the
-//! bench). No move leaves the configured soft limits. The [`SelftestReport`] keeps
-//! what the hardware answered, for the lab to file.
+//! against the controller's own model (an SMC100's `PT`, the APT trapezoid); and reads
+//! the detector's noise floor with the beam blocked (the band selector's shutter, or
+//! the bench). No move leaves the configured soft limits, and none brings the arms
+//! closer than the geometry's minimum separation. The [`SelftestReport`] keeps what
+//! the hardware answered, for the lab to file.
 
 use std::any::Any;
 use std::time::Duration;
@@ -139,12 +140,13 @@ pub fn selftest<C: Clock + Clone + 'static>(
     }
     configuration(g, cfg, &mut t);
     home(g, &mut t);
+    let arms = Arms::of(cfg);
     if !t.failed() {
-        apt_moves(g, opts, &mut t);
-        move_times(g, &mut t);
+        apt_moves(g, arms.as_ref(), opts, &mut t);
+        move_times(g, arms.as_ref(), &mut t);
     }
     noise_floor(g, bench, opts, &mut t);
-    keepalive(g, &mut t);
+    keepalive(g, t0, &mut t);
     t.report(g, t0, &families)
 }
 
@@ -437,56 +439,120 @@ fn home<C: Clock + Clone + 'static>(g: &mut Goniometer<C>, t: &mut Tally) {
     );
 }
 
-/// A target `d` away from `p`, inside `[min, max]` by a margin.
-fn within(p: f64, d: f64, min: f64, max: f64) -> f64 {
+/// Where the arms may not go: the source and detector closer than the geometry's
+/// minimum separation, where the detector arm blocks the beam or the arms collide. A
+/// move of the self-test is made only where the planner would allow the stages.
+struct Arms {
+    mech: gonio_core::goniometer::Mechanics,
+}
+
+impl Arms {
+    fn of(cfg: &InstrumentConfig) -> Option<Arms> {
+        cfg.mechanics().ok().map(|mech| Arms { mech })
+    }
+
+    /// True when moving `name` to `target`, the other role axes where they stand,
+    /// keeps the arms apart, or at least brings them no closer than they are (after
+    /// homing, the arms may stand together); always, without kinematics.
+    fn allow<C: Clock + Clone + 'static>(
+        arms: Option<&Arms>,
+        g: &mut Goniometer<C>,
+        name: &str,
+        target: f64,
+    ) -> bool {
+        let Some(a) = arms else {
+            return true;
+        };
+        let mut now = [0.0; 4];
+        for (i, axis) in a.mech.axes.iter().enumerate() {
+            match g.motion.position(axis) {
+                Ok(p) => now[i] = p,
+                Err(_) => return false,
+            }
+        }
+        let mut then = now;
+        for (i, axis) in a.mech.axes.iter().enumerate() {
+            if axis == name {
+                then[i] = target;
+            }
+        }
+        let sep =
+            |s: [f64; 4]| gonio_core::kinematics::arm_separation_deg(a.mech.layout.forward(s));
+        let after = sep(then);
+        after >= a.mech.geometry.min_arm_separation_deg || after >= sep(now) - 1e-9
+    }
+}
+
+/// Targets `d` either side of `p` (kept `d` inside the limits where they allow),
+/// each within `[min, max]`.
+fn targets(p: f64, d: f64, min: f64, max: f64) -> [f64; 2] {
     let margin = ((max - min) / 4.0).min(d.abs());
     let centre = p.clamp(min + margin, max - margin);
-    if centre + d <= max {
-        centre + d
-    } else {
-        centre - d
-    }
+    [(centre + d).clamp(min, max), (centre - d).clamp(min, max)]
 }
 
 fn apt_moves<C: Clock + Clone + 'static>(
     g: &mut Goniometer<C>,
+    arms: Option<&Arms>,
     opts: &SelftestOptions,
     t: &mut Tally,
 ) {
     let clock = g.motion.clock().clone();
+    // The APT axes and the ends of their short moves, where both keep the arms apart.
+    let mut plans: Vec<(String, Option<[f64; 2]>)> = Vec::new();
+    let apt: Vec<(String, f64, f64)> = g
+        .motion
+        .lines_mut()
+        .iter_mut()
+        .filter_map(|l| match family::<C>(l.as_any_mut())? {
+            Family::Apt(axis) => {
+                let a = axis.axis();
+                Some((a.name.clone(), a.min, a.max))
+            }
+            Family::Smc100(_) => None,
+        })
+        .collect();
+    for (name, min, max) in apt {
+        let ends = g.motion.position(&name).ok().and_then(|p| {
+            // Short moves back and forth, well inside the soft limits.
+            let amp = (max - min).min(4.0) / 4.0;
+            let ends = targets(p, amp, min, max);
+            ends.iter()
+                .all(|&x| Arms::allow(arms, g, &name, x))
+                .then_some(ends)
+        });
+        plans.push((name, ends));
+    }
     for line in g.motion.lines_mut() {
         let Some(Family::Apt(axis)) = family::<C>(line.as_any_mut()) else {
             continue;
         };
-        let (name, min, max) = {
-            let a = axis.axis();
-            (a.name.clone(), a.min, a.max)
+        let name = axis.axis().name.clone();
+        let Some(ends) = plans.iter().find(|(n, _)| *n == name).and_then(|p| p.1) else {
+            t.push(
+                "apt moves",
+                &name,
+                false,
+                "not run: no position, or its short moves would bring the arms too close".into(),
+                "moves that keep the arms apart",
+                "the instrument config's geometry",
+            );
+            continue;
         };
-        let start = match axis.position() {
-            Ok(p) => p,
-            Err(e) => {
-                t.push(
-                    "apt moves",
-                    &name,
-                    false,
-                    e.to_string(),
-                    "a position",
-                    "APT manual p. 125",
-                );
-                continue;
-            }
-        };
-        // Short moves back and forth, well inside the soft limits.
-        let amp = (max - min).min(4.0) / 4.0;
-        let a = start.clamp(min + amp, max - amp);
         let before = axis.completions_received();
         let t_start = clock.now();
-        let mut done = 0;
+        let mut done = 0u64;
         let mut fault = None;
         for i in 0..opts.apt_moves {
-            let target = if i % 2 == 0 { a + amp } else { a - amp };
-            match axis.move_to(target) {
-                Ok(_) => done += 1,
+            let moved = axis.move_to(ends[i % 2]).and_then(|_| {
+                // A move may end on a settled status before its completion is in.
+                if axis.completions_received() - before < done + 1 {
+                    axis.await_completion(Duration::from_millis(500))?;
+                }
+                Ok(())
+            });
+            match moved {
+                Ok(()) => done += 1,
                 Err(e) => {
                     fault = Some(e.to_string());
                     break;
@@ -498,10 +564,12 @@ fn apt_moves<C: Clock + Clone + 'static>(
         t.push(
             "apt moves",
             &name,
-            fault.is_none() && completions as usize == opts.apt_moves,
+            fault.is_none() && completions == opts.apt_moves as u64,
             format!(
-                "{done} of {} moves of ±{amp:.2}° done in {took:.1} s, {completions} MOT_MOVE_COMPLETED{}",
+                "{done} of {} moves between {:.3}° and {:.3}° done in {took:.1} s, {completions} MOT_MOVE_COMPLETED{}",
                 opts.apt_moves,
+                ends[0],
+                ends[1],
                 fault.map(|f| format!("; then: {f}")).unwrap_or_default()
             ),
             "every move ends, and each sends MOT_MOVE_COMPLETED; without the host's server-alive at least once a second the controller stops after about 50 status messages",
@@ -515,24 +583,6 @@ fn apt_moves<C: Clock + Clone + 'static>(
                 count,
             });
         }
-        let lengths: Vec<String> = axis
-            .status_lengths()
-            .iter()
-            .map(|(m, l, n)| format!("{m} {l} bytes ×{n}"))
-            .collect();
-        let stepper = axis
-            .status_lengths()
-            .iter()
-            .filter(|(m, ..)| *m == "MOT_GET_STATUSUPDATE")
-            .all(|(_, l, _)| *l == 14 || *l == 28);
-        t.push(
-            "status lengths",
-            &name,
-            stepper,
-            lengths.join(", "),
-            "MOT_GET_DCSTATUSUPDATE and MOT_MOVE_COMPLETED 14 data bytes; MOT_GET_STATUSUPDATE 28 (the manual) or 14 (a K10CR1, PnPQ)",
-            "APT manual p. 83, 123, 125",
-        );
     }
 }
 
@@ -564,7 +614,11 @@ fn model_time<C: Clock + Clone + 'static>(
     None
 }
 
-fn move_times<C: Clock + Clone + 'static>(g: &mut Goniometer<C>, t: &mut Tally) {
+fn move_times<C: Clock + Clone + 'static>(
+    g: &mut Goniometer<C>,
+    arms: Option<&Arms>,
+    t: &mut Tally,
+) {
     let clock = g.motion.clock().clone();
     let axes: Vec<(String, f64, f64)> = g
         .motion
@@ -580,7 +634,22 @@ fn move_times<C: Clock + Clone + 'static>(g: &mut Goniometer<C>, t: &mut Tally) 
             continue;
         };
         let d = ((max - min) / 4.0).min(10.0);
-        let target = within(p, d, min, max);
+        let Some(target) = targets(p, d, min, max)
+            .into_iter()
+            .find(|&x| Arms::allow(arms, g, &name, x))
+        else {
+            t.push(
+                "move time",
+                &name,
+                true,
+                format!(
+                    "not timed: {d:.1}° either way from {p:.3}° would bring the arms too close"
+                ),
+                "the arms kept apart",
+                "the instrument config's geometry",
+            );
+            continue;
+        };
         let Some((model, basis)) = model_time(g, &name, target - p) else {
             t.push(
                 "move time",
@@ -629,7 +698,7 @@ fn noise_floor<C: Clock + Clone + 'static>(
             .as_mut()
             .map(|s| s.set_shutter(false).map_err(|e| e.to_string()))
     } else {
-        Some(bench.set_up(Setup::Dark).map_err(|e| e.to_string()))
+        Some(ask(g, bench, Setup::Dark).map_err(|e| e.to_string()))
     };
     if let Some(Err(e)) = blocked {
         t.push(
@@ -682,13 +751,28 @@ fn noise_floor<C: Clock + Clone + 'static>(
             let _ = s.set_shutter(true);
         }
     } else {
-        let _ = bench.set_up(Setup::Sample);
+        let _ = ask(g, bench, Setup::Sample);
     }
     g.detector.input_changed();
 }
 
-fn keepalive<C: Clock + Clone + 'static>(g: &mut Goniometer<C>, t: &mut Tally) {
-    for (port, sent, gap) in g.heartbeat().report() {
+/// Asks the bench for `setup`, the instrument's lines kept alive while a person
+/// answers.
+fn ask<C: Clock + Clone + 'static>(
+    g: &Goniometer<C>,
+    bench: &mut dyn Bench,
+    setup: Setup,
+) -> Result<(), crate::bench::BenchError> {
+    if bench.waits_for_a_person() {
+        g.while_a_person_answers(|| bench.set_up(setup))
+    } else {
+        bench.set_up(setup)
+    }
+}
+
+fn keepalive<C: Clock + Clone + 'static>(g: &mut Goniometer<C>, t0: Duration, t: &mut Tally) {
+    let now = g.motion.clock().now();
+    for (port, sent, gap) in g.heartbeat().report(t0, now) {
         t.push(
             "keep-alive",
             &port,

@@ -149,7 +149,8 @@ pub trait Operation {
 pub struct KeepAlive {
     /// The message, as sent.
     pub bytes: Vec<u8>,
-    /// The longest time allowed between two of them.
+    /// How often it is sent: shorter than the longest gap the device allows (the
+    /// session knows that; the APT manual's is a second, the session's period half).
     pub every: Duration,
     /// Its name, for the log.
     pub name: &'static str,

@@ -496,17 +496,14 @@ where
     })
     .await?;
     r?;
-    // A pause is a person's decision: polled at a person's pace, on the wall clock
-    // (a simulation may run faster than real time). Meanwhile the instrument idles on
-    // its own clock as long as the person has waited, its lines kept alive (the APT
-    // controllers' keep-alive, at least once a second whatever the run does).
-    let wall = std::time::Instant::now();
-    let t0 = rig.gonio.motion.clock().now();
+    // A pause is a person's decision: polled at a person's pace, never on the
+    // instrument clock (which a simulation may run faster than real time). Each turn
+    // sends the keep-alives due on the instrument's clock (the APT controllers want one
+    // at least once a second, whatever the run does).
     let mut rig = rig;
     while pauser.is_paused() && !stopper.is_stopped() {
         tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-        let until = t0 + wall.elapsed();
-        let (r, ()) = blocking(rig, move |rig| rig.gonio.idle_until(until)).await?;
+        let (r, ()) = blocking(rig, |rig| rig.gonio.keep_alive()).await?;
         rig = r;
     }
     let why = if stopper.is_stopped() {

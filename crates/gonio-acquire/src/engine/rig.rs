@@ -628,32 +628,22 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         }
     }
 
+    /// Asks the bench for a change. When a person answers, that may take minutes: the
+    /// instrument's lines are kept alive meanwhile.
+    fn ask_bench<T: Send>(&mut self, f: impl FnOnce(&mut B) -> T + Send) -> T {
+        if !self.bench.waits_for_a_person() {
+            return f(&mut self.bench);
+        }
+        let bench = &mut self.bench;
+        self.gonio.while_a_person_answers(move || f(bench))
+    }
+
     /// After a controller reset or lost power: waits until every controller answers
     /// (a rebooting one is silent for a few seconds) and no stage is still stopping,
     /// then homes each axis that lost its reference. Every controller is asked, not
     /// only the axis the error named: a power loss's NUL byte arrives on the shared
     /// line in answer to whichever controller was being polled, so it does not say
     /// which one rebooted. Returns the axes homed.
-    /// Asks the bench for a change. When a person answers, that may take minutes: the
-    /// question is asked on a thread of its own while the instrument idles here, its
-    /// lines kept alive.
-    fn ask_bench<T: Send>(&mut self, f: impl FnOnce(&mut B) -> T + Send) -> T {
-        if !self.bench.waits_for_a_person() {
-            return f(&mut self.bench);
-        }
-        let (gonio, bench) = (&self.gonio, &mut self.bench);
-        std::thread::scope(|scope| {
-            let asked = scope.spawn(move || f(bench));
-            while !asked.is_finished() {
-                let now = gonio.motion.clock().now();
-                gonio.idle_until(now + Duration::from_millis(50));
-            }
-            asked
-                .join()
-                .unwrap_or_else(|p| std::panic::resume_unwind(p))
-        })
-    }
-
     fn rehome_lost(&mut self) -> Result<Vec<String>, MotionError> {
         const BOOT: Duration = Duration::from_secs(10);
         let names: Vec<String> = self.gonio.motion.axis_names();

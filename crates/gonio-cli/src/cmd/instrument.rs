@@ -155,6 +155,13 @@ fn selftest(a: &SelftestArgs) -> CliResult<()> {
                     writeln!(w, "     expected: {} ({})", c.expected, c.source)?;
                 }
             }
+            for l in &report.status_lengths {
+                writeln!(
+                    w,
+                    "     {:<15} {:<12} {} {} data bytes ×{}",
+                    "status message", l.axis, l.message, l.data_bytes, l.count
+                )?;
+            }
             for f in &report.unconfirmed {
                 writeln!(w, "unconfirmed for {}:", f.family)?;
                 for u in f.unconfirmed {

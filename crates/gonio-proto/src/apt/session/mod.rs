@@ -408,6 +408,22 @@ impl AptSession {
         Run::new("apt.stop", self, Exec::new(ops::Stop::new(profiled)), now)
     }
 
+    /// Waits up to `wait` for the last move's `MOT_MOVE_COMPLETED` when it has not
+    /// come yet (a move can end on a settled status before it): `true` once it is in.
+    /// Nothing is sent.
+    pub fn start_await_completion(
+        &mut self,
+        wait: Duration,
+        now: Duration,
+    ) -> impl Operation<Output = Result<bool, MotionError>> + '_ {
+        Run::new(
+            "apt.await_completion",
+            self,
+            Exec::new(ops::AwaitCompletion::new(wait)),
+            now,
+        )
+    }
+
     /// The position counter (`MOT_REQ_POSCOUNTER`), deg.
     pub fn start_position(
         &mut self,

@@ -721,6 +721,44 @@ impl Stop {
     }
 }
 
+// --- a late completion ---
+
+/// Waits for the last move's `MOT_MOVE_COMPLETED`, if it has not come.
+#[derive(Debug)]
+pub(super) struct AwaitCompletion {
+    wait: Duration,
+}
+
+impl AwaitCompletion {
+    pub(super) fn new(wait: Duration) -> Self {
+        AwaitCompletion { wait }
+    }
+}
+
+impl Op for AwaitCompletion {
+    type Value = bool;
+
+    fn start(&mut self, s: &mut AptSession, cx: &mut Cx) -> Next<Self> {
+        if s.seen.completed.is_some() {
+            return Next::Done(Ok(true));
+        }
+        Next::Await {
+            want: |m| matches!(m, Message::MoveCompleted { .. }),
+            until: cx.now.saturating_add(self.wait),
+            after: "MOT_MOVE_COMPLETED",
+            then: |_, s, _, r| match r {
+                Ok(Message::MoveCompleted { status, .. }) => {
+                    s.seen.completed = Some(status);
+                    s.completions += 1;
+                    Next::Done(Ok(true))
+                }
+                Ok(_) | Err(AxisError::Transport(_)) => Next::Done(Ok(false)),
+                Err(e) => Next::error(s, e),
+            },
+        }
+    }
+}
+
 // --- queries ---
 
 /// `MOT_REQ_POSCOUNTER`.
