@@ -697,6 +697,9 @@ theta_o = { from = -60, to = 60, step = 10 }
         assert_eq!((k.late, k.withheld), (0, 0), "line {n}: {k:?}");
         assert!(k.longest_gap_until(end) <= 1.0, "line {n}: {k:?}");
         // One every 0.5 s of the session.
-        assert!(k.acks as f64 >= end / 0.5 - 2.0, "line {n}: {k:?} in {end} s");
+        assert!(
+            k.acks as f64 >= end / 0.5 - 2.0,
+            "line {n}: {k:?} in {end} s"
+        );
     }
 }
