@@ -129,7 +129,7 @@ impl ControllerConfig {
     /// home type 2 (MZ switch only, which is the search the twin makes), the full step
     /// `FRS` what `counts_per_unit` and `FRM` imply. No backlash, hysteresis or base
     /// velocity; the current limits and jerk time are nominal values (UNCONFIRMED).
-    /// Which lines `ZT` lists, and in which order, is [`Param::PP_DUMP`] (ZT page,
+    /// Which lines `ZT` lists, and in which order, is [`Param::in_pp_dump`] (ZT page,
     /// p. 67, and hvl_ccb's SMC100PP driver).
     pub fn factory_parameters(&self) -> Smc100Parameters {
         let values = Param::CONFIGURATION
@@ -543,7 +543,7 @@ impl Controller {
     /// included: the many lines of a `ZT` dump, or the one line of a query.
     ///
     /// The dump is an SMC100PP's: `PW1`, `ID`, then `AC BA BH FRM FRS HT JR OH OT QIL SA
-    /// SL SR VA VB ZX` ([`Param::PP_DUMP`]: what hvl_ccb's driver, written against real
+    /// SL SR VA VB ZX` ([`Param::in_pp_dump`]: what hvl_ccb's driver, written against real
     /// SMC100PPs, requires line for line; the manual gives only an example, p. 67),
     /// reals with six decimals as in that example, and `PW0` (hvl_ccb; the manual's
     /// example shows a second `PW1`, which Gonio's reader also takes). `ZT` answers in
@@ -553,8 +553,9 @@ impl Controller {
             self.update(now);
             let listed = Smc100Parameters {
                 stage: self.params.stage.clone(),
-                values: Param::PP_DUMP
+                values: Param::CONFIGURATION
                     .iter()
+                    .filter(|p| p.in_pp_dump())
                     .filter_map(|p| self.params.get(*p).map(|v| (*p, v)))
                     .collect(),
                 other: self.params.other.clone(),

@@ -230,8 +230,9 @@ fn session_configures_the_twin() {
         .clone();
     // The dump lists what an SMC100PP lists: QIR and QIT are held, not listed.
     assert_eq!(before.stage, twin.stage);
-    let listed: Vec<(Param, f64)> = Param::PP_DUMP
+    let listed: Vec<(Param, f64)> = Param::CONFIGURATION
         .iter()
+        .filter(|p| p.in_pp_dump())
         .map(|p| (*p, twin.get(*p).expect("held")))
         .collect();
     assert_eq!(before.values, listed);

@@ -105,6 +105,17 @@ fn a_complete_run_measures_the_blue_paint() {
     let _ = flags::SHADOWED;
 }
 
+/// The run log's pause and continue entries, in order.
+fn pause_log(store: &RunStore) -> Vec<String> {
+    store
+        .events()
+        .expect("events")
+        .into_iter()
+        .map(|e| e.kind)
+        .filter(|k| k == "pause" || k == "continue")
+        .collect()
+}
+
 /// Runs a session on a multi-threaded runtime while `during` reacts to its events.
 fn run_watched(
     engine: gonio_acquire::Engine<gonio_sim::SimClock, gonio_sim::SimBench>,
@@ -182,14 +193,7 @@ fn a_pause_holds_the_run_between_steps_until_resumed() {
         "{order:?}"
     );
     assert_eq!(order[at + 1], "resumed");
-    let kinds: Vec<String> = store
-        .events()
-        .expect("events")
-        .into_iter()
-        .map(|e| e.kind)
-        .filter(|k| k == "pause" || k == "continue")
-        .collect();
-    assert_eq!(kinds, ["pause", "continue"]);
+    assert_eq!(pause_log(&store), ["pause", "continue"]);
 }
 
 #[test]
@@ -682,14 +686,7 @@ theta_o = { from = -60, to = 60, step = 10 }
     // keep-alive's 6 bytes on the wire, if one fell due as the pause began).
     let (t0, t1) = *paused_at.lock().unwrap();
     assert!(t1 - t0 < 1e-3, "{t0} → {t1}");
-    let kinds: Vec<String> = store
-        .events()
-        .expect("events")
-        .into_iter()
-        .map(|e| e.kind)
-        .filter(|k| k == "pause" || k == "continue")
-        .collect();
-    assert_eq!(kinds, ["pause", "continue"]);
+    assert_eq!(pause_log(&store), ["pause", "continue"]);
     let end = gonio_sim::lock(&sim).clock().seconds();
     let mut s = gonio_sim::lock(&sim);
     for n in 0..2 {

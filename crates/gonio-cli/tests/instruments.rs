@@ -69,15 +69,18 @@ fn selftest_passes_on_the_simulator_and_fails_without_the_keepalive() {
     let sim = config("sim-mixed.toml");
     let out = dir.join("selftest.json");
     let out_s = out.display().to_string();
-    let o = gonio(&[
-        "instrument",
-        "selftest",
-        &inst,
-        "--sim",
-        &sim,
-        "--out",
-        &out_s,
-    ]);
+    let selftest = || {
+        gonio(&[
+            "instrument",
+            "selftest",
+            &inst,
+            "--sim",
+            &sim,
+            "--out",
+            &out_s,
+        ])
+    };
+    let o = selftest();
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("checks passed"), "{text}");
@@ -129,15 +132,7 @@ fn selftest_passes_on_the_simulator_and_fails_without_the_keepalive() {
         && l["data_bytes"] == 14));
 
     // The report is not overwritten.
-    let o = gonio(&[
-        "instrument",
-        "selftest",
-        &inst,
-        "--sim",
-        &sim,
-        "--out",
-        &out_s,
-    ]);
+    let o = selftest();
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--force"), "{}", stderr(&o));
 
@@ -165,6 +160,41 @@ fn selftest_passes_on_the_simulator_and_fails_without_the_keepalive() {
     );
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["report"]["passed"], false);
+
+    // Another instrument: SMC100s, an SR830, and a Cornerstone 130 whose shutter
+    // blocks the beam for the noise floor. No APT line: no keep-alive to report.
+    let o = gonio(&[
+        "instrument",
+        "selftest",
+        &config("instrument-spectral.toml"),
+        "--sim",
+        &config("sim-spectral.toml"),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    let checks = v["report"]["checks"].as_array().expect("checks");
+    let named = |check: &str, device: &str| {
+        checks
+            .iter()
+            .any(|c| c["check"] == check && c["device"] == device && c["passed"] == true)
+    };
+    assert!(
+        named("identify", "cs130") && named("noise floor", "sr830"),
+        "{checks:?}"
+    );
+    assert!(
+        !checks
+            .iter()
+            .any(|c| c["check"] == "keep-alive" || c["check"] == "apt moves")
+    );
+    let families: Vec<&str> = v["report"]["unconfirmed"]
+        .as_array()
+        .expect("unconfirmed")
+        .iter()
+        .map(|f| f["family"].as_str().expect("family"))
+        .collect();
+    assert_eq!(families, ["smc100", "sr830", "cs130"]);
 }
 
 /// Each refusal names the file, line and field, exits 2, and opens no port.

@@ -494,7 +494,12 @@ fn pp_parameters() -> Smc100Parameters {
     ];
     Smc100Parameters {
         stage: "URS100PP".into(),
-        values: Param::PP_DUMP.iter().copied().zip(v).collect(),
+        values: Param::CONFIGURATION
+            .iter()
+            .copied()
+            .filter(|p| p.in_pp_dump())
+            .zip(v)
+            .collect(),
         other: Vec::new(),
     }
 }

@@ -126,29 +126,15 @@ impl Param {
         Param::StageCheck,
     ];
 
-    /// The parameters an SMC100PP's `ZT` dump lists, in its order (after `PW1` and
-    /// `ID`, before the closing line). The manual gives only an example (p. 67); this
-    /// is the list hvl_ccb's `NewportSMC100PP` (0.19.6), written against real
-    /// controllers, requires line for line. `QIR` and `QIT` (p. 45) are set and asked
-    /// for, but not listed.
-    pub const PP_DUMP: [Param; 16] = [
-        Param::Acceleration,
-        Param::Backlash,
-        Param::Hysteresis,
-        Param::MicroSteps,
-        Param::FullStep,
-        Param::HomeType,
-        Param::JerkTime,
-        Param::HomeVelocity,
-        Param::HomeTimeout,
-        Param::PeakCurrent,
-        Param::RsAddress,
-        Param::NegativeLimit,
-        Param::PositiveLimit,
-        Param::Velocity,
-        Param::BaseVelocity,
-        Param::StageCheck,
-    ];
+    /// True for a parameter an SMC100PP's `ZT` dump lists: every configuration
+    /// parameter but `QIR` and `QIT` (p. 45), which are set and asked for but not
+    /// listed. The manual gives only an example dump (p. 67); this is the list
+    /// hvl_ccb's `NewportSMC100PP` (0.19.6), written against real controllers,
+    /// requires line for line, in [`CONFIGURATION`](Self::CONFIGURATION)'s order:
+    /// `AC BA BH FRM FRS HT JR OH OT QIL SA SL SR VA VB ZX`.
+    pub fn in_pp_dump(self) -> bool {
+        self.is_configuration() && !matches!(self, Param::RmsCurrent | Param::RmsTime)
+    }
 
     fn entry(self) -> (Param, &'static str, Kind, bool) {
         // Every variant has its row; the fallback is never taken.
