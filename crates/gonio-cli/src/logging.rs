@@ -7,7 +7,7 @@ use std::io::{IsTerminal, Write};
 use std::path::Path;
 use std::sync::{Mutex, MutexGuard};
 
-use tracing_subscriber::EnvFilter;
+use tracing_subscriber::filter::Targets;
 use tracing_subscriber::fmt::MakeWriter;
 use tracing_subscriber::layer::SubscriberExt;
 use tracing_subscriber::util::SubscriberInitExt;
@@ -53,16 +53,27 @@ impl<'a> MakeWriter<'a> for Stderr {
     }
 }
 
-/// The filter of the terminal's log: `RUST_LOG` when set, else by `-v` count.
-fn terminal_filter(verbose: u8) -> EnvFilter {
+/// The filter of a log: `RUST_LOG` when set (`LEVEL` and `TARGET=LEVEL` directives,
+/// comma-separated, as `tracing_subscriber`'s `Targets` reads them), else `default`.
+/// A `RUST_LOG` that does not parse is said once on stderr and `default` used.
+fn filter(default: &str) -> Targets {
+    let fallback = || default.parse().unwrap_or_default();
     match std::env::var("RUST_LOG") {
-        Ok(s) if !s.trim().is_empty() => EnvFilter::new(s),
-        _ => EnvFilter::new(match verbose {
-            0 => "warn",
-            1 => "debug",
-            _ => "trace",
+        Ok(s) if !s.trim().is_empty() => s.parse().unwrap_or_else(|e| {
+            eprintln!("gonio: RUST_LOG={s:?} ignored: {e} (directives are LEVEL or TARGET=LEVEL)");
+            fallback()
         }),
+        _ => fallback(),
     }
+}
+
+/// The filter of the terminal's log: `RUST_LOG` when set, else by `-v` count.
+fn terminal_filter(verbose: u8) -> Targets {
+    filter(match verbose {
+        0 => "warn",
+        1 => "debug",
+        _ => "trace",
+    })
 }
 
 /// Installs the logs for this process. With `file`, the same events also go to it
@@ -87,10 +98,7 @@ pub fn init(verbose: u8, file: Option<&Path>) -> CliResult<()> {
                         path.display()
                     ))
                 })?;
-            let level = match std::env::var("RUST_LOG") {
-                Ok(s) if !s.trim().is_empty() => EnvFilter::new(s),
-                _ => EnvFilter::new(if verbose >= 2 { "trace" } else { "debug" }),
-            };
+            let level = filter(if verbose >= 2 { "trace" } else { "debug" });
             Some(
                 fmt::layer()
                     .json()

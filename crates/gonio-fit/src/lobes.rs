@@ -7,7 +7,7 @@
 //! cos β) — β > 0 retro-reflective, β < 0 forward; anisotropic ones ĉ = (sin β cos γ,
 //! sin β sin γ, cos β). Exponents are n = e^η (never negative, any real value). The
 //! diffuse term is Lambert's ρd/π or Minnaert's ρd (m+2)/(2π) (uz vz)^m (Eq. 6) with
-//! m = κ² ≥ 0. The derivatives below are analytic; `tests/fit.rs` checks them against
+//! m = κ² ≥ 0. The derivatives below are analytic; `tests/it/fit.rs` checks them against
 //! central differences.
 
 use std::f64::consts::{FRAC_1_SQRT_2, PI, TAU};

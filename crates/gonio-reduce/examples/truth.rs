@@ -4,7 +4,7 @@
 //!
 //! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct SEED [quiet] [integrate] [transient] [percentiles]`
 
-#[path = "../tests/truth/mod.rs"]
+#[path = "../tests/it/truth/mod.rs"]
 mod truth;
 
 use gonio_reduce::{Calibration, Drift, Options, reduce};

@@ -4,8 +4,8 @@ Table 1 (550 nm), evaluated with mpmath at 30 digits straight from Eq. 8:
     f_r(u, v) = sum_i max(0, Cx ux vx + Cy uy vy + Cz uz vz)^n_i + f_d
 
 with f_d = 0.13 /sr (Table 1's "Diffuse" row; rho = 0.13 pi). Run with
-`python3 table1.py`; the numbers are asserted in tests/closed_forms.rs (values) and
-tests/albedo.rs (albedo).
+`python3 table1.py`; the numbers are asserted in tests/it/closed_forms.rs (values) and
+tests/it/albedo.rs (albedo).
 """
 import mpmath as mp
 

@@ -2,7 +2,6 @@
 
 use std::fs;
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -53,7 +52,11 @@ fn to_file<F: Figure>(
     fig: &F,
 ) -> Result<Vec<PanelRect>, PlotErrorKind> {
     match format_of(path) {
-        Some(Format::Png) => draw_on(BitMapBackend::new(path, size).into_drawing_area(), fig, 1),
+        Some(Format::Png) => {
+            let (bytes, panels) = to_png_bytes(size, fig)?;
+            fs::write(path, bytes).map_err(PlotErrorKind::Io)?;
+            Ok(panels)
+        }
         Some(Format::Svg) => draw_on(
             SVGBackend::new(path, size).into_drawing_area(),
             fig,
@@ -63,43 +66,38 @@ fn to_file<F: Figure>(
     }
 }
 
-/// PNG bytes through the bitmap backend's encoder, which only writes files: the
-/// image goes to a fresh private directory under the system's temporary directory,
-/// is read back, and the directory is removed.
+/// Draws `fig` into an RGB buffer of `size`, returning its panels.
+fn to_rgb<F: Figure>(
+    buf: &mut Vec<u8>,
+    size: (u32, u32),
+    fig: &F,
+) -> Result<Vec<PanelRect>, PlotErrorKind> {
+    buf.clear();
+    buf.resize(size.0 as usize * size.1 as usize * 3, 0);
+    draw_on(
+        BitMapBackend::with_buffer(buf, size).into_drawing_area(),
+        fig,
+        1,
+    )
+}
+
+/// PNG bytes: the figure drawn into an RGB buffer and encoded by the `png` crate
+/// (8-bit RGB, no other chunks), in memory.
 fn to_png_bytes<F: Figure>(
     size: (u32, u32),
     fig: &F,
 ) -> Result<(Vec<u8>, Vec<PanelRect>), PlotErrorKind> {
-    static SEQ: AtomicU64 = AtomicU64::new(0);
-    let base = std::env::temp_dir();
-    let mut dir = None;
-    for _ in 0..64 {
-        let d = base.join(format!(
-            "gonio-plot-{}-{}",
-            std::process::id(),
-            SEQ.fetch_add(1, Ordering::Relaxed)
-        ));
-        match fs::create_dir(&d) {
-            Ok(()) => {
-                dir = Some(d);
-                break;
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
-            Err(e) => return Err(PlotErrorKind::Io(e)),
-        }
-    }
-    let dir = dir.ok_or_else(|| {
-        PlotErrorKind::Io(std::io::Error::new(
-            std::io::ErrorKind::AlreadyExists,
-            "no free temporary directory name for the PNG encoder",
-        ))
-    })?;
-    let file = dir.join("plot.png");
-    let result = to_file(&file, size, fig)
-        .and_then(|p| fs::read(&file).map(|b| (b, p)).map_err(PlotErrorKind::Io));
-    // Best effort: a leftover empty directory in the temporary directory is harmless.
-    let _ = fs::remove_dir_all(&dir);
-    result
+    let mut rgb = Vec::new();
+    let panels = to_rgb(&mut rgb, size, fig)?;
+    let mut out = Vec::new();
+    let encoding = |e: png::EncodingError| PlotErrorKind::Draw(format!("PNG encoder: {e}"));
+    let mut enc = png::Encoder::new(&mut out, size.0, size.1);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(encoding)?;
+    w.write_image_data(&rgb).map_err(encoding)?;
+    w.finish().map_err(encoding)?;
+    Ok((out, panels))
 }
 
 /// Draws `fig` at `size` into `out`.
@@ -130,15 +128,7 @@ pub(crate) fn emit<F: Figure>(
             *bytes = b;
             p
         }),
-        Output::Rgb(buf) => {
-            buf.clear();
-            buf.resize(size.0 as usize * size.1 as usize * 3, 0);
-            draw_on(
-                BitMapBackend::with_buffer(buf, size).into_drawing_area(),
-                fig,
-                1,
-            )
-        }
+        Output::Rgb(buf) => to_rgb(buf, size, fig),
     }
     .map_err(fail)?;
     Ok(Drawn { size, panels })

@@ -1,0 +1,8 @@
+//! The crate's integration tests, one binary (a module per file): linking one test
+//! binary per file cost most of the suite's build time (TESTING.md).
+
+mod loaders_never_panic;
+mod samples;
+mod sh_sigma;
+mod tracer;
+mod validation;

@@ -1,0 +1,10 @@
+//! The crate's integration tests, one binary (a module per file): linking one test
+//! binary per file cost most of the suite's build time (TESTING.md).
+
+mod adaptive;
+mod common;
+mod loaders_never_panic;
+mod order;
+mod plan;
+mod reading;
+mod spectral;

@@ -1,0 +1,10 @@
+//! The crate's integration tests, one binary (a module per file): linking one test
+//! binary per file cost most of the suite's build time (TESTING.md).
+
+mod hemisphere;
+mod limits;
+mod loaders_never_panic;
+mod properties;
+mod samples;
+mod separability;
+mod sh;

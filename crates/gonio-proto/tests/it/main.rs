@@ -1,0 +1,11 @@
+//! The crate's integration tests, one binary (a module per file): linking one test
+//! binary per file cost most of the suite's build time (TESTING.md).
+
+mod apt;
+mod cs130;
+mod fw102c;
+mod k6485;
+mod smc100;
+mod sr830;
+mod sr830_target;
+mod unconfirmed;

@@ -1,0 +1,10 @@
+//! The crate's integration tests, one binary (a module per file): linking one test
+//! binary per file cost most of the suite's build time (TESTING.md).
+
+mod closure;
+mod dc;
+mod pooling;
+mod reading_time;
+mod reduce;
+mod spectral;
+mod truth;
