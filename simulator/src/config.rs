@@ -175,9 +175,10 @@ impl Default for LinkConfig {
         LinkConfig {
             motion_baud: 57_600,
             detector_baud: 9_600,
-            motion_latency_s: 0.010,
-            detector_latency_s: 0.005,
-            apt_latency_s: 0.002,
+            // The figures `gonio plan check` estimates a run with.
+            motion_latency_s: gonio_proto::smc100::timing::REPLY_LATENCY_S,
+            detector_latency_s: gonio_proto::sr830::timing::REPLY_LATENCY_S,
+            apt_latency_s: gonio_proto::apt::timing::REPLY_LATENCY_S,
         }
     }
 }

@@ -700,7 +700,8 @@ impl SimInstrument {
         self.faults.port_closed(port, self.clock.seconds())
     }
 
-    /// The physical time a line of `bytes` takes on `port`'s wire (10 bits a byte).
+    /// The physical time a line of `bytes` takes on `port`'s wire (10 bits a byte, as
+    /// the planner counts them).
     pub fn wire_time(&self, port: Port, bytes: usize) -> f64 {
         let baud = match port {
             Port::Motion => self.link.motion_baud,
@@ -709,6 +710,6 @@ impl SimInstrument {
             Port::Monochromator => MONOCHROMATOR_BAUD,
             Port::FilterWheel => gonio_proto::fw102c::BAUD,
         };
-        bytes as f64 * 10.0 / f64::from(baud.max(1))
+        gonio_proto::timing::wire_s(bytes, baud)
     }
 }

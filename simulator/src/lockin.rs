@@ -108,8 +108,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 /// An output overloads above this multiple of full scale (manual, OUTPUT OVLD, as
-/// `instruments.md` §2.5 summarises it; the page was not re-checked: UNCONFIRMED).
-pub const OVERLOAD_FACTOR: f64 = 1.09;
+/// `instruments.md` §2.5 summarises it; the page was not re-checked: UNCONFIRMED):
+/// the session's and the planner's figure.
+pub const OVERLOAD_FACTOR: f64 = gonio_proto::sr830::timing::OUTPUT_OVERLOAD;
 
 /// RC stages in the time-constant filter (24 dB/oct uses all of them).
 pub const STAGES: usize = 4;

@@ -9,7 +9,7 @@
 use crate::DirPair;
 use crate::kinematics::{self, KinematicsError, Layout};
 use crate::limits::{Fault, Range};
-use crate::motion::{AxisMotion, MotionModel};
+use crate::motion::{AxisMotion, MotionModel, MoveExchanges};
 use crate::spectral_timing::WavelengthTiming;
 
 /// Stage velocity assumed when the instrument config leaves it to the controller,
@@ -209,7 +209,7 @@ impl Rejection {
 }
 
 /// The instrument as planning sees it: layout, axis limits and speeds in role order,
-/// and the optical geometry.
+/// the serial exchanges of a move, and the optical geometry.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mechanics {
     /// The layout.
@@ -220,6 +220,9 @@ pub struct Mechanics {
     pub limits: [(f64, f64); 4],
     /// Speeds of each role's axis.
     pub motion: MotionModel,
+    /// The serial exchanges of a move, role order; `None`: none counted. Set with
+    /// [`with_exchanges`](Mechanics::with_exchanges).
+    pub exchanges: Option<MoveExchanges>,
     /// The optical geometry.
     pub geometry: GeometryConfig,
     /// How long the bench takes to change wavelength; `None`: an operator changes
@@ -277,6 +280,7 @@ impl Mechanics {
             axes,
             limits,
             motion: MotionModel { axes: motion },
+            exchanges: None,
             geometry: geometry.clone(),
             wavelength: None,
         })
@@ -286,6 +290,35 @@ impl Mechanics {
     pub fn with_wavelength(mut self, timing: WavelengthTiming) -> Mechanics {
         self.wavelength = Some(timing);
         self
+    }
+
+    /// The same mechanics with the serial exchanges `exchanges` around each move.
+    pub fn with_exchanges(mut self, exchanges: MoveExchanges) -> Mechanics {
+        self.exchanges = Some(exchanges);
+        self
+    }
+
+    /// The time of a step's motion, s, from the stages at `from` to `to` (role order;
+    /// `None`: the stages stay where they are and only their positions are read): the
+    /// slowest stage's trapezoid, or with [`exchanges`](Mechanics::exchanges) the
+    /// whole move as the controllers' sessions make it
+    /// ([`MoveExchanges::move_s`]).
+    pub fn move_s(&self, from: &[f64; 4], to: Option<&[f64; 4]>) -> f64 {
+        match (to, &self.exchanges) {
+            (Some(to), None) => self.motion.step_time(from, to),
+            (None, None) => 0.0,
+            (None, Some(x)) => x.positions_s(),
+            (Some(to), Some(x)) => {
+                let each: Vec<f64> = self
+                    .motion
+                    .axes
+                    .iter()
+                    .zip(from.iter().zip(to))
+                    .map(|(ax, (a, b))| ax.move_time(b - a))
+                    .collect();
+                x.move_s(&each)
+            }
+        }
     }
 
     /// Time to change from the band at `from_nm` (`None`: unknown, as at the start)

@@ -75,6 +75,24 @@ impl Crossovers {
     }
 }
 
+/// The serial statements of a change of wavelength around the drive's own moves, s,
+/// as the monochromator's session makes them (its protocol fills them in).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChangeExchanges {
+    /// Before the drive starts: the statement that starts it, on the wire.
+    pub lead_s: f64,
+    /// Exchanged while the drive moves (echoes, the wait for the move): a change
+    /// takes at least this long however short the move.
+    pub during_s: f64,
+    /// After the drive stops: the read-back's answer and the status check.
+    pub trail_s: f64,
+    /// The extra statement, exchanged while the drive moves, of a move that first
+    /// goes below its wavelength (a move down, or from an unknown wavelength, with a
+    /// backlash correction).
+    pub approach_s: f64,
+}
+
 /// A monochromator's wavelength drive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,6 +112,9 @@ pub struct MonochromatorTiming {
     /// The grating turret.
     #[serde(default)]
     pub grating: Option<Crossovers>,
+    /// The statements around each change (none counted by default).
+    #[serde(default)]
+    pub exchanges: ChangeExchanges,
 }
 
 /// How long a change of wavelength takes.
@@ -121,6 +142,7 @@ impl WavelengthTiming {
             backlash_nm: 0.0,
             order_filter: None,
             grating: None,
+            exchanges: ChangeExchanges::default(),
         })
     }
 
@@ -151,6 +173,12 @@ impl WavelengthTiming {
                 at_nm: at_nm.to_vec(),
             })
         })
+    }
+
+    /// The monochromator with the statements `exchanges` around each change (no
+    /// effect on a per-change selector).
+    pub fn with_exchanges(self, exchanges: ChangeExchanges) -> WavelengthTiming {
+        self.mono(|m| m.exchanges = exchanges)
     }
 
     /// The monochromator with gratings that change at `at_nm`, each change taking
@@ -211,7 +239,14 @@ impl WavelengthTiming {
                         ((to_nm - f).abs() + down) / m.slew_nm_per_s
                     }
                 };
-                slew + m.settle_s + changed(&m.order_filter) + changed(&m.grating)
+                let drive = slew + m.settle_s + changed(&m.order_filter) + changed(&m.grating);
+                // The statements: the first starts the drive; the echoes and the
+                // wait overlap it, with one statement more for a move that comes
+                // down (or from nowhere) with a backlash correction.
+                let x = &m.exchanges;
+                let approach = m.backlash_nm > 0.0 && from_nm.is_none_or(|f| to_nm < f);
+                let during = x.during_s + if approach { x.approach_s } else { 0.0 };
+                x.lead_s + drive.max(during) + x.trail_s
             }
         }
     }
@@ -257,6 +292,28 @@ mod tests {
         assert!((m.move_s(None, 700.0) - (0.2 + 1.5 + 4.0)).abs() < 1e-12);
         // A sweep is its moves.
         assert!((m.sweep_s(Some(500.0), &[550.0, 500.0]) - 1.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_statements_of_a_change_surround_the_drive() {
+        let x = ChangeExchanges {
+            lead_s: 0.02,
+            during_s: 0.05,
+            trail_s: 0.03,
+            approach_s: 0.04,
+        };
+        let m = mono().with_exchanges(x);
+        // Up 50 nm: the first statement, the drive (0.7 s, longer than what overlaps
+        // it), the answer and the status.
+        assert!((m.move_s(Some(500.0), 550.0) - (0.02 + 0.7 + 0.03)).abs() < 1e-12);
+        // A short move takes no less than the statements exchanged while it runs;
+        // down, with the approach from below.
+        let quick = WavelengthTiming::monochromator(1e6, 0.0)
+            .with_backlash(5.0)
+            .with_exchanges(x);
+        assert!((quick.move_s(Some(500.0), 501.0) - (0.02 + 0.05 + 0.03)).abs() < 1e-9);
+        assert!((quick.move_s(Some(501.0), 500.0) - (0.02 + 0.09 + 0.03)).abs() < 1e-9);
+        assert_eq!(quick.move_s(Some(500.0), 500.0), 0.0);
     }
 
     #[test]

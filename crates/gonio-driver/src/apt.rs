@@ -23,7 +23,7 @@ use crate::transport::Transport;
 
 /// The framing and link settings every APT controller uses: 115 200 baud, 8N1,
 /// RTS/CTS (the manual's "USB Virtual COM port" set-up).
-pub const BAUD: u32 = 115_200;
+pub const BAUD: u32 = gonio_proto::apt::timing::BAUD;
 
 /// One APT controller with its stage.
 pub struct AptAxis<T: Transport, C: Clock> {

@@ -9,6 +9,7 @@ use serde::Deserialize;
 
 pub use gonio_core::goniometer::{GeometryConfig, KinematicsConfig};
 use gonio_core::goniometer::{Mechanics, MechanicsError, Stage};
+use gonio_core::motion::MoveExchanges;
 use gonio_core::spectral_timing::WavelengthTiming;
 
 use crate::smc100::{AxisConfig, ChainPolicy};
@@ -484,14 +485,84 @@ impl InstrumentConfig {
             .collect()
     }
 
-    /// The instrument as planning sees it (layout, role axes, limits, speeds,
-    /// geometry); fails without a `[kinematics]` section.
+    /// The instrument as planning sees it (layout, role axes, limits, speeds, the
+    /// serial exchanges of a move, geometry); fails without a `[kinematics]` section.
     pub fn mechanics(&self) -> Result<Mechanics, MechanicsError> {
         let mech = Mechanics::new(self.kinematics.as_ref(), &self.stages(), &self.geometry)?;
+        let exchanges = self.move_exchanges(&mech.axes);
+        let mech = mech.with_exchanges(exchanges);
         Ok(match self.wavelength_timing() {
             Some(t) => mech.with_wavelength(t),
             None => mech,
         })
+    }
+
+    /// The line (an index into [`MotionConfig::lines`]) the axis `name` is on.
+    fn line_of(&self, lines: &[MotionLine], name: &str) -> Option<usize> {
+        lines
+            .iter()
+            .position(|l| l.axis_names().iter().any(|n| n == name))
+    }
+
+    /// The serial exchanges of a move of the axes `names` (in the order a move
+    /// commands them), each as its family's session makes them at its line's baud
+    /// rate and the chain's polling interval.
+    pub fn move_exchanges(&self, names: &[String]) -> MoveExchanges {
+        let lines = self.motion.lines();
+        let poll = self.motion.policy().poll_interval;
+        let axes = names
+            .iter()
+            .filter_map(|name| {
+                let line = self.line_of(&lines, name)?;
+                Some(match &lines[line].kind {
+                    LineKind::Smc100(axes) => {
+                        let a = axes.iter().find(|a| &a.name == name)?;
+                        gonio_proto::smc100::timing::move_exchanges(a, line, self.motion.baud, poll)
+                    }
+                    LineKind::Apt(a, _) => {
+                        gonio_proto::apt::timing::move_exchanges(a.stage, line, poll)
+                    }
+                })
+            })
+            .collect();
+        MoveExchanges { axes }
+    }
+
+    /// The session's start-up before its first step, s (the engine's: every
+    /// controller identified, the detector set up, the band selector taken over, and
+    /// every axis homed), with each SMC100 axis' home search taking `search_s(axis)`
+    /// (0 where the stage is not known to stand away from its switch). An APT line's
+    /// identification and homing are not counted.
+    pub fn startup_seconds(&self, search_s: &dyn Fn(&AxisConfig) -> f64) -> f64 {
+        let poll = self.motion.policy().poll_interval;
+        let baud = self.motion.baud;
+        let mut t = 0.0;
+        for (line, l) in self.motion.lines().iter().enumerate() {
+            if let LineKind::Smc100(axes) = &l.kind {
+                t += gonio_proto::smc100::timing::identify_s(axes, baud);
+                let home = MoveExchanges {
+                    axes: axes
+                        .iter()
+                        .map(|a| gonio_proto::smc100::timing::home_exchanges(a, line, baud, poll))
+                        .collect(),
+                };
+                let searches: Vec<f64> = axes.iter().map(search_s).collect();
+                t += home.move_s(&searches);
+            }
+        }
+        if self.detector.kind == DetectorKind::Sr830 {
+            t += self.lockin().setup_s();
+        }
+        if let Some(m) = &self.monochromator {
+            t += m.cs130.init_s(m.baud);
+        }
+        t
+    }
+
+    /// The lock-in's settings with the detector line's baud rate, as its session
+    /// takes them.
+    pub fn lockin(&self) -> Sr830Config {
+        self.detector.lockin.clone().with_baud(self.detector.baud)
     }
 
     /// Checks that the band selector can serve every one of `wavelengths_nm` (a
@@ -528,7 +599,8 @@ impl InstrumentConfig {
 
     /// How long the band selector takes to change wavelength, for the planner: a
     /// monochromator's slew, settling, and its order-filter and grating changes at
-    /// the wavelengths where its config changes them; a filter wheel's change time.
+    /// the wavelengths where its config changes them, with its session's statements
+    /// around each change; a filter wheel's change time.
     /// `None` without either (an operator changes bands).
     pub fn wavelength_timing(&self) -> Option<WavelengthTiming> {
         if let Some(w) = &self.filter_wheel {
@@ -564,7 +636,8 @@ impl InstrumentConfig {
             }
         }
         let mut timing = WavelengthTiming::monochromator(t.slew_nm_per_s, t.settle_s)
-            .with_backlash(c.approach_nm);
+            .with_backlash(c.approach_nm)
+            .with_exchanges(c.change_exchanges(m.baud));
         if c.auto_order_filter && !filters.is_empty() {
             timing = timing.with_order_filter(t.filter_change_s, &filters);
         }
@@ -574,20 +647,18 @@ impl InstrumentConfig {
         Some(timing)
     }
 
-    /// Estimated seconds per reading on the detector: settling, sampling, and the
-    /// serial exchanges of a read cycle (a status query before and after, one
-    /// snapshot per sample, each about 36 characters both ways).
+    /// Estimated seconds per reading on the detector, as its session reads after a
+    /// move: the lock-in's settling, snapshots and their exchanges
+    /// ([`Sr830Config::read_s`]), or the picoammeter's integrations and `READ?`s;
+    /// range changes aside (they depend on the signal).
     pub fn reading_seconds(&self) -> f64 {
         if self.detector.kind == DetectorKind::K6485 {
             // One `READ?` (about 8 characters) and its reply (about 40) a sample.
             let p = self.detector.picoammeter();
-            let wire = p.samples as f64 * 48.0 * 10.0 / f64::from(self.detector.baud.max(1));
+            let wire = gonio_proto::timing::wire_s(p.samples * 48, self.detector.baud);
             return p.reading_seconds() + wire;
         }
-        let lockin = &self.detector.lockin;
-        let exchanges = lockin.samples as f64 + 2.0;
-        let wire = exchanges * 36.0 * 10.0 / f64::from(self.detector.baud.max(1));
-        lockin.reading_seconds() + wire
+        self.lockin().read_s()
     }
 
     /// Parses and validates a config's text; `path` only labels errors.

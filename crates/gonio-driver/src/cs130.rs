@@ -14,11 +14,11 @@
 //! [`gonio_proto::cs130`]). Every wait goes through the [`Clock`], so tests run on
 //! virtual time.
 
-use gonio_proto::cs130::{Command, Cs130Session, Reply};
 pub use gonio_proto::cs130::{
-    ConfigError, Cs130Config, Cs130Error, ErrorCode, GratingSpec, MonoState, OrderFilterSpec,
-    SelectError,
+    Command, ConfigError, Cs130Config, Cs130Error, ErrorCode, GratingSpec, MonoState,
+    OrderFilterSpec, SelectError,
 };
+use gonio_proto::cs130::{Cs130Session, Reply};
 use tracing::debug_span;
 
 use crate::clock::Clock;

@@ -222,14 +222,9 @@ impl<C: Clock + Clone + 'static> Goniometer<C> {
         clock: C,
     ) -> Result<Box<dyn DetectorDevice>, GoniometerError> {
         Ok(match cfg.detector.kind {
-            DetectorKind::Sr830 => Box::new(
-                Sr830::new(
-                    t,
-                    clock,
-                    cfg.detector.lockin.clone().with_baud(cfg.detector.baud),
-                )
-                .map_err(DetectorError::from)?,
-            ),
+            DetectorKind::Sr830 => {
+                Box::new(Sr830::new(t, clock, cfg.lockin()).map_err(DetectorError::from)?)
+            }
             DetectorKind::K6485 => Box::new(
                 K6485::new(t, clock, cfg.detector.picoammeter()).map_err(DetectorError::from)?,
             ),

@@ -17,6 +17,8 @@
 //! - the configuration is read with `ZT` ([`Smc100Chain::read_config`]) and changed in
 //!   CONFIGURATION, from NOT REFERENCED only ([`Smc100Chain::configure`]).
 
+/// What a move, a home search and the identification cost on the wire.
+pub use gonio_proto::smc100::timing;
 pub use gonio_proto::smc100::{
     AxisConfig, AxisError, ChainPolicy, ControllerInfo, MotionError, Param, Smc100Parameters,
     describe_errors,

@@ -27,15 +27,19 @@
 
 use std::time::Duration;
 
+/// Autoranging's rules, and what they make of a steady signal.
+pub use gonio_proto::sr830::ranging;
 /// Reading to a precision target: the transient fit, the sequential rule, the time
 /// estimates.
 pub use gonio_proto::sr830::target;
+/// What the set-up and a reading's cycle cost on the wire.
+pub use gonio_proto::sr830::timing;
 use gonio_proto::sr830::{
-    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, Sensitivity, Sr830Session,
-    TimeConstant,
+    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, Sr830Session, TimeConstant,
 };
 pub use gonio_proto::sr830::{
-    ConfigError, MAX_AUTORANGE_STEPS, ReadTarget, Reading, ReadingFlags, Sr830Config, Sr830Error,
+    ConfigError, MAX_AUTORANGE_STEPS, ReadTarget, Reading, ReadingFlags, Sensitivity, Sr830Config,
+    Sr830Error,
 };
 use target::floor_sigma;
 use tracing::debug_span;

@@ -83,7 +83,13 @@ pub struct Step {
 pub struct Schedule {
     /// The steps, in the order they are taken.
     pub steps: Vec<Step>,
-    /// Estimated motion time of the schedule, s.
+    /// Each step's band change and motion before its reading, s (what
+    /// [`band_s`](Self::band_s) and [`motion_s`](Self::motion_s) add up): the time a
+    /// reading's own estimate is added to, step by step.
+    pub step_s: Vec<f64>,
+    /// Estimated motion time of the schedule, s: the stages' moves with the serial
+    /// exchanges that command them and wait for them
+    /// ([`Mechanics::move_s`](crate::plan::Mechanics::move_s)).
     pub motion_s: f64,
     /// The same schedule's motion time with the pairs in plan (raster) order, s.
     pub raster_motion_s: f64,
@@ -387,20 +393,25 @@ impl<'a> Cost<'a> {
         }
     }
 
-    /// The engine's order: the band first, then the stages.
-    fn take(&mut self, p: &Proto) {
+    /// The engine's order: the band first, then the stages (a step without stages
+    /// reads where they stand). Returns the step's band change and motion, s.
+    fn take(&mut self, p: &Proto) -> f64 {
+        let mut band_s = 0.0;
         if let Some(b) = p.band
             && self.band != Some(b)
         {
-            self.band_s += band_move_s(self.mech, self.bands, self.band, b);
+            band_s = band_move_s(self.mech, self.bands, self.band, b);
+            self.band_s += band_s;
             self.band_changes += 1;
             self.band = Some(b);
         }
+        let motion_s = self.mech.move_s(&self.at, p.stages.as_ref());
+        self.motion_s += motion_s;
         if let Some(s) = p.stages {
-            self.motion_s += self.mech.motion.step_time(&self.at, &s);
             self.at = s;
         }
         self.steps += 1;
+        band_s + motion_s
     }
 
     fn estimate(&self, reading_s: f64) -> LoopEstimate {
@@ -572,7 +583,9 @@ pub fn build(
     };
     let estimate = |ord: &[usize], inner: Loop, alternate: bool| {
         let mut cost = Cost::new(mech, &bands, start);
-        layout.walk(ord, inner, alternate, &mut |p| cost.take(&p));
+        layout.walk(ord, inner, alternate, &mut |p| {
+            cost.take(&p);
+        });
         cost.estimate(reading_s)
     };
     let alternate = alternates(mech, &bands);
@@ -630,9 +643,10 @@ pub fn build(
     };
     let alternate = inner == Loop::Wavelength && alternate;
     let mut steps = Vec::new();
+    let mut step_s = Vec::new();
     let mut cost = Cost::new(mech, &bands, start);
     layout.walk(&optimised, inner, alternate, &mut |p| {
-        cost.take(&p);
+        step_s.push(cost.take(&p));
         steps.push(Step {
             kind: p.kind,
             channel: p.band.map(|b| bands[b].name.clone()),
@@ -645,6 +659,7 @@ pub fn build(
     let raster = estimate(&order::raster(points.len()), inner, alternate);
     Ok(Schedule {
         steps,
+        step_s,
         motion_s: cost.motion_s,
         raster_motion_s: raster.motion_s,
         detector_s: cost.steps as f64 * reading_s,

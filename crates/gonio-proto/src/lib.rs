@@ -60,6 +60,7 @@ pub mod motion {
 mod number;
 pub mod smc100;
 pub mod sr830;
+pub mod timing;
 
 pub use facts::Unconfirmed;
 pub use framing::{FrameError, Framer, LineFramer};

@@ -231,9 +231,7 @@ impl Planner {
 /// records it, and each batch's.
 fn planned_s(store: &RunStore, decisions: &[gonio_run::DecisionRecord]) -> Result<f64, AdaptError> {
     let meta = store.run_meta()?;
-    let coarse = meta
-        .estimate
-        .map_or(0.0, |e| e.motion_s + e.detector_s + e.band_s);
+    let coarse = meta.estimate.map_or(0.0, |e| e.total_s());
     let batches: f64 = decisions
         .iter()
         .filter_map(|d| {

@@ -84,6 +84,7 @@ pub fn meta_for(plan: &Plan, prepared: &Prepared, inputs: &Inputs) -> Result<Run
             .as_ref()
             .map_or(1.0, |i| i.transmittance),
         estimate: Some(Estimate {
+            startup_s: 0.0,
             motion_s: s.motion_s,
             raster_motion_s: s.raster_motion_s,
             detector_s: s.detector_s,

@@ -112,6 +112,10 @@ impl std::fmt::Display for RunStatus {
 /// Estimated durations recorded at creation, s.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Estimate {
+    /// The session's start-up: identification, set-up, homing (absent from run files
+    /// written before it was estimated).
+    #[serde(default)]
+    pub startup_s: f64,
     /// Motion in the optimised order.
     pub motion_s: f64,
     /// Motion in plan order.
@@ -121,6 +125,13 @@ pub struct Estimate {
     /// Band changes (absent from run files written before bands were estimated).
     #[serde(default)]
     pub band_s: f64,
+}
+
+impl Estimate {
+    /// The whole estimate, s: start-up, motion, band changes and detector.
+    pub fn total_s(&self) -> f64 {
+        self.startup_s + self.motion_s + self.band_s + self.detector_s
+    }
 }
 
 /// The metadata of a run file, typed.

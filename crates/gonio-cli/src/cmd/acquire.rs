@@ -12,8 +12,10 @@ use gonio_run::{Inputs, RunStore};
 use gonio_sim::SimBench;
 use serde_json::json;
 
+use crate::cmd::estimate::RunEstimate;
 use crate::cmd::instrument::{SimFlag, is_simulated, sim_config};
 use crate::cmd::prepare::{Loaded, hms, load_and_prepare};
+use crate::cmd::reading_time::Source;
 use crate::error::{CliError, CliResult};
 use crate::output;
 
@@ -156,6 +158,11 @@ impl AcquireArgs {
 }
 
 impl ResumeArgs {
+    /// The run file.
+    pub fn run_path(&self) -> &Path {
+        &self.run
+    }
+
     /// Where the log file goes, if any.
     pub fn log_file(&self) -> Option<&Path> {
         self.log.log.as_deref()
@@ -326,12 +333,14 @@ where
                     .map_err(|e| CliError::Runtime(format!("catching the stop signals: {e}")))?,
             )
         }
-        StopBy::Flag(_) => None,
+        StopBy::Caller(_) => None,
     };
-    let flag = match stop {
-        StopBy::Flag(f) => Some(f.clone()),
+    let caller = match stop {
+        StopBy::Caller(w) => Some(w.clone()),
         StopBy::Signals => None,
     };
+    // The caller's view of the session: its steps, as the progress bar shows them.
+    let followed = caller.as_ref().map(|w| (w.clone(), engine.subscribe()));
     // Set once the session has ended: a signal then ends the live page's stay.
     let ended = Arc::new(AtomicBool::new(false));
     // Set by a stop signal during the session: whoever sent it wants the process to
@@ -355,13 +364,20 @@ where
                         events: live_events,
                     },
                 )?;
-                if srv.token().is_some() {
-                    eprintln!(
-                        "gonio: live view at {} (the token allows Stop and Pause)",
-                        srv.url()
-                    );
-                } else {
-                    eprintln!("gonio: live view at {}", srv.url());
+                if let Some(w) = &caller {
+                    w.set_url(srv.url());
+                }
+                // A quiet caller shows the address itself, where its user looks.
+                let shown_by_caller = quiet && caller.is_some();
+                if !shown_by_caller {
+                    if srv.token().is_some() {
+                        eprintln!(
+                            "gonio: live view at {} (the token allows Stop and Pause)",
+                            srv.url()
+                        );
+                    } else {
+                        eprintln!("gonio: live view at {}", srv.url());
+                    }
                 }
                 Some(srv)
             }
@@ -390,19 +406,23 @@ where
                     std::process::exit(130);
                 }
             });
-        } else if let Some(flag) = flag {
+        } else if let Some(w) = caller.clone() {
             // Another thread owns the interrupt (Python's KeyboardInterrupt): it
             // raises the flag, and the stop is the same as a signal's.
             tokio::spawn(async move {
-                while !flag.load(Ordering::Relaxed) {
+                while !w.stopped() {
                     tokio::time::sleep(Duration::from_millis(20)).await;
                 }
                 stopper.stop();
             });
         }
         let listener = tokio::spawn(progress(rx, quiet));
+        let follower = followed.map(|(w, rx)| tokio::spawn(crate::api::follow(rx, w)));
         let r = engine.run().await;
         let _ = listener.await;
+        if let Some(f) = follower {
+            let _ = f.await;
+        }
         if let Some(srv) = server {
             ended.store(true, Ordering::SeqCst);
             srv.session_ended();
@@ -431,8 +451,9 @@ where
 pub enum StopBy {
     /// SIGINT, SIGTERM, SIGHUP; a second one quits at once.
     Signals,
-    /// The flag, polled every 20 ms.
-    Flag(Arc<AtomicBool>),
+    /// The caller's stop flag, polled every 20 ms; the caller also follows the
+    /// session's progress and is told the live page's address.
+    Caller(Arc<crate::api::Watch>),
 }
 
 /// How a session runs: quietly (no progress bar) or not, what stops it, and
@@ -573,13 +594,14 @@ pub(crate) fn acquire_with(
     quiet: bool,
     stop: &StopBy,
 ) -> CliResult<SessionReport> {
+    let loaded = load_and_prepare(&a.instrument, &a.plan)?;
     let Loaded {
         instrument: inst,
         instrument_text: inst_text,
         plan,
         plan_text,
         prepared,
-    } = load_and_prepare(&a.instrument, &a.plan)?;
+    } = &loaded;
     if a.out.exists() {
         return Err(CliError::from(gonio_run::StoreError::Exists(a.out.clone())));
     }
@@ -591,11 +613,11 @@ pub(crate) fn acquire_with(
             out_dir.display()
         )));
     }
-    let simulated = is_simulated(&inst, &a.instrument)?;
+    let simulated = is_simulated(inst, &a.instrument)?;
     let mut inputs = Inputs {
-        instrument_text: inst_text,
+        instrument_text: inst_text.clone(),
         instrument_path: Some(a.instrument.clone()),
-        plan_text,
+        plan_text: plan_text.clone(),
         plan_path: Some(a.plan.clone()),
         seed: a.seed,
         notes: a.notes.clone(),
@@ -615,38 +637,54 @@ pub(crate) fn acquire_with(
         let sample = s.sample_model_text().map_err(input)?;
         // The seed actually used, so that a resume reproduces it.
         inputs.seed = Some(s.seed);
-        gonio_sim::check_compatible(&inst, &s)
+        gonio_sim::check_compatible(inst, &s)
             .map_err(|e| input(format!("{}: {e}", a.instrument.display())))?;
         inputs.sim = Some((sim_text, sample));
         Rig::Sim(Box::new(s))
     } else {
         Rig::Real
     };
+    // The estimate `plan check` gives, the simulated sample's signals included.
+    let estimate = match &rig {
+        Rig::Sim(s) => RunEstimate::of(&loaded, Some(Source::Sim(s.clone())), Some(s.as_ref()))?,
+        Rig::Real => RunEstimate::of(&loaded, None, None)?,
+    };
     // Every referenced file read and checked: the run's whole record, before it
     // exists anywhere.
-    let meta = gonio_run::create::meta_for(&plan, &prepared, &inputs).map_err(input)?;
+    let mut meta = gonio_run::create::meta_for(plan, prepared, &inputs).map_err(input)?;
+    meta.estimate = Some(estimate.record(&loaded));
     let serve = a.serve.bind()?;
     let create = || {
         let store = RunStore::create(&a.out, &meta.to_map(), &prepared.schedule.steps)?;
-        let s = &prepared.schedule;
         if !quiet {
+            let e = &estimate;
             eprintln!(
                 "gonio: {}: {} steps ({} pairs measurable, {} left out); estimated {} \
-                 (motion {}, detector {})",
+                 (start-up {}, motion {}, detector {}{}){}",
                 a.out.display(),
-                s.steps.len(),
+                prepared.schedule.steps.len(),
                 prepared.checked.accepted.len(),
                 prepared.checked.rejected.len(),
-                hms(s.duration_s()),
-                hms(s.motion_s),
-                hms(s.detector_s)
+                hms(e.total_s),
+                hms(e.startup_s),
+                hms(e.motion_s),
+                hms(e.detector_s),
+                if e.band_s > 0.0 {
+                    format!(", band changes {}", hms(e.band_s))
+                } else {
+                    String::new()
+                },
+                e.adaptive.map_or(String::new(), |x| format!(
+                    "; the whole adaptive run {}",
+                    hms(x.whole_s)
+                ))
             );
         }
         Ok(store)
     };
     let (report, _) = session(
         create,
-        &inst,
+        inst,
         &a.instrument.display().to_string(),
         rig,
         RunSetup {
@@ -669,9 +707,10 @@ pub fn resume(a: ResumeArgs) -> CliResult<()> {
     report_session(&a.run, &report, a.json)
 }
 
-/// Continues the run at `path`; `quiet` prints nothing (no progress bar).
-pub(crate) fn resume_with(path: &Path, quiet: bool, stop: &StopBy) -> CliResult<SessionReport> {
-    resume_served(path, quiet, stop, &ServeFlag::default())
+/// Continues the run `a` names, its live page served if `a` asks for it; `quiet`
+/// prints nothing (no progress bar).
+pub(crate) fn resume_with(a: &ResumeArgs, quiet: bool, stop: &StopBy) -> CliResult<SessionReport> {
+    resume_served(&a.run, quiet, stop, &a.serve)
 }
 
 /// [`resume_with`], with the live page if `serve` asks for it.

@@ -7,6 +7,7 @@ pub mod colour;
 pub mod compare;
 pub mod correct;
 pub mod demo;
+pub mod estimate;
 pub mod export;
 pub mod fit;
 pub mod harmonics;

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use gonio_plan::rejection_counts;
 use serde_json::json;
 
+use crate::cmd::estimate::RunEstimate;
 use crate::cmd::prepare::{hms, load_and_prepare};
-use crate::cmd::reading_time::{ReadingTime, Source, estimate_plan};
+use crate::cmd::reading_time::{ReadingTime, Source};
 use crate::error::CliResult;
 use crate::flags::JsonFlag;
 use crate::output;
@@ -55,64 +56,115 @@ pub fn run(c: Command) -> CliResult<()> {
     }
 }
 
-/// `gonio plan check PLAN --instrument INSTR [--like RUN] [--sim SIM] [--json]`.
-fn plan_check(a: &CheckArgs) -> CliResult<()> {
-    let (plan, instrument, json) = (a.plan.as_path(), a.instrument.as_path(), a.json.json);
-    let loaded = load_and_prepare(instrument, plan)?;
-    let reading = match (&loaded.plan.reading, &a.like) {
-        (None, _) => None,
-        (Some(_), Some(run)) => estimate_plan(&loaded, Source::Run(run))?,
-        (Some(_), None) => {
-            if a.sim.sim.is_some()
-                || crate::cmd::instrument::is_simulated(&loaded.instrument, instrument)?
-            {
-                let cfg = crate::cmd::instrument::sim_config(a.sim.sim.as_deref())?;
-                estimate_plan(&loaded, Source::Sim(Box::new(cfg)))?
-            } else {
-                None
-            }
-        }
-    };
-    let targeted = loaded.plan.reading.is_some();
-    let p = loaded.prepared;
-    let s = &p.schedule;
-    let gain = if s.raster_motion_s > 0.0 {
+/// What `plan check` finds: the plan prepared on the instrument and the whole run's
+/// estimate, its readings from the signals expected at each step when they are
+/// known.
+pub(crate) struct PlanCheck {
+    prepared: gonio_plan::Prepared,
+    estimate: RunEstimate,
+    targeted: bool,
+    /// The detector is a lock-in that autoranges.
+    autoranging: bool,
+}
+
+/// The fraction of motion time the schedule saves against the plan's order.
+fn motion_saving(s: &gonio_plan::Schedule) -> f64 {
+    if s.raster_motion_s > 0.0 {
         1.0 - s.motion_s / s.raster_motion_s
     } else {
         0.0
+    }
+}
+
+/// Checks the plan against the instrument as `plan check` does, printing nothing.
+pub(crate) fn compute(a: &CheckArgs) -> CliResult<PlanCheck> {
+    let (plan, instrument) = (a.plan.as_path(), a.instrument.as_path());
+    let loaded = load_and_prepare(instrument, plan)?;
+    // A simulated instrument: the simulator's sample gives the signals, its
+    // controllers where the stages stand at power-up.
+    let sim = if a.sim.sim.is_some()
+        || crate::cmd::instrument::is_simulated(&loaded.instrument, instrument)?
+    {
+        Some(crate::cmd::instrument::sim_config(a.sim.sim.as_deref())?)
+    } else {
+        None
     };
-    let rejected: Vec<_> = p
-        .checked
-        .rejected
-        .iter()
-        .map(|r| {
-            json!({
-                "index": r.index,
-                "theta_i": r.pair.incident.theta_deg, "phi_i": r.pair.incident.phi_deg,
-                "theta_o": r.pair.outgoing.theta_deg, "phi_o": r.pair.outgoing.phi_deg,
-                "reason": r.reason.name(), "detail": r.reason.to_string(),
+    let signals = match (&a.like, &sim) {
+        (Some(run), _) => Some(Source::Run(run)),
+        (None, Some(cfg)) => Some(Source::Sim(Box::new(cfg.clone()))),
+        (None, None) => None,
+    };
+    let estimate = RunEstimate::of(&loaded, signals, sim.as_ref())?;
+    Ok(PlanCheck {
+        targeted: loaded.plan.reading.is_some(),
+        autoranging: loaded.instrument.detector.kind == gonio_driver::config::DetectorKind::Sr830
+            && loaded.instrument.detector.lockin.autorange,
+        prepared: loaded.prepared,
+        estimate,
+    })
+}
+
+impl PlanCheck {
+    /// An adaptive plan's summary, its time per later point and whole run from the
+    /// run's estimate (start-up, exchanges and expected readings included).
+    fn adaptive(&self) -> Option<gonio_plan::adaptive::Summary> {
+        let mut a = self.prepared.adaptive.clone()?;
+        if let Some(x) = &self.estimate.adaptive {
+            a.point_s = x.point_s;
+            a.estimate_s = x.whole_s;
+        }
+        Some(a)
+    }
+
+    /// The `--json` object.
+    pub(crate) fn json(&self, a: &CheckArgs) -> serde_json::Value {
+        let (p, e) = (&self.prepared, &self.estimate);
+        let s = &p.schedule;
+        let rejected: Vec<_> = p
+            .checked
+            .rejected
+            .iter()
+            .map(|r| {
+                json!({
+                    "index": r.index,
+                    "theta_i": r.pair.incident.theta_deg, "phi_i": r.pair.incident.phi_deg,
+                    "theta_o": r.pair.outgoing.theta_deg, "phi_o": r.pair.outgoing.phi_deg,
+                    "reason": r.reason.name(), "detail": r.reason.to_string(),
+                })
             })
-        })
-        .collect();
-    if json {
-        return output::json(&json!({
-            "plan": plan.display().to_string(),
-            "instrument": instrument.display().to_string(),
+            .collect();
+        json!({
+            "plan": a.plan.display().to_string(),
+            "instrument": a.instrument.display().to_string(),
             "pairs": p.pairs.len(),
             "accepted": p.checked.accepted.len(),
             "rejected_by_reason": rejection_counts(&p.checked),
             "rejected": rejected,
             "steps": s.steps.len(),
             "estimate": {
-                "motion_s": s.motion_s, "raster_motion_s": s.raster_motion_s,
-                "motion_saving": gain, "detector_s": s.detector_s,
-                "band_s": s.band_s, "total_s": s.duration_s(),
+                "startup_s": e.startup_s,
+                "motion_s": e.motion_s, "raster_motion_s": s.raster_motion_s,
+                "motion_saving": motion_saving(s), "detector_s": e.detector_s,
+                "fixed_detector_s": s.detector_s,
+                "band_s": e.band_s, "total_s": e.total_s,
             },
             "spectral": s.spectral,
-            "adaptive": p.adaptive,
-            "reading": reading,
-        }));
+            "adaptive": self.adaptive(),
+            "reading": e.reading,
+        })
     }
+}
+
+/// `gonio plan check PLAN --instrument INSTR [--like RUN] [--sim SIM] [--json]`.
+fn plan_check(a: &CheckArgs) -> CliResult<()> {
+    let c = compute(a)?;
+    if a.json.json {
+        return output::json(&c.json(a));
+    }
+    let plan = a.plan.as_path();
+    let (p, e, targeted) = (&c.prepared, &c.estimate, c.targeted);
+    let s = &p.schedule;
+    let gain = motion_saving(s);
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(
@@ -140,30 +192,50 @@ fn plan_check(a: &CheckArgs) -> CliResult<()> {
         }
         writeln!(
             w,
-            "{} steps; motion {} ({} in plan order, {:.0}% less), detector {}, {}total {}",
+            "{} steps; start-up {}, motion {} ({} in plan order, {:.0}% less), detector {}, \
+             {}total {}",
             s.steps.len(),
-            hms(s.motion_s),
+            hms(e.startup_s),
+            hms(e.motion_s),
             hms(s.raster_motion_s),
             100.0 * gain,
-            hms(s.detector_s),
-            if s.band_s > 0.0 {
-                format!("band changes {}, ", hms(s.band_s))
+            hms(e.detector_s),
+            if e.band_s > 0.0 {
+                format!("band changes {}, ", hms(e.band_s))
             } else {
                 String::new()
             },
-            hms(s.duration_s())
+            hms(e.total_s)
         )?;
-        if let Some(a) = &p.adaptive {
-            adaptive_summary(&mut w, a)?;
+        if let Some(a) = c.adaptive() {
+            adaptive_summary(&mut w, &a)?;
         }
-        if let Some(r) = &reading {
-            reading_summary(&mut w, r, s)?;
-        } else if targeted {
+        match &e.reading {
+            Some(r) if r.targeted => reading_summary(&mut w, r, s)?,
+            Some(r) => writeln!(
+                w,
+                "fixed readings, signals from {}: {} range changes expected ({} of the \
+                 detector's {})",
+                r.source,
+                r.range_changes,
+                hms(r.ranging_s),
+                hms(r.detector_s)
+            )?,
+            None => {}
+        }
+        if e.reading.is_none() && targeted {
             writeln!(
                 w,
                 "reading to a target: the detector time above is the fixed reading's; the \
                  targeted estimate needs an SR830 with `noise` in [detector.lockin] and the \
                  signals to expect (--like RUN, or --sim SIM for a simulated instrument)"
+            )?;
+        } else if e.reading.is_none() && c.autoranging {
+            writeln!(
+                w,
+                "fixed readings: the range changes autoranging makes are not counted without \
+                 the signals to expect (--like RUN, or --sim SIM that stands for the \
+                 instrument)"
             )?;
         }
         if let Some(d) = &s.spectral {
@@ -184,7 +256,7 @@ fn plan_check(a: &CheckArgs) -> CliResult<()> {
 }
 
 /// What `plan check` says of a targeted plan: the detector's time, split, against the
-/// fixed reading's, and the run's total with it.
+/// fixed reading's (the total above counts the targeted one).
 fn reading_summary(
     w: &mut impl Write,
     r: &ReadingTime,
@@ -198,7 +270,7 @@ fn reading_summary(
     writeln!(
         w,
         "reading to σ/f {:e} (floor {:.2e} V), signals from {}: detector {} (settling {}, \
-         averaging {}, serial {}) against {} for fixed readings; total {}",
+         averaging {}, serial {}; {} range changes) against {} for fixed readings",
         r.sigma_relative,
         r.sigma_absolute,
         r.source,
@@ -206,8 +278,8 @@ fn reading_summary(
         hms(r.settle_s),
         hms(r.averaging_s),
         hms(r.serial_s),
+        r.range_changes,
         hms(s.detector_s),
-        hms(s.duration_s() - s.detector_s + r.detector_s),
     )?;
     writeln!(
         w,

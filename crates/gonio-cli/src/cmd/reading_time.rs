@@ -1,7 +1,10 @@
-//! What `plan check` says of a plan with a `[reading]` target: each step's expected
-//! signal — from the simulated sample, or from a previous run's readings — the time
-//! constant the driver will choose for it, its settling and averaging, and how the
-//! detector's time splits.
+//! The detector's time over a plan, reading by reading, from the signal expected at
+//! each step — from the simulated sample, or from a previous run's readings: for a
+//! plan with a `[reading]` target, the time constant the driver will choose, its
+//! settling and averaging; for the fixed reading, its cycles. Either way the range
+//! changes autoranging makes on the way from one signal to the next, each costing a
+//! reading more, by the sessions' own rules (`gonio_proto::sr830::ranging`) and
+//! timings (`gonio_proto::sr830::timing`).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -9,7 +12,8 @@ use std::path::Path;
 use gonio_acquire::engine::{ReadTarget, read_target, setup_for, target_for_kind};
 use gonio_driver::bench::Bench;
 use gonio_driver::config::DetectorKind;
-use gonio_driver::sr830::target::{choose_time_constant, estimate, floor_sigma};
+use gonio_driver::sr830::target::{NoiseDensity, choose_time_constant, estimate, floor_sigma};
+use gonio_driver::sr830::{Sensitivity, ranging, timing};
 use gonio_plan::StepKind;
 use serde::Serialize;
 
@@ -25,75 +29,174 @@ pub enum Source<'a> {
     Run(&'a Path),
 }
 
-/// The estimate of a targeted plan's detector time.
+/// The estimate of a plan's detector time, reading by reading.
 #[derive(Clone, Debug, Serialize)]
 pub struct ReadingTime {
     /// Where the expected signals came from.
     pub source: String,
-    /// The target relative to the value, and the absolute floor in force, V.
+    /// True for readings to the plan's `[reading]` target; false for the fixed
+    /// reading.
+    pub targeted: bool,
+    /// The target relative to the value (0 for the fixed reading).
     pub sigma_relative: f64,
-    /// The floor, V.
+    /// The absolute floor in force, V (0 for the fixed reading).
     pub sigma_absolute: f64,
     /// Readings estimated.
     pub readings: usize,
-    /// From each move's end to the averaged window's first snapshot, s.
+    /// From each move's (or range change's) end to the averaged window's first
+    /// snapshot, s.
     pub settle_s: f64,
     /// The windows' snapshots, s.
     pub averaging_s: f64,
-    /// The time-constant and status exchanges around each reading, s.
+    /// The exchanges of each reading that are not its snapshots' spacing: status
+    /// queries, time-constant and range changes, and (fixed) the snapshots'
+    /// own exchanges, s.
     pub serial_s: f64,
     /// Their sum, s.
     pub detector_s: f64,
+    /// Range changes autoranging is expected to make.
+    pub range_changes: usize,
+    /// The part of the detector's time those cost, s.
+    pub ranging_s: f64,
     /// Readings expected to reach the cap.
     pub capped: usize,
     /// Readings per time constant chosen.
     pub time_constants: BTreeMap<String, usize>,
+    /// Each step's reading, s, in schedule order.
+    #[serde(skip)]
+    pub per_step: Vec<f64>,
+    /// The part of each step's reading its range changes cost, s.
+    #[serde(skip)]
+    pub per_step_ranging: Vec<f64>,
 }
 
-/// The estimate for `loaded`'s plan, when it has a `[reading]` table and the
-/// detector is a lock-in with a noise law; `None` otherwise.
+impl ReadingTime {
+    fn new(source: String, readings: usize) -> Self {
+        ReadingTime {
+            source,
+            targeted: false,
+            sigma_relative: 0.0,
+            sigma_absolute: 0.0,
+            readings,
+            settle_s: 0.0,
+            averaging_s: 0.0,
+            serial_s: 0.0,
+            detector_s: 0.0,
+            range_changes: 0,
+            ranging_s: 0.0,
+            capped: 0,
+            time_constants: BTreeMap::new(),
+            per_step: Vec::with_capacity(readings),
+            per_step_ranging: Vec::with_capacity(readings),
+        }
+    }
+
+    /// Adds one step's reading: its parts, the range changes in it and what they
+    /// cost.
+    fn add(&mut self, settle: f64, averaging: f64, serial: f64, changes: usize, ranging: f64) {
+        self.settle_s += settle;
+        self.averaging_s += averaging;
+        self.serial_s += serial;
+        self.range_changes += changes;
+        self.ranging_s += ranging;
+        self.per_step.push(settle + averaging + serial);
+        self.per_step_ranging.push(ranging);
+    }
+}
+
+/// The mean R a reading of a signal `s` V sees through noise of standard deviation
+/// `sigma` V in each of X and Y: `sigma·√(π/2)` for no signal (Rayleigh), `s` for a
+/// signal well above it, joined as √(s² + π σ²/2).
+fn mean_r(s: f64, sigma: f64) -> f64 {
+    (s * s + std::f64::consts::FRAC_PI_2 * sigma * sigma).sqrt()
+}
+
+/// The estimate for `loaded`'s plan on an SR830 (`None` for another detector, and for
+/// a plan with a `[reading]` target on a lock-in without a noise law, which a
+/// targeted reading needs to be estimated).
 pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<ReadingTime>> {
-    let Some(reading) = &loaded.plan.reading else {
-        return Ok(None);
-    };
     let inst = &loaded.instrument;
-    let lockin = inst.detector.lockin.clone().with_baud(inst.detector.baud);
-    let Some(noise) = lockin.noise else {
-        return Ok(None);
-    };
     if inst.detector.kind != DetectorKind::Sr830 {
         return Ok(None);
     }
+    let lockin = inst.lockin();
+    if loaded.plan.reading.is_some() && lockin.noise.is_none() {
+        return Ok(None);
+    }
+    let steps = &loaded.prepared.schedule.steps;
+    // The noise the signals are read through: the simulator's own, or none to add
+    // to a run's readings, which hold theirs.
+    let (signals, noise, what) = match source {
+        Source::Sim(cfg) => {
+            let noise = NoiseDensity {
+                floor: cfg.lockin.amplifier_noise,
+                shot: cfg.lockin.shot_noise,
+            };
+            let Some(signals) = sim_signals(loaded, &cfg)? else {
+                return Ok(None);
+            };
+            (signals, Some(noise), "the simulated sample".to_string())
+        }
+        Source::Run(path) => (run_signals(steps, path)?, None, path.display().to_string()),
+    };
+    let sigma = |r: f64, tc| {
+        noise.map_or(0.0, |n| {
+            n.snapshot_variance(r, lockin.slope, tc).max(0.0).sqrt()
+        })
+    };
+    let range_s = timing::range_change_s(lockin.baud);
+    let mut out = ReadingTime::new(what, steps.len());
+    let mut at: Sensitivity = lockin.sensitivity;
+    let changes = |at: Sensitivity, r: f64, spread: f64, targeted: bool| {
+        if !lockin.autorange {
+            (0, at)
+        } else if targeted {
+            ranging::targeted_changes(at, r, spread, lockin.min_fraction)
+        } else {
+            ranging::fixed_changes(at, r, lockin.min_fraction)
+        }
+    };
+    let Some(reading) = &loaded.plan.reading else {
+        // The fixed reading: a cycle at the configured time constant, and a cycle
+        // more after each range change.
+        let tc = lockin.time_constant;
+        let settle = lockin.settle_seconds(lockin.slope, tc);
+        let snapshots = lockin.samples.max(1);
+        let averaging = (snapshots - 1) as f64 * tc.seconds();
+        let serial = lockin.cycle_s(tc) - settle - averaging;
+        for r in &signals {
+            let (n, next) = changes(at, mean_r(*r, sigma(*r, tc)), 0.0, false);
+            at = next;
+            let k = (n + 1) as f64;
+            out.add(
+                k * settle,
+                k * averaging,
+                k * serial + n as f64 * range_s,
+                n,
+                n as f64 * (lockin.cycle_s(tc) + range_s),
+            );
+        }
+        *out.time_constants.entry(tc.to_string()).or_default() += steps.len();
+        out.detector_s = out.settle_s + out.averaging_s + out.serial_s;
+        return Ok(Some(out));
+    };
+    let Some(noise_law) = lockin.noise else {
+        return Ok(None);
+    };
     let base: ReadTarget = read_target(reading);
     let choices = lockin.time_constant_choices();
     let floor =
-        floor_sigma(&base, &noise, lockin.slope, &choices, lockin.exchange_s).unwrap_or(0.0);
-    let steps = &loaded.prepared.schedule.steps;
-    let (signals, what) = match source {
-        Source::Sim(cfg) => (
-            sim_signals(loaded, &cfg)?,
-            "the simulated sample".to_string(),
-        ),
-        Source::Run(path) => (run_signals(steps, path)?, path.display().to_string()),
+        floor_sigma(&base, &noise_law, lockin.slope, &choices, lockin.exchange_s).unwrap_or(0.0);
+    out.targeted = true;
+    out.sigma_relative = base.sigma_relative;
+    out.sigma_absolute = if base.sigma_absolute > 0.0 {
+        base.sigma_absolute
+    } else {
+        floor
     };
-    let mut out = ReadingTime {
-        source: what,
-        sigma_relative: base.sigma_relative,
-        sigma_absolute: if base.sigma_absolute > 0.0 {
-            base.sigma_absolute
-        } else {
-            floor
-        },
-        readings: steps.len(),
-        settle_s: 0.0,
-        averaging_s: 0.0,
-        serial_s: 0.0,
-        detector_s: 0.0,
-        capped: 0,
-        time_constants: BTreeMap::new(),
-    };
-    // `OFLT` out and `LIAS?` with its answer: about 18 characters a reading.
-    let serial = 0.5 * lockin.exchange_s;
+    // Each reading sends its time constant (`OFLT`) and ends with `LIAS?`; its
+    // snapshots go back to back, one exchange apart, inside the averaging.
+    let serial = timing::time_constant_change_s(lockin.baud) + timing::lia_status_s(lockin.baud);
     let mut previous: Option<f64> = None;
     for (step, r) in steps.iter().zip(&signals) {
         let target = target_for_kind(&base, step.kind, floor);
@@ -102,7 +205,7 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
             Some(p) if p > 0.0 => choose_time_constant(
                 p,
                 &target,
-                &noise,
+                &noise_law,
                 lockin.slope,
                 choices.iter().copied(),
                 lockin.exchange_s,
@@ -115,21 +218,52 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
             *r,
             step_v,
             &target,
-            &noise,
+            &noise_law,
             lockin.slope,
             tc,
             lockin.exchange_s,
         );
-        let (settle, averaging) = if e.total_s() > target.max_s {
+        let capped = e.total_s() > target.max_s;
+        let (settle, averaging) = if capped {
             out.capped += 1;
             let settle = e.settle_s.min(target.max_s);
             (settle, target.max_s - settle)
         } else {
             (e.settle_s, e.averaging_s)
         };
-        out.settle_s += settle;
-        out.averaging_s += averaging;
-        out.serial_s += serial;
+        // A capped reading keeps its range; another reads again at the range its
+        // value calls for, from the range change on: the same light, no step to
+        // settle from.
+        let spread = sigma(*r, tc);
+        let (n, next) = if capped {
+            (0, at)
+        } else {
+            changes(at, mean_r(*r, spread), spread, true)
+        };
+        at = next;
+        let (again_settle, again_averaging) = if n > 0 {
+            let e = estimate(
+                *r,
+                0.0,
+                &target,
+                &noise_law,
+                lockin.slope,
+                tc,
+                lockin.exchange_s,
+            );
+            let settle = e.settle_s.min(target.max_s);
+            (settle, e.averaging_s.min(target.max_s - settle))
+        } else {
+            (0.0, 0.0)
+        };
+        let n_f = n as f64;
+        out.add(
+            settle + n_f * again_settle,
+            averaging + n_f * again_averaging,
+            serial + n_f * range_s,
+            n,
+            n_f * (again_settle + again_averaging + range_s),
+        );
         *out.time_constants.entry(tc.to_string()).or_default() += 1;
         previous = Some(*r);
     }
@@ -138,16 +272,25 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
 }
 
 /// The lock-in's R at each step, V: the simulator's light on the simulator's sample
-/// (or standard, in the plan's light path for the step's kind).
-fn sim_signals(loaded: &Loaded, cfg: &gonio_sim::SimConfig) -> CliResult<Vec<f64>> {
+/// (or standard, in the plan's light path for the step's kind), the noise aside, at
+/// the step's band; `None` when the simulator cannot stand for the instrument (a
+/// band selector it lacks, a filter wheel, whose bands it does not select here, a
+/// band its sample has no value for).
+fn sim_signals(loaded: &Loaded, cfg: &gonio_sim::SimConfig) -> CliResult<Option<Vec<f64>>> {
     let input = |e: &dyn std::fmt::Display| CliError::Input(e.to_string());
+    let inst = &loaded.instrument;
+    if gonio_sim::check_compatible(inst, cfg).is_err() || inst.filter_wheel.is_some() {
+        return Ok(None);
+    }
     let plan = &loaded.plan;
     let standard = match &plan.calibration.standard {
         Some(s) => {
             let path = plan.resolve(&s.model);
             let text = gonio_core::input::read_text(&path, gonio_core::input::MAX_CONFIG_BYTES)
                 .map_err(|e| input(&e))?;
-            let m = gonio_brdf::Model::from_toml(&text, Some(&path)).map_err(|e| input(&e))?;
+            // Named as acquire names it: this estimate now runs before every simulated run.
+            let m = gonio_brdf::Model::from_toml(&text, Some(&path))
+                .map_err(|e| CliError::Input(format!("reference standard model: {e}")))?;
             Some((Box::new(m) as Box<dyn gonio_brdf::Brdf>, 0))
         }
         None => None,
@@ -163,12 +306,21 @@ fn sim_signals(loaded: &Loaded, cfg: &gonio_sim::SimConfig) -> CliResult<Vec<f64
     let mut bench = gonio_sim::SimBench::new(shared.clone(), standard);
     let gain = cfg.lockin.chop_gain;
     let mut out = Vec::with_capacity(loaded.prepared.schedule.steps.len());
+    let mut band = None;
     for step in &loaded.prepared.schedule.steps {
         bench
             .set_up(setup_for(step.kind, transmittance))
             .map_err(|e| input(&e))?;
-        if let Some(ch) = &step.channel {
-            bench.select_channel(ch).map_err(|e| input(&e))?;
+        if let Some(ch) = &step.channel
+            && band.as_ref() != Some(ch)
+        {
+            match &inst.monochromator {
+                Some(m) => select_wavelength(&shared, &m.cs130, ch)?,
+                // A band the simulated sample has no value for: no signal to expect.
+                None if bench.select_channel(ch).is_err() => return Ok(None),
+                None => {}
+            }
+            band = Some(ch.clone());
         }
         let v = match (&step.pair, step.kind) {
             (_, StepKind::Dark) | (None, _) => 0.0,
@@ -176,19 +328,60 @@ fn sim_signals(loaded: &Loaded, cfg: &gonio_sim::SimConfig) -> CliResult<Vec<f64
         };
         out.push(gain * v.abs());
     }
-    Ok(out)
+    Ok(Some(out))
 }
 
-/// The R of the nearest reading of the same kind in a previous run, V.
+/// Sets the simulated monochromator to the band `channel` as its session would (the
+/// grating and order-sorting filter its config chooses, then the wavelength), its
+/// shutter open (a dark reading's light path is the bench's here), and lets the
+/// drive arrive.
+fn select_wavelength(
+    sim: &gonio_sim::SharedSim,
+    cs130: &gonio_driver::cs130::Cs130Config,
+    channel: &str,
+) -> CliResult<()> {
+    use gonio_driver::cs130::Command;
+    let input = |e: &dyn std::fmt::Display| CliError::Input(e.to_string());
+    let nm = gonio_driver::spectral::channel_nm(channel).map_err(|e| input(&e))?;
+    let mut statements = vec![Command::Grat(
+        cs130.grating_for(nm).map_err(|e| input(&e))?.index,
+    )];
+    if cs130.auto_order_filter && cs130.filter_wheel {
+        statements.push(Command::Filter(
+            cs130.order_filter_for(nm).map_err(|e| input(&e))?,
+        ));
+    }
+    statements.push(Command::GoWave(nm));
+    statements.push(Command::Shutter(true));
+    let mut s = gonio_sim::lock(sim);
+    for c in statements {
+        s.port_bytes(gonio_sim::Port::Monochromator, &c.to_bytes());
+    }
+    // Long enough for any change of grating, filter and wavelength to end.
+    let clock = s.clock().clone();
+    clock.advance(std::time::Duration::from_secs(600));
+    s.port_bytes(gonio_sim::Port::Monochromator, &Command::Wave.to_bytes());
+    Ok(())
+}
+
+/// The R of the nearest reading of the same kind (and band) in a previous run, V.
 fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
     let store = gonio_run::RunStore::open(path)?;
     let stored = store.steps()?;
-    let kinds: BTreeMap<i64, StepKind> = stored.iter().map(|s| (s.id, s.step.kind)).collect();
-    let readings: Vec<(StepKind, gonio_core::dirfile::PairDeg, f64)> = store
+    type Kind = (StepKind, Option<String>);
+    let kinds: BTreeMap<i64, Kind> = stored
+        .iter()
+        .map(|s| (s.id, (s.step.kind, s.step.channel.clone())))
+        .collect();
+    let readings: Vec<(Kind, gonio_core::dirfile::PairDeg, f64)> = store
         .readings()?
         .into_iter()
         .filter(|r| r.r_mean.is_finite())
-        .filter_map(|r| kinds.get(&r.step_id).map(|k| (*k, r.read_pair, r.r_mean)))
+        .filter_map(|r| {
+            kinds
+                .get(&r.step_id)
+                .map(|k| (k.clone(), r.read_pair, r.r_mean))
+        })
         .collect();
     if readings.is_empty() {
         return Err(CliError::Input(format!(
@@ -207,7 +400,9 @@ fn run_signals(steps: &[gonio_plan::Step], path: &Path) -> CliResult<Vec<f64>> {
     Ok(steps
         .iter()
         .map(|s| {
-            let same = readings.iter().filter(|(k, _, _)| *k == s.kind);
+            let same = readings
+                .iter()
+                .filter(|(k, _, _)| k.0 == s.kind && k.1 == s.channel);
             let best = match &s.pair {
                 Some(p) => same
                     .map(|(_, q, r)| (chord(p, q), *r))

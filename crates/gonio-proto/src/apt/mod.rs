@@ -30,6 +30,7 @@ mod stage;
 pub mod status;
 
 pub mod fuzz;
+pub mod timing;
 
 pub use framer::AptFramer;
 pub use message::{

@@ -34,6 +34,7 @@ mod session;
 mod status;
 
 pub mod fuzz;
+pub mod timing;
 
 pub use command::{Command, CommandError, Units};
 pub use config::{

@@ -24,6 +24,7 @@ mod session;
 mod status;
 
 pub mod fuzz;
+pub mod timing;
 
 pub use command::{Command, CommandError, Frame, Param};
 pub use config::{AxisConfig, ChainPolicy};

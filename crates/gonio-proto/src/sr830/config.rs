@@ -73,15 +73,27 @@ pub struct Sr830Config {
     /// port's baud rate): set from the instrument config, never read from a file.
     #[serde(skip)]
     pub exchange_s: f64,
+    /// The port's baud rate, for the time of the exchanges
+    /// ([`timing`](super::timing)): set from the instrument config with
+    /// [`with_baud`](Self::with_baud), never read from a file.
+    #[serde(skip, default = "default_baud")]
+    pub baud: u32,
+}
+
+/// The SR830's baud rate as shipped (manual p. 4-4).
+fn default_baud() -> u32 {
+    9600
 }
 
 /// One `SNAP?` exchange's characters, both ways, at 10 bits a character.
 const EXCHANGE_BITS: f64 = 36.0 * 10.0;
 
 impl Sr830Config {
-    /// Sets [`exchange_s`](Self::exchange_s) for a port at `baud`.
+    /// Sets [`exchange_s`](Self::exchange_s) and [`baud`](Self::baud) for a port at
+    /// `baud`.
     pub fn with_baud(mut self, baud: u32) -> Self {
         self.exchange_s = EXCHANGE_BITS / f64::from(baud.max(1));
+        self.baud = baud;
         self
     }
 
@@ -138,6 +150,7 @@ impl Default for Sr830Config {
             noise: None,
             time_constant_range: None,
             exchange_s: EXCHANGE_BITS / 9600.0,
+            baud: default_baud(),
         }
     }
 }

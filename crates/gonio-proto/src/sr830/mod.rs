@@ -29,12 +29,14 @@
 
 mod command;
 mod config;
+pub mod ranging;
 mod reading;
 mod reply;
 mod session;
 mod status;
 mod tables;
 pub mod target;
+pub mod timing;
 
 pub mod fuzz;
 

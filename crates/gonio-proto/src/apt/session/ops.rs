@@ -431,12 +431,7 @@ impl Home {
 /// times the trapezoid's duration at the configured velocity and acceleration.
 fn allowance(s: &AptSession, distance: f64) -> Duration {
     let (v, a) = s.axis.motion();
-    let d = distance.abs();
-    let t = if d >= v * v / a {
-        d / v + v / a
-    } else {
-        2.0 * (d / a).sqrt()
-    };
+    let t = gonio_core::motion::trapezoid_time(distance, v, a);
     s.policy
         .move_margin
         .saturating_add(secs(t * s.policy.move_factor))

@@ -9,6 +9,7 @@ use super::{Sr830Session, is_transient, lia_status, unexpected};
 use crate::machine::{Cx, secs};
 use crate::sr830::{
     Command, LiaStatus, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, SnapParams, Sr830Error,
+    ranging,
 };
 
 /// Most times one read starts over after the port was lost and reopened (or the flags'
@@ -183,13 +184,13 @@ impl Read {
             return Next::Done(Ok(reading));
         }
         let f = reading.flags;
-        let next = if f.input_overload || f.output_overload {
-            s.sensitivity.less_sensitive()
-        } else if !f.any() && reading.r_mean < s.config.min_fraction * s.sensitivity.volts() {
-            s.sensitivity.more_sensitive()
-        } else {
-            None
-        };
+        let next = ranging::fixed_next(
+            s.sensitivity,
+            reading.r_mean,
+            f.input_overload || f.output_overload,
+            !f.any(),
+            s.config.min_fraction,
+        );
         let Some(next) = next else {
             return Next::Done(Ok(reading));
         };

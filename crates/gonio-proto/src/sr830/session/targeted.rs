@@ -10,29 +10,20 @@ use super::read::{flags_lost, gave_up, restart, snap, xy};
 use super::script::{Next, Op};
 use super::{Sr830Session, lia_status};
 use crate::machine::{Cx, secs};
+use crate::sr830::ranging::{self, OUTPUT_OVERLOAD};
 use crate::sr830::target::{FIRST_SNAPSHOT_TC, ReadTarget, Sequential, choose_time_constant};
 use crate::sr830::{
     Command, LiaStatus, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, Sensitivity, Sr830Error,
 };
 
-/// An output clips at this multiple of full scale (manual, OUTPUT OVLD: 1.09 × full
-/// scale); a snapshot within 1e-5 of it is taken as clipped.
-const CLIP: f64 = 1.09 * (1.0 - 1e-5);
+/// An output clips at [`OUTPUT_OVERLOAD`] × full scale (manual, OUTPUT OVLD); a
+/// snapshot within 1e-5 of it is taken as clipped.
+const CLIP: f64 = OUTPUT_OVERLOAD * (1.0 - 1e-5);
 
 /// A clipped snapshot this many time constants after the change means the value
 /// itself is over range: a 24 dB/oct step has come within 1 % by then (manual's
 /// settling table, 10 T), so only a step of over a hundred full scales still clips.
 const CLIP_SETTLED_TC: f64 = 10.0;
-
-/// An overload steps this many ranges less sensitive (a decade in the 1-2-5
-/// sequence): it only says the signal is over full scale, and the small-signal jump
-/// comes back down to the range that fits in one step.
-const OVERLOAD_STEPS: u8 = 3;
-
-/// Autoranging on a small signal goes straight to the most sensitive range whose full
-/// scale times this holds the mean and four standard deviations of its snapshots
-/// (the instrument's own auto gain aims at the same fill).
-const RANGE_FILL: f64 = 0.9;
 
 /// The targeted read operation.
 #[derive(Debug)]
@@ -162,7 +153,7 @@ impl TargetedRead {
         let clipped = [x, y, x.hypot(y)].iter().any(|v| v.abs() >= CLIP * fs);
         if clipped {
             if self.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC || self.after_range {
-                if let Some(next) = less_sensitive(s.sensitivity) {
+                if let Some(next) = ranging::overload_range(s.sensitivity) {
                     debug!(tau, x, y, "sr830: output clipped after the transient");
                     return Self::range_to(next);
                 }
@@ -286,17 +277,14 @@ impl TargetedRead {
             return Next::Done(Ok(reading));
         }
         let f = reading.flags;
-        let next = if f.input_overload || f.output_overload {
-            less_sensitive(s.sensitivity)
-        } else if !f.any() && reading.r_mean < s.config.min_fraction * s.sensitivity.volts() {
-            // Room for the snapshots' scatter: a range the noise clips is no range.
-            Sensitivity::all()
-                .find(|x| x.volts() * RANGE_FILL >= reading.r_mean + 4.0 * reading.r_std)
-                .filter(|x| *x < s.sensitivity)
-                .or_else(|| s.sensitivity.more_sensitive())
-        } else {
-            None
-        };
+        let next = ranging::targeted_next(
+            s.sensitivity,
+            reading.r_mean,
+            reading.r_std,
+            f.input_overload || f.output_overload,
+            !f.any(),
+            s.config.min_fraction,
+        );
         let Some(next) = next else {
             return Next::Done(Ok(reading));
         };
@@ -338,13 +326,4 @@ impl TargetedRead {
         }
         self.begin_segment(s, cx)
     }
-}
-
-/// [`OVERLOAD_STEPS`] ranges less sensitive, or the least sensitive; `None` there.
-fn less_sensitive(s: Sensitivity) -> Option<Sensitivity> {
-    let up = s
-        .index()
-        .saturating_add(OVERLOAD_STEPS)
-        .min(Sensitivity::LEAST.index());
-    Sensitivity::new(up).filter(|n| *n > s)
 }

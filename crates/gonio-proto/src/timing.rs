@@ -1,0 +1,37 @@
+//! How long bytes take on a serial line, and an exchange of a command and its reply:
+//! the arithmetic under each family's timing model (what `gonio plan check`
+//! estimates a run from) and under the simulator's wire, so that both count a byte
+//! the same way.
+
+/// Bits one byte takes on an asynchronous line: a start bit, eight data bits, a stop
+/// bit (8N1, the framing of every instrument here).
+pub const BITS_PER_BYTE: f64 = 10.0;
+
+/// Seconds `bytes` take on a line at `baud`.
+pub fn wire_s(bytes: usize, baud: u32) -> f64 {
+    bytes as f64 * BITS_PER_BYTE / f64::from(baud.max(1))
+}
+
+/// Seconds of one exchange: `out` bytes sent, the instrument's `latency_s` to answer,
+/// `back` bytes of answer (0 for a command that is not answered, which then costs
+/// only its own bytes).
+pub fn exchange_s(out: usize, back: usize, baud: u32, latency_s: f64) -> f64 {
+    if back == 0 {
+        return wire_s(out, baud);
+    }
+    wire_s(out + back, baud) + latency_s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bytes_take_ten_bits_each() {
+        // `1TP\r\n` at 57 600 baud: 50 bits.
+        assert!((wire_s(5, 57_600) - 50.0 / 57_600.0).abs() < 1e-15);
+        // A query: both ways and the latency; a command: its bytes alone.
+        assert!((exchange_s(6, 2, 9600, 0.005) - (0.005 + 80.0 / 9600.0)).abs() < 1e-15);
+        assert_eq!(exchange_s(6, 0, 9600, 0.005), wire_s(6, 9600));
+    }
+}
