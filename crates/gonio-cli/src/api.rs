@@ -5,13 +5,15 @@
 //! "--k", "1,5"]`, without `gonio`), parsed by the command's own parser, so a value
 //! is checked and refused with the command's message. Data already in memory (a
 //! DataFrame's samples, a model) is `given`: the input word then only names it in
-//! messages. Nothing here writes a file the command would write: the caller gets the
-//! values the command would have written, and the `--json` object it would have
-//! printed.
+//! messages. Nothing here writes a file the command would write unless asked to
+//! (`export`, `report`: the file is their purpose, and it is then written as the
+//! command writes it): the caller gets the values the command would have written,
+//! and the `--json` object it would have printed. Long calls report how far they
+//! are through a [`Watch`], which also carries the caller's stop.
 
 use std::path::Path;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use clap::{CommandFactory, FromArgMatches};
 use gonio_dataset::Dataset;
@@ -282,22 +284,340 @@ pub fn open_options(calibration: &str, drift: &str) -> CliResult<gonio_dataset::
     .open_options()
 }
 
-/// `gonio acquire`: measures a plan into a new run file, quietly, until done or
-/// `stop` is raised (then the stages stop and the run is left resumable). The
+/// `gonio acquire`: measures a plan into a new run file until done or `watch`'s
+/// stop is raised (then the stages stop and the run is left resumable), its steps
+/// followed in `watch`; with `--serve`, its live page served while it measures and
+/// its address put in `watch`. The progress bar on stderr only when `progress`. The
 /// session's `--json` object; an error unless the run completed.
-pub fn acquire(words: &[String], stop: Arc<AtomicBool>, progress: bool) -> CliResult<Value> {
+pub fn acquire(words: &[String], watch: Arc<Watch>, progress: bool) -> CliResult<Value> {
     let Command::Acquire(a) = parse(words)?.0 else {
         return Err(wrong(words));
     };
     let out = a.out_path().to_path_buf();
-    let r = cmd::acquire::acquire_with(&a, !progress, &cmd::acquire::StopBy::Flag(stop))?;
+    watch.begin("acquire", "steps");
+    let r = cmd::acquire::acquire_with(&a, !progress, &cmd::acquire::StopBy::Caller(watch))?;
     cmd::acquire::session_result(&out, &r)?;
     Ok(cmd::acquire::session_json(&out, &r))
 }
 
-/// `gonio resume`: as [`acquire`], continuing the run at `path`.
-pub fn resume(path: &Path, stop: Arc<AtomicBool>, progress: bool) -> CliResult<Value> {
-    let r = cmd::acquire::resume_with(path, !progress, &cmd::acquire::StopBy::Flag(stop))?;
-    cmd::acquire::session_result(path, &r)?;
-    Ok(cmd::acquire::session_json(path, &r))
+/// `gonio resume`: as [`acquire`], continuing the run the words name.
+pub fn resume(words: &[String], watch: Arc<Watch>, progress: bool) -> CliResult<Value> {
+    let Command::Resume(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    watch.begin("resume", "steps");
+    let r = cmd::acquire::resume_with(&a, !progress, &cmd::acquire::StopBy::Caller(watch))?;
+    cmd::acquire::session_result(a.run_path(), &r)?;
+    Ok(cmd::acquire::session_json(a.run_path(), &r))
+}
+
+/// A long call as the program that made it sees it while it works (the Python
+/// package's progress bar and Ctrl-C): a stop flag the caller raises, and what the
+/// call has done so far, which the caller reads from another thread.
+#[derive(Debug, Default)]
+pub struct Watch {
+    stop: Arc<AtomicBool>,
+    state: Mutex<State>,
+}
+
+/// What a [`Watch`] holds: the stage going on, and those that ended since the
+/// caller last looked (so that a reader that looks now and then sees each stage's
+/// end).
+#[derive(Debug, Default)]
+struct State {
+    now: Progress,
+    ended: Vec<Progress>,
+}
+
+/// What a long call has done so far.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// What it is doing: `acquire`, `resume`, a compared plan (`adaptive`,
+    /// `lattice`, `grid`), `trace`.
+    pub stage: String,
+    /// Units done in this stage.
+    pub done: u64,
+    /// Units in the stage, once known (an adaptive run's grows batch by batch).
+    pub total: Option<u64>,
+    /// What a unit is: `steps`, `incidences`.
+    pub unit: String,
+    /// The latest reading or event, one line.
+    pub message: String,
+    /// The live page's address, once it is served.
+    pub url: Option<String>,
+    /// Counts the changes: a reader that saw this count has seen everything.
+    pub seq: u64,
+}
+
+impl Watch {
+    /// A watch of a call not yet started.
+    pub fn new() -> Arc<Watch> {
+        Arc::new(Watch::default())
+    }
+
+    /// The stop flag, for work that polls a flag of its own (ray tracing).
+    pub fn stop_flag(&self) -> Arc<AtomicBool> {
+        self.stop.clone()
+    }
+
+    /// Asks the call to stop (safely: an acquisition stops its stages first).
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether the caller asked the call to stop.
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    /// A panic elsewhere while the lock was held leaves a state still worth showing.
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// What the call has done so far.
+    pub fn progress(&self) -> Progress {
+        self.lock().now.clone()
+    }
+
+    /// The stages that ended since the last call, as they ended, and the one going
+    /// on.
+    pub fn take(&self) -> (Vec<Progress>, Progress) {
+        let mut s = self.lock();
+        (std::mem::take(&mut s.ended), s.now.clone())
+    }
+
+    fn update(&self, f: impl FnOnce(&mut Progress)) {
+        let p = &mut self.lock().now;
+        f(p);
+        p.seq += 1;
+    }
+
+    /// A new stage: nothing done, the total not yet known, the address kept. The
+    /// stage before it, if any, is kept as it ended for [`Watch::take`].
+    pub fn begin(&self, stage: &str, unit: &str) {
+        {
+            let mut s = self.lock();
+            if !s.now.stage.is_empty() {
+                let ended = s.now.clone();
+                s.ended.push(ended);
+            }
+        }
+        self.update(|p| {
+            p.stage = stage.into();
+            p.unit = unit.into();
+            p.done = 0;
+            p.total = None;
+            p.message.clear();
+        });
+    }
+
+    /// `done` of `total` units.
+    pub fn set(&self, done: u64, total: Option<u64>) {
+        self.update(|p| {
+            p.done = done;
+            p.total = total;
+        });
+    }
+
+    /// One more unit done.
+    pub fn advance(&self) {
+        self.update(|p| p.done += 1);
+    }
+
+    /// The live page's address.
+    pub fn set_url(&self, url: String) {
+        self.update(|p| p.url = Some(url));
+    }
+}
+
+/// Follows a session's engine events into `watch` as the progress bar shows them:
+/// steps done of the total, and the last reading.
+pub(crate) async fn follow(
+    mut rx: tokio::sync::broadcast::Receiver<gonio_acquire::engine::Event>,
+    watch: Arc<Watch>,
+) {
+    use gonio_acquire::engine::Event;
+    use tokio::sync::broadcast::error::RecvError;
+    loop {
+        match rx.recv().await {
+            Ok(Event::Started { done, total, .. }) => {
+                watch.set(done as u64, Some(total as u64));
+            }
+            Ok(Event::Measured {
+                done,
+                total,
+                kind,
+                r_mean,
+                r_std,
+                flags,
+                ..
+            }) => watch.update(|p| {
+                p.done = done as u64;
+                p.total = Some(total as u64);
+                p.message = format!(
+                    "{}: R = {r_mean:.4e} ± {r_std:.1e} V{}",
+                    kind.as_str(),
+                    if gonio_run::flags::questioned(flags) {
+                        " (flagged)"
+                    } else {
+                        ""
+                    }
+                );
+            }),
+            Ok(Event::Batch {
+                batch,
+                points,
+                steps,
+                total,
+            }) => watch.update(|p| {
+                p.total = Some(total as u64);
+                p.message = format!("batch {batch}: {points} points, {steps} steps");
+            }),
+            Ok(Event::Paused) => watch.update(|p| p.message = "paused (stages idle)".into()),
+            Ok(Event::Resumed) => watch.update(|p| p.message = "pause ended".into()),
+            Ok(Event::Finished { .. }) | Err(RecvError::Closed) => return,
+            Ok(_) | Err(RecvError::Lagged(_)) => {}
+        }
+    }
+}
+
+/// `gonio colour`: the `--json` object. `text` is the spectra file's contents when
+/// they come from memory (a DataFrame); the input word then only names them.
+pub fn colour(words: &[String], text: Option<&str>) -> CliResult<Value> {
+    match parse(words)?.0 {
+        Command::Colour(a) => Ok(cmd::colour::compute(&a, text)?.json()),
+        _ => Err(wrong(words)),
+    }
+}
+
+/// What `gonio export` gives.
+#[derive(Clone, Debug)]
+pub struct Export {
+    /// The file's contents.
+    pub bytes: Vec<u8>,
+    /// A CSV's sidecar (JSON text): the grid, isotropy.
+    pub sidecar: Option<String>,
+    /// The `--json` object (with `out` when written).
+    pub json: Value,
+}
+
+/// `gonio export` of the input, or of `given` data in memory: with `write`, the file
+/// (and a CSV's sidecar) written as the command writes it, refused if it exists
+/// without `--force`; without, nothing written (the `--out` word not even checked).
+pub fn export(words: &[String], given: Option<Dataset>, write: bool) -> CliResult<Export> {
+    let Command::Export(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let (e, json) = cmd::export::export(&a, given, write)?;
+    Ok(Export {
+        sidecar: e.sidecar.as_ref().map(Meta::to_json),
+        bytes: e.bytes,
+        json,
+    })
+}
+
+/// `gonio verify`: its `--json` object, and the command's failure when the file is
+/// damaged (exit status 1). An error only when the file cannot be checked at all.
+pub fn verify(words: &[String]) -> CliResult<(Value, Option<CliError>)> {
+    let Command::Verify(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    let v = cmd::verify::verify(a.run_path())?;
+    let failed = v.result(a.run_path()).err();
+    Ok((v.json, failed))
+}
+
+/// `gonio report`: with `write`, writes DIR/report.html as the command does and
+/// returns its `--json` object; without, writes nothing and returns the object
+/// (without `out`) and the page's HTML.
+pub fn report(words: &[String], write: bool) -> CliResult<(Value, Option<String>)> {
+    let Command::Report(a) = parse(words)?.0 else {
+        return Err(wrong(words));
+    };
+    if write {
+        Ok((cmd::report::write(&a)?.0, None))
+    } else {
+        let (json, html) = cmd::report::page(&a)?;
+        Ok((json, Some(html)))
+    }
+}
+
+/// `gonio plan check`: the `--json` object.
+pub fn plan_check(words: &[String]) -> CliResult<Value> {
+    match parse(words)?.0 {
+        Command::Plan(cmd::plan::Command::Check(a)) => Ok(cmd::plan::compute(&a)?.json(&a)),
+        _ => Err(wrong(words)),
+    }
+}
+
+/// `gonio plan compare`: the `--json` object, the three runs followed in `watch`
+/// (a stage each) and stopped when its stop is raised.
+pub fn plan_compare(words: &[String], watch: Arc<Watch>) -> CliResult<Value> {
+    match parse(words)?.0 {
+        Command::Plan(cmd::plan::Command::Compare(a)) => {
+            cmd::compare::compare_json(&a, &cmd::acquire::StopBy::Caller(watch))
+        }
+        _ => Err(wrong(words)),
+    }
+}
+
+/// `gonio instrument check` (with `--connect`, the instruments identified; nothing
+/// moves): the `--json` object.
+pub fn instrument_check(words: &[String]) -> CliResult<Value> {
+    match parse(words)?.0 {
+        Command::Instrument(cmd::instrument::Command::Check(a)) => a.report(),
+        _ => Err(wrong(words)),
+    }
+}
+
+/// `gonio micro` set up once (the words parsed, the surface loaded, the grid made)
+/// and traced by incident node: what a caller showing progress runs, each node on
+/// a thread of its choosing. The table merged from the nodes is bit for bit the one
+/// [`micro`] traces at once.
+pub struct Micro {
+    args: cmd::micro::MicroArgs,
+    sim: gonio_micro::Simulation,
+    grid: gonio_process::Grid,
+    started: std::time::Instant,
+}
+
+impl Micro {
+    /// Sets up `gonio WORDS…` (a `micro` command); `theta_i` replaces the grid's
+    /// incident polar axis, raising `cancel` stops the tracing within a round of
+    /// blocks.
+    pub fn new(
+        words: &[String],
+        theta_i: Option<(f64, f64, usize)>,
+        cancel: Arc<AtomicBool>,
+    ) -> CliResult<Micro> {
+        let started = std::time::Instant::now();
+        let (args, mut sim, grid) = micro_setup(words, theta_i, None)?;
+        sim.cancel_on(cancel);
+        Ok(Micro {
+            args,
+            sim,
+            grid,
+            started,
+        })
+    }
+
+    /// The incident nodes of the table.
+    pub fn incidences(&self) -> usize {
+        self.grid.n_in()
+    }
+
+    /// Incident node `incident`, all its rays.
+    pub fn node(&self, incident: usize) -> CliResult<gonio_micro::TablePart> {
+        let segs = gonio_micro::sim::segments(self.args.rays());
+        cmd::micro::part(&self.args, &self.sim, &self.grid, incident, 0..segs)
+    }
+
+    /// The table and the `--json` object (without `out`) from every node.
+    pub fn finish(&self, nodes: &[gonio_micro::TablePart]) -> CliResult<(Table, Value)> {
+        let r = cmd::micro::merge(&self.args, &self.sim, &self.grid, nodes)?;
+        let seconds = self.started.elapsed().as_secs_f64();
+        let json = cmd::micro::json(&self.args, &r, &[], None, seconds);
+        Ok((r.table, without_out(json)))
+    }
 }

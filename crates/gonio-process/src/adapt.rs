@@ -246,7 +246,9 @@ pub fn weighted_rms_error(
             })
         })
         .collect();
-    let (num, den) = nodes
+    // Each node's terms in parallel, summed in node order: a parallel reduction's
+    // order (and so its last bits) depends on the thread count and the schedule.
+    let terms: Vec<(f64, f64)> = nodes
         .par_iter()
         .map(|&(inc, out)| {
             let pair = PairDeg {
@@ -262,7 +264,8 @@ pub fn weighted_rms_error(
             let den: f64 = f.iter().map(|a| a * a).sum();
             (w * num, w * den)
         })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .collect();
+    let (num, den) = terms.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     if den <= 0.0 {
         return Err(ProcessError::Value(
             "the truth is zero at every node".into(),

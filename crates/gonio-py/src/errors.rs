@@ -56,6 +56,8 @@ pub enum Domain {
     RunFile,
     /// An acquisition.
     Instrument,
+    /// A file a call writes (it exists, its directory does not).
+    Output,
 }
 
 /// Adds the exception classes to the module.
@@ -86,6 +88,7 @@ pub fn to_py(e: CliError, domain: Domain, run: Option<&str>) -> PyErr {
         (CliError::Interrupted(m), _) => return PyKeyboardInterrupt::new_err(m),
         _ if about_run || domain == Domain::RunFile => RunFileError::new_err(msg),
         (CliError::Input(m), Domain::Config | Domain::Instrument) => ConfigError::new_err(m),
+        (CliError::Input(m), Domain::Output) => InputError::new_err(m),
         (CliError::Input(m), _) => DataError::new_err(m),
         (CliError::Runtime(m), Domain::Instrument) => InstrumentError::new_err(m),
         (CliError::Runtime(m), _) => GonioError::new_err(m),

@@ -7,10 +7,9 @@
 //! this process, until closed.
 
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::Mutex;
-use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 
+use gonio_cli::api::Watch;
 use gonio_sim::serve::{ServeError, ServeOptions, Served, serve};
 use pyo3::prelude::*;
 
@@ -25,31 +24,58 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// `gonio acquire WORDS…`: the session's `--json` object (JSON text).
+/// `gonio acquire WORDS…`: the session's `--json` object (JSON text) and the live
+/// page's address when it was served. `progress` draws the command's bar on
+/// stderr; `report` is handed the session's progress (`interrupt::run_watched`).
 #[pyfunction]
-#[pyo3(signature = (words, out, progress = false))]
-fn acquire(py: Python<'_>, words: Vec<String>, out: String, progress: bool) -> PyResult<String> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    interrupt::run(py, None, OnInterrupt::Stop(stop), move || {
-        gonio_cli::api::acquire(&words, flag, progress)
-    })?
-    .map(|v| v.to_string())
-    .map_err(|e| errors::to_py(e, Domain::Instrument, Some(&out)))
+#[pyo3(signature = (words, out, progress = false, report = None))]
+fn acquire(
+    py: Python<'_>,
+    words: Vec<String>,
+    out: String,
+    progress: bool,
+    report: Option<Bound<'_, PyAny>>,
+) -> PyResult<(String, Option<String>)> {
+    session(py, words, &out, progress, report, gonio_cli::api::acquire)
 }
 
-/// `gonio resume RUN`: the session's `--json` object (JSON text).
+/// `gonio resume WORDS…` (the words name the run): as [`acquire`].
 #[pyfunction]
-#[pyo3(signature = (path, progress = false))]
-fn resume(py: Python<'_>, path: PathBuf, progress: bool) -> PyResult<String> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    let run = path.display().to_string();
-    interrupt::run(py, None, OnInterrupt::Stop(stop), move || {
-        gonio_cli::api::resume(&path, flag, progress)
-    })?
-    .map(|v| v.to_string())
-    .map_err(|e| errors::to_py(e, Domain::Instrument, Some(&run)))
+#[pyo3(signature = (words, progress = false, report = None))]
+fn resume(
+    py: Python<'_>,
+    words: Vec<String>,
+    progress: bool,
+    report: Option<Bound<'_, PyAny>>,
+) -> PyResult<(String, Option<String>)> {
+    let run = words.get(1).cloned().unwrap_or_default();
+    session(py, words, &run, progress, report, gonio_cli::api::resume)
+}
+
+/// The signature of `api::acquire` and `api::resume`.
+type SessionFn = fn(&[String], Arc<Watch>, bool) -> gonio_cli::api::CliResult<serde_json::Value>;
+
+/// Runs a session (`acquire` or `resume`), Ctrl-C raising its stop flag.
+fn session(
+    py: Python<'_>,
+    words: Vec<String>,
+    run: &str,
+    progress: bool,
+    report: Option<Bound<'_, PyAny>>,
+    f: SessionFn,
+) -> PyResult<(String, Option<String>)> {
+    let watch = Watch::new();
+    let w = watch.clone();
+    let result = interrupt::run_session(
+        py,
+        OnInterrupt::Stop(watch.stop_flag()),
+        move || f(&words, w, progress),
+        report.as_ref().map(|r| (&*watch, r)),
+    )?;
+    let url = watch.progress().url;
+    result
+        .map(|v| (v.to_string(), url))
+        .map_err(|e| errors::to_py(e, Domain::Instrument, Some(run)))
 }
 
 /// The simulated goniometer served on two pseudo-terminals in this process.

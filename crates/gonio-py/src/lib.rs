@@ -10,6 +10,7 @@
 
 mod batch;
 mod columns;
+mod commands;
 mod errors;
 mod instrument;
 mod interrupt;
@@ -31,6 +32,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     process::register(m)?;
     instrument::register(m)?;
     batch::register(m)?;
+    commands::register(m)?;
     Ok(())
 }
 

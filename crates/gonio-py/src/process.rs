@@ -2,13 +2,13 @@
 //! computations (`gonio_cli::api`) on a file, a model or a DataFrame's columns.
 
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
+use gonio_cli::api::Watch;
 use gonio_dataset::Dataset;
 use numpy::PyReadonlyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
+use rayon::prelude::*;
 
 use crate::columns::{self, Source};
 use crate::errors::{self, Domain};
@@ -30,7 +30,7 @@ type Frame<'py> = (Vec<(String, PyReadonlyArray1<'py, f64>)>, bool, PathBuf);
 
 /// The data `source` is: a path (str or os.PathLike), a `NativeModel`, or a
 /// DataFrame's columns.
-fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
+pub(crate) fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
     if let Ok(m) = obj.cast::<NativeModel>() {
         let model = m.get().model.clone();
         return Ok(Source::Data(
@@ -54,7 +54,7 @@ fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
 }
 
 /// `[command, input, flags…]` from `[command, flags…]`.
-fn with_input(mut words: Vec<String>, input: String) -> Vec<String> {
+pub(crate) fn with_input(mut words: Vec<String>, input: String) -> Vec<String> {
     words.insert(1.min(words.len()), input);
     words
 }
@@ -105,40 +105,76 @@ fn harmonics(
 }
 
 /// `gonio fit`: `(model file, --json object, report text)`; the work on `threads`
-/// threads (none: one a core).
+/// threads (none: one a core). `report` is handed the call's state (stage `fit`,
+/// no count: the fitter does not say how far it is).
 #[pyfunction]
-#[pyo3(signature = (input, words, threads = None))]
+#[pyo3(signature = (input, words, threads = None, report = None))]
 fn fit(
     py: Python<'_>,
     input: &Bound<'_, PyAny>,
     words: Vec<String>,
     threads: Option<usize>,
+    report: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String, String)> {
     let src = source(input)?;
     let words = with_input(words, src.word());
-    interrupt::run(py, threads, OnInterrupt::Abandon, move || {
-        gonio_cli::api::fit(&words, src.into_samples()?)
-    })?
+    let watch = Watch::new();
+    watch.begin("fit", "");
+    interrupt::run_watched(
+        py,
+        threads,
+        OnInterrupt::Abandon,
+        move || gonio_cli::api::fit(&words, src.into_samples()?),
+        report.as_ref().map(|r| (&*watch, r)),
+    )?
     .map(|f| (f.model_file, f.json.to_string(), f.report))
     .map_err(|e| errors::to_py(e, Domain::Data, None))
 }
 
 /// `gonio micro SURFACE …`: `(columns, sidecar, --json object)` of the table;
 /// `theta_i` = (first, step, count) in degrees replaces the incident polar axis.
+/// With `report`, the table is traced an incident node at a time (each node on a
+/// thread of the pool, all its rays at once; merged, bit for bit the table traced
+/// whole) and `report` is handed the nodes done.
 #[pyfunction]
-#[pyo3(signature = (words, theta_i = None, threads = None))]
-fn micro(
-    py: Python<'_>,
+#[pyo3(signature = (words, theta_i = None, threads = None, report = None))]
+fn micro<'py>(
+    py: Python<'py>,
     words: Vec<String>,
     theta_i: Option<(f64, f64, usize)>,
     threads: Option<usize>,
-) -> PyResult<(Bound<'_, PyList>, String, String)> {
+    report: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyList>, String, String)> {
     let surface = words.get(1).cloned();
-    let cancel = Arc::new(AtomicBool::new(false));
-    let flag = cancel.clone();
-    let (table, json) = interrupt::run(py, threads, OnInterrupt::Stop(cancel), move || {
-        gonio_cli::api::micro(&words, theta_i, flag)
-    })?
+    let watch = Watch::new();
+    let w = watch.clone();
+    let by_node = report.is_some();
+    let work = move || {
+        if !by_node {
+            return gonio_cli::api::micro(&words, theta_i, w.stop_flag());
+        }
+        let m = gonio_cli::api::Micro::new(&words, theta_i, w.stop_flag())?;
+        let n = m.incidences();
+        w.begin("trace", "incidences");
+        w.set(0, Some(n as u64));
+        let nodes = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let node = m.node(i);
+                w.advance();
+                node
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        m.finish(&nodes)
+    };
+    let stop = OnInterrupt::Stop(watch.stop_flag());
+    let (table, json) = interrupt::run_watched(
+        py,
+        threads,
+        stop,
+        work,
+        report.as_ref().map(|r| (&*watch, r)),
+    )?
     .map_err(|e| {
         let domain = match (&e, &surface) {
             (gonio_cli::api::CliError::Input(m), Some(s)) if m.starts_with(s.as_str()) => {

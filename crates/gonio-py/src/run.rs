@@ -24,7 +24,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// Opens a run file as `gonio show` does: examined before SQLite opens it (a FIFO
 /// would hold the open forever), then checked whole.
-fn open(path: &std::path::Path) -> Result<RunStore, PyErr> {
+pub(crate) fn open(path: &std::path::Path) -> Result<RunStore, PyErr> {
     gonio_core::input::regular_file(path).map_err(|e| {
         errors::to_py(
             gonio_cli::api::CliError::Input(e.to_string()),

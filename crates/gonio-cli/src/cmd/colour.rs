@@ -93,7 +93,12 @@ fn at(
 fn read_spectra(path: &Path) -> CliResult<Spectra> {
     let bytes = gonio_core::input::read_bounded(path, MAX_SPECTRA_BYTES)
         .map_err(|e| CliError::Input(e.to_string()))?;
-    let text = std::str::from_utf8(gonio_core::text::strip_bom_bytes(&bytes))
+    parse_spectra(path, &bytes)
+}
+
+/// The spectra of a file's bytes; `path` names it in messages.
+fn parse_spectra(path: &Path, bytes: &[u8]) -> CliResult<Spectra> {
+    let text = std::str::from_utf8(gonio_core::text::strip_bom_bytes(bytes))
         .map_err(|_| at(path, None, None, "not UTF-8 text"))?;
     let mut rows = text
         .lines()
@@ -208,27 +213,28 @@ fn colour_error(path: &Path, s: &Spectra, name: &str, e: ColourError) -> CliErro
     }
 }
 
-/// `gonio colour FILE.csv [--illuminant D65] [--observer 1931] [--adaptation bradford]
-/// [--json]`.
-pub fn run(a: ColourArgs) -> CliResult<()> {
-    let conv = a.conditions.conversion()?;
-    let (illuminant, observer, adaptation) = (conv.illuminant, conv.observer, conv.adaptation);
-    let path = a.input.as_path();
-    let spectra = read_spectra(path)?;
-    let c = conv.colorimeter();
-    let mut out = Vec::with_capacity(spectra.columns.len());
-    for (name, values) in &spectra.columns {
-        let colour = c
-            .colour(&spectra.wavelengths, values)
-            .map_err(|e| colour_error(path, &spectra, name, e))?;
-        out.push((name.as_str(), colour));
+/// What `gonio colour` computes: each spectrum's colour under the conditions.
+pub(crate) struct Colours {
+    input: PathBuf,
+    /// The first and last wavelengths, nm.
+    range_nm: (f64, f64),
+    conversion: gonio_io::rgb::Conversion,
+    white: gonio_core::colour::Xyz,
+    colours: Vec<(String, gonio_core::colour::Colour)>,
+}
+
+impl Colours {
+    fn adaptation_name(&self) -> &'static str {
+        match self.conversion.adaptation {
+            Adaptation::Bradford => "bradford",
+            Adaptation::None => "none",
+        }
     }
-    let adaptation_name = match adaptation {
-        Adaptation::Bradford => "bradford",
-        Adaptation::None => "none",
-    };
-    if a.json.json {
-        let spectra: Vec<_> = out
+
+    /// The `--json` object.
+    pub(crate) fn json(&self) -> serde_json::Value {
+        let spectra: Vec<_> = self
+            .colours
             .iter()
             .map(|(name, c)| {
                 json!({
@@ -244,16 +250,53 @@ pub fn run(a: ColourArgs) -> CliResult<()> {
                 })
             })
             .collect();
-        let w = c.white();
-        return output::json(&json!({
-            "input": path.display().to_string(),
-            "illuminant": illuminant.name(),
-            "observer": observer.name(),
-            "adaptation": adaptation_name,
+        let w = &self.white;
+        json!({
+            "input": self.input.display().to_string(),
+            "illuminant": self.conversion.illuminant.name(),
+            "observer": self.conversion.observer.name(),
+            "adaptation": self.adaptation_name(),
             "white": {"X": w.x, "Y": w.y, "Z": w.z},
             "spectra": spectra,
-        }));
+        })
     }
+}
+
+/// The colours of the spectra `a` names, or of `text` (a spectra file's contents
+/// from memory, which the input word then only names in messages).
+pub(crate) fn compute(a: &ColourArgs, text: Option<&str>) -> CliResult<Colours> {
+    let conv = a.conditions.conversion()?;
+    let path = a.input.as_path();
+    let spectra = match text {
+        Some(t) => parse_spectra(path, t.as_bytes())?,
+        None => read_spectra(path)?,
+    };
+    let c = conv.colorimeter();
+    let mut colours = Vec::with_capacity(spectra.columns.len());
+    for (name, values) in &spectra.columns {
+        let colour = c
+            .colour(&spectra.wavelengths, values)
+            .map_err(|e| colour_error(path, &spectra, name, e))?;
+        colours.push((name.clone(), colour));
+    }
+    let w = &spectra.wavelengths;
+    Ok(Colours {
+        input: a.input.clone(),
+        range_nm: (w[0], w[w.len() - 1]),
+        white: c.white(),
+        conversion: conv,
+        colours,
+    })
+}
+
+/// `gonio colour FILE.csv [--illuminant D65] [--observer 1931] [--adaptation bradford]
+/// [--json]`.
+pub fn run(a: ColourArgs) -> CliResult<()> {
+    let c = compute(&a, None)?;
+    if a.json.json {
+        return output::json(&c.json());
+    }
+    let (path, out) = (c.input.as_path(), &c.colours);
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(
@@ -262,11 +305,11 @@ pub fn run(a: ColourArgs) -> CliResult<()> {
              (Y = 1 for a perfect white; BRDF input gives Y in 1/sr)",
             path.display(),
             out.len(),
-            spectra.wavelengths[0],
-            spectra.wavelengths[spectra.wavelengths.len() - 1],
-            illuminant,
-            observer.title(),
-            adaptation_name,
+            c.range_nm.0,
+            c.range_nm.1,
+            c.conversion.illuminant,
+            c.conversion.observer.title(),
+            c.adaptation_name(),
         )?;
         let width = out
             .iter()
@@ -279,7 +322,7 @@ pub fn run(a: ColourArgs) -> CliResult<()> {
             "{:width$}  {:>9} {:>9} {:>9}  {:>7} {:>7}  {:>8} {:>8} {:>8}  sRGB",
             "name", "X", "Y", "Z", "x", "y", "R lin", "G lin", "B lin"
         )?;
-        for (name, c) in &out {
+        for (name, c) in out.iter() {
             let (x, y) = match c.xy {
                 Some((x, y)) => (format!("{x:.5}"), format!("{y:.5}")),
                 None => ("-".into(), "-".into()),

@@ -76,6 +76,19 @@ struct Compared {
 
 /// `gonio plan compare PLAN --instrument INSTR [--sim SIM] [--seed N] [--grid D,D]`.
 pub fn compare(a: CompareArgs) -> CliResult<()> {
+    let runs = compute(&a, &StopBy::Signals)?;
+    report(&a, &runs)
+}
+
+/// `gonio plan compare`'s `--json` object, the runs measured until done or stopped
+/// by `stop`.
+pub(crate) fn compare_json(a: &CompareArgs, stop: &StopBy) -> CliResult<serde_json::Value> {
+    let runs = compute(a, stop)?;
+    Ok(json_of(a, &runs))
+}
+
+/// Measures the three plans and judges each run against the truth.
+fn compute(a: &CompareArgs, stop: &StopBy) -> CliResult<Vec<Compared>> {
     let mut loaded = load_and_prepare(&a.instrument, &a.plan)?;
     if !matches!(loaded.plan.points, Points::Adaptive(_)) {
         return Err(input(format!(
@@ -182,10 +195,9 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
         .mechanics()
         .map_err(|e| input(format!("{}: {e}", a.instrument.display())))?;
     let incidences = spec.incidences().map_err(input)?;
-    let stop = StopBy::Signals;
 
     let mut runs = Vec::new();
-    let adaptive = measure(&a, &sim, &dir, "adaptive", &plan_path, &stop)?;
+    let adaptive = measure(a, &sim, &dir, "adaptive", &plan_path, stop)?;
     let target = adaptive.1;
     runs.push(adaptive);
     // The uniform plans, sized to the adaptive run's points.
@@ -204,11 +216,11 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
     );
     let lattice_plan = dir.join("lattice-plan.toml");
     write_new(&lattice_plan, &toml::to_string(&t).map_err(input)?)?;
-    runs.push(measure(&a, &sim, &dir, "lattice", &lattice_plan, &stop)?);
+    runs.push(measure(a, &sim, &dir, "lattice", &lattice_plan, stop)?);
     let grid_text = grid_plan(&mech, &table, spec, target)?;
     let grid_plan = dir.join("grid-plan.toml");
     write_new(&grid_plan, &grid_text)?;
-    runs.push(measure(&a, &sim, &dir, "grid", &grid_plan, &stop)?);
+    runs.push(measure(a, &sim, &dir, "grid", &grid_plan, stop)?);
 
     let mut out = Vec::new();
     for (name, points, file) in runs {
@@ -235,7 +247,7 @@ pub fn compare(a: CompareArgs) -> CliResult<()> {
             error,
         });
     }
-    report(&a, &out)
+    Ok(out)
 }
 
 /// Measures one plan into `DIR/NAME.gonio`: the run's name, sample points and file.
@@ -248,6 +260,10 @@ fn measure(
     stop: &StopBy,
 ) -> CliResult<(&'static str, usize, PathBuf)> {
     let out = dir.join(format!("{name}.gonio"));
+    // A caller watching the comparison sees which run its progress counts.
+    if let StopBy::Caller(w) = stop {
+        w.begin(name, "steps");
+    }
     let args = AcquireArgs::simulated(
         a.instrument.clone(),
         plan.to_path_buf(),
@@ -339,7 +355,8 @@ fn lattice_list(mech: &gonio_plan::Mechanics, spec: &Adaptive, target: usize) ->
         }
     }
     let pairs = best.ok_or_else(|| input("no lattice is small enough"))?;
-    let mut out = String::from("theta_i,phi_i,theta_o,phi_o\n");
+    let mut out = gonio_core::dirfile::HEADER_DEG.join(",");
+    out.push('\n');
     for p in &pairs {
         out.push_str(&gonio_core::dirfile::eval_row(p, &[]));
         out.push('\n');
@@ -464,25 +481,35 @@ impl Drop for TempDir {
     }
 }
 
+/// Each run's error over the adaptive run's (the first).
+fn ratio(runs: &[Compared], e: f64) -> f64 {
+    let base = runs[0].error;
+    if base > 0.0 { e / base } else { f64::INFINITY }
+}
+
+/// The `--json` object of the comparison.
+fn json_of(a: &CompareArgs, runs: &[Compared]) -> serde_json::Value {
+    json!({
+        "plan": a.plan.display().to_string(),
+        "grid": [a.grid.0, a.grid.1],
+        "runs": runs.iter().map(|r| json!({
+            "plan": r.name,
+            "points": r.points,
+            "steps": r.steps,
+            "physical_s": r.physical_s,
+            "error": r.error,
+            "error_over_adaptive": ratio(runs, r.error),
+            "file": (r.file != Path::new("-")).then(|| r.file.display().to_string()),
+        })).collect::<Vec<_>>(),
+    })
+}
+
 /// Prints the comparison.
 fn report(a: &CompareArgs, runs: &[Compared]) -> CliResult<()> {
-    let base = runs[0].error;
-    let ratio = |e: f64| if base > 0.0 { e / base } else { f64::INFINITY };
     if a.json.json {
-        return output::json(&json!({
-            "plan": a.plan.display().to_string(),
-            "grid": [a.grid.0, a.grid.1],
-            "runs": runs.iter().map(|r| json!({
-                "plan": r.name,
-                "points": r.points,
-                "steps": r.steps,
-                "physical_s": r.physical_s,
-                "error": r.error,
-                "error_over_adaptive": ratio(r.error),
-                "file": (r.file != Path::new("-")).then(|| r.file.display().to_string()),
-            })).collect::<Vec<_>>(),
-        }));
+        return output::json(&json_of(a, runs));
     }
+    let ratio = |e: f64| ratio(runs, e);
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(

@@ -302,8 +302,29 @@ pub fn is_simulated(cfg: &InstrumentConfig, path: &Path) -> CliResult<bool> {
     }
 }
 
+impl CheckArgs {
+    /// What `gonio instrument check` finds, printing nothing: its `--json` object.
+    pub(crate) fn report(&self) -> CliResult<serde_json::Value> {
+        check_report(&self.config, self.connect, self.sim.sim.as_deref()).map(|(_, r)| r)
+    }
+}
+
 /// `gonio instrument check CONFIG [--connect] [--sim SIM] [--json]`.
 fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResult<()> {
+    let (cfg, report) = check_report(path, connect, sim)?;
+    if json {
+        return output::json(&report);
+    }
+    print_check(path, &cfg, &report)
+}
+
+/// The instrument config at `path` checked (and, with `connect`, the instruments
+/// identified): the config, and the `--json` object.
+fn check_report(
+    path: &Path,
+    connect: bool,
+    sim: Option<&Path>,
+) -> CliResult<(InstrumentConfig, serde_json::Value)> {
     let cfg = InstrumentConfig::load(path).map_err(|e| CliError::Input(e.to_string()))?;
     let axes: Vec<_> = cfg
         .motion
@@ -402,9 +423,12 @@ fn check(path: &Path, connect: bool, sim: Option<&Path>, json: bool) -> CliResul
             "unconfirmed": unconfirmed,
         });
     }
-    if json {
-        return output::json(&report);
-    }
+    Ok((cfg, report))
+}
+
+/// What `instrument check` prints without `--json`.
+fn print_check(path: &Path, cfg: &InstrumentConfig, report: &serde_json::Value) -> CliResult<()> {
+    let lockin = &cfg.detector.lockin;
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: valid", path.display())?;

@@ -60,9 +60,10 @@ fn png_of(
     Ok(Image::Png(b))
 }
 
-/// `gonio report RUN.gonio --out DIR`: writes DIR/report.html and returns its path.
-pub fn run(a: ReportArgs) -> CliResult<()> {
-    let (run, out_dir, json_out) = (a.run.as_path(), a.out.as_path(), a.json.json);
+/// Writes DIR/report.html as `gonio report RUN.gonio --out DIR` does: the `--json`
+/// object, and the page's contents.
+pub(crate) fn write(a: &ReportArgs) -> CliResult<(serde_json::Value, Contents)> {
+    let (run, out_dir) = (a.run.as_path(), a.out.as_path());
     let path = out_dir.join("report.html");
     // Checked before the work when the directory exists; it is made only after.
     if out_dir.exists() {
@@ -76,13 +77,32 @@ pub fn run(a: ReportArgs) -> CliResult<()> {
         ))
     })?;
     output::Target::new(&path, a.force.force)?.write(report::html(&page).as_bytes())?;
-    if json_out {
-        output::json(&json!({
-            "out": path.display().to_string(),
-            "figures": page.figure_count(),
-            "notes": page.notes,
-        }))?;
+    let json = json!({
+        "out": path.display().to_string(),
+        "figures": page.figure_count(),
+        "notes": page.notes,
+    });
+    Ok((json, page))
+}
+
+/// The page `gonio report` writes, made in memory: nothing is written, `--out`
+/// not even checked.
+pub(crate) fn page(a: &ReportArgs) -> CliResult<(serde_json::Value, String)> {
+    let page = build_report(&a.run, &a.reduction)?;
+    let json = json!({
+        "figures": page.figure_count(),
+        "notes": page.notes,
+    });
+    Ok((json, report::html(&page)))
+}
+
+/// `gonio report RUN.gonio --out DIR`: writes DIR/report.html and prints its path.
+pub fn run(a: ReportArgs) -> CliResult<()> {
+    let (json, page) = write(&a)?;
+    if a.json.json {
+        output::json(&json)?;
     } else {
+        let path = a.out.join("report.html");
         let mut w = output::stdout();
         output::finish((|| {
             writeln!(w, "{}: {} figures", path.display(), page.figure_count())?;

@@ -7,7 +7,21 @@ import os
 from types import TracebackType
 
 from gonio import _native
+from gonio._progress import ProgressArg, Reporter
 from gonio._run import Run
+
+
+def _serve_words(serve: bool | int | str | None, control: bool) -> list[str]:
+    """``--serve [ADDR]`` and ``--control`` for ``serve`` (True: 127.0.0.1 at a
+    free port; a port; an IP; or IP:PORT)."""
+    words: list[str] = []
+    if serve is not None and serve is not False:
+        words.append("--serve")
+        if serve is not True:
+            words.append(str(serve))
+    if control:
+        words.append("--control")
+    return words
 
 
 def acquire(
@@ -15,15 +29,27 @@ def acquire(
     plan: str | os.PathLike[str],
     out: str | os.PathLike[str],
     seed: int | None = None,
-    progress: bool = True,
+    progress: ProgressArg = True,
     *,
     sim: str | os.PathLike[str] | None = None,
     notes: str | None = None,
+    serve: bool | int | str = False,
+    control: bool = False,
 ) -> Run:
     """Measures ``plan`` with ``instrument`` into a new run file ``out``, as
     ``gonio acquire`` does (a simulated instrument config runs the simulator in
     this process; ``sim`` is its config, ``seed`` its seed). Blocks until the run
-    completes, and returns it.
+    completes, and returns it (``run.session``: the session's ``--json`` object).
+
+    ``serve`` serves the run's live page while it measures, as ``--serve`` does:
+    ``True`` at 127.0.0.1 on a free port, or an address (``"IP:PORT"``, a port, an
+    IP); ``control`` adds its Stop and Pause buttons. The page's address is shown
+    when it starts (in a notebook, as a link) and kept in ``run.live_url``; the
+    page stops when the call returns (``gonio view`` serves it afterwards).
+
+    ``progress``: in a notebook, a tqdm bar (when tqdm is installed); in a
+    terminal, the command's bar on stderr; or a callable given a
+    ``gonio.Progress`` at every step; ``False`` for nothing.
 
     Ctrl-C (KeyboardInterrupt) is the safe stop: the stages stop, every reading
     taken is in the file, and the interrupt is re-raised once they have;
@@ -38,19 +64,34 @@ def acquire(
         words += ["--sim", os.fspath(sim)]
     if notes is not None:
         words += ["--notes", notes]
-    report = json.loads(_native.acquire(words, out, progress=progress))
+    words += _serve_words(serve, control)
+    with Reporter(progress, terminal_bar=True) as reporter:
+        reporter.control = control
+        report, url = _native.acquire(words, out, progress=reporter.terminal, report=reporter)
     run = Run(out)
-    run.session = report
+    run.session = json.loads(report)
+    run.live_url = url
     return run
 
 
-def resume(run: Run | str | os.PathLike[str], progress: bool = True) -> Run:
+def resume(
+    run: Run | str | os.PathLike[str],
+    progress: ProgressArg = True,
+    *,
+    serve: bool | int | str = False,
+    control: bool = False,
+) -> Run:
     """Continues an interrupted or killed run where it stopped, as ``gonio
-    resume`` does; Ctrl-C stops it safely again."""
+    resume`` does; Ctrl-C stops it safely again. ``progress``, ``serve`` and
+    ``control`` as for ``acquire``."""
     path = run.path if isinstance(run, Run) else os.fspath(run)
-    report = json.loads(_native.resume(path, progress=progress))
+    words = ["resume", path, *_serve_words(serve, control)]
+    with Reporter(progress, terminal_bar=True) as reporter:
+        reporter.control = control
+        report, url = _native.resume(words, progress=reporter.terminal, report=reporter)
     out = Run(path)
-    out.session = report
+    out.session = json.loads(report)
+    out.live_url = url
     return out
 
 

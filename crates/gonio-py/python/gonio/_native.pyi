@@ -1,7 +1,7 @@
 """Type stubs of the native module (Rust, pyo3). The public API is the package
 ``gonio``; these are its building blocks."""
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -31,6 +31,10 @@ class InstrumentError(GonioError):
 Columns = list[tuple[str, npt.NDArray[Any]]]
 Frame = tuple[list[tuple[str, npt.NDArray[np.float64]]], bool, str]
 Input = str | "NativeModel" | Frame
+#: ``(seq, stage, done, total, unit, message, url)``: a long call's state, handed
+#: to a report callable every 50 ms and once at the end; ``seq`` changes with it.
+State = tuple[int, str, int, int | None, str, str, str | None]
+Report = Callable[[State], Any]
 
 def init_logging(verbose: int = 0) -> None:
     """Logs to stderr at warn (0), debug (1) or trace (2); ``RUST_LOG`` overrides."""
@@ -62,21 +66,55 @@ def correct(input: Input, words: list[str]) -> tuple[Columns, str, str]:
 def harmonics(input: Input, words: list[str]) -> tuple[str, str]:
     """``gonio harmonics``: the file's text and the ``--json`` object."""
 
-def fit(input: Input, words: list[str], threads: int | None = None) -> tuple[str, str, str]:
+def fit(
+    input: Input, words: list[str], threads: int | None = None, report: Report | None = None
+) -> tuple[str, str, str]:
     """``gonio fit``: the model file, the ``--json`` object, the report."""
 
 def micro(
     words: list[str],
     theta_i: tuple[float, float, int] | None = None,
     threads: int | None = None,
+    report: Report | None = None,
 ) -> tuple[Columns, str, str]:
-    """``gonio micro``: the table's columns, its sidecar and the ``--json`` object."""
+    """``gonio micro``: the table's columns, its sidecar and the ``--json`` object;
+    with ``report``, traced an incident direction a thread, each reported done."""
 
-def acquire(words: list[str], out: str, progress: bool = False) -> str:
-    """``gonio acquire WORDS``: the session's ``--json`` object."""
+def acquire(
+    words: list[str], out: str, progress: bool = False, report: Report | None = None
+) -> tuple[str, str | None]:
+    """``gonio acquire WORDS``: the session's ``--json`` object and the live page's
+    address (``--serve``); ``progress`` draws the command's bar on stderr."""
 
-def resume(path: str, progress: bool = False) -> str:
-    """``gonio resume PATH``: the session's ``--json`` object."""
+def resume(
+    words: list[str], progress: bool = False, report: Report | None = None
+) -> tuple[str, str | None]:
+    """``gonio resume WORDS``: as ``acquire``."""
+
+def colour(words: list[str], text: str | None = None) -> str:
+    """``gonio colour WORDS``: the ``--json`` object; ``text`` the spectra file's
+    contents from memory."""
+
+def export(input: Input, words: list[str], write: bool) -> tuple[bytes, str | None, str]:
+    """``gonio export``: the file's bytes, a CSV's sidecar and the ``--json``
+    object; ``write`` writes the file as the command does."""
+
+def verify(words: list[str]) -> tuple[str, GonioError | None]:
+    """``gonio verify WORDS``: the ``--json`` object, and the command's error when
+    the file is damaged."""
+
+def report(words: list[str], write: bool) -> tuple[str, str | None]:
+    """``gonio report WORDS``: the ``--json`` object and, when not written, the
+    page's HTML."""
+
+def plan_check(words: list[str]) -> str:
+    """``gonio plan check WORDS``: the ``--json`` object."""
+
+def plan_compare(words: list[str], report: Report | None = None) -> str:
+    """``gonio plan compare WORDS``: the ``--json`` object."""
+
+def instrument_check(words: list[str]) -> str:
+    """``gonio instrument check WORDS``: the ``--json`` object."""
 
 class NativeModel:
     """An analytic model."""

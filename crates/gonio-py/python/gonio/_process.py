@@ -14,6 +14,7 @@ import pandas as pd
 from gonio import _native
 from gonio._frame import grid_words, reduce_words, to_frame, to_input, write_new
 from gonio._model import Model
+from gonio._progress import ProgressArg, Reporter
 
 #: The transforms of ``correct``, by keyword (DeYoung Ch. 5).
 STEPS = ("reciprocity", "energy", "isotropy", "separable")
@@ -154,12 +155,15 @@ def fit(
     calibration: str = "auto",
     drift: str = "auto",
     threads: int | None = None,
+    progress: ProgressArg = True,
 ) -> FitResult:
     """Sums of generalized cosine lobes (Lafortune et al. 1997, Eq. 8) fitted by
     Levenberg–Marquardt to ``samples``: a DataFrame like ``Run.reduce()`` returns,
     a ``Run``, a ``Model`` or a path. The options are ``gonio fit``'s flags;
     ``threads`` bounds the threads the fit uses (default: one a core). The
-    interpreter's lock is released while it runs."""
+    interpreter's lock is released while it runs. ``progress``: in a notebook, a
+    tqdm bar showing the time it has taken (the fit does not say how far it is),
+    or a callable given a ``gonio.Progress``."""
     words = ["fit", "--model", model, "--lobes", str(int(lobes))]
     if objective is not None:
         words += ["--objective", objective]
@@ -174,4 +178,6 @@ def fit(
         if on:
             words.append(flag)
     words += reduce_words(calibration, drift)
-    return FitResult(*_native.fit(to_input(samples), words, threads=threads))
+    with Reporter(progress) as reporter:
+        report = reporter if reporter.active else None
+        return FitResult(*_native.fit(to_input(samples), words, threads=threads, report=report))

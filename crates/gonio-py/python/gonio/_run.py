@@ -20,6 +20,11 @@ class Run:
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path: str = os.fspath(path)
+        #: The ``--json`` object of the session that returned this run
+        #: (``acquire``, ``resume``), else None.
+        self.session: dict[str, Any] | None = None
+        #: The live page's address, when that session served it.
+        self.live_url: str | None = None
         summary, keys = _native.run_open(self.path)
         self._summary: dict[str, Any] = json.loads(summary)
         self._keys: dict[str, str] = dict(keys)
@@ -115,6 +120,19 @@ class Run:
         from gonio._process import check
 
         return check(self, **kwargs)
+
+    def verify(self, *, check: bool = False) -> dict[str, Any]:
+        """``gonio.verify(self, check=check)``: the file checked whole."""
+        from gonio._commands import verify
+
+        return verify(self, check=check)
+
+    def report(self, out: str | os.PathLike[str] | None = None, **kwargs: Any) -> Any:
+        """``gonio.report(self, out, **kwargs)``: the run report (its HTML, or
+        written to ``out/report.html``)."""
+        from gonio._commands import report
+
+        return report(self, out, **kwargs)
 
 
 def open_run(path: str | os.PathLike[str]) -> Run:

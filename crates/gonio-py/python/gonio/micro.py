@@ -12,6 +12,7 @@ import pandas as pd
 
 from gonio import _native
 from gonio._frame import to_frame
+from gonio._progress import ProgressArg, Reporter
 
 
 def _axis(theta_i: float | Sequence[float]) -> tuple[float, float, int]:
@@ -37,13 +38,17 @@ def simulate(
     seed: int = 1,
     max_bounces: int = 100,
     threads: int | None = None,
+    progress: ProgressArg = True,
 ) -> pd.DataFrame:
     """f_r on a hemisphere grid of ``grid`` = (dθ, dφ) degrees, traced with
     ``rays`` rays per incident direction (deterministic in ``seed`` on any number
     of threads): the table ``gonio micro`` writes, with the Monte Carlo standard
     error of every bin in the sigma columns. ``theta_i`` (evenly spaced degrees)
     replaces the grid's incident polar angles. ``df.attrs["micro"]`` holds the
-    ray statistics and albedos (``--json``)."""
+    ray statistics and albedos (``--json``). ``progress``: in a notebook, a tqdm
+    bar of the incident directions traced; or a callable given a
+    ``gonio.Progress`` as each is done. With either, the directions are traced
+    one to a thread (the same table, bit for bit)."""
     words = ["micro", os.fspath(surface), "--out", os.devnull]
     words += ["--grid", f"{float(grid[0])!r},{float(grid[1])!r}"]
     words += ["--rays", str(int(rays)), "--seed", str(int(seed))]
@@ -51,7 +56,10 @@ def simulate(
     if isotropic:
         words.append("--isotropic")
     axis = None if theta_i is None else _axis(theta_i)
-    cols, sidecar, report = _native.micro(words, axis, threads=threads)
+    with Reporter(progress) as reporter:
+        cols, sidecar, report = _native.micro(
+            words, axis, threads=threads, report=reporter if reporter.active else None
+        )
     df = to_frame(cols, sidecar)
     df.attrs["micro"] = json.loads(report)
     return df
