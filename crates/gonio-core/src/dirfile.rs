@@ -1,13 +1,30 @@
 //! The directions file of `docs/CONVENTIONS.md`: CSV with the header
-//! `theta_i,phi_i,theta_o,phi_o` (degrees), one pair of directions a row; and the
-//! evaluation result that repeats those columns and adds one column a channel.
+//! `theta_i,phi_i,theta_o,phi_o` or `theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg`
+//! (degrees), one pair of directions a row; and the evaluation result, which repeats
+//! those columns with their unit (`theta_i_deg`, …) and adds one column a channel in
+//! 1/sr (`f_r_550nm_per_sr`, the sample file's names): pandas reads it with no
+//! arguments, and it reads back as directions or as samples.
 
 use std::fmt::Write as _;
 
 use crate::{Channels, Dir, DirPair, SphericalDeg};
 
-/// The four columns every directions file starts with.
+/// The four columns a directions file starts with (or [`HEADER_DEG`]'s).
 pub const HEADER: [&str; 4] = ["theta_i", "phi_i", "theta_o", "phi_o"];
+
+/// The same columns with their unit: what Gonio writes, and what a directions file
+/// may also start with.
+pub const HEADER_DEG: [&str; 4] = ["theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"];
+
+/// The column of a channel's BRDF values in files Gonio writes: `f_r_per_sr` for
+/// the single channel `value`, else `f_r_<channel>_per_sr` (1/sr).
+pub fn value_column(channel: &str) -> String {
+    if channel == "value" {
+        "f_r_per_sr".into()
+    } else {
+        format!("f_r_{channel}_per_sr")
+    }
+}
 
 /// A row of a directions file: two directions in degrees, as written.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,15 +80,22 @@ pub fn read_pairs(text: &str) -> Result<Vec<PairDeg>, DirFileError> {
         return Err(err(
             1,
             None,
-            "empty file: expected the header theta_i,phi_i,theta_o,phi_o",
+            "empty file: expected the header theta_i,phi_i,theta_o,phi_o (or with _deg)",
         ));
     };
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    if cols.len() < 4 || cols[..4] != HEADER {
+    let named = |k: usize| {
+        cols.get(k)
+            .is_some_and(|c| *c == HEADER[k] || *c == HEADER_DEG[k])
+    };
+    if !(0..4).all(named) {
         return Err(err(
             hline,
             None,
-            format!("header must start with theta_i,phi_i,theta_o,phi_o; got {header:?}"),
+            format!(
+                "header must start with theta_i,phi_i,theta_o,phi_o (or \
+                 theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg); got {header:?}"
+            ),
         ));
     }
     let mut out = Vec::new();
@@ -86,20 +110,16 @@ pub fn read_pairs(text: &str) -> Result<Vec<PairDeg>, DirFileError> {
         }
         let mut v = [0.0; 4];
         for k in 0..4 {
-            let x: f64 = fields[k].parse().map_err(|_| {
-                err(
-                    n,
-                    Some(HEADER[k]),
-                    format!("{:?} is not a number", fields[k]),
-                )
-            })?;
+            let x: f64 = fields[k]
+                .parse()
+                .map_err(|_| err(n, Some(cols[k]), format!("{:?} is not a number", fields[k])))?;
             if !x.is_finite() {
-                return Err(err(n, Some(HEADER[k]), "must be finite"));
+                return Err(err(n, Some(cols[k]), "must be finite"));
             }
             if k % 2 == 0 && !(0.0..=90.0).contains(&x) {
                 return Err(err(
                     n,
-                    Some(HEADER[k]),
+                    Some(cols[k]),
                     format!("{x} is outside [0, 90] degrees"),
                 ));
             }
@@ -113,13 +133,14 @@ pub fn read_pairs(text: &str) -> Result<Vec<PairDeg>, DirFileError> {
     Ok(out)
 }
 
-/// The header line of an evaluation result: the four direction columns and one column
-/// a channel (`R,G,B`, `550nm`, or `value`).
+/// The header line of an evaluation result: the four direction columns in degrees
+/// and one column a channel in 1/sr ([`value_column`]: `f_r_R_per_sr`,
+/// `f_r_550nm_per_sr`, or `f_r_per_sr`).
 pub fn eval_header(channels: &Channels) -> String {
-    let mut h = HEADER.join(",");
+    let mut h = HEADER_DEG.join(",");
     for n in channels.names() {
         h.push(',');
-        h.push_str(&n);
+        h.push_str(&value_column(&n));
     }
     h
 }
@@ -170,7 +191,8 @@ mod tests {
         assert_eq!(e.line, 1);
         assert_eq!(
             e.to_string(),
-            "line 1: header must start with theta_i,phi_i,theta_o,phi_o; got \"ti,pi,to,po\""
+            "line 1: header must start with theta_i,phi_i,theta_o,phi_o (or \
+             theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg); got \"ti,pi,to,po\""
         );
         let e = read_pairs("theta_i,phi_i,theta_o,phi_o\n1,2,3\n").unwrap_err();
         assert!(e.message.contains("expected 4 values"));
@@ -196,8 +218,26 @@ mod tests {
             eval_row(&p, &[0.1, 0.2, 1.0 / 3.0])
         );
         assert!(text.starts_with(
-            "theta_i,phi_i,theta_o,phi_o,R,G,B\n10.5,0,20,180,0.1,0.2,0.3333333333333333\n"
+            "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg,f_r_R_per_sr,f_r_G_per_sr,f_r_B_per_sr\n\
+             10.5,0,20,180,0.1,0.2,0.3333333333333333\n"
         ));
         assert_eq!(read_pairs(&text).expect("reads back")[0], p);
+    }
+
+    #[test]
+    fn units_in_the_header_read_and_name_the_field() {
+        let t = "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n10,0,20,180\n0,0,x,0\n";
+        let e = read_pairs(t).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "line 3, field theta_o_deg: \"x\" is not a number"
+        );
+        let p = read_pairs("theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg\n10,0,20,180\n");
+        assert_eq!(
+            p.expect("valid")[0].outgoing,
+            SphericalDeg::new(20.0, 180.0)
+        );
+        assert_eq!(value_column("value"), "f_r_per_sr");
+        assert_eq!(value_column("550nm"), "f_r_550nm_per_sr");
     }
 }

@@ -56,3 +56,27 @@ pub use spectral::{BandSelector, SpectralError};
 pub use transport::{
     FlowControl, Framing, SerialSettings, SerialTransport, Transport, TransportError,
 };
+
+/// The instruments Gonio drives, by family (the name [`selftest::unconfirmed`] and
+/// the devices report) and what the family is: what the demo and docs list.
+pub const DRIVERS: [(&str, &str); 7] = [
+    ("smc100", "Newport SMC100 stage controllers"),
+    ("kdc101", "Thorlabs KDC101 K-Cube (APT)"),
+    ("k10cr1", "Thorlabs K10CR1 rotation stage (APT)"),
+    ("sr830", "SRS SR830 lock-in amplifier"),
+    ("k6485", "Keithley 6485 picoammeter"),
+    ("cs130", "Newport Cornerstone 130 monochromator"),
+    ("fw102c", "Thorlabs FW102C filter wheel"),
+];
+
+#[cfg(test)]
+mod tests {
+    /// Every family listed has its unconfirmed facts on record (the self-test
+    /// names them), so the list cannot name a family the drivers do not know.
+    #[test]
+    fn every_driver_listed_is_a_family_the_self_test_knows() {
+        for (family, _) in super::DRIVERS {
+            assert!(super::selftest::unconfirmed(family).is_some(), "{family}");
+        }
+    }
+}

@@ -284,10 +284,13 @@ pub fn html(c: &Contents) -> String {
             num(r.solid_angle_sr),
             r.max_position_error_deg
         );
-        h.push_str(
+        // A lock-in's volts, or a picoammeter's amps (every channel of a run alike).
+        let unit = r.channels.first().map_or("V", |c| c.unit);
+        let _ = writeln!(
+            h,
             "<table><tr><th class=\"k\">channel</th><th>calibration</th><th>readings</th>\
-             <th>incident flux (V)</th><th>its rel. σ</th><th>dark X, Y (V)</th>\
-             <th>drift references</th><th>max |g − 1|</th><th>samples</th></tr>\n",
+             <th>incident flux ({unit})</th><th>its rel. σ</th><th>dark X, Y ({unit})</th>\
+             <th>drift references</th><th>max |g − 1|</th><th>samples</th></tr>",
         );
         for ch in &r.channels {
             let _ = writeln!(

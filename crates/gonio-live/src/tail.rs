@@ -80,7 +80,7 @@ impl Tail {
                 Detector::LockIn => "V",
                 Detector::Dc => "A",
             },
-            estimate_s: meta.estimate.map(|e| e.motion_s + e.detector_s + e.band_s),
+            estimate_s: meta.estimate.map(|e| e.total_s()),
             control,
             live,
         };
@@ -348,12 +348,7 @@ impl Tail {
             "running" => match self.store.measured_by() {
                 Some(_) if self.paused => ("paused", "paused on request; stages idle".into()),
                 Some(pid) => ("running", format!("measuring (process {pid})")),
-                None => (
-                    "stale",
-                    "no process measures the run: its last session ended without a clean \
-                     stop (killed?); `gonio resume` continues it"
-                        .into(),
-                ),
+                None => ("stale", gonio_run::STALE_NOTE.into()),
             },
             "complete" => ("complete", "every step finished".into()),
             "interrupted" => ("interrupted", previous()),

@@ -42,7 +42,7 @@ pub(crate) const KIND: &str = "BRDF table";
 const SIDECAR_KIND: &str = "BRDF table sidecar";
 
 /// The direction columns (degrees) of the current format.
-pub const DIR_COLUMNS: [&str; 4] = ["theta_i_deg", "phi_i_deg", "theta_o_deg", "phi_o_deg"];
+pub const DIR_COLUMNS: [&str; 4] = gonio_core::dirfile::HEADER_DEG;
 
 /// The format version files are written in (1 had `#` lines and unitless names).
 pub const VERSION: u32 = 2;
@@ -65,11 +65,7 @@ pub enum Content {
 /// The column of a channel's values: `f_r_per_sr` for the single channel `value`,
 /// else `f_r_<channel>_per_sr` (1/sr).
 pub fn value_column(channel: &str) -> String {
-    if channel == "value" {
-        "f_r_per_sr".into()
-    } else {
-        format!("f_r_{channel}_per_sr")
-    }
+    gonio_core::dirfile::value_column(channel)
 }
 
 /// The column of a channel's standard uncertainty: `sigma_per_sr` or

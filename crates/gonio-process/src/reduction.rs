@@ -25,15 +25,21 @@ pub struct BudgetTerm {
 }
 
 /// What the reduction did, per channel.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+///
+/// Its JSON names the detector signal's unit in the keys: `dark_v` and `incident_v`
+/// for a lock-in's volts (as every report before DC runs), `dark_a` and `incident_a`
+/// for a picoammeter's amps, with `unit: "A"`.
+#[derive(Clone, Debug, PartialEq)]
 pub struct ChannelReport {
     /// The channel.
     pub channel: String,
     /// The calibration used (`incident` or `standard`).
     pub calibration: &'static str,
-    /// Dark X and Y, V.
+    /// The detector signal's unit: `V` (a lock-in's X, Y) or `A` (a DC current).
+    pub unit: &'static str,
+    /// Dark X and Y in [`Self::unit`] (a DC run's dark is [I, 0]).
     pub dark_v: [f64; 2],
-    /// Incident flux C (at g = 1), in detector volts.
+    /// Incident flux C (at g = 1), in [`Self::unit`].
     pub incident_v: f64,
     /// Its relative standard uncertainty (common to every sample of the channel).
     pub incident_rel_sigma: f64,
@@ -48,6 +54,33 @@ pub struct ChannelReport {
     /// The uncertainty budget: every term that makes up the samples' σ (their
     /// quadrature sum), with its source.
     pub budget: Vec<BudgetTerm>,
+}
+
+impl Serialize for ChannelReport {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        // Every report before DC runs had `dark_v`, `incident_v`: a lock-in's stay so.
+        let (dark, incident) = match self.unit {
+            "A" => ("dark_a", "incident_a"),
+            _ => ("dark_v", "incident_v"),
+        };
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("channel", &self.channel)?;
+        m.serialize_entry("calibration", self.calibration)?;
+        // A lock-in's report stays byte for byte what it was; a DC one says its unit.
+        if self.unit != "V" {
+            m.serialize_entry("unit", self.unit)?;
+        }
+        m.serialize_entry(dark, &self.dark_v)?;
+        m.serialize_entry(incident, &self.incident_v)?;
+        m.serialize_entry("incident_rel_sigma", &self.incident_rel_sigma)?;
+        m.serialize_entry("calibration_readings", &self.calibration_readings)?;
+        m.serialize_entry("drift_readings", &self.drift_readings)?;
+        m.serialize_entry("drift_max", &self.drift_max)?;
+        m.serialize_entry("samples", &self.samples)?;
+        m.serialize_entry("budget", &self.budget)?;
+        m.end()
+    }
 }
 
 /// The reduction's account of itself.

@@ -76,8 +76,8 @@
 //!   calibration read on the same range and does not between ranges (see
 //!   [`DC_CORRELATIONS`]).
 //!
-//! The report's budget lines name amps; its `dark_v` ([I_dark, 0]) and `incident_v`
-//! fields, named for the lock-in, hold amps for a DC run.
+//! The report's budget lines name amps, and its unit is `A`: the JSON's `dark_a`
+//! ([I_dark, 0]) and `incident_a` where a lock-in's has `dark_v` and `incident_v`.
 
 pub mod adaptive;
 pub mod spectral;
@@ -1420,6 +1420,10 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         reports.push(ChannelReport {
             channel: name,
             calibration: if use_standard { "standard" } else { "incident" },
+            unit: match detector {
+                Detector::LockIn => "V",
+                Detector::Dc => "A",
+            },
             dark_v: dark,
             incident_v: c_mean,
             incident_rel_sigma: c_rel,

@@ -30,5 +30,5 @@ pub use records::{
 };
 pub use schema::{APPLICATION_ID, SCHEMA_VERSION, flags};
 pub use store::{ColumnValues, RunStore, is_run_file};
-pub use summary::{BatchesSummary, SessionSummary, Summary, summary};
+pub use summary::{BatchesSummary, STALE_NOTE, SessionSummary, Summary, status_now, summary};
 pub use time::{utc, wall_now};

@@ -43,8 +43,12 @@ pub struct Summary {
     pub path: String,
     /// Run name.
     pub name: Option<String>,
-    /// Status.
+    /// Status: the stored one, except that a run stored as `running` which no
+    /// process measures (none holds its lock) is `stale` ([`status_now`]).
     pub status: String,
+    /// What the status means and what to do, for `stale` (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub status_note: Option<String>,
     /// Steps in the schedule.
     pub steps: usize,
     /// Steps by state.
@@ -80,6 +84,23 @@ pub struct Summary {
     /// An adaptive run's batches (absent for other runs, and from their JSON).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub batches: Option<BatchesSummary>,
+}
+
+/// What a `stale` run is: stored as running, but nobody measures it.
+pub const STALE_NOTE: &str = "no process measures the run: its last session ended without \
+                              a clean stop (killed, or its status could not be written); \
+                              `gonio resume` continues it";
+
+/// A run's status as it is now, from the `stored` one: `running` stays so only
+/// while a process holds the run's lock (the measuring process, which cannot die
+/// and keep it: `lock.rs`); otherwise the last session ended without writing its
+/// end — killed, or a full disk refused the write — and the run is `stale`.
+pub fn status_now(store: &RunStore, stored: &str) -> (String, Option<String>) {
+    if stored == "running" && store.measured_by().is_none() {
+        ("stale".into(), Some(STALE_NOTE.into()))
+    } else {
+        (stored.into(), None)
+    }
 }
 
 /// Summarises a run file.
@@ -120,10 +141,12 @@ pub fn summary(store: &RunStore) -> Result<Summary, StoreError> {
     for e in store.events()? {
         *events.entry(e.kind).or_insert(0) += 1;
     }
+    let (status, status_note) = status_now(store, meta.status.as_str());
     Ok(Summary {
         path: store.path().display().to_string(),
         name: meta.name,
-        status: meta.status.as_str().to_string(),
+        status,
+        status_note,
         steps: steps.len(),
         states: store.state_counts()?,
         done_by_kind,

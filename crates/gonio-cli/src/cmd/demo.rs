@@ -351,20 +351,10 @@ pub fn run(a: DemoArgs) -> CliResult<()> {
             )?;
         }
         writeln!(w)?;
-        writeln!(
-            w,
-            "Gonio today: BRDF models (gonio model eval | albedo), the SMC100 / SR830 drivers"
-        )?;
-        writeln!(
-            w,
-            "(gonio instrument check), the simulated goniometer (gonio sim) and acquisition"
-        )?;
-        writeln!(
-            w,
-            "(gonio plan check | acquire | resume | runs | show), processing (gonio reduce | check |"
-        )?;
-        writeln!(w, "correct | harmonics), lobe fitting (gonio fit), formats, plots and reports (gonio export |
-plot | report).")?;
+        writeln!(w, "Gonio today:")?;
+        for line in today() {
+            writeln!(w, "  {line}")?;
+        }
         writeln!(w)?;
         writeln!(
             w,
@@ -373,6 +363,31 @@ plot | report).")?;
         )?;
         w.flush()
     })())
+}
+
+/// What Gonio does, by command, for the demo's closing summary: the drivers from
+/// [`gonio_driver::DRIVERS`], so that the list stays the drivers there are.
+pub(crate) fn today() -> Vec<String> {
+    let drivers: Vec<&str> = gonio_driver::DRIVERS
+        .iter()
+        .map(|(_, what)| *what)
+        .collect();
+    vec![
+        "BRDF models: gonio model eval | albedo".into(),
+        format!("drivers: {}", drivers.join(", ")),
+        "instruments: gonio instrument check [--connect] | ports | selftest; the simulated \
+         instrument on pseudo-terminals: gonio sim"
+            .into(),
+        "acquisition: gonio plan check | compare, acquire [--serve] | resume | runs | show | \
+         verify | view"
+            .into(),
+        "processing: gonio reduce | check | correct | harmonics | micro; lobe fitting: gonio fit \
+         [--compare]"
+            .into(),
+        "output: gonio export (MERL, ASTM E1392, CSV) | plot | report | colour; the same in \
+         Python (import gonio)"
+            .into(),
+    ]
 }
 
 /// The Phong shading BRDF DeYoung measures in Sec. 5.2 (non-reciprocal: the lobe is

@@ -16,8 +16,8 @@ use crate::output;
 #[derive(clap::Subcommand)]
 pub enum Command {
     /// Evaluate a model at the direction pairs of a CSV file
-    /// (`theta_i,phi_i,theta_o,phi_o`, degrees); writes the pairs with one column a
-    /// channel, in 1/sr.
+    /// (`theta_i,phi_i,theta_o,phi_o`, degrees, or with `_deg`); writes the pairs
+    /// (`theta_i_deg,…`) with one column a channel, in 1/sr (`f_r_<channel>_per_sr`).
     Eval(EvalArgs),
     /// Directional–hemispherical reflectance ρ(θi) per channel.
     Albedo(AlbedoArgs),

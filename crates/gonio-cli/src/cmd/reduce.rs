@@ -170,14 +170,16 @@ pub fn print_reduction(w: &mut dyn Write, red: &Reduction) -> std::io::Result<()
     for c in &r.channels {
         writeln!(
             w,
-            "channel {}: {} calibration ({} readings), incident {:.6e} V ± {:.2e} (rel.), dark ({:.2e}, {:.2e}) V, drift {} references, max |g−1| {:.3}%",
+            "channel {}: {} calibration ({} readings), incident {:.6e} {} ± {:.2e} (rel.), dark ({:.2e}, {:.2e}) {}, drift {} references, max |g−1| {:.3}%",
             c.channel,
             c.calibration,
             c.calibration_readings,
             c.incident_v,
+            c.unit,
             c.incident_rel_sigma,
             c.dark_v[0],
             c.dark_v[1],
+            c.unit,
             c.drift_readings,
             100.0 * c.drift_max
         )?;

@@ -48,6 +48,9 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
     let mut w = output::stdout();
     output::finish((|| {
         writeln!(w, "{}: {}", s.path, s.status)?;
+        if let Some(note) = &s.status_note {
+            writeln!(w, "  {note}")?;
+        }
         if let Some(n) = &s.name {
             writeln!(w, "name: {n}")?;
         }
@@ -78,20 +81,25 @@ pub fn show(a: ShowArgs) -> CliResult<()> {
             s.flagged,
             s.retries
         )?;
-        if let Some(t) = s
-            .estimate
-            .get("motion_s")
-            .and_then(serde_json::Value::as_f64)
-        {
-            let d = s
-                .estimate
-                .get("detector_s")
-                .and_then(serde_json::Value::as_f64)
-                .unwrap_or(0.0);
+        // The whole estimate (start-up and band changes included, as `plan check`
+        // totals it); files written before those were estimated lack them: 0.
+        let part = |k: &str| s.estimate.get(k).and_then(serde_json::Value::as_f64);
+        if let Some(t) = part("motion_s") {
+            let (d, b, u) = (
+                part("detector_s").unwrap_or(0.0),
+                part("band_s").unwrap_or(0.0),
+                part("startup_s").unwrap_or(0.0),
+            );
+            let bands = if b > 0.0 {
+                format!(", band changes {}", hms(b))
+            } else {
+                String::new()
+            };
             writeln!(
                 w,
-                "estimated: {} (motion {}, detector {})",
-                hms(t + d),
+                "estimated: {} (start-up {}, motion {}{bands}, detector {})",
+                hms(u + t + b + d),
+                hms(u),
                 hms(t),
                 hms(d)
             )?;
