@@ -36,8 +36,9 @@ class Run:
 
     @property
     def status(self) -> str:
-        """``created``, ``running``, ``interrupted``, ``faulted`` or ``complete``
-        (as when opened)."""
+        """``created``, ``running``, ``interrupted``, ``faulted``, ``complete``, or
+        ``stale`` — stored as running but measured by no process (killed, or its
+        status could not be written); ``resume`` continues it (as when opened)."""
         return str(self._summary["status"])
 
     @property

@@ -24,8 +24,8 @@ def check(
     """Maps every pair of ``plan`` through ``instrument``'s kinematics, as ``gonio
     plan check`` does: returns its ``--json`` dict — the pairs, those accepted,
     those left out with the reason (``rejected``, ``rejected_by_reason``), the
-    steps and the time estimate (``estimate``: motion, band changes, detector,
-    total, in seconds), and for adaptive or targeted plans their own estimates.
+    steps and the time estimate (``estimate``: start-up, motion, band changes,
+    detector, total, in seconds), and for adaptive or targeted plans their own estimates.
     For a plan with a ``[reading]`` target, ``like`` (a ``Run`` or run file) gives
     the signals to expect; ``sim`` is the simulator config of a simulated
     instrument. A bad plan or config raises ``ConfigError`` naming the file."""
