@@ -369,3 +369,35 @@ fn no_module_imports_loop() {
     }
     assert!(found.is_empty(), "import loops:\n{}", found.join("\n"));
 }
+
+/// The tests' profile compiles every Gonio crate with a debug build's arithmetic
+/// checks, and nothing else: a member without its `[profile.ci.package.NAME]` entry
+/// would be tested without overflow checks, and a `package."*"` entry would also
+/// override `build-override` and compile every proc macro optimised (Cargo.toml).
+#[test]
+fn the_tests_profile_checks_every_gonio_crate_and_only_those() {
+    let path = root().join("Cargo.toml");
+    let text = std::fs::read_to_string(&path).expect("Cargo.toml");
+    let manifest: toml::Table = text.parse().expect("Cargo.toml parses");
+    let packages = manifest["profile"]["ci"]["package"]
+        .as_table()
+        .expect("[profile.ci.package.*]");
+    assert!(
+        !packages.contains_key("*"),
+        "[profile.ci.package.\"*\"] would take precedence over build-override"
+    );
+    for name in MAP {
+        let p = packages
+            .get(name)
+            .unwrap_or_else(|| panic!("no [profile.ci.package.{name}] in Cargo.toml"));
+        assert_eq!(p.get("opt-level"), Some(&toml::Value::Integer(1)), "{name}");
+        for check in ["overflow-checks", "debug-assertions"] {
+            assert_eq!(p.get(check), Some(&toml::Value::Boolean(true)), "{name} {check}");
+        }
+    }
+    let checked: Vec<&String> = packages
+        .keys()
+        .filter(|k| packages[k.as_str()].get("overflow-checks").is_some())
+        .collect();
+    assert_eq!(checked.len(), MAP.len(), "checked crates {checked:?}");
+}

@@ -1,0 +1,163 @@
+#!/usr/bin/env python3
+"""Run the workspace's test binaries side by side, as `cargo test` would one by one.
+
+`cargo test` runs its 36 test binaries in sequence. The command line's integration
+tests take two minutes, mostly waiting on simulated instruments and a browser, while a
+core sits idle; the other binaries take another minute and a half. This runs up to
+`--jobs` of them at once (each still runs its own tests on as many threads as cargo
+would), the longest first, plus the doc tests and any extra command given after `--`
+(scripts/test passes pytest). Each job's output is kept and printed whole when it
+ends, so nothing interleaves; the exit status is 1 if any job failed.
+
+The binaries are the ones `cargo test --no-run` lists for the same arguments, so what
+runs is what `cargo test --workspace --profile ci` runs. Durations are remembered in
+target/ci/test-durations.json to order the next run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+CARGO = os.environ.get("CARGO", "cargo")
+DURATIONS = ROOT / "target" / "ci" / "test-durations.json"
+#: Seconds, on 2 cores, for a run with no durations file yet.
+FIRST_RUN = {"gonio-cli test it": 170.0, "pytest": 120.0, "gonio-brdf test it": 33.0}
+
+
+@dataclass
+class Job:
+    """One process to run: a test binary, the doc tests, or an extra command."""
+
+    name: str
+    argv: list[str]
+    cwd: Path
+    env: dict[str, str] = field(default_factory=dict)
+
+
+def test_binaries(profile: str) -> list[Job]:
+    """The test executables `cargo test --workspace --profile PROFILE` would run."""
+    out = subprocess.run(
+        [CARGO, "test", "--workspace", "--profile", profile, "--no-run"]
+        + ["--message-format=json-render-diagnostics"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        check=True,
+        text=True,
+    ).stdout
+    jobs = []
+    for line in out.splitlines():
+        msg = json.loads(line)
+        if msg.get("reason") != "compiler-artifact" or not msg.get("executable"):
+            continue
+        if not msg["profile"]["test"]:
+            continue
+        target = msg["target"]
+        manifest = Path(msg["manifest_path"])
+        jobs.append(
+            Job(
+                name=f"{manifest.parent.name} {target['kind'][0]} {target['name']}",
+                argv=[msg["executable"]],
+                cwd=manifest.parent,
+                env={"CARGO_MANIFEST_DIR": str(manifest.parent)},
+            )
+        )
+    return jobs
+
+
+def run(job: Job, log: Path) -> tuple[Job, int, float]:
+    """Runs `job` with its output to `log`; returns its status and wall time."""
+    t0 = time.monotonic()
+    with log.open("wb") as f:
+        status = subprocess.run(
+            job.argv,
+            check=False,
+            cwd=job.cwd,
+            env={**os.environ, **job.env},
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        ).returncode
+    return job, status, time.monotonic() - t0
+
+
+def summary(text: str) -> str:
+    """The libtest result lines, or the last line, of a job's output."""
+    lines = [ln for ln in text.splitlines() if ln.startswith("test result:")]
+    if lines:
+        return "; ".join(ln.removeprefix("test result: ") for ln in lines)
+    tail = [ln for ln in text.splitlines() if ln.strip()]
+    return tail[-1] if tail else ""
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--profile", default="ci")
+    parser.add_argument("--jobs", type=int, default=3, help="processes at once (3)")
+    parser.add_argument("extra", nargs="*", help="a further command, after --")
+    args = parser.parse_args()
+
+    jobs = test_binaries(args.profile)
+    jobs.append(
+        Job(
+            "doc tests",
+            [CARGO, "test", "--workspace", "--profile", args.profile, "--doc"],
+            ROOT,
+        )
+    )
+    if args.extra:
+        jobs.append(
+            Job(
+                "pytest" if "pytest" in args.extra else " ".join(args.extra),
+                args.extra,
+                ROOT,
+            )
+        )
+    try:
+        known = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        known = {}
+    # The longest first, so that the last to finish started early: by the last run's
+    # times, or on a first run by what they were when this was written.
+    jobs.sort(key=lambda j: -known.get(j.name, FIRST_RUN.get(j.name, 0.0)))
+
+    failed = []
+    times = {}
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="gonio-tests-") as tmp:
+        logs = {j.name: Path(tmp) / f"{i}.log" for i, j in enumerate(jobs)}
+        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            futures = [pool.submit(run, j, logs[j.name]) for j in jobs]
+            for fut in as_completed(futures):
+                job, status, secs = fut.result()
+                times[job.name] = round(secs, 1)
+                text = logs[job.name].read_text(errors="replace")
+                if status != 0:
+                    failed.append(job.name)
+                    print(f"---- {job.name}: FAILED (exit {status}, {secs:.1f} s)")
+                    print(text, flush=True)
+                else:
+                    print(f"ok {job.name} ({secs:.1f} s): {summary(text)}", flush=True)
+    DURATIONS.parent.mkdir(parents=True, exist_ok=True)
+    DURATIONS.write_text(json.dumps({**known, **times}, indent=1, sort_keys=True))
+    total = time.monotonic() - t0
+    if failed:
+        print(
+            f"{len(failed)} of {len(jobs)} failed in {total:.0f} s: {', '.join(failed)}"
+        )
+        return 1
+    print(f"all {len(jobs)} test jobs passed in {total:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
