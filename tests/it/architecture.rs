@@ -392,7 +392,11 @@ fn the_tests_profile_checks_every_gonio_crate_and_only_those() {
             .unwrap_or_else(|| panic!("no [profile.ci.package.{name}] in Cargo.toml"));
         assert_eq!(p.get("opt-level"), Some(&toml::Value::Integer(1)), "{name}");
         for check in ["overflow-checks", "debug-assertions"] {
-            assert_eq!(p.get(check), Some(&toml::Value::Boolean(true)), "{name} {check}");
+            assert_eq!(
+                p.get(check),
+                Some(&toml::Value::Boolean(true)),
+                "{name} {check}"
+            );
         }
     }
     let checked: Vec<&String> = packages
