@@ -30,6 +30,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 CARGO = os.environ.get("CARGO", "cargo")
 DURATIONS = ROOT / "target" / "ci" / "test-durations.json"
+#: Test threads for binaries whose tests mostly wait in real time: the command line's
+#: drive simulated instruments, signals and a browser (its 16 s SIGTERM test uses half
+#: a second of CPU), so more of them at once than there are cores finish sooner.
+THREADS = {"gonio-cli test it": 6}
 #: Seconds, on 2 cores, for a run with no durations file yet.
 FIRST_RUN = {"gonio-cli test it": 170.0, "pytest": 120.0, "gonio-brdf test it": 33.0}
 
@@ -63,15 +67,24 @@ def test_binaries(profile: str) -> list[Job]:
             continue
         target = msg["target"]
         manifest = Path(msg["manifest_path"])
+        name = f"{manifest.parent.name} {target['kind'][0]} {target['name']}"
         jobs.append(
             Job(
-                name=f"{manifest.parent.name} {target['kind'][0]} {target['name']}",
-                argv=[msg["executable"]],
+                name=name,
+                argv=[msg["executable"], *threads(name)],
                 cwd=manifest.parent,
                 env={"CARGO_MANIFEST_DIR": str(manifest.parent)},
             )
         )
     return jobs
+
+
+def threads(name: str) -> list[str]:
+    """libtest's thread count for the binary `name`, when not the default."""
+    n = THREADS.get(name)
+    return (
+        [f"--test-threads={n}"] if n and "RUST_TEST_THREADS" not in os.environ else []
+    )
 
 
 def run(job: Job, log: Path) -> tuple[Job, int, float]:

@@ -8,6 +8,7 @@ import json
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
 from typing import Any
 
@@ -94,3 +95,14 @@ def copy_run(runs: dict[str, pathlib.Path], tmp_path: pathlib.Path):
         return dst
 
     return make
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """Python's own SIGINT handler for the test, as a terminal or a notebook has it.
+    A Python started with SIGINT ignored (a shell's `&` job, some CI runners) keeps it
+    ignored, and `_thread.interrupt_main` then does nothing: the cause of the Ctrl-C tests'
+    failures in background runs (issue 37)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -69,11 +69,9 @@ def slow_sim(tmp_path, scale: float):
     return p
 
 
-def test_ctrl_c_stops_safely_and_resume_loses_nothing(tmp_path):
+def test_ctrl_c_stops_safely_and_resume_loses_nothing(tmp_path, ctrl_c_raises):
     out = tmp_path / "run.gonio"
-    # A second into the run's 2.7 s: at 0.5 s, in a fresh clone's first session, the
-    # interrupt twice went unseen (issue 37's note; not yet explained).
-    timer = threading.Timer(1.0, _thread.interrupt_main)
+    timer = threading.Timer(0.5, _thread.interrupt_main)
     timer.start()
     t0 = time.monotonic()
     with pytest.raises(KeyboardInterrupt):

@@ -69,7 +69,7 @@ def test_the_same_fit_on_any_number_of_threads(dense):
     assert a.model_file == b.model_file
 
 
-def test_ctrl_c_interrupts_a_long_simulation():
+def test_ctrl_c_interrupts_a_long_simulation(ctrl_c_raises):
     """A trace of minutes stops within a round of blocks of the interrupt."""
     timer = threading.Timer(0.3, _thread.interrupt_main)
     timer.start()

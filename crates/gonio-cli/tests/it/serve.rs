@@ -235,10 +235,11 @@ fn view_follows_a_run_measured_elsewhere_and_never_holds_its_lock() {
         "every reading so far is in the trace"
     );
 
-    // Stopped by its signal: the view says so.
+    // Stopped by its signal: the view says so, and links the report (offered once the
+    // ended run is reduced, which under load can be an update after the state's).
     assert_eq!(acq.term(), Some(130));
     let stopped = until(&base, Duration::from_secs(10), |v| {
-        v["status"]["state"] == "interrupted"
+        v["status"]["state"] == "interrupted" && v["report"] == "/report.html"
     });
     assert_eq!(
         stopped["status"]["state"], "interrupted",
