@@ -235,18 +235,30 @@ fn view_follows_a_run_measured_elsewhere_and_never_holds_its_lock() {
         "every reading so far is in the trace"
     );
 
-    // Stopped by its signal: the view says so, and links the report (offered once the
-    // ended run is reduced, which under load can be an update after the state's).
+    // Stopped by its signal: the view says so, and links the report when the readings
+    // so far reduce (on a loaded machine the run may stop before its first sample's
+    // calibrations: then the reduction says why and no report is offered). The link
+    // comes with the final reduction, which can be an update after the state's.
     assert_eq!(acq.term(), Some(130));
+    let reduced = |v: &Value| {
+        v["brdf"]["note"].is_null()
+            && v["brdf"]["samples"]
+                .as_array()
+                .is_some_and(|a| !a.is_empty())
+    };
     let stopped = until(&base, Duration::from_secs(10), |v| {
-        v["status"]["state"] == "interrupted" && v["report"] == "/report.html"
+        v["status"]["state"] == "interrupted" && (v["report"] == "/report.html" || !reduced(v))
     });
     assert_eq!(
         stopped["status"]["state"], "interrupted",
         "{}",
         stopped["status"]
     );
-    assert_eq!(stopped["report"], "/report.html");
+    if reduced(&stopped) {
+        assert_eq!(stopped["report"], "/report.html");
+    } else {
+        assert!(stopped["report"].is_null(), "{}", stopped["brdf"]);
+    }
     let total = stopped["status"]["total"].as_u64().expect("total");
     assert!(done(&stopped) < total);
 
@@ -255,9 +267,10 @@ fn view_follows_a_run_measured_elsewhere_and_never_holds_its_lock() {
     let o = gonio(&["resume", &s(&run), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let end = until(&base, Duration::from_secs(10), |v| {
-        v["status"]["state"] == "complete"
+        v["status"]["state"] == "complete" && v["report"] == "/report.html"
     });
     assert_eq!(end["status"]["state"], "complete", "{}", end["status"]);
+    assert_eq!(end["report"], "/report.html");
     assert_eq!(done(&end), total);
     assert_eq!(end["status"]["sessions"], 2);
     assert!(end["brdf"]["samples"].as_array().map_or(0, Vec::len) > 5);
