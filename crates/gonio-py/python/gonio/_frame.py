@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from gonio import _native
+
 #: The key of ``DataFrame.attrs`` under which Gonio keeps a frame's sidecar: what
 #: the CSV's ``PATH.json`` holds (format, channels, isotropy, a table's grid).
 SIDECAR = "gonio"
@@ -26,14 +28,12 @@ def to_frame(columns: list[tuple[str, Any]], sidecar: str | None = None) -> pd.D
 
 def to_input(data: Any) -> Any:
     """What the native module takes for ``data``: a path (``str``), a native model,
-    or a DataFrame's columns as ``(columns, isotropic, label)``."""
-    from gonio._model import Model
-    from gonio._run import Run
-
-    if isinstance(data, Run):
-        return os.fspath(data.path)
-    if isinstance(data, Model):
-        return data._native
+    or a DataFrame's columns as ``(columns, isotropic, label)``. A ``Run`` or a
+    ``Model`` says what it is through its ``_gonio_input`` method, so that this
+    module, which they import, imports neither of them."""
+    own = getattr(data, "_gonio_input", None)
+    if callable(own):
+        return own()
     if isinstance(data, pd.DataFrame):
         meta = data.attrs.get(SIDECAR, {})
         cols = []
@@ -83,14 +83,12 @@ def write_atomic(path: str, data: bytes) -> None:
 def write_new(path: str | os.PathLike[str], data: str | bytes, force: bool) -> None:
     """Writes ``path`` whole or not at all (a temporary file renamed over it);
     an existing file is replaced only with ``force``."""
-    from gonio._native import InputError
-
     path = os.fspath(path)
     if os.path.exists(path) and not force:
-        raise InputError(f"{path}: exists; give force=True to replace it")
+        raise _native.InputError(f"{path}: exists; give force=True to replace it")
     directory = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(directory):
-        raise InputError(f"{path}: the directory {directory} does not exist")
+        raise _native.InputError(f"{path}: the directory {directory} does not exist")
     write_atomic(
         os.path.join(directory, os.path.basename(path)),
         data if isinstance(data, bytes) else data.encode(),

@@ -22,6 +22,10 @@ class Model:
     def __init__(self, native: Any) -> None:
         self._native = native
 
+    def _gonio_input(self) -> Any:
+        """What the native module takes for this model (``_frame.to_input``)."""
+        return self._native
+
     def __repr__(self) -> str:
         return f"<gonio.Model {self.kind} channels={self.channels}>"
 

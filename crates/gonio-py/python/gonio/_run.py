@@ -10,7 +10,10 @@ from typing import Any
 import pandas as pd
 
 from gonio import _native
+from gonio._commands import report as _report
+from gonio._commands import verify as _verify
 from gonio._frame import grid_words, reduce_words, to_frame
+from gonio._process import check as _check
 
 
 class Run:
@@ -28,6 +31,10 @@ class Run:
         summary, keys = _native.run_open(self.path)
         self._summary: dict[str, Any] = json.loads(summary)
         self._keys: dict[str, str] = dict(keys)
+
+    def _gonio_input(self) -> str:
+        """What the native module takes for this run: its path (``_frame.to_input``)."""
+        return self.path
 
     def __repr__(self) -> str:
         return f"<gonio.Run {self.path!r} {self.status} {self._summary.get('name') or ''}>".replace(
@@ -118,22 +125,16 @@ class Run:
 
     def check(self, **kwargs: Any) -> dict[str, Any]:
         """``gonio.check(self, **kwargs)``."""
-        from gonio._process import check
-
-        return check(self, **kwargs)
+        return _check(self, **kwargs)
 
     def verify(self, *, check: bool = False) -> dict[str, Any]:
         """``gonio.verify(self, check=check)``: the file checked whole."""
-        from gonio._commands import verify
-
-        return verify(self, check=check)
+        return _verify(self, check=check)
 
     def report(self, out: str | os.PathLike[str] | None = None, **kwargs: Any) -> Any:
         """``gonio.report(self, out, **kwargs)``: the run report (its HTML, or
         written to ``out/report.html``)."""
-        from gonio._commands import report
-
-        return report(self, out, **kwargs)
+        return _report(self, out, **kwargs)
 
 
 def open_run(path: str | os.PathLike[str]) -> Run:
