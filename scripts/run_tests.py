@@ -5,8 +5,8 @@
 tests take two minutes, mostly waiting on simulated instruments and a browser, while a
 core sits idle; the other binaries take another minute and a half. This runs up to
 `--jobs` of them at once (each still runs its own tests on as many threads as cargo
-would), the longest first, plus the doc tests and any extra command given after `--`
-(scripts/test passes pytest). Each job's output is kept and printed whole when it
+would), the longest first, plus the doc tests and any further commands given with `--job NAME=COMMAND`
+(scripts/test passes pytest, in two halves). Each job's output is kept and printed whole when it
 ends, so nothing interleaves; the exit status is 1 if any job failed.
 
 The binaries are the ones `cargo test --no-run` lists for the same arguments, so what
@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -35,7 +36,7 @@ DURATIONS = ROOT / "target" / "ci" / "test-durations.json"
 #: a second of CPU), so more of them at once than there are cores finish sooner.
 THREADS = {"gonio-cli test it": 6}
 #: Seconds, on 2 cores, for a run with no durations file yet.
-FIRST_RUN = {"gonio-cli test it": 170.0, "pytest": 120.0, "gonio-brdf test it": 33.0}
+FIRST_RUN = {"gonio-cli test it": 110.0, "pytest-1": 100.0, "pytest-2": 100.0}
 
 
 @dataclass
@@ -116,7 +117,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--profile", default="ci")
     parser.add_argument("--jobs", type=int, default=3, help="processes at once (3)")
-    parser.add_argument("extra", nargs="*", help="a further command, after --")
+    parser.add_argument(
+        "--job",
+        action="append",
+        default=[],
+        metavar="NAME=COMMAND",
+        help="a further command to run with the tests (shell words), repeatable",
+    )
     args = parser.parse_args()
 
     jobs = test_binaries(args.profile)
@@ -127,14 +134,11 @@ def main() -> int:
             ROOT,
         )
     )
-    if args.extra:
-        jobs.append(
-            Job(
-                "pytest" if "pytest" in args.extra else " ".join(args.extra),
-                args.extra,
-                ROOT,
-            )
-        )
+    for spec in args.job:
+        name, sep, command = spec.partition("=")
+        if not sep or not command.strip():
+            parser.error(f"--job {spec!r}: expected NAME=COMMAND")
+        jobs.append(Job(name, shlex.split(command), ROOT))
     try:
         known = json.loads(DURATIONS.read_text())
     except (OSError, ValueError):
