@@ -45,6 +45,7 @@
 
 pub mod apt;
 pub mod cs130;
+mod engine;
 mod facts;
 mod framing;
 pub mod fw102c;

@@ -1,17 +1,13 @@
 //! The wheel's policy as a sans-IO state machine: [`Fw102cSession`].
 //!
-//! Layers, as for the 6485: `exchange` (one command, its echo and value, with the
-//! link policy), `script` (operations as steps of exchanges and pauses), `ops` (set-up,
-//! a move, a position read).
+//! `ops` holds the exchange (a command, its echo and value) and the operations
+//! (set-up, a move, a position read), each an `async fn` the engine runs.
 
-mod exchange;
 mod ops;
-mod script;
 
 use super::{Fw102cConfig, Fw102cError};
+use crate::engine::Task;
 use crate::link::Operation;
-use crate::machine::Run;
-use script::Exec;
 use std::time::Duration;
 
 /// The FW102C as a state machine: its configuration, the position it last read, and
@@ -69,7 +65,11 @@ impl Fw102cSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<String, Fw102cError>> + '_ {
-        Run::new("fw102c.init", self, Exec::new(ops::Init::default()), now)
+        Task::new(
+            "fw102c.init",
+            now,
+            |link| async move { self.init(&link).await },
+        )
     }
 
     /// Turns the wheel to `position`: refused before any byte outside
@@ -80,12 +80,9 @@ impl Fw102cSession {
         position: u8,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Fw102cError>> + '_ {
-        Run::new(
-            "fw102c.select",
-            self,
-            Exec::new(ops::Select::new(position)),
-            now,
-        )
+        Task::new("fw102c.select", now, move |link| async move {
+            self.select(&link, position).await
+        })
     }
 
     /// `pos?`.
@@ -93,7 +90,9 @@ impl Fw102cSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<u8, Fw102cError>> + '_ {
-        Run::new("fw102c.position", self, Exec::new(ops::ReadPosition), now)
+        Task::new("fw102c.position", now, |link| async move {
+            self.read_position(&link).await
+        })
     }
 
     /// The configuration.
