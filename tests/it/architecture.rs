@@ -237,39 +237,58 @@ fn module_of(src: &Path, file: &Path) -> String {
     parts.join("::")
 }
 
-/// The modules of the crate at `src` each module's code (tests aside) names through
-/// `crate::` paths.
+/// Which modules of the crate at `src` depend on which, through the `crate::` and
+/// `super::` paths their code (tests and comments aside) names. A dependency of `a::x`
+/// on `b::y` is one of `a` on `b`: the loop that matters is between the two siblings
+/// (`api` using `cmd` while `cmd::acquire` uses `api` is a loop).
 fn imports(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
     let files = rust_files(src);
     let mods: BTreeSet<String> = files.iter().map(|f| module_of(src, f)).collect();
-    let mut g = BTreeMap::new();
+    let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for f in &files {
         let m = module_of(src, f);
+        let here: Vec<&str> = m.split("::").filter(|p| !p.is_empty()).collect();
         let text = std::fs::read_to_string(f).expect("source");
-        let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        let mut deps = BTreeSet::new();
-        for (i, _) in code.match_indices("crate::") {
-            let path: String = code[i + "crate::".len()..]
-                .chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
-                .collect();
-            let parts: Vec<&str> = path.split("::").filter(|p| !p.is_empty()).collect();
-            // The longest prefix that is a module of the crate.
-            if let Some(target) = (1..=parts.len())
-                .rev()
-                .map(|k| parts[..k].join("::"))
-                .find(|c| mods.contains(c))
-            {
-                // A module may use its own children and ancestors' items freely.
-                let related = target == m
-                    || target.starts_with(&format!("{m}::"))
-                    || m.starts_with(&format!("{target}::"));
-                if !related {
-                    deps.insert(target);
+        let code: String = text
+            .split("#[cfg(test)]")
+            .next()
+            .unwrap_or("")
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        for (prefix, base) in [("crate::", 0), ("super::", here.len().saturating_sub(1))] {
+            for (i, _) in code.match_indices(prefix) {
+                if code[..i].ends_with(|c: char| c.is_alphanumeric() || c == '_' || c == ':') {
+                    continue;
                 }
+                let path: String = code[i + prefix.len()..]
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+                    .collect();
+                let mut parts: Vec<&str> = here[..base].to_vec();
+                parts.extend(path.split("::").filter(|p| !p.is_empty()));
+                // The longest prefix that is a module of the crate.
+                let Some(k) = (1..=parts.len())
+                    .rev()
+                    .find(|&k| mods.contains(&parts[..k].join("::")))
+                else {
+                    continue;
+                };
+                let common = here
+                    .iter()
+                    .zip(&parts[..k])
+                    .take_while(|(a, b)| a == b)
+                    .count();
+                // A module may use its own children and ancestors' items freely.
+                if common == here.len() || common == k {
+                    continue;
+                }
+                let (a, b) = (here[..=common].join("::"), parts[..=common].join("::"));
+                g.entry(a).or_default().insert(b);
             }
         }
-        g.insert(m, deps);
+        g.entry(m).or_default();
     }
     g
 }

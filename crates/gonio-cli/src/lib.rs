@@ -16,6 +16,7 @@ mod flags;
 mod logging;
 mod output;
 mod signals;
+mod watch;
 
 use std::path::Path;
 use std::process::ExitCode;

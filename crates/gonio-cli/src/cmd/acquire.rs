@@ -417,7 +417,7 @@ where
             });
         }
         let listener = tokio::spawn(progress(rx, quiet));
-        let follower = followed.map(|(w, rx)| tokio::spawn(crate::api::follow(rx, w)));
+        let follower = followed.map(|(w, rx)| tokio::spawn(crate::watch::follow(rx, w)));
         let r = engine.run().await;
         let _ = listener.await;
         if let Some(f) = follower {
@@ -453,7 +453,7 @@ pub enum StopBy {
     Signals,
     /// The caller's stop flag, polled every 20 ms; the caller also follows the
     /// session's progress and is told the live page's address.
-    Caller(Arc<crate::api::Watch>),
+    Caller(Arc<crate::watch::Watch>),
 }
 
 /// How a session runs: quietly (no progress bar) or not, what stops it, and
