@@ -1,23 +1,16 @@
 //! The picoammeter's policy as a sans-IO state machine: [`K6485Session`].
 //!
-//! The layers, from the wire up, as for the SR830:
-//! - `exchange`: one command on the wire, with the link policy (reopened port, re-asks
-//!   of rereadable queries, the instrument's measuring time, the range tracked);
-//! - `script`: operations written as steps, each asking for one exchange or pause;
-//! - `ops` (set-up, range, single queries) and `read` (the settled, averaged,
-//!   autoranged reading).
+//! `ops` holds the exchange (a command and, for a query, its reply once the instrument
+//! has finished measuring) and the operations (set-up, a reading, one command), each an
+//! `async fn` the engine runs.
 
-mod exchange;
 mod ops;
-mod read;
-mod script;
 
 use std::time::Duration;
 
-use super::{Command, Identity, K6485Config, K6485Error, PicoReading, Range, Reply, ReplyError};
+use super::{Command, Identity, K6485Config, K6485Error, PicoReading, Range, Reply};
+use crate::engine::{Task, secs};
 use crate::link::Operation;
-use crate::machine::{Run, secs};
-use script::Exec;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
 /// a reading may start (after a range change or a change of the light), when the
@@ -101,8 +94,11 @@ impl K6485Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<Identity, K6485Error>> + '_ {
-        let op = ops::Setup::new(&self.config);
-        Run::new("k6485.setup", self, Exec::new(op), now)
+        Task::new(
+            "k6485.setup",
+            now,
+            |link| async move { self.setup(&link).await },
+        )
     }
 
     /// One averaged reading: the settling wait, then `samples` × `READ?` (each answers
@@ -115,7 +111,11 @@ impl K6485Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<PicoReading, K6485Error>> + '_ {
-        Run::new("k6485.read", self, Exec::new(read::Read::default()), now)
+        Task::new(
+            "k6485.read",
+            now,
+            |link| async move { self.read(&link).await },
+        )
     }
 
     /// Sets the range (`CURR:RANG`); readings wait the range-change settling.
@@ -124,8 +124,9 @@ impl K6485Session {
         range: Range,
         now: Duration,
     ) -> impl Operation<Output = Result<(), K6485Error>> + '_ {
-        let op = ops::Single::new(Command::SetRange(range), |_, _| Ok(()));
-        Run::new("k6485.set_range", self, Exec::new(op), now)
+        Task::new("k6485.set_range", now, move |link| async move {
+            self.ask(&link, Command::SetRange(range)).await.map(|_| ())
+        })
     }
 
     /// Sends any command and, for a query, reads its reply, with the link policy of
@@ -138,8 +139,10 @@ impl K6485Session {
         command: &Command,
         now: Duration,
     ) -> impl Operation<Output = Result<Option<Reply>, K6485Error>> + use<'s> {
-        let op = ops::Single::new(command.clone(), |_, reply| Ok(reply));
-        Run::new("k6485.execute", self, Exec::new(op), now)
+        let command = command.clone();
+        Task::new("k6485.execute", now, move |link| async move {
+            self.ask(&link, command).await
+        })
     }
 
     /// The light on the detector changed at `now` (a stage moved, a shutter opened):
@@ -213,32 +216,4 @@ impl K6485Session {
         let wait = self.config.range_settle().max(self.input_settle_time());
         self.settled_at = self.settled_at.max(now.saturating_add(wait));
     }
-}
-
-/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
-/// reported as a protocol error rather than a panic.
-fn unexpected(command: &Command, reply: Option<Reply>) -> K6485Error {
-    let mut name = Vec::new();
-    command.encode_body(&mut name);
-    K6485Error::Protocol {
-        command: String::from_utf8_lossy(&name).into_owned(),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
-    }
-}
-
-/// Faults a second attempt may not have: a lost, late, garbled or truncated reply.
-fn is_transient(e: &K6485Error) -> bool {
-    use crate::TransportError;
-    matches!(
-        e,
-        K6485Error::Protocol { .. }
-            | K6485Error::Transport {
-                source: TransportError::Timeout(_)
-                    | TransportError::LineTooLong
-                    | TransportError::Garbled(_)
-                    | TransportError::Nul,
-                ..
-            }
-    )
 }

@@ -1,164 +1,357 @@
-//! The picoammeter's operations other than reading: set-up, and one command with its
-//! answer.
+//! The picoammeter's operations as its manual's procedures: set-up, a reading, one
+//! command; and its exchange (a command and, for a query, its reply once the
+//! instrument has finished measuring), run by the engine's link policy.
 
-use tracing::debug;
+use std::cell::Cell;
+use std::time::Duration;
 
-use super::script::{Answer, Next, Op};
-use super::{K6485Session, unexpected};
-use crate::k6485::{Command, Identity, K6485Config, K6485Error, Range, Reply};
-use crate::machine::Cx;
+use tracing::{debug, warn};
 
-/// Ends the operation on an error, or goes on with the reply.
-macro_rules! ok_or_done {
-    ($r:expr) => {
-        match $r {
-            Ok(reply) => reply,
-            Err(e) => return Next::Done(Err(e)),
+use super::K6485Session;
+use crate::TransportError;
+use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::k6485::{
+    Command, Current, Identity, K6485Error, MAX_AUTORANGE_STEPS, PicoFlags, PicoReading, Range,
+    Reply, ReplyError, Sample, StatusWord,
+};
+
+/// Most times one read starts over after the port was lost and reopened.
+const MAX_RESTARTS: usize = 2;
+
+/// The session as [`engine::exchange`] holds it, with when the instrument will be free
+/// kept apart: the receive rule advances that while the exchange holds the session,
+/// and a reopened port resets it.
+struct Wired<'a> {
+    s: &'a mut K6485Session,
+    busy_until: &'a Cell<Duration>,
+}
+
+impl Wire for Wired<'_> {
+    type Error = K6485Error;
+    const FAMILY: &'static str = "k6485";
+
+    fn policy(&self) -> Policy {
+        Policy {
+            reconnect_attempts: self.s.config.reconnect_attempts,
+            reconnect_delay: self.s.config.reconnect_delay(),
         }
-    };
+    }
+
+    fn port(&self) -> &str {
+        &self.s.port
+    }
+
+    fn transport(command: String, source: TransportError) -> K6485Error {
+        K6485Error::Transport { command, source }
+    }
+
+    fn disconnected(&self, attempts: u32, source: TransportError) -> K6485Error {
+        K6485Error::Disconnected {
+            port: self.s.port.clone(),
+            attempts,
+            source,
+        }
+    }
+
+    /// A lost, late, garbled or truncated reply.
+    fn is_transient(e: &K6485Error) -> bool {
+        matches!(
+            e,
+            K6485Error::Protocol { .. }
+                | K6485Error::Transport {
+                    source: TransportError::Timeout(_)
+                        | TransportError::LineTooLong
+                        | TransportError::Garbled(_)
+                        | TransportError::Nul,
+                    ..
+                }
+        )
+    }
+
+    fn retried(&mut self) {
+        self.s.retried += 1;
+    }
+
+    fn reopened(&mut self, now: Duration) {
+        self.s.reconnects += 1;
+        // Whatever the instrument was doing is unknown now, and it may have restarted.
+        self.busy_until.set(now);
+        self.s.mark_unsettled(now);
+    }
 }
 
-/// Set-up: the commands of [`K6485Session::start_setup`] in turn, with the settling
-/// wait before the zero is acquired.
-#[derive(Debug)]
-pub(super) struct Setup {
-    commands: Vec<Command>,
-    /// The command being exchanged.
-    k: usize,
-    identity: Option<Identity>,
+/// The command as sent, without terminator, for errors.
+fn name(command: &Command) -> String {
+    String::from_utf8_lossy(&command.to_bytes())
+        .trim_end()
+        .to_owned()
 }
 
-impl Setup {
-    pub(super) fn new(c: &K6485Config) -> Self {
-        let mut commands = vec![
-            Command::Identify,
-            Command::Reset,
-            Command::Clear,
-            Command::LineFrequency,
+/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
+/// reported as a protocol error rather than a panic.
+fn unexpected(command: &Command, reply: Option<Reply>) -> K6485Error {
+    K6485Error::Protocol {
+        command: name(command),
+        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
+        source: ReplyError::BadValue,
+    }
+}
+
+impl K6485Session {
+    /// Sends `command` and, for a query, reads its reply.
+    ///
+    /// - The instrument runs commands in order, and `INIT` and `READ?` keep it
+    ///   measuring for the integration time × the repeat filter's count: the session
+    ///   tracks when it will be free (`busy_until`), and a reply is due the reply
+    ///   timeout after that.
+    /// - Only a query that reads without side effects (`*IDN?`, `CURR:RANG?`,
+    ///   `SYST:LFR?`, `READ?`, `FETC?`) is asked again after a lost or garbled reply,
+    ///   up to `retries` times (`READ?` takes a fresh reading, which is what was asked
+    ///   for). `SYST:ERR?` and `*ESR?` never are: reading them clears what they report.
+    /// - Nothing needs sending first on a reopened RS-232 port (unlike the SR830).
+    /// - `CURR:RANG` and `*RST` update the range tracked and start the wait after a
+    ///   range change.
+    pub(super) async fn ask(
+        &mut self,
+        link: &Link,
+        command: Command,
+    ) -> Result<Option<Reply>, K6485Error> {
+        let name = name(&command);
+        let rereadable =
+            command.is_query() && !matches!(command, Command::NextError | Command::EventStatus);
+        let retries = if rereadable { self.config.retries } else { 0 };
+        let measuring = match command {
+            Command::Initiate | Command::Read => self.read_time(),
+            _ => Duration::ZERO,
+        };
+        let timeout = self.config.timeout();
+        let busy_until = Cell::new(self.busy_until);
+        let receive = async || {
+            let free = busy_until.get().max(link.now()).saturating_add(measuring);
+            busy_until.set(free);
+            if !command.is_query() {
+                return Ok(None);
+            }
+            let line = link.line(free.saturating_add(timeout)).await?;
+            match Reply::parse(&command, &line) {
+                Ok(reply) => Ok(Some(reply)),
+                Err(source) => Err(Fault::Answer(K6485Error::Protocol {
+                    command: name.clone(),
+                    reply: line,
+                    source,
+                })),
+            }
+        };
+        let mut wired = Wired {
+            s: self,
+            busy_until: &busy_until,
+        };
+        let bytes = command.to_bytes();
+        let reply = engine::exchange(&mut wired, link, &name, &bytes, retries, receive).await;
+        self.busy_until = busy_until.get();
+        let reply = reply?;
+        match command {
+            Command::SetRange(r) => self.range_changed(link.now(), r),
+            Command::Reset => self.range_changed(link.now(), Range::default()),
+            _ => {}
+        }
+        Ok(reply)
+    }
+
+    /// `commands` in turn, none a query.
+    async fn send_all(&mut self, link: &Link, commands: &[Command]) -> Result<(), K6485Error> {
+        for c in commands {
+            self.ask(link, c.clone()).await?;
+        }
+        Ok(())
+    }
+
+    /// Set-up, as [`K6485Session::start_setup`] lists it.
+    pub(super) async fn setup(&mut self, link: &Link) -> Result<Identity, K6485Error> {
+        let c = self.config.clone();
+        link.clear_input();
+        let identity = match self.ask(link, Command::Identify).await? {
+            Some(Reply::Identity(id)) if id.picoammeter().is_some() => id,
+            Some(Reply::Identity(id)) => return Err(K6485Error::WrongInstrument(id)),
+            other => return Err(unexpected(&Command::Identify, other)),
+        };
+        debug!(identity = %identity, "k6485: identified");
+        self.send_all(link, &[Command::Reset, Command::Clear])
+            .await?;
+        match self.ask(link, Command::LineFrequency).await? {
+            Some(Reply::LineFrequency(lf)) if lf.hz() == c.line_frequency_hz => {}
+            Some(Reply::LineFrequency(lf)) => {
+                return Err(K6485Error::LineFrequency {
+                    configured: c.line_frequency_hz,
+                    instrument: lf.hz(),
+                });
+            }
+            other => return Err(unexpected(&Command::LineFrequency, other)),
+        }
+        let mut configure = vec![
             Command::FormatElements,
             Command::TriggerCount(1),
             Command::SetNplc(c.nplc),
         ];
         if c.filter_on() {
-            commands.push(Command::FilterType(c.filter_type));
-            commands.push(Command::FilterCount(c.filter_count));
-            commands.push(Command::Filter(true));
+            configure.extend([
+                Command::FilterType(c.filter_type),
+                Command::FilterCount(c.filter_count),
+                Command::Filter(true),
+            ]);
         } else {
-            commands.push(Command::Filter(false));
+            configure.push(Command::Filter(false));
         }
-        commands.push(Command::AutoRange(false));
-        commands.push(Command::ZeroCheck(true));
+        configure.extend([Command::AutoRange(false), Command::ZeroCheck(true)]);
+        self.send_all(link, &configure).await?;
         if c.zero_correct {
             // The zero is an input offset current, the same on every range: measured
             // where it is resolved best, the most sensitive range the session may use
             // (the manual's example acquires on 2 nA, then autoranges).
             let zero_range = if c.autorange { Range::MOST } else { c.range };
-            commands.push(Command::SetRange(zero_range));
-            commands.push(Command::Initiate);
-            commands.push(Command::ZeroCorrectAcquire);
-            commands.push(Command::ZeroCorrect(true));
+            self.ask(link, Command::SetRange(zero_range)).await?;
+            // The zero is measured only once the range has settled.
+            self.settle(link).await;
+            let acquire = [
+                Command::Initiate,
+                Command::ZeroCorrectAcquire,
+                Command::ZeroCorrect(true),
+            ];
+            self.send_all(link, &acquire).await?;
             if zero_range != c.range {
-                commands.push(Command::SetRange(c.range));
+                self.ask(link, Command::SetRange(c.range)).await?;
             }
         } else {
-            commands.push(Command::SetRange(c.range));
-            commands.push(Command::ZeroCorrect(false));
+            let range = [Command::SetRange(c.range), Command::ZeroCorrect(false)];
+            self.send_all(link, &range).await?;
         }
-        commands.push(Command::ZeroCheck(false));
-        commands.push(Command::NextError);
-        Setup {
-            commands,
-            k: 0,
-            identity: None,
+        self.ask(link, Command::ZeroCheck(false)).await?;
+        // Also proves every command before it has run.
+        match self.ask(link, Command::NextError).await? {
+            Some(Reply::Error(e)) if e.is_none() => {}
+            Some(Reply::Error(e)) => return Err(K6485Error::Rejected(e)),
+            other => return Err(unexpected(&Command::NextError, other)),
         }
+        self.identity = Some(identity.clone());
+        Ok(identity)
     }
 
-    fn next(&mut self, s: &K6485Session, cx: &Cx) -> Next<Self> {
-        match self.commands.get(self.k) {
-            // The zero is measured only once the range has settled.
-            Some(Command::Initiate) if cx.now < s.settled_at => Next::Pause {
-                until: s.settled_at,
-                then: Self::settled,
-            },
-            Some(c) => Next::exchange(c.clone(), Self::answered),
-            None => match self.identity.take() {
-                Some(id) => Next::Done(Ok(id)),
-                None => Next::Done(Err(unexpected(&Command::Identify, None))),
-            },
-        }
-    }
-
-    fn settled(&mut self, _: &mut K6485Session, _: &mut Cx, (): ()) -> Next<Self> {
-        Next::exchange(Command::Initiate, Self::answered)
-    }
-
-    fn answered(&mut self, s: &mut K6485Session, cx: &mut Cx, r: Answer) -> Next<Self> {
-        let reply = ok_or_done!(r);
-        let command = self.commands.get(self.k).cloned();
-        match (command, reply) {
-            (Some(Command::Identify), Some(Reply::Identity(id))) => {
-                if id.picoammeter().is_none() {
-                    return Next::Done(Err(K6485Error::WrongInstrument(id)));
+    /// A reading, cycle after cycle: see [`cycle`](Self::cycle). With autorange, an
+    /// overflow steps one range up, a clean reading under `min_fraction` of full scale
+    /// one range down, and the cycle runs again.
+    pub(super) async fn read(&mut self, link: &Link) -> Result<PicoReading, K6485Error> {
+        let mut steps = 0;
+        let mut restarts = 0;
+        loop {
+            let Some(samples) = self.cycle(link).await? else {
+                restarts += 1;
+                if restarts > MAX_RESTARTS {
+                    warn!(restarts, "k6485: reading interrupted too often");
+                    return Err(K6485Error::Interrupted { restarts });
                 }
-                debug!(identity = %id, "k6485: identified");
-                self.identity = Some(id);
+                self.retried += 1;
+                debug!(restarts, "k6485: read cycle starts again");
+                continue;
+            };
+            restarts = 0;
+            let reading = self.reading(&samples, steps);
+            let f = reading.flags;
+            let small =
+                !f.any() && reading.mean_a.abs() < self.config.min_fraction * self.range.amps();
+            let next = if f.overflow {
+                self.range.up()
+            } else if small {
+                self.range.down()
+            } else {
+                None
+            };
+            let Some(next) = next.filter(|_| self.config.autorange) else {
+                return Ok(reading);
+            };
+            if steps >= MAX_AUTORANGE_STEPS {
+                warn!(steps, "k6485: autorange gives up");
+                return Err(K6485Error::Autorange {
+                    steps,
+                    last: Box::new(reading),
+                });
             }
-            (Some(Command::LineFrequency), Some(Reply::LineFrequency(lf)))
-                if lf.hz() != s.config.line_frequency_hz =>
-            {
-                return Next::Done(Err(K6485Error::LineFrequency {
-                    configured: s.config.line_frequency_hz,
-                    instrument: lf.hz(),
-                }));
-            }
-            (Some(Command::LineFrequency), Some(Reply::LineFrequency(_))) => {}
-            (Some(Command::NextError), Some(Reply::Error(e))) => {
-                if !e.is_none() {
-                    return Next::Done(Err(K6485Error::Rejected(e)));
-                }
-                s.identity.clone_from(&self.identity);
-            }
-            (Some(c), other) if c.is_query() => return Next::Done(Err(unexpected(&c, other))),
-            _ => {}
+            debug!(from = %self.range, to = %next, flags = ?f, mean = reading.mean_a, "k6485: autorange step");
+            self.ask(link, Command::SetRange(next)).await?;
+            steps += 1;
         }
-        self.k += 1;
-        self.next(s, cx)
+    }
+
+    /// Waits until readings are trustworthy (`settled_at`).
+    async fn settle(&self, link: &Link) {
+        if link.now() < self.settled_at {
+            debug!(wait = ?(self.settled_at - link.now()), "k6485: waiting for the input to settle");
+            link.sleep(self.settled_at).await;
+        }
+    }
+
+    /// One read cycle: wait until settled, then `READ?` `samples` times (each answers
+    /// after its own integration, so they are spaced by it). With autorange an
+    /// overflow ends it at once (the other samples would overflow too). `None` if the
+    /// port was reopened meanwhile.
+    async fn cycle(&mut self, link: &Link) -> Result<Option<Vec<Sample>>, K6485Error> {
+        let reconnects = self.reconnects;
+        self.settle(link).await;
+        let mut samples = Vec::new();
+        while samples.len() < self.config.samples {
+            let sample = match self.ask(link, Command::Read).await? {
+                Some(Reply::Sample(x)) => x,
+                other => return Err(unexpected(&Command::Read, other)),
+            };
+            if self.reconnects != reconnects {
+                return Ok(None);
+            }
+            samples.push(sample);
+            let overflowed = sample.current == Current::Overflow || sample.status.overflow();
+            if overflowed && self.config.autorange && self.range.up().is_some() {
+                break;
+            }
+        }
+        Ok(Some(samples))
+    }
+
+    /// The reading of a cycle's samples: their mean and spread, flags from the values
+    /// and status words.
+    fn reading(&self, samples: &[Sample], autorange_steps: usize) -> PicoReading {
+        let values: Vec<f64> = samples.iter().filter_map(|x| x.current.amps()).collect();
+        let status = StatusWord(samples.iter().fold(0, |acc, x| acc | x.status.0));
+        let flags = PicoFlags {
+            overflow: status.overflow() || samples.iter().any(|x| x.current == Current::Overflow),
+            invalid: samples.iter().any(|x| x.current == Current::Invalid),
+            overvoltage: status.overvoltage(),
+            zero_check: status.zero_check(),
+        };
+        let (mean_a, std_a) = mean_std(&values);
+        PicoReading {
+            mean_a,
+            std_a,
+            n: values.len(),
+            samples: self.config.samples,
+            range: self.range,
+            nplc: self.config.nplc,
+            filter_count: self.config.filter_count,
+            flags,
+            autorange_steps,
+            status,
+            timestamp_s: samples.last().map_or(f64::NAN, |x| x.time_s),
+        }
     }
 }
 
-impl Op for Setup {
-    type Value = Identity;
-
-    fn start(&mut self, s: &mut K6485Session, cx: &mut Cx) -> Next<Self> {
-        cx.clear_input();
-        self.next(s, cx)
+/// Mean and sample standard deviation (n − 1; 0 for one value; NaN for none).
+fn mean_std(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
     }
-}
-
-/// One command and its typed answer.
-#[derive(Debug)]
-pub(super) struct Single<T> {
-    command: Command,
-    answer: fn(&Command, Option<Reply>) -> Result<T, K6485Error>,
-}
-
-impl<T> Single<T> {
-    pub(super) fn new(
-        command: Command,
-        answer: fn(&Command, Option<Reply>) -> Result<T, K6485Error>,
-    ) -> Self {
-        Single { command, answer }
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    if v.len() < 2 {
+        return (mean, 0.0);
     }
-
-    fn got(&mut self, _: &mut K6485Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        Next::Done(r.and_then(|reply| (self.answer)(&self.command, reply)))
-    }
-}
-
-impl<T> Op for Single<T> {
-    type Value = T;
-
-    fn start(&mut self, _: &mut K6485Session, _: &mut Cx) -> Next<Self> {
-        Next::exchange(self.command.clone(), Self::got)
-    }
+    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
+    (mean, (ss / (n - 1.0)).sqrt())
 }
