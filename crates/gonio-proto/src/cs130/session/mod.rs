@@ -1,22 +1,16 @@
 //! The monochromator's policy as a sans-IO state machine: [`Cs130Session`].
 //!
-//! The layers, from the wire up, as for the 6485:
-//! - `exchange`: one statement on the wire, with its echo and the link policy
-//!   (reopened port, re-sends of repeatable statements, the hold after `*WAI`);
-//! - `script`: operations written as steps, each asking for one exchange;
-//! - `ops`: the statement sequences of the operations, and what each answer means.
+//! `ops` holds the exchange (a statement, its echo and answer, the hold after
+//! `*WAI`) and the operations (set-up, a move, the shutter, a read-back), each an
+//! `async fn` the engine runs.
 
-mod exchange;
 mod ops;
-mod script;
 
 use std::time::Duration;
 
 use super::{Command, Cs130Config, Cs130Error, MonoState, NO_FILTER_WHEEL};
+use crate::engine::Task;
 use crate::link::Operation;
-use crate::machine::Run;
-use ops::Sequence;
-use script::Exec;
 
 /// What the session knows the instrument is set to; `None` until read or set.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -116,8 +110,11 @@ impl Cs130Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::init(self);
-        Run::new("cs130.init", self, Exec::new(op), now)
+        Task::new(
+            "cs130.init",
+            now,
+            |link| async move { self.init(&link).await },
+        )
     }
 
     /// Goes to `nm`. Before any byte: the grating whose range holds `nm`
@@ -136,8 +133,9 @@ impl Cs130Session {
         nm: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::go(self, nm);
-        Run::new("cs130.go", self, Exec::new(op), now)
+        Task::new("cs130.go", now, move |link| async move {
+            self.go(&link, nm).await
+        })
     }
 
     /// Opens (`SHUTTER O`) or closes (`SHUTTER C`) the shutter, reads any unknown
@@ -147,8 +145,9 @@ impl Cs130Session {
         open: bool,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::shutter(self, open);
-        Run::new("cs130.shutter", self, Exec::new(op), now)
+        Task::new("cs130.shutter", now, move |link| async move {
+            self.shutter(&link, open).await
+        })
     }
 
     /// Reads every setting back: `GRAT?`, `FILTER?` (only with `filter_wheel`),
@@ -157,8 +156,9 @@ impl Cs130Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
-        let op = Sequence::read_state(self);
-        Run::new("cs130.read_state", self, Exec::new(op), now)
+        Task::new("cs130.read_state", now, |link| async move {
+            self.read_state(&link).await
+        })
     }
 
     /// Sends any statement and, for a query, reads its answer, with the link policy
@@ -169,8 +169,10 @@ impl Cs130Session {
         command: &Command,
         now: Duration,
     ) -> impl Operation<Output = Result<Option<super::Reply>, Cs130Error>> + use<'s> {
-        let op = ops::Single::new(command.clone());
-        Run::new("cs130.execute", self, Exec::new(op), now)
+        let command = command.clone();
+        Task::new("cs130.execute", now, move |link| async move {
+            self.execute(&link, &command).await
+        })
     }
 
     /// What the session knows the instrument is set to, when it knows every setting.
@@ -203,22 +205,6 @@ impl Cs130Session {
     fn forget(&mut self) {
         self.known = Known::fresh(self.config.filter_wheel);
     }
-}
-
-/// Faults a second attempt may not have: a lost, late, garbled or truncated line.
-fn is_transient(e: &Cs130Error) -> bool {
-    use crate::TransportError;
-    matches!(
-        e,
-        Cs130Error::Protocol { .. }
-            | Cs130Error::Transport {
-                source: TransportError::Timeout(_)
-                    | TransportError::LineTooLong
-                    | TransportError::Garbled(_)
-                    | TransportError::Nul,
-                ..
-            }
-    )
 }
 
 #[cfg(test)]

@@ -1,322 +1,357 @@
-//! The operations: statement sequences, what each answer means, and the final checks.
+//! The monochromator's operations as its manual's procedures (set-up, a move, the
+//! shutter, a read-back), and its exchange (a statement, its echo and, for a query,
+//! its answer), run by the engine's link policy.
+
+use std::time::Duration;
 
 use tracing::{debug, warn};
 
 use super::Cs130Session;
-use super::script::{Answer, Next, Op};
-use crate::cs130::{Command, Cs130Error, ErrorCode, MonoState, Reply, ReplyError, Units};
-use crate::machine::Cx;
+use crate::TransportError;
+use crate::cs130::{Command, Cs130Error, MonoState, Reply, ReplyError, Units, is_echo};
+use crate::engine::{self, Fault, Link, Policy, Wire};
 
-/// A sequence of statements, then (for the operations that set anything) the status
-/// check, and the state.
-#[derive(Debug)]
-pub(super) struct Sequence {
-    commands: Vec<Command>,
-    /// The statement being exchanged.
-    k: usize,
-    /// The wavelength asked for, checked against `WAVE?`.
-    target: Option<f64>,
-    /// Refused before any byte.
-    refused: Option<Cs130Error>,
-    /// The queries for the settings still unknown are added at the end.
-    fill_unknown: bool,
-}
+impl Wire for Cs130Session {
+    type Error = Cs130Error;
+    const FAMILY: &'static str = "cs130";
 
-impl Sequence {
-    /// An empty sequence.
-    fn empty() -> Self {
-        Sequence {
-            commands: Vec::new(),
-            k: 0,
-            target: None,
-            refused: None,
-            fill_unknown: false,
+    fn policy(&self) -> Policy {
+        Policy {
+            reconnect_attempts: self.config.reconnect_attempts,
+            reconnect_delay: self.config.reconnect_delay(),
         }
     }
 
-    pub(super) fn init(s: &Cs130Session) -> Self {
-        let mut commands = vec![Command::Info, Command::Units(Units::Nm), Command::GratQuery];
-        // A unit without a wheel answers `FILTER?` with 0 and flags an error (Model
-        // 74000 command table): not asked, or the `STB?` below would fail the init.
-        if s.config.filter_wheel {
-            commands.push(Command::FilterQuery);
-        }
-        commands.extend([Command::ShutterQuery, Command::Wave, Command::Stb]);
-        Sequence {
-            commands,
-            ..Self::empty()
+    fn port(&self) -> &str {
+        &self.port
+    }
+
+    fn transport(command: String, source: TransportError) -> Cs130Error {
+        Cs130Error::Transport { command, source }
+    }
+
+    fn disconnected(&self, attempts: u32, source: TransportError) -> Cs130Error {
+        Cs130Error::Disconnected {
+            port: self.port.clone(),
+            attempts,
+            source,
         }
     }
 
-    pub(super) fn read_state(s: &Cs130Session) -> Self {
-        let mut commands = vec![Command::GratQuery];
-        if s.config.filter_wheel {
-            commands.push(Command::FilterQuery);
-        }
-        commands.extend([Command::ShutterQuery, Command::Wave]);
-        Sequence {
-            commands,
-            ..Self::empty()
-        }
-    }
-
-    pub(super) fn go(s: &Cs130Session, nm: f64) -> Self {
-        let mut seq = Sequence {
-            target: Some(nm),
-            fill_unknown: true,
-            ..Self::empty()
-        };
-        let c = &s.config;
-        let grating = match c.grating_for(nm) {
-            Ok(g) => g.index,
-            Err(e) => {
-                seq.refused = Some(e.into());
-                return seq;
-            }
-        };
-        // Never a `FILTER n` without a wheel: it would only flag an error (§15.9's
-        // code 6). The config refuses `auto_order_filter` without `filter_wheel`.
-        let filter = if c.auto_order_filter && c.filter_wheel {
-            match c.order_filter_for(nm) {
-                Ok(f) => Some(f),
-                Err(e) => {
-                    seq.refused = Some(e.into());
-                    return seq;
+    /// A lost, late, garbled or truncated line; a second attempt may not have it.
+    fn is_transient(e: &Cs130Error) -> bool {
+        matches!(
+            e,
+            Cs130Error::Protocol { .. }
+                | Cs130Error::Transport {
+                    source: TransportError::Timeout(_)
+                        | TransportError::LineTooLong
+                        | TransportError::Garbled(_)
+                        | TransportError::Nul,
+                    ..
                 }
-            }
-        } else {
-            None
-        };
-        if s.known.grating != Some(grating) {
-            seq.commands.push(Command::Grat(grating));
-        }
-        if let Some(f) = filter
-            && s.known.filter != Some(f)
-        {
-            seq.commands.push(Command::Filter(f));
-        }
-        // A drive's backlash leaves it short when it comes down onto a wavelength:
-        // every wavelength is approached from below, so the slack is always taken up
-        // the same way (an unknown position counts as above).
-        let below = (nm - c.approach_nm).max(c.grating_for(nm).map_or(nm, |g| g.min_nm));
-        if c.approach_nm > 0.0 && below < nm && s.known.wavelength_nm.is_none_or(|at| at > nm) {
-            seq.commands.push(Command::GoWave(below));
-        }
-        seq.commands.push(Command::GoWave(nm));
-        seq.commands.push(Command::Wai);
-        seq.commands.push(Command::Wave);
-        seq
+        )
     }
 
-    pub(super) fn shutter(_: &Cs130Session, open: bool) -> Self {
-        Sequence {
-            commands: vec![Command::Shutter(open)],
-            fill_unknown: true,
-            ..Self::empty()
-        }
+    fn retried(&mut self) {
+        self.retried += 1;
     }
 
-    fn next(&mut self, s: &Cs130Session) -> Next<Self> {
-        if self.k == self.commands.len() && self.fill_unknown {
-            self.fill_unknown = false;
-            let k = &s.known;
-            if k.grating.is_none() {
-                self.commands.push(Command::GratQuery);
-            }
-            // Without a wheel the filter is known from the start (`Known::fresh`).
-            if k.filter.is_none() && s.config.filter_wheel {
-                self.commands.push(Command::FilterQuery);
-            }
-            if k.shutter_open.is_none() {
-                self.commands.push(Command::ShutterQuery);
-            }
-            if k.wavelength_nm.is_none() {
-                self.commands.push(Command::Wave);
-            }
-            self.commands.push(Command::Stb);
-        }
-        match self.commands.get(self.k) {
-            Some(c) => Next::Exchange {
-                command: c.clone(),
-                then: Self::answered,
-            },
-            None => self.finish(s),
-        }
-    }
-
-    fn answered(&mut self, s: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        let reply = match r {
-            Ok(reply) => reply,
-            Err(e) => {
-                // Whatever this sequence was setting is unknown now.
-                s.forget();
-                return Next::Done(Err(e));
-            }
-        };
-        let Some(command) = self.commands.get(self.k).cloned() else {
-            return Next::Done(Err(unexpected(&Command::Stb, reply)));
-        };
-        let k = &mut s.known;
-        match (&command, reply) {
-            (Command::Wave, Some(Reply::Wavelength(v))) => k.wavelength_nm = Some(v),
-            (Command::GratQuery, Some(Reply::Grating { number, .. })) => k.grating = Some(number),
-            (Command::FilterQuery, Some(Reply::Filter(0))) if s.config.filter_wheel => {
-                // "if there is no filter wheel connected, or if the wheel is out of
-                // position, 0 is returned and an error is set in the status byte"
-                // (Model 74000 command table). The config says there is a wheel: read
-                // the error back, so the unit is left clean, and fail naming the field.
-                warn!("cs130: a filter wheel is configured but FILTER? answered 0");
-                s.forget();
-                return Next::Exchange {
-                    command: Command::Stb,
-                    then: Self::no_wheel_status,
-                };
-            }
-            (Command::FilterQuery, Some(Reply::Filter(n))) => k.filter = Some(n),
-            (Command::ShutterQuery, Some(Reply::Shutter(o))) => k.shutter_open = Some(o),
-            (Command::Info, Some(Reply::Info(text))) => {
-                debug!(info = %text, "cs130: identified");
-                s.info = Some(text);
-            }
-            (Command::Stb, Some(Reply::Status(sb))) => {
-                if sb.error() {
-                    warn!(status = %sb, "cs130: status byte reports an error");
-                    return Next::Exchange {
-                        command: Command::Error,
-                        then: Self::errored,
-                    };
-                }
-            }
-            // Set at the echo; the status byte at the end confirms them all.
-            (Command::Grat(n), None) => k.grating = Some(*n),
-            (Command::Filter(n), None) => k.filter = Some(*n),
-            (Command::Shutter(o), None) => k.shutter_open = Some(*o),
-            (Command::GoWave(_), None) => k.wavelength_nm = None,
-            (Command::Units(_) | Command::Wai | Command::Abort, None) => {}
-            (c, other) => return Next::Done(Err(unexpected(c, other))),
-        }
-        self.k += 1;
-        self.next(s)
-    }
-
-    /// The `STB?` after a `FILTER?` that answered 0 with a wheel configured: the
-    /// error it flagged is read with `ERROR?`, for the message.
-    fn no_wheel_status(&mut self, _: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        match r {
-            Ok(Some(Reply::Status(sb))) if sb.error() => Next::Exchange {
-                command: Command::Error,
-                then: Self::no_wheel_error,
-            },
-            // The status byte is clean (the unit set no error) or could not be read:
-            // the wheel is missing all the same, which is the error worth reporting.
-            other => {
-                if let Err(e) = other {
-                    warn!(error = %e, "cs130: the status byte after FILTER? 0 was not read");
-                }
-                Next::Done(Err(Cs130Error::NoFilterWheel { code: None }))
-            }
-        }
-    }
-
-    /// The `ERROR?` after [`no_wheel_status`](Self::no_wheel_status).
-    fn no_wheel_error(&mut self, _: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        let code: Option<ErrorCode> = match r {
-            Ok(Some(Reply::Error(code))) => Some(code),
-            other => {
-                warn!(answer = ?other, "cs130: the error after FILTER? 0 was not read");
-                None
-            }
-        };
-        Next::Done(Err(Cs130Error::NoFilterWheel { code }))
-    }
-
-    fn errored(&mut self, s: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        // Which statement failed is unknown: forget every setting.
-        s.forget();
-        match r {
-            Ok(Some(Reply::Error(code))) => Next::Done(Err(Cs130Error::Rejected(code))),
-            Ok(other) => Next::Done(Err(unexpected(&Command::Error, other))),
-            Err(e) => Next::Done(Err(e)),
-        }
-    }
-
-    fn finish(&self, s: &Cs130Session) -> Next<Self> {
-        let Some(state) = s.known.state() else {
-            return Next::Done(Err(unexpected(&Command::Wave, None)));
-        };
-        if let Some(asked) = self.target {
-            let tol = s.config.position_tolerance_nm;
-            if (state.wavelength_nm - asked).abs() > tol {
-                warn!(
-                    asked,
-                    read = state.wavelength_nm,
-                    "cs130: wavelength not reached"
-                );
-                return Next::Done(Err(Cs130Error::NotReached {
-                    asked_nm: asked,
-                    read_nm: state.wavelength_nm,
-                    tolerance_nm: tol,
-                }));
-            }
-        }
-        debug!(?state, "cs130: state");
-        Next::Done(Ok(state))
+    /// Counted only: every operation ends with the settings read back or checked
+    /// through `STB?`, and a failed one forgets them.
+    fn reopened(&mut self, _: Duration) {
+        self.reconnects += 1;
     }
 }
 
-impl Op for Sequence {
-    type Value = MonoState;
-
-    fn start(&mut self, s: &mut Cs130Session, cx: &mut Cx) -> Next<Self> {
-        if let Some(e) = self.refused.take() {
-            warn!(error = %e, "cs130: refused before any byte");
-            return Next::Done(Err(e));
-        }
-        if self.commands.first() == Some(&Command::Info) {
-            cx.clear_input();
-        }
-        self.next(s)
-    }
+/// The statement as sent, without terminator: how errors name it.
+fn name(command: &Command) -> String {
+    let mut body = Vec::new();
+    command.encode_body(&mut body);
+    String::from_utf8_lossy(&body).into_owned()
 }
 
-/// One statement and its answer.
-#[derive(Debug)]
-pub(super) struct Single {
-    command: Command,
-}
-
-impl Single {
-    pub(super) fn new(command: Command) -> Self {
-        Single { command }
-    }
-
-    fn got(&mut self, s: &mut Cs130Session, _: &mut Cx, r: Answer) -> Next<Self> {
-        if !self.command.is_query() || r.is_err() {
-            s.forget();
-        }
-        Next::Done(r)
-    }
-}
-
-impl Op for Single {
-    type Value = Option<Reply>;
-
-    fn start(&mut self, _: &mut Cs130Session, _: &mut Cx) -> Next<Self> {
-        Next::Exchange {
-            command: self.command.clone(),
-            then: Self::got,
-        }
+/// A line that is not the echo or the answer expected.
+fn protocol(command: &Command, reply: Vec<u8>, source: ReplyError) -> Cs130Error {
+    Cs130Error::Protocol {
+        command: name(command),
+        reply,
+        source,
     }
 }
 
 /// An answer of the wrong kind: cannot happen, since [`Reply::parse`] answers by
 /// query; reported as a protocol error rather than a panic.
 fn unexpected(command: &Command, reply: Option<Reply>) -> Cs130Error {
-    let mut name = Vec::new();
-    command.encode_body(&mut name);
-    Cs130Error::Protocol {
-        command: String::from_utf8_lossy(&name).into_owned(),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
+    let reply = reply.map(|r| r.to_bytes()).unwrap_or_default();
+    protocol(command, reply, ReplyError::BadValue)
+}
+
+impl Cs130Session {
+    /// Sends a statement, reads its echo (when the config says the instrument echoes,
+    /// §15.4) and, for a query, its answer.
+    ///
+    /// - Echo and answer are each due `timeout` after the statement was sent. After a
+    ///   `*WAI` (§15.8) the instrument holds later statements until the move is done,
+    ///   and after `GRAT`, `FILTER` or `GOWAVE` it may be busy (the manual does not
+    ///   say whether it echoes meanwhile: **UNCONFIRMED**), so until a query has been
+    ///   answered they are due `move_timeout` after.
+    /// - A line that is not the echo, or not a valid answer, is a protocol fault.
+    /// - Every statement but `STB?` and `ERROR?`, whose reading clears what they
+    ///   report (§15.9), is sent again after a lost, late or garbled line, up to
+    ///   `retries` times. Set statements are absolute, so sending one twice is
+    ///   harmless.
+    async fn ask(&mut self, link: &Link, command: &Command) -> Result<Option<Reply>, Cs130Error> {
+        let c = &self.config;
+        let wait = if self.held {
+            c.move_timeout()
+        } else {
+            c.timeout()
+        };
+        let echo = c.echo;
+        let retries = if command.is_repeatable() {
+            c.retries
+        } else {
+            0
+        };
+        let receive = async || {
+            let due = link.now().saturating_add(wait);
+            if echo {
+                let line = link.line(due).await?;
+                if !is_echo(command, &line) {
+                    return Err(Fault::Answer(protocol(command, line, ReplyError::BadEcho)));
+                }
+            }
+            if !command.is_query() {
+                return Ok(None);
+            }
+            let line = link.line(due).await?;
+            Reply::parse(command, &line)
+                .map(Some)
+                .map_err(|source| Fault::Answer(protocol(command, line, source)))
+        };
+        let bytes = command.to_bytes();
+        let reply = engine::exchange(self, link, &name(command), &bytes, retries, receive).await?;
+        if reply.is_some() {
+            // A query has been answered: whatever `*WAI` held is done.
+            self.held = false;
+        } else if echo && command.moves() {
+            // After `*WAI` every later statement waits for the move (§15.8); after a
+            // statement that starts one, whether the instrument echoes while it moves
+            // is not documented.
+            self.held = true;
+        }
+        Ok(reply)
+    }
+
+    /// One statement of an operation, and what its answer means for the settings the
+    /// session knows. A failure forgets them all (whatever was being set is unknown);
+    /// an error bit in `STB?` is reported with `ERROR?`'s code.
+    async fn step(&mut self, link: &Link, command: Command) -> Result<(), Cs130Error> {
+        let reply = match self.ask(link, &command).await {
+            Ok(reply) => reply,
+            Err(e) => {
+                self.forget();
+                return Err(e);
+            }
+        };
+        let wheel = self.config.filter_wheel;
+        let k = &mut self.known;
+        match (&command, reply) {
+            (Command::Wave, Some(Reply::Wavelength(v))) => k.wavelength_nm = Some(v),
+            (Command::GratQuery, Some(Reply::Grating { number, .. })) => k.grating = Some(number),
+            (Command::FilterQuery, Some(Reply::Filter(0))) if wheel => {
+                return Err(self.no_wheel(link).await);
+            }
+            (Command::FilterQuery, Some(Reply::Filter(n))) => k.filter = Some(n),
+            (Command::ShutterQuery, Some(Reply::Shutter(o))) => k.shutter_open = Some(o),
+            (Command::Info, Some(Reply::Info(text))) => {
+                debug!(info = %text, "cs130: identified");
+                self.info = Some(text);
+            }
+            (Command::Stb, Some(Reply::Status(sb))) if sb.error() => {
+                warn!(status = %sb, "cs130: status byte reports an error");
+                let read = self.ask(link, &Command::Error).await;
+                // Which statement failed is unknown: forget every setting.
+                self.forget();
+                return Err(match read? {
+                    Some(Reply::Error(code)) => Cs130Error::Rejected(code),
+                    other => unexpected(&Command::Error, other),
+                });
+            }
+            (Command::Stb, Some(Reply::Status(_))) => {}
+            // Set at the echo; the status byte at the end confirms them all.
+            (Command::Grat(n), None) => k.grating = Some(*n),
+            (Command::Filter(n), None) => k.filter = Some(*n),
+            (Command::Shutter(o), None) => k.shutter_open = Some(*o),
+            (Command::GoWave(_), None) => k.wavelength_nm = None,
+            (Command::Units(_) | Command::Wai | Command::Abort, None) => {}
+            (c, other) => return Err(unexpected(c, other)),
+        }
+        Ok(())
+    }
+
+    /// A wheel is configured but `FILTER?` answered 0: "if there is no filter wheel
+    /// connected, or if the wheel is out of position, 0 is returned and an error is
+    /// set in the status byte" (Model 74000 command table). The error is read back
+    /// (`STB?`, then `ERROR?`), so the unit is left clean, and the failure names the
+    /// config field.
+    async fn no_wheel(&mut self, link: &Link) -> Cs130Error {
+        warn!("cs130: a filter wheel is configured but FILTER? answered 0");
+        self.forget();
+        // A clean status byte (the unit set no error) or an unread one: the wheel is
+        // missing all the same, which is the error worth reporting.
+        let code = match self.ask(link, &Command::Stb).await {
+            Ok(Some(Reply::Status(sb))) if sb.error() => {
+                match self.ask(link, &Command::Error).await {
+                    Ok(Some(Reply::Error(code))) => Some(code),
+                    other => {
+                        warn!(answer = ?other, "cs130: the error after FILTER? 0 was not read");
+                        None
+                    }
+                }
+            }
+            Ok(_) => None,
+            Err(e) => {
+                warn!(error = %e, "cs130: the status byte after FILTER? 0 was not read");
+                None
+            }
+        };
+        Cs130Error::NoFilterWheel { code }
+    }
+
+    /// After a set: the settings still unknown read, then `STB?`, then the state.
+    async fn confirm(
+        &mut self,
+        link: &Link,
+        asked_nm: Option<f64>,
+    ) -> Result<MonoState, Cs130Error> {
+        self.read_unknown(link).await?;
+        self.step(link, Command::Stb).await?;
+        self.reached(asked_nm)
+    }
+
+    /// `GRAT?`, `FILTER?`, `SHUTTER?`, `WAVE?`, each for a setting still unknown
+    /// (without a wheel the filter is known from the start).
+    async fn read_unknown(&mut self, link: &Link) -> Result<(), Cs130Error> {
+        let k = self.known;
+        let queries = [
+            (k.grating.is_none(), Command::GratQuery),
+            (k.filter.is_none(), Command::FilterQuery),
+            (k.shutter_open.is_none(), Command::ShutterQuery),
+            (k.wavelength_nm.is_none(), Command::Wave),
+        ];
+        for (unknown, query) in queries {
+            if unknown {
+                self.step(link, query).await?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The state, every setting known, with the wavelength within
+    /// `position_tolerance_nm` of the one asked for.
+    fn reached(&self, asked_nm: Option<f64>) -> Result<MonoState, Cs130Error> {
+        let Some(state) = self.known.state() else {
+            return Err(unexpected(&Command::Wave, None));
+        };
+        if let Some(asked) = asked_nm {
+            let tol = self.config.position_tolerance_nm;
+            if (state.wavelength_nm - asked).abs() > tol {
+                warn!(
+                    asked,
+                    read = state.wavelength_nm,
+                    "cs130: wavelength not reached"
+                );
+                return Err(Cs130Error::NotReached {
+                    asked_nm: asked,
+                    read_nm: state.wavelength_nm,
+                    tolerance_nm: tol,
+                });
+            }
+        }
+        debug!(?state, "cs130: state");
+        Ok(state)
+    }
+
+    /// Set-up: input cleared, nothing known taken for granted, `INFO?`, `UNITS NM`,
+    /// every setting read, `STB?`.
+    pub(super) async fn init(&mut self, link: &Link) -> Result<MonoState, Cs130Error> {
+        link.clear_input();
+        self.forget();
+        self.step(link, Command::Info).await?;
+        self.step(link, Command::Units(Units::Nm)).await?;
+        self.confirm(link, None).await
+    }
+
+    /// Every setting read back.
+    pub(super) async fn read_state(&mut self, link: &Link) -> Result<MonoState, Cs130Error> {
+        self.forget();
+        self.read_unknown(link).await?;
+        self.reached(None)
+    }
+
+    /// `SHUTTER O` or `SHUTTER C`, then the check.
+    pub(super) async fn shutter(
+        &mut self,
+        link: &Link,
+        open: bool,
+    ) -> Result<MonoState, Cs130Error> {
+        self.step(link, Command::Shutter(open)).await?;
+        self.confirm(link, None).await
+    }
+
+    /// A move: grating and order filter chosen before any byte; `GRAT n` and
+    /// `FILTER n` where they differ from what is known; `GOWAVE` (from below);
+    /// `*WAI`; `WAVE?`; then the check against `nm`.
+    pub(super) async fn go(&mut self, link: &Link, nm: f64) -> Result<MonoState, Cs130Error> {
+        let c = &self.config;
+        let (grating, min_nm, filter) = c
+            .grating_for(nm)
+            .and_then(|g| {
+                // Never a `FILTER n` without a wheel: it would only flag an error
+                // (§15.9's code 6). The config refuses `auto_order_filter` without
+                // `filter_wheel`.
+                let filter = (c.auto_order_filter && c.filter_wheel)
+                    .then(|| c.order_filter_for(nm))
+                    .transpose()?;
+                Ok((g.index, g.min_nm, filter))
+            })
+            .inspect_err(|e| warn!(error = %e, "cs130: refused before any byte"))?;
+        // A drive's backlash leaves it short when it comes down onto a wavelength:
+        // every wavelength is approached from below, so the slack is always taken up
+        // the same way (an unknown position counts as above).
+        let below = (nm - c.approach_nm).max(min_nm);
+        let approach =
+            c.approach_nm > 0.0 && below < nm && self.known.wavelength_nm.is_none_or(|at| at > nm);
+        if self.known.grating != Some(grating) {
+            self.step(link, Command::Grat(grating)).await?;
+        }
+        if let Some(f) = filter
+            && self.known.filter != Some(f)
+        {
+            self.step(link, Command::Filter(f)).await?;
+        }
+        if approach {
+            self.step(link, Command::GoWave(below)).await?;
+        }
+        self.step(link, Command::GoWave(nm)).await?;
+        self.step(link, Command::Wai).await?;
+        self.step(link, Command::Wave).await?;
+        self.confirm(link, Some(nm)).await
+    }
+
+    /// Any statement and, for a query, its answer; the settings are forgotten when it
+    /// may change them or fails.
+    pub(super) async fn execute(
+        &mut self,
+        link: &Link,
+        command: &Command,
+    ) -> Result<Option<Reply>, Cs130Error> {
+        let reply = self.ask(link, command).await;
+        if !command.is_query() || reply.is_err() {
+            self.forget();
+        }
+        reply
     }
 }
