@@ -17,6 +17,7 @@ use super::{
 };
 use crate::engine::Task;
 use crate::link::Operation;
+use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
 /// the timing and retry policy, and everything the chain's operations decide: which
@@ -124,8 +125,8 @@ impl Smc100Session {
     ) -> impl Operation<Output = Result<Status, MotionError>> + use<'s> {
         let name = name.to_string();
         Task::new("smc100.status", now, move |link| async move {
-            let ts = Command::TellStatus;
-            self.axis_query(&link, &name, ts, Self::status).await
+            self.on(&name, async |s, i| s.read_status(&link, i).await)
+                .await
         })
     }
 
@@ -138,8 +139,8 @@ impl Smc100Session {
         let name = name.to_string();
         Task::new("smc100.position", now, move |link| async move {
             let tp = Command::TellPosition;
-            let read = |s: &Self, i, r| s.number(i, "TP", r);
-            self.axis_query(&link, &name, tp, read).await
+            self.on(&name, async |s, i| s.read_number(&link, i, tp).await)
+                .await
         })
     }
 
@@ -155,8 +156,8 @@ impl Smc100Session {
         let name = name.to_string();
         Task::new("smc100.motion_time", now, move |link| async move {
             let pt = Command::MotionTime(distance.abs());
-            let read = |s: &Self, i, r| s.number(i, "PT", r);
-            self.axis_query(&link, &name, pt, read).await
+            self.on(&name, async |s, i| s.read_number(&link, i, pt).await)
+                .await
         })
     }
 
@@ -180,7 +181,8 @@ impl Smc100Session {
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
         let name = name.to_string();
         Task::new("smc100.stop", now, move |link| async move {
-            self.stop(&link, &name).await
+            self.on(&name, async |s, i| s.command(&link, i, Command::Stop).await)
+                .await
         })
     }
 
@@ -268,7 +270,12 @@ impl Smc100Session {
     ) -> impl Operation<Output = Result<Smc100Parameters, MotionError>> + use<'s> {
         let name = name.to_string();
         Task::new("smc100.read_config", now, move |link| async move {
-            self.read_config(&link, &name).await
+            self.on(&name, async |s, i| {
+                let params = s.dump(&link, i).await?;
+                debug!(axis = %s.axes[i].name, stage = %params.stage, "smc100: configuration read");
+                Ok(params)
+            })
+            .await
         })
     }
 
@@ -294,7 +301,8 @@ impl Smc100Session {
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
         let (name, changes) = (name.to_string(), changes.to_vec());
         Task::new("smc100.configure", now, move |link| async move {
-            self.configure(&link, &name, &changes).await
+            self.on(&name, async |s, i| s.configure(&link, i, &changes).await)
+                .await
         })
     }
 
@@ -335,22 +343,6 @@ impl Smc100Session {
         match r? {
             ReplyBody::Status(s) => Ok(s),
             other => Err(self.unexpected(i, "TS", other, "not a status")),
-        }
-    }
-
-    /// A reply read as a number (`TP`, `TH`, `PT`, `xxAA?`); `code` names the query.
-    fn number(
-        &self,
-        i: usize,
-        code: &str,
-        r: Result<ReplyBody, AxisError>,
-    ) -> Result<f64, AxisError> {
-        match r? {
-            ReplyBody::Position(v)
-            | ReplyBody::Setpoint(v)
-            | ReplyBody::MotionTime(v)
-            | ReplyBody::Value(_, v) => Ok(v),
-            other => Err(self.unexpected(i, code, other, "not a number")),
         }
     }
 

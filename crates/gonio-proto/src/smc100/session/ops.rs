@@ -11,7 +11,7 @@ use crate::TransportError;
 use crate::engine::{Link, secs};
 use crate::smc100::{
     AxisError, Command, ControllerInfo, ControllerState, ErrorCode, MotionError, Param, ReplyBody,
-    Smc100Parameters, Status,
+    Status,
 };
 
 /// Pause between status polls while a reset controller boots.
@@ -29,16 +29,11 @@ const SAVE_LIMIT: Duration = Duration::from_secs(15);
 pub(super) enum Halt {
     /// A fault at an axis: every stage is stopped first.
     Stop(usize, AxisError),
-    /// An axis past its deadline: every stage is stopped, and its position read.
-    Overdue {
-        axis: usize,
-        /// `move` or `home`.
-        operation: &'static str,
-        target: f64,
-        /// How long was allowed.
-        waited: Duration,
-    },
-    /// Before anything moves: the error as it is.
+    /// Axis `.0`'s `.1` (`move`, `home`) to `.2` past the `.3` it was allowed: every
+    /// stage is stopped, and the axis' position read.
+    Overdue(usize, &'static str, f64, Duration),
+    /// Nothing to stop (before any move, or a stage READY away from its target): the
+    /// error as it is.
     End(MotionError),
 }
 
@@ -49,14 +44,8 @@ impl From<MotionError> for Halt {
 }
 
 /// An axis' failure during a motion, which stops every stage.
-trait OrStop<T> {
-    fn or_stop(self, axis: usize) -> Result<T, Halt>;
-}
-
-impl<T> OrStop<T> for Result<T, AxisError> {
-    fn or_stop(self, axis: usize) -> Result<T, Halt> {
-        self.map_err(|e| Halt::Stop(axis, e))
-    }
+fn stop(axis: usize) -> impl FnOnce(AxisError) -> Halt {
+    move |e| Halt::Stop(axis, e)
 }
 
 /// The text of a reply expected to be text; another reply is kept as its debug form.
@@ -69,21 +58,37 @@ fn text(body: ReplyBody) -> String {
 
 impl Smc100Session {
     /// `TS` of axis `i`.
-    async fn read_status(&mut self, link: &Link, i: usize) -> Result<Status, AxisError> {
+    pub(super) async fn read_status(&mut self, link: &Link, i: usize) -> Result<Status, AxisError> {
         let r = self.query(link, i, Command::TellStatus).await;
         self.status(i, r)
     }
 
-    /// `command`'s reply read as a number; `code` names the query.
-    async fn read_number(
+    /// `command`'s reply read as a number (`TP`, `TH`, `PT`, `xxAA?`).
+    pub(super) async fn read_number(
         &mut self,
         link: &Link,
         i: usize,
         command: Command,
-        code: &str,
     ) -> Result<f64, AxisError> {
-        let r = self.query(link, i, command).await;
-        self.number(i, code, r)
+        let code = command.code();
+        match self.query(link, i, command).await? {
+            ReplyBody::Position(v)
+            | ReplyBody::Setpoint(v)
+            | ReplyBody::MotionTime(v)
+            | ReplyBody::Value(_, v) => Ok(v),
+            other => Err(self.unexpected(i, code, other, "not a number")),
+        }
+    }
+
+    /// `op` on the named axis, its failure reported at that axis.
+    pub(super) async fn on<T>(
+        &mut self,
+        name: &str,
+        op: impl AsyncFnOnce(&mut Self, usize) -> Result<T, AxisError>,
+    ) -> Result<T, MotionError> {
+        let i = self.index(name)?;
+        let r = op(self, i).await;
+        r.map_err(|e| self.at(i, e))
     }
 
     /// `VE`, `ID?` and `TS` of every controller, in order; the first failure ends it.
@@ -92,43 +97,21 @@ impl Smc100Session {
         link: &Link,
     ) -> Result<Vec<ControllerInfo>, MotionError> {
         let mut infos = Vec::new();
-        for i in 0..self.axes.len() {
-            let info = self.identify_one(link, i).await;
-            infos.push(info.map_err(|e| self.at(i, e))?);
+        for a in self.axes.clone() {
+            let info = self.on(&a.name, async |s, i| {
+                let version = text(s.query(link, i, Command::Version).await?);
+                let stage = text(s.query(link, i, Command::Query(Param::StageId)).await?);
+                let state = s.read_status(link, i).await?.state;
+                debug!(axis = %a.name, %version, %stage, %state, "smc100: controller identified");
+                Ok(ControllerInfo {
+                    version,
+                    stage,
+                    state,
+                })
+            });
+            infos.push(info.await?);
         }
         Ok(infos)
-    }
-
-    async fn identify_one(&mut self, link: &Link, i: usize) -> Result<ControllerInfo, AxisError> {
-        let version = text(self.query(link, i, Command::Version).await?);
-        let stage = text(self.query(link, i, Command::Query(Param::StageId)).await?);
-        let state = self.read_status(link, i).await?.state;
-        debug!(axis = %self.axes[i].name, %version, %stage, %state, "smc100: controller identified");
-        Ok(ControllerInfo {
-            version,
-            stage,
-            state,
-        })
-    }
-
-    /// `command` to the named axis, its reply read by `read` (a status, a number).
-    pub(super) async fn axis_query<T>(
-        &mut self,
-        link: &Link,
-        name: &str,
-        command: Command,
-        read: fn(&Self, usize, Result<ReplyBody, AxisError>) -> Result<T, AxisError>,
-    ) -> Result<T, MotionError> {
-        let i = self.index(name)?;
-        let r = self.query(link, i, command).await;
-        read(self, i, r).map_err(|e| self.at(i, e))
-    }
-
-    /// `ST` to the named axis, checked with `TE`.
-    pub(super) async fn stop(&mut self, link: &Link, name: &str) -> Result<(), MotionError> {
-        let i = self.index(name)?;
-        let r = self.command(link, i, Command::Stop).await;
-        r.map_err(|e| self.at(i, e))
     }
 
     /// The end of a motion: after a fault every stage is stopped, since nothing may
@@ -148,22 +131,18 @@ impl Smc100Session {
                 let _ = self.stop_all(link).await;
                 Err(error)
             }
-            Err(Halt::Overdue {
-                axis,
-                operation,
-                target,
-                waited,
-            }) => {
-                warn!(axis = %self.axes[axis].name, operation, ?waited, "smc100: past the deadline; stopping every stage");
+            Err(Halt::Overdue(i, operation, target, waited)) => {
+                warn!(axis = %self.axes[i].name, operation, ?waited, "smc100: past the deadline; stopping every stage");
                 let _ = self.stop_all(link).await;
-                let position = self.read_number(link, axis, Command::TellPosition, "TP");
+                let position = self.read_number(link, i, Command::TellPosition).await;
+                let position = position.ok();
                 let e = AxisError::Timeout {
                     operation,
                     target,
-                    position: position.await.ok(),
+                    position,
                     waited,
                 };
-                Err(self.at(axis, e))
+                Err(self.at(i, e))
             }
         }
     }
@@ -187,7 +166,7 @@ impl Smc100Session {
             }
             let mut still = Vec::new();
             for (i, target) in axes {
-                let status = self.read_status(link, i).await.or_stop(i)?;
+                let status = self.read_status(link, i).await.map_err(stop(i))?;
                 if busy(self, i, target, status, link.now().saturating_sub(start))? {
                     still.push((i, target));
                 }
@@ -260,16 +239,16 @@ impl Smc100Session {
         }
         let mut searching = Vec::new();
         for &i in &idx {
-            let state = self.read_status(link, i).await.or_stop(i)?.state;
+            let state = self.read_status(link, i).await.map_err(stop(i))?.state;
             if state.is_not_referenced() {
-                self.start_search(link, i).await.or_stop(i)?;
+                self.start_search(link, i).await.map_err(stop(i))?;
                 searching.push((i, 0.0));
             } else if state.is_homing() {
                 searching.push((i, 0.0));
             } else if state.is_disabled() {
                 self.command(link, i, Command::Enable(true))
                     .await
-                    .or_stop(i)?;
+                    .map_err(stop(i))?;
                 debug!(axis = %self.axes[i].name, "smc100: motor enabled (MM1)");
             } else if state.is_configuration() || state.is_jogging() {
                 let operation = "homing";
@@ -287,13 +266,7 @@ impl Smc100Session {
             }
             let limit = secs(s.axes[i].home_timeout_s);
             if elapsed > limit {
-                let (operation, target, waited) = ("home", 0.0, limit);
-                return Err(Halt::Overdue {
-                    axis: i,
-                    operation,
-                    target,
-                    waited,
-                });
+                return Err(Halt::Overdue(i, "home", 0.0, limit));
             }
             Ok(true)
         })
@@ -305,7 +278,7 @@ impl Smc100Session {
                 a.acceleration.map(Command::SetAcceleration),
             ];
             for set in sets.into_iter().flatten() {
-                self.command(link, i, set).await.or_stop(i)?;
+                self.command(link, i, set).await.map_err(stop(i))?;
             }
         }
         Ok(())
@@ -372,7 +345,7 @@ impl Smc100Session {
         let mut allow = Duration::ZERO;
         for &(i, target) in &moves {
             let tp = Command::TellPosition;
-            let from = self.read_number(link, i, tp, "TP").await.or_stop(i)?;
+            let from = self.read_number(link, i, tp).await.map_err(stop(i))?;
             let distance = (target - from).abs();
             let estimate = if distance > 1e-6 {
                 self.estimate(link, i, distance).await?
@@ -382,7 +355,7 @@ impl Smc100Session {
             allow = allow.max(self.allowance(estimate));
             self.command(link, i, Command::MoveAbsolute(target))
                 .await
-                .or_stop(i)?;
+                .map_err(stop(i))?;
             debug!(axis = %self.axes[i].name, target, "smc100: move started");
         }
         self.await_moves(link, moves, allow).await
@@ -397,14 +370,14 @@ impl Smc100Session {
         delta: f64,
     ) -> Result<f64, Halt> {
         let i = self.index(name)?;
-        let from = self.read_number(link, i, Command::TellSetpoint, "TH").await;
+        let from = self.read_number(link, i, Command::TellSetpoint).await;
         let target = from.map_err(|e| self.at(i, e))? + delta;
         self.check_limits(i, target).map_err(|e| self.at(i, e))?;
         let estimate = self.estimate(link, i, delta.abs().max(1e-6)).await?;
         let allow = self.allowance(estimate);
         self.command(link, i, Command::MoveRelative(delta))
             .await
-            .or_stop(i)?;
+            .map_err(stop(i))?;
         debug!(axis = %self.axes[i].name, target, "smc100: relative move started");
         Ok(self.await_moves(link, vec![(i, target)], allow).await?[0])
     }
@@ -424,7 +397,7 @@ impl Smc100Session {
     /// from a lost link (the timeout). Either way the move ends.
     async fn estimate(&mut self, link: &Link, i: usize, distance: f64) -> Result<f64, Halt> {
         let pt = Command::MotionTime(distance);
-        let silence = match self.read_number(link, i, pt.clone(), "PT").await {
+        let silence = match self.read_number(link, i, pt.clone()).await {
             Ok(estimate) => return Ok(estimate),
             Err(e @ AxisError::Transport(TransportError::Timeout(_))) => e,
             Err(e) => return Err(Halt::Stop(i, e)),
@@ -454,13 +427,7 @@ impl Smc100Session {
                 return Ok(false);
             } else if state.is_moving() {
                 if elapsed > allow {
-                    let (operation, waited) = ("move", allow);
-                    return Err(Halt::Overdue {
-                        axis: i,
-                        operation,
-                        target,
-                        waited,
-                    });
+                    return Err(Halt::Overdue(i, "move", target, allow));
                 }
                 return Ok(true);
             } else if state == ControllerState::NotReferencedFromReset {
@@ -480,7 +447,7 @@ impl Smc100Session {
         let mut positions = Vec::new();
         for (i, target) in moves {
             let tp = Command::TellPosition;
-            let position = self.read_number(link, i, tp, "TP").await.or_stop(i)?;
+            let position = self.read_number(link, i, tp).await.map_err(stop(i))?;
             let tolerance = self.axes[i].tolerance;
             if (position - target).abs() > tolerance {
                 let e = AxisError::TargetNotReached {
@@ -495,38 +462,13 @@ impl Smc100Session {
         Ok(positions)
     }
 
-    /// `ZT` to the named axis, its dump read whole.
-    pub(super) async fn read_config(
-        &mut self,
-        link: &Link,
-        name: &str,
-    ) -> Result<Smc100Parameters, MotionError> {
-        let i = self.index(name)?;
-        let r = self.dump(link, i).await;
-        if let Ok(p) = &r {
-            debug!(axis = %self.axes[i].name, stage = %p.stage, "smc100: configuration read");
-        }
-        r.map_err(|e| self.at(i, e))
-    }
-
-    /// Changes and saves the named controller's configuration (manual, PW command).
-    pub(super) async fn configure(
-        &mut self,
-        link: &Link,
-        name: &str,
-        changes: &[(Param, f64)],
-    ) -> Result<(), MotionError> {
-        let i = self.index(name)?;
-        let r = self.configure_axis(link, i, changes).await;
-        r.map_err(|e| self.at(i, e))
-    }
-
-    /// Every change checked before any byte; the state (`TS`): NOT REFERENCED →
-    /// `PW1`, CONFIGURATION → straight on, anything else refused; each set, checked
-    /// with `TE`; `PW0`, sent without `TE` since the controller is silent while it
-    /// saves; `TS` every 500 ms, each asked once (the silence is expected), until NOT
+    /// Changes and saves axis `i`'s configuration (manual, PW command): every change
+    /// checked before any byte; the state (`TS`): NOT REFERENCED → `PW1`,
+    /// CONFIGURATION → straight on, anything else refused; each set, checked with
+    /// `TE`; `PW0`, sent without `TE` since the controller is silent while it saves;
+    /// `TS` every 500 ms, each asked once (the silence is expected), until NOT
     /// REFERENCED; `TE` for the save's own error (`U`, EEPROM).
-    async fn configure_axis(
+    pub(super) async fn configure(
         &mut self,
         link: &Link,
         i: usize,
@@ -563,12 +505,8 @@ impl Smc100Session {
                 Ok(()) => debug!(axis = %self.axes[i].name, "smc100: in CONFIGURATION (PW1)"),
                 // `PW1` must not be re-sent blindly; the state tells whether it ran.
                 Err(lost @ AxisError::Ambiguous { .. }) => {
-                    if !self
-                        .unacknowledged(link, i, "PW1")
-                        .await?
-                        .state
-                        .is_configuration()
-                    {
+                    let st = self.unacknowledged(link, i, "PW1").await?;
+                    if !st.state.is_configuration() {
                         return Err(lost);
                     }
                 }
@@ -585,8 +523,8 @@ impl Smc100Session {
                 break;
             }
         }
-        self.send(link, i, Command::ConfigurationMode(false))
-            .await?;
+        let pw0 = Command::ConfigurationMode(false);
+        self.send(link, i, pw0.clone()).await?;
         debug!(axis = %self.axes[i].name, "smc100: PW0 sent; the controller saves");
         self.await_state(link, i, (SAVE_POLL, SAVE_LIMIT, 0), |s, st| {
             let state = st.state;
@@ -608,7 +546,7 @@ impl Smc100Session {
         match te? {
             ReplyBody::Error(ErrorCode::None) => Ok(()),
             ReplyBody::Error(code) => Err(AxisError::Controller {
-                command: line_text(&self.frame(i, Command::ConfigurationMode(false)).to_bytes()),
+                command: line_text(&self.frame(i, pw0).to_bytes()),
                 code,
             }),
             other => Err(self.unexpected(i, "TE", other, "not an error letter")),

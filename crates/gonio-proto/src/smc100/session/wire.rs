@@ -66,8 +66,8 @@ pub(super) enum Miss {
     /// A lost, late or garbled reply: the input is cleared and, while retries remain,
     /// the command sent again.
     Again(AxisError),
-    /// The end, the input left as it is: power loss, a link fault, a `TE` that is not
-    /// an error letter.
+    /// The end, the input left as it is: power loss (a NUL byte), another link fault,
+    /// a `TE` that could not be sent.
     Final(AxisError),
 }
 
@@ -259,8 +259,7 @@ impl Smc100Session {
                     return Err(refused(code));
                 };
                 let pa = Command::Query(Param::AbsoluteTarget);
-                let held = self.query(link, i, pa).await;
-                let held = self.number(i, "PA", held)?;
+                let held = self.read_number(link, i, pa).await?;
                 if (held - target).abs() <= self.axes[i].tolerance {
                     debug!(target, "smc100: the first absolute move was accepted");
                     Ok(())
