@@ -1,20 +1,13 @@
 //! The chain's policy as a sans-IO state machine: [`Smc100Session`].
 //!
-//! The layers, from the wire up:
-//! - `exchange`: one command on the wire: a frame sent (reopening a vanished port a
-//!   bounded number of times), a query with its reply (stale replies skipped, lost or
-//!   garbled ones asked again when allowed), a set command checked with `TE`, the stop
-//!   of every stage;
-//! - `script`: operations written as steps, each asking for one exchange or pause and
-//!   naming the step that takes its result;
-//! - `ops`, `home`, `motion`, `config`: the operations themselves.
+//! - `wire`: one command on the line, the SMC100's way: a query and its reply (replies
+//!   to other commands skipped, a NUL byte is power loss), a set or action checked
+//!   with `TE`, a `ZT` dump, the stop of every stage; run by the engine's `exchange`,
+//!   with the chain's own reopening of a vanished port;
+//! - `ops`: the operations, each an `async fn` the engine runs.
 
-mod config;
-mod exchange;
-mod home;
-mod motion;
 mod ops;
-mod script;
+mod wire;
 
 use std::time::Duration;
 
@@ -22,9 +15,9 @@ use super::{
     AxisConfig, AxisError, ChainPolicy, Command, ControllerInfo, Frame, MAX_ADDRESS, MotionError,
     Param, ReplyBody, Smc100Parameters, Status,
 };
+use crate::engine::Task;
 use crate::link::Operation;
-use crate::machine::Run;
-use script::Exec;
+use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
 /// the timing and retry policy, and everything the chain's operations decide: which
@@ -119,12 +112,9 @@ impl Smc100Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<Vec<ControllerInfo>, MotionError>> + '_ {
-        Run::new(
-            "smc100.identify",
-            self,
-            Exec::new(ops::Identify::default()),
-            now,
-        )
+        Task::new("smc100.identify", now, |link| async move {
+            self.identify(&link).await
+        })
     }
 
     /// The named axis' status (`TS`).
@@ -133,12 +123,11 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<Status, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.status",
-            self,
-            Exec::new(ops::AxisQuery::status(name)),
-            now,
-        )
+        let name = name.to_string();
+        Task::new("smc100.status", now, move |link| async move {
+            self.on(&name, async |s, i| s.read_status(&link, i).await)
+                .await
+        })
     }
 
     /// The named axis' encoder position (`TP`), units.
@@ -147,12 +136,12 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.position",
-            self,
-            Exec::new(ops::AxisQuery::position(name)),
-            now,
-        )
+        let name = name.to_string();
+        Task::new("smc100.position", now, move |link| async move {
+            let tp = Command::TellPosition;
+            self.on(&name, async |s, i| s.read_number(&link, i, tp).await)
+                .await
+        })
     }
 
     /// How long the named axis' controller says a move of `distance` units takes with
@@ -164,12 +153,12 @@ impl Smc100Session {
         distance: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.motion_time",
-            self,
-            Exec::new(ops::AxisQuery::motion_time(name, distance.abs())),
-            now,
-        )
+        let name = name.to_string();
+        Task::new("smc100.motion_time", now, move |link| async move {
+            let pt = Command::MotionTime(distance.abs());
+            self.on(&name, async |s, i| s.read_number(&link, i, pt).await)
+                .await
+        })
     }
 
     /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
@@ -179,7 +168,9 @@ impl Smc100Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
-        Run::new("smc100.stop_all", self, Exec::new(ops::StopEvery), now)
+        Task::new("smc100.stop_all", now, |link| async move {
+            self.stop_all(&link).await
+        })
     }
 
     /// Stops one stage (`ST`, then `TE`).
@@ -188,7 +179,11 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        Run::new("smc100.stop", self, Exec::new(ops::StopOne::new(name)), now)
+        let name = name.to_string();
+        Task::new("smc100.stop", now, move |link| async move {
+            self.on(&name, async |s, i| s.command(&link, i, Command::Stop).await)
+                .await
+        })
     }
 
     /// Brings the named axes to READY with a reference: a home search (`OR`) from NOT
@@ -200,12 +195,11 @@ impl Smc100Session {
         names: &[&str],
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        Run::new(
-            "smc100.home",
-            self,
-            Exec::new(home::Home::new(names, false)),
-            now,
-        )
+        let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+        Task::new("smc100.home", now, move |link| async move {
+            let r = self.home(&link, &names, false).await;
+            self.settle(&link, r).await
+        })
     }
 
     /// Homes every axis.
@@ -226,12 +220,11 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        Run::new(
-            "smc100.reset_and_home",
-            self,
-            Exec::new(home::Home::new(&[name], true)),
-            now,
-        )
+        let names = vec![name.to_string()];
+        Task::new("smc100.reset_and_home", now, move |link| async move {
+            let r = self.home(&link, &names, true).await;
+            self.settle(&link, r).await
+        })
     }
 
     /// Moves the named axes to absolute targets, concurrently, and waits until every
@@ -243,12 +236,12 @@ impl Smc100Session {
         targets: &[(&str, f64)],
         now: Duration,
     ) -> impl Operation<Output = Result<Vec<f64>, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.move",
-            self,
-            Exec::new(motion::Motion::to(targets)),
-            now,
-        )
+        let targets: Vec<(String, f64)> =
+            targets.iter().map(|(n, t)| (n.to_string(), *t)).collect();
+        Task::new("smc100.move", now, move |link| async move {
+            let r = self.move_to(&link, &targets).await;
+            self.settle(&link, r).await
+        })
     }
 
     /// Moves one axis by `delta` from its current target (`PR`), checked against the
@@ -260,12 +253,11 @@ impl Smc100Session {
         delta: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.move_by",
-            self,
-            Exec::new(motion::Motion::by(name, delta)),
-            now,
-        )
+        let name = name.to_string();
+        Task::new("smc100.move_by", now, move |link| async move {
+            let r = self.move_by(&link, &name, delta).await;
+            self.settle(&link, r).await
+        })
     }
 
     /// Reads the named controller's configuration: `ZT`, and its dump up to `PW0`
@@ -276,12 +268,15 @@ impl Smc100Session {
         name: &str,
         now: Duration,
     ) -> impl Operation<Output = Result<Smc100Parameters, MotionError>> + use<'s> {
-        Run::new(
-            "smc100.read_config",
-            self,
-            Exec::new(config::ReadConfig::new(name)),
-            now,
-        )
+        let name = name.to_string();
+        Task::new("smc100.read_config", now, move |link| async move {
+            self.on(&name, async |s, i| {
+                let params = s.dump(&link, i).await?;
+                debug!(axis = %s.axes[i].name, stage = %params.stage, "smc100: configuration read");
+                Ok(params)
+            })
+            .await
+        })
     }
 
     /// Changes and saves the named controller's configuration (manual, PW command):
@@ -304,12 +299,11 @@ impl Smc100Session {
         changes: &[(Param, f64)],
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
-        Run::new(
-            "smc100.configure",
-            self,
-            Exec::new(config::Configure::new(name, changes)),
-            now,
-        )
+        let (name, changes) = (name.to_string(), changes.to_vec());
+        Task::new("smc100.configure", now, move |link| async move {
+            self.on(&name, async |s, i| s.configure(&link, i, &changes).await)
+                .await
+        })
     }
 
     fn index(&self, name: &str) -> Result<usize, MotionError> {
@@ -348,31 +342,16 @@ impl Smc100Session {
     fn status(&self, i: usize, r: Result<ReplyBody, AxisError>) -> Result<Status, AxisError> {
         match r? {
             ReplyBody::Status(s) => Ok(s),
-            other => Err(AxisError::Protocol {
-                sent: format!("{}TS", self.axes[i].address),
-                reply: format!("{other:?}"),
-                reason: "not a status".into(),
-            }),
+            other => Err(self.unexpected(i, "TS", other, "not a status")),
         }
     }
 
-    /// A reply read as a number (`TP`, `TH`, `PT`, `xxAA?`); `code` names the query.
-    fn number(
-        &self,
-        i: usize,
-        code: &str,
-        r: Result<ReplyBody, AxisError>,
-    ) -> Result<f64, AxisError> {
-        match r? {
-            ReplyBody::Position(v)
-            | ReplyBody::Setpoint(v)
-            | ReplyBody::MotionTime(v)
-            | ReplyBody::Value(_, v) => Ok(v),
-            other => Err(AxisError::Protocol {
-                sent: format!("{}{code}", self.axes[i].address),
-                reply: format!("{other:?}"),
-                reason: "not a number".into(),
-            }),
+    /// A reply to axis `i`'s `code` of another kind than asked.
+    fn unexpected(&self, i: usize, code: &str, reply: ReplyBody, reason: &str) -> AxisError {
+        AxisError::Protocol {
+            sent: format!("{}{code}", self.axes[i].address),
+            reply: format!("{reply:?}"),
+            reason: reason.into(),
         }
     }
 }
