@@ -51,7 +51,7 @@ fn status_s(stage: StageKind) -> f64 {
     )
 }
 
-/// An axis' part in a move on its own line `line` (the session's `Motion`): a status
+/// An axis' part in a move on its own line `line` (the session's `motion`): a status
 /// for where it stands; the move message, whose arrival starts the stage; then,
 /// every `poll`, a status until the stage is still at its target, whose position is
 /// the move's answer.

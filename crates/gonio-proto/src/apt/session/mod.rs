@@ -1,24 +1,19 @@
 //! The policy that drives one APT controller, as a sans-IO state machine:
-//! [`AptSession`]. Built like the SMC100 session, on `crate::machine`:
+//! [`AptSession`].
 //!
-//! - `wire`: one message on the wire: a send (reopening a vanished port a bounded
-//!   number of times), a wait for a message (noting completions and status updates,
-//!   skipping the rest), a query (asked again after a lost or garbled reply);
-//! - `exec`: operations written as steps, each asking for one exchange or pause;
-//! - `ops`: the operations.
+//! `ops` holds the controller's link policy (a send, a wait for a message that notes
+//! completions and status updates on the way, a request asked again after a lost
+//! reply) and the operations, each an `async fn` the engine runs.
 
-mod exec;
 mod ops;
-mod wire;
 
 use std::time::Duration;
 
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
+use crate::engine::{Link, Task};
 use crate::link::{KeepAlive, Operation};
-use crate::machine::Run;
 use crate::motion::{AxisError, MotionError};
 use crate::smc100::ChainPolicy;
-use exec::Exec;
 
 /// One stage on one APT controller, and how the session may move it.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
@@ -341,7 +336,7 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<AptInfo, MotionError>> + '_ {
-        Run::new("apt.identify", self, Exec::new(ops::Identify), now)
+        self.task("apt.identify", now, Self::identify)
     }
 
     /// Prepares the channel: `HW_NO_FLASH_PROGRAMMING`, the channel enabled, then the
@@ -351,7 +346,7 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
-        Run::new("apt.setup", self, Exec::new(ops::Setup::default()), now)
+        self.task("apt.setup", now, Self::setup)
     }
 
     /// Homes the stage (`MOT_MOVE_HOME`) and waits for `MOT_MOVE_HOMED`, or a status
@@ -361,7 +356,7 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
-        Run::new("apt.home", self, Exec::new(ops::Home::default()), now)
+        self.task("apt.home", now, Self::home)
     }
 
     /// Moves to `target_deg` (`MOT_MOVE_ABSOLUTE`, long form), checked against the
@@ -374,12 +369,9 @@ impl AptSession {
         target_deg: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
-        Run::new(
-            "apt.move",
-            self,
-            Exec::new(ops::Motion::to(target_deg)),
-            now,
-        )
+        self.task("apt.move", now, async move |s, link| {
+            s.motion(link, target_deg, false).await
+        })
     }
 
     /// Moves by `delta_deg` from the current position (`MOT_MOVE_RELATIVE`), checked
@@ -390,12 +382,9 @@ impl AptSession {
         delta_deg: f64,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
-        Run::new(
-            "apt.move_by",
-            self,
-            Exec::new(ops::Motion::by(delta_deg)),
-            now,
-        )
+        self.task("apt.move_by", now, async move |s, link| {
+            s.motion(link, delta_deg, true).await
+        })
     }
 
     /// Stops the stage (`MOT_MOVE_STOP`, profiled or immediate) and waits for
@@ -405,7 +394,9 @@ impl AptSession {
         profiled: bool,
         now: Duration,
     ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
-        Run::new("apt.stop", self, Exec::new(ops::Stop::new(profiled)), now)
+        self.task("apt.stop", now, async move |s, link| {
+            s.stop(link, profiled).await
+        })
     }
 
     /// Waits up to `wait` for the last move's `MOT_MOVE_COMPLETED` when it has not
@@ -416,12 +407,9 @@ impl AptSession {
         wait: Duration,
         now: Duration,
     ) -> impl Operation<Output = Result<bool, MotionError>> + '_ {
-        Run::new(
-            "apt.await_completion",
-            self,
-            Exec::new(ops::AwaitCompletion::new(wait)),
-            now,
-        )
+        self.task("apt.await_completion", now, async move |s, link| {
+            s.await_completion(link, wait).await
+        })
     }
 
     /// The position counter (`MOT_REQ_POSCOUNTER`), deg.
@@ -429,7 +417,7 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
-        Run::new("apt.position", self, Exec::new(ops::Position), now)
+        self.task("apt.position", now, Self::position)
     }
 
     /// The channel's status (`MOT_REQ_DCSTATUSUPDATE`, or `MOT_REQ_STATUSUPDATE` for a
@@ -438,7 +426,7 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<AptStatus, MotionError>> + '_ {
-        Run::new("apt.status", self, Exec::new(ops::StatusQuery), now)
+        self.task("apt.status", now, Self::status)
     }
 
     /// The velocity parameters (`MOT_REQ_VELPARAMS`): maximum velocity in deg/s and
@@ -447,7 +435,20 @@ impl AptSession {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(f64, f64), MotionError>> + '_ {
-        Run::new("apt.velocity_params", self, Exec::new(ops::VelQuery), now)
+        self.task("apt.velocity_params", now, Self::velocity_params)
+    }
+
+    /// Runs `op` as the operation `name`, its error on this axis.
+    fn task<'a, T: 'a>(
+        &'a mut self,
+        name: &'static str,
+        now: Duration,
+        op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, AxisError> + 'a,
+    ) -> impl Operation<Output = Result<T, MotionError>> + 'a {
+        Task::new(name, now, move |link| async move {
+            let r = op(&mut *self, &link).await;
+            r.map_err(|source| self.at(source))
+        })
     }
 
     fn at(&self, source: AxisError) -> MotionError {

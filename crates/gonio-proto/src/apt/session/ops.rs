@@ -1,27 +1,27 @@
-//! The operations: identify, set-up, home, moves, stop and the queries.
+//! The controller's operations as the manual's procedures (identify, set-up, home,
+//! moves, stop, the queries), and its link policy, which is not `engine::exchange`'s:
+//! a vanished port is reopened at once, and only while sending; a request is asked
+//! again only after a lost, late or garbled reply, and only then is the input cleared
+//! (an error report is a whole message: nothing stale is left). The keep-alive is not
+//! an exchange: the pump sends it on its clock ([`AptSession::keepalive`]).
 
+use std::mem::discriminant;
 use std::time::Duration;
 
 use tracing::{debug, warn};
 
-use super::exec::{Aborted, Next, Op, Overdue};
 use super::{AptSession, AptStatus, Seen};
+use crate::TransportError;
 use crate::apt::{
-    AptInfo, CHANNEL, GenMoveParams, HomeParams, Message, StopMode, VelParams, status,
+    AptInfo, CHANNEL, DcStatus, Direction, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet,
+    StopMode, VelParams, status,
 };
-use crate::machine::{Cx, secs};
+use crate::engine::{Link, secs};
 use crate::motion::AxisError;
 
 /// Polls after a move was sent before a still stage away from its target counts as
 /// stopped short (a controller may take a moment to report motion).
 const GRACE_POLLS: u32 = 3;
-
-fn is_status(m: &Message) -> bool {
-    matches!(
-        m,
-        Message::GetDcStatusUpdate(_) | Message::GetStatusUpdate(_)
-    )
-}
 
 /// A reply that is not the expected one.
 fn protocol(sent: &Message, reply: &Message, reason: &str) -> AxisError {
@@ -32,799 +32,565 @@ fn protocol(sent: &Message, reply: &Message, reason: &str) -> AxisError {
     }
 }
 
-/// The reply to a status request, as a status.
-fn read_status(s: &AptSession, r: Result<Message, AxisError>) -> Result<AptStatus, AxisError> {
-    let m = r?;
-    s.status_of(&m)
-        .ok_or_else(|| protocol(&s.status_request(), &m, "not this channel's status"))
-}
-
-fn status_query<O: Op>(
-    s: &AptSession,
-    then: super::exec::Then<O, Result<Message, AxisError>>,
-) -> Next<O> {
-    Next::query(s.status_request(), is_status, then)
-}
-
 /// The fault a status shows, if any: a limit switch, a drive fault, lost reference or
 /// a disabled channel.
 fn fault(st: &AptStatus, command: &str, need_homed: bool) -> Option<AxisError> {
     if st.bits & (status::FAULTS | status::HW_LIMITS) != 0 {
-        return Some(AxisError::Device {
-            command: command.into(),
-            reason: st.faults().join(", "),
-        });
+        return Some(device(command, st.faults().join(", ")));
     }
     if !st.is_enabled() {
-        return Some(AxisError::Device {
-            command: command.into(),
-            reason: "channel disabled".into(),
-        });
+        return Some(device(command, "channel disabled".into()));
     }
-    if need_homed && !st.is_homed() {
-        return Some(AxisError::NotHomed);
-    }
-    None
+    (need_homed && !st.is_homed()).then_some(AxisError::NotHomed)
 }
 
-// --- identify ---
-
-/// `HW_REQ_INFO`, with the model checked.
-#[derive(Debug)]
-pub(super) struct Identify;
-
-impl Op for Identify {
-    type Value = AptInfo;
-
-    fn start(&mut self, _: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        Next::query(
-            Message::HwReqInfo,
-            |m| matches!(m, Message::HwGetInfo(_)),
-            Self::got,
-        )
+/// A move or home search past its deadline, its position still unknown: what
+/// [`AptSession::halted`] stops the stage for and completes.
+fn overdue(operation: &'static str, target: f64, waited: Duration) -> AxisError {
+    AxisError::Timeout {
+        operation,
+        target,
+        position: None,
+        waited,
     }
 }
 
-impl Identify {
-    fn got(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<Message, AxisError>) -> Next<Self> {
-        let info = match r {
-            Ok(Message::HwGetInfo(i)) => i,
-            Ok(other) => {
-                return Next::error(s, protocol(&Message::HwReqInfo, &other, "not HW_GET_INFO"));
+/// The controller's fault report on `command`.
+fn device(command: &str, reason: String) -> AxisError {
+    AxisError::Device {
+        command: command.into(),
+        reason,
+    }
+}
+
+/// The answer a message pattern takes, for [`AptSession::ask`] and
+/// [`AptSession::receive`]: `pick!(Message::GetPosCounter { position, .. } => *position)`.
+macro_rules! pick {
+    ($p:pat => $v:expr) => {
+        |m: &Message| match m {
+            $p => Some($v),
+            _ => None,
+        }
+    };
+}
+
+impl AptSession {
+    /// Sends `m`. A vanished port is reopened at once, then up to `reconnect_attempts`
+    /// more times `reconnect_delay` apart, and `m` sent once more: its bytes never
+    /// left, so even a relative move may go.
+    async fn transmit(&self, link: &Link, m: &Message) -> Result<(), AxisError> {
+        let bytes = m.to_bytes();
+        match link.send(bytes.clone()).await {
+            Err(e @ TransportError::Disconnected { .. }) => {
+                warn!(error = %e, "apt: port lost; reopening it");
             }
-            Err(e) => return Next::error(s, e),
+            r => return Ok(r?),
+        }
+        let mut attempt = 0;
+        while let Err(e) = link.reconnect().await {
+            attempt += 1;
+            if attempt > self.policy.reconnect_attempts {
+                warn!(attempts = attempt, error = %e, "apt: port still gone; giving up");
+                return Err(e.into());
+            }
+            warn!(attempt, error = %e, "apt: reopening the port failed");
+            link.sleep(link.now().saturating_add(self.policy.reconnect_delay))
+                .await;
+        }
+        debug!("apt: port reopened");
+        Ok(link.send(bytes).await?)
+    }
+
+    /// Waits until `until` for a message `pick` takes. On the way: a status update is
+    /// counted; `MOVE_COMPLETED`, `MOVE_STOPPED` and `MOVE_HOMED` are noted for the
+    /// operation; an error report (`HW_RESPONSE`, `HW_RICHRESPONSE`) is
+    /// [`AxisError::Device`] after `after`; anything else is skipped.
+    async fn receive<T>(
+        &mut self,
+        link: &Link,
+        until: Duration,
+        after: &'static str,
+        pick: impl Fn(&Message) -> Option<T>,
+    ) -> Result<T, AxisError> {
+        let reported = |reason: String| {
+            warn!(after, %reason, "apt: the controller reported an error");
+            device(after, reason)
         };
-        let want = s.stage().controller();
+        loop {
+            let bytes = link.line(until).await?;
+            let message = match Packet::parse(&bytes) {
+                Ok(p) => p.message,
+                Err(e) => {
+                    debug!(error = %e, "apt: skipping a message that does not parse");
+                    continue;
+                }
+            };
+            self.heard(&message, bytes.len().saturating_sub(HEADER_LEN));
+            let update = self.status_of(&message).is_some();
+            let picked = pick(&message);
+            if update && (self.updates_on || picked.is_none()) {
+                self.updates += 1;
+            }
+            if let Some(v) = picked {
+                return Ok(v);
+            }
+            debug!(message = message.name(), "apt: an unsolicited message");
+            match message {
+                // Updates flow only when asked for (or left on by another host).
+                _ if update => self.updates_on = true,
+                Message::MoveCompleted { status, .. } => self.completed(status),
+                Message::MoveStopped { status, .. } => self.seen.stopped = Some(status),
+                Message::MoveHomed { .. } => self.seen.homed = true,
+                Message::HwResponse => {
+                    return Err(reported("HW_RESPONSE (an unspecified error)".into()));
+                }
+                Message::HwRichResponse {
+                    msg_id,
+                    code,
+                    notes,
+                } => {
+                    let reason = format!("error {code} on message {msg_id:#06x}: {notes}");
+                    return Err(reported(reason));
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Notes the last move's `MOT_MOVE_COMPLETED`.
+    fn completed(&mut self, status: Option<DcStatus>) {
+        self.seen.completed = Some(status);
+        self.completions += 1;
+    }
+
+    /// `request` and the answer `pick` takes, asked again up to `retries` times after
+    /// a lost, late or garbled one. While status updates flow a status request is not
+    /// sent: the next update is the answer (a reply would queue behind the updates
+    /// and be stale).
+    async fn ask<T>(
+        &mut self,
+        link: &Link,
+        request: Message,
+        pick: impl Fn(&Message) -> Option<T>,
+    ) -> Result<T, AxisError> {
+        let name = request.name();
+        let status = matches!(
+            request,
+            Message::ReqDcStatusUpdate { .. } | Message::ReqStatusUpdate { .. }
+        );
+        if self.updates_on && status {
+            // Three reply timeouts: longer than the 100 ms update period.
+            let wait = self.policy.reply_timeout.saturating_mul(3);
+            match self
+                .receive(link, link.now().saturating_add(wait), name, &pick)
+                .await
+            {
+                Err(AxisError::Transport(TransportError::Timeout(_))) => {
+                    debug!("apt: no status update came; asking for the status");
+                    self.updates_on = false;
+                }
+                r => return r,
+            }
+        }
+        let mut retries = self.policy.retries;
+        loop {
+            self.transmit(link, &request).await?;
+            let until = link.now().saturating_add(self.policy.reply_timeout);
+            let e = match self.receive(link, until, name, &pick).await {
+                Err(
+                    e @ AxisError::Transport(
+                        TransportError::Timeout(_)
+                        | TransportError::Garbled(_)
+                        | TransportError::LineTooLong,
+                    ),
+                ) => e,
+                r => return r,
+            };
+            link.clear_input();
+            if retries == 0 {
+                if self.policy.retries > 0 {
+                    warn!(request = name, error = %e, "apt: no usable reply");
+                }
+                return Err(e);
+            }
+            warn!(request = name, error = %e, "apt: no usable reply; asking again");
+            retries -= 1;
+            self.retried += 1;
+        }
+    }
+
+    /// The channel's status (`MOT_REQ_DCSTATUSUPDATE`, `MOT_REQ_STATUSUPDATE` for a
+    /// stepper), or the next update while they flow.
+    pub(super) async fn status(&mut self, link: &Link) -> Result<AptStatus, AxisError> {
+        let request = self.status_request();
+        let is_status =
+            pick!(m @ (Message::GetDcStatusUpdate(_) | Message::GetStatusUpdate(_)) => m.clone());
+        let m = self.ask(link, request.clone(), is_status).await?;
+        self.status_of(&m)
+            .ok_or_else(|| protocol(&request, &m, "not this channel's status"))
+    }
+
+    /// The pause between status polls: an abort point.
+    async fn pause(&self, link: &Link, what: &str) -> Result<(), AxisError> {
+        let until = link.now().saturating_add(self.policy.poll_interval);
+        link.poll_pause(until).await.map_err(|_| {
+            warn!("apt: {what} aborted");
+            AxisError::Aborted
+        })
+    }
+
+    /// The end of a move or home search that failed once the stage may be moving: a
+    /// profiled stop, and, past a deadline ([`overdue`]), the position it stopped at.
+    async fn halted<T>(&mut self, link: &Link, r: Result<T, AxisError>) -> Result<T, AxisError> {
+        let stop = Message::MoveStop {
+            chan: 1,
+            mode: StopMode::Profiled,
+        };
+        match r {
+            Ok(v) => Ok(v),
+            Err(AxisError::Timeout {
+                operation,
+                target,
+                waited,
+                ..
+            }) => {
+                warn!(axis = %self.axis.name, operation, ?waited, "apt: past the deadline; stopping the stage");
+                let _ = self.transmit(link, &stop).await;
+                let position = self.position(link).await.ok();
+                Err(AxisError::Timeout {
+                    operation,
+                    target,
+                    position,
+                    waited,
+                })
+            }
+            Err(e) => {
+                warn!(error = %self.at(e.clone()), "apt: stopping the stage after a fault");
+                if let Err(e) = self.transmit(link, &stop).await {
+                    warn!(error = %e, "apt: the stop after a fault was not sent");
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// `HW_REQ_INFO`; the model must be the stage's controller.
+    pub(super) async fn identify(&mut self, link: &Link) -> Result<AptInfo, AxisError> {
+        let info = pick!(Message::HwGetInfo(i) => i.clone());
+        let info = self.ask(link, Message::HwReqInfo, info).await?;
+        let want = self.stage().controller();
         if info.model.trim() != want {
             warn!(model = %info.model, want, "apt: wrong controller");
-            return Next::error(
-                s,
-                AxisError::Device {
-                    command: "HW_REQ_INFO".into(),
-                    reason: format!(
-                        "controller is a {:?}, but the stage {:?} needs a {want}",
-                        info.model, s.axis.stage
-                    ),
-                },
+            let stage = self.axis.stage;
+            let reason = format!(
+                "controller is a {:?}, but the stage {stage:?} needs a {want}",
+                info.model
             );
+            return Err(device("HW_REQ_INFO", reason));
         }
         debug!(%info, "apt: identified");
-        Next::Done(Ok(info))
+        Ok(info)
     }
-}
 
-// --- set-up ---
-
-/// Flash programming off, channel enabled, parameters set and read back.
-#[derive(Debug, Default)]
-pub(super) struct Setup {
-    vel: Option<VelParams>,
-    home: Option<HomeParams>,
-    backlash: Option<GenMoveParams>,
-}
-
-fn mismatch(what: &str, set: String, got: String) -> AxisError {
-    AxisError::Device {
-        command: format!("MOT_SET_{what}"),
-        reason: format!("read back {got}, set {set}"),
-    }
-}
-
-impl Op for Setup {
-    type Value = ();
-
-    fn start(&mut self, s: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        let stage = s.stage();
-        let (v, a) = s.axis.motion();
-        self.vel = Some(VelParams {
+    /// Flash programming off, the channel enabled, the velocity, home and (when
+    /// configured) backlash parameters set and read back, then the status updates
+    /// started when configured.
+    pub(super) async fn setup(&mut self, link: &Link) -> Result<(), AxisError> {
+        let stage = self.stage();
+        let (v, a) = self.axis.motion();
+        self.transmit(link, &Message::HwNoFlashProgramming).await?;
+        let enable = Message::SetChanEnableState {
+            chan: 1,
+            enable: true,
+        };
+        self.transmit(link, &enable).await?;
+        let enabled = pick!(Message::GetChanEnableState { enabled, .. } => *enabled);
+        let ask = Message::ReqChanEnableState { chan: 1 };
+        if !self.ask(link, ask, enabled).await? {
+            let reason = "the channel stayed disabled".into();
+            return Err(device("MOD_SET_CHANENABLESTATE", reason));
+        }
+        let vel = VelParams {
             chan: CHANNEL,
             min_velocity: 0,
             acceleration: stage.acceleration_to_apt(a),
             max_velocity: stage.velocity_to_apt(v),
-        });
-        self.home = Some(HomeParams {
+        };
+        let ask = Message::ReqVelParams { chan: 1 };
+        self.write(
+            link,
+            "VELPARAMS",
+            vel,
+            Message::SetVelParams,
+            ask,
+            Message::GetVelParams,
+        )
+        .await?;
+        let home = HomeParams {
             chan: CHANNEL,
             direction: match stage.home_direction() {
-                crate::apt::Direction::Forward => 1,
-                crate::apt::Direction::Reverse => 2,
+                Direction::Forward => 1,
+                Direction::Reverse => 2,
             },
             limit_switch: stage.home_limit_switch(),
             velocity: stage.velocity_to_apt(stage.home_velocity()),
             offset: stage.to_counts(stage.home_offset()),
-        });
-        self.backlash = s.axis.backlash_deg.map(|b| GenMoveParams {
-            chan: CHANNEL,
-            backlash: stage.to_counts(b),
-        });
-        Next::send(Message::HwNoFlashProgramming, Self::enable)
-    }
-}
-
-impl Setup {
-    fn enable(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        let m = Message::SetChanEnableState {
-            chan: 1,
-            enable: true,
         };
-        Next::send(m, Self::ask_enabled)
-    }
-
-    fn ask_enabled(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<(), AxisError>,
-    ) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        Next::query(
-            Message::ReqChanEnableState { chan: 1 },
-            |m| matches!(m, Message::GetChanEnableState { .. }),
-            Self::got_enabled,
+        let ask = Message::ReqHomeParams { chan: 1 };
+        self.write(
+            link,
+            "HOMEPARAMS",
+            home,
+            Message::SetHomeParams,
+            ask,
+            Message::GetHomeParams,
         )
+        .await?;
+        if let Some(b) = self.axis.backlash_deg {
+            let backlash = GenMoveParams {
+                chan: CHANNEL,
+                backlash: stage.to_counts(b),
+            };
+            let (set, get) = (Message::SetGenMoveParams, Message::GetGenMoveParams);
+            let ask = Message::ReqGenMoveParams { chan: 1 };
+            self.write(link, "GENMOVEPARAMS", backlash, set, ask, get)
+                .await?;
+        }
+        if self.axis.status_updates {
+            self.transmit(link, &Message::HwStartUpdateMsgs).await?;
+            self.updates_on = true;
+            debug!("apt: set up; status updates started");
+        }
+        Ok(())
     }
 
-    fn got_enabled(
+    /// `set(params)`, then `ask`, whose answer must be `get(params)`.
+    async fn write<P: Copy + std::fmt::Debug>(
         &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match r {
-            Ok(Message::GetChanEnableState { enabled: true, .. }) => {}
-            Ok(_) => {
-                return Next::error(
-                    s,
-                    AxisError::Device {
-                        command: "MOD_SET_CHANENABLESTATE".into(),
-                        reason: "the channel stayed disabled".into(),
-                    },
-                );
-            }
-            Err(e) => return Next::error(s, e),
+        link: &Link,
+        what: &str,
+        params: P,
+        set: fn(P) -> Message,
+        ask: Message,
+        get: fn(P) -> Message,
+    ) -> Result<(), AxisError> {
+        self.transmit(link, &set(params)).await?;
+        let want = get(params);
+        let same_kind = |m: &Message| (discriminant(m) == discriminant(&want)).then(|| m.clone());
+        let got = self.ask(link, ask, same_kind).await?;
+        if got == want {
+            return Ok(());
         }
-        match self.vel {
-            Some(v) => Next::send(Message::SetVelParams(v), Self::ask_vel),
-            None => self.set_home(s),
-        }
+        let reason = format!("read back {got:?}, set {params:?}");
+        Err(device(&format!("MOT_SET_{what}"), reason))
     }
 
-    fn ask_vel(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        Next::query(
-            Message::ReqVelParams { chan: 1 },
-            |m| matches!(m, Message::GetVelParams(_)),
-            Self::got_vel,
-        )
-    }
-
-    fn got_vel(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match (r, self.vel) {
-            (Ok(Message::GetVelParams(got)), Some(set)) if got == set => self.set_home(s),
-            (Ok(m), Some(set)) => Next::error(
-                s,
-                mismatch("VELPARAMS", format!("{set:?}"), format!("{m:?}")),
-            ),
-            (Err(e), _) => Next::error(s, e),
-            (Ok(_), None) => self.set_home(s),
-        }
-    }
-
-    fn set_home(&mut self, s: &AptSession) -> Next<Self> {
-        match self.home {
-            Some(h) => Next::send(Message::SetHomeParams(h), Self::ask_home),
-            None => self.set_backlash(s),
-        }
-    }
-
-    fn ask_home(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        Next::query(
-            Message::ReqHomeParams { chan: 1 },
-            |m| matches!(m, Message::GetHomeParams(_)),
-            Self::got_home,
-        )
-    }
-
-    fn got_home(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match (r, self.home) {
-            (Ok(Message::GetHomeParams(got)), Some(set)) if got == set => self.set_backlash(s),
-            (Ok(m), Some(set)) => Next::error(
-                s,
-                mismatch("HOMEPARAMS", format!("{set:?}"), format!("{m:?}")),
-            ),
-            (Err(e), _) => Next::error(s, e),
-            (Ok(_), None) => self.set_backlash(s),
-        }
-    }
-
-    fn set_backlash(&mut self, s: &AptSession) -> Next<Self> {
-        match self.backlash {
-            Some(b) => Next::send(Message::SetGenMoveParams(b), Self::ask_backlash),
-            None => self.start_updates(s),
-        }
-    }
-
-    fn ask_backlash(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<(), AxisError>,
-    ) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        Next::query(
-            Message::ReqGenMoveParams { chan: 1 },
-            |m| matches!(m, Message::GetGenMoveParams(_)),
-            Self::got_backlash,
-        )
-    }
-
-    fn got_backlash(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match (r, self.backlash) {
-            (Ok(Message::GetGenMoveParams(got)), Some(set)) if got == set => self.start_updates(s),
-            (Ok(m), Some(set)) => Next::error(
-                s,
-                mismatch("GENMOVEPARAMS", format!("{set:?}"), format!("{m:?}")),
-            ),
-            (Err(e), _) => Next::error(s, e),
-            (Ok(_), None) => self.start_updates(s),
-        }
-    }
-
-    fn start_updates(&mut self, s: &AptSession) -> Next<Self> {
-        if s.axis.status_updates {
-            Next::send(Message::HwStartUpdateMsgs, Self::updates_started)
-        } else {
-            Next::Done(Ok(()))
-        }
-    }
-
-    fn updates_started(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<(), AxisError>,
-    ) -> Next<Self> {
-        match r {
-            Ok(()) => {
-                s.updates_on = true;
-                debug!("apt: set up; status updates started");
-                Next::Done(Ok(()))
-            }
-            Err(e) => Next::error(s, e),
-        }
-    }
-}
-
-// --- home ---
-
-/// `MOT_MOVE_HOME`, then polls until homed.
-#[derive(Debug, Default)]
-pub(super) struct Home {
-    start: Duration,
-    /// A status showed the search under way.
-    saw_homing: bool,
-}
-
-impl Op for Home {
-    type Value = f64;
-
-    fn start(&mut self, s: &mut AptSession, cx: &mut Cx) -> Next<Self> {
+    /// `MOT_MOVE_HOME`, then a status every poll interval until `MOT_MOVE_HOMED` came
+    /// or a status shows the search over and the stage homed, within
+    /// `home_timeout_s`.
+    pub(super) async fn home(&mut self, link: &Link) -> Result<f64, AxisError> {
         // Completions of earlier operations must not end this one.
-        cx.clear_input();
-        s.seen = Seen::default();
-        Next::send(Message::MoveHome { chan: 1 }, Self::sent)
-    }
-}
-
-impl Home {
-    fn sent(&mut self, s: &mut AptSession, cx: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        debug!(axis = %s.axis.name, "apt: home search started");
-        self.start = cx.now;
-        self.pause(s, cx)
-    }
-
-    fn pause(&mut self, s: &AptSession, cx: &Cx) -> Next<Self> {
-        Next::Pause {
-            until: cx.now.saturating_add(s.policy.poll_interval),
-            abortable: true,
-            then: Self::waited,
-        }
-    }
-
-    fn waited(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<(), Aborted>) -> Next<Self> {
-        if r.is_err() {
-            warn!("apt: home search aborted");
-            return Next::Fail(AxisError::Aborted);
-        }
-        status_query(s, Self::polled)
-    }
-
-    fn polled(
-        &mut self,
-        s: &mut AptSession,
-        cx: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        let st = match read_status(s, r) {
-            Ok(st) => st,
-            Err(e) => return Next::Fail(e),
-        };
-        if st.bits & status::HOMING != 0 {
-            self.saw_homing = true;
-        }
-        if let Some(e) = fault(&st, "MOT_MOVE_HOME", false) {
-            // The home switch of a stage homing onto a limit switch is not a fault.
-            let limit_only = st.bits & status::FAULTS == 0 && st.is_enabled();
-            if !limit_only {
-                return Next::Fail(e);
+        link.clear_input();
+        self.seen = Seen::default();
+        self.transmit(link, &Message::MoveHome { chan: 1 }).await?;
+        debug!(axis = %self.axis.name, "apt: home search started");
+        let r = async {
+            let start = link.now();
+            let timeout = secs(self.axis.home_timeout_s);
+            let mut saw_homing = false;
+            loop {
+                self.pause(link, "home search").await?;
+                let st = self.status(link).await?;
+                saw_homing |= st.bits & status::HOMING != 0;
+                // The home switch of a stage homing onto a limit switch is not a fault.
+                let limit_only = st.bits & status::FAULTS == 0 && st.is_enabled();
+                if let Some(e) = fault(&st, "MOT_MOVE_HOME", false)
+                    && !limit_only
+                {
+                    return Err(e);
+                }
+                if self.seen.homed || (saw_homing && !st.is_moving() && st.is_homed()) {
+                    debug!(position = st.position_deg, "apt: homed");
+                    return Ok(st.position_deg);
+                }
+                if link.now().saturating_sub(start) > timeout {
+                    return Err(overdue("home", 0.0, timeout));
+                }
             }
-        }
-        let over = !st.is_moving() && st.is_homed();
-        if s.seen.homed || (self.saw_homing && over) {
-            debug!(position = st.position_deg, "apt: homed");
-            return Next::Done(Ok(st.position_deg));
-        }
-        let waited = secs(s.axis.home_timeout_s);
-        if cx.now.saturating_sub(self.start) > waited {
-            return Next::Overdue(Overdue {
-                operation: "home",
-                target: 0.0,
-                waited,
-            });
-        }
-        self.pause(s, cx)
-    }
-}
-
-// --- moves ---
-
-/// How long a move of `distance` deg may take: the policy's margin plus its factor
-/// times the trapezoid's duration at the configured velocity and acceleration.
-fn allowance(s: &AptSession, distance: f64) -> Duration {
-    let (v, a) = s.axis.motion();
-    let t = gonio_core::motion::trapezoid_time(distance, v, a);
-    s.policy
-        .move_margin
-        .saturating_add(secs(t * s.policy.move_factor))
-}
-
-/// An absolute move (`delta` `None`) or a relative one.
-#[derive(Debug)]
-pub(super) struct Motion {
-    target: f64,
-    delta: Option<f64>,
-    start: Duration,
-    allow: Duration,
-    polls: u32,
-    resent: usize,
-}
-
-impl Motion {
-    pub(super) fn to(target: f64) -> Self {
-        Motion {
-            target,
-            delta: None,
-            start: Duration::ZERO,
-            allow: Duration::ZERO,
-            polls: 0,
-            resent: 0,
-        }
+        };
+        let r = r.await;
+        self.halted(link, r).await
     }
 
-    pub(super) fn by(delta: f64) -> Self {
-        Motion {
-            target: f64::NAN,
-            delta: Some(delta),
-            ..Motion::to(f64::NAN)
-        }
-    }
-
-    fn command(&self, s: &AptSession) -> Message {
-        let stage = s.stage();
-        match self.delta {
-            None => Message::MoveAbsolute {
-                chan: CHANNEL,
-                position: Some(stage.to_counts(self.target)),
-            },
-            Some(d) => Message::MoveRelative {
-                chan: CHANNEL,
-                distance: Some(stage.to_counts(d)),
-            },
-        }
-    }
-
-    fn name(&self) -> &'static str {
-        if self.delta.is_some() {
+    /// A move to `value` deg, or by it when `relative`: the status read (the stage
+    /// must be homed and fault-free; a relative target is checked against the limits
+    /// then), the move sent, then a status every poll interval until the stage is
+    /// still within tolerance of the target.
+    pub(super) async fn motion(
+        &mut self,
+        link: &Link,
+        value: f64,
+        relative: bool,
+    ) -> Result<f64, AxisError> {
+        let name = if relative {
             "MOT_MOVE_RELATIVE"
         } else {
             "MOT_MOVE_ABSOLUTE"
+        };
+        // A distance need only be finite; its target is checked once the position
+        // is known.
+        if !relative || !value.is_finite() {
+            self.check_limits(value)?;
         }
+        link.clear_input();
+        self.seen = Seen::default();
+        let st = self.status(link).await?;
+        if let Some(e) = fault(&st, name, true) {
+            return Err(e);
+        }
+        let target = if relative {
+            st.position_deg + value
+        } else {
+            value
+        };
+        self.check_limits(target)?;
+        // The policy's margin plus its factor times the trapezoid's duration.
+        let (v, a) = self.axis.motion();
+        let t = gonio_core::motion::trapezoid_time(target - st.position_deg, v, a);
+        let allow = (self.policy.move_margin).saturating_add(secs(t * self.policy.move_factor));
+        let stage = self.stage();
+        let command = if relative {
+            Message::MoveRelative {
+                chan: CHANNEL,
+                distance: Some(stage.to_counts(value)),
+            }
+        } else {
+            Message::MoveAbsolute {
+                chan: CHANNEL,
+                position: Some(stage.to_counts(target)),
+            }
+        };
+        let r = async {
+            self.transmit(link, &command).await?;
+            debug!(axis = %self.axis.name, target, "apt: move started");
+            let start = link.now();
+            let (mut polls, mut resent) = (0, 0);
+            loop {
+                self.pause(link, "move").await?;
+                let st = match self.status(link).await {
+                    Ok(st) => st,
+                    // The outcome is unknown: an absolute move may simply go again.
+                    Err(e @ AxisError::Transport(_)) if relative => {
+                        warn!(error = %e, "apt: lost the outcome of a relative move");
+                        return Err(AxisError::Ambiguous {
+                            command: name.into(),
+                        });
+                    }
+                    Err(e @ AxisError::Transport(_)) if resent < self.policy.retries => {
+                        resent += 1;
+                        self.retried += 1;
+                        warn!(error = %e, "apt: lost the outcome of an absolute move; sending it again");
+                        self.transmit(link, &command).await?;
+                        continue;
+                    }
+                    Err(e) => return Err(e),
+                };
+                polls += 1;
+                if let Some(e) = fault(&st, name, true) {
+                    return Err(e);
+                }
+                let tolerance = self.axis.tolerance;
+                if !st.is_moving() {
+                    if (st.position_deg - target).abs() <= tolerance {
+                        debug!(position = st.position_deg, "apt: move done");
+                        return Ok(st.position_deg);
+                    }
+                    let ended = self.seen.completed.is_some() || self.seen.stopped.is_some();
+                    if ended || polls >= GRACE_POLLS {
+                        return Err(AxisError::TargetNotReached {
+                            target,
+                            position: st.position_deg,
+                            tolerance,
+                        });
+                    }
+                }
+                if link.now().saturating_sub(start) > allow {
+                    return Err(overdue("move", target, allow));
+                }
+            }
+        };
+        let r = r.await;
+        self.halted(link, r).await
     }
-}
 
-impl Op for Motion {
-    type Value = f64;
+    /// `MOT_MOVE_STOP`, then `MOT_MOVE_STOPPED` within the move margin, or else a
+    /// status showing the stage still.
+    pub(super) async fn stop(&mut self, link: &Link, profiled: bool) -> Result<(), AxisError> {
+        self.seen.stopped = None;
+        let mode = if profiled {
+            StopMode::Profiled
+        } else {
+            StopMode::Immediate
+        };
+        self.transmit(link, &Message::MoveStop { chan: 1, mode })
+            .await?;
+        let until = link.now().saturating_add(self.policy.move_margin);
+        let stopped = pick!(Message::MoveStopped { .. } => ());
+        match self.receive(link, until, "MOT_MOVE_STOP", stopped).await {
+            Err(AxisError::Transport(_)) => {}
+            r => return r,
+        }
+        let st = self.status(link).await?;
+        if st.is_moving() {
+            let reason = format!("still moving at {} deg", st.position_deg);
+            return Err(device("MOT_MOVE_STOP", reason));
+        }
+        Ok(())
+    }
 
-    fn start(&mut self, s: &mut AptSession, cx: &mut Cx) -> Next<Self> {
-        if self.delta.is_none()
-            && let Err(e) = s.check_limits(self.target)
+    /// The last move's `MOT_MOVE_COMPLETED`, waited for up to `wait` unless it came.
+    pub(super) async fn await_completion(
+        &mut self,
+        link: &Link,
+        wait: Duration,
+    ) -> Result<bool, AxisError> {
+        if self.seen.completed.is_some() {
+            return Ok(true);
+        }
+        let until = link.now().saturating_add(wait);
+        let completed = pick!(Message::MoveCompleted { status, .. } => *status);
+        match self
+            .receive(link, until, "MOT_MOVE_COMPLETED", completed)
+            .await
         {
-            return Next::error(s, e);
-        }
-        if let Some(d) = self.delta
-            && !d.is_finite()
-        {
-            return Next::error(
-                s,
-                AxisError::OutOfLimits {
-                    target: d,
-                    min: s.axis.min,
-                    max: s.axis.max,
-                    units: "deg".into(),
-                },
-            );
-        }
-        cx.clear_input();
-        s.seen = Seen::default();
-        status_query(s, Self::got_start)
-    }
-}
-
-impl Motion {
-    fn got_start(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        let st = match read_status(s, r) {
-            Ok(st) => st,
-            Err(e) => return Next::error(s, e),
-        };
-        if let Some(e) = fault(&st, self.name(), true) {
-            return Next::error(s, e);
-        }
-        if let Some(d) = self.delta {
-            self.target = st.position_deg + d;
-            if let Err(e) = s.check_limits(self.target) {
-                return Next::error(s, e);
+            Ok(status) => {
+                self.completed(status);
+                Ok(true)
             }
-        }
-        self.allow = allowance(s, self.target - st.position_deg);
-        Next::send(self.command(s), Self::sent)
-    }
-
-    fn sent(&mut self, s: &mut AptSession, cx: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::Fail(e);
-        }
-        debug!(axis = %s.axis.name, target = self.target, "apt: move started");
-        self.start = cx.now;
-        self.polls = 0;
-        self.pause(s, cx)
-    }
-
-    fn pause(&mut self, s: &AptSession, cx: &Cx) -> Next<Self> {
-        Next::Pause {
-            until: cx.now.saturating_add(s.policy.poll_interval),
-            abortable: true,
-            then: Self::waited,
+            Err(AxisError::Transport(_)) => Ok(false),
+            Err(e) => Err(e),
         }
     }
 
-    fn waited(&mut self, s: &mut AptSession, _: &mut Cx, r: Result<(), Aborted>) -> Next<Self> {
-        if r.is_err() {
-            warn!("apt: move aborted");
-            return Next::Fail(AxisError::Aborted);
-        }
-        status_query(s, Self::polled)
+    /// `MOT_REQ_POSCOUNTER`, deg.
+    pub(super) async fn position(&mut self, link: &Link) -> Result<f64, AxisError> {
+        let position = pick!(Message::GetPosCounter { position, .. } => *position);
+        let p = self
+            .ask(link, Message::ReqPosCounter { chan: 1 }, position)
+            .await?;
+        Ok(self.stage().to_deg(p))
     }
 
-    fn polled(
-        &mut self,
-        s: &mut AptSession,
-        cx: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        let st = match read_status(s, r) {
-            Ok(st) => st,
-            Err(e @ AxisError::Transport(_)) => {
-                // The outcome is unknown: an absolute move may simply go again.
-                if self.delta.is_some() {
-                    warn!(error = %e, "apt: lost the outcome of a relative move");
-                    return Next::Fail(AxisError::Ambiguous {
-                        command: self.name().into(),
-                    });
-                }
-                if self.resent >= s.policy.retries {
-                    return Next::Fail(e);
-                }
-                self.resent += 1;
-                s.retried += 1;
-                warn!(error = %e, "apt: lost the outcome of an absolute move; sending it again");
-                return Next::send(self.command(s), Self::sent_again);
-            }
-            Err(e) => return Next::Fail(e),
-        };
-        self.polls += 1;
-        if let Some(e) = fault(&st, self.name(), true) {
-            return Next::Fail(e);
-        }
-        let tolerance = s.axis.tolerance;
-        let completed = s.seen.completed.is_some() || s.seen.stopped.is_some();
-        if !st.is_moving() {
-            if (st.position_deg - self.target).abs() <= tolerance {
-                debug!(position = st.position_deg, "apt: move done");
-                return Next::Done(Ok(st.position_deg));
-            }
-            if completed || self.polls >= GRACE_POLLS {
-                return Next::Fail(AxisError::TargetNotReached {
-                    target: self.target,
-                    position: st.position_deg,
-                    tolerance,
-                });
-            }
-        }
-        if cx.now.saturating_sub(self.start) > self.allow {
-            return Next::Overdue(Overdue {
-                operation: "move",
-                target: self.target,
-                waited: self.allow,
-            });
-        }
-        self.pause(s, cx)
-    }
-
-    fn sent_again(
-        &mut self,
-        s: &mut AptSession,
-        cx: &mut Cx,
-        r: Result<(), AxisError>,
-    ) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::Fail(e);
-        }
-        self.pause(s, cx)
-    }
-}
-
-// --- stop ---
-
-/// `MOT_MOVE_STOP`, then `MOT_MOVE_STOPPED` or a still status.
-#[derive(Debug)]
-pub(super) struct Stop {
-    mode: StopMode,
-}
-
-impl Stop {
-    pub(super) fn new(profiled: bool) -> Self {
-        Stop {
-            mode: if profiled {
-                StopMode::Profiled
-            } else {
-                StopMode::Immediate
-            },
-        }
-    }
-}
-
-impl Op for Stop {
-    type Value = ();
-
-    fn start(&mut self, s: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        s.seen.stopped = None;
-        let m = Message::MoveStop {
-            chan: 1,
-            mode: self.mode,
-        };
-        Next::send(m, Self::sent)
-    }
-}
-
-impl Stop {
-    fn sent(&mut self, s: &mut AptSession, cx: &mut Cx, r: Result<(), AxisError>) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::error(s, e);
-        }
-        Next::Await {
-            want: |m| matches!(m, Message::MoveStopped { .. }),
-            until: cx.now.saturating_add(s.policy.move_margin),
-            after: "MOT_MOVE_STOP",
-            then: Self::stopped,
-        }
-    }
-
-    fn stopped(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match r {
-            Ok(_) => Next::Done(Ok(())),
-            Err(AxisError::Transport(_)) => status_query(s, Self::checked),
-            Err(e) => Next::error(s, e),
-        }
-    }
-
-    fn checked(
-        &mut self,
-        s: &mut AptSession,
-        _: &mut Cx,
-        r: Result<Message, AxisError>,
-    ) -> Next<Self> {
-        match read_status(s, r) {
-            Ok(st) if !st.is_moving() => Next::Done(Ok(())),
-            Ok(st) => Next::error(
-                s,
-                AxisError::Device {
-                    command: "MOT_MOVE_STOP".into(),
-                    reason: format!("still moving at {} deg", st.position_deg),
-                },
-            ),
-            Err(e) => Next::error(s, e),
-        }
-    }
-}
-
-// --- a late completion ---
-
-/// Waits for the last move's `MOT_MOVE_COMPLETED`, if it has not come.
-#[derive(Debug)]
-pub(super) struct AwaitCompletion {
-    wait: Duration,
-}
-
-impl AwaitCompletion {
-    pub(super) fn new(wait: Duration) -> Self {
-        AwaitCompletion { wait }
-    }
-}
-
-impl Op for AwaitCompletion {
-    type Value = bool;
-
-    fn start(&mut self, s: &mut AptSession, cx: &mut Cx) -> Next<Self> {
-        if s.seen.completed.is_some() {
-            return Next::Done(Ok(true));
-        }
-        Next::Await {
-            want: |m| matches!(m, Message::MoveCompleted { .. }),
-            until: cx.now.saturating_add(self.wait),
-            after: "MOT_MOVE_COMPLETED",
-            then: |_, s, _, r| match r {
-                Ok(Message::MoveCompleted { status, .. }) => {
-                    s.seen.completed = Some(status);
-                    s.completions += 1;
-                    Next::Done(Ok(true))
-                }
-                Ok(_) | Err(AxisError::Transport(_)) => Next::Done(Ok(false)),
-                Err(e) => Next::error(s, e),
-            },
-        }
-    }
-}
-
-// --- queries ---
-
-/// `MOT_REQ_POSCOUNTER`.
-#[derive(Debug)]
-pub(super) struct Position;
-
-impl Op for Position {
-    type Value = f64;
-
-    fn start(&mut self, _: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        Next::query(
-            Message::ReqPosCounter { chan: 1 },
-            |m| matches!(m, Message::GetPosCounter { .. }),
-            |_, s, _, r| match r {
-                Ok(Message::GetPosCounter { position, .. }) => {
-                    Next::Done(Ok(s.stage().to_deg(position)))
-                }
-                Ok(m) => Next::error(
-                    s,
-                    protocol(&Message::ReqPosCounter { chan: 1 }, &m, "not a position"),
-                ),
-                Err(e) => Next::error(s, e),
-            },
-        )
-    }
-}
-
-/// The status request of the stage's drive.
-#[derive(Debug)]
-pub(super) struct StatusQuery;
-
-impl Op for StatusQuery {
-    type Value = AptStatus;
-
-    fn start(&mut self, s: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        status_query(s, |_, s, _, r| match read_status(s, r) {
-            Ok(st) => Next::Done(Ok(st)),
-            Err(e) => Next::error(s, e),
-        })
-    }
-}
-
-/// `MOT_REQ_VELPARAMS`.
-#[derive(Debug)]
-pub(super) struct VelQuery;
-
-impl Op for VelQuery {
-    type Value = (f64, f64);
-
-    fn start(&mut self, _: &mut AptSession, _: &mut Cx) -> Next<Self> {
-        Next::query(
-            Message::ReqVelParams { chan: 1 },
-            |m| matches!(m, Message::GetVelParams(_)),
-            |_, s, _, r| match r {
-                Ok(Message::GetVelParams(v)) => {
-                    let stage = s.stage();
-                    Next::Done(Ok((
-                        stage.velocity_from_apt(v.max_velocity),
-                        stage.acceleration_from_apt(v.acceleration),
-                    )))
-                }
-                Ok(m) => Next::error(
-                    s,
-                    protocol(
-                        &Message::ReqVelParams { chan: 1 },
-                        &m,
-                        "not velocity parameters",
-                    ),
-                ),
-                Err(e) => Next::error(s, e),
-            },
-        )
+    /// `MOT_REQ_VELPARAMS`: maximum velocity, deg/s, and acceleration, deg/s².
+    pub(super) async fn velocity_params(&mut self, link: &Link) -> Result<(f64, f64), AxisError> {
+        let ask = Message::ReqVelParams { chan: 1 };
+        let v = self
+            .ask(link, ask, pick!(Message::GetVelParams(v) => *v))
+            .await?;
+        let stage = self.stage();
+        Ok((
+            stage.velocity_from_apt(v.max_velocity),
+            stage.acceleration_from_apt(v.acceleration),
+        ))
     }
 }
