@@ -140,3 +140,45 @@ async fn reopen<S: Wire>(
         }
     }
 }
+
+/// Reopens a vanished port the motion controllers' way: at once, then up to
+/// `attempts` more times, `delay` apart; the last failure is the error.
+pub(crate) async fn reopen_at_once(
+    link: &Link,
+    family: &'static str,
+    attempts: usize,
+    delay: Duration,
+    lost: &TransportError,
+) -> Result<(), TransportError> {
+    warn!(family, error = %lost, "port lost; reopening it");
+    let mut attempt = 0;
+    while let Err(e) = link.reconnect().await {
+        if attempt >= attempts {
+            warn!(family, attempts = attempt + 1, error = %e, "port still gone; giving up");
+            return Err(e);
+        }
+        attempt += 1;
+        warn!(family, attempt, error = %e, "reopening the port failed");
+        link.sleep(link.now().saturating_add(delay)).await;
+    }
+    debug!(family, "port reopened");
+    Ok(())
+}
+
+/// Sends `bytes`; a vanished port is reopened ([`reopen_at_once`]) and the bytes sent
+/// once more: they never left, so even a command that may not be repeated may go.
+pub(crate) async fn send_reopening(
+    link: &Link,
+    family: &'static str,
+    attempts: usize,
+    delay: Duration,
+    bytes: &[u8],
+) -> Result<(), TransportError> {
+    match link.send(bytes.to_vec()).await {
+        Err(lost @ TransportError::Disconnected { .. }) => {
+            reopen_at_once(link, family, attempts, delay, &lost).await?;
+            link.send(bytes.to_vec()).await
+        }
+        r => r,
+    }
+}

@@ -16,7 +16,7 @@ use crate::apt::{
     AptInfo, CHANNEL, DcStatus, Direction, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet,
     StopMode, VelParams, status,
 };
-use crate::engine::{Link, secs};
+use crate::engine::{self, Link, secs};
 use crate::motion::AxisError;
 
 /// Polls after a move was sent before a still stage away from its target counts as
@@ -79,26 +79,8 @@ impl AptSession {
     /// more times `reconnect_delay` apart, and `m` sent once more: its bytes never
     /// left, so even a relative move may go.
     async fn transmit(&self, link: &Link, m: &Message) -> Result<(), AxisError> {
-        let bytes = m.to_bytes();
-        match link.send(bytes.clone()).await {
-            Err(e @ TransportError::Disconnected { .. }) => {
-                warn!(error = %e, "apt: port lost; reopening it");
-            }
-            r => return Ok(r?),
-        }
-        let mut attempt = 0;
-        while let Err(e) = link.reconnect().await {
-            attempt += 1;
-            if attempt > self.policy.reconnect_attempts {
-                warn!(attempts = attempt, error = %e, "apt: port still gone; giving up");
-                return Err(e.into());
-            }
-            warn!(attempt, error = %e, "apt: reopening the port failed");
-            link.sleep(link.now().saturating_add(self.policy.reconnect_delay))
-                .await;
-        }
-        debug!("apt: port reopened");
-        Ok(link.send(bytes).await?)
+        let (attempts, delay) = (self.policy.reconnect_attempts, self.policy.reconnect_delay);
+        Ok(engine::send_reopening(link, "apt", attempts, delay, &m.to_bytes()).await?)
     }
 
     /// Waits until `until` for a message `pick` takes. On the way: a status update is

@@ -20,7 +20,7 @@ impl Wire for Smc100Session {
     const FAMILY: &'static str = "smc100";
 
     /// No reopening by the engine: the chain reopens at once, not after a pause, and
-    /// counts every failed attempt ([`reopen`]), so a vanished port comes out of
+    /// counts every failed attempt ([`engine::reopen_at_once`]), so a vanished port comes out of
     /// [`engine::exchange`] as is and [`Smc100Session::ask`] reopens it.
     fn policy(&self) -> Policy {
         Policy {
@@ -56,7 +56,7 @@ impl Wire for Smc100Session {
         self.retried += 1;
     }
 
-    /// Never called ([`Wire::policy`] allows no reopening); [`reopen`] keeps nothing
+    /// Never called ([`Wire::policy`] allows no reopening); [`engine::reopen_at_once`] keeps nothing
     /// either: the session holds no state of the controllers.
     fn reopened(&mut self, _: Duration) {}
 }
@@ -71,36 +71,11 @@ pub(super) enum Miss {
     Final(AxisError),
 }
 
-/// Reopens the vanished port the chain's way: at once, then up to
-/// `reconnect_attempts` more times, `reconnect_delay` apart; the last failure is the
-/// error.
-async fn reopen(link: &Link, policy: &ChainPolicy, lost: TransportError) -> Result<(), AxisError> {
-    warn!(error = %lost, "smc100: port lost; reopening it");
-    let mut attempt = 0;
-    while let Err(e) = link.reconnect().await {
-        if attempt >= policy.reconnect_attempts {
-            warn!(attempts = attempt + 1, error = %e, "smc100: port still gone; giving up");
-            return Err(AxisError::Transport(e));
-        }
-        attempt += 1;
-        warn!(attempt, error = %e, "smc100: reopening the port failed");
-        link.sleep(link.now().saturating_add(policy.reconnect_delay))
-            .await;
-    }
-    debug!("smc100: port reopened");
-    Ok(())
-}
-
 /// Sends `bytes`, no answer read (`ST`, `RS`, `PW0`, the `TE` after a set): a vanished
-/// port is reopened and the bytes sent once more.
+/// port is reopened ([`engine::reopen_at_once`]) and the bytes sent once more.
 async fn transmit(link: &Link, policy: &ChainPolicy, bytes: &[u8]) -> Result<(), AxisError> {
-    match link.send(bytes.to_vec()).await {
-        Err(lost @ TransportError::Disconnected { .. }) => {
-            reopen(link, policy, lost).await?;
-            link.send(bytes.to_vec()).await.map_err(AxisError::from)
-        }
-        r => r.map_err(AxisError::from),
-    }
+    let (attempts, delay) = (policy.reconnect_attempts, policy.reconnect_delay);
+    Ok(engine::send_reopening(link, "smc100", attempts, delay, bytes).await?)
 }
 
 /// The next line, due by `due`.
@@ -154,7 +129,7 @@ fn refused_while_moving(code: ErrorCode) -> bool {
 impl Smc100Session {
     /// Sends `frame` and returns what `receive` makes of the answer, sending it again
     /// up to `retries` times after a [`Miss::Again`] ([`engine::exchange`]). A
-    /// vanished port is reopened ([`reopen`]) and the frame sent again in the same
+    /// vanished port is reopened ([`engine::reopen_at_once`]) and the frame sent again in the same
     /// attempt; that send failing is the end.
     async fn ask<T>(
         &mut self,
@@ -186,7 +161,9 @@ impl Smc100Session {
                 {
                     let spent = self.retried - before;
                     retries = retries.saturating_sub(u32::try_from(spent).unwrap_or(u32::MAX));
-                    reopen(link, &self.policy, lost).await?;
+                    let (attempts, delay) =
+                        (self.policy.reconnect_attempts, self.policy.reconnect_delay);
+                    engine::reopen_at_once(link, "smc100", attempts, delay, &lost).await?;
                     reopened = true;
                 }
                 r => return r.and_then(|r| r),
