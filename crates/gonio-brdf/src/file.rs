@@ -471,137 +471,160 @@ pub(crate) fn parse(text: &str, path: Option<&Path>) -> Result<Model, ModelError
                     .map_err(|e| ctx.param(e, &spans, all))?,
             )
         }
-        ModelKind::Phong => {
-            let f: PhongFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let norm = choice(
-                &ctx,
-                "normalization",
-                &f.normalization,
-                PhongNormalization::Albedo,
-                &[
-                    ("albedo", PhongNormalization::Albedo),
-                    ("power", PhongNormalization::Power),
-                ],
-            )?;
-            let spans = [sp("rho_s", &f.rho_s), sp("n", &f.n)];
-            let mut m = Phong::new(
-                ch.clone(),
-                f.rho_s.get_ref().clone(),
-                f.n.get_ref().clone(),
-                norm,
-                f.shading.unwrap_or(false),
-            )
-            .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            if let Some((r, span)) = mirror(&ctx, &ch, &f.mirror)? {
-                m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            Model::Phong(m)
-        }
-        ModelKind::BlinnPhong => {
-            let f: BlinnPhongFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let spans = [sp("rho_s", &f.rho_s), sp("n", &f.n)];
-            let mut m =
-                BlinnPhong::new(ch.clone(), f.rho_s.get_ref().clone(), f.n.get_ref().clone())
-                    .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            Model::BlinnPhong(m)
-        }
-        ModelKind::Ward => {
-            let f: WardFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let (ax, ay, mut spans) =
-                roughness(&ctx, &f.alpha, &f.alpha_x, &f.alpha_y, all.clone())?;
-            spans.push(sp("rho_s", &f.rho_s));
-            let mut m = Ward::new(ch.clone(), f.rho_s.get_ref().clone(), ax, ay)
-                .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            Model::Ward(m)
-        }
-        ModelKind::CookTorrance => {
-            let f: CookTorranceFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let dist = choice(
-                &ctx,
-                "distribution",
-                &Some(f.distribution.clone()),
-                Distribution::Ggx,
-                &[
-                    ("beckmann", Distribution::Beckmann),
-                    ("ggx", Distribution::Ggx),
-                ],
-            )?;
-            let (ax, ay, mut spans) =
-                roughness(&ctx, &f.alpha, &f.alpha_x, &f.alpha_y, all.clone())?;
-            spans.push(sp("f0", &f.f0));
-            let rho_s = match &f.rho_s {
-                Some(r) => {
-                    spans.push(sp("rho_s", r));
-                    r.get_ref().clone()
-                }
-                None => vec![1.0; ch.len()],
-            };
-            let mut m = CookTorrance::new(ch.clone(), dist, f.f0.get_ref().clone(), ax, ay, rho_s)
-                .map_err(|e| ctx.param(e, &spans, all))?;
-            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            Model::CookTorrance(m)
-        }
-        ModelKind::OrenNayar => {
-            let f: OrenNayarFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let variant = choice(
-                &ctx,
-                "variant",
-                &f.variant,
-                OrenNayarVariant::Full,
-                &[
-                    ("full", OrenNayarVariant::Full),
-                    ("qualitative", OrenNayarVariant::Qualitative),
-                ],
-            )?;
-            let spans = [sp("rho", &f.rho), sp("sigma_deg", &f.sigma_deg)];
-            Model::OrenNayar(
-                OrenNayar::new(ch, f.rho.into_inner(), f.sigma_deg.into_inner(), variant)
-                    .map_err(|e| ctx.param(e, &spans, all))?,
-            )
-        }
-        ModelKind::Lafortune => {
-            let f: LafortuneFile = ctx.de(text)?;
-            let ch = ctx.channels(&f.channels)?;
-            let lobes = f
-                .lobes
-                .iter()
-                .enumerate()
-                .map(|(i, l)| lobe(&ctx, &ch, i, l))
-                .collect::<Result<Vec<_>, _>>()?;
-            let mut m =
-                Lafortune::new(ch.clone(), lobes).map_err(|e| ctx.param(e, &[], all.clone()))?;
-            if let Some((d, span)) = diffuse(&ctx, &ch, &f.diffuse)? {
-                m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            if let Some((r, span)) = mirror(&ctx, &ch, &f.mirror)? {
-                m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
-            }
-            if let Some(n) = f.fit {
-                m = m.with_fit_note(FitNote {
-                    objective: n.objective,
-                    minimised: n.minimised,
-                    constraint: n.constraint,
-                });
-            }
-            Model::Lafortune(m)
-        }
+        ModelKind::Phong => phong(&ctx)?,
+        ModelKind::BlinnPhong => blinn_phong(&ctx)?,
+        ModelKind::Ward => ward(&ctx)?,
+        ModelKind::CookTorrance => cook_torrance(&ctx)?,
+        ModelKind::OrenNayar => oren_nayar(&ctx)?,
+        ModelKind::Lafortune => lafortune(&ctx)?,
     })
+}
+
+/// Phong: its normalisation (albedo unless given), a diffuse and a mirror term.
+fn phong(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: PhongFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let norm = choice(
+        ctx,
+        "normalization",
+        &f.normalization,
+        PhongNormalization::Albedo,
+        &[
+            ("albedo", PhongNormalization::Albedo),
+            ("power", PhongNormalization::Power),
+        ],
+    )?;
+    let spans = [sp("rho_s", &f.rho_s), sp("n", &f.n)];
+    let mut m = Phong::new(
+        ch.clone(),
+        f.rho_s.get_ref().clone(),
+        f.n.get_ref().clone(),
+        norm,
+        f.shading.unwrap_or(false),
+    )
+    .map_err(|e| ctx.param(e, &spans, all))?;
+    if let Some((d, span)) = diffuse(ctx, &ch, &f.diffuse)? {
+        m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    if let Some((r, span)) = mirror(ctx, &ch, &f.mirror)? {
+        m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    Ok(Model::Phong(m))
+}
+
+/// Blinn–Phong, with a diffuse term.
+fn blinn_phong(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: BlinnPhongFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let spans = [sp("rho_s", &f.rho_s), sp("n", &f.n)];
+    let mut m = BlinnPhong::new(ch.clone(), f.rho_s.get_ref().clone(), f.n.get_ref().clone())
+        .map_err(|e| ctx.param(e, &spans, all))?;
+    if let Some((d, span)) = diffuse(ctx, &ch, &f.diffuse)? {
+        m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    Ok(Model::BlinnPhong(m))
+}
+
+/// Ward: isotropic or anisotropic roughness, with a diffuse term.
+fn ward(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: WardFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let (ax, ay, mut spans) = roughness(ctx, &f.alpha, &f.alpha_x, &f.alpha_y, all.clone())?;
+    spans.push(sp("rho_s", &f.rho_s));
+    let mut m = Ward::new(ch.clone(), f.rho_s.get_ref().clone(), ax, ay)
+        .map_err(|e| ctx.param(e, &spans, all))?;
+    if let Some((d, span)) = diffuse(ctx, &ch, &f.diffuse)? {
+        m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    Ok(Model::Ward(m))
+}
+
+/// Cook–Torrance: its distribution (GGX unless given), roughness, Fresnel
+/// reflectance at normal incidence and specular scale (1 unless given), with a diffuse
+/// term.
+fn cook_torrance(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: CookTorranceFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let dist = choice(
+        ctx,
+        "distribution",
+        &Some(f.distribution.clone()),
+        Distribution::Ggx,
+        &[
+            ("beckmann", Distribution::Beckmann),
+            ("ggx", Distribution::Ggx),
+        ],
+    )?;
+    let (ax, ay, mut spans) = roughness(ctx, &f.alpha, &f.alpha_x, &f.alpha_y, all.clone())?;
+    spans.push(sp("f0", &f.f0));
+    let rho_s = match &f.rho_s {
+        Some(r) => {
+            spans.push(sp("rho_s", r));
+            r.get_ref().clone()
+        }
+        None => vec![1.0; ch.len()],
+    };
+    let mut m = CookTorrance::new(ch.clone(), dist, f.f0.get_ref().clone(), ax, ay, rho_s)
+        .map_err(|e| ctx.param(e, &spans, all))?;
+    if let Some((d, span)) = diffuse(ctx, &ch, &f.diffuse)? {
+        m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    Ok(Model::CookTorrance(m))
+}
+
+/// Oren–Nayar, full unless the qualitative variant is named.
+fn oren_nayar(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: OrenNayarFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let variant = choice(
+        ctx,
+        "variant",
+        &f.variant,
+        OrenNayarVariant::Full,
+        &[
+            ("full", OrenNayarVariant::Full),
+            ("qualitative", OrenNayarVariant::Qualitative),
+        ],
+    )?;
+    let spans = [sp("rho", &f.rho), sp("sigma_deg", &f.sigma_deg)];
+    Ok(Model::OrenNayar(
+        OrenNayar::new(ch, f.rho.into_inner(), f.sigma_deg.into_inner(), variant)
+            .map_err(|e| ctx.param(e, &spans, all))?,
+    ))
+}
+
+/// Lafortune: its lobes, a diffuse and a mirror term, and the note of the fit that
+/// made it.
+fn lafortune(ctx: &Ctx<'_>) -> Result<Model, ModelError> {
+    let all = 0..ctx.text.len();
+    let f: LafortuneFile = ctx.de(ctx.text)?;
+    let ch = ctx.channels(&f.channels)?;
+    let lobes = f
+        .lobes
+        .iter()
+        .enumerate()
+        .map(|(i, l)| lobe(ctx, &ch, i, l))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut m = Lafortune::new(ch.clone(), lobes).map_err(|e| ctx.param(e, &[], all.clone()))?;
+    if let Some((d, span)) = diffuse(ctx, &ch, &f.diffuse)? {
+        m = m.with_diffuse(d).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    if let Some((r, span)) = mirror(ctx, &ch, &f.mirror)? {
+        m = m.with_mirror(r).map_err(|e| ctx.param(e, &[], span))?;
+    }
+    if let Some(n) = f.fit {
+        m = m.with_fit_note(FitNote {
+            objective: n.objective,
+            minimised: n.minimised,
+            constraint: n.constraint,
+        });
+    }
+    Ok(Model::Lafortune(m))
 }
 
 /// A TOML array of numbers, each in the shortest form that reads back exactly.

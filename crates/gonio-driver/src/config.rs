@@ -742,6 +742,20 @@ impl InstrumentConfig {
     /// Checks every value a driver will rely on against its range ([`limits`]); the
     /// first bad one is named by its path.
     pub fn validate(&self) -> Result<(), (String, String)> {
+        self.validate_motion_line()?;
+        for i in 0..self.motion.axes.len() {
+            self.validate_axis(i)?;
+        }
+        if let Some(k) = &self.kinematics {
+            self.validate_kinematics(k)?;
+        }
+        self.geometry.validate("geometry")?;
+        self.validate_spectral()?;
+        self.validate_detector()
+    }
+
+    /// The motion line's port, speed, waits and retries, and that there are axes.
+    fn validate_motion_line(&self) -> Result<(), (String, String)> {
         use gonio_core::limits::count_at;
         let err = |f: String, m: &str| Err((f, m.to_string()));
         let m = &self.motion;
@@ -793,122 +807,139 @@ impl InstrumentConfig {
         if m.axes.is_empty() {
             return err("motion.axes".into(), "at least one axis is needed");
         }
-        for (i, a) in m.axes.iter().enumerate() {
-            let f = |k: &str| format!("motion.axes[{i}].{k}");
-            if a.name.trim().is_empty() {
-                return err(f("name"), "must not be empty");
+        Ok(())
+    }
+
+    /// Axis `i` of `motion.axes`: its name, port and address, what its controller
+    /// kind allows, its limits, and that no earlier axis has its name or address.
+    fn validate_axis(&self, i: usize) -> Result<(), (String, String)> {
+        let err = |f: String, m: &str| Err((f, m.to_string()));
+        let m = &self.motion;
+        let a = &m.axes[i];
+        let f = |k: &str| format!("motion.axes[{i}].{k}");
+        if a.name.trim().is_empty() {
+            return err(f("name"), "must not be empty");
+        }
+        match &a.port {
+            Some(p) if p.trim().is_empty() => return err(f("port"), "must name a port"),
+            None if m.port.trim().is_empty() => {
+                return err(f("port"), "must name a port (there is no `motion.port`)");
             }
-            match &a.port {
-                Some(p) if p.trim().is_empty() => return err(f("port"), "must name a port"),
-                None if m.port.trim().is_empty() => {
-                    return err(f("port"), "must name a port (there is no `motion.port`)");
-                }
-                _ => {}
+            _ => {}
+        }
+        if a.kind == ControllerKind::Smc100
+            && !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address)
+        {
+            return err(f("address"), "must be in 1..=31");
+        }
+        if let Some(stage) = a.apt_stage() {
+            if a.address != 0 {
+                return err(
+                    f("address"),
+                    "an APT controller has no chain address; leave it out",
+                );
             }
-            if a.kind == ControllerKind::Smc100
-                && !(1..=gonio_proto::smc100::MAX_ADDRESS).contains(&a.address)
+            if a.units != "deg" {
+                return err(f("units"), "APT rotation stages move in `deg`");
+            }
+            if a.kind == ControllerKind::K10cr1 && a.stage.is_some_and(|s| s != stage) {
+                return err(f("stage"), "a K10CR1 is its own stage; leave it out");
+            }
+            if a.kind == ControllerKind::Kdc101 && stage != StageKind::Prm1Z8 {
+                return err(f("stage"), "a KDC101 drives a `prm1z8` here");
+            }
+            a.apt(stage).validate().map_err(|(k, why)| (f(k), why))?;
+            if let Some(j) = m.axes[..i]
+                .iter()
+                .position(|b| m.port_of(b) == m.port_of(a) && !is_sim_port(m.port_of(a)))
             {
-                return err(f("address"), "must be in 1..=31");
+                return Err((
+                    f("port"),
+                    format!(
+                        "an APT controller needs a line of its own; motion.axes[{j}] is on {:?} too",
+                        m.port_of(a)
+                    ),
+                ));
             }
-            if let Some(stage) = a.apt_stage() {
-                if a.address != 0 {
-                    return err(
-                        f("address"),
-                        "an APT controller has no chain address; leave it out",
-                    );
-                }
-                if a.units != "deg" {
-                    return err(f("units"), "APT rotation stages move in `deg`");
-                }
-                if a.kind == ControllerKind::K10cr1 && a.stage.is_some_and(|s| s != stage) {
-                    return err(f("stage"), "a K10CR1 is its own stage; leave it out");
-                }
-                if a.kind == ControllerKind::Kdc101 && stage != StageKind::Prm1Z8 {
-                    return err(f("stage"), "a KDC101 drives a `prm1z8` here");
-                }
-                a.apt(stage).validate().map_err(|(k, why)| (f(k), why))?;
-                if let Some(j) = m.axes[..i]
-                    .iter()
-                    .position(|b| m.port_of(b) == m.port_of(a) && !is_sim_port(m.port_of(a)))
-                {
-                    return Err((
-                        f("port"),
-                        format!(
-                            "an APT controller needs a line of its own; motion.axes[{j}] is on {:?} too",
-                            m.port_of(a)
-                        ),
-                    ));
-                }
-            } else {
-                if a.stage.is_some()
-                    || a.serial_number.is_some()
-                    || a.backlash_deg.is_some()
-                    || !a.keepalive
-                {
-                    return err(
-                        f("kind"),
-                        "`stage`, `serial_number`, `backlash_deg` and `keepalive` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
-                    );
-                }
-                if let Some(j) = m.axes[..i].iter().position(|b| {
-                    b.apt_stage().is_some()
-                        && m.port_of(b) == m.port_of(a)
-                        && !is_sim_port(m.port_of(a))
-                }) {
-                    return Err((
-                        f("port"),
-                        format!("motion.axes[{j}], an APT controller, holds this line"),
-                    ));
-                }
-            }
-            limits::POSITION.at(f("min"), a.min)?;
-            limits::POSITION.at(f("max"), a.max)?;
-            if a.max <= a.min {
-                return err(f("max"), "must be finite and greater than `min`");
-            }
-            if let Some(v) = a.velocity {
-                limits::VELOCITY.at(f("velocity"), v)?;
-            }
-            if let Some(v) = a.acceleration {
-                limits::ACCELERATION.at(f("acceleration"), v)?;
-            }
-            limits::TOLERANCE.at(f("tolerance"), a.tolerance)?;
-            limits::HOME_TIMEOUT.at(f("home_timeout_s"), a.home_timeout_s)?;
-            if let Some(j) = m.axes[..i].iter().position(|b| b.name == a.name) {
-                return Err((f("name"), format!("repeats the name of motion.axes[{j}]")));
+        } else {
+            if a.stage.is_some()
+                || a.serial_number.is_some()
+                || a.backlash_deg.is_some()
+                || !a.keepalive
+            {
+                return err(
+                    f("kind"),
+                    "`stage`, `serial_number`, `backlash_deg` and `keepalive` are for APT axes (kind = \"kdc101\" or \"k10cr1\")",
+                );
             }
             if let Some(j) = m.axes[..i].iter().position(|b| {
-                b.kind == a.kind && m.port_of(b) == m.port_of(a) && b.address == a.address
+                b.apt_stage().is_some()
+                    && m.port_of(b) == m.port_of(a)
+                    && !is_sim_port(m.port_of(a))
             }) {
                 return Err((
-                    f("address"),
-                    format!("repeats the address of motion.axes[{j}]"),
+                    f("port"),
+                    format!("motion.axes[{j}], an APT controller, holds this line"),
                 ));
             }
         }
-        if let Some(k) = &self.kinematics {
-            for role in k.axes.keys() {
-                if !k.layout.roles().contains(&role.as_str()) {
-                    return Err((
-                        format!("kinematics.axes.{role}"),
-                        format!(
-                            "not a role of this layout ({})",
-                            k.layout.roles().join(", ")
-                        ),
-                    ));
-                }
-            }
-            for (role, axis) in k.layout.roles().iter().zip(k.role_axes()) {
-                if !m.axes.iter().any(|a| a.name == axis) {
-                    return Err((
-                        format!("kinematics.axes.{role}"),
-                        format!("no axis named {axis:?} in motion.axes"),
-                    ));
-                }
+        limits::POSITION.at(f("min"), a.min)?;
+        limits::POSITION.at(f("max"), a.max)?;
+        if a.max <= a.min {
+            return err(f("max"), "must be finite and greater than `min`");
+        }
+        if let Some(v) = a.velocity {
+            limits::VELOCITY.at(f("velocity"), v)?;
+        }
+        if let Some(v) = a.acceleration {
+            limits::ACCELERATION.at(f("acceleration"), v)?;
+        }
+        limits::TOLERANCE.at(f("tolerance"), a.tolerance)?;
+        limits::HOME_TIMEOUT.at(f("home_timeout_s"), a.home_timeout_s)?;
+        if let Some(j) = m.axes[..i].iter().position(|b| b.name == a.name) {
+            return Err((f("name"), format!("repeats the name of motion.axes[{j}]")));
+        }
+        if let Some(j) = m.axes[..i].iter().position(|b| {
+            b.kind == a.kind && m.port_of(b) == m.port_of(a) && b.address == a.address
+        }) {
+            return Err((
+                f("address"),
+                format!("repeats the address of motion.axes[{j}]"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The kinematics' roles: each one of the layout's, on an axis that exists.
+    fn validate_kinematics(&self, k: &KinematicsConfig) -> Result<(), (String, String)> {
+        let m = &self.motion;
+        for role in k.axes.keys() {
+            if !k.layout.roles().contains(&role.as_str()) {
+                return Err((
+                    format!("kinematics.axes.{role}"),
+                    format!(
+                        "not a role of this layout ({})",
+                        k.layout.roles().join(", ")
+                    ),
+                ));
             }
         }
-        self.geometry.validate("geometry")?;
-        self.validate_spectral()?;
+        for (role, axis) in k.layout.roles().iter().zip(k.role_axes()) {
+            if !m.axes.iter().any(|a| a.name == axis) {
+                return Err((
+                    format!("kinematics.axes.{role}"),
+                    format!("no axis named {axis:?} in motion.axes"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The detector's port and speed, and the settings of its kind (and none of the
+    /// other kind's).
+    fn validate_detector(&self) -> Result<(), (String, String)> {
+        use gonio_core::limits::count_at;
+        let err = |f: String, m: &str| Err((f, m.to_string()));
         let d = &self.detector;
         if d.port.trim().is_empty() {
             return err("detector.port".into(), "must name a port");

@@ -132,18 +132,86 @@ impl Sample {
     /// paths of height maps and model files (the current directory without it).
     pub fn from_toml(text: &str, path: Option<&Path>) -> Result<Sample, MicroError> {
         let doc: Doc = tomlfile::parse(KIND, text, path, |_| Ok(()))?;
-        let at = |field: &str, msg: String| -> MicroError {
-            FileError::at_field(KIND, path, text, field.to_string(), msg).into()
+        let r = Reading {
+            text,
+            path,
+            dir: path
+                .and_then(Path::parent)
+                .map(Path::to_path_buf)
+                .unwrap_or_default(),
         };
-        let dir = path
-            .and_then(Path::parent)
-            .map(Path::to_path_buf)
-            .unwrap_or_default();
         let channels =
-            Channels::from_names(&doc.channels).map_err(|e| at("channels", e.to_string()))?;
-        let nc = channels.len();
+            Channels::from_names(&doc.channels).map_err(|e| r.at("channels", e.to_string()))?;
+        let mut m = Materials {
+            by_name: r.materials(&doc, &channels)?,
+            used: Vec::new(),
+        };
+        let (surface, orient) = match &doc.surface {
+            SurfaceSpec::Gaussian(g) => r.gaussian(g, &mut m)?,
+            SurfaceSpec::Sawtooth(s) => r.sawtooth(s, &mut m)?,
+            SurfaceSpec::Cylinders(c) => r.cylinders(c, &mut m)?,
+            SurfaceSpec::HeightMap(h) => r.height_map(h, &mut m)?,
+        };
+        Sample::new(channels, surface, m.used, orient)
+    }
+}
 
-        // Materials, by name.
+/// What every step of reading a surface file needs: its text and path, for errors
+/// that name the field and its line, and the directory relative paths start from.
+struct Reading<'a> {
+    text: &'a str,
+    path: Option<&'a Path>,
+    dir: PathBuf,
+}
+
+/// The materials by name, and those the surface picks, in order: a material's index
+/// in the sample is its place in `used`.
+struct Materials<'a> {
+    by_name: BTreeMap<&'a str, Material>,
+    used: Vec<Material>,
+}
+
+impl Materials<'_> {
+    /// The index of the material `name` (named by `field`), now used.
+    fn pick(&mut self, r: &Reading<'_>, name: &str, field: &str) -> Result<u8, MicroError> {
+        let m = self.by_name.get(name).ok_or_else(|| {
+            r.at(
+                field,
+                format!("no material named {name:?} under [materials]"),
+            )
+        })?;
+        self.used.push(m.clone());
+        Ok((self.used.len() - 1) as u8)
+    }
+}
+
+impl Reading<'_> {
+    /// The error at `field`, with its line in the text.
+    fn at(&self, field: &str, msg: String) -> MicroError {
+        FileError::at_field(KIND, self.path, self.text, field.to_string(), msg).into()
+    }
+
+    /// A length in [`LENGTH`].
+    fn length(&self, v: f64, field: &str) -> Result<f64, MicroError> {
+        LENGTH.check(v).map_err(|m| self.at(field, m))
+    }
+
+    /// The surface's orientation, radians (0 without one).
+    fn orientation(&self, o: Option<f64>) -> Result<f64, MicroError> {
+        ORIENTATION
+            .check(o.unwrap_or(0.0))
+            .map(f64::to_radians)
+            .map_err(|m| self.at("surface.orientation_deg", m))
+    }
+
+    /// The `[materials]`, by name, each checked against the channels (a model file's
+    /// read and its channels matched).
+    fn materials<'d>(
+        &self,
+        doc: &'d Doc,
+        channels: &Channels,
+    ) -> Result<BTreeMap<&'d str, Material>, MicroError> {
+        let nc = channels.len();
         let mut by_name: BTreeMap<&str, Material> = BTreeMap::new();
         for (name, spec) in &doc.materials {
             let f = |k: &str| format!("materials.{name}.{k}");
@@ -162,15 +230,16 @@ impl Sample {
                     albedo: albedo.clone(),
                 },
                 MaterialSpec::Model(ModelSpec { file }) => {
-                    let p = dir.join(file);
+                    let p = self.dir.join(file);
                     let model = Model::load(&p).map_err(|e| MicroError::Model {
-                        surface: path
+                        surface: self
+                            .path
                             .map_or_else(|| format!("<{KIND}>"), |p| p.display().to_string()),
                         field: f("file"),
                         source: Box::new(e),
                     })?;
-                    if model.channels() != &channels {
-                        return Err(at(
+                    if model.channels() != channels {
+                        return Err(self.at(
                             &f("file"),
                             format!(
                                 "the model {} has channels {:?}, the surface {:?}",
@@ -183,176 +252,179 @@ impl Sample {
                     Material::Model(Box::new(model))
                 }
             };
-            check_material(&m, &channels).map_err(|(k, why)| at(&f(&k), why))?;
+            check_material(&m, channels).map_err(|(k, why)| self.at(&f(&k), why))?;
             by_name.insert(name.as_str(), m);
         }
-        let mut used: Vec<Material> = Vec::new();
-        let mut pick = |name: &str, field: &str| -> Result<u8, MicroError> {
-            let m = by_name.get(name).ok_or_else(|| {
-                at(
-                    field,
-                    format!("no material named {name:?} under [materials]"),
-                )
-            })?;
-            used.push(m.clone());
-            Ok((used.len() - 1) as u8)
-        };
+        Ok(by_name)
+    }
 
-        let length = |v: f64, field: &str| -> Result<f64, MicroError> {
-            LENGTH.check(v).map_err(|m| at(field, m))
-        };
-        let orientation = |o: Option<f64>| -> Result<f64, MicroError> {
-            ORIENTATION
-                .check(o.unwrap_or(0.0))
-                .map(f64::to_radians)
-                .map_err(|m| at("surface.orientation_deg", m))
-        };
-        let (surface, orient) = match &doc.surface {
-            SurfaceSpec::Gaussian(GaussianSpec {
-                size,
-                spacing,
-                rms_height,
-                correlation_length,
-                seed,
-                material,
-                orientation_deg,
-            }) => {
-                let spacing = length(spacing.unwrap_or(1.0), "surface.spacing")?;
-                if size[0] < 2 || size[1] < 2 || size[0].saturating_mul(size[1]) > 1 << 26 {
-                    return Err(at(
-                        "surface.size",
-                        "needs at least 2 × 2 and at most 2^26 cells".into(),
-                    ));
-                }
-                let l = length(*correlation_length, "surface.correlation_length")?;
-                let max_rms = 0.5 * MAX_RMS_SLOPE * l;
-                Range::closed(0.0, max_rms, "")
-                    .check(*rms_height)
-                    .map_err(|m| {
-                        let why = if rms_height.is_finite() {
-                            format!(
-                                "{m} (at most {} × correlation_length: an RMS slope 2σ/l of \
-                                 at most {MAX_RMS_SLOPE})",
-                                0.5 * MAX_RMS_SLOPE
-                            )
-                        } else {
-                            m
-                        };
-                        at("surface.rms_height", why)
-                    })?;
-                let work = crate::heightfield::gaussian_work(size[0], size[1], l / spacing);
-                if work.is_nan() || work > crate::heightfield::MAX_GAUSSIAN_WORK {
-                    return Err(at(
-                        "surface.correlation_length",
-                        format!(
-                            "a correlation of {} cells on {} × {} cells takes {work:.2e} \
-                             kernel products to generate, more than 2^34; shorten it or the \
-                             size",
-                            gonio_core::limits::num(l / spacing),
-                            size[0],
-                            size[1],
-                        ),
-                    ));
-                }
-                pick(material, "surface.material")?;
-                let hf = HeightField::gaussian(&GaussianParams {
-                    nx: size[0],
-                    ny: size[1],
-                    spacing,
-                    rms_height: *rms_height,
-                    correlation_length: l,
-                    seed: *seed,
-                })
-                .map_err(|e| at("surface", e.to_string()))?;
-                (hf, orientation(*orientation_deg)?)
+    /// A Gaussian random surface: its size, spacing and correlation length in range, its
+    /// RMS height within the slope the simulation holds, and its generation within
+    /// the work limit.
+    fn gaussian(
+        &self,
+        GaussianSpec {
+            size,
+            spacing,
+            rms_height,
+            correlation_length,
+            seed,
+            material,
+            orientation_deg,
+        }: &GaussianSpec,
+        mats: &mut Materials<'_>,
+    ) -> Result<(HeightField, f64), MicroError> {
+        let spacing = self.length(spacing.unwrap_or(1.0), "surface.spacing")?;
+        if size[0] < 2 || size[1] < 2 || size[0].saturating_mul(size[1]) > 1 << 26 {
+            return Err(self.at(
+                "surface.size",
+                "needs at least 2 × 2 and at most 2^26 cells".into(),
+            ));
+        }
+        let l = self.length(*correlation_length, "surface.correlation_length")?;
+        let max_rms = 0.5 * MAX_RMS_SLOPE * l;
+        Range::closed(0.0, max_rms, "")
+            .check(*rms_height)
+            .map_err(|m| {
+                let why = if rms_height.is_finite() {
+                    format!(
+                        "{m} (at most {} × correlation_length: an RMS slope 2σ/l of \
+                         at most {MAX_RMS_SLOPE})",
+                        0.5 * MAX_RMS_SLOPE
+                    )
+                } else {
+                    m
+                };
+                self.at("surface.rms_height", why)
+            })?;
+        let work = crate::heightfield::gaussian_work(size[0], size[1], l / spacing);
+        if work.is_nan() || work > crate::heightfield::MAX_GAUSSIAN_WORK {
+            return Err(self.at(
+                "surface.correlation_length",
+                format!(
+                    "a correlation of {} cells on {} × {} cells takes {work:.2e} \
+                     kernel products to generate, more than 2^34; shorten it or the \
+                     size",
+                    gonio_core::limits::num(l / spacing),
+                    size[0],
+                    size[1],
+                ),
+            ));
+        }
+        mats.pick(self, material, "surface.material")?;
+        let hf = HeightField::gaussian(&GaussianParams {
+            nx: size[0],
+            ny: size[1],
+            spacing,
+            rms_height: *rms_height,
+            correlation_length: l,
+            seed: *seed,
+        })
+        .map_err(|e| self.at("surface", e.to_string()))?;
+        Ok((hf, self.orientation(*orientation_deg)?))
+    }
+
+    /// A sawtooth of two faces, each tilted between 1° and 89°.
+    fn sawtooth(
+        &self,
+        SawtoothSpec {
+            period,
+            angles_deg,
+            faces,
+            orientation_deg,
+        }: &SawtoothSpec,
+        mats: &mut Materials<'_>,
+    ) -> Result<(HeightField, f64), MicroError> {
+        let period = self.length(period.unwrap_or(1.0), "surface.period")?;
+        for a in angles_deg {
+            if !(a.is_finite() && (1.0..=89.0).contains(a)) {
+                return Err(self.at(
+                    "surface.angles_deg",
+                    format!("face tilts must be between 1° and 89°, got {a}"),
+                ));
             }
-            SurfaceSpec::Sawtooth(SawtoothSpec {
-                period,
-                angles_deg,
-                faces,
-                orientation_deg,
-            }) => {
-                let period = length(period.unwrap_or(1.0), "surface.period")?;
-                for a in angles_deg {
-                    if !(a.is_finite() && (1.0..=89.0).contains(a)) {
-                        return Err(at(
-                            "surface.angles_deg",
-                            format!("face tilts must be between 1° and 89°, got {a}"),
-                        ));
-                    }
-                }
-                pick(&faces[0], "surface.faces")?;
-                pick(&faces[1], "surface.faces")?;
-                let hf = HeightField::sawtooth(
-                    period,
-                    angles_deg[0].to_radians(),
-                    angles_deg[1].to_radians(),
-                )
-                .map_err(|e| at("surface", e.to_string()))?;
-                (hf, orientation(*orientation_deg)?)
-            }
-            SurfaceSpec::Cylinders(CylindersSpec {
-                radius,
-                spacing,
-                cells_per_period,
-                material,
-                orientation_deg,
-            }) => {
-                let r = length(*radius, "surface.radius")?;
-                let s = length(*spacing, "surface.spacing")?;
-                let cells = cells_per_period.unwrap_or(64);
-                if !(4..=1 << 20).contains(&cells) {
-                    return Err(at(
-                        "surface.cells_per_period",
-                        format!("must be in 4..=2^20, got {cells}"),
-                    ));
-                }
-                pick(material, "surface.material")?;
-                let hf = HeightField::cylinders(r, s, cells)
-                    .map_err(|e| at("surface", e.to_string()))?;
-                (hf, orientation(*orientation_deg)?)
-            }
-            SurfaceSpec::HeightMap(HeightMapSpec {
-                file,
-                spacing,
-                format,
-                size,
-                height_scale,
-                material,
-                orientation_deg,
-            }) => {
-                let spacing = length(*spacing, "surface.spacing")?;
-                let scale = HEIGHT_SCALE
-                    .check(height_scale.unwrap_or(1.0))
-                    .map_err(|m| at("surface.height_scale", m))?;
-                let fmt = format.as_deref().unwrap_or("csv");
-                if !["csv", "f64le", "f32le"].contains(&fmt) {
-                    return Err(at(
-                        "surface.format",
-                        format!("unknown format {fmt:?} (csv, f64le or f32le)"),
-                    ));
-                }
-                if fmt != "csv" && size.is_none() {
-                    return Err(at(
-                        "surface.size",
-                        format!("the {fmt} format needs size = [nx, ny]"),
-                    ));
-                }
-                pick(material, "surface.material")?;
-                let p = dir.join(file);
-                let (nx, ny, mut h) = read_height_map(&p, fmt, *size)?;
-                h.iter_mut().for_each(|v| *v *= scale);
-                let hf = HeightField::new(nx, ny, spacing, spacing, h).map_err(|e| {
-                    MicroError::HeightMap {
-                        path: p.clone(),
-                        line: None,
-                        message: e.to_string(),
-                    }
-                })?;
-                (hf, orientation(*orientation_deg)?)
-            }
-        };
-        Sample::new(channels, surface, used, orient)
+        }
+        mats.pick(self, &faces[0], "surface.faces")?;
+        mats.pick(self, &faces[1], "surface.faces")?;
+        let hf = HeightField::sawtooth(
+            period,
+            angles_deg[0].to_radians(),
+            angles_deg[1].to_radians(),
+        )
+        .map_err(|e| self.at("surface", e.to_string()))?;
+        Ok((hf, self.orientation(*orientation_deg)?))
+    }
+
+    /// Parallel cylinders: radius, spacing and cells per period in range.
+    fn cylinders(
+        &self,
+        CylindersSpec {
+            radius,
+            spacing,
+            cells_per_period,
+            material,
+            orientation_deg,
+        }: &CylindersSpec,
+        mats: &mut Materials<'_>,
+    ) -> Result<(HeightField, f64), MicroError> {
+        let r = self.length(*radius, "surface.radius")?;
+        let s = self.length(*spacing, "surface.spacing")?;
+        let cells = cells_per_period.unwrap_or(64);
+        if !(4..=1 << 20).contains(&cells) {
+            return Err(self.at(
+                "surface.cells_per_period",
+                format!("must be in 4..=2^20, got {cells}"),
+            ));
+        }
+        mats.pick(self, material, "surface.material")?;
+        let hf =
+            HeightField::cylinders(r, s, cells).map_err(|e| self.at("surface", e.to_string()))?;
+        Ok((hf, self.orientation(*orientation_deg)?))
+    }
+
+    /// A height map read from a file (CSV, or raw `f64le`/`f32le` of a given size),
+    /// scaled.
+    fn height_map(
+        &self,
+        HeightMapSpec {
+            file,
+            spacing,
+            format,
+            size,
+            height_scale,
+            material,
+            orientation_deg,
+        }: &HeightMapSpec,
+        mats: &mut Materials<'_>,
+    ) -> Result<(HeightField, f64), MicroError> {
+        let spacing = self.length(*spacing, "surface.spacing")?;
+        let scale = HEIGHT_SCALE
+            .check(height_scale.unwrap_or(1.0))
+            .map_err(|m| self.at("surface.height_scale", m))?;
+        let fmt = format.as_deref().unwrap_or("csv");
+        if !["csv", "f64le", "f32le"].contains(&fmt) {
+            return Err(self.at(
+                "surface.format",
+                format!("unknown format {fmt:?} (csv, f64le or f32le)"),
+            ));
+        }
+        if fmt != "csv" && size.is_none() {
+            return Err(self.at(
+                "surface.size",
+                format!("the {fmt} format needs size = [nx, ny]"),
+            ));
+        }
+        mats.pick(self, material, "surface.material")?;
+        let p = self.dir.join(file);
+        let (nx, ny, mut h) = read_height_map(&p, fmt, *size)?;
+        h.iter_mut().for_each(|v| *v *= scale);
+        let hf =
+            HeightField::new(nx, ny, spacing, spacing, h).map_err(|e| MicroError::HeightMap {
+                path: p.clone(),
+                line: None,
+                message: e.to_string(),
+            })?;
+        Ok((hf, self.orientation(*orientation_deg)?))
     }
 }
 

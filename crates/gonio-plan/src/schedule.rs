@@ -498,74 +498,12 @@ pub fn build(
     if checked.accepted.is_empty() {
         return Err(ScheduleError::NothingToMeasure);
     }
-    let points: Vec<[f64; 4]> = checked.accepted.iter().map(|a| a.stages).collect();
-    let optimised = if plan.order.optimise {
-        order::optimise(
-            &mech.motion,
-            start,
-            &points,
-            // Validated to [0, 3600] s when read; a plan built in code is held to the
-            // same rather than left to panic on a NaN or a 1e20.
-            Duration::try_from_secs_f64(plan.order.budget_s.clamp(0.0, crate::plan::BUDGET.max))
-                .unwrap_or(Duration::ZERO),
-        )
-    } else {
-        order::raster(points.len())
-    };
-    let reference = match &plan.drift {
-        None => None,
-        Some(d) => Some(match d.at {
-            Some(at) => {
-                let pair = pair_of(at);
-                let stages = mech
-                    .accept(pair.to_dirs())
-                    .map_err(ScheduleError::Reference)?;
-                (pair, stages)
-            }
-            None => (checked.accepted[0].pair, checked.accepted[0].stages),
-        }),
-    };
+    let optimised = point_order(plan, mech, checked, start);
+    let reference = reference_point(plan, mech, checked)?;
     let c = &plan.calibration;
-    let half_angle = mech
-        .geometry
-        .detector_radius_m
-        .atan2(mech.geometry.detector_distance_m)
-        .to_degrees();
-    let incident = match &c.incident {
-        Some(i) => {
-            let s = incident_stages(mech, i.stages, half_angle)?;
-            let wi_wo = mech.layout.forward(s);
-            let pair = PairDeg {
-                incident: SphericalDeg::from(wi_wo.wi),
-                outgoing: SphericalDeg::from(wi_wo.wo),
-            };
-            Some((pair, s))
-        }
-        None => None,
-    };
-    let mut standard = Vec::new();
-    if let Some(s) = &c.standard {
-        for (index, at) in s.at.iter().enumerate() {
-            let pair = pair_of(*at);
-            let stages = mech
-                .accept(pair.to_dirs())
-                .map_err(|reason| ScheduleError::Standard { index, reason })?;
-            standard.push((pair, stages));
-        }
-    }
-    let names = plan
-        .channel_names()
-        .map_err(|e| ScheduleError::Bands(e.to_string()))?;
-    let nm = plan.band_wavelengths();
-    let bands: Vec<Band> = names
-        .iter()
-        .flatten()
-        .enumerate()
-        .map(|(k, name)| Band {
-            name: name.clone(),
-            nm: nm.as_ref().and_then(|w| w.get(k).copied()),
-        })
-        .collect();
+    let incident = incident_point(plan, mech)?;
+    let standard = standard_points(plan, mech)?;
+    let bands = bands_of(plan)?;
     let layout = Layout {
         checked,
         repeats: plan.repeats,
@@ -594,52 +532,8 @@ pub fn build(
     } else {
         let w = estimate(&optimised, Loop::Wavelength, alternate);
         let g = estimate(&optimised, Loop::Geometry, false);
-        let requested = plan.spectral.inner;
-        let inner = match requested {
-            Inner::Wavelength => Loop::Wavelength,
-            Inner::Geometry => Loop::Geometry,
-            Inner::Auto if w.total_s < g.total_s => Loop::Wavelength,
-            Inner::Auto => Loop::Geometry,
-        };
-        let (mine, other) = match inner {
-            Loop::Wavelength => (&w, &g),
-            Loop::Geometry => (&g, &w),
-        };
-        let other_loop = match inner {
-            Loop::Wavelength => Loop::Geometry,
-            Loop::Geometry => Loop::Wavelength,
-        };
-        let reason = match requested {
-            Inner::Auto => format!(
-                "{} inner: {}, {} than {} inner: {}",
-                inner.as_str(),
-                describe(mine),
-                if mine.total_s < other.total_s {
-                    "less"
-                } else {
-                    "no more"
-                },
-                other_loop.as_str(),
-                describe(other)
-            ),
-            _ => format!(
-                "{} inner, as spectral.inner asks: {}; {} inner: {}",
-                inner.as_str(),
-                describe(mine),
-                other_loop.as_str(),
-                describe(other)
-            ),
-        };
-        let decision = SpectralDecision {
-            requested,
-            inner,
-            bands: bands.len(),
-            alternate: inner == Loop::Wavelength && alternate,
-            wavelength_inner: w,
-            geometry_inner: g,
-            reason,
-        };
-        (inner, Some(decision))
+        let decision = decide_inner(plan.spectral.inner, bands.len(), alternate, w, g);
+        (decision.inner, Some(decision))
     };
     let alternate = inner == Loop::Wavelength && alternate;
     let mut steps = Vec::new();
@@ -656,7 +550,7 @@ pub fn build(
             plan_index: p.plan_index,
         });
     });
-    let raster = estimate(&order::raster(points.len()), inner, alternate);
+    let raster = estimate(&order::raster(checked.accepted.len()), inner, alternate);
     Ok(Schedule {
         steps,
         step_s,
@@ -666,4 +560,160 @@ pub fn build(
         band_s: cost.band_s,
         spectral,
     })
+}
+
+/// The order of the accepted pairs: optimised for motion time within the plan's
+/// budget, or the plan's own.
+fn point_order(plan: &Plan, mech: &Mechanics, checked: &Checked, start: [f64; 4]) -> Vec<usize> {
+    let points: Vec<[f64; 4]> = checked.accepted.iter().map(|a| a.stages).collect();
+    if plan.order.optimise {
+        order::optimise(
+            &mech.motion,
+            start,
+            &points,
+            // Validated to [0, 3600] s when read; a plan built in code is held to the
+            // same rather than left to panic on a NaN or a 1e20.
+            Duration::try_from_secs_f64(plan.order.budget_s.clamp(0.0, crate::plan::BUDGET.max))
+                .unwrap_or(Duration::ZERO),
+        )
+    } else {
+        order::raster(points.len())
+    }
+}
+
+/// The drift reference, with its stages: the plan's `drift.at`, or its first
+/// accepted pair; `None` without drift.
+fn reference_point(
+    plan: &Plan,
+    mech: &Mechanics,
+    checked: &Checked,
+) -> Result<Option<(PairDeg, [f64; 4])>, ScheduleError> {
+    Ok(match &plan.drift {
+        None => None,
+        Some(d) => Some(match d.at {
+            Some(at) => {
+                let pair = pair_of(at);
+                let stages = mech
+                    .accept(pair.to_dirs())
+                    .map_err(ScheduleError::Reference)?;
+                (pair, stages)
+            }
+            None => (checked.accepted[0].pair, checked.accepted[0].stages),
+        }),
+    })
+}
+
+/// The incident-beam calibration's stages and the pair they face, when the plan
+/// asks for one; the detector must take the beam within its aperture.
+fn incident_point(
+    plan: &Plan,
+    mech: &Mechanics,
+) -> Result<Option<(PairDeg, [f64; 4])>, ScheduleError> {
+    let half_angle = mech
+        .geometry
+        .detector_radius_m
+        .atan2(mech.geometry.detector_distance_m)
+        .to_degrees();
+    Ok(match &plan.calibration.incident {
+        Some(i) => {
+            let s = incident_stages(mech, i.stages, half_angle)?;
+            let wi_wo = mech.layout.forward(s);
+            let pair = PairDeg {
+                incident: SphericalDeg::from(wi_wo.wi),
+                outgoing: SphericalDeg::from(wi_wo.wo),
+            };
+            Some((pair, s))
+        }
+        None => None,
+    })
+}
+
+/// The reference standard's pairs with their stages, each measurable.
+fn standard_points(
+    plan: &Plan,
+    mech: &Mechanics,
+) -> Result<Vec<(PairDeg, [f64; 4])>, ScheduleError> {
+    let mut standard = Vec::new();
+    if let Some(s) = &plan.calibration.standard {
+        for (index, at) in s.at.iter().enumerate() {
+            let pair = pair_of(*at);
+            let stages = mech
+                .accept(pair.to_dirs())
+                .map_err(|reason| ScheduleError::Standard { index, reason })?;
+            standard.push((pair, stages));
+        }
+    }
+    Ok(standard)
+}
+
+/// The plan's bands with their wavelengths; empty for one unnamed band.
+fn bands_of(plan: &Plan) -> Result<Vec<Band>, ScheduleError> {
+    let names = plan
+        .channel_names()
+        .map_err(|e| ScheduleError::Bands(e.to_string()))?;
+    let nm = plan.band_wavelengths();
+    Ok(names
+        .iter()
+        .flatten()
+        .enumerate()
+        .map(|(k, name)| Band {
+            name: name.clone(),
+            nm: nm.as_ref().and_then(|w| w.get(k).copied()),
+        })
+        .collect())
+}
+
+/// Which loop goes inside, from the plan's request and the two estimates (`w`
+/// wavelength inner, `g` geometry inner), with the reason in words.
+fn decide_inner(
+    requested: Inner,
+    bands: usize,
+    alternate: bool,
+    w: LoopEstimate,
+    g: LoopEstimate,
+) -> SpectralDecision {
+    let inner = match requested {
+        Inner::Wavelength => Loop::Wavelength,
+        Inner::Geometry => Loop::Geometry,
+        Inner::Auto if w.total_s < g.total_s => Loop::Wavelength,
+        Inner::Auto => Loop::Geometry,
+    };
+    let (mine, other) = match inner {
+        Loop::Wavelength => (&w, &g),
+        Loop::Geometry => (&g, &w),
+    };
+    let other_loop = match inner {
+        Loop::Wavelength => Loop::Geometry,
+        Loop::Geometry => Loop::Wavelength,
+    };
+    let reason = match requested {
+        Inner::Auto => format!(
+            "{} inner: {}, {} than {} inner: {}",
+            inner.as_str(),
+            describe(mine),
+            if mine.total_s < other.total_s {
+                "less"
+            } else {
+                "no more"
+            },
+            other_loop.as_str(),
+            describe(other)
+        ),
+        _ => format!(
+            "{} inner, as spectral.inner asks: {}; {} inner: {}",
+            inner.as_str(),
+            describe(mine),
+            other_loop.as_str(),
+            describe(other)
+        ),
+    };
+    SpectralDecision {
+        requested,
+        inner,
+        bands,
+        alternate: inner == Loop::Wavelength && alternate,
+        wavelength_inner: w,
+        geometry_inner: g,
+        reason,
+    }
 }
