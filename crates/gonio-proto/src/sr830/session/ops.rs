@@ -41,8 +41,19 @@ impl Wire for Sr830Session {
         }
     }
 
+    /// A lost, late, garbled or truncated reply.
     fn is_transient(e: &Sr830Error) -> bool {
-        is_transient(e)
+        matches!(
+            e,
+            Sr830Error::Protocol { .. }
+                | Sr830Error::Transport {
+                    source: TransportError::Timeout(_)
+                        | TransportError::LineTooLong
+                        | TransportError::Garbled(_)
+                        | TransportError::Nul,
+                    ..
+                }
+        )
     }
 
     fn retried(&mut self) {
@@ -62,21 +73,6 @@ impl Wire for Sr830Session {
     }
 }
 
-/// Faults a second attempt may not have: a lost, late, garbled or truncated reply.
-pub(super) fn is_transient(e: &Sr830Error) -> bool {
-    matches!(
-        e,
-        Sr830Error::Protocol { .. }
-            | Sr830Error::Transport {
-                source: TransportError::Timeout(_)
-                    | TransportError::LineTooLong
-                    | TransportError::Garbled(_)
-                    | TransportError::Nul,
-                ..
-            }
-    )
-}
-
 /// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
 /// reported as a protocol error rather than a panic.
 pub(super) fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error {
@@ -89,13 +85,6 @@ pub(super) fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error 
     }
 }
 
-/// The settings queries a read-back asks, in order.
-const SETTINGS: [Command; 3] = [
-    Command::QuerySensitivity,
-    Command::QueryTimeConstant,
-    Command::QuerySlope,
-];
-
 impl Sr830Session {
     /// Sends `command` and, for a query, reads its reply, due `timeout` after sending
     /// (a reply carries no echo, so it is parsed as the answer to `command`).
@@ -106,6 +95,9 @@ impl Sr830Session {
     /// - `SENS`, `OFLT`, `OFSL` and `*RST` update the settings the session tracks and
     ///   restart the settling wait. (`AGAN`, whose settings are read back, is left to
     ///   [`execute`](Self::execute).)
+    ///
+    /// The rest is the engine's link policy ([`engine::exchange`]): the input cleared
+    /// after a fault, a vanished port reopened with `OUTX 0` re-sent.
     pub(super) async fn ask(
         &mut self,
         link: &Link,
@@ -219,7 +211,12 @@ impl Sr830Session {
             Some(_) => return Ok(reply),
             None => {}
         }
-        for query in &SETTINGS {
+        let settings = [
+            Command::QuerySensitivity,
+            Command::QueryTimeConstant,
+            Command::QuerySlope,
+        ];
+        for query in &settings {
             match self.ask(link, query).await? {
                 Some(Reply::Sensitivity(x)) => self.sensitivity = x,
                 Some(Reply::TimeConstant(t)) => self.time_constant = t,

@@ -3,8 +3,8 @@
 use tracing::{debug, warn};
 
 use super::Sr830Session;
-use super::ops::{is_transient, unexpected};
-use crate::engine::{Link, secs};
+use super::ops::unexpected;
+use crate::engine::{Link, Wire, secs};
 use crate::sr830::{
     Command, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, SnapParams, Sr830Error, ranging,
 };
@@ -67,7 +67,7 @@ impl Sr830Session {
         loop {
             match self.lia_status(link).await {
                 Ok(_) => break,
-                Err(e) if left > 0 && is_transient(&e) => {
+                Err(e) if left > 0 && Self::is_transient(&e) => {
                     left -= 1;
                     self.retried += 1;
                 }
@@ -77,7 +77,7 @@ impl Sr830Session {
         let spacing = secs(self.time_constant.seconds());
         let (mut xs, mut ys, mut rs) = (Vec::new(), Vec::new(), Vec::new());
         loop {
-            let (x, y) = xy(self.ask(link, &snap()).await?)?;
+            let (x, y) = xy(self.ask(link, &SNAP).await?)?;
             if self.reconnects != reconnects {
                 return Ok(None);
             }
@@ -119,7 +119,7 @@ impl Sr830Session {
     /// or garbled answer, with re-asks allowed. Reading cleared the flags, so the read
     /// starts over; counted as a retry.
     pub(super) fn flags_lost(&mut self, e: &Sr830Error) -> bool {
-        if self.config.retries > 0 && is_transient(e) {
+        if self.config.retries > 0 && Self::is_transient(e) {
             warn!(error = %e, "sr830: the flags' answer was lost; reading again");
             self.retried += 1;
             true
@@ -130,9 +130,7 @@ impl Sr830Session {
 }
 
 /// `SNAP? 1,2`.
-pub(super) fn snap() -> Command {
-    Command::Snap(SnapParams::XY)
-}
+pub(super) const SNAP: Command = Command::Snap(SnapParams::XY);
 
 /// One more restart of a read after the port was reopened or the flags' answer was
 /// lost: an error once that has happened more than [`MAX_RESTARTS`] times in a row.
@@ -162,9 +160,9 @@ pub(super) fn xy(reply: Option<Reply>) -> Result<(f64, f64), Sr830Error> {
     match reply {
         Some(Reply::Snap(v)) => match v.as_slice() {
             [x, y] => Ok((*x, *y)),
-            _ => Err(unexpected(&snap(), Some(Reply::Snap(v)))),
+            _ => Err(unexpected(&SNAP, Some(Reply::Snap(v)))),
         },
-        other => Err(unexpected(&snap(), other)),
+        other => Err(unexpected(&SNAP, other)),
     }
 }
 

@@ -7,7 +7,7 @@ use std::time::Duration;
 use tracing::{debug, trace, warn};
 
 use super::Sr830Session;
-use super::read::{gave_up, restart, snap, xy};
+use super::read::{SNAP, gave_up, restart, xy};
 use crate::engine::{Link, secs};
 use crate::sr830::ranging::{self, OUTPUT_OVERLOAD};
 use crate::sr830::target::{FIRST_SNAPSHOT_TC, ReadTarget, Sequential, choose_time_constant};
@@ -158,7 +158,7 @@ impl Sr830Session {
             link.sleep(first).await;
         }
         loop {
-            let (x, y) = xy(self.ask(link, &snap()).await?)?;
+            let (x, y) = xy(self.ask(link, &SNAP).await?)?;
             if self.reconnects != reconnects {
                 return Ok(End::Interrupted);
             }
