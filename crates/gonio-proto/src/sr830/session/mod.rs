@@ -1,29 +1,23 @@
 //! The lock-in's policy as a sans-IO state machine: [`Sr830Session`].
 //!
-//! The layers, from the wire up:
-//! - `exchange`: one command on the wire, with the link policy: a vanished port
-//!   reopened (paced, within a budget) with `OUTX 0` re-sent, a lost or garbled answer
-//!   to a query that only reads asked again, the settings a command changes tracked;
-//! - `script`: operations written as steps, each asking for one exchange or pause and
-//!   naming the step that takes its result;
-//! - `ops` (set-up, commands, settings read back) and `read` (the settled, averaged,
-//!   autoranged reading).
+//! Each operation is an `async fn` the engine runs: `ops` holds the exchange (a
+//! command and, for a query, its reply; the settings it changes tracked) with the
+//! link policy it takes from the engine (`OUTX 0` re-sent on a reopened port), and
+//! set-up, any command, the status bytes; `read` the settled, averaged, autoranged
+//! reading; `targeted` the reading to a precision target.
 
-mod exchange;
 mod ops;
 mod read;
-mod script;
 mod targeted;
 
 use std::time::Duration;
 
 use super::{
-    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, ReplyError, Sensitivity,
-    Sr830Config, Sr830Error, TimeConstant,
+    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, Sensitivity, Sr830Config,
+    Sr830Error, TimeConstant,
 };
+use crate::engine::{Task, secs};
 use crate::link::Operation;
-use crate::machine::{Run, secs};
-use script::Exec;
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
 /// when its filters will have settled, and everything its operations decide: which
@@ -99,7 +93,11 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<Identity, Sr830Error>> + '_ {
-        Run::new("sr830.setup", self, Exec::new(ops::Setup::default()), now)
+        Task::new(
+            "sr830.setup",
+            now,
+            |link| async move { self.setup(&link).await },
+        )
     }
 
     /// One averaged reading: the settling wait, `LIAS?` to clear latched bits, `samples`
@@ -110,7 +108,11 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
-        Run::new("sr830.read", self, Exec::new(read::Read::default()), now)
+        Task::new(
+            "sr830.read",
+            now,
+            |link| async move { self.read(&link).await },
+        )
     }
 
     /// One reading to a precision target (see [`super::target`]): with a noise law
@@ -128,8 +130,9 @@ impl Sr830Session {
         expected: Option<f64>,
         now: Duration,
     ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
-        let op = targeted::TargetedRead::new(target, expected);
-        Run::new("sr830.read_targeted", self, Exec::new(op), now)
+        Task::new("sr830.read_targeted", now, move |link| async move {
+            self.read_targeted(&link, target, expected).await
+        })
     }
 
     /// Sends any command and, for a query, reads its reply. A vanished port is
@@ -142,8 +145,10 @@ impl Sr830Session {
         command: &Command,
         now: Duration,
     ) -> impl Operation<Output = Result<Option<Reply>, Sr830Error>> + use<'s> {
-        let op = ops::Execute::new(Some(command.clone()), |reply| reply);
-        Run::new("sr830.execute", self, Exec::new(op), now)
+        let command = command.clone();
+        Task::new("sr830.execute", now, move |link| async move {
+            self.execute(&link, Some(command)).await
+        })
     }
 
     /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the session tracks (after
@@ -152,12 +157,9 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
-        Run::new(
-            "sr830.refresh_settings",
-            self,
-            Exec::new(ops::Execute::new(None, |_| ())),
-            now,
-        )
+        Task::new("sr830.refresh_settings", now, |link| async move {
+            self.execute(&link, None).await.map(drop)
+        })
     }
 
     /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.
@@ -166,8 +168,11 @@ impl Sr830Session {
         sensitivity: Sensitivity,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
-        let op = ops::Single::new(Command::SetSensitivity(sensitivity), |_, _| Ok(()));
-        Run::new("sr830.set_sensitivity", self, Exec::new(op), now)
+        self.start_set(
+            "sr830.set_sensitivity",
+            Command::SetSensitivity(sensitivity),
+            now,
+        )
     }
 
     /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
@@ -176,8 +181,8 @@ impl Sr830Session {
         time_constant: TimeConstant,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
-        let op = ops::Single::new(Command::SetTimeConstant(time_constant), |_, _| Ok(()));
-        Run::new("sr830.set_time_constant", self, Exec::new(op), now)
+        let command = Command::SetTimeConstant(time_constant);
+        self.start_set("sr830.set_time_constant", command, now)
     }
 
     /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
@@ -186,8 +191,7 @@ impl Sr830Session {
         slope: FilterSlope,
         now: Duration,
     ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
-        let op = ops::Single::new(Command::SetSlope(slope), |_, _| Ok(()));
-        Run::new("sr830.set_slope", self, Exec::new(op), now)
+        self.start_set("sr830.set_slope", Command::SetSlope(slope), now)
     }
 
     /// `LIAS?`: the LIA status byte (reading clears it).
@@ -195,8 +199,9 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<LiaStatus, Sr830Error>> + '_ {
-        let op = ops::Single::new(Command::LiaStatus(None), lia_status);
-        Run::new("sr830.lia_status", self, Exec::new(op), now)
+        Task::new("sr830.lia_status", now, |link| async move {
+            self.lia_status(&link).await
+        })
     }
 
     /// `*ESR?`: the standard event status byte (reading clears it).
@@ -204,8 +209,21 @@ impl Sr830Session {
         &mut self,
         now: Duration,
     ) -> impl Operation<Output = Result<EventStatus, Sr830Error>> + '_ {
-        let op = ops::Single::new(Command::EventStatus(None), event_status);
-        Run::new("sr830.event_status", self, Exec::new(op), now)
+        Task::new("sr830.event_status", now, |link| async move {
+            self.event_status(&link).await
+        })
+    }
+
+    /// `command`, a set whose success has no reply of its own.
+    fn start_set(
+        &mut self,
+        name: &'static str,
+        command: Command,
+        now: Duration,
+    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+        Task::new(name, now, move |link| async move {
+            self.ask(&link, &command).await.map(drop)
+        })
     }
 
     /// The light on the detector changed at `now` (a stage moved, a shutter opened):
@@ -276,48 +294,4 @@ impl Sr830Session {
             "sr830: settling wait restarts"
         );
     }
-}
-
-/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
-/// reported as a protocol error rather than a panic.
-fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error {
-    let mut name = Vec::new();
-    command.encode_body(&mut name);
-    Sr830Error::Protocol {
-        command: String::from_utf8_lossy(&name).into_owned(),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
-    }
-}
-
-/// The answer to `LIAS?`.
-fn lia_status(command: &Command, reply: Option<Reply>) -> Result<LiaStatus, Sr830Error> {
-    match reply {
-        Some(Reply::LiaStatus(s)) => Ok(s),
-        other => Err(unexpected(command, other)),
-    }
-}
-
-/// The answer to `*ESR?`.
-fn event_status(command: &Command, reply: Option<Reply>) -> Result<EventStatus, Sr830Error> {
-    match reply {
-        Some(Reply::EventStatus(s)) => Ok(s),
-        other => Err(unexpected(command, other)),
-    }
-}
-
-/// Faults a second attempt may not have: a lost, late, garbled or truncated reply.
-fn is_transient(e: &Sr830Error) -> bool {
-    use crate::TransportError;
-    matches!(
-        e,
-        Sr830Error::Protocol { .. }
-            | Sr830Error::Transport {
-                source: TransportError::Timeout(_)
-                    | TransportError::LineTooLong
-                    | TransportError::Garbled(_)
-                    | TransportError::Nul,
-                ..
-            }
-    )
 }

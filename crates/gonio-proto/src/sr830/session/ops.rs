@@ -1,214 +1,230 @@
-//! The lock-in's operations other than reading: set-up, any command (with `AGAN`'s
-//! settings read back), one command with its typed answer.
+//! The lock-in's exchange (a command and, for a query, its reply; the settings it
+//! changes tracked), run by the engine's link policy, and its operations other than
+//! reading: set-up, any command (with `AGAN`'s settings read back), the status bytes.
+
+use std::time::Duration;
 
 use tracing::debug;
 
-use super::script::{Next, Op};
-use super::{Sr830Session, event_status, unexpected};
-use crate::machine::Cx;
-use crate::sr830::{Command, EventStatus, Identity, Interface, Reply, Sr830Error};
+use super::Sr830Session;
+use crate::TransportError;
+use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::sr830::{
+    Command, EventStatus, FilterSlope, Identity, Interface, LiaStatus, Reply, ReplyError,
+    Sensitivity, Sr830Error, TimeConstant,
+};
 
-/// Set-up: input cleared, then each of [`Setup::command`] in turn; `*IDN?` must name an
-/// SR830 and `*ESR?` must show no refused command (EXE, CMD) and no lost one: an
-/// overflowed input or output buffer clears both (manual p. 5-2), so INP or QRY means
-/// a command of the set-up may never have run.
-#[derive(Debug, Default)]
-pub(super) struct Setup {
-    /// The command being exchanged.
-    k: usize,
-    identity: Option<Identity>,
-}
+impl Wire for Sr830Session {
+    type Error = Sr830Error;
+    const FAMILY: &'static str = "sr830";
 
-/// Ends the operation on an error, or goes on with the reply.
-macro_rules! ok_or_done {
-    ($r:expr) => {
-        match $r {
-            Ok(reply) => reply,
-            Err(e) => return Next::Done(Err(e)),
-        }
-    };
-}
-
-impl Setup {
-    /// The set-up's `k`-th command: `OUTX 0` (replies go to GPIB until then), `*IDN?`,
-    /// `*CLS`, the configured `SENS`, `OFLT`, `OFSL`, and `*ESR?`, whose answer also
-    /// proves every earlier command has run.
-    fn command(s: &Sr830Session, k: usize) -> Option<Command> {
-        Some(match k {
-            0 => Command::SetInterface(Interface::Rs232),
-            1 => Command::Identify,
-            2 => Command::Clear,
-            3 => Command::SetSensitivity(s.config.sensitivity),
-            4 => Command::SetTimeConstant(s.config.time_constant),
-            5 => Command::SetSlope(s.config.slope),
-            6 => Command::EventStatus(None),
-            _ => return None,
-        })
-    }
-
-    fn next(&mut self, s: &Sr830Session) -> Next<Self> {
-        match Self::command(s, self.k) {
-            Some(c) => Next::exchange(c, Self::answered),
-            None => match self.identity.take() {
-                Some(id) => Next::Done(Ok(id)),
-                None => Next::Done(Err(unexpected(&Command::Identify, None))),
-            },
+    fn policy(&self) -> Policy {
+        Policy {
+            reconnect_attempts: self.config.reconnect_attempts,
+            reconnect_delay: self.config.reconnect_delay(),
         }
     }
 
-    fn answered(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        let reply = ok_or_done!(r);
-        match Self::command(s, self.k) {
-            Some(Command::Identify) => {
-                let id = match reply {
-                    Some(Reply::Identity(id)) => id,
-                    other => return Next::Done(Err(unexpected(&Command::Identify, other))),
-                };
-                if !id.is_sr830() {
-                    return Next::Done(Err(Sr830Error::WrongInstrument(id)));
+    fn port(&self) -> &str {
+        &self.port
+    }
+
+    fn transport(command: String, source: TransportError) -> Sr830Error {
+        Sr830Error::Transport { command, source }
+    }
+
+    fn disconnected(&self, attempts: u32, source: TransportError) -> Sr830Error {
+        Sr830Error::Disconnected {
+            port: self.port.clone(),
+            attempts,
+            source,
+        }
+    }
+
+    /// A lost, late, garbled or truncated reply.
+    fn is_transient(e: &Sr830Error) -> bool {
+        matches!(
+            e,
+            Sr830Error::Protocol { .. }
+                | Sr830Error::Transport {
+                    source: TransportError::Timeout(_)
+                        | TransportError::LineTooLong
+                        | TransportError::Garbled(_)
+                        | TransportError::Nul,
+                    ..
                 }
-                debug!(identity = %id, "sr830: identified");
-                self.identity = Some(id);
+        )
+    }
+
+    fn retried(&mut self) {
+        self.retried += 1;
+    }
+
+    /// Replies go to GPIB until `OUTX 0` is sent again.
+    fn after_reopen(&self) -> Option<(&'static str, Vec<u8>)> {
+        Some(("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes()))
+    }
+
+    fn reopened(&mut self, now: Duration) {
+        self.reconnects += 1;
+        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+        // The instrument may have restarted: let its filters settle again.
+        self.mark_unsettled(now);
+    }
+}
+
+/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
+/// reported as a protocol error rather than a panic.
+pub(super) fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error {
+    let mut name = Vec::new();
+    command.encode_body(&mut name);
+    Sr830Error::Protocol {
+        command: String::from_utf8_lossy(&name).into_owned(),
+        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
+        source: ReplyError::BadValue,
+    }
+}
+
+impl Sr830Session {
+    /// Sends `command` and, for a query, reads its reply, due `timeout` after sending
+    /// (a reply carries no echo, so it is parsed as the answer to `command`).
+    ///
+    /// - A lost or garbled answer to a query that only reads is asked again, up to
+    ///   `retries` times. The status bytes are never asked again here: reading them
+    ///   clears them, so a second read could report a latched overload as gone.
+    /// - `SENS`, `OFLT`, `OFSL` and `*RST` update the settings the session tracks and
+    ///   restart the settling wait. (`AGAN`, whose settings are read back, is left to
+    ///   [`execute`](Self::execute).)
+    ///
+    /// The rest is the engine's link policy ([`engine::exchange`]): the input cleared
+    /// after a fault, a vanished port reopened with `OUTX 0` re-sent.
+    pub(super) async fn ask(
+        &mut self,
+        link: &Link,
+        command: &Command,
+    ) -> Result<Option<Reply>, Sr830Error> {
+        let bytes = command.to_bytes();
+        let name = String::from_utf8_lossy(&bytes).trim_end().to_string();
+        let rereadable = command.expects_reply()
+            && !matches!(
+                command,
+                Command::LiaStatus(_) | Command::ErrorStatus(_) | Command::EventStatus(_)
+            );
+        let retries = if rereadable { self.config.retries } else { 0 };
+        let timeout = self.config.timeout();
+        let receive = async || {
+            if !command.expects_reply() {
+                return Ok(None);
             }
-            Some(c @ Command::EventStatus(_)) => {
-                let esr = ok_or_done!(event_status(&c, reply));
-                let lost = EventStatus::INP | EventStatus::QRY;
-                if esr.has_command_error() || esr.0 & lost != 0 {
-                    return Next::Done(Err(Sr830Error::Rejected(esr)));
-                }
-                s.identity.clone_from(&self.identity);
+            let line = link.line(link.now().saturating_add(timeout)).await?;
+            Reply::parse(command, &line).map(Some).map_err(|source| {
+                Fault::Answer(Sr830Error::Protocol {
+                    command: name.clone(),
+                    reply: line,
+                    source,
+                })
+            })
+        };
+        let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await?;
+        match *command {
+            Command::SetSensitivity(x) => self.sensitivity = x,
+            Command::SetTimeConstant(t) => self.time_constant = t,
+            Command::SetSlope(x) => self.slope = x,
+            Command::Reset => {
+                self.sensitivity = Sensitivity::default();
+                self.time_constant = TimeConstant::default();
+                self.slope = FilterSlope::default();
             }
-            _ => {}
+            _ => return Ok(reply),
         }
-        self.k += 1;
-        self.next(s)
+        self.mark_unsettled(link.now());
+        Ok(reply)
     }
-}
 
-impl Op for Setup {
-    type Value = Identity;
-
-    fn start(&mut self, s: &mut Sr830Session, cx: &mut Cx) -> Next<Self> {
-        cx.clear_input();
-        self.next(s)
-    }
-}
-
-/// The settings queries `refresh_settings` reads back, in order.
-const SETTINGS: [Command; 3] = [
-    Command::QuerySensitivity,
-    Command::QueryTimeConstant,
-    Command::QuerySlope,
-];
-
-/// Any command (or none, for a settings read-back alone); after `AGAN`, or alone, the
-/// settings are read back (`SENS?`, `OFLT?`, `OFSL?`) and the settling wait restarts.
-#[derive(Debug)]
-pub(super) struct Execute<T> {
-    command: Option<Command>,
-    reply: Option<Reply>,
-    /// Position in [`SETTINGS`].
-    k: usize,
-    finish: fn(Option<Reply>) -> T,
-}
-
-impl<T> Execute<T> {
-    pub(super) fn new(command: Option<Command>, finish: fn(Option<Reply>) -> T) -> Self {
-        Execute {
-            command,
-            reply: None,
-            k: 0,
-            finish,
+    /// `LIAS?`: the LIA status byte (reading clears it).
+    pub(super) async fn lia_status(&mut self, link: &Link) -> Result<LiaStatus, Sr830Error> {
+        let command = Command::LiaStatus(None);
+        match self.ask(link, &command).await? {
+            Some(Reply::LiaStatus(s)) => Ok(s),
+            other => Err(unexpected(&command, other)),
         }
     }
 
-    fn executed(
+    /// `*ESR?`: the standard event status byte (reading clears it).
+    pub(super) async fn event_status(&mut self, link: &Link) -> Result<EventStatus, Sr830Error> {
+        let command = Command::EventStatus(None);
+        match self.ask(link, &command).await? {
+            Some(Reply::EventStatus(s)) => Ok(s),
+            other => Err(unexpected(&command, other)),
+        }
+    }
+
+    /// Set-up: input cleared, `OUTX 0` (replies go to GPIB until then), `*IDN?` (must
+    /// name an SR830), `*CLS`, the configured `SENS`, `OFLT`, `OFSL`, and `*ESR?`, whose
+    /// answer also proves every earlier command has run. It must show no refused
+    /// command (EXE, CMD) and no lost one: an overflowed input or output buffer clears
+    /// both (manual p. 5-2), so INP or QRY means a command may never have run.
+    pub(super) async fn setup(&mut self, link: &Link) -> Result<Identity, Sr830Error> {
+        link.clear_input();
+        self.ask(link, &Command::SetInterface(Interface::Rs232))
+            .await?;
+        let identity = match self.ask(link, &Command::Identify).await? {
+            Some(Reply::Identity(id)) => id,
+            other => return Err(unexpected(&Command::Identify, other)),
+        };
+        if !identity.is_sr830() {
+            return Err(Sr830Error::WrongInstrument(identity));
+        }
+        debug!(identity = %identity, "sr830: identified");
+        let config = &self.config;
+        let settings = [
+            Command::Clear,
+            Command::SetSensitivity(config.sensitivity),
+            Command::SetTimeConstant(config.time_constant),
+            Command::SetSlope(config.slope),
+        ];
+        for command in &settings {
+            self.ask(link, command).await?;
+        }
+        let esr = self.event_status(link).await?;
+        if esr.has_command_error() || esr.0 & (EventStatus::INP | EventStatus::QRY) != 0 {
+            return Err(Sr830Error::Rejected(esr));
+        }
+        self.identity = Some(identity.clone());
+        Ok(identity)
+    }
+
+    /// `command` (or none, for a settings read-back alone); after `AGAN`, or alone, the
+    /// settings are read back (`SENS?`, `OFLT?`, `OFSL?`) and the settling wait
+    /// restarts.
+    pub(super) async fn execute(
         &mut self,
-        _: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        self.reply = ok_or_done!(r);
-        if self.command == Some(Command::AutoGain) {
-            debug!("sr830: auto gain done; reading the settings back");
-            self.read_back()
-        } else {
-            Next::Done(Ok((self.finish)(self.reply.take())))
+        link: &Link,
+        command: Option<Command>,
+    ) -> Result<Option<Reply>, Sr830Error> {
+        let reply = match &command {
+            Some(c) => self.ask(link, c).await?,
+            None => None,
+        };
+        match command {
+            Some(Command::AutoGain) => debug!("sr830: auto gain done; reading the settings back"),
+            Some(_) => return Ok(reply),
+            None => {}
         }
-    }
-
-    fn read_back(&mut self) -> Next<Self> {
-        match SETTINGS.get(self.k) {
-            Some(c) => Next::exchange(c.clone(), Self::read),
-            None => Next::Done(Ok((self.finish)(self.reply.take()))),
+        let settings = [
+            Command::QuerySensitivity,
+            Command::QueryTimeConstant,
+            Command::QuerySlope,
+        ];
+        for query in &settings {
+            match self.ask(link, query).await? {
+                Some(Reply::Sensitivity(x)) => self.sensitivity = x,
+                Some(Reply::TimeConstant(t)) => self.time_constant = t,
+                Some(Reply::Slope(x)) => self.slope = x,
+                other => return Err(unexpected(query, other)),
+            }
         }
-    }
-
-    fn read(
-        &mut self,
-        s: &mut Sr830Session,
-        cx: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        match ok_or_done!(r) {
-            Some(Reply::Sensitivity(x)) => s.sensitivity = x,
-            Some(Reply::TimeConstant(t)) => s.time_constant = t,
-            Some(Reply::Slope(x)) => s.slope = x,
-            other => return Next::Done(Err(unexpected(&SETTINGS[self.k], other))),
-        }
-        self.k += 1;
-        if self.k == SETTINGS.len() {
-            s.mark_unsettled(cx.now);
-        }
-        self.read_back()
-    }
-}
-
-impl<T> Op for Execute<T> {
-    type Value = T;
-
-    fn start(&mut self, _: &mut Sr830Session, _: &mut Cx) -> Next<Self> {
-        match &self.command {
-            Some(c) => Next::exchange(c.clone(), Self::executed),
-            None => self.read_back(),
-        }
-    }
-}
-
-/// One command and its typed answer.
-#[derive(Debug)]
-pub(super) struct Single<T> {
-    command: Command,
-    answer: fn(&Command, Option<Reply>) -> Result<T, Sr830Error>,
-}
-
-impl<T> Single<T> {
-    pub(super) fn new(
-        command: Command,
-        answer: fn(&Command, Option<Reply>) -> Result<T, Sr830Error>,
-    ) -> Self {
-        Single { command, answer }
-    }
-
-    fn got(
-        &mut self,
-        _: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        Next::Done(r.and_then(|reply| (self.answer)(&self.command, reply)))
-    }
-}
-
-impl<T> Op for Single<T> {
-    type Value = T;
-
-    fn start(&mut self, _: &mut Sr830Session, _: &mut Cx) -> Next<Self> {
-        Next::exchange(self.command.clone(), Self::got)
+        self.mark_unsettled(link.now());
+        Ok(reply)
     }
 }

@@ -1,225 +1,136 @@
 //! A reading: settled, averaged, flagged, autoranged.
 
-use std::time::Duration;
-
 use tracing::{debug, warn};
 
-use super::script::{Next, Op};
-use super::{Sr830Session, is_transient, lia_status, unexpected};
-use crate::machine::{Cx, secs};
+use super::Sr830Session;
+use super::ops::unexpected;
+use crate::engine::{Link, Wire, secs};
 use crate::sr830::{
-    Command, LiaStatus, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, SnapParams, Sr830Error,
-    ranging,
+    Command, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, SnapParams, Sr830Error, ranging,
 };
 
 /// Most times one read starts over after the port was lost and reopened (or the flags'
 /// answer was lost).
 const MAX_RESTARTS: usize = 2;
 
-/// The read operation. Each cycle: wait until the filters have settled; `LIAS?` to
-/// clear the bits latched while settling (asked again if its answer is lost: its value
-/// is not used); `SNAP? 1,2` `samples` times, one time constant apart; `LIAS?` for the
-/// flags (if its answer is lost, so are the flags, and the cycle starts again). A cycle
-/// during which the port was reopened starts again, since its samples may predate an
-/// instrument restart. With autorange, an input or output overload steps one range
-/// less sensitive, a clean signal under `min_fraction` of full scale one range more,
-/// and the cycle runs again.
-#[derive(Debug, Default)]
-pub(super) struct Read {
-    /// Range changes made.
-    steps: usize,
-    /// Consecutive cycles started again.
-    restarts: usize,
-    /// The session's reconnection count when the cycle began.
-    reconnects: usize,
-    /// Re-asks left for the clearing `LIAS?`.
-    left: u32,
-    /// Samples taken in this cycle, and their spacing.
-    k: usize,
-    spacing: Duration,
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    rs: Vec<f64>,
-}
-
-impl Op for Read {
-    type Value = Reading;
-
-    fn start(&mut self, s: &mut Sr830Session, cx: &mut Cx) -> Next<Self> {
-        self.begin_cycle(s, cx)
-    }
-}
-
-pub(super) fn snap() -> Command {
-    Command::Snap(SnapParams::XY)
-}
-
-impl Read {
-    fn begin_cycle(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
-        self.reconnects = s.reconnects;
-        if cx.now < s.settled_at {
-            debug!(wait = ?(s.settled_at - cx.now), "sr830: waiting for the filters to settle");
-            return Next::Pause {
-                until: s.settled_at,
-                then: Self::settled,
+impl Sr830Session {
+    /// The read: a cycle (see [`cycle`](Self::cycle)), started again when it was
+    /// interrupted; with autorange, an input or output overload steps one range less
+    /// sensitive, a clean signal under `min_fraction` of full scale one range more,
+    /// and the cycle runs again.
+    pub(super) async fn read(&mut self, link: &Link) -> Result<Reading, Sr830Error> {
+        let mut steps = 0;
+        let mut restarts = 0;
+        loop {
+            let Some(mut reading) = self.cycle(link).await? else {
+                restart(&mut restarts)?;
+                continue;
             };
-        }
-        self.clear_flags(s)
-    }
-
-    fn settled(&mut self, s: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
-        self.clear_flags(s)
-    }
-
-    fn clear_flags(&mut self, s: &Sr830Session) -> Next<Self> {
-        self.left = s.config.retries;
-        Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
-    }
-
-    fn flags_cleared(
-        &mut self,
-        s: &mut Sr830Session,
-        _: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
-            Ok(_) => {
-                self.k = 0;
-                self.spacing = secs(s.time_constant.seconds());
-                self.xs.clear();
-                self.ys.clear();
-                self.rs.clear();
-                Next::exchange(snap(), Self::snapped)
+            // Only consecutive failures count towards giving up.
+            restarts = 0;
+            reading.autorange_steps = steps;
+            if !self.config.autorange {
+                return Ok(reading);
             }
-            Err(e) if self.left > 0 && is_transient(&e) => {
-                self.left -= 1;
-                s.retried += 1;
-                Next::exchange(Command::LiaStatus(None), Self::flags_cleared)
-            }
-            Err(e) => Next::Done(Err(e)),
-        }
-    }
-
-    fn snapped(
-        &mut self,
-        s: &mut Sr830Session,
-        cx: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        let (x, y) = match r.and_then(xy) {
-            Ok(v) => v,
-            Err(e) => return Next::Done(Err(e)),
-        };
-        if s.reconnects != self.reconnects {
-            return self.interrupted(s, cx);
-        }
-        self.xs.push(x);
-        self.ys.push(y);
-        self.rs.push(x.hypot(y));
-        self.k += 1;
-        if self.k < s.config.samples {
-            return Next::Pause {
-                until: cx.now.saturating_add(self.spacing),
-                then: Self::spaced,
+            let f = reading.flags;
+            let next = ranging::fixed_next(
+                self.sensitivity,
+                reading.r_mean,
+                f.input_overload || f.output_overload,
+                !f.any(),
+                self.config.min_fraction,
+            );
+            let Some(next) = next else {
+                return Ok(reading);
             };
+            if steps >= MAX_AUTORANGE_STEPS {
+                return Err(gave_up(steps, reading));
+            }
+            debug!(from = %self.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange step");
+            self.ask(link, &Command::SetSensitivity(next)).await?;
+            steps += 1;
         }
-        Next::exchange(Command::LiaStatus(None), Self::flags_read)
     }
 
-    fn spaced(&mut self, _: &mut Sr830Session, _: &mut Cx, (): ()) -> Next<Self> {
-        Next::exchange(snap(), Self::snapped)
-    }
-
-    fn flags_read(
-        &mut self,
-        s: &mut Sr830Session,
-        cx: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        let status = match r.and_then(|reply| lia_status(&Command::LiaStatus(None), reply)) {
+    /// One cycle: wait until the filters have settled; `LIAS?` to clear the bits
+    /// latched while settling (asked again if its answer is lost: its value is not
+    /// used); `SNAP? 1,2` `samples` times, one time constant apart; `LIAS?` for the
+    /// flags. `None` when it must start again: the port was reopened during it (its
+    /// samples may predate an instrument restart), or the flags' answer was lost.
+    async fn cycle(&mut self, link: &Link) -> Result<Option<Reading>, Sr830Error> {
+        let reconnects = self.reconnects;
+        if link.now() < self.settled_at {
+            debug!(wait = ?(self.settled_at - link.now()), "sr830: waiting for the filters to settle");
+            link.sleep(self.settled_at).await;
+        }
+        let mut left = self.config.retries;
+        loop {
+            match self.lia_status(link).await {
+                Ok(_) => break,
+                Err(e) if left > 0 && Self::is_transient(&e) => {
+                    left -= 1;
+                    self.retried += 1;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let spacing = secs(self.time_constant.seconds());
+        let (mut xs, mut ys, mut rs) = (Vec::new(), Vec::new(), Vec::new());
+        loop {
+            let (x, y) = xy(self.ask(link, &SNAP).await?)?;
+            if self.reconnects != reconnects {
+                return Ok(None);
+            }
+            xs.push(x);
+            ys.push(y);
+            rs.push(x.hypot(y));
+            if rs.len() >= self.config.samples {
+                break;
+            }
+            link.sleep(link.now().saturating_add(spacing)).await;
+        }
+        let status = match self.lia_status(link).await {
             Ok(status) => status,
             // Reading cleared the flags: the cycle starts again.
-            Err(e) if flags_lost(s, &e) => return self.interrupted(s, cx),
-            Err(e) => return Next::Done(Err(e)),
+            Err(e) if self.flags_lost(&e) => return Ok(None),
+            Err(e) => return Err(e),
         };
-        if s.reconnects != self.reconnects {
-            return self.interrupted(s, cx);
+        if self.reconnects != reconnects {
+            return Ok(None);
         }
-        let reading = self.reading(s, status);
-        self.cycle_done(s, reading)
-    }
-
-    fn reading(&self, s: &Sr830Session, status: LiaStatus) -> Reading {
-        let (r_mean, r_std) = mean_std(&self.rs);
-        Reading {
+        let (r_mean, r_std) = mean_std(&rs);
+        Ok(Some(Reading {
             r_mean,
             r_std,
-            x_mean: mean_std(&self.xs).0,
-            y_mean: mean_std(&self.ys).0,
-            n: s.config.samples,
-            sensitivity: s.sensitivity,
-            time_constant: s.time_constant,
-            slope: s.slope,
+            x_mean: mean_std(&xs).0,
+            y_mean: mean_std(&ys).0,
+            n: self.config.samples,
+            sensitivity: self.sensitivity,
+            time_constant: self.time_constant,
+            slope: self.slope,
             status,
             flags: ReadingFlags::from_status(status),
             autorange_steps: 0,
             capped: false,
-        }
+        }))
     }
 
-    /// The port was reopened during the cycle, or the flags' answer was lost: start
-    /// again, unless that has happened too often in a row.
-    fn interrupted(&mut self, s: &Sr830Session, cx: &Cx) -> Next<Self> {
-        if let Err(e) = restart(&mut self.restarts) {
-            return Next::Done(Err(e));
+    /// Whether a failed `LIAS?` after the snapshots is worth reading again for: a lost
+    /// or garbled answer, with re-asks allowed. Reading cleared the flags, so the read
+    /// starts over; counted as a retry.
+    pub(super) fn flags_lost(&mut self, e: &Sr830Error) -> bool {
+        if self.config.retries > 0 && Self::is_transient(e) {
+            warn!(error = %e, "sr830: the flags' answer was lost; reading again");
+            self.retried += 1;
+            true
+        } else {
+            false
         }
-        self.begin_cycle(s, cx)
-    }
-
-    fn cycle_done(&mut self, s: &Sr830Session, mut reading: Reading) -> Next<Self> {
-        // Only consecutive failures count towards giving up.
-        self.restarts = 0;
-        reading.autorange_steps = self.steps;
-        if !s.config.autorange {
-            return Next::Done(Ok(reading));
-        }
-        let f = reading.flags;
-        let next = ranging::fixed_next(
-            s.sensitivity,
-            reading.r_mean,
-            f.input_overload || f.output_overload,
-            !f.any(),
-            s.config.min_fraction,
-        );
-        let Some(next) = next else {
-            return Next::Done(Ok(reading));
-        };
-        if self.steps >= MAX_AUTORANGE_STEPS {
-            return Next::Done(Err(gave_up(self.steps, reading)));
-        }
-        debug!(
-            from = %s.sensitivity,
-            to = %next,
-            flags = ?f,
-            r = reading.r_mean,
-            "sr830: autorange step",
-        );
-        Next::exchange(Command::SetSensitivity(next), Self::ranged)
-    }
-
-    fn ranged(
-        &mut self,
-        s: &mut Sr830Session,
-        cx: &mut Cx,
-        r: Result<Option<Reply>, Sr830Error>,
-    ) -> Next<Self> {
-        if let Err(e) = r {
-            return Next::Done(Err(e));
-        }
-        self.steps += 1;
-        self.begin_cycle(s, cx)
     }
 }
+
+/// `SNAP? 1,2`.
+pub(super) const SNAP: Command = Command::Snap(SnapParams::XY);
 
 /// One more restart of a read after the port was reopened or the flags' answer was
 /// lost: an error once that has happened more than [`MAX_RESTARTS`] times in a row.
@@ -233,19 +144,6 @@ pub(super) fn restart(restarts: &mut usize) -> Result<(), Sr830Error> {
     }
     debug!(restarts = *restarts, "sr830: read starts again");
     Ok(())
-}
-
-/// Whether a failed `LIAS?` after the snapshots is worth reading again for: a lost or
-/// garbled answer, with re-asks allowed. Reading cleared the flags, so the read starts
-/// over; counted as a retry.
-pub(super) fn flags_lost(s: &mut Sr830Session, e: &Sr830Error) -> bool {
-    if s.config.retries > 0 && is_transient(e) {
-        warn!(error = %e, "sr830: the flags' answer was lost; reading again");
-        s.retried += 1;
-        true
-    } else {
-        false
-    }
 }
 
 /// Autoranging gives up after `steps` range changes; `last` is the last reading.
@@ -262,9 +160,9 @@ pub(super) fn xy(reply: Option<Reply>) -> Result<(f64, f64), Sr830Error> {
     match reply {
         Some(Reply::Snap(v)) => match v.as_slice() {
             [x, y] => Ok((*x, *y)),
-            _ => Err(unexpected(&snap(), Some(Reply::Snap(v)))),
+            _ => Err(unexpected(&SNAP, Some(Reply::Snap(v)))),
         },
-        other => Err(unexpected(&snap(), other)),
+        other => Err(unexpected(&SNAP, other)),
     }
 }
 
