@@ -51,7 +51,6 @@ mod framing;
 pub mod fw102c;
 pub mod k6485;
 pub mod link;
-mod machine;
 /// The errors every motion family's session returns: [`motion::AxisError`] on one
 /// axis, [`motion::MotionError`] naming it. They began as the SMC100's, whose
 /// controller-specific variants they keep.

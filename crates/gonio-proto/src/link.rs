@@ -37,6 +37,19 @@ pub enum TransportError {
     Script(String),
 }
 
+impl TransportError {
+    /// A lost, late, garbled or truncated line: sending the command again may cure it.
+    pub fn is_transient(&self) -> bool {
+        matches!(
+            self,
+            TransportError::Timeout(_)
+                | TransportError::LineTooLong
+                | TransportError::Garbled(_)
+                | TransportError::Nul
+        )
+    }
+}
+
 impl From<FrameError> for TransportError {
     fn from(e: FrameError) -> Self {
         match e {

@@ -17,7 +17,9 @@
 
 mod exchange;
 
-pub(crate) use exchange::{Fault, Policy, Wire, exchange, reopen_at_once, send_reopening};
+pub(crate) use exchange::{
+    Fault, Policy, Wire, exchange, line_wire, reopen_at_once, send_reopening,
+};
 
 use std::cell::{Cell, RefCell};
 use std::future::Future;

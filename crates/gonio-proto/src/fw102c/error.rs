@@ -111,20 +111,3 @@ pub enum Fw102cError {
         waited: Duration,
     },
 }
-
-impl Fw102cError {
-    /// A lost, late, garbled or truncated answer: a second attempt may not have it.
-    pub(crate) fn is_transient(&self) -> bool {
-        matches!(
-            self,
-            Fw102cError::Protocol { .. }
-                | Fw102cError::Transport {
-                    source: TransportError::Timeout(_)
-                        | TransportError::LineTooLong
-                        | TransportError::Garbled(_)
-                        | TransportError::Nul,
-                    ..
-                }
-        )
-    }
-}

@@ -7,55 +7,11 @@ use std::time::Duration;
 use tracing::{debug, warn};
 
 use super::Cs130Session;
-use crate::TransportError;
 use crate::cs130::{Command, Cs130Error, MonoState, Reply, ReplyError, Units, is_echo};
-use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::engine::{self, Fault, Link, Wire};
 
 impl Wire for Cs130Session {
-    type Error = Cs130Error;
-    const FAMILY: &'static str = "cs130";
-
-    fn policy(&self) -> Policy {
-        Policy {
-            reconnect_attempts: self.config.reconnect_attempts,
-            reconnect_delay: self.config.reconnect_delay(),
-        }
-    }
-
-    fn port(&self) -> &str {
-        &self.port
-    }
-
-    fn transport(command: String, source: TransportError) -> Cs130Error {
-        Cs130Error::Transport { command, source }
-    }
-
-    fn disconnected(&self, attempts: u32, source: TransportError) -> Cs130Error {
-        Cs130Error::Disconnected {
-            port: self.port.clone(),
-            attempts,
-            source,
-        }
-    }
-
-    /// A lost, late, garbled or truncated line; a second attempt may not have it.
-    fn is_transient(e: &Cs130Error) -> bool {
-        matches!(
-            e,
-            Cs130Error::Protocol { .. }
-                | Cs130Error::Transport {
-                    source: TransportError::Timeout(_)
-                        | TransportError::LineTooLong
-                        | TransportError::Garbled(_)
-                        | TransportError::Nul,
-                    ..
-                }
-        )
-    }
-
-    fn retried(&mut self) {
-        self.retried += 1;
-    }
+    engine::line_wire!(Cs130Error, "cs130");
 
     /// Counted only: every operation ends with the settings read back or checked
     /// through `STB?`, and a failed one forgets them.
@@ -114,7 +70,7 @@ impl Cs130Session {
         } else {
             0
         };
-        let receive = async || {
+        let receive = async |_: &mut Cs130Session| {
             let due = link.now().saturating_add(wait);
             if echo {
                 let line = link.line(due).await?;

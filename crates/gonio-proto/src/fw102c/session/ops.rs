@@ -8,44 +8,12 @@ use tracing::{debug, warn};
 
 use super::Fw102cSession;
 use crate::TransportError;
-use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::engine::{self, Fault, Link, Wire};
 use crate::fw102c::reply::is_echo;
 use crate::fw102c::{Command, Fw102cError, Line, Reply, ReplyError, SensorMode};
 
 impl Wire for Fw102cSession {
-    type Error = Fw102cError;
-    const FAMILY: &'static str = "fw102c";
-
-    fn policy(&self) -> Policy {
-        Policy {
-            reconnect_attempts: self.config.reconnect_attempts,
-            reconnect_delay: self.config.reconnect_delay(),
-        }
-    }
-
-    fn port(&self) -> &str {
-        &self.port
-    }
-
-    fn transport(command: String, source: TransportError) -> Fw102cError {
-        Fw102cError::Transport { command, source }
-    }
-
-    fn disconnected(&self, attempts: u32, source: TransportError) -> Fw102cError {
-        Fw102cError::Disconnected {
-            port: self.port.clone(),
-            attempts,
-            source,
-        }
-    }
-
-    fn is_transient(e: &Fw102cError) -> bool {
-        e.is_transient()
-    }
-
-    fn retried(&mut self) {
-        self.retried += 1;
-    }
+    engine::line_wire!(Fw102cError, "fw102c");
 
     fn reopened(&mut self, _: Duration) {
         self.reconnects += 1;
@@ -103,7 +71,7 @@ impl Fw102cSession {
                 source,
             })
         };
-        let receive = async || {
+        let receive = async |_: &mut Fw102cSession| {
             let due = link.now().saturating_add(timeout).max(until);
             loop {
                 let line = link.line(due).await?;

@@ -2,14 +2,12 @@
 //! command; and its exchange (a command and, for a query, its reply once the
 //! instrument has finished measuring), run by the engine's link policy.
 
-use std::cell::Cell;
 use std::time::Duration;
 
 use tracing::{debug, warn};
 
 use super::K6485Session;
-use crate::TransportError;
-use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::engine::{self, Fault, Link, Wire};
 use crate::k6485::{
     Command, Current, Identity, K6485Error, MAX_AUTORANGE_STEPS, PicoFlags, PicoReading, Range,
     Reply, ReplyError, Sample, StatusWord,
@@ -18,65 +16,14 @@ use crate::k6485::{
 /// Most times one read starts over after the port was lost and reopened.
 const MAX_RESTARTS: usize = 2;
 
-/// The session as [`engine::exchange`] holds it, with when the instrument will be free
-/// kept apart: the receive rule advances that while the exchange holds the session,
-/// and a reopened port resets it.
-struct Wired<'a> {
-    s: &'a mut K6485Session,
-    busy_until: &'a Cell<Duration>,
-}
-
-impl Wire for Wired<'_> {
-    type Error = K6485Error;
-    const FAMILY: &'static str = "k6485";
-
-    fn policy(&self) -> Policy {
-        Policy {
-            reconnect_attempts: self.s.config.reconnect_attempts,
-            reconnect_delay: self.s.config.reconnect_delay(),
-        }
-    }
-
-    fn port(&self) -> &str {
-        &self.s.port
-    }
-
-    fn transport(command: String, source: TransportError) -> K6485Error {
-        K6485Error::Transport { command, source }
-    }
-
-    fn disconnected(&self, attempts: u32, source: TransportError) -> K6485Error {
-        K6485Error::Disconnected {
-            port: self.s.port.clone(),
-            attempts,
-            source,
-        }
-    }
-
-    /// A lost, late, garbled or truncated reply.
-    fn is_transient(e: &K6485Error) -> bool {
-        matches!(
-            e,
-            K6485Error::Protocol { .. }
-                | K6485Error::Transport {
-                    source: TransportError::Timeout(_)
-                        | TransportError::LineTooLong
-                        | TransportError::Garbled(_)
-                        | TransportError::Nul,
-                    ..
-                }
-        )
-    }
-
-    fn retried(&mut self) {
-        self.s.retried += 1;
-    }
+impl Wire for K6485Session {
+    engine::line_wire!(K6485Error, "k6485");
 
     fn reopened(&mut self, now: Duration) {
-        self.s.reconnects += 1;
+        self.reconnects += 1;
         // Whatever the instrument was doing is unknown now, and it may have restarted.
-        self.busy_until.set(now);
-        self.s.mark_unsettled(now);
+        self.busy_until = now;
+        self.mark_unsettled(now);
     }
 }
 
@@ -125,10 +72,9 @@ impl K6485Session {
             _ => Duration::ZERO,
         };
         let timeout = self.config.timeout();
-        let busy_until = Cell::new(self.busy_until);
-        let receive = async || {
-            let free = busy_until.get().max(link.now()).saturating_add(measuring);
-            busy_until.set(free);
+        let receive = async |s: &mut K6485Session| {
+            let free = s.busy_until.max(link.now()).saturating_add(measuring);
+            s.busy_until = free;
             if !command.is_query() {
                 return Ok(None);
             }
@@ -142,13 +88,8 @@ impl K6485Session {
                 })),
             }
         };
-        let mut wired = Wired {
-            s: self,
-            busy_until: &busy_until,
-        };
         let bytes = command.to_bytes();
-        let reply = engine::exchange(&mut wired, link, &name, &bytes, retries, receive).await;
-        self.busy_until = busy_until.get();
+        let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await;
         let reply = reply?;
         match command {
             Command::SetRange(r) => self.range_changed(link.now(), r),

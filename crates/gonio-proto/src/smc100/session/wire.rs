@@ -145,7 +145,7 @@ impl Smc100Session {
         loop {
             let before = self.retried;
             let mut answered = false;
-            let r = engine::exchange(self, link, &name, &bytes, retries, async || {
+            let r = engine::exchange(self, link, &name, &bytes, retries, async |_| {
                 answered = true;
                 match receive().await {
                     Ok(v) => Ok(Ok(v)),

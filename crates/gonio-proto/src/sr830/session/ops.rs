@@ -7,58 +7,14 @@ use std::time::Duration;
 use tracing::debug;
 
 use super::Sr830Session;
-use crate::TransportError;
-use crate::engine::{self, Fault, Link, Policy, Wire};
+use crate::engine::{self, Fault, Link, Wire};
 use crate::sr830::{
     Command, EventStatus, FilterSlope, Identity, Interface, LiaStatus, Reply, ReplyError,
     Sensitivity, Sr830Error, TimeConstant,
 };
 
 impl Wire for Sr830Session {
-    type Error = Sr830Error;
-    const FAMILY: &'static str = "sr830";
-
-    fn policy(&self) -> Policy {
-        Policy {
-            reconnect_attempts: self.config.reconnect_attempts,
-            reconnect_delay: self.config.reconnect_delay(),
-        }
-    }
-
-    fn port(&self) -> &str {
-        &self.port
-    }
-
-    fn transport(command: String, source: TransportError) -> Sr830Error {
-        Sr830Error::Transport { command, source }
-    }
-
-    fn disconnected(&self, attempts: u32, source: TransportError) -> Sr830Error {
-        Sr830Error::Disconnected {
-            port: self.port.clone(),
-            attempts,
-            source,
-        }
-    }
-
-    /// A lost, late, garbled or truncated reply.
-    fn is_transient(e: &Sr830Error) -> bool {
-        matches!(
-            e,
-            Sr830Error::Protocol { .. }
-                | Sr830Error::Transport {
-                    source: TransportError::Timeout(_)
-                        | TransportError::LineTooLong
-                        | TransportError::Garbled(_)
-                        | TransportError::Nul,
-                    ..
-                }
-        )
-    }
-
-    fn retried(&mut self) {
-        self.retried += 1;
-    }
+    engine::line_wire!(Sr830Error, "sr830");
 
     /// Replies go to GPIB until `OUTX 0` is sent again.
     fn after_reopen(&self) -> Option<(&'static str, Vec<u8>)> {
@@ -112,7 +68,7 @@ impl Sr830Session {
             );
         let retries = if rereadable { self.config.retries } else { 0 };
         let timeout = self.config.timeout();
-        let receive = async || {
+        let receive = async |_: &mut Sr830Session| {
             if !command.expects_reply() {
                 return Ok(None);
             }
