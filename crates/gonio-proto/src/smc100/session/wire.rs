@@ -218,6 +218,10 @@ impl Smc100Session {
         let answer = self
             .ask(link, &frame, retries, async || {
                 sent += 1;
+                if sent > 1 {
+                    let command = line_text(&frame.to_bytes());
+                    warn!(%command, "smc100: acknowledgement lost; the command was sent again");
+                }
                 transmit(link, &policy, &te.to_bytes())
                     .await
                     .map_err(Miss::Final)?;
