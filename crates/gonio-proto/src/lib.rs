@@ -49,6 +49,7 @@ mod engine;
 mod facts;
 mod framing;
 pub mod fw102c;
+mod idn;
 pub mod k6485;
 pub mod link;
 /// The errors every motion family's session returns: [`motion::AxisError`] on one

@@ -54,6 +54,21 @@ pub(crate) fn parse(s: &[u8]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+/// Mean and sample standard deviation of a detector's readings (n − 1; 0 for one
+/// value; NaN for none).
+pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    if v.len() < 2 {
+        return (mean, 0.0);
+    }
+    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
+    (mean, (ss / (n - 1.0)).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,20 +17,7 @@ pub enum Model {
     K6487,
 }
 
-/// The `*IDN?` reply: four comma-separated fields,
-/// `KEITHLEY INSTRUMENTS INC.,MODEL 6485,1234567,B03   Sep 25 2002 10:53:29/A02  /E`
-/// (manufacturer, model, serial number, firmware revisions).
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
-pub struct Identity {
-    /// `KEITHLEY INSTRUMENTS INC.`
-    pub manufacturer: String,
-    /// `MODEL 6485`.
-    pub model: String,
-    /// The serial number.
-    pub serial: String,
-    /// Firmware revision levels (free text).
-    pub firmware: String,
-}
+pub use crate::idn::Identity;
 
 impl Identity {
     /// The model, when the model field names a 6485 or a 6487.
@@ -42,32 +29,6 @@ impl Identity {
             "6487" => Some(Model::K6487),
             _ => None,
         }
-    }
-
-    /// Parses the four fields; each is trimmed and must be non-empty printable ASCII.
-    pub fn parse(text: &[u8]) -> Option<Identity> {
-        let text = std::str::from_utf8(text).ok()?;
-        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
-        let ok = |f: &&str| !f.is_empty() && f.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
-        match fields.as_slice() {
-            [m, n, s, v] if [m, n, s, v].into_iter().all(ok) => Some(Identity {
-                manufacturer: m.to_string(),
-                model: n.to_string(),
-                serial: s.to_string(),
-                firmware: v.to_string(),
-            }),
-            _ => None,
-        }
-    }
-}
-
-impl fmt::Display for Identity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{},{},{},{}",
-            self.manufacturer, self.model, self.serial, self.firmware
-        )
     }
 }
 

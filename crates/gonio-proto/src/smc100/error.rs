@@ -139,6 +139,23 @@ pub enum AxisError {
     },
 }
 
+impl AxisError {
+    /// `target` within `min..=max` (and finite), checked before any byte is sent;
+    /// else [`AxisError::OutOfLimits`] in `units`.
+    pub(crate) fn check_limits(target: f64, min: f64, max: f64, units: &str) -> Result<(), Self> {
+        if target.is_finite() && target >= min && target <= max {
+            Ok(())
+        } else {
+            Err(AxisError::OutOfLimits {
+                target,
+                min,
+                max,
+                units: units.into(),
+            })
+        }
+    }
+}
+
 /// An error on a named axis.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MotionError {

@@ -1,57 +1,17 @@
 //! Instrument to host: [`Reply`] lines, read knowing the query they answer.
 
-use std::fmt;
-
 use super::{
     Command, ErrorStatus, EventStatus, FilterSlope, Interface, LiaStatus, REPLY_TERMINATOR,
     ReferenceSource, Sensitivity, TimeConstant,
 };
 use crate::number;
 
-/// The `*IDN?` reply: four comma-separated fields,
-/// `Stanford_Research_Systems,SR830,s/n00111,ver1.000` (manual, *IDN?).
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
-pub struct Identity {
-    /// `Stanford_Research_Systems`.
-    pub manufacturer: String,
-    /// `SR830` (an SR810 or SR850 answers its own name).
-    pub model: String,
-    /// `s/n00111`.
-    pub serial: String,
-    /// `ver1.000` in the manual; real units report e.g. `ver1.07`.
-    pub firmware: String,
-}
+pub use crate::idn::Identity;
 
 impl Identity {
     /// True when the model field is `SR830`.
     pub fn is_sr830(&self) -> bool {
         self.model == "SR830"
-    }
-
-    /// Parses the four fields. Each is trimmed, must be non-empty printable ASCII.
-    pub fn parse(text: &[u8]) -> Option<Identity> {
-        let text = std::str::from_utf8(text).ok()?;
-        let fields: Vec<&str> = text.split(',').map(str::trim).collect();
-        let ok = |f: &&str| !f.is_empty() && f.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
-        match fields.as_slice() {
-            [m, n, s, v] if [m, n, s, v].into_iter().all(ok) => Some(Identity {
-                manufacturer: m.to_string(),
-                model: n.to_string(),
-                serial: s.to_string(),
-                firmware: v.to_string(),
-            }),
-            _ => None,
-        }
-    }
-}
-
-impl fmt::Display for Identity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{},{},{},{}",
-            self.manufacturer, self.model, self.serial, self.firmware
-        )
     }
 }
 

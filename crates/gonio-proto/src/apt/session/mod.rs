@@ -485,17 +485,7 @@ impl AptSession {
     }
 
     fn check_limits(&self, target: f64) -> Result<(), AxisError> {
-        let a = &self.axis;
-        if target.is_finite() && target >= a.min && target <= a.max {
-            Ok(())
-        } else {
-            Err(AxisError::OutOfLimits {
-                target,
-                min: a.min,
-                max: a.max,
-                units: "deg".into(),
-            })
-        }
+        AxisError::check_limits(target, self.axis.min, self.axis.max, "deg")
     }
 }
 

@@ -12,6 +12,7 @@ use crate::k6485::{
     Command, Current, Identity, K6485Error, MAX_AUTORANGE_STEPS, PicoFlags, PicoReading, Range,
     Reply, ReplyError, Sample, StatusWord,
 };
+use crate::number;
 
 /// Most times one read starts over after the port was lost and reopened.
 const MAX_RESTARTS: usize = 2;
@@ -266,7 +267,7 @@ impl K6485Session {
             overvoltage: status.overvoltage(),
             zero_check: status.zero_check(),
         };
-        let (mean_a, std_a) = mean_std(&values);
+        let (mean_a, std_a) = number::mean_std(&values);
         PicoReading {
             mean_a,
             std_a,
@@ -281,18 +282,4 @@ impl K6485Session {
             timestamp_s: samples.last().map_or(f64::NAN, |x| x.time_s),
         }
     }
-}
-
-/// Mean and sample standard deviation (n − 1; 0 for one value; NaN for none).
-fn mean_std(v: &[f64]) -> (f64, f64) {
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    if v.len() < 2 {
-        return (mean, 0.0);
-    }
-    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
-    (mean, (ss / (n - 1.0)).sqrt())
 }

@@ -326,16 +326,7 @@ impl Smc100Session {
 
     fn check_limits(&self, i: usize, target: f64) -> Result<(), AxisError> {
         let a = &self.axes[i];
-        if target.is_finite() && target >= a.min && target <= a.max {
-            Ok(())
-        } else {
-            Err(AxisError::OutOfLimits {
-                target,
-                min: a.min,
-                max: a.max,
-                units: a.units.clone(),
-            })
-        }
+        AxisError::check_limits(target, a.min, a.max, &a.units)
     }
 
     /// A reply read as a status (`TS`).

@@ -5,6 +5,7 @@ use tracing::{debug, warn};
 use super::Sr830Session;
 use super::ops::unexpected;
 use crate::engine::{Link, Wire, secs};
+use crate::number;
 use crate::sr830::{
     Command, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, SnapParams, Sr830Error, ranging,
 };
@@ -98,12 +99,12 @@ impl Sr830Session {
         if self.reconnects != reconnects {
             return Ok(None);
         }
-        let (r_mean, r_std) = mean_std(&rs);
+        let (r_mean, r_std) = number::mean_std(&rs);
         Ok(Some(Reading {
             r_mean,
             r_std,
-            x_mean: mean_std(&xs).0,
-            y_mean: mean_std(&ys).0,
+            x_mean: number::mean_std(&xs).0,
+            y_mean: number::mean_std(&ys).0,
             n: self.config.samples,
             sensitivity: self.sensitivity,
             time_constant: self.time_constant,
@@ -164,18 +165,4 @@ pub(super) fn xy(reply: Option<Reply>) -> Result<(f64, f64), Sr830Error> {
         },
         other => Err(unexpected(&SNAP, other)),
     }
-}
-
-/// Mean and sample standard deviation (n − 1; 0 for fewer than two values).
-fn mean_std(v: &[f64]) -> (f64, f64) {
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    if v.len() < 2 {
-        return (mean, 0.0);
-    }
-    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
-    (mean, (ss / (n - 1.0)).sqrt())
 }
