@@ -165,19 +165,20 @@ enum State<T> {
     Taken,
 }
 
-/// An operation running on a borrowed session: the [`Operation`] a session's
-/// `start_*` methods return. It logs the operation's start and end at `debug`.
-pub(crate) struct Task<'s, T> {
+/// An operation running on a borrowed session `'s`, ending with `T` or the error `E`:
+/// the [`Operation`] every session's `start_*` methods return. It logs the operation's
+/// start and end at `debug`.
+pub struct Task<'s, T, E> {
     /// The operation's name, for the log (`smc100.move`, `sr830.read`).
     name: &'static str,
-    future: Pin<Box<dyn Future<Output = T> + 's>>,
+    future: Pin<Box<dyn Future<Output = Result<T, E>> + 's>>,
     link: Link,
-    state: State<T>,
+    state: State<Result<T, E>>,
     /// When the current wait began (what a reply timeout reports as waited).
     since: Duration,
 }
 
-impl<T: std::fmt::Debug> std::fmt::Debug for Task<'_, T> {
+impl<T: std::fmt::Debug, E: std::fmt::Debug> std::fmt::Debug for Task<'_, T, E> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Task")
             .field("name", &self.name)
@@ -186,12 +187,12 @@ impl<T: std::fmt::Debug> std::fmt::Debug for Task<'_, T> {
     }
 }
 
-impl<'s, T: Outcome> Task<'s, T> {
+impl<'s, T, E: std::fmt::Display> Task<'s, T, E> {
     /// Starts the operation `name` at `now`: `body` receives the link and returns the
     /// operation's future, which runs to its first wait here.
     pub(crate) fn new<F>(name: &'static str, now: Duration, body: impl FnOnce(Link) -> F) -> Self
     where
-        F: Future<Output = T> + 's,
+        F: Future<Output = Result<T, E>> + 's,
     {
         tracing::debug!(operation = name, "operation started");
         let link = Link::default();
@@ -213,9 +214,9 @@ impl<'s, T: Outcome> Task<'s, T> {
         let mut cx = Context::from_waker(Waker::noop());
         self.state = match self.future.as_mut().poll(&mut cx) {
             Poll::Ready(out) => {
-                match out.failure() {
-                    None => tracing::debug!(operation = self.name, "operation finished"),
-                    Some(error) => {
+                match &out {
+                    Ok(_) => tracing::debug!(operation = self.name, "operation finished"),
+                    Err(error) => {
                         tracing::debug!(operation = self.name, %error, "operation failed");
                     }
                 }
@@ -244,8 +245,8 @@ impl<'s, T: Outcome> Task<'s, T> {
     }
 }
 
-impl<T: Outcome> Operation for Task<'_, T> {
-    type Output = T;
+impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
+    type Output = Result<T, E>;
 
     fn poll_io(&mut self) -> Option<Io<'_>> {
         let clears = self.link.0.clears.get();
@@ -269,7 +270,7 @@ impl<T: Outcome> Operation for Task<'_, T> {
         }
     }
 
-    fn poll_output(&mut self) -> Option<T> {
+    fn poll_output(&mut self) -> Option<Result<T, E>> {
         if self.link.0.clears.get() > 0 {
             return None;
         }
@@ -326,18 +327,6 @@ impl<T: Outcome> Operation for Task<'_, T> {
             Some(Pending::Poll(_)) => self.feed(now, Some(Event::Abort)),
             _ => self.ignored("abort"),
         }
-    }
-}
-
-/// An operation's result, as the log reports it.
-pub(crate) trait Outcome {
-    /// The error, when it failed.
-    fn failure(&self) -> Option<&dyn std::fmt::Display>;
-}
-
-impl<T, E: std::fmt::Display> Outcome for Result<T, E> {
-    fn failure(&self) -> Option<&dyn std::fmt::Display> {
-        self.as_ref().err().map(|e| e as &dyn std::fmt::Display)
     }
 }
 

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
 use crate::engine::{Link, Task};
-use crate::link::{KeepAlive, Operation};
+use crate::link::KeepAlive;
 use crate::motion::{AxisError, MotionError};
 use crate::smc100::ChainPolicy;
 
@@ -211,7 +211,7 @@ struct Seen {
 /// again, answer a status update, reopen the port, stop the stage or give up. It does
 /// no I/O and reads no clock.
 ///
-/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; lines handed in are whole messages (cut by [`AptFramer`](super::AptFramer)):
 ///
 /// ```
@@ -332,30 +332,21 @@ impl AptSession {
 
     /// Reads the controller's identity (`HW_REQ_INFO`) and checks that its model is
     /// the configured stage's controller.
-    pub fn start_identify(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<AptInfo, MotionError>> + '_ {
+    pub fn start_identify(&mut self, now: Duration) -> Task<'_, AptInfo, MotionError> {
         self.task("apt.identify", now, Self::identify)
     }
 
     /// Prepares the channel: `HW_NO_FLASH_PROGRAMMING`, the channel enabled, then the
     /// velocity, home and (when configured) backlash parameters set and each read back
     /// and compared; finally the status updates started when configured.
-    pub fn start_setup(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+    pub fn start_setup(&mut self, now: Duration) -> Task<'_, (), MotionError> {
         self.task("apt.setup", now, Self::setup)
     }
 
     /// Homes the stage (`MOT_MOVE_HOME`) and waits for `MOT_MOVE_HOMED`, or a status
     /// showing the search over and the stage homed, within `home_timeout_s`. The pause
     /// between status polls is an abort point.
-    pub fn start_home(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+    pub fn start_home(&mut self, now: Duration) -> Task<'_, f64, MotionError> {
         self.task("apt.home", now, Self::home)
     }
 
@@ -364,11 +355,7 @@ impl AptSession {
     /// until `MOT_MOVE_COMPLETED` or a status showing it settled within tolerance; the
     /// final position is the output. An absolute move is idempotent: when its outcome
     /// is lost it is sent again. The pause between polls is an abort point.
-    pub fn start_move(
-        &mut self,
-        target_deg: f64,
-        now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+    pub fn start_move(&mut self, target_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
         self.task("apt.move", now, async move |s, link| {
             s.motion(link, target_deg, false).await
         })
@@ -377,11 +364,7 @@ impl AptSession {
     /// Moves by `delta_deg` from the current position (`MOT_MOVE_RELATIVE`), checked
     /// against the limits first. Never sent twice: a lost outcome is
     /// [`AxisError::Ambiguous`].
-    pub fn start_move_by(
-        &mut self,
-        delta_deg: f64,
-        now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+    pub fn start_move_by(&mut self, delta_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
         self.task("apt.move_by", now, async move |s, link| {
             s.motion(link, delta_deg, true).await
         })
@@ -389,11 +372,7 @@ impl AptSession {
 
     /// Stops the stage (`MOT_MOVE_STOP`, profiled or immediate) and waits for
     /// `MOT_MOVE_STOPPED` (or a status showing it still).
-    pub fn start_stop(
-        &mut self,
-        profiled: bool,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+    pub fn start_stop(&mut self, profiled: bool, now: Duration) -> Task<'_, (), MotionError> {
         self.task("apt.stop", now, async move |s, link| {
             s.stop(link, profiled).await
         })
@@ -406,35 +385,26 @@ impl AptSession {
         &mut self,
         wait: Duration,
         now: Duration,
-    ) -> impl Operation<Output = Result<bool, MotionError>> + '_ {
+    ) -> Task<'_, bool, MotionError> {
         self.task("apt.await_completion", now, async move |s, link| {
             s.await_completion(link, wait).await
         })
     }
 
     /// The position counter (`MOT_REQ_POSCOUNTER`), deg.
-    pub fn start_position(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + '_ {
+    pub fn start_position(&mut self, now: Duration) -> Task<'_, f64, MotionError> {
         self.task("apt.position", now, Self::position)
     }
 
     /// The channel's status (`MOT_REQ_DCSTATUSUPDATE`, or `MOT_REQ_STATUSUPDATE` for a
     /// stepper).
-    pub fn start_status(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<AptStatus, MotionError>> + '_ {
+    pub fn start_status(&mut self, now: Duration) -> Task<'_, AptStatus, MotionError> {
         self.task("apt.status", now, Self::status)
     }
 
     /// The velocity parameters (`MOT_REQ_VELPARAMS`): maximum velocity in deg/s and
     /// acceleration in deg/s².
-    pub fn start_velocity_params(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(f64, f64), MotionError>> + '_ {
+    pub fn start_velocity_params(&mut self, now: Duration) -> Task<'_, (f64, f64), MotionError> {
         self.task("apt.velocity_params", now, Self::velocity_params)
     }
 
@@ -444,7 +414,7 @@ impl AptSession {
         name: &'static str,
         now: Duration,
         op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, AxisError> + 'a,
-    ) -> impl Operation<Output = Result<T, MotionError>> + 'a {
+    ) -> Task<'a, T, MotionError> {
         Task::new(name, now, move |link| async move {
             let r = op(&mut *self, &link).await;
             r.map_err(|source| self.at(source))

@@ -10,7 +10,6 @@ use std::time::Duration;
 
 use super::{Command, Cs130Config, Cs130Error, MonoState, NO_FILTER_WHEEL};
 use crate::engine::Task;
-use crate::link::Operation;
 
 /// What the session knows the instrument is set to; `None` until read or set.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -46,8 +45,8 @@ impl Known {
 /// as the session knows, whether a `*WAI` holds it, and every decision of its
 /// operations. It does no I/O and reads no clock.
 ///
-/// Each `start_*` method starts an [`Operation`] that borrows the session until it
-/// finishes; see [`Operation`] for the order in which a caller drives it:
+/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
+/// finishes; see [`Operation`](crate::link::Operation) for the order in which a caller drives it:
 ///
 /// ```
 /// use std::time::Duration;
@@ -106,10 +105,7 @@ impl Cs130Session {
     /// (Model 74000 command table), so a config with `filter_wheel = false` does not
     /// ask; with a wheel configured, a `0` is read back through `STB?` and `ERROR?`
     /// and reported as [`Cs130Error::NoFilterWheel`], which names the config field.
-    pub fn start_init(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+    pub fn start_init(&mut self, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::new(
             "cs130.init",
             now,
@@ -128,11 +124,7 @@ impl Cs130Session {
     /// queries of any setting still unknown, and `STB?`: an error bit is reported
     /// with `ERROR?`'s code. The read-back wavelength must lie within
     /// `position_tolerance_nm` of `nm`; it is what the returned state carries.
-    pub fn start_go(
-        &mut self,
-        nm: f64,
-        now: Duration,
-    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+    pub fn start_go(&mut self, nm: f64, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::new("cs130.go", now, move |link| async move {
             self.go(&link, nm).await
         })
@@ -140,11 +132,7 @@ impl Cs130Session {
 
     /// Opens (`SHUTTER O`) or closes (`SHUTTER C`) the shutter, reads any unknown
     /// setting, and checks `STB?`.
-    pub fn start_shutter(
-        &mut self,
-        open: bool,
-        now: Duration,
-    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+    pub fn start_shutter(&mut self, open: bool, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::new("cs130.shutter", now, move |link| async move {
             self.shutter(&link, open).await
         })
@@ -152,10 +140,7 @@ impl Cs130Session {
 
     /// Reads every setting back: `GRAT?`, `FILTER?` (only with `filter_wheel`),
     /// `SHUTTER?`, `WAVE?`.
-    pub fn start_read_state(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<MonoState, Cs130Error>> + '_ {
+    pub fn start_read_state(&mut self, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::new("cs130.read_state", now, |link| async move {
             self.read_state(&link).await
         })
@@ -168,7 +153,7 @@ impl Cs130Session {
         &'s mut self,
         command: &Command,
         now: Duration,
-    ) -> impl Operation<Output = Result<Option<super::Reply>, Cs130Error>> + use<'s> {
+    ) -> Task<'s, Option<super::Reply>, Cs130Error> {
         let command = command.clone();
         Task::new("cs130.execute", now, move |link| async move {
             self.execute(&link, &command).await

@@ -7,7 +7,6 @@ mod ops;
 
 use super::{Fw102cConfig, Fw102cError};
 use crate::engine::Task;
-use crate::link::Operation;
 use std::time::Duration;
 
 /// The FW102C as a state machine: its configuration, the position it last read, and
@@ -61,10 +60,7 @@ impl Fw102cSession {
     /// `sensors=0` and `sensors?`, then `pos?`. Each set is read back, because a set
     /// command's success has no line of its own (see [`crate::fw102c`]). Returns the
     /// identification string.
-    pub fn start_init(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<String, Fw102cError>> + '_ {
+    pub fn start_init(&mut self, now: Duration) -> Task<'_, String, Fw102cError> {
         Task::new(
             "fw102c.init",
             now,
@@ -75,21 +71,14 @@ impl Fw102cSession {
     /// Turns the wheel to `position`: refused before any byte outside
     /// 1..=`positions`; then `pos=n` and `pos?` every `poll_interval_ms` until it reads
     /// n, for at most `move_timeout_ms` ([`Fw102cError::MoveTimeout`]).
-    pub fn start_select(
-        &mut self,
-        position: u8,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), Fw102cError>> + '_ {
+    pub fn start_select(&mut self, position: u8, now: Duration) -> Task<'_, (), Fw102cError> {
         Task::new("fw102c.select", now, move |link| async move {
             self.select(&link, position).await
         })
     }
 
     /// `pos?`.
-    pub fn start_read_position(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<u8, Fw102cError>> + '_ {
+    pub fn start_read_position(&mut self, now: Duration) -> Task<'_, u8, Fw102cError> {
         Task::new("fw102c.position", now, |link| async move {
             self.read_position(&link).await
         })
@@ -126,7 +115,7 @@ mod tests {
     use super::*;
     use crate::TransportError;
     use crate::fw102c::{ErrorCode, Speed};
-    use crate::link::{Deadline, Io};
+    use crate::link::{Deadline, Io, Operation};
 
     fn ms(v: u64) -> Duration {
         Duration::from_millis(v)

@@ -10,15 +10,14 @@ use std::time::Duration;
 
 use super::{Command, Identity, K6485Config, K6485Error, PicoReading, Range, Reply};
 use crate::engine::{Task, secs};
-use crate::link::Operation;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
 /// a reading may start (after a range change or a change of the light), when the
 /// instrument will have finished measuring, and every decision of its operations. It
 /// does no I/O and reads no clock.
 ///
-/// Each `start_*` method starts an [`Operation`] that borrows the session until it
-/// finishes; see [`Operation`] for the order in which a caller drives it:
+/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
+/// finishes; see [`Operation`](crate::link::Operation) for the order in which a caller drives it:
 ///
 /// ```
 /// use std::time::Duration;
@@ -90,10 +89,7 @@ impl K6485Session {
     ///
     /// Integration and filter are set before the zero is acquired so that the zero is
     /// measured as the readings will be.
-    pub fn start_setup(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<Identity, K6485Error>> + '_ {
+    pub fn start_setup(&mut self, now: Duration) -> Task<'_, Identity, K6485Error> {
         Task::new(
             "k6485.setup",
             now,
@@ -107,10 +103,7 @@ impl K6485Session {
     /// range down, each followed by the range's wait and a new reading. Faults are
     /// errors; an overflow on 20 mA, an overvoltage or a zero-checked reading is
     /// returned flagged, never valid.
-    pub fn start_read(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<PicoReading, K6485Error>> + '_ {
+    pub fn start_read(&mut self, now: Duration) -> Task<'_, PicoReading, K6485Error> {
         Task::new(
             "k6485.read",
             now,
@@ -119,11 +112,7 @@ impl K6485Session {
     }
 
     /// Sets the range (`CURR:RANG`); readings wait the range-change settling.
-    pub fn start_set_range(
-        &mut self,
-        range: Range,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), K6485Error>> + '_ {
+    pub fn start_set_range(&mut self, range: Range, now: Duration) -> Task<'_, (), K6485Error> {
         Task::new("k6485.set_range", now, move |link| async move {
             self.ask(&link, Command::SetRange(range)).await.map(|_| ())
         })
@@ -138,7 +127,7 @@ impl K6485Session {
         &'s mut self,
         command: &Command,
         now: Duration,
-    ) -> impl Operation<Output = Result<Option<Reply>, K6485Error>> + use<'s> {
+    ) -> Task<'s, Option<Reply>, K6485Error> {
         let command = command.clone();
         Task::new("k6485.execute", now, move |link| async move {
             self.ask(&link, command).await

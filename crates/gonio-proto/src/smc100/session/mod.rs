@@ -16,7 +16,6 @@ use super::{
     Param, ReplyBody, Smc100Parameters, Status,
 };
 use crate::engine::Task;
-use crate::link::Operation;
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
@@ -24,9 +23,9 @@ use tracing::debug;
 /// byte goes out next, what a reply means, when to ask again, reopen the port, stop
 /// every stage or give up. It does no I/O and reads no clock.
 ///
-/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
-/// do next (see [`Operation`] for the order):
+/// do next (see [`Operation`](crate::link::Operation) for the order):
 ///
 /// ```
 /// use std::time::Duration;
@@ -108,10 +107,7 @@ impl Smc100Session {
     }
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).
-    pub fn start_identify(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<Vec<ControllerInfo>, MotionError>> + '_ {
+    pub fn start_identify(&mut self, now: Duration) -> Task<'_, Vec<ControllerInfo>, MotionError> {
         Task::new("smc100.identify", now, |link| async move {
             self.identify(&link).await
         })
@@ -122,7 +118,7 @@ impl Smc100Session {
         &'s mut self,
         name: &str,
         now: Duration,
-    ) -> impl Operation<Output = Result<Status, MotionError>> + use<'s> {
+    ) -> Task<'s, Status, MotionError> {
         let name = name.to_string();
         Task::new("smc100.status", now, move |link| async move {
             self.on(&name, async |s, i| s.read_status(&link, i).await)
@@ -135,7 +131,7 @@ impl Smc100Session {
         &'s mut self,
         name: &str,
         now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+    ) -> Task<'s, f64, MotionError> {
         let name = name.to_string();
         Task::new("smc100.position", now, move |link| async move {
             let tp = Command::TellPosition;
@@ -152,7 +148,7 @@ impl Smc100Session {
         name: &str,
         distance: f64,
         now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+    ) -> Task<'s, f64, MotionError> {
         let name = name.to_string();
         Task::new("smc100.motion_time", now, move |link| async move {
             let pt = Command::MotionTime(distance.abs());
@@ -164,21 +160,14 @@ impl Smc100Session {
     /// Stops every stage: the broadcast `ST`, then each controller's own `ST` if the
     /// broadcast could not be sent. Every stage gets its stop; the first failure is
     /// returned.
-    pub fn start_stop_all(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+    pub fn start_stop_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
         Task::new("smc100.stop_all", now, |link| async move {
             self.stop_all(&link).await
         })
     }
 
     /// Stops one stage (`ST`, then `TE`).
-    pub fn start_stop<'s>(
-        &'s mut self,
-        name: &str,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+    pub fn start_stop<'s>(&'s mut self, name: &str, now: Duration) -> Task<'s, (), MotionError> {
         let name = name.to_string();
         Task::new("smc100.stop", now, move |link| async move {
             self.on(&name, async |s, i| s.command(&link, i, Command::Stop).await)
@@ -194,7 +183,7 @@ impl Smc100Session {
         &'s mut self,
         names: &[&str],
         now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+    ) -> Task<'s, (), MotionError> {
         let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
         Task::new("smc100.home", now, move |link| async move {
             let r = self.home(&link, &names, false).await;
@@ -203,10 +192,7 @@ impl Smc100Session {
     }
 
     /// Homes every axis.
-    pub fn start_home_all(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + '_ {
+    pub fn start_home_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
         let names: Vec<String> = self.axes.iter().map(|a| a.name.clone()).collect();
         let refs: Vec<&str> = names.iter().map(String::as_str).collect();
         self.start_home(&refs, now)
@@ -219,7 +205,7 @@ impl Smc100Session {
         &'s mut self,
         name: &str,
         now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+    ) -> Task<'s, (), MotionError> {
         let names = vec![name.to_string()];
         Task::new("smc100.reset_and_home", now, move |link| async move {
             let r = self.home(&link, &names, true).await;
@@ -235,7 +221,7 @@ impl Smc100Session {
         &'s mut self,
         targets: &[(&str, f64)],
         now: Duration,
-    ) -> impl Operation<Output = Result<Vec<f64>, MotionError>> + use<'s> {
+    ) -> Task<'s, Vec<f64>, MotionError> {
         let targets: Vec<(String, f64)> =
             targets.iter().map(|(n, t)| (n.to_string(), *t)).collect();
         Task::new("smc100.move", now, move |link| async move {
@@ -252,7 +238,7 @@ impl Smc100Session {
         name: &str,
         delta: f64,
         now: Duration,
-    ) -> impl Operation<Output = Result<f64, MotionError>> + use<'s> {
+    ) -> Task<'s, f64, MotionError> {
         let name = name.to_string();
         Task::new("smc100.move_by", now, move |link| async move {
             let r = self.move_by(&link, &name, delta).await;
@@ -267,7 +253,7 @@ impl Smc100Session {
         &'s mut self,
         name: &str,
         now: Duration,
-    ) -> impl Operation<Output = Result<Smc100Parameters, MotionError>> + use<'s> {
+    ) -> Task<'s, Smc100Parameters, MotionError> {
         let name = name.to_string();
         Task::new("smc100.read_config", now, move |link| async move {
             self.on(&name, async |s, i| {
@@ -298,7 +284,7 @@ impl Smc100Session {
         name: &str,
         changes: &[(Param, f64)],
         now: Duration,
-    ) -> impl Operation<Output = Result<(), MotionError>> + use<'s> {
+    ) -> Task<'s, (), MotionError> {
         let (name, changes) = (name.to_string(), changes.to_vec());
         Task::new("smc100.configure", now, move |link| async move {
             self.on(&name, async |s, i| s.configure(&link, i, &changes).await)

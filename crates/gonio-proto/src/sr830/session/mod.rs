@@ -17,16 +17,15 @@ use super::{
     Sr830Error, TimeConstant,
 };
 use crate::engine::{Task, secs};
-use crate::link::Operation;
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
 /// when its filters will have settled, and everything its operations decide: which
 /// command goes out next, what an answer means, when to wait, ask again, reopen the
 /// port or range. It does no I/O and reads no clock.
 ///
-/// Each `start_*` method starts an [`Operation`] that borrows the session until it
+/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
-/// do next (see [`Operation`] for the order):
+/// do next (see [`Operation`](crate::link::Operation) for the order):
 ///
 /// ```
 /// use std::time::Duration;
@@ -89,10 +88,7 @@ impl Sr830Session {
     /// Takes the link and applies the configuration: input cleared, `OUTX 0`, `*IDN?`
     /// (must be an SR830), `*CLS`, `SENS`, `OFLT`, `OFSL`, then `*ESR?`, whose reply also
     /// proves every earlier command has run. Starts the settling wait.
-    pub fn start_setup(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<Identity, Sr830Error>> + '_ {
+    pub fn start_setup(&mut self, now: Duration) -> Task<'_, Identity, Sr830Error> {
         Task::new(
             "sr830.setup",
             now,
@@ -104,10 +100,7 @@ impl Sr830Session {
     /// × `SNAP? 1,2` one time constant apart, `LIAS?` for the flags; with autoranging,
     /// a range change and a new reading on an overload or a small signal. Faults are
     /// errors; an overloaded or unlocked reading is returned flagged.
-    pub fn start_read(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
+    pub fn start_read(&mut self, now: Duration) -> Task<'_, super::Reading, Sr830Error> {
         Task::new(
             "sr830.read",
             now,
@@ -129,7 +122,7 @@ impl Sr830Session {
         target: super::ReadTarget,
         expected: Option<f64>,
         now: Duration,
-    ) -> impl Operation<Output = Result<super::Reading, Sr830Error>> + '_ {
+    ) -> Task<'_, super::Reading, Sr830Error> {
         Task::new("sr830.read_targeted", now, move |link| async move {
             self.read_targeted(&link, target, expected).await
         })
@@ -144,7 +137,7 @@ impl Sr830Session {
         &'s mut self,
         command: &Command,
         now: Duration,
-    ) -> impl Operation<Output = Result<Option<Reply>, Sr830Error>> + use<'s> {
+    ) -> Task<'s, Option<Reply>, Sr830Error> {
         let command = command.clone();
         Task::new("sr830.execute", now, move |link| async move {
             self.execute(&link, Some(command)).await
@@ -153,10 +146,7 @@ impl Sr830Session {
 
     /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the session tracks (after
     /// `AGAN`, or a change from the front panel); restarts the settling wait.
-    pub fn start_refresh_settings(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+    pub fn start_refresh_settings(&mut self, now: Duration) -> Task<'_, (), Sr830Error> {
         Task::new("sr830.refresh_settings", now, |link| async move {
             self.execute(&link, None).await.map(drop)
         })
@@ -167,7 +157,7 @@ impl Sr830Session {
         &mut self,
         sensitivity: Sensitivity,
         now: Duration,
-    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+    ) -> Task<'_, (), Sr830Error> {
         self.start_set(
             "sr830.set_sensitivity",
             Command::SetSensitivity(sensitivity),
@@ -180,7 +170,7 @@ impl Sr830Session {
         &mut self,
         time_constant: TimeConstant,
         now: Duration,
-    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+    ) -> Task<'_, (), Sr830Error> {
         let command = Command::SetTimeConstant(time_constant);
         self.start_set("sr830.set_time_constant", command, now)
     }
@@ -190,25 +180,19 @@ impl Sr830Session {
         &mut self,
         slope: FilterSlope,
         now: Duration,
-    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+    ) -> Task<'_, (), Sr830Error> {
         self.start_set("sr830.set_slope", Command::SetSlope(slope), now)
     }
 
     /// `LIAS?`: the LIA status byte (reading clears it).
-    pub fn start_lia_status(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<LiaStatus, Sr830Error>> + '_ {
+    pub fn start_lia_status(&mut self, now: Duration) -> Task<'_, LiaStatus, Sr830Error> {
         Task::new("sr830.lia_status", now, |link| async move {
             self.lia_status(&link).await
         })
     }
 
     /// `*ESR?`: the standard event status byte (reading clears it).
-    pub fn start_event_status(
-        &mut self,
-        now: Duration,
-    ) -> impl Operation<Output = Result<EventStatus, Sr830Error>> + '_ {
+    pub fn start_event_status(&mut self, now: Duration) -> Task<'_, EventStatus, Sr830Error> {
         Task::new("sr830.event_status", now, |link| async move {
             self.event_status(&link).await
         })
@@ -220,7 +204,7 @@ impl Sr830Session {
         name: &'static str,
         command: Command,
         now: Duration,
-    ) -> impl Operation<Output = Result<(), Sr830Error>> + '_ {
+    ) -> Task<'_, (), Sr830Error> {
         Task::new(name, now, move |link| async move {
             self.ask(&link, &command).await.map(drop)
         })
