@@ -183,6 +183,47 @@ impl Default for LinkConfig {
     }
 }
 
+/// A twin's config value that cannot describe an instrument.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct FieldError {
+    /// The field, as a config file writes it.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl FieldError {
+    /// `Err` naming `field` and `reason` unless `ok`.
+    pub fn unless(
+        ok: bool,
+        field: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> Result<(), FieldError> {
+        match ok {
+            true => Ok(()),
+            false => Err(FieldError {
+                field: field.into(),
+                reason: reason.into(),
+            }),
+        }
+    }
+
+    /// `Err` unless `lo` ≤ `v` ≤ `hi`.
+    pub fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), FieldError> {
+        Self::unless(
+            v >= lo && v <= hi,
+            field,
+            format!("{v} is not in [{lo}, {hi}]"),
+        )
+    }
+
+    /// As the sim config names it: the field under the twin's `table`.
+    fn under(self, table: &str) -> (String, String) {
+        (format!("{table}.{}", self.field), self.reason)
+    }
+}
+
 /// What drives a role's stage in the simulator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RoleStage {
@@ -457,17 +498,22 @@ impl SimConfig {
                 "the simulator has one band selector: [monochromator] or [filter_wheel]".into(),
             ));
         }
-        if let Some(m) = &self.monochromator {
-            m.validate()
-                .map_err(|e| (format!("monochromator.{}", e.field), e.reason))?;
-        }
-        if let Some(w) = &self.filter_wheel {
-            w.validate()
-                .map_err(|e| (format!("filter_wheel.{}", e.field), e.reason))?;
-        }
-        if let Some(p) = &self.picoammeter {
-            p.validate()
-                .map_err(|e| (format!("picoammeter.{}", e.field), e.reason))?;
+        let twins = [
+            (
+                "monochromator",
+                self.monochromator.as_ref().map(|m| m.validate()),
+            ),
+            (
+                "filter_wheel",
+                self.filter_wheel.as_ref().map(|w| w.validate()),
+            ),
+            (
+                "picoammeter",
+                self.picoammeter.as_ref().map(|p| p.validate()),
+            ),
+        ];
+        for (table, checked) in twins {
+            checked.unwrap_or(Ok(())).map_err(|e| e.under(table))?;
         }
         for (i, c) in self.controllers.iter().enumerate() {
             if !addrs.contains(&c.address) {
@@ -543,9 +589,7 @@ impl SimConfig {
             o.lamp_colour_temperature_k,
         )?;
         limits::LAMP_CUT_ON.at("optics.lamp_cut_on_nm", o.lamp_cut_on_nm)?;
-        self.lockin
-            .validate()
-            .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
+        self.lockin.validate().map_err(|e| e.under("lockin"))?;
         if self.sample.table.is_some() && self.sample.model.is_some() {
             return Err((
                 "sample.table".into(),

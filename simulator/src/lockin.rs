@@ -104,6 +104,8 @@ use gonio_proto::sr830::{
     ReferenceSource, Reply, Sensitivity, SnapParam, TimeConstant, parse_line,
 };
 use rand::{Rng, SeedableRng};
+
+use crate::config::FieldError;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -212,26 +214,11 @@ impl Default for LockInConfig {
     }
 }
 
-/// A [`LockInConfig`] value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("lock-in config {field}: {reason}")]
-pub struct LockInConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl LockInConfig {
     /// Checks that every number is finite and in range, and that the `*IDN?` fields are
     /// printable ASCII without commas.
-    pub fn validate(&self) -> Result<(), LockInConfigError> {
-        let bad = |field, reason: &str| {
-            Err(LockInConfigError {
-                field,
-                reason: reason.to_string(),
-            })
-        };
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: &str, reason: &str| FieldError::unless(false, field, reason);
         use gonio_core::limits::Range;
         // Finite ranges, so that no reading can overflow: a gain or an overload level
         // of up to 1000, noise densities of up to 1 V/√Hz, a phase within a turn.

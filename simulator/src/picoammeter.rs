@@ -51,6 +51,8 @@ use gonio_proto::k6485::{
     OVERRANGE_FACTOR, REPLY_TERMINATOR, Range, Reply, Sample, ScpiError, StatusWord, parse_line,
 };
 use rand::{Rng, SeedableRng};
+
+use crate::config::FieldError;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -135,21 +137,11 @@ impl Default for PicoammeterConfig {
     }
 }
 
-/// A [`PicoammeterConfig`] value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("picoammeter config {field}: {reason}")]
-pub struct PicoammeterConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl PicoammeterConfig {
     /// Checks that every number is finite and in range, and the `*IDN?` fields are
     /// printable ASCII without commas.
-    pub fn validate(&self) -> Result<(), PicoammeterConfigError> {
-        let bad = |field, reason: String| Err(PicoammeterConfigError { field, reason });
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: &str, reason: String| FieldError::unless(false, field, reason);
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         for (field, v, lo, hi) in [
             ("responsivity_a_per_w", self.responsivity_a_per_w, 0.0, 10.0),
@@ -158,9 +150,7 @@ impl PicoammeterConfig {
             ("temperature_k", self.temperature_k, 1.0, 1000.0),
             ("input_offset_a", self.input_offset_a, -1e-3, 1e-3),
         ] {
-            if !within(v, lo, hi) {
-                return bad(field, format!("{v} is not in [{lo}, {hi}]"));
-            }
+            FieldError::within(field, v, lo, hi)?;
         }
         if !self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3)) {
             return bad("meter_noise_a", "each must be in [0, 1e-3] A".into());
