@@ -498,22 +498,14 @@ impl SimConfig {
                 "the simulator has one band selector: [monochromator] or [filter_wheel]".into(),
             ));
         }
-        let twins = [
-            (
-                "monochromator",
-                self.monochromator.as_ref().map(|m| m.validate()),
-            ),
-            (
-                "filter_wheel",
-                self.filter_wheel.as_ref().map(|w| w.validate()),
-            ),
-            (
-                "picoammeter",
-                self.picoammeter.as_ref().map(|p| p.validate()),
-            ),
-        ];
-        for (table, checked) in twins {
-            checked.unwrap_or(Ok(())).map_err(|e| e.under(table))?;
+        if let Some(m) = &self.monochromator {
+            m.validate().map_err(|e| e.under("monochromator"))?;
+        }
+        if let Some(w) = &self.filter_wheel {
+            w.validate().map_err(|e| e.under("filter_wheel"))?;
+        }
+        if let Some(p) = &self.picoammeter {
+            p.validate().map_err(|e| e.under("picoammeter"))?;
         }
         for (i, c) in self.controllers.iter().enumerate() {
             if !addrs.contains(&c.address) {

@@ -145,19 +145,8 @@ const RESET_AMPLITUDE_V: f64 = 1.0;
 
 /// Physics and noise of the simulated lock-in and its detector front end.
 ///
-/// In a TOML file every field is optional and unknown fields are refused:
-///
-/// ```toml
-/// chop_gain = 0.45
-/// phase_deg = 0.0
-/// amplifier_noise = 20e-9
-/// shot_noise = 2e-6
-/// input_overload_v = 1.4
-/// chopper_hz = 1000.0
-/// serial = "s/n00111"
-/// firmware = "ver1.07"
-/// point_start = "settled"
-/// ```
+/// In a TOML file (`[lockin]`) every field is optional (the defaults are
+/// [`Default`]'s) and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LockInConfig {

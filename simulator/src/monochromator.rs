@@ -87,32 +87,9 @@ pub struct SimFilter {
     pub cut_on_nm: f64,
 }
 
-/// The simulated monochromator, as a config file writes it. Every field is optional
-/// and unknown fields are refused:
-///
-/// ```toml
-/// bandwidth_nm = 2.0        # FWHM with a 1200 l/mm grating
-/// accuracy_nm = 0.25
-/// backlash_nm = 0.5
-/// grating_change_s = 4.0
-/// filter_change_s = 1.5
-/// home_nm = 400.0
-/// echo = true
-/// filter_wheel = true       # false: a unit without a wheel (FILTER? answers 0)
-/// info = "CORNERSTONE 130 TWIN"
-///
-/// [[gratings]]
-/// index = 1
-/// lines_per_mm = 1200
-/// blaze_nm = 350.0
-/// min_nm = 180.0
-/// max_nm = 1300.0
-/// slew_nm_per_s = 100.0
-///
-/// [[filters]]
-/// position = 2
-/// cut_on_nm = 335.0
-/// ```
+/// The simulated monochromator, as a config file writes it (`[monochromator]`, as in
+/// `config/sim-spectral.toml`). Every field is optional (the defaults are
+/// [`Default`]'s) and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MonochromatorSim {

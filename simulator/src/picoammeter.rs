@@ -69,21 +69,9 @@ const TIMESTAMP_WRAP_S: f64 = 100_000.0;
 /// overflow" is not modelled).
 const ERROR_QUEUE: usize = 10;
 
-/// The photodiode and the meter, as a config file writes them. Every field is
-/// optional and unknown fields are refused:
-///
-/// ```toml
-/// responsivity_a_per_w = 0.3     # Si photodiode near 550 nm
-/// dark_current_a = 10e-12
-/// shunt_resistance_ohm = 1e9
-/// temperature_k = 295.0
-/// input_offset_a = 2e-12
-/// meter_noise_a = [20e-15, 100e-15, 1e-12, 10e-12, 100e-12, 1e-9, 10e-9, 100e-9]
-/// rise_time_s = [8e-3, 8e-3, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6]
-/// line_frequency_hz = 50
-/// serial = "1234567"
-/// firmware = "B03   Sep 25 2002 10:53:29/A02  /E"
-/// ```
+/// The photodiode and the meter, as a config file writes them (`[picoammeter]`, as in
+/// `config/sim-mixed.toml`). Every field is optional (the defaults are [`Default`]'s)
+/// and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PicoammeterConfig {
