@@ -194,28 +194,20 @@ pub struct FieldError {
 }
 
 impl FieldError {
-    /// `Err` naming `field` and `reason` unless `ok`.
-    pub fn unless(
-        ok: bool,
-        field: impl Into<String>,
-        reason: impl Into<String>,
-    ) -> Result<(), FieldError> {
-        match ok {
-            true => Ok(()),
-            false => Err(FieldError {
-                field: field.into(),
-                reason: reason.into(),
-            }),
+    /// The error naming `field`.
+    pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        FieldError {
+            field: field.into(),
+            reason: reason.into(),
         }
     }
 
     /// `Err` unless `lo` ≤ `v` ≤ `hi`.
     pub fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), FieldError> {
-        Self::unless(
-            v >= lo && v <= hi,
-            field,
-            format!("{v} is not in [{lo}, {hi}]"),
-        )
+        match v >= lo && v <= hi {
+            true => Ok(()),
+            false => Err(Self::new(field, format!("{v} is not in [{lo}, {hi}]"))),
+        }
     }
 
     /// As the sim config names it: the field under the twin's `table`.

@@ -125,18 +125,15 @@ impl FilterWheelSim {
     /// Checks every field's range; the first bad field is named in the error. The
     /// positions and filters are checked as the driver's config checks them.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: String| FieldError::unless(false, field, reason);
+        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let driver = Fw102cConfig {
             positions: self.positions,
             filters: self.filters.clone(),
             ..Fw102cConfig::default()
         };
-        if let Err(e) = driver.validate() {
-            return Err(FieldError {
-                field: e.field,
-                reason: e.reason,
-            });
-        }
+        driver
+            .validate()
+            .map_err(|e| FieldError::new(e.field, e.reason))?;
         if !(1..=self.positions).contains(&self.initial_position) {
             return bad(
                 "initial_position",
@@ -152,10 +149,7 @@ impl FilterWheelSim {
                 return bad(field, format!("{v} is not in (0, {hi}]"));
             }
         }
-        if !(self.latency_s.is_finite() && (0.0..=1.0).contains(&self.latency_s)) {
-            return bad("latency_s", format!("{} is not in [0, 1]", self.latency_s));
-        }
-        Ok(())
+        FieldError::within("latency_s", self.latency_s, 0.0, 1.0)
     }
 
     /// The filter at `position`, if one is listed.

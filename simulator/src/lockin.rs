@@ -207,7 +207,7 @@ impl LockInConfig {
     /// Checks that every number is finite and in range, and that the `*IDN?` fields are
     /// printable ASCII without commas.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: &str| FieldError::unless(false, field, reason);
+        let bad = |field: &str, reason: &str| Err(FieldError::new(field, reason));
         use gonio_core::limits::Range;
         // Finite ranges, so that no reading can overflow: a gain or an overload level
         // of up to 1000, noise densities of up to 1 V/√Hz, a phase within a turn.

@@ -165,7 +165,7 @@ impl Default for MonochromatorSim {
 impl MonochromatorSim {
     /// Checks every field; the first bad one is named.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: String, reason: String| Err(FieldError { field, reason });
+        let bad = |field: String, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v >= lo && v <= hi;
         if self.gratings.is_empty() {
             return bad("gratings".into(), "at least one grating is needed".into());

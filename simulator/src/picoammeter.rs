@@ -129,7 +129,7 @@ impl PicoammeterConfig {
     /// Checks that every number is finite and in range, and the `*IDN?` fields are
     /// printable ASCII without commas.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: String| FieldError::unless(false, field, reason);
+        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         for (field, v, lo, hi) in [
             ("responsivity_a_per_w", self.responsivity_a_per_w, 0.0, 10.0),
