@@ -183,39 +183,6 @@ impl Default for LinkConfig {
     }
 }
 
-/// A twin's config value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{field}: {reason}")]
-pub struct FieldError {
-    /// The field, as a config file writes it.
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
-impl FieldError {
-    /// The error naming `field`.
-    pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        FieldError {
-            field: field.into(),
-            reason: reason.into(),
-        }
-    }
-
-    /// `Err` unless `lo` ≤ `v` ≤ `hi`.
-    pub fn within(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), FieldError> {
-        match v >= lo && v <= hi {
-            true => Ok(()),
-            false => Err(Self::new(field, format!("{v} is not in [{lo}, {hi}]"))),
-        }
-    }
-
-    /// As the sim config names it: the field under the twin's `table`.
-    fn under(self, table: &str) -> (String, String) {
-        (format!("{table}.{}", self.field), self.reason)
-    }
-}
-
 /// What drives a role's stage in the simulator.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RoleStage {

@@ -59,8 +59,7 @@ use gonio_proto::fw102c::{
     TERMINATOR, TriggerMode,
 };
 
-use crate::config::FieldError;
-use crate::twin::{Echo, LineDevice, LineTwin, Outbox};
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox};
 
 /// The identification string the twin answers to `*idn?`: "Returns the model number
 /// and firmware version" (p. 11), in the form Odemis quotes from a real wheel (driver

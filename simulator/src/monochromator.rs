@@ -56,8 +56,7 @@
 
 use gonio_proto::cs130::{Command, ErrorCode, MAX_LINE, Reply, StatusByte, Units};
 
-use crate::config::FieldError;
-use crate::twin::{Echo, LineDevice, LineTwin, Outbox, TimedLine};
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox, TimedLine};
 
 /// One grating on the twin's turret.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]

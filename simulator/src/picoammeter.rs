@@ -52,7 +52,7 @@ use gonio_proto::k6485::{
 };
 use rand::{Rng, SeedableRng};
 
-use crate::config::FieldError;
+use crate::twin::FieldError;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
