@@ -200,8 +200,11 @@ pub fn sim_config(data: &[u8]) {
     sim.clock().advance(Duration::from_secs(1));
     let _ = sim.lockin_bytes(b"SNAP?1,2\nLIAS?\n");
     // A band selector, when the config has one (nothing happens otherwise).
-    let _ = sim.monochromator_bytes(b"FILTER 3\r\nGOWAVE 650\r\n*WAI\r\nWAVE?\r\n");
-    let _ = sim.filter_wheel_bytes(b"pos=2\rpos?\r");
+    let _ = sim.port_bytes(
+        gonio_sim::Port::Monochromator,
+        b"FILTER 3\r\nGOWAVE 650\r\n*WAI\r\nWAVE?\r\n",
+    );
+    let _ = sim.port_bytes(gonio_sim::Port::FilterWheel, b"pos=2\rpos?\r");
     sim.clock().advance(Duration::from_secs(30));
     let _ = sim.spectrum_at(sim.clock().seconds());
     let _ = sim.signal(sim.clock().seconds());

@@ -38,6 +38,7 @@ use gonio_proto::apt::{
 };
 
 use crate::controller::Profile;
+use crate::twin::TimedLine;
 
 /// Which controller and stage.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -160,8 +161,8 @@ enum Activity {
 }
 
 /// One simulated APT controller and stage. Sans-IO: the caller hands in the bytes the
-/// host wrote ([`receive`](Self::receive)) and collects what the controller sends on
-/// its own ([`poll`](Self::poll), due by [`next_event`](Self::next_event)), all at
+/// host wrote ([`receive`](TimedLine::receive)) and collects what the controller sends on
+/// its own ([`poll`](TimedLine::poll), due by [`next_event`](TimedLine::next_event)), all at
 /// simulated times in seconds.
 #[derive(Clone, Debug)]
 pub struct AptDevice {
@@ -220,10 +221,6 @@ impl KeepAliveRecord {
             None => 0.0,
         }
     }
-}
-
-fn put(m: &Message, out: &mut Vec<u8>) {
-    m.encode(out);
 }
 
 impl AptDevice {
@@ -330,7 +327,7 @@ impl AptDevice {
         if counted {
             self.keepalive.unacked += 1;
         }
-        put(m, out);
+        m.encode(out);
     }
 
     /// Sends a reply to a status request: counted only under [`KeepAliveRule::All`].
@@ -440,17 +437,6 @@ impl AptDevice {
         Some(hi)
     }
 
-    /// When [`poll`](Self::poll) will next have something to send (or a stall to
-    /// take effect).
-    pub fn next_event(&self) -> Option<f64> {
-        let motion = self.stall_time().or(self.motion_end());
-        let update = self.updates.then_some(self.next_update);
-        match (motion, update) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
-    }
-
     /// Fault: from now on the stage sticks when it reaches `angle` (mechanical); the
     /// controller then reports a motion error and no completion.
     pub fn stall_at(&mut self, angle: Option<f64>) {
@@ -539,31 +525,6 @@ impl AptDevice {
         }
     }
 
-    /// Sends what is due by `now`: the end of a motion, status updates.
-    pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
-        while let Some(t) = self.next_event() {
-            if t > now {
-                break;
-            }
-            if let Some(ts) = self.stall_time()
-                && ts <= t
-            {
-                self.at_rest = self.mechanical(ts);
-                self.activity = Activity::Idle;
-                self.motion_error = true;
-                continue;
-            }
-            if self.motion_end() == Some(t) && !(self.updates && self.next_update < t) {
-                self.finish(t, out);
-                continue;
-            }
-            // A status update: sent unasked, so counted.
-            let m = self.update_message(t);
-            self.status(&m, true, out);
-            self.next_update = t + self.cfg.update_period_s.max(1e-3);
-        }
-    }
-
     fn finish(&mut self, t: f64, out: &mut Vec<u8>) {
         let kind = match self.activity {
             Activity::Profile(_, k) => Some(k),
@@ -597,25 +558,6 @@ impl AptDevice {
             },
         };
         self.status(&m, true, out);
-    }
-
-    /// Takes the bytes the host wrote at `now` and appends the controller's answers
-    /// (after anything that fell due before them).
-    pub fn receive(&mut self, now: f64, bytes: &[u8], out: &mut Vec<u8>) {
-        self.poll(now, out);
-        if !bytes.is_empty() && self.keepalive.first_contact.is_none() {
-            self.keepalive.first_contact = Some(now);
-        }
-        self.framer.push(bytes);
-        while let Some(frame) = self.framer.next_frame() {
-            let Ok(frame) = frame else { continue };
-            let Ok(p) = Packet::parse(&frame) else {
-                continue;
-            };
-            if p.dest == USB_UNIT || p.dest == 0x11 || p.dest == 0x21 {
-                self.handle(now, &p.message, out);
-            }
-        }
     }
 
     /// Starts a motion of `kind` from where the stage is to mechanical `to`, stopping
@@ -672,18 +614,16 @@ impl AptDevice {
     fn handle(&mut self, now: f64, m: &Message, out: &mut Vec<u8>) {
         let s = self.stage;
         match m {
-            Message::HwReqInfo => put(
-                &Message::HwGetInfo(AptInfo {
-                    serial: self.cfg.serial_number,
-                    model: s.controller().into(),
-                    hw_type: 16,
-                    firmware: self.cfg.firmware,
-                    hw_version: 1,
-                    mod_state: 0,
-                    channels: 1,
-                }),
-                out,
-            ),
+            Message::HwReqInfo => Message::HwGetInfo(AptInfo {
+                serial: self.cfg.serial_number,
+                model: s.controller().into(),
+                hw_type: 16,
+                firmware: self.cfg.firmware,
+                hw_version: 1,
+                mod_state: 0,
+                channels: 1,
+            })
+            .encode(out),
             Message::HwStartUpdateMsgs if !self.updates => {
                 self.updates = true;
                 self.next_update = now + self.cfg.update_period_s.max(1e-3);
@@ -696,23 +636,19 @@ impl AptDevice {
                     self.stop(now, StopMode::Immediate, out);
                 }
             }
-            Message::ReqChanEnableState { chan } => put(
-                &Message::GetChanEnableState {
-                    chan: *chan,
-                    enabled: self.enabled,
-                },
-                out,
-            ),
+            Message::ReqChanEnableState { chan } => Message::GetChanEnableState {
+                chan: *chan,
+                enabled: self.enabled,
+            }
+            .encode(out),
             Message::SetPosCounter { position, .. } => {
                 self.offset = s.to_deg(*position) - self.mechanical(now);
             }
-            Message::ReqPosCounter { .. } => put(
-                &Message::GetPosCounter {
-                    chan: CHANNEL,
-                    position: self.counts(now),
-                },
-                out,
-            ),
+            Message::ReqPosCounter { .. } => Message::GetPosCounter {
+                chan: CHANNEL,
+                position: self.counts(now),
+            }
+            .encode(out),
             // Non-positive velocities are not applied.
             Message::SetVelParams(v) if v.max_velocity > 0 && v.acceleration > 0 => {
                 self.vel = VelParams {
@@ -720,21 +656,21 @@ impl AptDevice {
                     ..*v
                 };
             }
-            Message::ReqVelParams { .. } => put(&Message::GetVelParams(self.vel), out),
+            Message::ReqVelParams { .. } => Message::GetVelParams(self.vel).encode(out),
             Message::SetJogParams(j) => {
                 self.jog = JogParams {
                     chan: CHANNEL,
                     ..*j
                 }
             }
-            Message::ReqJogParams { .. } => put(&Message::GetJogParams(self.jog), out),
+            Message::ReqJogParams { .. } => Message::GetJogParams(self.jog).encode(out),
             Message::SetHomeParams(h) if h.velocity > 0 => {
                 self.home = HomeParams {
                     chan: CHANNEL,
                     ..*h
                 };
             }
-            Message::ReqHomeParams { .. } => put(&Message::GetHomeParams(self.home), out),
+            Message::ReqHomeParams { .. } => Message::GetHomeParams(self.home).encode(out),
             Message::SetGenMoveParams(g) => {
                 self.genmove = GenMoveParams {
                     chan: CHANNEL,
@@ -742,7 +678,7 @@ impl AptDevice {
                 };
             }
             Message::ReqGenMoveParams { .. } => {
-                put(&Message::GetGenMoveParams(self.genmove), out);
+                Message::GetGenMoveParams(self.genmove).encode(out);
             }
             Message::SetLimSwitchParams(l) => {
                 self.lim = LimSwitchParams {
@@ -751,7 +687,7 @@ impl AptDevice {
                 }
             }
             Message::ReqLimSwitchParams { .. } => {
-                put(&Message::GetLimSwitchParams(self.lim), out);
+                Message::GetLimSwitchParams(self.lim).encode(out);
             }
             Message::ReqStatusBits { .. } => {
                 let m = Message::GetStatusBits {
@@ -780,21 +716,17 @@ impl AptDevice {
                 self.start_motion(now, to, v, Kind::Home);
             }
             Message::SetMoveRelParams { distance, .. } => self.move_rel = *distance,
-            Message::ReqMoveRelParams { .. } => put(
-                &Message::GetMoveRelParams {
-                    chan: CHANNEL,
-                    distance: self.move_rel,
-                },
-                out,
-            ),
+            Message::ReqMoveRelParams { .. } => Message::GetMoveRelParams {
+                chan: CHANNEL,
+                distance: self.move_rel,
+            }
+            .encode(out),
             Message::SetMoveAbsParams { position, .. } => self.move_abs = *position,
-            Message::ReqMoveAbsParams { .. } => put(
-                &Message::GetMoveAbsParams {
-                    chan: CHANNEL,
-                    position: self.move_abs,
-                },
-                out,
-            ),
+            Message::ReqMoveAbsParams { .. } => Message::GetMoveAbsParams {
+                chan: CHANNEL,
+                position: self.move_abs,
+            }
+            .encode(out),
             Message::MoveAbsolute { position, .. } if self.enabled => {
                 let to = s.to_deg(position.unwrap_or(self.move_abs)) - self.offset;
                 self.start_motion(now, to, self.velocity(), Kind::Move);
@@ -830,5 +762,59 @@ impl AptDevice {
             // Identify flashes a LED; the rest needs no answer, or is not modelled.
             _ => {}
         }
+    }
+}
+
+impl TimedLine for AptDevice {
+    /// Takes the bytes the host wrote at `now` and appends the controller's answers
+    /// (after anything that fell due before them).
+    fn receive(&mut self, now: f64, bytes: &[u8], out: &mut Vec<u8>) {
+        self.poll(now, out);
+        if !bytes.is_empty() && self.keepalive.first_contact.is_none() {
+            self.keepalive.first_contact = Some(now);
+        }
+        self.framer.push(bytes);
+        while let Some(frame) = self.framer.next_frame() {
+            let Ok(frame) = frame else { continue };
+            let Ok(p) = Packet::parse(&frame) else {
+                continue;
+            };
+            if p.dest == USB_UNIT || p.dest == 0x11 || p.dest == 0x21 {
+                self.handle(now, &p.message, out);
+            }
+        }
+    }
+
+    /// Sends what is due by `now`: the end of a motion, status updates.
+    fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
+        while let Some(t) = self.next_event() {
+            if t > now {
+                break;
+            }
+            if let Some(ts) = self.stall_time()
+                && ts <= t
+            {
+                self.at_rest = self.mechanical(ts);
+                self.activity = Activity::Idle;
+                self.motion_error = true;
+                continue;
+            }
+            if self.motion_end() == Some(t) && !(self.updates && self.next_update < t) {
+                self.finish(t, out);
+                continue;
+            }
+            // A status update: sent unasked, so counted.
+            let m = self.update_message(t);
+            self.status(&m, true, out);
+            self.next_update = t + self.cfg.update_period_s.max(1e-3);
+        }
+    }
+
+    /// When [`poll`](TimedLine::poll) will next have something to send (or a stall to
+    /// take effect).
+    fn next_event(&self) -> Option<f64> {
+        let motion = self.stall_time().or(self.motion_end());
+        let update = self.updates.then_some(self.next_update);
+        motion.into_iter().chain(update).reduce(f64::min)
     }
 }

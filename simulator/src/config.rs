@@ -458,16 +458,13 @@ impl SimConfig {
             ));
         }
         if let Some(m) = &self.monochromator {
-            m.validate()
-                .map_err(|e| (format!("monochromator.{}", e.field), e.reason))?;
+            m.validate().map_err(|e| e.under("monochromator"))?;
         }
         if let Some(w) = &self.filter_wheel {
-            w.validate()
-                .map_err(|e| (format!("filter_wheel.{}", e.field), e.reason))?;
+            w.validate().map_err(|e| e.under("filter_wheel"))?;
         }
         if let Some(p) = &self.picoammeter {
-            p.validate()
-                .map_err(|e| (format!("picoammeter.{}", e.field), e.reason))?;
+            p.validate().map_err(|e| e.under("picoammeter"))?;
         }
         for (i, c) in self.controllers.iter().enumerate() {
             if !addrs.contains(&c.address) {
@@ -543,9 +540,7 @@ impl SimConfig {
             o.lamp_colour_temperature_k,
         )?;
         limits::LAMP_CUT_ON.at("optics.lamp_cut_on_nm", o.lamp_cut_on_nm)?;
-        self.lockin
-            .validate()
-            .map_err(|e| (format!("lockin.{}", e.field), e.reason))?;
+        self.lockin.validate().map_err(|e| e.under("lockin"))?;
         if self.sample.table.is_some() && self.sample.model.is_some() {
             return Err((
                 "sample.table".into(),

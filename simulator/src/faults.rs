@@ -20,6 +20,20 @@ pub enum Port {
     FilterWheel,
 }
 
+impl Port {
+    /// The line's name: `motion`, `detector`, `apt0`, …, `monochromator`,
+    /// `filter_wheel`.
+    pub fn name(self) -> String {
+        match self {
+            Port::Motion => "motion".into(),
+            Port::Detector => "detector".into(),
+            Port::Apt(n) => format!("apt{n}"),
+            Port::Monochromator => "monochromator".into(),
+            Port::FilterWheel => "filter_wheel".into(),
+        }
+    }
+}
+
 /// A span of physical time, s.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]

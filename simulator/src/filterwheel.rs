@@ -46,7 +46,7 @@
 //!   front-panel buttons.
 //!
 //! # Optics
-//! [`Fw102cTwin::transmittance`] is the transmittance of the filter in the beam:
+//! [`Fw102cDevice::transmittance`] is the transmittance of the filter in the beam:
 //! band-pass, `peak · exp(−4 ln 2 (λ − centre)² / FWHM²)` (a Gaussian of the stated
 //! FWHM); long-pass, `peak / (1 + exp(−(λ − cut_on) / s))` with `s` such that it rises
 //! from 10 % to 90 % of `peak` over `longpass_rise_nm` (`s = rise / (2 ln 9)`); half the
@@ -54,12 +54,12 @@
 //! aperture, 1. While the wheel turns the beam is taken as blocked, 0 (the twin's
 //! choice). Real filters' out-of-band leakage and angle dependence are not modelled.
 
-use std::collections::VecDeque;
-
 use gonio_proto::fw102c::{
     Command, DeviceError, ErrorCode, Filter, Fw102cConfig, PROMPT, Reply, SensorMode, Speed,
     TERMINATOR, TriggerMode,
 };
+
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox};
 
 /// The identification string the twin answers to `*idn?`: "Returns the model number
 /// and firmware version" (p. 11), in the form Odemis quotes from a real wheel (driver
@@ -120,37 +120,19 @@ impl Default for FilterWheelSim {
     }
 }
 
-/// A [`FilterWheelSim`] value that cannot describe a wheel.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("filter wheel sim config {field}: {reason}")]
-pub struct FilterWheelSimError {
-    /// The field, as written in a config file.
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl FilterWheelSim {
     /// Checks every field's range; the first bad field is named in the error. The
     /// positions and filters are checked as the driver's config checks them.
-    pub fn validate(&self) -> Result<(), FilterWheelSimError> {
-        let bad = |field: &str, reason: String| {
-            Err(FilterWheelSimError {
-                field: field.into(),
-                reason,
-            })
-        };
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let driver = Fw102cConfig {
             positions: self.positions,
             filters: self.filters.clone(),
             ..Fw102cConfig::default()
         };
-        if let Err(e) = driver.validate() {
-            return Err(FilterWheelSimError {
-                field: e.field,
-                reason: e.reason,
-            });
-        }
+        driver
+            .validate()
+            .map_err(|e| FieldError::new(e.field, e.reason))?;
         if !(1..=self.positions).contains(&self.initial_position) {
             return bad(
                 "initial_position",
@@ -166,10 +148,7 @@ impl FilterWheelSim {
                 return bad(field, format!("{v} is not in (0, {hi}]"));
             }
         }
-        if !(self.latency_s.is_finite() && (0.0..=1.0).contains(&self.latency_s)) {
-            return bad("latency_s", format!("{} is not in [0, 1]", self.latency_s));
-        }
-        Ok(())
+        FieldError::within("latency_s", self.latency_s, 0.0, 1.0)
     }
 
     /// The filter at `position`, if one is listed.
@@ -188,10 +167,13 @@ pub fn bandpass_transmittance(nm: f64, centre_nm: f64, fwhm_nm: f64, peak: f64) 
 /// (the light model's own edge, [`crate::spectral::longpass`]).
 pub use crate::spectral::longpass as longpass_transmittance;
 
-/// The simulated wheel. Time is virtual: every call says when it happens (seconds
-/// since power-up).
+/// The simulated wheel on its line. Time is virtual: every call says when it happens
+/// (seconds since power-up).
+pub type Fw102cTwin = LineTwin<Fw102cDevice>;
+
+/// The wheel's firmware and mechanics, which [`Fw102cTwin`] feeds.
 #[derive(Clone, Debug)]
-pub struct Fw102cTwin {
+pub struct Fw102cDevice {
     config: FilterWheelSim,
     pcount: u8,
     speed: Speed,
@@ -203,12 +185,6 @@ pub struct Fw102cTwin {
     from: u8,
     move_start: f64,
     move_end: f64,
-    /// Bytes received and not yet read by the firmware, with their arrival times.
-    input: VecDeque<(f64, u8)>,
-    /// The line read so far.
-    line: Vec<u8>,
-    /// Bytes to send, with the times they leave, in order.
-    outbox: VecDeque<(f64, Vec<u8>)>,
     /// The rate `baud=` last chose: 0 for 9600, 1 for 115200 (p. 11). Recorded only:
     /// the line keeps its speed (module docs).
     baud: u8,
@@ -226,7 +202,7 @@ impl Fw102cTwin {
         } else {
             1
         };
-        Fw102cTwin {
+        let wheel = Fw102cDevice {
             pcount: config.positions,
             speed: config.speed,
             trigger: TriggerMode::Input,
@@ -235,46 +211,61 @@ impl Fw102cTwin {
             from: position,
             move_start: 0.0,
             move_end: 0.0,
-            input: VecDeque::new(),
-            line: Vec::new(),
-            // The power-up prompt (User Guide Rev M), sent once at time 0.
-            outbox: VecDeque::from([(0.0, PROMPT.to_vec())]),
             baud: 1,
             config: config.clone(),
-        }
+        };
+        // The power-up prompt (User Guide Rev M), sent once at time 0.
+        LineTwin::wrap(wheel, Some(PROMPT))
+    }
+}
+
+impl LineDevice for Fw102cDevice {
+    // CR runs the line (§5.2: "All strings ... must be terminated by a carriage
+    // return").
+    const END: u8 = TERMINATOR;
+
+    /// Every byte echoed as it is read (driver only: ISIS, "each read returns the sent
+    /// query string, too"; Odemis strips it).
+    fn echo(&self) -> Echo {
+        Echo::Read
     }
 
-    /// Bytes from the host at `now`; appends to `out` what the wheel sends by `now`.
-    pub fn receive(&mut self, now: f64, bytes: &[u8], out: &mut Vec<u8>) {
-        let now = if now.is_finite() { now } else { 0.0 };
-        self.input.extend(bytes.iter().map(|b| (now, *b)));
-        self.poll(now, out);
+    /// Bytes received while the wheel turns wait, unechoed, until it stops (the twin's
+    /// choice, UNCONFIRMED: module docs).
+    fn reads_from(&self) -> f64 {
+        self.move_end
     }
 
-    /// Appends to `out` what the wheel sends by `now` (a move's prompt, the answers
-    /// to bytes that waited for the move).
-    pub fn poll(&mut self, now: f64, out: &mut Vec<u8>) {
-        self.run(now);
-        while let Some((t, _)) = self.outbox.front() {
-            if *t > now {
-                break;
+    /// Runs one line at `t`: its answer, then the prompt (at the end of a move). An LF
+    /// is echoed and ignored (assumed: a host ending lines CR LF).
+    fn execute(&mut self, t: f64, line: &[u8], out: &mut Outbox) {
+        let line: Vec<u8> = line.iter().copied().filter(|b| *b != b'\n').collect();
+        let mut answer = Vec::new();
+        let mut prompt_at = t;
+        if line.iter().any(u8::is_ascii_uppercase) {
+            // p. 11: "All commands and queries are in lower case letters".
+            DeviceError {
+                code: ErrorCode::NotDefined,
             }
-            if let Some((_, bytes)) = self.outbox.pop_front() {
-                out.extend_from_slice(&bytes);
+            .encode(&mut answer);
+        } else if let Some(reply) = self.baud_command(&line) {
+            // `baud=` and `baud?` (p. 11), which Gonio's codec does not encode.
+            match reply {
+                Ok(Some(digit)) => answer.extend_from_slice(&[b'0' + digit, TERMINATOR]),
+                Ok(None) => {}
+                Err(code) => DeviceError { code }.encode(&mut answer),
             }
+        } else {
+            prompt_at = self.run_command(t, &line, &mut answer);
         }
+        out.send(t, answer);
+        // The prompt follows every answer, a refusal's too (§5.2: "This message will
+        // be followed immediately by the prompt").
+        out.send(prompt_at, PROMPT);
     }
+}
 
-    /// When the wheel next sends something, if it has anything to send.
-    pub fn next_event(&self) -> Option<f64> {
-        let queued = self.outbox.front().map(|(t, _)| *t);
-        let waiting = self.input.front().map(|(t, _)| t.max(self.move_end));
-        match (queued, waiting) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
-    }
-
+impl Fw102cDevice {
     /// When the move under way ends (or the last one ended): bytes received before it
     /// are answered then, not before.
     pub fn busy_until(&self) -> f64 {
@@ -372,64 +363,6 @@ impl Fw102cTwin {
         }
     }
 
-    /// Reads every byte the firmware can read by `now`: each when it has arrived and
-    /// the wheel is not turning.
-    fn run(&mut self, now: f64) {
-        while let Some(&(arrived, byte)) = self.input.front() {
-            let t = arrived.max(self.move_end);
-            if t > now {
-                break;
-            }
-            self.input.pop_front();
-            // Every byte echoed as it is read (driver only: ISIS, Odemis); CR runs the
-            // line (§5.2); an LF is echoed and ignored (assumed: a host ending lines
-            // CR LF).
-            self.send(t, vec![byte]);
-            if byte == TERMINATOR {
-                let line = std::mem::take(&mut self.line);
-                self.execute(t, &line);
-            } else if byte != b'\n' {
-                self.line.push(byte);
-            }
-        }
-    }
-
-    fn send(&mut self, t: f64, bytes: Vec<u8>) {
-        match self.outbox.back_mut() {
-            Some((last, b)) if *last == t => b.extend_from_slice(&bytes),
-            _ => self.outbox.push_back((t, bytes)),
-        }
-    }
-
-    /// Runs one line at `t`: its answer, then the prompt (at the end of a move).
-    fn execute(&mut self, t: f64, line: &[u8]) {
-        let mut out = Vec::new();
-        let mut prompt_at = t;
-        if line.iter().any(u8::is_ascii_uppercase) {
-            // p. 11: "All commands and queries are in lower case letters".
-            DeviceError {
-                code: ErrorCode::NotDefined,
-            }
-            .encode(&mut out);
-        } else if let Some(answer) = self.baud_command(line) {
-            // `baud=` and `baud?` (p. 11), which Gonio's codec does not encode.
-            match answer {
-                Ok(Some(digit)) => {
-                    out.push(b'0' + digit);
-                    out.push(TERMINATOR);
-                }
-                Ok(None) => {}
-                Err(code) => DeviceError { code }.encode(&mut out),
-            }
-        } else {
-            prompt_at = self.run_command(t, line, &mut out);
-        }
-        self.send(t, out);
-        // The prompt follows every answer, a refusal's too (§5.2: "This message will
-        // be followed immediately by the prompt").
-        self.send(prompt_at, PROMPT.to_vec());
-    }
-
     /// Runs a lower-case line the codec parses at `t`, its answer appended to `out`;
     /// returns when its prompt is due (a move's end, or `t`).
     fn run_command(&mut self, t: f64, line: &[u8], out: &mut Vec<u8>) -> f64 {
@@ -506,6 +439,7 @@ impl Fw102cTwin {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::twin::TimedLine;
 
     /// A wheel just powered up, its power-up prompt already read.
     fn wheel() -> Fw102cTwin {

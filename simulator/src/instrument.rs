@@ -25,6 +25,7 @@ use crate::monochromator::Cs130Twin;
 use crate::optics::{LightPath, Optics};
 use crate::picoammeter::Picoammeter;
 use crate::spectral;
+use crate::twin::TimedLine;
 use gonio_brdf::Brdf;
 
 /// The 10–90 % width of the lamp's and optics' UV edge, nm.
@@ -192,30 +193,30 @@ impl SimInstrument {
 
     /// Sets what is in the light path from now on (a calibration's set-up).
     pub fn set_light_path(&mut self, path: LightPath) {
-        let now = self.clock.seconds();
-        self.sync(now);
-        self.optics.set_light_path(path);
-        self.sync(now);
+        self.at(self.clock.seconds(), |s| s.optics.set_light_path(path));
     }
 
     /// Measures the band `name` of the sample from now on (a filter wheel); false
     /// when the sample has no such channel.
     pub fn select_channel(&mut self, name: &str) -> bool {
-        let now = self.clock.seconds();
-        self.sync(now);
-        let ok = self.optics.select_channel(name);
-        self.sync(now);
-        ok
+        self.at(self.clock.seconds(), |s| s.optics.select_channel(name))
     }
 
     /// Mounts another sample (a reference standard) from now on; returns the one
     /// taken off and its channel.
     pub fn swap_sample(&mut self, sample: Box<dyn Brdf>, channel: usize) -> (Box<dyn Brdf>, usize) {
-        let now = self.clock.seconds();
+        self.at(self.clock.seconds(), |s| {
+            s.optics.swap_sample(sample, channel)
+        })
+    }
+
+    /// Runs `f` at `now` with the detector's input brought up to it before and
+    /// after: what `f` changes (the light, a move) changes the input at once.
+    fn at<R>(&mut self, now: f64, f: impl FnOnce(&mut Self) -> R) -> R {
         self.sync(now);
-        let old = self.optics.swap_sample(sample, channel);
+        let r = f(self);
         self.sync(now);
-        old
+        r
     }
 
     /// The stages are at the point identified by `key`: restart the lock-in's filters
@@ -374,8 +375,8 @@ impl SimInstrument {
             .iter()
             .filter_map(Controller::motion_end)
             .chain(self.apt.iter().filter_map(AptDevice::motion_end))
-            .chain(self.mono.iter().map(Cs130Twin::motion_until))
-            .chain(self.wheel.iter().map(Fw102cTwin::busy_until))
+            .chain(self.mono.iter().map(|m| m.motion_until()))
+            .chain(self.wheel.iter().map(|w| w.busy_until()))
             .filter(|t| *t > self.last_sync && *t <= now)
             .collect();
         ends.sort_by(f64::total_cmp);
@@ -502,52 +503,32 @@ impl SimInstrument {
     pub fn port_bytes(&mut self, port: Port, bytes: &[u8]) -> Vec<u8> {
         match port {
             Port::Motion => self.motion_bytes(bytes),
-            Port::Detector if self.pico.is_some() => self.picoammeter_bytes(bytes),
-            Port::Detector => self.lockin_bytes(bytes),
-            Port::Apt(n) => self.apt_bytes(usize::from(n), bytes),
-            Port::Monochromator => self.monochromator_bytes(bytes),
-            Port::FilterWheel => self.filter_wheel_bytes(bytes),
+            Port::Detector => self.detector_bytes(bytes, self.pico.is_some()),
+            // Each on its own time: its echo at once, an answer held by `*WAI` or a
+            // move's prompt later, unasked.
+            // A shutter, a filter or a move changes the light at once.
+            _ => {
+                let now = self.clock.seconds();
+                self.at(now, |s| {
+                    let mut out = Vec::new();
+                    if let Some(d) = s.timed(port) {
+                        d.receive(now, bytes, &mut out);
+                    }
+                    out
+                })
+            }
         }
     }
 
-    /// Bytes the driver wrote on the monochromator's line; returns what it sends by
-    /// now (its echo at once; an answer held by `*WAI` comes later, unasked).
-    pub fn monochromator_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let now = self.clock.seconds();
-        self.sync(now);
-        let mut out = Vec::new();
-        if let Some(m) = &mut self.mono {
-            m.handle_bytes(now, bytes);
-            m.take_output(now, &mut out);
+    /// The device on `port` when it sends on its own time (an APT controller, the
+    /// band selector).
+    fn timed(&mut self, port: Port) -> Option<&mut dyn TimedLine> {
+        match port {
+            Port::Apt(n) => self.apt.get_mut(usize::from(n)).map(|d| d as _),
+            Port::Monochromator => self.mono.as_mut().map(|d| d as _),
+            Port::FilterWheel => self.wheel.as_mut().map(|d| d as _),
+            Port::Motion | Port::Detector => None,
         }
-        // A shutter or filter changes the light at once.
-        self.sync(now);
-        out
-    }
-
-    /// Bytes the driver wrote on the filter wheel's line; returns its answers by now
-    /// (the prompt that ends a move comes when the move does).
-    pub fn filter_wheel_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let now = self.clock.seconds();
-        self.sync(now);
-        let mut out = Vec::new();
-        if let Some(w) = &mut self.wheel {
-            w.receive(now, bytes, &mut out);
-        }
-        self.sync(now);
-        out
-    }
-
-    /// Bytes the driver wrote on the n-th APT controller's line; returns its answers.
-    pub fn apt_bytes(&mut self, n: usize, bytes: &[u8]) -> Vec<u8> {
-        let now = self.clock.seconds();
-        self.sync(now);
-        let mut out = Vec::new();
-        if let Some(d) = self.apt.get_mut(n) {
-            d.receive(now, bytes, &mut out);
-        }
-        self.sync(now);
-        out
     }
 
     /// When `port` next sends something nobody asked for (an APT controller's
@@ -555,9 +536,9 @@ impl SimInstrument {
     pub fn next_unsolicited(&self, port: Port) -> Option<f64> {
         match port {
             Port::Apt(n) => self.apt.get(usize::from(n))?.next_event(),
-            Port::Monochromator => self.mono.as_ref()?.next_output_at(),
+            Port::Monochromator => self.mono.as_ref()?.next_event(),
             Port::FilterWheel => self.wheel.as_ref()?.next_event(),
-            _ => None,
+            Port::Motion | Port::Detector => None,
         }
     }
 
@@ -566,28 +547,13 @@ impl SimInstrument {
     /// it may stand a hair short of it.
     pub fn unsolicited(&mut self, port: Port, at: f64) -> Vec<u8> {
         let now = self.clock.seconds().max(at);
-        let mut out = Vec::new();
-        self.sync(now);
-        match port {
-            Port::Apt(n) => {
-                if let Some(d) = self.apt.get_mut(usize::from(n)) {
-                    d.poll(now, &mut out);
-                }
+        self.at(now, |s| {
+            let mut out = Vec::new();
+            if let Some(d) = s.timed(port) {
+                d.poll(now, &mut out);
             }
-            Port::Monochromator => {
-                if let Some(m) = &mut self.mono {
-                    m.take_output(now, &mut out);
-                }
-            }
-            Port::FilterWheel => {
-                if let Some(w) = &mut self.wheel {
-                    w.poll(now, &mut out);
-                }
-            }
-            Port::Motion | Port::Detector => {}
-        }
-        self.sync(now);
-        out
+            out
+        })
     }
 
     /// The earliest time an answer on `port` can leave the instrument (a picoammeter
@@ -606,63 +572,34 @@ impl SimInstrument {
             Port::Detector => self.link.detector_latency_s,
             Port::Apt(_) => self.link.apt_latency_s,
             Port::Monochromator => 0.0,
-            Port::FilterWheel => self.wheel.as_ref().map_or(0.0, Fw102cTwin::latency),
+            Port::FilterWheel => self.wheel.as_ref().map_or(0.0, |w| w.latency()),
         }
     }
 
-    /// The band selectors' lines there are (the monochromator's, the wheel's).
-    pub fn spectral_ports(&self) -> Vec<Port> {
-        let mut v = Vec::new();
-        if self.mono.is_some() {
-            v.push(Port::Monochromator);
-        }
-        if self.wheel.is_some() {
-            v.push(Port::FilterWheel);
-        }
-        v
-    }
-
-    /// The APT lines there are.
-    pub fn apt_ports(&self) -> Vec<Port> {
-        (0..self.apt.len())
-            .filter_map(|n| u8::try_from(n).ok().map(Port::Apt))
+    /// Every line there is: motion, detector, the APT controllers', the band
+    /// selector's.
+    pub fn ports(&self) -> Vec<Port> {
+        let apt = (0..self.apt.len()).filter_map(|n| u8::try_from(n).ok().map(Port::Apt));
+        [Port::Motion, Port::Detector]
+            .into_iter()
+            .chain(apt)
+            .chain(self.mono.is_some().then_some(Port::Monochromator))
+            .chain(self.wheel.is_some().then_some(Port::FilterWheel))
             .collect()
-    }
-
-    /// Bytes the driver wrote on the detector line when it is the picoammeter.
-    fn picoammeter_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let now = self.clock.seconds();
-        self.sync(now);
-        // The 6485 ends a command at CR or LF, as the SR830 does.
-        let unified: Vec<u8> = bytes
-            .iter()
-            .map(|b| if *b == b'\r' { b'\n' } else { *b })
-            .collect();
-        self.lockin_framer.push(&unified);
-        let mut out = Vec::new();
-        while let Some(line) = self.lockin_framer.next_line() {
-            let Ok(line) = line else { continue };
-            if line.is_empty() {
-                continue;
-            }
-            self.stats.detector_lines += 1;
-            let mut reply = Vec::new();
-            if let Some(p) = &mut self.pico {
-                p.handle_line(now, &line, &mut reply);
-            }
-            for part in reply.split_inclusive(|b| *b == b'\r') {
-                self.deliver(&line, part.to_vec(), &mut out);
-            }
-        }
-        out
     }
 
     /// Bytes the driver wrote on the detector line; returns the lock-in's answers.
     pub fn lockin_bytes(&mut self, bytes: &[u8]) -> Vec<u8> {
+        self.detector_bytes(bytes, false)
+    }
+
+    /// Bytes the driver wrote on the detector line; returns the answers of the
+    /// picoammeter when `pico`, else the lock-in's.
+    fn detector_bytes(&mut self, bytes: &[u8], pico: bool) -> Vec<u8> {
         let now = self.clock.seconds();
         self.sync(now);
         // The SR830 ends a command at CR or LF ("a linefeed <lf> or carriage return
-        // <cr> on RS232": manual p. 5-2, quoted in a public driver).
+        // <cr> on RS232": manual p. 5-2, quoted in a public driver), as the 6485 does.
         let unified: Vec<u8> = bytes
             .iter()
             .map(|b| if *b == b'\r' { b'\n' } else { *b })
@@ -672,8 +609,9 @@ impl SimInstrument {
         while let Some(line) = self.lockin_framer.next_line() {
             let line = match line {
                 Ok(line) => line,
-                // Longer than the framer keeps: an input-buffer overflow.
-                Err(FrameError::TooLong(_)) => {
+                // Longer than the framer keeps: the lock-in's input buffer overflowed
+                // (the picoammeter's line drops it).
+                Err(FrameError::TooLong(_)) if !pico => {
                     self.stats.detector_lines += 1;
                     self.lockin.input_overflow(now);
                     continue;
@@ -686,7 +624,10 @@ impl SimInstrument {
             }
             self.stats.detector_lines += 1;
             let mut reply = Vec::new();
-            self.lockin.handle_line(now, &line, &mut reply);
+            match &mut self.pico {
+                Some(p) if pico => p.handle_line(now, &line, &mut reply),
+                _ => self.lockin.handle_line(now, &line, &mut reply),
+            }
             // One reply line per answered query, each ending in CR.
             for part in reply.split_inclusive(|b| *b == b'\r') {
                 self.deliver(&line, part.to_vec(), &mut out);

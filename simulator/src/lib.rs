@@ -30,6 +30,7 @@ pub mod pty;
 pub mod serve;
 pub mod spectral;
 pub mod transport;
+pub mod twin;
 
 pub use bench::SimBench;
 pub use clock::SimClock;

@@ -104,6 +104,8 @@ use gonio_proto::sr830::{
     ReferenceSource, Reply, Sensitivity, SnapParam, TimeConstant, parse_line,
 };
 use rand::{Rng, SeedableRng};
+
+use crate::twin::FieldError;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -143,19 +145,8 @@ const RESET_AMPLITUDE_V: f64 = 1.0;
 
 /// Physics and noise of the simulated lock-in and its detector front end.
 ///
-/// In a TOML file every field is optional and unknown fields are refused:
-///
-/// ```toml
-/// chop_gain = 0.45
-/// phase_deg = 0.0
-/// amplifier_noise = 20e-9
-/// shot_noise = 2e-6
-/// input_overload_v = 1.4
-/// chopper_hz = 1000.0
-/// serial = "s/n00111"
-/// firmware = "ver1.07"
-/// point_start = "settled"
-/// ```
+/// In a TOML file (`[lockin]`) every field is optional (the defaults are
+/// [`Default`]'s) and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LockInConfig {
@@ -212,26 +203,11 @@ impl Default for LockInConfig {
     }
 }
 
-/// A [`LockInConfig`] value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("lock-in config {field}: {reason}")]
-pub struct LockInConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl LockInConfig {
     /// Checks that every number is finite and in range, and that the `*IDN?` fields are
     /// printable ASCII without commas.
-    pub fn validate(&self) -> Result<(), LockInConfigError> {
-        let bad = |field, reason: &str| {
-            Err(LockInConfigError {
-                field,
-                reason: reason.to_string(),
-            })
-        };
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: &str, reason: &str| Err(FieldError::new(field, reason));
         use gonio_core::limits::Range;
         // Finite ranges, so that no reading can overflow: a gain or an overload level
         // of up to 1000, noise densities of up to 1 V/√Hz, a phase within a turn.

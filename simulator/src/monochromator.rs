@@ -48,15 +48,15 @@
 //! The actual wavelength is the one asked for, plus `accuracy_nm` (a fixed
 //! calibration error), plus `backlash_nm` when the drive approached from above (moving
 //! down: the slack in the drive leaves it `backlash_nm` short of the target, i.e.
-//! above it). [`Cs130Twin::optical`] gives the light model what it needs: the actual
+//! above it). [`Cs130Device::optical`] gives the light model what it needs: the actual
 //! wavelength, grating, filter, shutter and bandwidth. The bandwidth (FWHM) is
 //! `bandwidth_nm` with a 1200 l/mm grating, scaled by 1200 / lines per mm (the
 //! reciprocal linear dispersion is proportional to the groove spacing, at small
 //! angles). The light itself (lamp, efficiencies, second order) is not modelled here.
 
-use std::collections::VecDeque;
-
 use gonio_proto::cs130::{Command, ErrorCode, MAX_LINE, Reply, StatusByte, Units};
+
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox, TimedLine};
 
 /// One grating on the twin's turret.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
@@ -86,32 +86,9 @@ pub struct SimFilter {
     pub cut_on_nm: f64,
 }
 
-/// The simulated monochromator, as a config file writes it. Every field is optional
-/// and unknown fields are refused:
-///
-/// ```toml
-/// bandwidth_nm = 2.0        # FWHM with a 1200 l/mm grating
-/// accuracy_nm = 0.25
-/// backlash_nm = 0.5
-/// grating_change_s = 4.0
-/// filter_change_s = 1.5
-/// home_nm = 400.0
-/// echo = true
-/// filter_wheel = true       # false: a unit without a wheel (FILTER? answers 0)
-/// info = "CORNERSTONE 130 TWIN"
-///
-/// [[gratings]]
-/// index = 1
-/// lines_per_mm = 1200
-/// blaze_nm = 350.0
-/// min_nm = 180.0
-/// max_nm = 1300.0
-/// slew_nm_per_s = 100.0
-///
-/// [[filters]]
-/// position = 2
-/// cut_on_nm = 335.0
-/// ```
+/// The simulated monochromator, as a config file writes it (`[monochromator]`, as in
+/// `config/sim-spectral.toml`). Every field is optional (the defaults are
+/// [`Default`]'s) and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MonochromatorSim {
@@ -184,20 +161,10 @@ impl Default for MonochromatorSim {
     }
 }
 
-/// A [`MonochromatorSim`] value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("monochromator config {field}: {reason}")]
-pub struct MonochromatorSimError {
-    /// The field, as a config file writes it.
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl MonochromatorSim {
     /// Checks every field; the first bad one is named.
-    pub fn validate(&self) -> Result<(), MonochromatorSimError> {
-        let bad = |field: String, reason: String| Err(MonochromatorSimError { field, reason });
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: String, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v >= lo && v <= hi;
         if self.gratings.is_empty() {
             return bad("gratings".into(), "at least one grating is needed".into());
@@ -261,9 +228,7 @@ impl MonochromatorSim {
             ("home_nm", self.home_nm, 0.0, 100_000.0),
         ];
         for (field, v, lo, hi) in ranges {
-            if !within(v, lo, hi) {
-                return bad(field.into(), format!("{v} is not in [{lo}, {hi}]"));
-            }
+            FieldError::within(field, v, lo, hi)?;
         }
         if self.info.is_empty()
             || self.info.len() > 200
@@ -315,16 +280,13 @@ impl Motion {
     }
 }
 
-/// The byte-level twin of the Cornerstone 130: see the module docs.
+/// The byte-level twin of the Cornerstone 130 on its line: see the module docs.
+pub type Cs130Twin = LineTwin<Cs130Device>;
+
+/// The Cornerstone 130's state machine and optics, which [`Cs130Twin`] feeds.
 #[derive(Clone, Debug)]
-pub struct Cs130Twin {
+pub struct Cs130Device {
     config: MonochromatorSim,
-    /// The line being received.
-    partial: Vec<u8>,
-    /// Inside an overlong line: dropped up to its LF.
-    discarding: bool,
-    /// Bytes to send, each with the time it leaves.
-    outbox: VecDeque<(f64, Vec<u8>)>,
     units: Units,
     grating: u8,
     filter: u8,
@@ -349,87 +311,66 @@ impl Cs130Twin {
     /// should have been validated.
     pub fn new(config: &MonochromatorSim) -> Self {
         let grating = config.gratings.iter().map(|g| g.index).min().unwrap_or(1);
-        Cs130Twin {
-            partial: Vec::new(),
-            discarding: false,
-            outbox: VecDeque::new(),
-            units: Units::Nm,
-            grating,
-            filter: if config.filter_wheel { 1 } else { 0 },
-            shutter_open: false,
-            asked_nm: config.home_nm,
-            motion: Motion {
-                t0: 0.0,
-                t1: 0.0,
-                from_nm: config.home_nm,
-                to_nm: config.home_nm,
+        let home = config.home_nm;
+        LineTwin::wrap(
+            Cs130Device {
+                units: Units::Nm,
+                grating,
+                filter: if config.filter_wheel { 1 } else { 0 },
+                shutter_open: false,
+                asked_nm: home,
+                motion: Motion {
+                    t0: 0.0,
+                    t1: 0.0,
+                    from_nm: home,
+                    to_nm: home,
+                },
+                motion_until: 0.0,
+                hold_until: 0.0,
+                busy_until: 0.0,
+                status: StatusByte(0),
+                error: ErrorCode::NONE,
+                config: config.clone(),
             },
-            motion_until: 0.0,
-            hold_until: 0.0,
-            busy_until: 0.0,
-            status: StatusByte(0),
-            error: ErrorCode::NONE,
-            config: config.clone(),
-        }
-    }
-
-    /// Bytes received at `now`, in any chunks: echoed at once (§15.4), and each
-    /// complete line run at `now`, or when a `*WAI` hold ends. Output waits in the
-    /// twin until [`take_output`](Self::take_output).
-    pub fn handle_bytes(&mut self, now: f64, bytes: &[u8]) {
-        let now = if now.is_finite() { now.max(0.0) } else { 0.0 };
-        if self.config.echo && !bytes.is_empty() {
-            self.send(now, bytes.to_vec());
-        }
-        for &b in bytes {
-            if b == b'\n' {
-                let line = std::mem::take(&mut self.partial);
-                if std::mem::replace(&mut self.discarding, false) {
-                    continue;
-                }
-                let line = line.strip_suffix(b"\r").unwrap_or(&line).to_vec();
-                self.run_line(now, &line);
-            } else if !self.discarding {
-                self.partial.push(b);
-                if self.partial.len() > MAX_LINE {
-                    self.partial.clear();
-                    self.discarding = true;
-                    self.fail(ErrorCode::NOT_UNDERSTOOD);
-                }
-            }
-        }
-    }
-
-    /// Appends to `out` every byte due by `now`, in order.
-    pub fn take_output(&mut self, now: f64, out: &mut Vec<u8>) {
-        while let Some((t, _)) = self.outbox.front() {
-            if *t > now {
-                break;
-            }
-            if let Some((_, bytes)) = self.outbox.pop_front() {
-                out.extend_from_slice(&bytes);
-            }
-        }
-    }
-
-    /// When the next byte waiting in the twin is due, if any.
-    pub fn next_output_at(&self) -> Option<f64> {
-        self.outbox.front().map(|(t, _)| *t)
+            None,
+        )
     }
 
     /// One line (terminator removed) received at `now`, the picoammeter's shape: its
     /// echo and answer, and anything still waiting, are appended to `out` at once and
-    /// are due at [`busy_until`](Self::busy_until) (later than `now` only when a
+    /// are due at [`busy_until`](Cs130Device::busy_until) (later than `now` only when a
     /// `*WAI` holds the line until a move ends). A transport that needs the echo at
-    /// its real time uses [`handle_bytes`](Self::handle_bytes) and
-    /// [`take_output`](Self::take_output) instead.
+    /// its real time uses [`push`](LineTwin::push) and [`poll`](LineTwin::poll).
     pub fn handle_line(&mut self, now: f64, line: &[u8], out: &mut Vec<u8>) {
-        let mut bytes = line.to_vec();
-        bytes.extend_from_slice(b"\r\n");
-        self.handle_bytes(now, &bytes);
-        self.take_output(f64::INFINITY, out);
+        self.push(now, &[line, b"\r\n"].concat());
+        self.poll(f64::INFINITY, out);
+    }
+}
+
+impl LineDevice for Cs130Device {
+    // A line ends at LF; a CR before it is dropped in `execute` (§15.4).
+    const END: u8 = b'\n';
+    const MAX_LINE: usize = MAX_LINE;
+
+    /// Every byte received is sent back at once, terminators included (§15.4).
+    fn echo(&self) -> Echo {
+        if self.config.echo {
+            Echo::Arrival
+        } else {
+            Echo::Off
+        }
     }
 
+    fn execute(&mut self, t: f64, line: &[u8], out: &mut Outbox) {
+        self.run_line(t, line.strip_suffix(b"\r").unwrap_or(line), out);
+    }
+
+    fn overflow(&mut self, _t: f64) {
+        self.fail(ErrorCode::NOT_UNDERSTOOD);
+    }
+}
+
+impl Cs130Device {
     /// When the output of the last line is due: its arrival, or the end of the moves
     /// a `*WAI` before it waits for.
     pub fn busy_until(&self) -> f64 {
@@ -470,17 +411,6 @@ impl Cs130Twin {
         self.error = code;
     }
 
-    fn answer(&mut self, t: f64, reply: &Reply) {
-        self.send(t, reply.to_bytes());
-    }
-
-    /// Queues `bytes` to leave at `t`, after everything due by then (an echo is not
-    /// held behind an answer that waits for a move).
-    fn send(&mut self, t: f64, bytes: Vec<u8>) {
-        let at = self.outbox.partition_point(|(due, _)| *due <= t);
-        self.outbox.insert(at, (t, bytes));
-    }
-
     /// A mechanism move of `seconds` asked at `t`: after the ones under way.
     fn occupy(&mut self, t: f64, seconds: f64) -> f64 {
         let start = self.motion_until.max(t);
@@ -488,7 +418,7 @@ impl Cs130Twin {
         start
     }
 
-    fn run_line(&mut self, now: f64, line: &[u8]) {
+    fn run_line(&mut self, now: f64, line: &[u8], out: &mut Outbox) {
         let t = now.max(self.hold_until);
         self.busy_until = t;
         let command = match Command::parse(line) {
@@ -563,7 +493,7 @@ impl Cs130Twin {
             Command::Wai => self.hold_until = t.max(self.motion_until),
             Command::Wave => {
                 let v = self.units.from_nm(self.motion.at(t));
-                self.answer(t, &Reply::Wavelength(v));
+                out.send(t, Reply::Wavelength(v).to_bytes());
             }
             Command::GratQuery => {
                 let reply = Reply::Grating {
@@ -573,7 +503,7 @@ impl Cs130Twin {
                         .grating_spec()
                         .map(|g| format!("BLAZE{:.0}", g.blaze_nm)),
                 };
-                self.answer(t, &reply);
+                out.send(t, reply.to_bytes());
             }
             Command::FilterQuery => {
                 // No wheel: "0 is returned and an error is set in the status byte"
@@ -581,20 +511,20 @@ impl Cs130Twin {
                 if !self.config.filter_wheel {
                     self.fail(ErrorCode::NO_ACCESSORY);
                 }
-                self.answer(t, &Reply::Filter(self.filter));
+                out.send(t, Reply::Filter(self.filter).to_bytes());
             }
-            Command::ShutterQuery => self.answer(t, &Reply::Shutter(self.shutter_open)),
+            Command::ShutterQuery => out.send(t, Reply::Shutter(self.shutter_open).to_bytes()),
             Command::Stb => {
                 let s = std::mem::take(&mut self.status);
-                self.answer(t, &Reply::Status(s));
+                out.send(t, Reply::Status(s).to_bytes());
             }
             Command::Error => {
                 let e = std::mem::replace(&mut self.error, ErrorCode::NONE);
-                self.answer(t, &Reply::Error(e));
+                out.send(t, Reply::Error(e).to_bytes());
             }
             Command::Info => {
                 let info = self.config.info.clone();
-                self.answer(t, &Reply::Info(info));
+                out.send(t, Reply::Info(info).to_bytes());
             }
         }
     }

@@ -51,6 +51,8 @@ use gonio_proto::k6485::{
     OVERRANGE_FACTOR, REPLY_TERMINATOR, Range, Reply, Sample, ScpiError, StatusWord, parse_line,
 };
 use rand::{Rng, SeedableRng};
+
+use crate::twin::FieldError;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -67,21 +69,9 @@ const TIMESTAMP_WRAP_S: f64 = 100_000.0;
 /// overflow" is not modelled).
 const ERROR_QUEUE: usize = 10;
 
-/// The photodiode and the meter, as a config file writes them. Every field is
-/// optional and unknown fields are refused:
-///
-/// ```toml
-/// responsivity_a_per_w = 0.3     # Si photodiode near 550 nm
-/// dark_current_a = 10e-12
-/// shunt_resistance_ohm = 1e9
-/// temperature_k = 295.0
-/// input_offset_a = 2e-12
-/// meter_noise_a = [20e-15, 100e-15, 1e-12, 10e-12, 100e-12, 1e-9, 10e-9, 100e-9]
-/// rise_time_s = [8e-3, 8e-3, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6]
-/// line_frequency_hz = 50
-/// serial = "1234567"
-/// firmware = "B03   Sep 25 2002 10:53:29/A02  /E"
-/// ```
+/// The photodiode and the meter, as a config file writes them (`[picoammeter]`, as in
+/// `config/sim-mixed.toml`). Every field is optional (the defaults are [`Default`]'s)
+/// and unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PicoammeterConfig {
@@ -135,21 +125,11 @@ impl Default for PicoammeterConfig {
     }
 }
 
-/// A [`PicoammeterConfig`] value that cannot describe an instrument.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("picoammeter config {field}: {reason}")]
-pub struct PicoammeterConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
 impl PicoammeterConfig {
     /// Checks that every number is finite and in range, and the `*IDN?` fields are
     /// printable ASCII without commas.
-    pub fn validate(&self) -> Result<(), PicoammeterConfigError> {
-        let bad = |field, reason: String| Err(PicoammeterConfigError { field, reason });
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         for (field, v, lo, hi) in [
             ("responsivity_a_per_w", self.responsivity_a_per_w, 0.0, 10.0),
@@ -158,9 +138,7 @@ impl PicoammeterConfig {
             ("temperature_k", self.temperature_k, 1.0, 1000.0),
             ("input_offset_a", self.input_offset_a, -1e-3, 1e-3),
         ] {
-            if !within(v, lo, hi) {
-                return bad(field, format!("{v} is not in [{lo}, {hi}]"));
-            }
+            FieldError::within(field, v, lo, hi)?;
         }
         if !self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3)) {
             return bad("meter_noise_a", "each must be in [0, 1e-3] A".into());

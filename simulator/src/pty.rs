@@ -112,66 +112,40 @@ fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
 }
 
 impl PtySim {
-    /// Starts serving `sim` on two new pseudo-terminals.
+    /// Starts serving `sim` on new pseudo-terminals, one for each of its lines.
     pub fn spawn(sim: SharedSim) -> std::io::Result<PtySim> {
         static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let n = COUNT.fetch_add(1, Ordering::Relaxed);
         let dir = std::env::temp_dir().join(format!("gonio-sim-{}-{n}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
-        let (motion, detector) = (dir.join("motion"), dir.join("detector"));
-        let apt_ports = lock(&sim).apt_ports();
-        let apt: Vec<PathBuf> = (0..apt_ports.len())
-            .map(|n| dir.join(format!("apt{n}")))
-            .collect();
-        let spectral: Vec<(Port, PathBuf)> = lock(&sim)
-            .spectral_ports()
+        let lines: Vec<(Port, PathBuf)> = lock(&sim)
+            .ports()
             .into_iter()
-            .map(|p| {
-                let name = match p {
-                    Port::Monochromator => "monochromator",
-                    _ => "filter_wheel",
-                };
-                (p, dir.join(name))
-            })
+            .map(|p| (p, dir.join(p.name())))
             .collect();
-        let path_of = |want: Port| {
-            spectral
-                .iter()
-                .find(|(p, _)| *p == want)
-                .map(|(_, l)| l.clone())
-        };
-        let (monochromator, filter_wheel) =
-            (path_of(Port::Monochromator), path_of(Port::FilterWheel));
         let stop = Arc::new(AtomicBool::new(false));
         let mut threads = Vec::new();
-        let lines = [
-            (Port::Motion, motion.clone()),
-            (Port::Detector, detector.clone()),
-        ]
-        .into_iter()
-        .chain(apt_ports.into_iter().zip(apt.iter().cloned()))
-        .chain(spectral.iter().cloned());
-        for (port, link) in lines {
+        for (port, link) in lines.iter().cloned() {
             let (s, st) = (sim.clone(), stop.clone());
             threads.push(std::thread::spawn(move || serve(s, port, link, st)));
         }
-        // The first pairs exist once both links do.
+        // The first pairs exist once every link does.
         for _ in 0..400 {
-            if motion.exists()
-                && detector.exists()
-                && apt.iter().all(|p| p.exists())
-                && spectral.iter().all(|(_, p)| p.exists())
-            {
+            if lines.iter().all(|(_, p)| p.exists()) {
                 break;
             }
             std::thread::sleep(Duration::from_millis(5));
         }
+        let path = |want: fn(&Port) -> bool| lines.iter().filter(move |(p, _)| want(p));
+        let first = |want: fn(&Port) -> bool| path(want).next().map(|(_, l)| l.clone());
         Ok(PtySim {
-            motion,
-            detector,
-            apt,
-            monochromator,
-            filter_wheel,
+            motion: dir.join(Port::Motion.name()),
+            detector: dir.join(Port::Detector.name()),
+            apt: path(|p| matches!(p, Port::Apt(_)))
+                .map(|(_, l)| l.clone())
+                .collect(),
+            monochromator: first(|p| *p == Port::Monochromator),
+            filter_wheel: first(|p| *p == Port::FilterWheel),
             dir,
             stop,
             threads,

@@ -173,12 +173,6 @@ impl Transport for SimTransport {
     }
 
     fn name(&self) -> String {
-        match self.port {
-            Port::Motion => "sim:motion".into(),
-            Port::Detector => "sim:detector".into(),
-            Port::Apt(n) => format!("sim:apt{n}"),
-            Port::Monochromator => "sim:monochromator".into(),
-            Port::FilterWheel => "sim:filter_wheel".into(),
-        }
+        format!("sim:{}", self.port.name())
     }
 }

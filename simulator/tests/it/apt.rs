@@ -15,6 +15,7 @@ use gonio_proto::motion::{AxisError, MotionError};
 use gonio_proto::smc100::ChainPolicy;
 use gonio_proto::{FrameError, Framer, TransportError};
 use gonio_sim::apt::{AptDevice, AptDeviceConfig, AptModel};
+use gonio_sim::twin::TimedLine;
 
 struct Rig {
     dev: AptDevice,

@@ -13,6 +13,7 @@ use gonio_proto::fw102c::{ErrorCode, MAX_LINE, TERMINATOR};
 use gonio_sim::filterwheel::{
     FilterWheelSim, Fw102cTwin, IDENTITY, bandpass_transmittance, longpass_transmittance,
 };
+use gonio_sim::twin::TimedLine;
 
 /// The twin behind a CR-framed line, on a manual clock; every write and every byte
 /// received is logged.

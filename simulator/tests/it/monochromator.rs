@@ -11,6 +11,7 @@ use gonio_driver::cs130::{Cs130, Cs130Config, Cs130Error, ErrorCode, MonoState};
 use gonio_driver::{Clock, ManualClock, Transport, TransportError};
 use gonio_proto::LineFramer;
 use gonio_sim::monochromator::{Cs130Twin, MonoOptical, MonochromatorSim};
+use gonio_sim::twin::TimedLine;
 
 /// The twin behind the driver's `Transport`: bytes to it at the clock's time, its
 /// output delivered when due, the clock moved to each delivery or deadline.
@@ -42,7 +43,7 @@ impl Transport for TwinLink {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
         self.wire.extend_from_slice(bytes);
         let now = self.secs();
-        self.twin.handle_bytes(now, bytes);
+        self.twin.push(now, bytes);
         Ok(())
     }
 
@@ -52,14 +53,14 @@ impl Transport for TwinLink {
             if let Some(frame) = self.framer.next_line() {
                 return frame.map_err(TransportError::from);
             }
-            match self.twin.next_output_at() {
+            match self.twin.next_event() {
                 Some(t) if t <= deadline.as_secs_f64() => {
                     let at = Duration::from_secs_f64(t);
                     if at > self.clock.now() {
                         self.clock.advance(at - self.clock.now());
                     }
                     let mut out = Vec::new();
-                    self.twin.take_output(t, &mut out);
+                    self.twin.poll(t, &mut out);
                     self.framer.push(&out);
                 }
                 _ => {
@@ -74,7 +75,7 @@ impl Transport for TwinLink {
     fn clear_input(&mut self) -> Result<(), TransportError> {
         let mut stale = Vec::new();
         let now = self.secs();
-        self.twin.take_output(now, &mut stale);
+        self.twin.poll(now, &mut stale);
         self.framer.clear();
         Ok(())
     }
@@ -230,9 +231,9 @@ fn a_destination_the_twin_refuses_is_reported_with_error_3() {
 
 /// The twin's bytes at the time they leave.
 fn exchange(twin: &mut Cs130Twin, t: f64, bytes: &[u8]) -> Vec<u8> {
-    twin.handle_bytes(t, bytes);
+    twin.push(t, bytes);
     let mut out = Vec::new();
-    twin.take_output(t, &mut out);
+    twin.poll(t, &mut out);
     out
 }
 
@@ -256,9 +257,9 @@ fn the_twin_echoes_answers_and_reports_errors_as_the_manual_says() {
         exchange(&mut twin, 0.2, b"*WAI\r\nWAVE?\r\n"),
         b"*WAI\r\nWAVE?\r\n"
     );
-    assert_eq!(twin.next_output_at(), Some(1.0025));
+    assert_eq!(twin.next_event(), Some(1.0025));
     let mut out = Vec::new();
-    twin.take_output(1.0025, &mut out);
+    twin.poll(1.0025, &mut out);
     assert_eq!(out, b"500.25\r\n");
     // §15.9: errors set the status byte until STB?, the code until ERROR?.
     assert_eq!(
