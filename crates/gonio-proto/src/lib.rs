@@ -17,13 +17,15 @@
 //!   instrument's policy: limits checked before any byte, `TE` after every set command,
 //!   re-sends only of what may be repeated, lost acknowledgements, power loss, reconnects,
 //!   stops; set-up, settling waits, the read cycle, averaging, autoranging, flags. Each
-//!   `start_*` call returns a running [`link::Operation`], in the shape of quinn-proto's
+//!   `start_*` call returns a running [`Task`], a [`link::Operation`] in the shape of quinn-proto's
 //!   connection: its caller (a *pump*) polls out the bytes to send, input to clear, a
 //!   reconnection to attempt or a [`link::Deadline`] to wait for, hands in what happened
 //!   (`handle_sent`, `handle_line`, `handle_link_error`, `handle_timeout`, ...) with the
 //!   time it happened, and finally polls out the typed result. Time is a `Duration` since
 //!   the caller's origin. `gonio-driver` pumps operations over serial ports; the
 //!   simulator's tests pump them straight into the device models on virtual time.
+//!   Inside, every operation is an `async fn` over the one engine (`engine`), which
+//!   also holds the link policy every family shares.
 //!
 //! ```
 //! use gonio_proto::smc100::{Command, Frame, Reply, ReplyBody};
@@ -63,6 +65,7 @@ pub mod smc100;
 pub mod sr830;
 pub mod timing;
 
+pub use engine::Task;
 pub use facts::Unconfirmed;
 pub use framing::{FrameError, Framer, LineFramer};
 pub use link::TransportError;

@@ -6,7 +6,6 @@
 use std::time::Duration;
 
 use crate::FrameError;
-pub use crate::engine::Task;
 
 /// Why an operation on the serial link failed: what a transport reports to the pump
 /// and the pump hands to a session (`handle_sent`, `handle_link_error`), and what the
