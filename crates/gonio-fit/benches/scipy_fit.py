@@ -16,7 +16,7 @@ projection).
 Two modes, both timed with time.perf_counter (reading the CSV excluded):
 
 * **no start** (the default, Gonio's problem): no start values, the same greedy
-  multi-start search as Gonio's `fit_lobes` (`search` in src/fit.rs). Lobes are added
+  multi-start search as Gonio's `fit_lobes` (`search` in src/fit/search.rs). Lobes are added
   one at a time; for each new lobe the same 56 seeds (beta in {1.3, 0.9, 0.5, -0.2,
   -0.5, -0.8, -1.1, -1.4} x n in {1.5, 3, 6, 12, 25, 50, 100}, the lobe's unit
   direction (sin beta / sqrt 2, sin beta / sqrt 2, cos beta)), the lobes already
@@ -72,7 +72,7 @@ LOBES = [
 ]
 NLOBES = len(LOBES)
 
-# Gonio's start search (`seeds` and `search` in src/fit.rs, `FitOptions::default`).
+# Gonio's start search (`seeds` and `search` in src/fit/search.rs, `FitOptions::default`).
 SEED_BETAS = [1.3, 0.9, 0.5, -0.2, -0.5, -0.8, -1.1, -1.4]
 SEED_NS = [1.5, 3.0, 6.0, 12.0, 25.0, 50.0, 100.0]
 SEARCH_SAMPLES = 2000

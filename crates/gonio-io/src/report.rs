@@ -276,227 +276,13 @@ pub fn html(c: &Contents) -> String {
         adaptive_html(&mut h, a);
     }
     if let Some(r) = &c.reduction {
-        h.push_str("<h2>Calibration and reduction</h2>\n");
-        let _ = writeln!(
-            h,
-            "<p>f<sub>r</sub> = (S − S<sub>dark</sub>) / (Φ(t) Ω cos θ<sub>o</sub>) (DeYoung Eq. A.15); \
-             detector solid angle Ω = {} sr; largest read-back position error {:.4}°.</p>",
-            num(r.solid_angle_sr),
-            r.max_position_error_deg
-        );
-        // A lock-in's volts, or a picoammeter's amps (every channel of a run alike).
-        let unit = r.channels.first().map_or("V", |c| c.unit);
-        let _ = writeln!(
-            h,
-            "<table><tr><th class=\"k\">channel</th><th>calibration</th><th>readings</th>\
-             <th>incident flux ({unit})</th><th>its rel. σ</th><th>dark X, Y ({unit})</th>\
-             <th>drift references</th><th>max |g − 1|</th><th>samples</th></tr>",
-        );
-        for ch in &r.channels {
-            let _ = writeln!(
-                h,
-                "<tr><td class=\"k\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
-                 <td>{}, {}</td><td>{}</td><td>{:.3}%</td><td>{}</td></tr>",
-                escape(&ch.channel),
-                ch.calibration,
-                ch.calibration_readings,
-                num(ch.incident_v),
-                num(ch.incident_rel_sigma),
-                num(ch.dark_v[0]),
-                num(ch.dark_v[1]),
-                ch.drift_readings,
-                100.0 * ch.drift_max,
-                ch.samples
-            );
-        }
-        h.push_str("</table>\n");
-        if r.channels.iter().any(|ch| !ch.budget.is_empty()) {
-            h.push_str(
-                "<h3>Uncertainty budget</h3>\n<p>Each sample's σ is the quadrature sum of these \
-                 terms (relative standard uncertainties over the channel's samples).</p>\n\
-                 <table><tr><th class=\"k\">channel</th><th class=\"k\">term</th>\
-                 <th>median rel. σ</th><th>largest rel. σ</th><th class=\"k\">shared</th>\
-                 <th class=\"k\">source</th></tr>\n",
-            );
-            for ch in &r.channels {
-                for t in &ch.budget {
-                    let _ = writeln!(
-                        h,
-                        "<tr><td class=\"k\">{}</td><td class=\"k\">{}</td><td>{}</td><td>{}</td>\
-                         <td class=\"k\">{}</td><td class=\"k\">{}</td></tr>",
-                        escape(&ch.channel),
-                        escape(t.term),
-                        num(t.rel_median),
-                        num(t.rel_max),
-                        escape(t.correlation),
-                        escape(&t.source)
-                    );
-                }
-            }
-            h.push_str("</table>\n");
-        }
-        if !r.rejected.is_empty() || r.unmeasured > 0 {
-            let mut parts: Vec<String> =
-                r.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();
-            if r.unmeasured > 0 {
-                parts.push(format!("{} not measured", r.unmeasured));
-            }
-            let _ = writeln!(h, "<p>Left out: {}.</p>", escape(&parts.join(", ")));
-        }
+        reduction_html(&mut h, r);
     }
     if let Some(m) = &c.measures {
-        h.push_str("<h2>Physical plausibility and compressibility (DeYoung Ch. 4)</h2>\n");
-        let _ = write!(h, "<table><tr><th class=\"k\">measure</th>");
-        for ch in &m.channels {
-            let _ = write!(h, "<th>{}</th>", escape(ch));
-        }
-        h.push_str("</tr>\n");
-        let row = |h: &mut String, name: &str, v: &[f64]| {
-            let _ = write!(h, "<tr><td class=\"k\">{name}</td>");
-            for x in v {
-                let _ = write!(h, "<td>{}</td>", num(*x));
-            }
-            h.push_str("</tr>\n");
-        };
-        row(
-            &mut h,
-            "P<sub>r</sub> reciprocity (Eq. 4.1)",
-            &m.reciprocity,
-        );
-        row(&mut h, "P<sub>ec</sub> energy (Eq. 4.5)", &m.energy.p_ec);
-        row(&mut h, "P<sub>i</sub> isotropy (Eq. 4.10)", &m.isotropy);
-        if let Some(sep) = &m.separability
-            && let Some(first) = sep.first()
-        {
-            for (j, (k, _)) in first.p_s.iter().enumerate() {
-                let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
-                row(
-                    &mut h,
-                    &format!("P<sub>s</sub><sup>({k})</sup> separability (Eq. 4.20)"),
-                    &v,
-                );
-            }
-        }
-        let max_alb: Vec<f64> = m
-            .energy
-            .albedo
-            .iter()
-            .map(|a| a.iter().copied().fold(0.0, f64::max))
-            .collect();
-        row(&mut h, "largest directional albedo", &max_alb);
-        h.push_str("</table>\n");
-        let _ = writeln!(
-            h,
-            "<p>{} nodes; reciprocal values {}; {}.</p>",
-            m.nodes,
-            if m.paired {
-                "looked up (paired grid)"
-            } else {
-                "interpolated"
-            },
-            match m.energy.method {
-                gonio_process::measure::EnergyMethod::Sum => format!(
-                    "albedos by DeYoung's sum (Eq. 4.4); the outgoing nodes cover {:.1}% of \
-                     the projected hemisphere",
-                    100.0 * m.energy.coverage
-                ),
-                gonio_process::measure::EnergyMethod::Triangulated => format!(
-                    "albedos over the triangulated hemisphere of the samples (Sec. 4.2.2); \
-                     the data cover at least {:.1}% of the projected hemisphere, and at most \
-                     {:.1}% (the band to the horizon) is held from the data's edge",
-                    100.0 * m.energy.coverage,
-                    100.0 * m.energy.extrapolated
-                ),
-            }
-        );
+        measures_html(&mut h, m);
     }
     if let Some(f) = &c.fit {
-        h.push_str("<h2>Lobe fit (Lafortune et al. 1997)</h2>\n");
-        let _ = writeln!(
-            h,
-            // No wall time: the same run gives the same report, byte for byte (an
-            // archive reprocessed twice, a retried batch task).
-            "<p>{} lobe(s), {:?} diffuse, {} pairs; objective {} (minimised: {}; {}); {} \
-             evaluations; largest directional albedo {:.4}{}.</p>",
-            f.shape.lobes,
-            f.shape.diffuse,
-            f.samples,
-            escape(&f.objective.name),
-            escape(&f.objective.formula),
-            escape(&f.objective.chosen),
-            f.evaluations,
-            f.max_albedo,
-            if f.energy_scale < 1.0 {
-                format!(", scaled by {:.4} to conserve energy", f.energy_scale)
-            } else {
-                String::new()
-            }
-        );
-        h.push_str(
-            "<table><tr><th class=\"k\">channel</th><th class=\"k\">term</th><th>C<sub>x</sub></th>\
-             <th>C<sub>y</sub></th><th>C<sub>z</sub></th><th>n</th><th>ρ<sub>d</sub></th></tr>\n",
-        );
-        for ch in &f.channels {
-            let _ = writeln!(
-                h,
-                "<tr><td class=\"k\">{}</td><td class=\"k\">diffuse</td><td></td><td></td><td></td>\
-                 <td>{}</td><td>{} ± {}</td></tr>",
-                escape(&ch.channel),
-                if ch.params.m > 0.0 {
-                    num(ch.params.m)
-                } else {
-                    String::new()
-                },
-                num(ch.params.rho_d),
-                num(ch.std_err.rho_d)
-            );
-            for (j, (l, s)) in ch.params.lobes.iter().zip(&ch.std_err.lobes).enumerate() {
-                let _ = write!(
-                    h,
-                    "<tr><td class=\"k\">{}</td><td class=\"k\">lobe {}</td>",
-                    escape(&ch.channel),
-                    j + 1
-                );
-                for q in 0..4 {
-                    let _ = write!(h, "<td>{} ± {}</td>", num(l[q]), num(s[q]));
-                }
-                h.push_str("<td></td></tr>\n");
-            }
-        }
-        h.push_str("</table>\n");
-        h.push_str("<table><tr><th class=\"k\">model (same data, same metric)</th>");
-        for ch in &f.channels {
-            let _ = write!(h, "<th>{} rel. RMS</th>", escape(&ch.channel));
-        }
-        h.push_str("</tr>\n");
-        let _ = write!(
-            h,
-            "<tr><td class=\"k\">Lafortune, {} lobe(s)</td>",
-            f.shape.lobes
-        );
-        for ch in &f.channels {
-            let _ = write!(h, "<td>{:.3}%</td>", 100.0 * ch.relative_rms);
-        }
-        h.push_str("</tr>\n");
-        let mut models: Vec<&str> = Vec::new();
-        for r in &c.comparison {
-            if !models.contains(&r.model) {
-                models.push(r.model);
-            }
-        }
-        for m in models {
-            let _ = write!(h, "<tr><td class=\"k\">{}</td>", escape(m));
-            for r in c.comparison.iter().filter(|r| r.model == m) {
-                let _ = write!(h, "<td>{:.3}%</td>", 100.0 * r.relative_rms);
-            }
-            h.push_str("</tr>\n");
-        }
-        h.push_str("</table>\n");
-        let _ = writeln!(
-            h,
-            "<details><summary>Model file</summary><pre>{}</pre></details>",
-            escape(&f.model_toml)
-        );
+        fit_html(&mut h, f, &c.comparison);
     }
     if !c.figures.is_empty() {
         h.push_str("<h2>Figures</h2>\n");
@@ -524,6 +310,245 @@ pub fn html(c: &Contents) -> String {
     }
     h.push_str("</body></html>\n");
     h
+}
+
+/// The reduction's section: the equation and solid angle, each channel's
+/// calibration and drift, the uncertainty budget, and what was left out.
+fn reduction_html(h: &mut String, r: &Reduction) {
+    h.push_str("<h2>Calibration and reduction</h2>\n");
+    let _ = writeln!(
+        h,
+        "<p>f<sub>r</sub> = (S − S<sub>dark</sub>) / (Φ(t) Ω cos θ<sub>o</sub>) (DeYoung Eq. A.15); \
+         detector solid angle Ω = {} sr; largest read-back position error {:.4}°.</p>",
+        num(r.solid_angle_sr),
+        r.max_position_error_deg
+    );
+    // A lock-in's volts, or a picoammeter's amps (every channel of a run alike).
+    let unit = r.channels.first().map_or("V", |c| c.unit);
+    let _ = writeln!(
+        h,
+        "<table><tr><th class=\"k\">channel</th><th>calibration</th><th>readings</th>\
+         <th>incident flux ({unit})</th><th>its rel. σ</th><th>dark X, Y ({unit})</th>\
+         <th>drift references</th><th>max |g − 1|</th><th>samples</th></tr>",
+    );
+    for ch in &r.channels {
+        let _ = writeln!(
+            h,
+            "<tr><td class=\"k\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{}, {}</td><td>{}</td><td>{:.3}%</td><td>{}</td></tr>",
+            escape(&ch.channel),
+            ch.calibration,
+            ch.calibration_readings,
+            num(ch.incident_v),
+            num(ch.incident_rel_sigma),
+            num(ch.dark_v[0]),
+            num(ch.dark_v[1]),
+            ch.drift_readings,
+            100.0 * ch.drift_max,
+            ch.samples
+        );
+    }
+    h.push_str("</table>\n");
+    budget_html(h, r);
+    if !r.rejected.is_empty() || r.unmeasured > 0 {
+        let mut parts: Vec<String> = r.rejected.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        if r.unmeasured > 0 {
+            parts.push(format!("{} not measured", r.unmeasured));
+        }
+        let _ = writeln!(h, "<p>Left out: {}.</p>", escape(&parts.join(", ")));
+    }
+}
+
+/// The uncertainty budget's table, when a channel has one.
+fn budget_html(h: &mut String, r: &Reduction) {
+    if !r.channels.iter().any(|ch| !ch.budget.is_empty()) {
+        return;
+    }
+    h.push_str(
+        "<h3>Uncertainty budget</h3>\n<p>Each sample's σ is the quadrature sum of these \
+         terms (relative standard uncertainties over the channel's samples).</p>\n\
+         <table><tr><th class=\"k\">channel</th><th class=\"k\">term</th>\
+         <th>median rel. σ</th><th>largest rel. σ</th><th class=\"k\">shared</th>\
+         <th class=\"k\">source</th></tr>\n",
+    );
+    for ch in &r.channels {
+        for t in &ch.budget {
+            let _ = writeln!(
+                h,
+                "<tr><td class=\"k\">{}</td><td class=\"k\">{}</td><td>{}</td><td>{}</td>\
+                 <td class=\"k\">{}</td><td class=\"k\">{}</td></tr>",
+                escape(&ch.channel),
+                escape(t.term),
+                num(t.rel_median),
+                num(t.rel_max),
+                escape(t.correlation),
+                escape(&t.source)
+            );
+        }
+    }
+    h.push_str("</table>\n");
+}
+
+/// DeYoung's measures' section: one row a measure, one column a channel, and how
+/// the albedos were found.
+fn measures_html(h: &mut String, m: &Measures) {
+    h.push_str("<h2>Physical plausibility and compressibility (DeYoung Ch. 4)</h2>\n");
+    let _ = write!(h, "<table><tr><th class=\"k\">measure</th>");
+    for ch in &m.channels {
+        let _ = write!(h, "<th>{}</th>", escape(ch));
+    }
+    h.push_str("</tr>\n");
+    let row = |h: &mut String, name: &str, v: &[f64]| {
+        let _ = write!(h, "<tr><td class=\"k\">{name}</td>");
+        for x in v {
+            let _ = write!(h, "<td>{}</td>", num(*x));
+        }
+        h.push_str("</tr>\n");
+    };
+    row(h, "P<sub>r</sub> reciprocity (Eq. 4.1)", &m.reciprocity);
+    row(h, "P<sub>ec</sub> energy (Eq. 4.5)", &m.energy.p_ec);
+    row(h, "P<sub>i</sub> isotropy (Eq. 4.10)", &m.isotropy);
+    if let Some(sep) = &m.separability
+        && let Some(first) = sep.first()
+    {
+        for (j, (k, _)) in first.p_s.iter().enumerate() {
+            let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
+            row(
+                h,
+                &format!("P<sub>s</sub><sup>({k})</sup> separability (Eq. 4.20)"),
+                &v,
+            );
+        }
+    }
+    let max_alb: Vec<f64> = m
+        .energy
+        .albedo
+        .iter()
+        .map(|a| a.iter().copied().fold(0.0, f64::max))
+        .collect();
+    row(h, "largest directional albedo", &max_alb);
+    h.push_str("</table>\n");
+    let _ = writeln!(
+        h,
+        "<p>{} nodes; reciprocal values {}; {}.</p>",
+        m.nodes,
+        if m.paired {
+            "looked up (paired grid)"
+        } else {
+            "interpolated"
+        },
+        match m.energy.method {
+            gonio_process::measure::EnergyMethod::Sum => format!(
+                "albedos by DeYoung's sum (Eq. 4.4); the outgoing nodes cover {:.1}% of \
+                 the projected hemisphere",
+                100.0 * m.energy.coverage
+            ),
+            gonio_process::measure::EnergyMethod::Triangulated => format!(
+                "albedos over the triangulated hemisphere of the samples (Sec. 4.2.2); \
+                 the data cover at least {:.1}% of the projected hemisphere, and at most \
+                 {:.1}% (the band to the horizon) is held from the data's edge",
+                100.0 * m.energy.coverage,
+                100.0 * m.energy.extrapolated
+            ),
+        }
+    );
+}
+
+/// The lobe fit's section: the fit's account, its parameters with their standard
+/// errors, the comparison with the other models, and the model file.
+fn fit_html(h: &mut String, f: &LobeFit, comparison: &[Compared]) {
+    h.push_str("<h2>Lobe fit (Lafortune et al. 1997)</h2>\n");
+    let _ = writeln!(
+        h,
+        // No wall time: the same run gives the same report, byte for byte (an
+        // archive reprocessed twice, a retried batch task).
+        "<p>{} lobe(s), {:?} diffuse, {} pairs; objective {} (minimised: {}; {}); {} \
+         evaluations; largest directional albedo {:.4}{}.</p>",
+        f.shape.lobes,
+        f.shape.diffuse,
+        f.samples,
+        escape(&f.objective.name),
+        escape(&f.objective.formula),
+        escape(&f.objective.chosen),
+        f.evaluations,
+        f.max_albedo,
+        if f.energy_scale < 1.0 {
+            format!(", scaled by {:.4} to conserve energy", f.energy_scale)
+        } else {
+            String::new()
+        }
+    );
+    h.push_str(
+        "<table><tr><th class=\"k\">channel</th><th class=\"k\">term</th><th>C<sub>x</sub></th>\
+         <th>C<sub>y</sub></th><th>C<sub>z</sub></th><th>n</th><th>ρ<sub>d</sub></th></tr>\n",
+    );
+    for ch in &f.channels {
+        let _ = writeln!(
+            h,
+            "<tr><td class=\"k\">{}</td><td class=\"k\">diffuse</td><td></td><td></td><td></td>\
+             <td>{}</td><td>{} ± {}</td></tr>",
+            escape(&ch.channel),
+            if ch.params.m > 0.0 {
+                num(ch.params.m)
+            } else {
+                String::new()
+            },
+            num(ch.params.rho_d),
+            num(ch.std_err.rho_d)
+        );
+        for (j, (l, s)) in ch.params.lobes.iter().zip(&ch.std_err.lobes).enumerate() {
+            let _ = write!(
+                h,
+                "<tr><td class=\"k\">{}</td><td class=\"k\">lobe {}</td>",
+                escape(&ch.channel),
+                j + 1
+            );
+            for q in 0..4 {
+                let _ = write!(h, "<td>{} ± {}</td>", num(l[q]), num(s[q]));
+            }
+            h.push_str("<td></td></tr>\n");
+        }
+    }
+    h.push_str("</table>\n");
+    comparison_html(h, f, comparison);
+    let _ = writeln!(
+        h,
+        "<details><summary>Model file</summary><pre>{}</pre></details>",
+        escape(&f.model_toml)
+    );
+}
+
+/// The table of relative RMS errors: the lobe fit's, then each comparison model's,
+/// a column a channel.
+fn comparison_html(h: &mut String, f: &LobeFit, comparison: &[Compared]) {
+    h.push_str("<table><tr><th class=\"k\">model (same data, same metric)</th>");
+    for ch in &f.channels {
+        let _ = write!(h, "<th>{} rel. RMS</th>", escape(&ch.channel));
+    }
+    h.push_str("</tr>\n");
+    let _ = write!(
+        h,
+        "<tr><td class=\"k\">Lafortune, {} lobe(s)</td>",
+        f.shape.lobes
+    );
+    for ch in &f.channels {
+        let _ = write!(h, "<td>{:.3}%</td>", 100.0 * ch.relative_rms);
+    }
+    h.push_str("</tr>\n");
+    let mut models: Vec<&str> = Vec::new();
+    for r in comparison {
+        if !models.contains(&r.model) {
+            models.push(r.model);
+        }
+    }
+    for m in models {
+        let _ = write!(h, "<tr><td class=\"k\">{}</td>", escape(m));
+        for r in comparison.iter().filter(|r| r.model == m) {
+            let _ = write!(h, "<td>{:.3}%</td>", 100.0 * r.relative_rms);
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
 }
 
 #[cfg(test)]

@@ -7,7 +7,8 @@
 #[path = "../tests/it/truth/mod.rs"]
 mod truth;
 
-use gonio_reduce::{Calibration, Drift, Options, reduce};
+use gonio_reduce::{Calibration, Drift, Options, Reduction, reduce};
+use gonio_run::RunStore;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -35,26 +36,7 @@ fn main() {
         }
     });
     if args.iter().any(|a| a == "cal") {
-        let steps = store.steps().expect("steps");
-        for r in store.readings().expect("readings") {
-            let kind = steps
-                .iter()
-                .find(|s| s.id == r.step_id)
-                .map(|s| s.step.kind);
-            if !matches!(kind, Some(gonio_plan::StepKind::Sample)) {
-                println!(
-                    "{kind:?} t {:.1} x {:.6e} y {:+.3e} r_std {:.3e} sens {:.0e} flags {} autorange {} retries {}",
-                    r.physical_s,
-                    r.x_mean,
-                    r.y_mean,
-                    r.r_std,
-                    r.sensitivity_v,
-                    r.flags,
-                    r.autorange_steps,
-                    r.retries
-                );
-            }
-        }
+        print_calibration_readings(&store);
     }
     for (name, opts) in [
         ("auto", Options::default()),
@@ -78,110 +60,153 @@ fn main() {
             continue;
         };
         let r = truth::residuals(&red, &model);
-        let n = r.len() as f64;
-        let mean_z = r.iter().map(|x| x.0).sum::<f64>() / n;
-        let rel_sd = (r
-            .iter()
-            .map(|x| (x.1 - truth::mean_rel(&r)).powi(2))
-            .sum::<f64>()
-            / n)
-            .sqrt();
-        let c = &red.report.channels[0];
-        println!(
-            "{name}: n {} chi2/n {:.3} mean z {:+.3} mean rel {:+.3e} sd rel {:.3e} | cal rel sigma {:.3e} ({} readings) drift refs {} max|g-1| {:.2e}",
-            r.len(),
-            truth::chi2(&r),
-            mean_z,
-            truth::mean_rel(&r),
-            rel_sd,
-            c.incident_rel_sigma,
-            c.calibration_readings,
-            c.drift_readings,
-            c.drift_max
-        );
-        println!(
-            "   dark ({:+.3e}, {:+.3e}) V; C {:.8e} V (relative to 4.5 V, the simulator's: {:+.3e})",
-            c.dark_v[0],
-            c.dark_v[1],
-            c.incident_v,
-            c.incident_v / 4.5 - 1.0
-        );
-        for t in &c.budget {
-            println!(
-                "   {:<11} {:.2e} / {:.2e} {}",
-                t.term, t.rel_median, t.rel_max, t.source
-            );
-        }
-        // With a common scale removed: the scatter alone.
-        let k = truth::mean_rel(&r);
-        let mut chi_s = 0.0;
-        for (s, (z, e)) in red.samples.samples.iter().zip(&r) {
-            let sig = s.sigma.as_ref().expect("sigma")[0];
-            let truth_v = s.value[0] / (1.0 + e);
-            let zz = (s.value[0] - truth_v * (1.0 + k)) / sig;
-            let _ = z;
-            chi_s += zz * zz;
-        }
-        println!("   chi2/n with the common scale removed {:.3}", chi_s / n);
+        print_summary(name, &red, &r);
         if name == "auto" {
-            let mut rel: Vec<f64> = red
-                .samples
-                .samples
-                .iter()
-                .map(|s| s.sigma.as_ref().expect("sigma")[0] / s.value[0])
-                .collect();
-            rel.sort_by(f64::total_cmp);
-            let q = |p: f64| rel[((rel.len() - 1) as f64 * p).round() as usize];
-            let within = rel.iter().filter(|x| **x <= 1.1e-4).count() as f64 / rel.len() as f64;
-            let physical = store
-                .readings()
-                .expect("readings")
-                .iter()
-                .map(|r| r.physical_s)
-                .fold(0.0, f64::max);
-            println!(
-                "   sigma/f median {:.3e} p90 {:.3e} p95 {:.3e}; {:.1} % within 1.1e-4; physical time {physical:.1} s",
-                q(0.5),
-                q(0.9),
-                q(0.95),
-                100.0 * within
-            );
+            print_sigma_spread(&red, &store);
         }
         if args.iter().any(|a| a == "detail") && name == "auto" {
-            let mut v: Vec<(f64, f64, f64, String)> = red
-                .samples
-                .samples
-                .iter()
-                .zip(&r)
-                .map(|(s, (z, e))| {
-                    let sig = s.sigma.as_ref().expect("sigma")[0];
-                    (
-                        s.value[0],
-                        *z,
-                        sig / s.value[0],
-                        format!("{:?} {e:+.2e}", s.pair),
-                    )
-                })
-                .collect();
-            v.sort_by(|a, b| a.0.total_cmp(&b.0));
-            for chunk in v.chunks(v.len() / 8 + 1) {
-                let m = chunk.len() as f64;
-                println!(
-                    "   f {:.3e}..{:.3e}: chi2/n {:.2} mean z {:+.2} rel sigma {:.2e}",
-                    chunk[0].0,
-                    chunk[chunk.len() - 1].0,
-                    chunk.iter().map(|x| x.1 * x.1).sum::<f64>() / m,
-                    chunk.iter().map(|x| x.1).sum::<f64>() / m,
-                    chunk.iter().map(|x| x.2).sum::<f64>() / m,
-                );
-            }
-            v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-            for x in v.iter().take(12) {
-                println!(
-                    "   z {:+.2} f {:.3e} rel sigma {:.2e} {}",
-                    x.1, x.0, x.2, x.3
-                );
-            }
+            print_detail(&red, &r);
         }
+    }
+}
+
+/// The calibration, dark and drift readings, one line each (`cal`).
+fn print_calibration_readings(store: &RunStore) {
+    let steps = store.steps().expect("steps");
+    for r in store.readings().expect("readings") {
+        let kind = steps
+            .iter()
+            .find(|s| s.id == r.step_id)
+            .map(|s| s.step.kind);
+        if !matches!(kind, Some(gonio_plan::StepKind::Sample)) {
+            println!(
+                "{kind:?} t {:.1} x {:.6e} y {:+.3e} r_std {:.3e} sens {:.0e} flags {} autorange {} retries {}",
+                r.physical_s,
+                r.x_mean,
+                r.y_mean,
+                r.r_std,
+                r.sensitivity_v,
+                r.flags,
+                r.autorange_steps,
+                r.retries
+            );
+        }
+    }
+}
+
+/// One reduction against the truth: χ², the mean z and relative error, the
+/// calibration and drift, the dark and incident readings, the budget's terms, and
+/// χ² with the common scale removed.
+fn print_summary(name: &str, red: &Reduction, r: &[(f64, f64)]) {
+    let n = r.len() as f64;
+    let mean_z = r.iter().map(|x| x.0).sum::<f64>() / n;
+    let rel_sd = (r
+        .iter()
+        .map(|x| (x.1 - truth::mean_rel(r)).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let c = &red.report.channels[0];
+    println!(
+        "{name}: n {} chi2/n {:.3} mean z {:+.3} mean rel {:+.3e} sd rel {:.3e} | cal rel sigma {:.3e} ({} readings) drift refs {} max|g-1| {:.2e}",
+        r.len(),
+        truth::chi2(r),
+        mean_z,
+        truth::mean_rel(r),
+        rel_sd,
+        c.incident_rel_sigma,
+        c.calibration_readings,
+        c.drift_readings,
+        c.drift_max
+    );
+    println!(
+        "   dark ({:+.3e}, {:+.3e}) V; C {:.8e} V (relative to 4.5 V, the simulator's: {:+.3e})",
+        c.dark_v[0],
+        c.dark_v[1],
+        c.incident_v,
+        c.incident_v / 4.5 - 1.0
+    );
+    for t in &c.budget {
+        println!(
+            "   {:<11} {:.2e} / {:.2e} {}",
+            t.term, t.rel_median, t.rel_max, t.source
+        );
+    }
+    // With a common scale removed: the scatter alone.
+    let k = truth::mean_rel(r);
+    let mut chi_s = 0.0;
+    for (s, (z, e)) in red.samples.samples.iter().zip(r) {
+        let sig = s.sigma.as_ref().expect("sigma")[0];
+        let truth_v = s.value[0] / (1.0 + e);
+        let zz = (s.value[0] - truth_v * (1.0 + k)) / sig;
+        let _ = z;
+        chi_s += zz * zz;
+    }
+    println!("   chi2/n with the common scale removed {:.3}", chi_s / n);
+}
+
+/// How large σ is relative to f: its median and upper percentiles, the share
+/// within 1.1e-4, and the run's physical time (for `auto`).
+fn print_sigma_spread(red: &Reduction, store: &RunStore) {
+    let mut rel: Vec<f64> = red
+        .samples
+        .samples
+        .iter()
+        .map(|s| s.sigma.as_ref().expect("sigma")[0] / s.value[0])
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    let q = |p: f64| rel[((rel.len() - 1) as f64 * p).round() as usize];
+    let within = rel.iter().filter(|x| **x <= 1.1e-4).count() as f64 / rel.len() as f64;
+    let physical = store
+        .readings()
+        .expect("readings")
+        .iter()
+        .map(|r| r.physical_s)
+        .fold(0.0, f64::max);
+    println!(
+        "   sigma/f median {:.3e} p90 {:.3e} p95 {:.3e}; {:.1} % within 1.1e-4; physical time {physical:.1} s",
+        q(0.5),
+        q(0.9),
+        q(0.95),
+        100.0 * within
+    );
+}
+
+/// The samples by size of f in eighths, with χ² and σ in each, then the twelve
+/// largest |z| (`detail`).
+fn print_detail(red: &Reduction, r: &[(f64, f64)]) {
+    let mut v: Vec<(f64, f64, f64, String)> = red
+        .samples
+        .samples
+        .iter()
+        .zip(r)
+        .map(|(s, (z, e))| {
+            let sig = s.sigma.as_ref().expect("sigma")[0];
+            (
+                s.value[0],
+                *z,
+                sig / s.value[0],
+                format!("{:?} {e:+.2e}", s.pair),
+            )
+        })
+        .collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for chunk in v.chunks(v.len() / 8 + 1) {
+        let m = chunk.len() as f64;
+        println!(
+            "   f {:.3e}..{:.3e}: chi2/n {:.2} mean z {:+.2} rel sigma {:.2e}",
+            chunk[0].0,
+            chunk[chunk.len() - 1].0,
+            chunk.iter().map(|x| x.1 * x.1).sum::<f64>() / m,
+            chunk.iter().map(|x| x.1).sum::<f64>() / m,
+            chunk.iter().map(|x| x.2).sum::<f64>() / m,
+        );
+    }
+    v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    for x in v.iter().take(12) {
+        println!(
+            "   z {:+.2} f {:.3e} rel sigma {:.2e} {}",
+            x.1, x.0, x.2, x.3
+        );
     }
 }

@@ -24,7 +24,7 @@ use serde_json::json;
 
 use crate::cmd::acquire::{AcquireArgs, StopBy, acquire_with, session_result};
 use crate::cmd::instrument::{SimFlag, is_simulated};
-use crate::cmd::prepare::{hms, load_and_prepare};
+use crate::cmd::prepare::{Loaded, hms, load_and_prepare};
 use crate::error::{CliError, CliResult};
 use crate::flags::JsonFlag;
 use crate::output;
@@ -90,75 +90,15 @@ pub(crate) fn compare_json(a: &CompareArgs, stop: &StopBy) -> CliResult<serde_js
 /// Measures the three plans and judges each run against the truth.
 fn compute(a: &CompareArgs, stop: &StopBy) -> CliResult<Vec<Compared>> {
     let mut loaded = load_and_prepare(&a.instrument, &a.plan)?;
-    if !matches!(loaded.plan.points, Points::Adaptive(_)) {
-        return Err(input(format!(
-            "{}: field `points.kind`: `plan compare` compares an adaptive plan with \
-             uniform ones; this plan is not adaptive",
-            a.plan.display()
-        )));
-    }
-    if !is_simulated(&loaded.instrument, &a.instrument)? {
-        return Err(input(format!(
-            "{}: `plan compare` measures on the simulator, whose sample is the truth the \
-             plans are judged by; this instrument's ports are real",
-            a.instrument.display()
-        )));
-    }
-    if let Some(m) = &a.sample {
-        gonio_brdf::Model::load(m).map_err(input)?;
-    }
-    if a.budget == Some(0) {
-        return Err(input("--budget: at least one point"));
-    }
-    let (dir, _tmp) = match &a.keep {
-        Some(d) => {
-            if !d.is_dir() {
-                return Err(input(format!("{}: not a directory", d.display())));
-            }
-            // Everything the comparison writes, refused before anything is measured.
-            for n in [
-                "adaptive.gonio",
-                "lattice.gonio",
-                "grid.gonio",
-                "lattice.csv",
-                "lattice-plan.toml",
-                "grid-plan.toml",
-                "adaptive-plan.toml",
-                "sim.toml",
-            ] {
-                let f = d.join(n);
-                if f.exists() {
-                    return Err(input(format!(
-                        "{}: exists already; --keep needs a directory without the \
-                         comparison's files",
-                        f.display()
-                    )));
-                }
-            }
-            (d.clone(), None)
-        }
-        None => {
-            let t = TempDir::new()?;
-            (t.0.clone(), Some(t))
-        }
-    };
+    refuse(a, &loaded)?;
+    let (dir, _tmp) = out_dir(a)?;
     let mut table = plan_table(&loaded.plan_text, &a.plan)?;
     // The plan and simulator as measured: the plan's budget and the simulator's
     // sample replaced where asked, written beside the runs.
     let plan_path = match a.budget {
         None => a.plan.clone(),
         Some(b) => {
-            if let Some(toml::Value::Table(p)) = table.get_mut("points") {
-                p.insert(
-                    "budget".into(),
-                    toml::Value::Table(toml::Table::from_iter([(
-                        "points".to_string(),
-                        toml::Value::Integer(i64::try_from(b).map_err(input)?),
-                    )])),
-                );
-            }
-            let p = dir.join("adaptive-plan.toml");
-            write_new(&p, &toml::to_string(&table).map_err(input)?)?;
+            let p = budget_plan(&mut table, b, &dir)?;
             loaded = load_and_prepare(&a.instrument, &p)?;
             p
         }
@@ -168,28 +108,8 @@ fn compute(a: &CompareArgs, stop: &StopBy) -> CliResult<Vec<Compared>> {
     };
     let sim = match &a.sample {
         None => a.sim.sim.clone(),
-        Some(model) => {
-            let text = match &a.sim.sim {
-                Some(p) => gonio_core::input::read_text(p, gonio_core::input::MAX_CONFIG_BYTES)
-                    .map_err(input)?,
-                None => gonio_sim::config::DEFAULT_SIM.to_string(),
-            };
-            let mut t: toml::Table = text.parse().map_err(input)?;
-            let abs = std::path::absolute(model).map_err(input)?;
-            t.insert(
-                "sample".into(),
-                toml::Value::Table(toml::Table::from_iter([(
-                    "model".to_string(),
-                    toml::Value::String(abs.display().to_string()),
-                )])),
-            );
-            let p = dir.join("sim.toml");
-            write_new(&p, &toml::to_string(&t).map_err(input)?)?;
-            Some(p)
-        }
+        Some(model) => Some(sim_with_sample(a, model, &dir)?),
     };
-    let n_theta = (90.0 / a.grid.0).round() as usize;
-    let n_phi = (360.0 / a.grid.1).round() as usize;
     let mech = loaded
         .instrument
         .mechanics()
@@ -221,33 +141,141 @@ fn compute(a: &CompareArgs, stop: &StopBy) -> CliResult<Vec<Compared>> {
     let grid_plan = dir.join("grid-plan.toml");
     write_new(&grid_plan, &grid_text)?;
     runs.push(measure(a, &sim, &dir, "grid", &grid_plan, stop)?);
+    runs.into_iter().map(|r| judge(a, &incidences, r)).collect()
+}
 
-    let mut out = Vec::new();
-    for (name, points, file) in runs {
-        let store = RunStore::open_read_only(&file)?;
-        let red = gonio_reduce::reduce(&store, &gonio_reduce::Options::default())
-            .map_err(|e| CliError::Runtime(format!("{}: {e}", file.display())))?;
-        let truth = truth_of(&store)?;
-        let error = gonio_process::adapt::weighted_rms_error(
-            &red.samples,
-            truth.as_ref(),
-            &incidences,
-            n_theta,
-            n_phi,
-        )
-        .map_err(|e| CliError::Runtime(format!("{}: {e}", file.display())))?;
-        let steps = store.steps()?;
-        let physical_s = physical_seconds(&store)?;
-        out.push(Compared {
-            name,
-            file: a.keep.as_ref().map_or_else(|| PathBuf::from("-"), |_| file),
-            points,
-            steps: steps.len(),
-            physical_s,
-            error,
-        });
+/// Refuses, before anything is measured, what cannot be compared: a plan that is
+/// not adaptive, an instrument that is not the simulator, a sample model that does
+/// not load, a budget of no points.
+fn refuse(a: &CompareArgs, loaded: &Loaded) -> CliResult<()> {
+    if !matches!(loaded.plan.points, Points::Adaptive(_)) {
+        return Err(input(format!(
+            "{}: field `points.kind`: `plan compare` compares an adaptive plan with \
+             uniform ones; this plan is not adaptive",
+            a.plan.display()
+        )));
     }
-    Ok(out)
+    if !is_simulated(&loaded.instrument, &a.instrument)? {
+        return Err(input(format!(
+            "{}: `plan compare` measures on the simulator, whose sample is the truth the \
+             plans are judged by; this instrument's ports are real",
+            a.instrument.display()
+        )));
+    }
+    if let Some(m) = &a.sample {
+        gonio_brdf::Model::load(m).map_err(input)?;
+    }
+    if a.budget == Some(0) {
+        return Err(input("--budget: at least one point"));
+    }
+    Ok(())
+}
+
+/// The directory the comparison writes to: `--keep`'s, which must hold none of
+/// the comparison's files (refused before anything is measured), or a temporary
+/// one, removed when the second value drops.
+fn out_dir(a: &CompareArgs) -> CliResult<(PathBuf, Option<TempDir>)> {
+    let Some(d) = &a.keep else {
+        let t = TempDir::new()?;
+        return Ok((t.0.clone(), Some(t)));
+    };
+    if !d.is_dir() {
+        return Err(input(format!("{}: not a directory", d.display())));
+    }
+    // Everything the comparison writes, refused before anything is measured.
+    for n in [
+        "adaptive.gonio",
+        "lattice.gonio",
+        "grid.gonio",
+        "lattice.csv",
+        "lattice-plan.toml",
+        "grid-plan.toml",
+        "adaptive-plan.toml",
+        "sim.toml",
+    ] {
+        let f = d.join(n);
+        if f.exists() {
+            return Err(input(format!(
+                "{}: exists already; --keep needs a directory without the \
+                 comparison's files",
+                f.display()
+            )));
+        }
+    }
+    Ok((d.clone(), None))
+}
+
+/// The plan with `--budget`'s points in place of its own (in `table` too, which
+/// the uniform plans are made from), written to `DIR/adaptive-plan.toml`.
+fn budget_plan(table: &mut toml::Table, budget: usize, dir: &Path) -> CliResult<PathBuf> {
+    if let Some(toml::Value::Table(p)) = table.get_mut("points") {
+        p.insert(
+            "budget".into(),
+            toml::Value::Table(toml::Table::from_iter([(
+                "points".to_string(),
+                toml::Value::Integer(i64::try_from(budget).map_err(input)?),
+            )])),
+        );
+    }
+    let p = dir.join("adaptive-plan.toml");
+    write_new(&p, &toml::to_string(table).map_err(input)?)?;
+    Ok(p)
+}
+
+/// The simulator's config with `--sample`'s model as its sample, written to
+/// `DIR/sim.toml`.
+fn sim_with_sample(a: &CompareArgs, model: &Path, dir: &Path) -> CliResult<PathBuf> {
+    let text = match &a.sim.sim {
+        Some(p) => {
+            gonio_core::input::read_text(p, gonio_core::input::MAX_CONFIG_BYTES).map_err(input)?
+        }
+        None => gonio_sim::config::DEFAULT_SIM.to_string(),
+    };
+    let mut t: toml::Table = text.parse().map_err(input)?;
+    let abs = std::path::absolute(model).map_err(input)?;
+    t.insert(
+        "sample".into(),
+        toml::Value::Table(toml::Table::from_iter([(
+            "model".to_string(),
+            toml::Value::String(abs.display().to_string()),
+        )])),
+    );
+    let p = dir.join("sim.toml");
+    write_new(&p, &toml::to_string(&t).map_err(input)?)?;
+    Ok(p)
+}
+
+/// One run judged: reduced, and its weighted RMS error against the simulator's
+/// truth at the plan's `incidences` on the `--grid` of outgoing directions.
+fn judge(
+    a: &CompareArgs,
+    incidences: &[gonio_core::SphericalDeg],
+    (name, points, file): (&'static str, usize, PathBuf),
+) -> CliResult<Compared> {
+    let n_theta = (90.0 / a.grid.0).round() as usize;
+    let n_phi = (360.0 / a.grid.1).round() as usize;
+    let store = RunStore::open_read_only(&file)?;
+    let red = gonio_reduce::reduce(&store, &gonio_reduce::Options::default())
+        .map_err(|e| CliError::Runtime(format!("{}: {e}", file.display())))?;
+    let truth = truth_of(&store)?;
+    let error = gonio_process::adapt::weighted_rms_error(
+        &red.samples,
+        truth.as_ref(),
+        incidences,
+        n_theta,
+        n_phi,
+    )
+    .map_err(|e| CliError::Runtime(format!("{}: {e}", file.display())))?;
+    let steps = store.steps()?;
+    let physical_s = physical_seconds(&store)?;
+    Ok(Compared {
+        name,
+        file: a.keep.as_ref().map_or_else(|| PathBuf::from("-"), |_| file),
+        points,
+        steps: steps.len(),
+        physical_s,
+        error,
+    })
 }
 
 /// Measures one plan into `DIR/NAME.gonio`: the run's name, sample points and file.

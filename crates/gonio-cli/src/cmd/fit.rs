@@ -395,43 +395,7 @@ pub(crate) fn write_report(w: &mut dyn Write, a: &FitArgs, f: &Fitted) -> std::i
         fit.objective.name, fit.objective.chosen, fit.objective.formula
     )?;
     for c in &fit.channels {
-        writeln!(
-            w,
-            "channel {}: RMS {:.4e} 1/sr ({:.3}% of the data's RMS), reduced χ² {:.3}",
-            c.channel,
-            c.rms,
-            100.0 * c.relative_rms,
-            c.reduced_chi2
-        )?;
-        writeln!(
-            w,
-            "  diffuse ρd = {:.6} ± {:.2e}",
-            c.params.rho_d, c.std_err.rho_d
-        )?;
-        if diffuse == Diffuse::Minnaert {
-            writeln!(w, "  Minnaert m = {:.4} ± {:.2e}", c.params.m, c.std_err.m)?;
-        }
-        for (j, (l, s)) in c.params.lobes.iter().zip(&c.std_err.lobes).enumerate() {
-            writeln!(
-                w,
-                "  lobe {}: Cx {:+.5} ± {:.1e}  Cy {:+.5} ± {:.1e}  Cz {:+.5} ± {:.1e}  n {:.4} ± {:.1e}",
-                j + 1,
-                l[0],
-                s[0],
-                l[1],
-                s[1],
-                l[2],
-                s[2],
-                l[3],
-                s[3]
-            )?;
-        }
-        let per: Vec<String> = c
-            .per_theta_i
-            .iter()
-            .map(|(t, _, rel)| format!("{t:.0}°: {:.2}%", 100.0 * rel))
-            .collect();
-        writeln!(w, "  relative error by θi: {}", per.join(", "))?;
+        write_channel(w, c, diffuse)?;
     }
     writeln!(
         w,
@@ -448,79 +412,145 @@ pub(crate) fn write_report(w: &mut dyn Write, a: &FitArgs, f: &Fitted) -> std::i
         }
     )?;
     if let Some(e) = &fit.energy {
-        writeln!(
-            w,
-            "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
-            e.directions,
-            if e.constrained {
-                "the constrained optimum"
-            } else {
-                "the unconstrained optimum already meets it, unchanged"
-            }
-        )?;
-        for c in &e.channels {
-            writeln!(
-                w,
-                "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
-                     (unconstrained {:.6e}); active: {}",
-                c.channel,
-                c.max_albedo,
-                c.unconstrained_max_albedo,
-                c.cost,
-                c.unconstrained_cost,
-                if c.active.is_empty() {
-                    "none".to_string()
-                } else {
-                    c.active
-                        .iter()
-                        .map(|x| {
-                            format!(
-                                "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
-                                x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
-                            )
-                        })
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                }
-            )?;
-        }
+        write_energy(w, e)?;
     }
     if let Some(out) = &a.out {
         writeln!(w, "model: {}", out.display())?;
     }
     if let Some(rows) = &comparison {
-        writeln!(
-            w,
-            "\nthe same data, the same metric (relative RMS per channel):"
-        )?;
-        writeln!(
-            w,
-            "{:<28}{}",
-            "model",
-            fit.channels
-                .iter()
-                .map(|c| format!("{:>12}", c.channel))
-                .collect::<String>()
-        )?;
-        writeln!(
-            w,
-            "{:<28}{}",
-            format!("Lafortune, {} lobe(s)", a.lobes),
-            fit.channels
-                .iter()
-                .map(|c| format!("{:>11.3}%", 100.0 * c.relative_rms))
-                .collect::<String>()
-        )?;
-        for k in Kind::ALL {
-            let v: String = rows
-                .iter()
-                .filter(|r| r.model == k.name())
-                .map(|r| format!("{:>11.3}%", 100.0 * r.relative_rms))
-                .collect();
-            writeln!(w, "{:<28}{v}", k.name())?;
-        }
+        write_comparison(w, a, fit, rows)?;
     }
     w.flush()
+}
+
+/// One channel's lines: its errors, the diffuse term, each lobe with its standard
+/// errors, and the relative error by incidence angle.
+fn write_channel(
+    w: &mut dyn Write,
+    c: &gonio_fit::fit::ChannelFit,
+    diffuse: Diffuse,
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "channel {}: RMS {:.4e} 1/sr ({:.3}% of the data's RMS), reduced χ² {:.3}",
+        c.channel,
+        c.rms,
+        100.0 * c.relative_rms,
+        c.reduced_chi2
+    )?;
+    writeln!(
+        w,
+        "  diffuse ρd = {:.6} ± {:.2e}",
+        c.params.rho_d, c.std_err.rho_d
+    )?;
+    if diffuse == Diffuse::Minnaert {
+        writeln!(w, "  Minnaert m = {:.4} ± {:.2e}", c.params.m, c.std_err.m)?;
+    }
+    for (j, (l, s)) in c.params.lobes.iter().zip(&c.std_err.lobes).enumerate() {
+        writeln!(
+            w,
+            "  lobe {}: Cx {:+.5} ± {:.1e}  Cy {:+.5} ± {:.1e}  Cz {:+.5} ± {:.1e}  n {:.4} ± {:.1e}",
+            j + 1,
+            l[0],
+            s[0],
+            l[1],
+            s[1],
+            l[2],
+            s[2],
+            l[3],
+            s[3]
+        )?;
+    }
+    let per: Vec<String> = c
+        .per_theta_i
+        .iter()
+        .map(|(t, _, rel)| format!("{t:.0}°: {:.2}%", 100.0 * rel))
+        .collect();
+    writeln!(w, "  relative error by θi: {}", per.join(", "))?;
+    Ok(())
+}
+
+/// The energy constraint's account: where albedo ≤ 1 was held, and per channel
+/// the largest albedo and objective with and without it, and the active limits.
+fn write_energy(w: &mut dyn Write, e: &gonio_fit::fit::EnergyReport) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "energy: directional albedo ≤ 1 at the data's {} incident directions — {}",
+        e.directions,
+        if e.constrained {
+            "the constrained optimum"
+        } else {
+            "the unconstrained optimum already meets it, unchanged"
+        }
+    )?;
+    for c in &e.channels {
+        writeln!(
+            w,
+            "  channel {}: largest albedo {:.6} (unconstrained {:.6}); objective {:.6e} \
+                 (unconstrained {:.6e}); active: {}",
+            c.channel,
+            c.max_albedo,
+            c.unconstrained_max_albedo,
+            c.cost,
+            c.unconstrained_cost,
+            if c.active.is_empty() {
+                "none".to_string()
+            } else {
+                c.active
+                    .iter()
+                    .map(|x| {
+                        format!(
+                            "θi {:.2}° φi {:.1}° (albedo {:.6}, multiplier {:.4e})",
+                            x.theta_i_deg, x.phi_i_deg, x.albedo, x.multiplier
+                        )
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        )?;
+    }
+    Ok(())
+}
+
+/// The comparison table (`--compare`): relative RMS per channel, the lobes' then
+/// each other model's.
+fn write_comparison(
+    w: &mut dyn Write,
+    a: &FitArgs,
+    fit: &gonio_fit::LobeFit,
+    rows: &[compare::Compared],
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "\nthe same data, the same metric (relative RMS per channel):"
+    )?;
+    writeln!(
+        w,
+        "{:<28}{}",
+        "model",
+        fit.channels
+            .iter()
+            .map(|c| format!("{:>12}", c.channel))
+            .collect::<String>()
+    )?;
+    writeln!(
+        w,
+        "{:<28}{}",
+        format!("Lafortune, {} lobe(s)", a.lobes),
+        fit.channels
+            .iter()
+            .map(|c| format!("{:>11.3}%", 100.0 * c.relative_rms))
+            .collect::<String>()
+    )?;
+    for k in Kind::ALL {
+        let v: String = rows
+            .iter()
+            .filter(|r| r.model == k.name())
+            .map(|r| format!("{:>11.3}%", 100.0 * r.relative_rms))
+            .collect();
+        writeln!(w, "{:<28}{v}", k.name())?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use gonio_acquire::engine::{ReadTarget, read_target, setup_for, target_for_kind}
 use gonio_driver::bench::Bench;
 use gonio_driver::config::DetectorKind;
 use gonio_driver::sr830::target::{NoiseDensity, choose_time_constant, estimate, floor_sigma};
-use gonio_driver::sr830::{Sensitivity, ranging, timing};
+use gonio_driver::sr830::{Sensitivity, Sr830Config, ranging, timing};
 use gonio_plan::StepKind;
 use serde::Serialize;
 
@@ -119,14 +119,47 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
     if inst.detector.kind != DetectorKind::Sr830 {
         return Ok(None);
     }
-    let lockin = inst.lockin();
-    if loaded.plan.reading.is_some() && lockin.noise.is_none() {
+    let cfg = inst.lockin();
+    if loaded.plan.reading.is_some() && cfg.noise.is_none() {
         return Ok(None);
     }
     let steps = &loaded.prepared.schedule.steps;
-    // The noise the signals are read through: the simulator's own, or none to add
-    // to a run's readings, which hold theirs.
-    let (signals, noise, what) = match source {
+    let Some(Signals {
+        values: signals,
+        noise,
+        what,
+    }) = signals(loaded, source)?
+    else {
+        return Ok(None);
+    };
+    let lockin = Lockin {
+        range_s: timing::range_change_s(cfg.baud),
+        cfg: &cfg,
+        noise,
+    };
+    let out = ReadingTime::new(what, steps.len());
+    Ok(match &loaded.plan.reading {
+        None => Some(lockin.fixed(out, &signals)),
+        Some(reading) => lockin.targeted(out, steps, &signals, reading),
+    })
+}
+
+/// The signals a plan's readings are estimated from.
+struct Signals {
+    /// The lock-in's R expected at each step, V.
+    values: Vec<f64>,
+    /// The noise they are read through: the simulator's own, or none to add to a
+    /// run's readings, which hold theirs.
+    noise: Option<NoiseDensity>,
+    /// Where they come from.
+    what: String,
+}
+
+/// The signals from `source`; `None` when the simulator cannot stand for the
+/// instrument.
+fn signals(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Signals>> {
+    let steps = &loaded.prepared.schedule.steps;
+    Ok(match source {
         Source::Sim(cfg) => {
             let noise = NoiseDensity {
                 floor: cfg.lockin.amplifier_noise,
@@ -135,19 +168,39 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
             let Some(signals) = sim_signals(loaded, &cfg)? else {
                 return Ok(None);
             };
-            (signals, Some(noise), "the simulated sample".to_string())
+            Some(Signals {
+                values: signals,
+                noise: Some(noise),
+                what: "the simulated sample".to_string(),
+            })
         }
-        Source::Run(path) => (run_signals(steps, path)?, None, path.display().to_string()),
-    };
-    let sigma = |r: f64, tc| {
-        noise.map_or(0.0, |n| {
-            n.snapshot_variance(r, lockin.slope, tc).max(0.0).sqrt()
-        })
-    };
-    let range_s = timing::range_change_s(lockin.baud);
-    let mut out = ReadingTime::new(what, steps.len());
-    let mut at: Sensitivity = lockin.sensitivity;
-    let changes = |at: Sensitivity, r: f64, spread: f64, targeted: bool| {
+        Source::Run(path) => Some(Signals {
+            values: run_signals(steps, path)?,
+            noise: None,
+            what: path.display().to_string(),
+        }),
+    })
+}
+
+/// The lock-in a plan's readings are estimated on: its set-up, the noise its
+/// signals are read through, and the time a range change costs, s.
+struct Lockin<'a> {
+    cfg: &'a Sr830Config,
+    noise: Option<NoiseDensity>,
+    range_s: f64,
+}
+
+impl Lockin<'_> {
+    /// The range changes autoranging makes from `at` to read `r` V (its snapshots'
+    /// spread `spread` V for a targeted reading), and the range it ends on.
+    fn changes(
+        &self,
+        at: Sensitivity,
+        r: f64,
+        spread: f64,
+        targeted: bool,
+    ) -> (usize, Sensitivity) {
+        let lockin = self.cfg;
         if !lockin.autorange {
             (0, at)
         } else if targeted {
@@ -155,17 +208,25 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
         } else {
             ranging::fixed_changes(at, r, lockin.min_fraction)
         }
-    };
-    let Some(reading) = &loaded.plan.reading else {
-        // The fixed reading: a cycle at the configured time constant, and a cycle
-        // more after each range change.
+    }
+
+    /// The fixed reading: a cycle at the configured time constant, and a cycle
+    /// more after each range change.
+    fn fixed(&self, mut out: ReadingTime, signals: &[f64]) -> ReadingTime {
+        let (lockin, range_s) = (self.cfg, self.range_s);
         let tc = lockin.time_constant;
+        let sigma = |r: f64| {
+            self.noise.map_or(0.0, |n| {
+                n.snapshot_variance(r, lockin.slope, tc).max(0.0).sqrt()
+            })
+        };
+        let mut at: Sensitivity = lockin.sensitivity;
         let settle = lockin.settle_seconds(lockin.slope, tc);
         let snapshots = lockin.samples.max(1);
         let averaging = (snapshots - 1) as f64 * tc.seconds();
         let serial = lockin.cycle_s(tc) - settle - averaging;
-        for r in &signals {
-            let (n, next) = changes(at, mean_r(*r, sigma(*r, tc)), 0.0, false);
+        for r in signals {
+            let (n, next) = self.changes(at, mean_r(*r, sigma(*r)), 0.0, false);
             at = next;
             let k = (n + 1) as f64;
             out.add(
@@ -176,99 +237,115 @@ pub fn estimate_plan(loaded: &Loaded, source: Source<'_>) -> CliResult<Option<Re
                 n as f64 * (lockin.cycle_s(tc) + range_s),
             );
         }
-        *out.time_constants.entry(tc.to_string()).or_default() += steps.len();
+        *out.time_constants.entry(tc.to_string()).or_default() += out.readings;
         out.detector_s = out.settle_s + out.averaging_s + out.serial_s;
-        return Ok(Some(out));
-    };
-    let Some(noise_law) = lockin.noise else {
-        return Ok(None);
-    };
-    let base: ReadTarget = read_target(reading);
-    let choices = lockin.time_constant_choices();
-    let floor =
-        floor_sigma(&base, &noise_law, lockin.slope, &choices, lockin.exchange_s).unwrap_or(0.0);
-    out.targeted = true;
-    out.sigma_relative = base.sigma_relative;
-    out.sigma_absolute = if base.sigma_absolute > 0.0 {
-        base.sigma_absolute
-    } else {
-        floor
-    };
-    // Each reading sends its time constant (`OFLT`) and ends with `LIAS?`; its
-    // snapshots go back to back, one exchange apart, inside the averaging.
-    let serial = timing::time_constant_change_s(lockin.baud) + timing::lia_status_s(lockin.baud);
-    let mut previous: Option<f64> = None;
-    for (step, r) in steps.iter().zip(&signals) {
-        let target = target_for_kind(&base, step.kind, floor);
-        // The driver chooses from the level the last reading had, then meets this one.
-        let tc = match previous {
-            Some(p) if p > 0.0 => choose_time_constant(
-                p,
-                &target,
-                &noise_law,
-                lockin.slope,
-                choices.iter().copied(),
-                lockin.exchange_s,
-            )
-            .map_or(lockin.time_constant, |e| e.time_constant),
-            _ => lockin.time_constant,
-        };
-        let step_v = previous.map_or(*r, |p| (p - r).abs());
-        let e = estimate(
-            *r,
-            step_v,
-            &target,
-            &noise_law,
-            lockin.slope,
-            tc,
-            lockin.exchange_s,
-        );
-        let capped = e.total_s() > target.max_s;
-        let (settle, averaging) = if capped {
-            out.capped += 1;
-            let settle = e.settle_s.min(target.max_s);
-            (settle, target.max_s - settle)
+        out
+    }
+
+    /// Readings to the plan's `[reading]` target: the time constant the driver will
+    /// choose from the level the last reading had, the settling and averaging it
+    /// needs (capped at the target's longest), and the readings again after a range
+    /// change. `None` without a noise law.
+    fn targeted(
+        &self,
+        mut out: ReadingTime,
+        steps: &[gonio_plan::Step],
+        signals: &[f64],
+        reading: &gonio_plan::ReadingConfig,
+    ) -> Option<ReadingTime> {
+        let (lockin, range_s) = (self.cfg, self.range_s);
+        let noise_law = lockin.noise?;
+        let base: ReadTarget = read_target(reading);
+        let choices = lockin.time_constant_choices();
+        let floor = floor_sigma(&base, &noise_law, lockin.slope, &choices, lockin.exchange_s)
+            .unwrap_or(0.0);
+        out.targeted = true;
+        out.sigma_relative = base.sigma_relative;
+        out.sigma_absolute = if base.sigma_absolute > 0.0 {
+            base.sigma_absolute
         } else {
-            (e.settle_s, e.averaging_s)
+            floor
         };
-        // A capped reading keeps its range; another reads again at the range its
-        // value calls for, from the range change on: the same light, no step to
-        // settle from.
-        let spread = sigma(*r, tc);
-        let (n, next) = if capped {
-            (0, at)
-        } else {
-            changes(at, mean_r(*r, spread), spread, true)
-        };
-        at = next;
-        let (again_settle, again_averaging) = if n > 0 {
+        let mut at: Sensitivity = lockin.sensitivity;
+        // Each reading sends its time constant (`OFLT`) and ends with `LIAS?`; its
+        // snapshots go back to back, one exchange apart, inside the averaging.
+        let serial =
+            timing::time_constant_change_s(lockin.baud) + timing::lia_status_s(lockin.baud);
+        let mut previous: Option<f64> = None;
+        for (step, r) in steps.iter().zip(signals) {
+            let target = target_for_kind(&base, step.kind, floor);
+            // The driver chooses from the level the last reading had, then meets this one.
+            let tc = match previous {
+                Some(p) if p > 0.0 => choose_time_constant(
+                    p,
+                    &target,
+                    &noise_law,
+                    lockin.slope,
+                    choices.iter().copied(),
+                    lockin.exchange_s,
+                )
+                .map_or(lockin.time_constant, |e| e.time_constant),
+                _ => lockin.time_constant,
+            };
+            let step_v = previous.map_or(*r, |p| (p - r).abs());
             let e = estimate(
                 *r,
-                0.0,
+                step_v,
                 &target,
                 &noise_law,
                 lockin.slope,
                 tc,
                 lockin.exchange_s,
             );
-            let settle = e.settle_s.min(target.max_s);
-            (settle, e.averaging_s.min(target.max_s - settle))
-        } else {
-            (0.0, 0.0)
-        };
-        let n_f = n as f64;
-        out.add(
-            settle + n_f * again_settle,
-            averaging + n_f * again_averaging,
-            serial + n_f * range_s,
-            n,
-            n_f * (again_settle + again_averaging + range_s),
-        );
-        *out.time_constants.entry(tc.to_string()).or_default() += 1;
-        previous = Some(*r);
+            let capped = e.total_s() > target.max_s;
+            let (settle, averaging) = if capped {
+                out.capped += 1;
+                let settle = e.settle_s.min(target.max_s);
+                (settle, target.max_s - settle)
+            } else {
+                (e.settle_s, e.averaging_s)
+            };
+            // A capped reading keeps its range; another reads again at the range its
+            // value calls for, from the range change on: the same light, no step to
+            // settle from.
+            let spread = self.noise.map_or(0.0, |n| {
+                n.snapshot_variance(*r, lockin.slope, tc).max(0.0).sqrt()
+            });
+            let (n, next) = if capped {
+                (0, at)
+            } else {
+                self.changes(at, mean_r(*r, spread), spread, true)
+            };
+            at = next;
+            let (again_settle, again_averaging) = if n > 0 {
+                let e = estimate(
+                    *r,
+                    0.0,
+                    &target,
+                    &noise_law,
+                    lockin.slope,
+                    tc,
+                    lockin.exchange_s,
+                );
+                let settle = e.settle_s.min(target.max_s);
+                (settle, e.averaging_s.min(target.max_s - settle))
+            } else {
+                (0.0, 0.0)
+            };
+            let n_f = n as f64;
+            out.add(
+                settle + n_f * again_settle,
+                averaging + n_f * again_averaging,
+                serial + n_f * range_s,
+                n,
+                n_f * (again_settle + again_averaging + range_s),
+            );
+            *out.time_constants.entry(tc.to_string()).or_default() += 1;
+            previous = Some(*r);
+        }
+        out.detector_s = out.settle_s + out.averaging_s + out.serial_s;
+        Some(out)
     }
-    out.detector_s = out.settle_s + out.averaging_s + out.serial_s;
-    Ok(Some(out))
 }
 
 /// The lock-in's R at each step, V: the simulator's light on the simulator's sample

@@ -391,17 +391,7 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
         None => Source::Samples(samples),
     };
     let fit_brdf: Option<&dyn Brdf> = fit.map(|m| m as &dyn Brdf);
-    let mut thetas: Vec<f64> = samples
-        .samples
-        .iter()
-        .map(|s| s.pair.incident.theta_deg)
-        .collect();
-    thetas.sort_by(f64::total_cmp);
-    thetas.dedup();
-    if thetas.len() > 4 {
-        let n = thetas.len();
-        thetas = vec![thetas[0], thetas[n / 3], thetas[2 * n / 3], thetas[n - 1]];
-    }
+    let thetas = shown_thetas(samples);
     let mut push = |title: &str, caption: &str, r: Result<Image, String>| match r {
         Ok(image) => c.figures.push(Figure {
             title: title.into(),
@@ -428,38 +418,13 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
             )
         }),
     );
-    // The hemisphere, albedo and sphere need the whole hemisphere: the data when it is
-    // a table, otherwise the fitted model (said so in the caption).
-    // Each panel is labelled with what it shows: the measured table, or the fitted
-    // model standing in for it (the plots' default label "data" would call a model
-    // measured).
-    let (hemi_src, hemi_fit, who, first, shows) = match (table, fit) {
-        (Some(_), _) => (
-            data_src,
-            fit_brdf,
-            "the measured data (left) and the fitted model (right)",
-            "measured data",
-            if fit_brdf.is_some() {
-                "measured data and fitted model"
-            } else {
-                "measured data"
-            },
-        ),
-        (None, Some(m)) => (
-            Source::Model(m),
-            None,
-            "the fitted model (the run's pairs do not cover the hemisphere)",
-            "fitted model",
-            "fitted model",
-        ),
-        (None, None) => (
-            data_src,
-            None,
-            "the measured data",
-            "measured data",
-            "measured data",
-        ),
-    };
+    let Whole {
+        src: hemi_src,
+        fit: hemi_fit,
+        who,
+        first,
+        shows,
+    } = whole(table, fit, data_src);
     let t0 = thetas.get(thetas.len() / 2).copied().unwrap_or(30.0);
     push(
         &format!("Hemisphere: {shows}"),
@@ -535,4 +500,79 @@ fn figures(c: &mut Contents, samples: &Samples, table: Option<&Table>, fit: Opti
             )
         }),
     );
+}
+
+/// The incidence angles the plane-of-incidence figure shows: the samples' own, at
+/// most four of them (the first, last and two between).
+fn shown_thetas(samples: &Samples) -> Vec<f64> {
+    let mut thetas: Vec<f64> = samples
+        .samples
+        .iter()
+        .map(|s| s.pair.incident.theta_deg)
+        .collect();
+    thetas.sort_by(f64::total_cmp);
+    thetas.dedup();
+    if thetas.len() > 4 {
+        let n = thetas.len();
+        thetas = vec![thetas[0], thetas[n / 3], thetas[2 * n / 3], thetas[n - 1]];
+    }
+    thetas
+}
+
+/// What the whole-hemisphere figures (hemisphere, sphere) show, and how their
+/// captions and panels say it.
+struct Whole<'a> {
+    src: Source<'a>,
+    fit: Option<&'a dyn Brdf>,
+    /// What the caption says is shown.
+    who: &'static str,
+    /// The first panel's label.
+    first: &'static str,
+    /// What the title says is shown.
+    shows: &'static str,
+}
+
+/// The source and labels of the whole-hemisphere figures, from what the run has:
+/// a table of the data, a fitted model, either or neither.
+fn whole<'a>(table: Option<&Table>, fit: Option<&'a Model>, data_src: Source<'a>) -> Whole<'a> {
+    let fit_brdf: Option<&dyn Brdf> = fit.map(|m| m as &dyn Brdf);
+    // The hemisphere, albedo and sphere need the whole hemisphere: the data when it is
+    // a table, otherwise the fitted model (said so in the caption).
+    // Each panel is labelled with what it shows: the measured table, or the fitted
+    // model standing in for it (the plots' default label "data" would call a model
+    // measured).
+    let (src, fit_brdf, who, first, shows) = match (table, fit) {
+        (Some(_), _) => (
+            data_src,
+            fit_brdf,
+            "the measured data (left) and the fitted model (right)",
+            "measured data",
+            if fit_brdf.is_some() {
+                "measured data and fitted model"
+            } else {
+                "measured data"
+            },
+        ),
+        (None, Some(m)) => (
+            Source::Model(m),
+            None,
+            "the fitted model (the run's pairs do not cover the hemisphere)",
+            "fitted model",
+            "fitted model",
+        ),
+        (None, None) => (
+            data_src,
+            None,
+            "the measured data",
+            "measured data",
+            "measured data",
+        ),
+    };
+    Whole {
+        src,
+        fit: fit_brdf,
+        who,
+        first,
+        shows,
+    }
 }

@@ -376,7 +376,6 @@ pub fn evaluate_prepared(
 ) -> Evaluation {
     let (k, p) = (basis.n_cols(), basis.n_params());
     let nc = prep.data.channels.len();
-    let s = basis.scratch_len().max(1);
     let mut coef = Vec::with_capacity(nc);
     let mut cost = 0.0;
     let mut jtj = vec![0.0; p * p];
@@ -389,73 +388,17 @@ pub fn evaluate_prepared(
     let mut constraints = Vec::new();
     for ch in 0..nc {
         let q = if jac { p + 1 } else { 0 };
-        let stride = k + q;
         let mut cl = columns(basis, prep, theta, ch, q);
-        let mut bounded = None;
-        let c = match limits {
-            None => nnls(&cl.g, &cl.h, k),
+        let (c, bounded) = match limits {
+            None => (nnls(&cl.g, &cl.h, k), None),
             Some(lim) => {
-                let nl = lim.len();
-                let mut bm = vec![0.0; nl * k];
-                let mut dbm = vec![0.0; if jac { nl * k * p } else { 0 }];
-                basis.albedo_rows(theta, ch, lim, &mut bm, jac.then_some(&mut dbm[..]));
-                let sol = qp(&cl.g, &cl.h, k, &bm, nl);
-                constraints.push(ChannelConstraint {
-                    albedo: (0..nl)
-                        .map(|l| (0..k).map(|u| bm[l * k + u] * sol.c[u]).sum())
-                        .collect(),
-                    multiplier: sol.multiplier.clone(),
-                });
-                let c = sol.c.clone();
-                bounded = Some((sol, bm, dbm));
-                c
+                let (sol, bm, dbm, constraint) = bounded_solve(basis, theta, ch, lim, &cl, jac);
+                constraints.push(constraint);
+                (sol.c.clone(), Some((sol, bm, dbm)))
             }
         };
-        let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
-        let nf = free.len();
-        let wy = &prep.wy[ch];
-        // Per chunk, with X = [WA | V | r] (V = W ∂A/∂θ c): Xᵀ[V | r], (k + p + 1) ×
-        // (p + 1) row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r], whose last entry is
-        // Σr²; without the Jacobian only Σr².
-        let width = if jac { stride * q } else { 1 };
-        let parts: Vec<(Vec<f64>, Vec<f64>)> = cl
-            .cols
-            .par_chunks_mut(CHUNK * stride)
-            .zip(cl.scratch.par_chunks(CHUNK * s))
-            .enumerate()
-            .map(|(ci, (block, sc))| {
-                let lo = ci * CHUNK;
-                let len = block.len() / stride;
-                let (cc, vr) = block.split_at_mut(len * k);
-                let mut r_local = Vec::new();
-                let r: &mut [f64] = if jac {
-                    &mut vr[len * p..len * q]
-                } else {
-                    r_local.resize(len, 0.0);
-                    &mut r_local
-                };
-                for (ri, y) in r.iter_mut().zip(&wy[lo..lo + len]) {
-                    *ri = -y;
-                }
-                for (u, cu) in c.iter().enumerate() {
-                    if *cu != 0.0 {
-                        for (ri, a) in r.iter_mut().zip(&cc[u * len..(u + 1) * len]) {
-                            *ri += cu * a;
-                        }
-                    }
-                }
-                if !jac {
-                    return (vec![dot(r, r)], Vec::new());
-                }
-                let r = r.to_vec();
-                let chunk = prep.chunk(ch, lo, lo + len);
-                basis.directional(theta, ch, &chunk, cc, sc, &c, &mut vr[..len * p]);
-                let mut acc = vec![0.0; width];
-                gram_tail(block, stride, k, len, &mut acc);
-                (acc, r)
-            })
-            .collect();
-        let mut acc = vec![0.0; width];
+        let parts = chunk_pass(basis, prep, theta, ch, &mut cl, &c, jac);
+        let mut acc = vec![0.0; if jac { (k + q) * q } else { 1 }];
         for (a, r) in parts {
             acc = add_into(acc, a);
             if let Some(f) = full.as_mut() {
@@ -468,54 +411,22 @@ pub fn evaluate_prepared(
             let am = |u: usize, b: usize| acc[u * q + b];
             let mm = |a: usize, b: usize| acc[(k + a) * q + b];
             cost += mm(p, p);
-            if let Some((sol, bm, dbm)) = &bounded {
-                let (a2, r2) = constrained_normal(&acc, &cl.g, k, p, sol, bm, dbm);
-                for (x, y) in jtj.iter_mut().zip(&a2) {
-                    *x += y;
-                }
-                for (x, y) in jtr.iter_mut().zip(&r2) {
-                    *x += y;
-                }
-                if let Some(f) = full.as_mut() {
-                    let vv = (0..p * p).map(|i| mm(i / p, i % p)).collect();
-                    let av = (0..k * p).map(|i| am(i / p, i % p)).collect();
-                    f.grams.push([vv, av, cl.g.clone()]);
-                }
-                coef.push(c);
-                if let Ok(mut b) = prep.buffers.lock() {
-                    *b = Some((cl.cols, cl.scratch));
-                }
-                continue;
-            }
-            // JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr:
-            // J = (I − A_F G_F⁻¹ A_Fᵀ) V. (A_Fᵀr vanishes at the projection's optimum
-            // up to rounding; it is kept rather than assumed.)
-            let gi = free_inverse(&cl.g, k, &free);
-            // G_F⁻¹ A_Fᵀ M, nf × (p + 1).
-            let mut gm = vec![0.0; nf * q];
-            for x in 0..nf {
-                for (z, &u) in free.iter().enumerate() {
-                    for b in 0..q {
-                        gm[x * q + b] += gi[(x, z)] * am(u, b);
-                    }
-                }
-            }
             if let Some(f) = full.as_mut() {
                 let vv = (0..p * p).map(|i| mm(i / p, i % p)).collect();
                 let av = (0..k * p).map(|i| am(i / p, i % p)).collect();
                 f.grams.push([vv, av, cl.g.clone()]);
             }
-            for a in 0..p {
-                let proj = |b: usize| -> f64 {
-                    free.iter()
-                        .enumerate()
-                        .map(|(x, &u)| am(u, a) * gm[x * q + b])
-                        .sum()
-                };
-                jtr[a] += mm(a, p) - proj(p);
-                for b in a..p {
-                    jtj[a * p + b] += mm(a, b) - proj(b);
+            match &bounded {
+                Some((sol, bm, dbm)) => {
+                    let (a2, r2) = constrained_normal(&acc, &cl.g, k, p, sol, bm, dbm);
+                    for (x, y) in jtj.iter_mut().zip(&a2) {
+                        *x += y;
+                    }
+                    for (x, y) in jtr.iter_mut().zip(&r2) {
+                        *x += y;
+                    }
                 }
+                None => free_normal(&acc, &cl.g, k, p, &c, &mut jtj, &mut jtr),
             }
         }
         coef.push(c);
@@ -534,6 +445,132 @@ pub fn evaluate_prepared(
         normal: jac.then_some((jtj, jtr)),
         full,
         constraints,
+    }
+}
+
+/// Channel `ch`'s coefficients under the albedo limits: the QP's solution, the
+/// albedo rows B at the limit directions (with ∂B/∂θ when `jac`), and the channel's
+/// constraint report (B c and the multipliers).
+fn bounded_solve(
+    basis: &dyn Basis,
+    theta: &[f64],
+    ch: usize,
+    lim: &[[f64; 3]],
+    cl: &Columns,
+    jac: bool,
+) -> (QpSolution, Vec<f64>, Vec<f64>, ChannelConstraint) {
+    let (k, p) = (basis.n_cols(), basis.n_params());
+    let nl = lim.len();
+    let mut bm = vec![0.0; nl * k];
+    let mut dbm = vec![0.0; if jac { nl * k * p } else { 0 }];
+    basis.albedo_rows(theta, ch, lim, &mut bm, jac.then_some(&mut dbm[..]));
+    let sol = qp(&cl.g, &cl.h, k, &bm, nl);
+    let constraint = ChannelConstraint {
+        albedo: (0..nl)
+            .map(|l| (0..k).map(|u| bm[l * k + u] * sol.c[u]).sum())
+            .collect(),
+        multiplier: sol.multiplier.clone(),
+    };
+    (sol, bm, dbm, constraint)
+}
+
+/// The parallel pass over channel `ch`'s chunks at the coefficients `c`: per
+/// chunk, with X = [WA | V | r] (V = W ∂A/∂θ c), Xᵀ[V | r], (k + p + 1) × (p + 1)
+/// row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r], whose last entry is Σr² — and
+/// the chunk's residuals; without the Jacobian only Σr².
+fn chunk_pass(
+    basis: &dyn Basis,
+    prep: &Prepared,
+    theta: &[f64],
+    ch: usize,
+    cl: &mut Columns,
+    c: &[f64],
+    jac: bool,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let (k, p) = (basis.n_cols(), basis.n_params());
+    let s = basis.scratch_len().max(1);
+    let q = if jac { p + 1 } else { 0 };
+    let stride = k + q;
+    let wy = &prep.wy[ch];
+    let width = if jac { stride * q } else { 1 };
+    cl.cols
+        .par_chunks_mut(CHUNK * stride)
+        .zip(cl.scratch.par_chunks(CHUNK * s))
+        .enumerate()
+        .map(|(ci, (block, sc))| {
+            let lo = ci * CHUNK;
+            let len = block.len() / stride;
+            let (cc, vr) = block.split_at_mut(len * k);
+            let mut r_local = Vec::new();
+            let r: &mut [f64] = if jac {
+                &mut vr[len * p..len * q]
+            } else {
+                r_local.resize(len, 0.0);
+                &mut r_local
+            };
+            for (ri, y) in r.iter_mut().zip(&wy[lo..lo + len]) {
+                *ri = -y;
+            }
+            for (u, cu) in c.iter().enumerate() {
+                if *cu != 0.0 {
+                    for (ri, a) in r.iter_mut().zip(&cc[u * len..(u + 1) * len]) {
+                        *ri += cu * a;
+                    }
+                }
+            }
+            if !jac {
+                return (vec![dot(r, r)], Vec::new());
+            }
+            let r = r.to_vec();
+            let chunk = prep.chunk(ch, lo, lo + len);
+            basis.directional(theta, ch, &chunk, cc, sc, c, &mut vr[..len * p]);
+            let mut acc = vec![0.0; width];
+            gram_tail(block, stride, k, len, &mut acc);
+            (acc, r)
+        })
+        .collect()
+}
+
+/// Adds an unconstrained channel's share to JᵀJ (upper triangle) and Jᵀr:
+/// JᵀJ = VᵀV − (A_FᵀV)ᵀ G_F⁻¹ A_FᵀV and Jᵀr = Vᵀr − (A_FᵀV)ᵀ G_F⁻¹ A_Fᵀr, with
+/// J = (I − A_F G_F⁻¹ A_Fᵀ) V over the free (positive) coefficients of `c`. (A_Fᵀr
+/// vanishes at the projection's optimum up to rounding; it is kept rather than
+/// assumed.)
+fn free_normal(
+    acc: &[f64],
+    g: &[f64],
+    k: usize,
+    p: usize,
+    c: &[f64],
+    jtj: &mut [f64],
+    jtr: &mut [f64],
+) {
+    let q = p + 1;
+    let am = |u: usize, b: usize| acc[u * q + b];
+    let mm = |a: usize, b: usize| acc[(k + a) * q + b];
+    let free: Vec<usize> = (0..k).filter(|&u| c[u] > 0.0).collect();
+    let nf = free.len();
+    let gi = free_inverse(g, k, &free);
+    // G_F⁻¹ A_Fᵀ M, nf × (p + 1).
+    let mut gm = vec![0.0; nf * q];
+    for x in 0..nf {
+        for (z, &u) in free.iter().enumerate() {
+            for b in 0..q {
+                gm[x * q + b] += gi[(x, z)] * am(u, b);
+            }
+        }
+    }
+    for a in 0..p {
+        let proj = |b: usize| -> f64 {
+            free.iter()
+                .enumerate()
+                .map(|(x, &u)| am(u, a) * gm[x * q + b])
+                .sum()
+        };
+        jtr[a] += mm(a, p) - proj(p);
+        for b in a..p {
+            jtj[a * p + b] += mm(a, b) - proj(b);
+        }
     }
 }
 

@@ -166,9 +166,96 @@ pub fn read_astm(text: &str, path: Option<&Path>) -> Result<Samples, FormatError
     let at = |line: usize, field: Option<&str>, msg: String| {
         FormatError::at_line(Format::Astm, path, line, field, msg)
     };
+    let mut lines = text.split('\n').enumerate().map(|(i, l)| (i + 1, l.trim()));
+    let Header {
+        isotropic,
+        num_points,
+        vline,
+        names,
+    } = header(&mut lines, &at, path)?;
+    let Some((nline, n)) = num_points else {
+        return Err(at(
+            vline,
+            Some("NUM_POINTS"),
+            "no NUM_POINTS line before VARS".into(),
+        ));
+    };
+    let channels = columns(&names, vline, &at)?;
+    let nc = channels.len();
+    let width = 4 + nc;
+    // Each row takes at least 2·width bytes (a digit and a separator a field).
+    let mut samples = Vec::with_capacity(n.min(text.len() / (2 * width) + 1));
+    for (ln, l) in lines {
+        if l.is_empty() || l.starts_with('#') {
+            continue;
+        }
+        if samples.len() == n {
+            return Err(at(
+                ln,
+                None,
+                format!("more rows than NUM_POINTS (line {nline}) announces: {n}"),
+            ));
+        }
+        let key = first_token(l);
+        if is_astm_keyword(key) {
+            return Err(at(
+                ln,
+                Some(key),
+                "a header keyword among the data: NUM_POINTS and VARS come once, \
+                 NUM_POINTS first, before the rows"
+                    .into(),
+            ));
+        }
+        let f = fields(l);
+        if f.len() != width {
+            return Err(at(
+                ln,
+                None,
+                format!("{} fields, VARS names {width} columns", f.len()),
+            ));
+        }
+        samples.push(row(ln, &f, &names, nc, &at)?);
+    }
+    if samples.len() < n {
+        return Err(at(
+            nline,
+            Some("NUM_POINTS"),
+            format!(
+                "NUM_POINTS announces {n} rows, the file has {} (truncated?)",
+                samples.len()
+            ),
+        ));
+    }
+    if samples.is_empty() {
+        return Err(at(nline, Some("NUM_POINTS"), "no data rows".into()));
+    }
+    Ok(Samples {
+        channels,
+        samples,
+        isotropic,
+    })
+}
+
+/// What the header says, up to and including its `VARS` line.
+struct Header<'a> {
+    isotropic: bool,
+    /// The `NUM_POINTS` line and its count, when there is one.
+    num_points: Option<(usize, usize)>,
+    /// The `VARS` line and the columns it names.
+    vline: usize,
+    names: Vec<&'a str>,
+}
+
+/// Reads the header up to and including `VARS`: the `# isotropic:` comment,
+/// `NUM_POINTS` (once, within [`MAX_POINTS`]) and other keywords, refusing data
+/// before `VARS`.
+fn header<'a>(
+    lines: &mut impl Iterator<Item = (usize, &'a str)>,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+    path: Option<&Path>,
+) -> Result<Header<'a>, FormatError> {
     let mut isotropic = false;
     let mut num_points: Option<(usize, usize)> = None;
-    let mut lines = text.split('\n').enumerate().map(|(i, l)| (i + 1, l.trim()));
     // The header, up to and including VARS.
     let (vline, names) = loop {
         let Some((ln, l)) = lines.next() else {
@@ -234,13 +321,21 @@ pub fn read_astm(text: &str, path: Option<&Path>) -> Result<Samples, FormatError
             ),
         ));
     };
-    let Some((nline, n)) = num_points else {
-        return Err(at(
-            vline,
-            Some("NUM_POINTS"),
-            "no NUM_POINTS line before VARS".into(),
-        ));
-    };
+    Ok(Header {
+        isotropic,
+        num_points,
+        vline,
+        names,
+    })
+}
+
+/// The channels of the columns `VARS` names (on line `vline`): the four angles
+/// first, in order, then at least one channel.
+fn columns(
+    names: &[&str],
+    vline: usize,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+) -> Result<Channels, FormatError> {
     if names.len() < 5 {
         return Err(at(
             vline,
@@ -271,102 +366,61 @@ pub fn read_astm(text: &str, path: Option<&Path>) -> Result<Samples, FormatError
             ));
         }
     }
-    let channels = channels_of(&names[4..]).map_err(|e| {
+    channels_of(&names[4..]).map_err(|e| {
         at(
             vline,
             Some("VARS"),
             format!("channels: {e} (bare numbers are wavelengths in nm)"),
         )
-    })?;
-    let nc = channels.len();
-    let width = 4 + nc;
-    // Each row takes at least 2·width bytes (a digit and a separator a field).
-    let mut samples = Vec::with_capacity(n.min(text.len() / (2 * width) + 1));
-    for (ln, l) in lines {
-        if l.is_empty() || l.starts_with('#') {
-            continue;
-        }
-        if samples.len() == n {
-            return Err(at(
-                ln,
-                None,
-                format!("more rows than NUM_POINTS (line {nline}) announces: {n}"),
-            ));
-        }
-        let key = first_token(l);
-        if is_astm_keyword(key) {
-            return Err(at(
-                ln,
-                Some(key),
-                "a header keyword among the data: NUM_POINTS and VARS come once, \
-                 NUM_POINTS first, before the rows"
-                    .into(),
-            ));
-        }
-        let f = fields(l);
-        if f.len() != width {
-            return Err(at(
-                ln,
-                None,
-                format!("{} fields, VARS names {width} columns", f.len()),
-            ));
-        }
-        let mut x = [0.0; 4];
-        let mut value = Vec::with_capacity(nc);
-        for (k, s) in f.iter().enumerate() {
-            let v = s
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        ln,
-                        Some(names[k]),
-                        format!("not a finite number: {:?}", clip(s)),
-                    )
-                })?;
-            if k < 4 {
-                x[k] = v;
-            } else {
-                value.push(v);
-            }
-        }
-        for k in [0, 2] {
-            if !(0.0..=90.0).contains(&x[k]) {
-                return Err(at(
+    })
+}
+
+/// One data row's sample from its fields (on line `ln`): each a finite number,
+/// the θs within [0, 90] degrees.
+fn row(
+    ln: usize,
+    f: &[&str],
+    names: &[&str],
+    nc: usize,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+) -> Result<Sample, FormatError> {
+    let mut x = [0.0; 4];
+    let mut value = Vec::with_capacity(nc);
+    for (k, s) in f.iter().enumerate() {
+        let v = s
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                at(
                     ln,
                     Some(names[k]),
-                    format!("θ must lie in [0, 90] degrees, got {}", x[k]),
-                ));
-            }
+                    format!("not a finite number: {:?}", clip(s)),
+                )
+            })?;
+        if k < 4 {
+            x[k] = v;
+        } else {
+            value.push(v);
         }
-        samples.push(Sample {
-            pair: PairDeg {
-                incident: SphericalDeg::new(x[0], x[1]),
-                outgoing: SphericalDeg::new(x[2], x[3]),
-            },
-            value,
-            sigma: None,
-            flags: 0,
-        });
     }
-    if samples.len() < n {
-        return Err(at(
-            nline,
-            Some("NUM_POINTS"),
-            format!(
-                "NUM_POINTS announces {n} rows, the file has {} (truncated?)",
-                samples.len()
-            ),
-        ));
+    for k in [0, 2] {
+        if !(0.0..=90.0).contains(&x[k]) {
+            return Err(at(
+                ln,
+                Some(names[k]),
+                format!("θ must lie in [0, 90] degrees, got {}", x[k]),
+            ));
+        }
     }
-    if samples.is_empty() {
-        return Err(at(nline, Some("NUM_POINTS"), "no data rows".into()));
-    }
-    Ok(Samples {
-        channels,
-        samples,
-        isotropic,
+    Ok(Sample {
+        pair: PairDeg {
+            incident: SphericalDeg::new(x[0], x[1]),
+            outgoing: SphericalDeg::new(x[2], x[3]),
+        },
+        value,
+        sigma: None,
+        flags: 0,
     })
 }
 

@@ -258,44 +258,8 @@ pub fn read_long(
                 format!("{} fields, the header names {width} columns", f.len()),
             ));
         }
-        let num = |k: usize| -> Result<f64, FormatError> {
-            f[k].parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        ln,
-                        Some(&header.names[k]),
-                        format!("not a finite number: {:?}", clip(f[k])),
-                    )
-                })
-        };
-        let a = [num(0)?, num(1)?, num(2)?, num(3)?];
-        let wavelength = num(4)?;
-        if wavelength <= 0.0 {
-            return Err(at(
-                ln,
-                Some(WAVELENGTH),
-                format!("a wavelength must be positive, got {wavelength}"),
-            ));
-        }
-        let flags = match header.flags {
-            Some(k) => f[k].parse::<u32>().map_err(|_| {
-                at(
-                    ln,
-                    Some(FLAGS),
-                    format!("not a whole number of flags: {:?}", clip(f[k])),
-                )
-            })?,
-            None => 0,
-        };
-        let row = Row {
-            line: ln,
-            wavelength,
-            value: num(5)?,
-            sigma: header.sigma.map(num).transpose()?,
-            flags,
-        };
+        let (a, row) = row(ln, &f, &header, &at)?;
+        let wavelength = row.wavelength;
         // +0.0 for −0.0: the same angle, the same pair.
         let key = a.map(|x| (x + 0.0).to_bits());
         let n = wls.len();
@@ -331,94 +295,170 @@ pub fn read_long(
         .enumerate()
         .map(|(i, w)| (w.to_bits(), i))
         .collect();
-    let nc = wl.len();
     let mut samples = Vec::with_capacity(pairs.len());
     for p in pairs {
-        let first = p.rows[0].line;
-        let mut value = vec![f64::NAN; nc];
-        let mut sigma = header.sigma.map(|_| vec![f64::NAN; nc]);
-        let mut line_of = vec![0usize; nc];
-        for r in &p.rows {
-            // Every wavelength read went into `slot`.
-            let Some(&c) = slot.get(&r.wavelength.to_bits()) else {
-                continue;
-            };
-            if line_of[c] != 0 {
-                return Err(at(
-                    r.line,
-                    Some(WAVELENGTH),
-                    format!(
-                        "a second row for this pair at {} nm (the first is line {})",
-                        r.wavelength, line_of[c]
-                    ),
-                ));
-            }
-            if r.flags != p.rows[0].flags {
-                return Err(at(
-                    r.line,
-                    Some(FLAGS),
-                    format!(
-                        "flags {} differ from the pair's {} at line {first}: flags belong \
-                         to the pair, not to a wavelength",
-                        r.flags, p.rows[0].flags
-                    ),
-                ));
-            }
-            line_of[c] = r.line;
-            value[c] = r.value;
-            if let (Some(s), Some(v)) = (sigma.as_mut(), r.sigma) {
-                s[c] = v;
-            }
-        }
-        if let Some(c) = line_of.iter().position(|l| *l == 0) {
-            return Err(at(
-                first,
-                Some(WAVELENGTH),
-                format!(
-                    "this pair has no row at {} nm: every pair needs one row for each of \
-                     the file's {nc} wavelengths",
-                    wl[c]
-                ),
-            ));
-        }
-        samples.push(Sample {
-            pair: p.pair,
-            value,
-            sigma,
-            flags: p.rows[0].flags,
-        });
+        samples.push(sample(p, &slot, &wl, header.sigma.is_some(), &at)?);
     }
-    let mut isotropic = false;
-    if let Some(m) = meta {
-        if m.columns != header.names {
-            return Err(at(
-                hline,
-                None,
-                format!(
-                    "the sidecar names the columns {:?}, the header {:?}: they do not \
-                     belong together",
-                    m.columns.join(","),
-                    header.names.join(",")
-                ),
-            ));
-        }
-        if m.channels != channels.names() {
-            return Err(FormatError::whole(
-                Some(Format::CsvLong),
-                path,
-                format!(
-                    "the sidecar names the channels {}, the rows the wavelengths {channels}",
-                    m.channels.join(",")
-                ),
-            ));
-        }
-        isotropic = m.isotropic;
-    }
+    let isotropic = match meta {
+        Some(m) => sidecar(m, &header, &channels, hline, &at, path)?,
+        None => false,
+    };
     Ok(Data::Samples(Samples {
         channels,
         samples,
         isotropic,
     }))
+}
+
+/// One data row's numbers (on line `ln`): its four angles and the row, the
+/// wavelength positive and the flags a whole number.
+fn row(
+    ln: usize,
+    f: &[&str],
+    header: &Header,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+) -> Result<([f64; 4], Row), FormatError> {
+    let num = |k: usize| -> Result<f64, FormatError> {
+        f[k].parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                at(
+                    ln,
+                    Some(&header.names[k]),
+                    format!("not a finite number: {:?}", clip(f[k])),
+                )
+            })
+    };
+    let a = [num(0)?, num(1)?, num(2)?, num(3)?];
+    let wavelength = num(4)?;
+    if wavelength <= 0.0 {
+        return Err(at(
+            ln,
+            Some(WAVELENGTH),
+            format!("a wavelength must be positive, got {wavelength}"),
+        ));
+    }
+    let flags = match header.flags {
+        Some(k) => f[k].parse::<u32>().map_err(|_| {
+            at(
+                ln,
+                Some(FLAGS),
+                format!("not a whole number of flags: {:?}", clip(f[k])),
+            )
+        })?,
+        None => 0,
+    };
+    Ok((
+        a,
+        Row {
+            line: ln,
+            wavelength,
+            value: num(5)?,
+            sigma: header.sigma.map(num).transpose()?,
+            flags,
+        },
+    ))
+}
+
+/// One pair's sample from its rows: a row at each of the file's wavelengths `wl`
+/// (in the channels' order, `slot` by bits), none twice, all with the pair's flags.
+fn sample(
+    p: Pair,
+    slot: &HashMap<u64, usize>,
+    wl: &[f64],
+    has_sigma: bool,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+) -> Result<Sample, FormatError> {
+    let nc = wl.len();
+    let first = p.rows[0].line;
+    let mut value = vec![f64::NAN; nc];
+    let mut sigma = has_sigma.then(|| vec![f64::NAN; nc]);
+    let mut line_of = vec![0usize; nc];
+    for r in &p.rows {
+        // Every wavelength read went into `slot`.
+        let Some(&c) = slot.get(&r.wavelength.to_bits()) else {
+            continue;
+        };
+        if line_of[c] != 0 {
+            return Err(at(
+                r.line,
+                Some(WAVELENGTH),
+                format!(
+                    "a second row for this pair at {} nm (the first is line {})",
+                    r.wavelength, line_of[c]
+                ),
+            ));
+        }
+        if r.flags != p.rows[0].flags {
+            return Err(at(
+                r.line,
+                Some(FLAGS),
+                format!(
+                    "flags {} differ from the pair's {} at line {first}: flags belong \
+                     to the pair, not to a wavelength",
+                    r.flags, p.rows[0].flags
+                ),
+            ));
+        }
+        line_of[c] = r.line;
+        value[c] = r.value;
+        if let (Some(s), Some(v)) = (sigma.as_mut(), r.sigma) {
+            s[c] = v;
+        }
+    }
+    if let Some(c) = line_of.iter().position(|l| *l == 0) {
+        return Err(at(
+            first,
+            Some(WAVELENGTH),
+            format!(
+                "this pair has no row at {} nm: every pair needs one row for each of \
+                 the file's {nc} wavelengths",
+                wl[c]
+            ),
+        ));
+    }
+    Ok(Sample {
+        pair: p.pair,
+        value,
+        sigma,
+        flags: p.rows[0].flags,
+    })
+}
+
+/// Checks the sidecar against the file (the header's columns, the rows'
+/// wavelengths) and gives its isotropy.
+fn sidecar(
+    m: &Meta,
+    header: &Header,
+    channels: &Channels,
+    hline: usize,
+    at: &impl Fn(usize, Option<&str>, String) -> FormatError,
+    path: Option<&Path>,
+) -> Result<bool, FormatError> {
+    if m.columns != header.names {
+        return Err(at(
+            hline,
+            None,
+            format!(
+                "the sidecar names the columns {:?}, the header {:?}: they do not \
+                 belong together",
+                m.columns.join(","),
+                header.names.join(",")
+            ),
+        ));
+    }
+    if m.channels != channels.names() {
+        return Err(FormatError::whole(
+            Some(Format::CsvLong),
+            path,
+            format!(
+                "the sidecar names the channels {}, the rows the wavelengths {channels}",
+                m.channels.join(",")
+            ),
+        ));
+    }
+    Ok(m.isotropic)
 }
 
 /// At most 40 characters of a field, for messages.

@@ -404,48 +404,18 @@ impl Figure for HemiFig<'_> {
         let (w, h) = root.dim_in_pixel();
         let (w, h) = (w as i32, h as i32);
         let mut top = draw::title(root, &self.title, &sz)?;
-        top += draw::subtitle(
-            root,
-            &match &self.true_colour {
-                Some((_, conditions)) => format!(
-                    "encoded sRGB, {conditions} · projection: {}",
-                    self.projection.name()
-                ),
-                None => format!(
-                    "channel {} · projection: {}",
-                    self.channel_name,
-                    self.projection.name()
-                ),
-            },
-            top,
-            &sz,
-        )?;
+        top += draw::subtitle(root, &self.subtitle(), top, &sz)?;
         let mut names = vec![self.data_label.as_str()];
         if self.fit.is_some() {
             names.push(self.fit_label.as_str());
         }
         let n = names.len() as i32;
-        let cbw = sz.px(130.0);
-        let cap = (sz.label * 1.7).round() as i32;
-        let ylab = sz.px(62.0);
-        let xlab = sz.px(56.0);
-        let gap = sz.px(40.0);
-        let note = (sz.tick * 1.8).round() as i32;
-        let avail_w = w - cbw - sz.px(12.0);
-        let avail_h = h - top - sz.px(6.0);
-        // The maps share the y axis, labelled on the first.
-        let side = ((avail_w - ylab - (n - 1) * gap) / n).min(avail_h - cap - xlab - note);
-        if side < 60 {
-            return Err("the image is too small for the hemisphere map".into());
-        }
-        let block_w = ylab + n * side + (n - 1) * gap;
-        let x_plot = (avail_w - block_w).max(0) / 2 + sz.px(6.0) + ylab;
-        let y_plot = top + cap + (avail_h - cap - xlab - note - side).max(0) / 2;
+        let l = Layout::new(n, (w, h), top, &sz)?;
         let sources: Vec<(&dyn Brdf, bool)> = std::iter::once((self.data.brdf(), true))
             .chain(self.fit.map(|f| (f, false)))
             .collect();
         let rects: Vec<(i32, i32, i32, i32)> = (0..n)
-            .map(|k| (x_plot + k * (side + gap), y_plot, side, side))
+            .map(|k| (l.x_plot + k * (l.side + l.gap), l.y_plot, l.side, l.side))
             .collect();
         let values: Vec<Cells<Option<f64>>> = match self.true_colour {
             Some(_) => Vec::new(),
@@ -473,35 +443,11 @@ impl Figure for HemiFig<'_> {
             vmax: if vmax > 0.0 { vmax } else { 1.0 },
         };
         let colour = |t: f64| draw::viridis(band(t, self.levels));
-        let (xd, yd) = match self.projection {
-            Projection::Concentric => ("u (concentric square)", "v (concentric square)"),
-            Projection::Orthographic => ("x = sin θo cos φo", "y = sin θo sin φo"),
-        };
         let mut out = Vec::new();
         for (k, (name, rect)) in names.iter().zip(&rects).enumerate() {
             let (x0, y0, s, _) = *rect;
-            let left = if k == 0 { ylab } else { 0 };
-            let sub = root
-                .clone()
-                .shrink((x0 - left, y0), ((left + s + 1) as u32, (s + xlab) as u32));
-            let mut chart = ChartBuilder::on(&sub)
-                .x_label_area_size(xlab)
-                .y_label_area_size(left)
-                .build_cartesian_2d(-1.0f64..1.0f64, -1.0f64..1.0f64)
-                .map_err(draw::de)?;
-            chart
-                .configure_mesh()
-                .disable_mesh()
-                .x_labels(5)
-                .y_labels(5)
-                .x_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
-                .y_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
-                .label_style((FAMILY, sz.tick))
-                .axis_desc_style((FAMILY, sz.label))
-                .x_desc(xd)
-                .y_desc(yd)
-                .draw()
-                .map_err(draw::de)?;
+            let left = if k == 0 { l.ylab } else { 0 };
+            self.axes(root, *rect, left, l.xlab, &sz)?;
             match &true_colours {
                 Some(c) => draw::paint(root, &c[k])?,
                 None => {
@@ -523,14 +469,129 @@ impl Figure for HemiFig<'_> {
                 name,
                 (x0, y0),
                 s,
-                cap,
+                l.cap,
                 sz.label,
                 INK,
             )?);
         }
         if self.true_colour.is_none() {
-            self.colour_bar(root, (w, y_plot, side, cbw), cell, &scale, &sz)?;
+            self.colour_bar(root, (w, l.y_plot, l.side, l.cbw), cell, &scale, &sz)?;
         }
+        self.marks_note(root, &l, &sz)?;
+        Ok(out)
+    }
+}
+
+/// Where the maps go: the sizes of the colour bar, captions, axis labels, gaps
+/// and note, the maps' common side, and the block's place.
+struct Layout {
+    cbw: i32,
+    cap: i32,
+    ylab: i32,
+    xlab: i32,
+    gap: i32,
+    side: i32,
+    block_w: i32,
+    x_plot: i32,
+    y_plot: i32,
+}
+
+impl Layout {
+    /// The layout of `n` square maps side by side in an image `w` by `h` below
+    /// `top`; the maps share the y axis, labelled on the first. An error when the
+    /// image is too small for them.
+    fn new(n: i32, (w, h): (i32, i32), top: i32, sz: &Sizes) -> Result<Layout, String> {
+        let cbw = sz.px(130.0);
+        let cap = (sz.label * 1.7).round() as i32;
+        let ylab = sz.px(62.0);
+        let xlab = sz.px(56.0);
+        let gap = sz.px(40.0);
+        let note = (sz.tick * 1.8).round() as i32;
+        let avail_w = w - cbw - sz.px(12.0);
+        let avail_h = h - top - sz.px(6.0);
+        // The maps share the y axis, labelled on the first.
+        let side = ((avail_w - ylab - (n - 1) * gap) / n).min(avail_h - cap - xlab - note);
+        if side < 60 {
+            return Err("the image is too small for the hemisphere map".into());
+        }
+        let block_w = ylab + n * side + (n - 1) * gap;
+        let x_plot = (avail_w - block_w).max(0) / 2 + sz.px(6.0) + ylab;
+        let y_plot = top + cap + (avail_h - cap - xlab - note - side).max(0) / 2;
+        Ok(Layout {
+            cbw,
+            cap,
+            ylab,
+            xlab,
+            gap,
+            side,
+            block_w,
+            x_plot,
+            y_plot,
+        })
+    }
+}
+
+impl HemiFig<'_> {
+    /// The line below the title: the true-colour conditions or the channel, and
+    /// the projection.
+    fn subtitle(&self) -> String {
+        match &self.true_colour {
+            Some((_, conditions)) => format!(
+                "encoded sRGB, {conditions} · projection: {}",
+                self.projection.name()
+            ),
+            None => format!(
+                "channel {} · projection: {}",
+                self.channel_name,
+                self.projection.name()
+            ),
+        }
+    }
+
+    /// A map's axes, in the projection's coordinates, with `left` pixels for the
+    /// y axis's labels (none after the first map).
+    fn axes<DB: DrawingBackend>(
+        &self,
+        root: &Area<DB>,
+        (x0, y0, s, _): (i32, i32, i32, i32),
+        left: i32,
+        xlab: i32,
+        sz: &Sizes,
+    ) -> Result<(), String> {
+        let (xd, yd) = match self.projection {
+            Projection::Concentric => ("u (concentric square)", "v (concentric square)"),
+            Projection::Orthographic => ("x = sin θo cos φo", "y = sin θo sin φo"),
+        };
+        let sub = root
+            .clone()
+            .shrink((x0 - left, y0), ((left + s + 1) as u32, (s + xlab) as u32));
+        let mut chart = ChartBuilder::on(&sub)
+            .x_label_area_size(xlab)
+            .y_label_area_size(left)
+            .build_cartesian_2d(-1.0f64..1.0f64, -1.0f64..1.0f64)
+            .map_err(draw::de)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_labels(5)
+            .y_labels(5)
+            .x_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
+            .y_label_formatter(&|v| draw::fmt_tick(*v, 0.5))
+            .label_style((FAMILY, sz.tick))
+            .axis_desc_style((FAMILY, sz.label))
+            .x_desc(xd)
+            .y_desc(yd)
+            .draw()
+            .map_err(draw::de)
+    }
+
+    /// The note below the maps: what the markers mean, and the incident direction.
+    fn marks_note<DB: DrawingBackend>(
+        &self,
+        root: &Area<DB>,
+        l: &Layout,
+        sz: &Sizes,
+    ) -> Result<(), String> {
         let marks = if self.data.sampled().is_some() {
             "○ towards the light   × mirror direction   grey: no sample nearby"
         } else {
@@ -544,18 +605,15 @@ impl Figure for HemiFig<'_> {
                 draw::fmt_deg(self.phi_i)
             ),
             (
-                x_plot - ylab + block_w / 2,
-                y_plot + side + xlab + sz.px(4.0),
+                l.x_plot - l.ylab + l.block_w / 2,
+                l.y_plot + l.side + l.xlab + sz.px(4.0),
             ),
             sz.tick,
             MUTED,
             (HPos::Center, VPos::Top),
-        )?;
-        Ok(out)
+        )
     }
-}
 
-impl HemiFig<'_> {
     /// The colour bar of the colour map, at the right of the image.
     fn colour_bar<DB: DrawingBackend>(
         &self,

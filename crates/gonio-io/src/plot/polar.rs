@@ -261,6 +261,27 @@ impl Radial {
     }
 }
 
+/// A panel's half disc on the image: its centre and radius, in pixels.
+#[derive(Clone, Copy)]
+struct Disc {
+    cx: i32,
+    cy: i32,
+    r: i32,
+}
+
+impl Disc {
+    /// The pixel at `deg` from the normal (negative towards the light) and `frac`
+    /// of the radius.
+    fn at(&self, deg: f64, frac: f64) -> (i32, i32) {
+        let rf = self.r as f64;
+        let a = deg.to_radians();
+        (
+            self.cx + (rf * frac * a.sin()).round() as i32,
+            self.cy - (rf * frac * a.cos()).round() as i32,
+        )
+    }
+}
+
 impl PolarFig {
     fn draw_panel<DB: DrawingBackend>(
         &self,
@@ -270,6 +291,49 @@ impl PolarFig {
         caption: bool,
         sz: &Sizes,
     ) -> Result<PanelRect, String> {
+        let (disc, cap) = self.disc(rect, caption, sz)?;
+        let Disc { cx, cy, r } = disc;
+        if caption {
+            draw::text(
+                area,
+                &format!("channel {}", panel.name),
+                (cx, rect.1 + cap / 2),
+                sz.label,
+                INK,
+                (HPos::Center, VPos::Center),
+            )?;
+        }
+        let fmax = panel
+            .data
+            .iter()
+            .chain(panel.fit.iter().flatten())
+            .flatten()
+            .map(|p| p.1)
+            .fold(0.0f64, f64::max);
+        let radial = Radial::new(self.scale, fmax);
+        spokes(area, disc, sz)?;
+        rings(area, disc, &radial, sz)?;
+        self.lights(area, disc, sz)?;
+        self.curves(area, panel, disc, &radial, sz)?;
+        axis_notes(area, disc, sz)?;
+        Ok(PanelRect {
+            label: panel.name.clone(),
+            x0: cx - r,
+            y0: cy - r,
+            x1: cx + r + 1,
+            y1: cy + 1,
+        })
+    }
+
+    /// Where a panel's disc goes in its rectangle, below its caption's height
+    /// (also returned) and above the axis descriptions; an error when the image is
+    /// too small for it.
+    fn disc(
+        &self,
+        rect: (i32, i32, i32, i32),
+        caption: bool,
+        sz: &Sizes,
+    ) -> Result<(Disc, i32), String> {
         let (x, y, w, h) = rect;
         let cap = if caption {
             (sz.label * 1.7).round() as i32
@@ -289,103 +353,21 @@ impl PolarFig {
         let cx = x + w / 2;
         let block = m_top + r + m_bottom;
         let cy = y + cap + (h - cap - block) / 2 + m_top + r;
-        if caption {
-            draw::text(
-                area,
-                &format!("channel {}", panel.name),
-                (cx, y + cap / 2),
-                sz.label,
-                INK,
-                (HPos::Center, VPos::Center),
-            )?;
-        }
-        let fmax = panel
-            .data
-            .iter()
-            .chain(panel.fit.iter().flatten())
-            .flatten()
-            .map(|p| p.1)
-            .fold(0.0f64, f64::max);
-        let radial = Radial::new(self.scale, fmax);
-        let rf = r as f64;
-        let at = |deg: f64, frac: f64| {
-            let a = deg.to_radians();
-            (
-                cx + (rf * frac * a.sin()).round() as i32,
-                cy - (rf * frac * a.cos()).round() as i32,
-            )
-        };
-        let thin = sz.px(1.0).max(1) as u32;
-        // Radial lines every 15°, labelled every 30°.
-        for k in -6i32..=6 {
-            let deg = k as f64 * 15.0;
-            draw::line(area, vec![(cx, cy), at(deg, 1.0)], GRID, thin)?;
-            if k % 2 == 0 {
-                let gap = 1.0 + sz.tick * 0.45 / rf;
-                let hp = match k {
-                    ..0 => HPos::Right,
-                    0 => HPos::Center,
-                    _ => HPos::Left,
-                };
-                let vp = if k.abs() == 6 {
-                    VPos::Center
-                } else {
-                    VPos::Bottom
-                };
-                draw::text(
-                    area,
-                    &draw::fmt_deg(deg),
-                    at(deg, gap),
-                    sz.tick,
-                    MUTED,
-                    (hp, vp),
-                )?;
-            }
-        }
-        // Rings, labelled on the baseline on both sides: from the outer ring inwards,
-        // each label that clears the one outside it and the centre's.
-        let half = |frac: f64| (-90..=90).map(|d| at(d as f64, frac)).collect::<Vec<_>>();
-        let rings = radial.rings();
-        let label_w = |s: &str| (s.chars().count() as f64 * 0.62 * sz.tick).round() as i32;
-        let centre = radial.centre_label();
-        let centre_edge = label_w(&centre) / 2 + sz.px(6.0);
-        let mut inner_edge = i32::MAX;
-        for (i, (frac, label)) in rings.iter().enumerate().rev() {
-            let outer = i + 1 == rings.len();
-            let color = if outer { MUTED } else { GRID };
-            draw::line(area, half(*frac), color, thin)?;
-            let dx = (rf * frac).round() as i32;
-            let hw = label_w(label) / 2;
-            if dx + hw + sz.px(6.0) > inner_edge || dx - hw < centre_edge {
-                continue;
-            }
-            inner_edge = dx - hw;
-            for sx in [cx - dx, cx + dx] {
-                draw::text(
-                    area,
-                    label,
-                    (sx, cy + sz.px(4.0)),
-                    sz.tick,
-                    MUTED,
-                    (HPos::Center, VPos::Top),
-                )?;
-            }
-        }
-        draw::text(
-            area,
-            &centre,
-            (cx, cy + sz.px(4.0)),
-            sz.tick,
-            MUTED,
-            (HPos::Center, VPos::Top),
-        )?;
-        draw::line(area, vec![(cx - r, cy), (cx + r, cy)], INK, thin)?;
-        // Directions of the light, inside the outer ring.
+        Ok((Disc { cx, cy, r }, cap))
+    }
+
+    /// The directions of the light, as arrowheads inside the outer ring.
+    fn lights<DB: DrawingBackend>(
+        &self,
+        area: &Area<DB>,
+        disc: Disc,
+        sz: &Sizes,
+    ) -> Result<(), String> {
         let hw = sz.px(6.0) as f64;
         for (j, &t) in self.theta_i.iter().enumerate() {
             let a = (-t).to_radians();
-            let tip = at(-t, 0.9);
-            let base = at(-t, 0.995);
+            let tip = disc.at(-t, 0.9);
+            let base = disc.at(-t, 0.995);
             let (px, py) = ((hw * a.cos()).round() as i32, (hw * a.sin()).round() as i32);
             draw::triangle(
                 area,
@@ -393,9 +375,20 @@ impl PolarFig {
                 draw::series_color(j),
             )?;
         }
-        // Curves.
+        Ok(())
+    }
+
+    /// The curves: the fit's lines, then the data as lines or dots.
+    fn curves<DB: DrawingBackend>(
+        &self,
+        area: &Area<DB>,
+        panel: &Panel,
+        disc: Disc,
+        radial: &Radial,
+        sz: &Sizes,
+    ) -> Result<(), String> {
         let lw = sz.px(2.0).max(1) as u32;
-        let to_px = |&(s, f): &(f64, f64)| at(s, radial.rho(f));
+        let to_px = |&(s, f): &(f64, f64)| disc.at(s, radial.rho(f));
         if let Some(fit) = &panel.fit {
             for (j, c) in fit.iter().enumerate() {
                 draw::line(
@@ -416,41 +409,128 @@ impl PolarFig {
                 }
             }
         }
-        // Axis descriptions.
-        let y1 = cy + (sz.tick * 1.6).round() as i32;
-        draw::text(
-            area,
-            "← towards the light",
-            (cx - r, y1),
-            sz.tick,
-            MUTED,
-            (HPos::Left, VPos::Top),
-        )?;
-        draw::text(
-            area,
-            "forward →",
-            (cx + r, y1),
-            sz.tick,
-            MUTED,
-            (HPos::Right, VPos::Top),
-        )?;
-        draw::text(
-            area,
-            "radius: f_r (1/sr)   angle: θo (degrees)",
-            (cx, y1 + (sz.tick * 1.6).round() as i32),
-            sz.label,
-            INK,
-            (HPos::Center, VPos::Top),
-        )?;
-        Ok(PanelRect {
-            label: panel.name.clone(),
-            x0: cx - r,
-            y0: cy - r,
-            x1: cx + r + 1,
-            y1: cy + 1,
-        })
+        Ok(())
     }
+}
 
+/// Radial lines every 15°, labelled every 30°.
+fn spokes<DB: DrawingBackend>(area: &Area<DB>, disc: Disc, sz: &Sizes) -> Result<(), String> {
+    let (cx, cy, rf) = (disc.cx, disc.cy, disc.r as f64);
+    let thin = sz.px(1.0).max(1) as u32;
+    for k in -6i32..=6 {
+        let deg = k as f64 * 15.0;
+        draw::line(area, vec![(cx, cy), disc.at(deg, 1.0)], GRID, thin)?;
+        if k % 2 == 0 {
+            let gap = 1.0 + sz.tick * 0.45 / rf;
+            let hp = match k {
+                ..0 => HPos::Right,
+                0 => HPos::Center,
+                _ => HPos::Left,
+            };
+            let vp = if k.abs() == 6 {
+                VPos::Center
+            } else {
+                VPos::Bottom
+            };
+            draw::text(
+                area,
+                &draw::fmt_deg(deg),
+                disc.at(deg, gap),
+                sz.tick,
+                MUTED,
+                (hp, vp),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The rings, labelled on the baseline on both sides: from the outer ring
+/// inwards, each label that clears the one outside it and the centre's; then the
+/// centre's label and the baseline.
+fn rings<DB: DrawingBackend>(
+    area: &Area<DB>,
+    disc: Disc,
+    radial: &Radial,
+    sz: &Sizes,
+) -> Result<(), String> {
+    let Disc { cx, cy, r } = disc;
+    let rf = r as f64;
+    let thin = sz.px(1.0).max(1) as u32;
+    let half = |frac: f64| {
+        (-90..=90)
+            .map(|d| disc.at(d as f64, frac))
+            .collect::<Vec<_>>()
+    };
+    let rings = radial.rings();
+    let label_w = |s: &str| (s.chars().count() as f64 * 0.62 * sz.tick).round() as i32;
+    let centre = radial.centre_label();
+    let centre_edge = label_w(&centre) / 2 + sz.px(6.0);
+    let mut inner_edge = i32::MAX;
+    for (i, (frac, label)) in rings.iter().enumerate().rev() {
+        let outer = i + 1 == rings.len();
+        let color = if outer { MUTED } else { GRID };
+        draw::line(area, half(*frac), color, thin)?;
+        let dx = (rf * frac).round() as i32;
+        let hw = label_w(label) / 2;
+        if dx + hw + sz.px(6.0) > inner_edge || dx - hw < centre_edge {
+            continue;
+        }
+        inner_edge = dx - hw;
+        for sx in [cx - dx, cx + dx] {
+            draw::text(
+                area,
+                label,
+                (sx, cy + sz.px(4.0)),
+                sz.tick,
+                MUTED,
+                (HPos::Center, VPos::Top),
+            )?;
+        }
+    }
+    draw::text(
+        area,
+        &centre,
+        (cx, cy + sz.px(4.0)),
+        sz.tick,
+        MUTED,
+        (HPos::Center, VPos::Top),
+    )?;
+    draw::line(area, vec![(cx - r, cy), (cx + r, cy)], INK, thin)
+}
+
+/// The axis descriptions below the disc: which side faces the light, and what
+/// the radius and angle are.
+fn axis_notes<DB: DrawingBackend>(area: &Area<DB>, disc: Disc, sz: &Sizes) -> Result<(), String> {
+    let Disc { cx, cy, r } = disc;
+    let y1 = cy + (sz.tick * 1.6).round() as i32;
+    draw::text(
+        area,
+        "← towards the light",
+        (cx - r, y1),
+        sz.tick,
+        MUTED,
+        (HPos::Left, VPos::Top),
+    )?;
+    draw::text(
+        area,
+        "forward →",
+        (cx + r, y1),
+        sz.tick,
+        MUTED,
+        (HPos::Right, VPos::Top),
+    )?;
+    draw::text(
+        area,
+        "radius: f_r (1/sr)   angle: θo (degrees)",
+        (cx, y1 + (sz.tick * 1.6).round() as i32),
+        sz.label,
+        INK,
+        (HPos::Center, VPos::Top),
+    )
+}
+
+impl PolarFig {
     /// The legend: the incident angles (five a row), then how things are drawn.
     fn legend_rows(&self) -> Vec<Vec<Entry>> {
         let has_fit = self.panels.iter().any(|p| p.fit.is_some());

@@ -202,6 +202,45 @@ pub fn read_from<R: BufRead>(
         }
         Ok(true)
     };
+    let Preamble {
+        head,
+        mut grid,
+        mut isotropic,
+    } = preamble(&mut next, &mut buf, &mut ln, &at, path)?;
+    let hline = ln;
+    let h = parse_header(&head).map_err(|m| at(hline, None, m))?;
+    let side = |field: &str, msg: String| FileError {
+        field: Some(field.into()),
+        ..FileError::whole(SIDECAR_KIND, path.map(sidecar_path).as_deref(), msg)
+    };
+    if let Some(m) = meta {
+        isotropic = sidecar(m, &h, &mut grid, &side)?;
+    }
+    let table = grid.as_ref().and_then(|(_, g)| storage(g, &h, len));
+    let lines = Lines { next, buf, ln };
+    let filled = read_rows(lines, &at, &side, &h, &grid, table)?;
+    finish(h, grid, filled, isotropic, &at, &side, path)
+}
+
+/// What the lines up to the header row say.
+struct Preamble {
+    /// The header row, trimmed.
+    head: String,
+    /// A `# grid:` line's grid, which makes the file a table.
+    grid: Option<(GridFrom, Grid)>,
+    /// `# isotropic: true`.
+    isotropic: bool,
+}
+
+/// Reads the lines up to the header row: blank lines are passed over, comments
+/// read for a grid or isotropy; no header row is an error.
+fn preamble(
+    next: &mut impl FnMut(&mut Vec<u8>, &mut usize) -> Result<bool, FileError>,
+    buf: &mut Vec<u8>,
+    ln: &mut usize,
+    at: &impl Fn(usize, Option<&str>, String) -> FileError,
+    path: Option<&Path>,
+) -> Result<Preamble, FileError> {
     let text_of = |buf: &[u8], ln: usize| -> Result<String, FileError> {
         let b = if ln == 1 {
             gonio_core::text::strip_bom_bytes(buf)
@@ -215,10 +254,10 @@ pub fn read_from<R: BufRead>(
     let mut grid: Option<(GridFrom, Grid)> = None;
     let mut isotropic = false;
     let head = loop {
-        if !next(&mut buf, &mut ln)? {
+        if !next(buf, ln)? {
             return Err(FileError::whole(KIND, path, "no header row"));
         }
-        let l = text_of(&buf, ln)?;
+        let l = text_of(buf, *ln)?;
         if l.is_empty() {
             continue;
         }
@@ -226,8 +265,8 @@ pub fn read_from<R: BufRead>(
             if let Some((k, v)) = c.split_once(':') {
                 match k.trim() {
                     "grid" => {
-                        let g = parse_grid(v.trim()).map_err(|m| at(ln, Some("grid"), m))?;
-                        grid = Some((GridFrom::Line(ln), g));
+                        let g = parse_grid(v.trim()).map_err(|m| at(*ln, Some("grid"), m))?;
+                        grid = Some((GridFrom::Line(*ln), g));
                     }
                     "isotropic" => isotropic = v.trim() == "true",
                     _ => {}
@@ -237,50 +276,105 @@ pub fn read_from<R: BufRead>(
         }
         break l;
     };
-    let hline = ln;
-    let h = parse_header(&head).map_err(|m| at(hline, None, m))?;
-    let side = |field: &str, msg: String| FileError {
-        field: Some(field.into()),
-        ..FileError::whole(SIDECAR_KIND, path.map(sidecar_path).as_deref(), msg)
-    };
-    if let Some(m) = meta {
-        if m.columns != h.cols {
-            return Err(side(
-                "columns",
-                format!(
-                    "describes the columns {}, the CSV has {}; the two do not belong together",
-                    m.columns.join(","),
-                    h.cols.join(",")
-                ),
-            ));
-        }
-        isotropic = m.isotropic;
-        if grid.is_none()
-            && let Some(g) = m.grid()
-        {
-            grid = Some((GridFrom::Sidecar, g.map_err(|e| side("grid", e))?));
-        }
+    Ok(Preamble {
+        head,
+        grid,
+        isotropic,
+    })
+}
+
+/// Checks the sidecar against the header (the same columns) and takes what it
+/// adds: whether the rows are isotropic, which it returns, and its grid when the
+/// file has no grid line.
+fn sidecar(
+    m: &Meta,
+    h: &Header,
+    grid: &mut Option<(GridFrom, Grid)>,
+    side: &impl Fn(&str, String) -> FileError,
+) -> Result<bool, FileError> {
+    if m.columns != h.cols {
+        return Err(side(
+            "columns",
+            format!(
+                "describes the columns {}, the CSV has {}; the two do not belong together",
+                m.columns.join(","),
+                h.cols.join(",")
+            ),
+        ));
     }
+    if grid.is_none()
+        && let Some(g) = m.grid()
+    {
+        *grid = Some((GridFrom::Sidecar, g.map_err(|e| side("grid", e))?));
+    }
+    Ok(m.isotropic)
+}
+
+/// A table's storage as the rows fill it: the values by channel, their
+/// uncertainties when the file has them, and which nodes were given.
+type TableFill = (Vec<f64>, Option<Vec<f64>>, Vec<bool>);
+
+/// The storage for a grid's values, or `None` for a grid with more nodes than the
+/// input can hold rows for. A row has at least one character a field and a
+/// separator after each: a grid with more nodes than that many rows fits in the
+/// input cannot match it, and its values are never allocated (the rows are only
+/// checked and counted, and the count is refused at the end, as for any grid the
+/// rows do not fill).
+fn storage(g: &Grid, h: &Header, len: u64) -> Option<TableFill> {
     let nc = h.channels.len();
     let width = h.cols.len();
-    let cols = &h.cols;
-    // A row has at least one character a field and a separator after each: a grid
-    // with more nodes than that many rows fits in the input cannot match it, and its
-    // values are never allocated (the rows are only checked and counted, and the
-    // count is refused at the end, as for any grid the rows do not fill).
-    let fits = |g: &Grid| g.len() <= (len.saturating_add(1) / (2 * width as u64)) as usize;
-    // Positions of the fields of the current line, reused.
-    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
-    let mut rows = 0usize;
-    let mut samples: Vec<Sample> = Vec::new();
-    let mut table = grid.as_ref().filter(|(_, g)| fits(g)).map(|(_, g)| {
+    let fits = g.len() <= (len.saturating_add(1) / (2 * width as u64)) as usize;
+    fits.then(|| {
         let n = g.len();
         (
             vec![f64::NAN; n * nc],
             h.sigma.then(|| vec![0.0; n * nc]),
             vec![false; n],
         )
-    });
+    })
+}
+
+/// The line reader after the header: the read of the next line into `buf`, and the
+/// number of the line last read.
+struct Lines<N> {
+    next: N,
+    buf: Vec<u8>,
+    ln: usize,
+}
+
+/// What the data rows gave: how many there were, the samples (without a grid), and
+/// the table's storage filled (with one).
+struct Filled {
+    rows: usize,
+    samples: Vec<Sample>,
+    table: Option<TableFill>,
+}
+
+/// Reads the data rows, each checked and parsed straight into the table's storage
+/// at its node, or into a sample without a grid. This is the reader's hot loop.
+fn read_rows<N>(
+    lines: Lines<N>,
+    at: &impl Fn(usize, Option<&str>, String) -> FileError,
+    side: &impl Fn(&str, String) -> FileError,
+    h: &Header,
+    grid: &Option<(GridFrom, Grid)>,
+    mut table: Option<TableFill>,
+) -> Result<Filled, FileError>
+where
+    N: FnMut(&mut Vec<u8>, &mut usize) -> Result<bool, FileError>,
+{
+    let Lines {
+        mut next,
+        mut buf,
+        mut ln,
+    } = lines;
+    let nc = h.channels.len();
+    let width = h.cols.len();
+    let cols = &h.cols;
+    // Positions of the fields of the current line, reused.
+    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
+    let mut rows = 0usize;
+    let mut samples: Vec<Sample> = Vec::new();
     let mut value = vec![0.0; nc];
     let mut sigma = vec![0.0; nc];
     let mut last_angle: [(String, f64); 4] = Default::default();
@@ -428,6 +522,30 @@ pub fn read_from<R: BufRead>(
             }
         }
     }
+    Ok(Filled {
+        rows,
+        samples,
+        table,
+    })
+}
+
+/// The content once every row is read: the samples, or the table when its grid's
+/// nodes were each given once (no rows, or a count other than the grid's, is an
+/// error).
+fn finish(
+    h: Header,
+    grid: Option<(GridFrom, Grid)>,
+    filled: Filled,
+    isotropic: bool,
+    at: &impl Fn(usize, Option<&str>, String) -> FileError,
+    side: &impl Fn(&str, String) -> FileError,
+    path: Option<&Path>,
+) -> Result<Content, FileError> {
+    let Filled {
+        rows,
+        samples,
+        table,
+    } = filled;
     if rows == 0 {
         return Err(FileError::whole(KIND, path, "no data rows"));
     }
