@@ -3,7 +3,9 @@
 
 mod apt;
 mod cs130;
+mod cs130_session;
 mod fw102c;
+mod fw102c_session;
 mod k6485;
 mod smc100;
 mod sr830;

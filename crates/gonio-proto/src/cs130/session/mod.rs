@@ -191,6 +191,3 @@ impl Cs130Session {
         self.known = Known::fresh(self.config.filter_wheel);
     }
 }
-
-#[cfg(test)]
-mod tests;

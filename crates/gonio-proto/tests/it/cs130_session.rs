@@ -1,13 +1,14 @@
-//! The session driven by hand, byte for byte: each statement sent, the lines the
-//! instrument answers, and the deadlines.
+//! The CS130 session driven by hand, byte for byte: each statement sent, the lines
+//! the instrument answers, and the deadlines.
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use super::Cs130Session;
-use crate::TransportError;
-use crate::cs130::{Cs130Config, Cs130Error, ErrorCode, MonoState, NO_FILTER_WHEEL};
-use crate::link::{Deadline, Io, Operation};
+use gonio_proto::TransportError;
+use gonio_proto::cs130::{
+    Cs130Config, Cs130Error, Cs130Session, ErrorCode, MonoState, NO_FILTER_WHEEL,
+};
+use gonio_proto::link::{Deadline, Io, Operation};
 
 /// One statement expected on the wire and the lines that answer it (`None`: the
 /// instrument stays silent, so the deadline passes).
@@ -75,10 +76,10 @@ const INIT: &[Turn] = &[
 ];
 
 fn ready() -> Cs130Session {
-    let mut s = Cs130Session::new(Cs130Config::default(), "test").unwrap();
+    let mut s = Cs130Session::new(Cs130Config::default(), "test").expect("a valid config");
     let (out, _, _) = drive(s.start_init(Duration::ZERO), INIT);
     assert_eq!(
-        out.unwrap(),
+        out.expect("the set-up succeeds"),
         MonoState {
             wavelength_nm: 400.0,
             grating: 1,
