@@ -49,6 +49,20 @@ impl FileError {
         }
     }
 
+    /// A fault on 1-based `line`, at `field` when there is one.
+    pub fn at_line(
+        kind: &'static str,
+        path: Option<&Path>,
+        line: usize,
+        field: Option<&str>,
+        message: impl Into<String>,
+    ) -> Self {
+        let mut e = Self::whole(kind, path, message);
+        e.line = Some(line);
+        e.field = field.map(str::to_string);
+        e
+    }
+
     /// A fault at `field` of `text`, located by [`span_of`].
     pub fn at_field(
         kind: &'static str,

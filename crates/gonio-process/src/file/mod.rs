@@ -231,13 +231,8 @@ mod tests {
     /// implementation the streaming reader must agree with on format-1 files.
     fn read_reference(text: &str, path: Option<&Path>) -> Result<Content, FileError> {
         let text = gonio_core::text::strip_bom(text);
-        let at = |line: usize, field: Option<&str>, msg: String| FileError {
-            kind: KIND,
-            path: path.map(Path::to_path_buf),
-            line: Some(line),
-            column: None,
-            field: field.map(str::to_string),
-            message: msg,
+        let at = |line: usize, field: Option<&str>, msg: String| {
+            FileError::at_line(KIND, path, line, field, msg)
         };
         let mut grid: Option<(usize, Grid)> = None;
         let mut isotropic = false;

@@ -177,13 +177,8 @@ pub fn read_from<R: BufRead>(
     meta: Option<&Meta>,
     path: Option<&Path>,
 ) -> Result<Content, FileError> {
-    let at = |line: usize, field: Option<&str>, msg: String| FileError {
-        kind: KIND,
-        path: path.map(Path::to_path_buf),
-        line: Some(line),
-        column: None,
-        field: field.map(str::to_string),
-        message: msg,
+    let at = |line: usize, field: Option<&str>, msg: String| {
+        FileError::at_line(KIND, path, line, field, msg)
     };
     let mut buf: Vec<u8> = Vec::with_capacity(256);
     let mut ln = 0usize;
