@@ -65,25 +65,30 @@ fn unasked(sim: &SharedSim, port: Port, master: &mut TTYPort) -> bool {
     bytes.is_empty() || master.write_all(&bytes).is_ok()
 }
 
-fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
-    let mut pair = new_pair(&link).ok();
+fn serve(
+    sim: SharedSim,
+    port: Port,
+    link: PathBuf,
+    first: (TTYPort, TTYPort),
+    stop: Arc<AtomicBool>,
+) {
+    let mut pair = Some(first);
     let mut buf = [0u8; 512];
     while !stop.load(Ordering::Relaxed) {
         let closed = lock(&sim).port_closed(port);
-        match (&mut pair, closed) {
-            (Some(_), true) => {
-                // The adapter is pulled: the pty and its path disappear.
-                pair = None;
-                let _ = std::fs::remove_file(&link);
+        let lost = match (&mut pair, closed) {
+            // The adapter is pulled: the pty and its path disappear.
+            (Some(_), true) => true,
+            (None, false) => {
+                pair = new_pair(&link).ok();
+                false
             }
-            (None, false) => pair = new_pair(&link).ok(),
-            (None, true) => std::thread::sleep(Duration::from_millis(5)),
+            (None, true) => {
+                std::thread::sleep(Duration::from_millis(5));
+                false
+            }
             (Some((master, _slave)), false) => match master.read(&mut buf) {
-                Ok(0) => {
-                    if !unasked(&sim, port, master) {
-                        pair = None;
-                    }
-                }
+                Ok(0) => !unasked(&sim, port, master),
                 Ok(n) => {
                     let reply = {
                         let mut s = lock(&sim);
@@ -95,17 +100,21 @@ fn serve(sim: SharedSim, port: Port, link: PathBuf, stop: Arc<AtomicBool>) {
                         s.clock().advance(crate::clock::secs(extra));
                         r
                     };
-                    if !reply.is_empty() && master.write_all(&reply).is_err() {
-                        pair = None;
-                    }
+                    !reply.is_empty() && master.write_all(&reply).is_err()
                 }
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {
-                    if !unasked(&sim, port, master) {
-                        pair = None;
-                    }
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => !unasked(&sim, port, master),
+                Err(_) => {
+                    std::thread::sleep(Duration::from_millis(5));
+                    false
                 }
-                Err(_) => std::thread::sleep(Duration::from_millis(5)),
             },
+        };
+        if lost && pair.is_some() {
+            // The path goes before the pty: once the pty is closed its number is free
+            // for another one (another simulator's), and a driver reopening the old
+            // path in between would be talking to that.
+            let _ = std::fs::remove_file(&link);
+            pair = None;
         }
     }
     let _ = std::fs::remove_file(&link);
@@ -117,25 +126,30 @@ impl PtySim {
         static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let n = COUNT.fetch_add(1, Ordering::Relaxed);
         let dir = std::env::temp_dir().join(format!("gonio-sim-{}-{n}", std::process::id()));
+        // A directory of this name can only be left by a dead process that had this
+        // one's id: its links point at pty numbers that other processes may hold now.
+        let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir)?;
         let lines: Vec<(Port, PathBuf)> = lock(&sim)
             .ports()
             .into_iter()
             .map(|p| (p, dir.join(p.name())))
             .collect();
+        // Every pair and link exists before a path is handed out.
+        let pairs = lines
+            .iter()
+            .map(|(_, link)| new_pair(link))
+            .collect::<std::io::Result<Vec<_>>>()?;
         let stop = Arc::new(AtomicBool::new(false));
-        let mut threads = Vec::new();
-        for (port, link) in lines.iter().cloned() {
-            let (s, st) = (sim.clone(), stop.clone());
-            threads.push(std::thread::spawn(move || serve(s, port, link, st)));
-        }
-        // The first pairs exist once every link does.
-        for _ in 0..400 {
-            if lines.iter().all(|(_, p)| p.exists()) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
+        let threads = lines
+            .iter()
+            .cloned()
+            .zip(pairs)
+            .map(|((port, link), pair)| {
+                let (s, st) = (sim.clone(), stop.clone());
+                std::thread::spawn(move || serve(s, port, link, pair, st))
+            })
+            .collect();
         let path = |want: fn(&Port) -> bool| lines.iter().filter(move |(p, _)| want(p));
         let first = |want: fn(&Port) -> bool| path(want).next().map(|(_, l)| l.clone());
         Ok(PtySim {
@@ -160,5 +174,35 @@ impl Drop for PtySim {
             let _ = t.join();
         }
         let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Links a dead process with this one's id left behind point at pty numbers another
+    /// process may hold now: the paths handed out are the simulator's own from the
+    /// start, never those.
+    #[test]
+    fn links_a_dead_process_left_are_not_handed_out() {
+        let (_master, decoy) = TTYPort::pair().expect("a pty");
+        let target = PathBuf::from(decoy.name().expect("its path"));
+        for n in 0..16 {
+            let dir = std::env::temp_dir().join(format!("gonio-sim-{}-{n}", std::process::id()));
+            if std::fs::create_dir_all(&dir).is_ok() {
+                for name in ["motion", "detector"] {
+                    let _ = std::os::unix::fs::symlink(&target, dir.join(name));
+                }
+            }
+        }
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config");
+        let cfg = crate::SimConfig::load(&root.join("sim-example.toml")).expect("config");
+        let pty = PtySim::spawn(crate::instrument(&cfg).expect("sim")).expect("ptys");
+        for path in [&pty.motion, &pty.detector] {
+            let now = std::fs::read_link(path).expect("a link");
+            assert_ne!(now, target, "{} is the decoy's", path.display());
+        }
+        drop(pty);
     }
 }

@@ -176,7 +176,7 @@ ask "$D" 'OUTP? 3' '\n' 24; echo
     assert_eq!(lines[3], "Stanford_Research_Systems,SR830,s/n00111,ver1.07");
     // R (volts) at the power-up sensitivity (1 V full scale), barely started settling:
     // a number the SR830 format allows, far below full scale.
-    let r: f64 = lines[4].trim().parse().expect("a number");
+    let r: f64 = (lines[4].trim().parse()).unwrap_or_else(|e| panic!("{e}: {text:?}"));
     assert!((0.0..0.01).contains(&r), "{text:?}");
     drop(pty);
 }
