@@ -200,7 +200,14 @@ fn pty_port_closes_and_reopens() {
         mt,
         clock.clone(),
         icfg.motion.smc100_axes(),
-        icfg.motion.policy(),
+        gonio_driver::smc100::ChainPolicy {
+            // 100 ms of simulated time would be 2 ms of wall time, and five reopening
+            // attempts 500 ms apart 50 ms: a busy machine's scheduling would read as a
+            // silent controller or a port that never comes back.
+            reply_timeout: Duration::from_secs(5),
+            reconnect_attempts: 100,
+            ..icfg.motion.policy()
+        },
     )
     .expect("chain");
     assert_eq!(chain.position("source").expect("before"), 0.0);
