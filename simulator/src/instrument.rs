@@ -139,7 +139,10 @@ impl SimInstrument {
             .picoammeter
             .as_ref()
             .map(|p| Picoammeter::new(p, splitmix64(cfg.seed ^ 0x9c0a_3e7e)));
-        let mono = cfg.monochromator.as_ref().map(Cs130Twin::new);
+        let mono = cfg
+            .monochromator
+            .as_ref()
+            .map(|m| Cs130Twin::new(&m.unit(splitmix64(cfg.seed ^ 0x3c5a_17e0))));
         let wheel = cfg.filter_wheel.as_ref().map(Fw102cTwin::new);
         let (sample, channel) = cfg.load_sample()?;
         // Separate streams, so that faults drawn on the wire do not shift the noise.

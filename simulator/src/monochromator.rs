@@ -46,7 +46,7 @@
 //!
 //! # Optics
 //! The actual wavelength is the one asked for, plus `accuracy_nm` (a fixed
-//! calibration error), plus `backlash_nm` when the drive approached from above (moving
+//! calibration error, with a seeded draw of `accuracy_sigma_nm` added: [`MonochromatorSim::unit`]), plus `backlash_nm` when the drive approached from above (moving
 //! down: the slack in the drive leaves it `backlash_nm` short of the target, i.e.
 //! above it). [`Cs130Device::optical`] gives the light model what it needs: the actual
 //! wavelength, grating, filter, shutter and bandwidth. The bandwidth (FWHM) is
@@ -102,6 +102,12 @@ pub struct MonochromatorSim {
     pub bandwidth_nm: f64,
     /// Fixed wavelength error, nm, in [−50, 50]: actual = asked + this.
     pub accuracy_nm: f64,
+    /// The standard uncertainty of the wavelength scale after its calibration, nm,
+    /// in [0, 50]: a unit's calibration error is one draw from N(0, this²), taken
+    /// from the simulator's seed and added to `accuracy_nm`, so that runs over many
+    /// seeds see the spread an instrument config's `wavelength_uncertainty_nm`
+    /// states (0 by default: the error is `accuracy_nm` alone).
+    pub accuracy_sigma_nm: f64,
     /// Backlash, nm, in [0, 50]: added when approaching from above.
     pub backlash_nm: f64,
     /// Time of a grating change, s, in [0, 600].
@@ -150,6 +156,7 @@ impl Default for MonochromatorSim {
                 .collect(),
             bandwidth_nm: 2.0,
             accuracy_nm: 0.25,
+            accuracy_sigma_nm: 0.0,
             backlash_nm: 0.5,
             grating_change_s: 4.0,
             filter_change_s: 1.5,
@@ -162,6 +169,19 @@ impl Default for MonochromatorSim {
 }
 
 impl MonochromatorSim {
+    /// This unit: `accuracy_nm` with the calibration error drawn from `seed`
+    /// ([`MonochromatorSim::accuracy_sigma_nm`]); the config itself when that is 0.
+    pub fn unit(&self, seed: u64) -> MonochromatorSim {
+        use rand::SeedableRng;
+        let mut unit = self.clone();
+        if self.accuracy_sigma_nm > 0.0 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let z: f64 = rand::Rng::sample(&mut rng, rand_distr::StandardNormal);
+            unit.accuracy_nm += self.accuracy_sigma_nm * z;
+        }
+        unit
+    }
+
     /// Checks every field; the first bad one is named.
     pub fn validate(&self) -> Result<(), FieldError> {
         let bad = |field: String, reason: String| Err(FieldError::new(field, reason));
@@ -222,6 +242,7 @@ impl MonochromatorSim {
         let ranges = [
             ("bandwidth_nm", self.bandwidth_nm, 0.0, 100.0),
             ("accuracy_nm", self.accuracy_nm, -50.0, 50.0),
+            ("accuracy_sigma_nm", self.accuracy_sigma_nm, 0.0, 50.0),
             ("backlash_nm", self.backlash_nm, 0.0, 50.0),
             ("grating_change_s", self.grating_change_s, 0.0, 600.0),
             ("filter_change_s", self.filter_change_s, 0.0, 600.0),

@@ -2,7 +2,7 @@
 //! sample, reduced, against the sample's own BRDF, with the simulator's noise and
 //! effects switched on and off one at a time.
 //!
-//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct SEED [quiet] [integrate] [transient] [percentiles]`
+//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [percentiles]`
 
 #[path = "../tests/it/truth/mod.rs"]
 mod truth;
@@ -16,8 +16,14 @@ fn main() {
         .get(1)
         .cloned()
         .unwrap_or("config/plan-hemisphere.toml".into());
+    // `paint`, `ct`, or a model file's path.
+    let file_text;
     let sample = match args.get(2).map(String::as_str) {
         Some("ct") => Some(truth::COOK_TORRANCE),
+        Some(p) if p.ends_with(".toml") => {
+            file_text = std::fs::read_to_string(p).expect("model file");
+            Some(file_text.as_str())
+        }
         _ => None,
     };
     let seed: u64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(11);
@@ -60,7 +66,7 @@ fn main() {
             continue;
         };
         let r = truth::residuals(&red, &model);
-        print_summary(name, &red, &r);
+        print_summary(name, &red, &model, &r);
         if name == "auto" {
             print_sigma_spread(&red, &store);
         }
@@ -97,7 +103,7 @@ fn print_calibration_readings(store: &RunStore) {
 /// One reduction against the truth: χ², the mean z and relative error, the
 /// calibration and drift, the dark and incident readings, the budget's terms, and
 /// χ² with the common scale removed.
-fn print_summary(name: &str, red: &Reduction, r: &[(f64, f64)]) {
+fn print_summary(name: &str, red: &Reduction, model: &gonio_brdf::Model, r: &[(f64, f64)]) {
     let n = r.len() as f64;
     let mean_z = r.iter().map(|x| x.0).sum::<f64>() / n;
     let rel_sd = (r
@@ -108,9 +114,10 @@ fn print_summary(name: &str, red: &Reduction, r: &[(f64, f64)]) {
         .sqrt();
     let c = &red.report.channels[0];
     println!(
-        "{name}: n {} chi2/n {:.3} mean z {:+.3} mean rel {:+.3e} sd rel {:.3e} | cal rel sigma {:.3e} ({} readings) drift refs {} max|g-1| {:.2e}",
+        "{name}: n {} chi2/n {:.3} correlated {:.3} mean z {:+.3} mean rel {:+.3e} sd rel {:.3e} | cal rel sigma {:.3e} ({} readings) drift refs {} max|g-1| {:.2e}",
         r.len(),
         truth::chi2(r),
+        truth::chi2_correlated(red, model),
         mean_z,
         truth::mean_rel(r),
         rel_sd,
@@ -142,7 +149,11 @@ fn print_summary(name: &str, red: &Reduction, r: &[(f64, f64)]) {
         let _ = z;
         chi_s += zz * zz;
     }
-    println!("   chi2/n with the common scale removed {:.3}", chi_s / n);
+    println!(
+        "   chi2/n with the common scale removed {:.3}; largest position error {:.2e}°",
+        chi_s / n,
+        red.report.max_position_error_deg
+    );
 }
 
 /// How large σ is relative to f: its median and upper percentiles, the share

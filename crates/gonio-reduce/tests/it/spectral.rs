@@ -74,23 +74,26 @@ fn truth(red: &Reduction, model: &Model) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Per channel, χ²/n of (f − f_true) with the independent terms (noise,
-/// resolution, drift) and the wavelength term on the diagonal and the channel's own dark and calibration as
-/// rank-one shared terms (Woodbury, as `truth::chi2_correlated`), and the mean
+/// Per channel, χ²/n of (f − f_true) against the full covariance: the independent
+/// terms (noise, resolution, drift) on the diagonal, and the channel's own dark,
+/// calibration and wavelength terms each a rank-one shared term (the wavelength
+/// scale's one error moves every sample of a wavelength, each by its own slope;
+/// Woodbury, as `truth::chi2_correlated`); then the plain χ²/n and the mean
 /// relative error.
-fn chi2_per_channel(red: &Reduction, model: &Model) -> Vec<(f64, f64)> {
-    const SHARED: [usize; 2] = [2, 3];
+fn chi2_per_channel(red: &Reduction, model: &Model) -> Vec<(f64, f64, f64)> {
+    const SHARED: [usize; 3] = [2, 3, 7];
     let truth = truth(red, model);
     let nc = red.samples.channels.len();
     (0..nc)
         .map(|c| {
-            let (mut q, mut b, mut g) = (0.0, [0.0; 2], [[0.0; 2]; 2]);
-            let mut rel = 0.0;
+            let (mut q, mut b, mut g) = (0.0, [0.0; 3], [[0.0; 3]; 3]);
+            let (mut rel, mut plain) = (0.0, 0.0);
             for ((s, terms), t) in red.samples.samples.iter().zip(&red.budget).zip(&truth) {
                 let r = s.value[c] - t[c];
                 rel += r / t[c];
+                plain += (r / s.sigma.as_ref().expect("σ")[c]).powi(2);
                 let u = &terms[c];
-                let dvar = u[0] * u[0] + u[1] * u[1] + u[4] * u[4] + u[7] * u[7];
+                let dvar = u[0] * u[0] + u[1] * u[1] + u[4] * u[4];
                 q += r * r / dvar;
                 for (a, &ka) in SHARED.iter().enumerate() {
                     b[a] += u[ka] * r / dvar;
@@ -99,15 +102,13 @@ fn chi2_per_channel(red: &Reduction, model: &Model) -> Vec<(f64, f64)> {
                     }
                 }
             }
-            g[0][0] += 1.0;
-            g[1][1] += 1.0;
-            let det = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-            let x = [
-                (g[1][1] * b[0] - g[0][1] * b[1]) / det,
-                (g[0][0] * b[1] - g[1][0] * b[0]) / det,
-            ];
+            for (a, row) in g.iter_mut().enumerate() {
+                row[a] += 1.0;
+            }
+            let x = truth::solve3(g, b);
             let n = red.samples.samples.len() as f64;
-            ((q - b[0] * x[0] - b[1] * x[1]) / n, rel / n)
+            let chi2 = q - b.iter().zip(x).map(|(b, x)| b * x).sum::<f64>();
+            (chi2 / n, plain / n, rel / n)
         })
         .collect()
 }
@@ -119,11 +120,16 @@ fn wavelengths(red: &Reduction) -> Vec<f64> {
     }
 }
 
-/// Every wavelength's f_r within its σ of the truth: χ²/n near 1 at each of the ten
-/// wavelengths, over two seeds.
+/// Every wavelength's f_r within its σ of the truth over four seeds (each its own
+/// draw of the monochromator's calibration error, as `config/sim-spectral.toml`
+/// asks): χ²/n against the full covariance near 1 on average over the seeds, and at
+/// no wavelength of any seed far from it. Before the twin drew its error (a fixed
+/// 0.05 nm against the config's stated 0.1 nm) the mean was 0.48: a σ twice what
+/// the instrument did.
 #[test]
 fn a_spectral_run_reduces_to_the_truth_at_every_wavelength() {
-    for seed in [21, 22] {
+    let (mut full, mut plain) = (Vec::new(), Vec::new());
+    for seed in [21, 22, 23, 24] {
         let (path, model) = measure("truth", seed, |_| {});
         let store = RunStore::open(&path).expect("opens");
         let red = reduce(&store, &Options::default()).expect("reduces");
@@ -137,16 +143,30 @@ fn a_spectral_run_reduces_to_the_truth_at_every_wavelength() {
         // 2 × 7 pairs, less the two where the arms shadow the beam.
         assert_eq!(red.samples.samples.len(), 12);
         let per = chi2_per_channel(&red, &model);
-        for (nm, (chi, rel)) in w.iter().zip(&per) {
-            println!("seed {seed} {nm} nm: χ²/n {chi:.2}, mean rel {rel:+.2e}");
+        for (nm, (chi, p, rel)) in w.iter().zip(&per) {
+            println!("seed {seed} {nm} nm: χ²/n {chi:.2} (plain {p:.2}), mean rel {rel:+.2e}");
+            assert!(*chi < 4.0, "seed {seed} {nm} nm: χ²/n {chi}");
         }
-        let all = per.iter().map(|p| p.0).sum::<f64>() / per.len() as f64;
-        println!("seed {seed}: mean χ²/n {all:.2}");
-        assert!((0.4..2.0).contains(&all), "mean χ²/n {all}");
-        for (nm, (chi, _)) in w.iter().zip(&per) {
-            assert!(*chi < 4.0, "{nm} nm: χ²/n {chi}");
-        }
+        let n = per.len() as f64;
+        full.push(per.iter().map(|p| p.0).sum::<f64>() / n);
+        plain.push(per.iter().map(|p| p.1).sum::<f64>() / n);
+        println!(
+            "seed {seed}: mean χ²/n {:.2} (plain {:.2})",
+            full[full.len() - 1],
+            plain[plain.len() - 1]
+        );
     }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    println!(
+        "over the seeds: χ²/n {:.3} (plain {:.3})",
+        mean(&full),
+        mean(&plain)
+    );
+    assert!(
+        (0.8..=1.25).contains(&mean(&full)),
+        "mean χ²/n {}",
+        mean(&full)
+    );
 }
 
 /// With the order-sorting filter left out (the session's automatic choice turned
@@ -164,10 +184,10 @@ fn without_the_order_filter_second_order_light_shows_at_long_wavelengths() {
     let red = reduce(&store, &Options::default()).expect("reduces");
     let w = wavelengths(&red);
     let per = chi2_per_channel(&red, &model);
-    for (nm, (chi, rel)) in w.iter().zip(&per) {
+    for (nm, (chi, _, rel)) in w.iter().zip(&per) {
         println!("no filter {nm} nm: χ²/n {chi:.1}, mean rel {rel:+.2e}");
     }
-    for (nm, (chi, rel)) in w.iter().zip(&per) {
+    for (nm, (chi, _, rel)) in w.iter().zip(&per) {
         if *nm >= 680.0 {
             // λ/2 ≥ 340 nm: the lamp's blue through the grating's second order.
             assert!(*chi > 25.0 && *rel > 0.01, "{nm} nm: χ²/n {chi}, rel {rel}");

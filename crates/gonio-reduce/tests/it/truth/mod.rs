@@ -198,7 +198,7 @@ pub fn chi2_correlated(red: &Reduction, model: &Model) -> f64 {
 
 /// Solves the 3 × 3 system g x = b (g symmetric positive definite) by Gaussian
 /// elimination.
-fn solve3(mut g: [[f64; 3]; 3], mut b: [f64; 3]) -> [f64; 3] {
+pub fn solve3(mut g: [[f64; 3]; 3], mut b: [f64; 3]) -> [f64; 3] {
     for i in 0..3 {
         let (top, rest) = g.split_at_mut(i + 1);
         let pivot = top[i];
