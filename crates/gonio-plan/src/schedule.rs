@@ -265,7 +265,8 @@ struct Proto {
 struct Layout<'a> {
     checked: &'a Checked,
     repeats: u32,
-    dark: bool,
+    /// Dark readings each time the calibrations are taken.
+    darks: u32,
     incident: Option<(PairDeg, [f64; 4])>,
     standard: Vec<(PairDeg, [f64; 4])>,
     reference: Option<(PairDeg, [f64; 4])>,
@@ -290,8 +291,8 @@ impl Layout<'_> {
     /// reference after every `every` and after the last, the calibrations again.
     fn sequence(&self, ord: &[usize], reverse: bool, at: &mut dyn FnMut(At)) {
         let calibrations = |at: &mut dyn FnMut(At)| {
-            if self.dark {
-                at((StepKind::Dark, None, None, None, self.repeats));
+            if self.darks > 0 {
+                at((StepKind::Dark, None, None, None, self.darks));
             }
             if let Some((p, s)) = self.incident {
                 at((StepKind::Incident, Some(p), Some(s), None, self.repeats));
@@ -507,7 +508,7 @@ pub fn build(
     let layout = Layout {
         checked,
         repeats: plan.repeats,
-        dark: c.dark,
+        darks: c.dark_count(plan.repeats),
         incident,
         standard,
         reference,

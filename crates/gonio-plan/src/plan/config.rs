@@ -142,12 +142,38 @@ pub struct StandardConfig {
     pub at: Vec<[f64; 4]>,
 }
 
+/// The dark readings a plan takes each time the calibrations are taken when it
+/// does not say: four, so that the dark's shared error is half of one reading's
+/// noise at the floor (a quarter of its variance), no longer the largest term of a
+/// weak sample's budget, for a few seconds of detector time per calibration.
+pub const DEFAULT_DARK_READINGS: u32 = 4;
+
+impl CalibrationConfig {
+    /// The dark readings taken each time the calibrations are (0 without `dark`),
+    /// with `repeats` readings of every other step.
+    pub fn dark_count(&self, repeats: u32) -> u32 {
+        if self.dark {
+            self.dark_readings
+                .unwrap_or(DEFAULT_DARK_READINGS)
+                .max(repeats)
+        } else {
+            0
+        }
+    }
+}
+
 /// Calibration readings around the sample's.
 #[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CalibrationConfig {
-    /// A dark reading (source blocked).
+    /// Dark readings (source blocked).
     pub dark: bool,
+    /// How many dark readings each time the calibrations are taken (at least the
+    /// plan's `repeats`); [`DEFAULT_DARK_READINGS`] when not given. The dark is
+    /// subtracted from every reading, so its error is shared by every sample: with
+    /// one reading it is as large as a sample's own noise at the floor, and it moves
+    /// the whole run (`gonio plan check` says what it contributes).
+    pub dark_readings: Option<u32>,
     /// An incident-beam reading.
     pub incident: Option<IncidentConfig>,
     /// A reference standard.

@@ -54,9 +54,9 @@ mod values;
 
 pub use check::{Accepted, Checked, Rejected, check};
 pub use config::{
-    CalibrationConfig, DriftConfig, IncidentConfig, Inner, OrderConfig, READING_MAX_S,
-    READING_MIN_SAMPLES, READING_SIGMA_ABSOLUTE, READING_SIGMA_RELATIVE, ReadingConfig,
-    SpectralConfig, StandardConfig,
+    CalibrationConfig, DEFAULT_DARK_READINGS, DriftConfig, IncidentConfig, Inner, OrderConfig,
+    READING_MAX_S, READING_MIN_SAMPLES, READING_SIGMA_ABSOLUTE, READING_SIGMA_RELATIVE,
+    ReadingConfig, SpectralConfig, StandardConfig,
 };
 pub use points::{
     Adaptive, BATCH_SHARE, BUDGET_HOURS, Budget, CANDIDATES, COARSE_SHARE, MAX_BUDGET_POINTS,

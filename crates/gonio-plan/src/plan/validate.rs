@@ -186,6 +186,14 @@ impl Plan {
     /// standard's pairs.
     fn validate_calibration(&self) -> Result<(), (String, String)> {
         let c = &self.calibration;
+        if let Some(n) = c.dark_readings
+            && !(1..=1000).contains(&n)
+        {
+            return bad(
+                "calibration.dark_readings",
+                format!("{n} is not in 1..=1000"),
+            );
+        }
         if let Some(i) = &c.incident {
             if !(i.transmittance > 0.0 && i.transmittance <= 1.0) {
                 return bad(

@@ -418,6 +418,7 @@ theta_o = { from = 10, to = 70, step = 10 }
 every = 3
 [calibration]
 dark = true
+dark_readings = 2          # one a repeat, as the structure below counts
 incident = { transmittance = 0.01 }
 repeat_at_end = true
 "#;
@@ -485,4 +486,47 @@ fn a_plan_with_nothing_measurable_is_refused() {
             .contains("no pair of the plan can be measured"),
         "{e}"
     );
+}
+
+/// The dark readings each time the calibrations are taken: four when the plan does
+/// not say (its shared error half a reading's noise at the floor), as many as
+/// `dark_readings` asks, never fewer than the plan's `repeats`; none without `dark`.
+#[test]
+fn dark_readings_default_to_four_and_follow_the_plan() {
+    let text = |repeats: u32, dark: &str| {
+        format!(
+            r#"
+name = "darks"
+repeats = {repeats}
+[points]
+kind = "in-plane"
+theta_i = [30]
+theta_o = [30]
+[calibration]
+{dark}
+incident = {{ transmittance = 0.01 }}
+repeat_at_end = true
+"#
+        )
+    };
+    let darks = |repeats: u32, dark: &str| {
+        let p = common::prepare(&common::plan(&text(repeats, dark))).expect("prepares");
+        let s = &p.schedule.steps;
+        s.iter().filter(|s| s.kind == StepKind::Dark).count()
+    };
+    // Taken twice: before the sample's points and after them.
+    assert_eq!(darks(1, ""), 0);
+    assert_eq!(darks(1, "dark = true"), 2 * 4);
+    assert_eq!(
+        gonio_plan::plan::DEFAULT_DARK_READINGS,
+        4,
+        "the documented default"
+    );
+    assert_eq!(darks(1, "dark = true\ndark_readings = 7"), 2 * 7);
+    assert_eq!(darks(9, "dark = true\ndark_readings = 7"), 2 * 9);
+    assert_eq!(darks(1, "dark = false\ndark_readings = 7"), 0);
+    let err = Plan::from_toml(&text(1, "dark = true\ndark_readings = 0"), None)
+        .expect_err("refused")
+        .to_string();
+    assert!(err.contains("calibration.dark_readings"), "{err}");
 }

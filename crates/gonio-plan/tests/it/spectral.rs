@@ -223,6 +223,7 @@ theta_o = {{ from = 10, to = 70, step = 10 }}
 every = 3
 [calibration]
 dark = true
+dark_readings = 2          # one a repeat, as the structure below counts
 incident = {{ transmittance = 0.01 }}
 repeat_at_end = true
 "#
@@ -535,7 +536,12 @@ fn the_example_spectral_plan_prepares() {
                 .filter(|s| s.kind == k && s.channel.as_deref() == Some(n))
                 .count()
         };
-        assert_eq!((of(StepKind::Dark), of(StepKind::Incident)), (2, 2), "{n}");
+        // The plan's default dark readings, each time the calibrations are taken.
+        assert_eq!(
+            (of(StepKind::Dark), of(StepKind::Incident)),
+            (2 * gonio_plan::plan::DEFAULT_DARK_READINGS as usize, 2),
+            "{n}"
+        );
         assert_eq!(of(StepKind::Sample), p.checked.accepted.len(), "{n}");
     }
 }
