@@ -67,6 +67,81 @@ pub(crate) struct PlanCheck {
     autoranging: bool,
 }
 
+/// What each term shared by every sample will contribute, from the schedule's
+/// calibration readings: (term, readings per band each time, what it adds).
+fn shared_terms(p: &gonio_plan::Prepared) -> Vec<(&'static str, usize, String)> {
+    use gonio_plan::StepKind;
+    let s = &p.schedule;
+    // The first band's steps stand for every band's; the calibrations before its
+    // first sample for each time they are taken.
+    let band = s.steps.first().and_then(|x| x.channel.clone());
+    let first = s
+        .steps
+        .iter()
+        .position(|x| x.kind == StepKind::Sample)
+        .unwrap_or(s.steps.len());
+    let count = |k: StepKind| {
+        s.steps[..first]
+            .iter()
+            .filter(|x| x.kind == k && x.channel == band)
+            .count()
+    };
+    let again = s.steps[first..]
+        .iter()
+        .any(|x| x.kind == StepKind::Incident || x.kind == StepKind::Standard);
+    let mut out = Vec::new();
+    let dark = count(StepKind::Dark);
+    if dark > 0 {
+        out.push((
+            "dark",
+            dark,
+            format!(
+                "subtracted from every reading: its error is 1/√{dark} = {:.2} of one reading's \
+                 noise at the floor, in every sample (a sample at the floor: {:.0}% of its variance)",
+                (dark as f64).recip().sqrt(),
+                100.0 / (1.0 + dark as f64)
+            ),
+        ));
+    }
+    for (term, kind) in [
+        ("calibration (incident beam)", StepKind::Incident),
+        ("calibration (standard)", StepKind::Standard),
+    ] {
+        let n = count(kind);
+        if n > 0 {
+            out.push((
+                term,
+                n,
+                format!(
+                    "one scale for every sample: 1/√{n} = {:.2} of one calibration reading's \
+                     relative noise{}",
+                    (n as f64).recip().sqrt(),
+                    if again {
+                        "; taken again at the end and interpolated in time"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    }
+    let refs = s
+        .steps
+        .iter()
+        .filter(|x| x.kind == StepKind::Reference && x.channel == band)
+        .count();
+    if refs > 0 {
+        out.push((
+            "drift",
+            refs,
+            "the source's level between the drift references: each sample carries the \
+             interpolated references' noise, shared with the samples of its segment"
+                .to_string(),
+        ));
+    }
+    out
+}
+
 /// The fraction of motion time the schedule saves against the plan's order.
 fn motion_saving(s: &gonio_plan::Schedule) -> f64 {
     if s.raster_motion_s > 0.0 {
@@ -149,6 +224,12 @@ impl PlanCheck {
                 "band_s": e.band_s, "total_s": e.total_s,
             },
             "spectral": s.spectral,
+            "shared_terms": shared_terms(p)
+                .into_iter()
+                .map(|(term, readings, effect)| json!({
+                    "term": term, "readings": readings, "effect": effect,
+                }))
+                .collect::<Vec<_>>(),
             "adaptive": self.adaptive(),
             "reading": e.reading,
         })
@@ -209,6 +290,9 @@ fn plan_check(a: &CheckArgs) -> CliResult<()> {
         )?;
         if let Some(a) = c.adaptive() {
             adaptive_summary(&mut w, &a)?;
+        }
+        for (term, n, effect) in shared_terms(p) {
+            writeln!(w, "shared term {term}: {n} reading(s) a band; {effect}")?;
         }
         match &e.reading {
             Some(r) if r.targeted => reading_summary(&mut w, r, s)?,
