@@ -21,6 +21,7 @@
 
 pub mod adapt;
 pub mod columns;
+pub mod covariance;
 pub mod file;
 pub mod grid;
 pub mod hemisphere;

@@ -57,6 +57,12 @@ pub struct Meta {
     /// [`crate::hemisphere::Fill`]); none when nothing was said.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub interpolated: Option<Vec<[f64; 4]>>,
+    /// Reduced samples' covariance, rows in the CSV's order: each sample's
+    /// independent σ and its coefficient on every shared error
+    /// ([`crate::covariance`]), so that a user can form the full χ²; none when
+    /// nothing was said (a table, samples not from a reduction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<crate::covariance::Covariance>,
 }
 
 fn axis_meta(a: &Axis) -> AxisMeta {
@@ -85,6 +91,7 @@ impl Meta {
             }),
             symmetry: None,
             interpolated: None,
+            covariance: None,
         }
     }
 
@@ -100,6 +107,7 @@ impl Meta {
             grid: None,
             symmetry: None,
             interpolated: None,
+            covariance: None,
         }
     }
 
