@@ -80,6 +80,7 @@
 //! ([I_dark, 0]) and `incident_a` where a lock-in's has `dark_v` and `incident_v`.
 
 pub mod adaptive;
+mod noise;
 pub mod spectral;
 
 use std::collections::BTreeMap;
@@ -92,6 +93,9 @@ pub use gonio_process::reduction::{BudgetTerm, ChannelReport, Report};
 use gonio_process::{Sample, Samples};
 use gonio_run::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
 use serde::Serialize;
+
+use noise::Noise;
+pub use noise::variance_factors;
 
 /// The variance factor of a lock-in mean over samples one time constant apart, as
 /// the reduction used it before the budget was pooled (kept for callers).
@@ -283,343 +287,6 @@ struct Measured {
     t: f64,
     v: f64,
     s: f64,
-}
-
-/// The variance factors of n snapshots whose noise correlates as ρ^|i−j|:
-/// `(A, B)` with Var(mean) = σ² A / n and E\[s²\] = σ² B for the sample variance s²
-/// (n − 1 in the denominator). With S = Σ_{k=1}^{n−1} (1 − k/n) ρ^k,
-/// A = 1 + 2S and B = 1 − 2S/(n − 1).
-pub fn variance_factors(n: u32, rho: f64) -> (f64, f64) {
-    if n < 2 {
-        return (1.0, 1.0);
-    }
-    let nf = f64::from(n);
-    let s: f64 = (1..n)
-        .map(|k| (1.0 - f64::from(k) / nf) * rho.powi(k as i32))
-        .sum();
-    (1.0 + 2.0 * s, 1.0 - 2.0 * s / (nf - 1.0))
-}
-
-/// A noise law pooled over a group of readings: the variance per snapshot (lock-in)
-/// or per sample (picoammeter) is a + b·R at the group's reference time constant.
-#[derive(Clone, Copy, Debug)]
-struct NoiseLine {
-    a: f64,
-    b: f64,
-    /// The time constant of the group's first reading, s: a lock-in reading at
-    /// time constant T has the variance (a + b·R)·[`enbw_ratio`]`(T, t_ref)`.
-    t_ref: f64,
-    /// Whether the readings fitted span more than one time constant.
-    spans_time_constants: bool,
-}
-
-/// The key of readings that share a noise law.
-type NoiseKey = (u64, u8, u32);
-
-/// A lock-in's output noise is white noise of density d(R)² (V²/Hz) through its
-/// output filter, so a snapshot's variance is d²·ENBW(T, slope): readings of one
-/// slope share a law whatever their time constant, and their snapshot count enters
-/// only through [`variance_factors`]. The key is the slope alone. A picoammeter's
-/// noise depends on its integration time, sample count and range (each range has
-/// its own feedback resistor, hence its own noise floor).
-fn noise_key(r: &ReadingRecord, detector: Detector) -> NoiseKey {
-    match detector {
-        Detector::LockIn => (0, r.slope_db, 0),
-        Detector::Dc => (r.time_constant_s.to_bits(), r.sensitivity, r.n),
-    }
-}
-
-/// ENBW(T)/ENBW(t_ref) at one filter slope: t_ref/T, as the SR830's equivalent
-/// noise bandwidth is k(slope)/T (`gonio_proto::sr830::FilterSlope::enbw_hz`).
-/// Exactly 1.0 when T is t_ref (x/x is exact in IEEE 754, and so are a product and
-/// a quotient by 1.0): a run at one time constant pools bit for bit as it did when
-/// the key held the time constant. `None` for a time constant that is not finite
-/// and positive (such a reading is not pooled with others).
-fn enbw_ratio(t: f64, t_ref: f64) -> Option<f64> {
-    if t.to_bits() == t_ref.to_bits() {
-        Some(1.0)
-    } else if t.is_finite() && t > 0.0 && t_ref.is_finite() && t_ref > 0.0 {
-        Some(t_ref / t)
-    } else {
-        None
-    }
-}
-
-/// The ENBW of a slope at T = 1 s, Hz (the manual's 1/4, 1/8, 3/32, 5/64; SR830
-/// manual "Noise Measurements", as `FilterSlope::enbw_hz` states them).
-fn enbw_per_second(slope_db: u8) -> Option<f64> {
-    let slope = gonio_proto::sr830::FilterSlope::from_db(slope_db)?;
-    let tc = gonio_proto::sr830::TimeConstant::all().find(|t| t.seconds() == 1.0)?;
-    Some(slope.enbw_hz(tc))
-}
-
-/// The readings of one noise key while the noise is fitted.
-struct Pool {
-    /// The first reading's time constant, s: the line is the variance at it.
-    t_ref: f64,
-    /// The first reading's snapshot count.
-    n_ref: u32,
-    /// Whether another time constant was seen.
-    spans_time_constants: bool,
-    /// Whether every reading took `n_ref` snapshots, at least 3 ([`fit_line`]'s
-    /// `own_start`).
-    one_count: bool,
-    /// (R, variance at `t_ref`, relative degrees of freedom) per reading.
-    points: Vec<(f64, f64, f64)>,
-}
-
-/// The detector's noise: pooled lines where enough readings share a setting, and
-/// the lock-in's snapshot correlation.
-struct Noise {
-    lines: BTreeMap<NoiseKey, NoiseLine>,
-    gap_s: f64,
-    detector: Detector,
-}
-
-/// Fewest readings a pooled noise line is fitted to.
-const MIN_POOL: usize = 8;
-
-impl Noise {
-    /// Fits a + b·R to the readings' snapshot variances: bright readings give
-    /// s²/B, dark readings (R pure noise, Rayleigh-distributed) half their mean R²,
-    /// both unbiased for the snapshot variance σ² of X. A lock-in's points are
-    /// divided by [`enbw_ratio`] of their time constant to the group's first, so
-    /// that the line is the variance at that one time constant. Weighted least
-    /// squares, re-weighted by the fitted variance (the scatter of a variance
-    /// estimate grows with it).
-    ///
-    /// A DC reading's samples are independent conversions and its mean current is
-    /// signed: every reading (the darks too) gives the point (I, s²), I clamped at
-    /// 0 (a dark current a little below zero has the noise of zero current).
-    fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64, detector: Detector) -> Noise {
-        let mut groups: BTreeMap<NoiseKey, Pool> = BTreeMap::new();
-        for (r, dark) in readings {
-            if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
-                continue;
-            }
-            let point = if detector == Detector::Dc {
-                (r.r_std > 0.0).then(|| (r.x_mean.max(0.0), r.r_std * r.r_std))
-            } else if *dark {
-                Some((0.0, rayleigh_variance(r)))
-            } else if r.r_mean > 3.0 * r.r_std && r.r_std > 0.0 {
-                let (_, b) = variance_factors(r.n, rho(r, gap_s));
-                Some((r.r_mean, r.r_std * r.r_std / b))
-            } else {
-                None
-            };
-            let Some((x, y)) = point else { continue };
-            let pool = groups.entry(noise_key(r, detector)).or_insert(Pool {
-                t_ref: r.time_constant_s,
-                n_ref: r.n,
-                spans_time_constants: false,
-                one_count: true,
-                points: Vec::new(),
-            });
-            let ratio = if detector == Detector::Dc {
-                Some(1.0)
-            } else {
-                enbw_ratio(r.time_constant_s, pool.t_ref)
-            };
-            // A variance from n snapshots has about n − 1 degrees of freedom: its
-            // weight relative to the first reading's (exactly 1 when every reading
-            // takes the same number, as every run before reading time did; n and
-            // n_ref are at least 2 here).
-            let dof = if r.n == pool.n_ref {
-                1.0
-            } else {
-                f64::from(r.n - 1) / f64::from(pool.n_ref - 1)
-            };
-            if let Some(k) = ratio {
-                pool.spans_time_constants |= k != 1.0;
-                pool.one_count &= r.n == pool.n_ref && r.n >= 3;
-                pool.points.push((x, y / k, dof));
-            }
-        }
-        let lines = groups
-            .into_iter()
-            .filter(|(_, p)| p.points.len() >= MIN_POOL)
-            .filter_map(|(k, p)| {
-                fit_line(&p.points, p.one_count).map(|(a, b)| {
-                    let line = NoiseLine {
-                        a,
-                        b,
-                        t_ref: p.t_ref,
-                        spans_time_constants: p.spans_time_constants,
-                    };
-                    (k, line)
-                })
-            })
-            .collect();
-        let noise = Noise {
-            lines,
-            gap_s,
-            detector,
-        };
-        let uncovered = readings
-            .iter()
-            .filter(|(r, dark)| r.n < 2 && !(*dark && detector == Detector::LockIn))
-            .filter(|(r, _)| noise.line_for(r).is_none())
-            .count();
-        if uncovered > 0 {
-            tracing::warn!(
-                readings = uncovered,
-                "single-snapshot readings with no pooled noise line to take their σ from: their noise term is 0"
-            );
-        }
-        noise
-    }
-
-    /// The pooled line for a reading and the factor its variance takes from it:
-    /// its own group's line (scaled by [`enbw_ratio`] for a lock-in). A reading of
-    /// one snapshot (n < 2, whose own scatter says nothing) without one borrows
-    /// the nearest group's: for a lock-in, the line of the nearest slope scaled by
-    /// the ratio of the two filters' ENBW (the density d² behind them is the same);
-    /// for a picoammeter, the line of the same range and integration time at the
-    /// nearest sample count (its samples are independent, so the variance of one
-    /// does not depend on how many are taken).
-    fn line_for(&self, r: &ReadingRecord) -> Option<(NoiseLine, f64)> {
-        let key = noise_key(r, self.detector);
-        if let Some(l) = self.lines.get(&key) {
-            let k = match self.detector {
-                Detector::LockIn => enbw_ratio(r.time_constant_s, l.t_ref),
-                Detector::Dc => Some(1.0),
-            };
-            if let Some(k) = k {
-                return Some((*l, k));
-            }
-        }
-        if r.n >= 2 {
-            return None;
-        }
-        match self.detector {
-            Detector::LockIn => {
-                let own = enbw_per_second(r.slope_db)? / r.time_constant_s;
-                let (&(_, slope, _), l) = self
-                    .lines
-                    .iter()
-                    .min_by_key(|((_, slope, _), _)| slope.abs_diff(r.slope_db))?;
-                let theirs = enbw_per_second(slope)? / l.t_ref;
-                let k = own / theirs;
-                (k.is_finite() && k > 0.0).then_some((*l, k))
-            }
-            Detector::Dc => self
-                .lines
-                .iter()
-                .filter(|((t, range, _), _)| *t == key.0 && *range == key.1)
-                .min_by_key(|((_, _, n), _)| n.abs_diff(r.n))
-                .map(|(_, l)| (*l, 1.0)),
-        }
-    }
-
-    /// The standard deviation of a reading's mean X (or Y), V, or of a DC
-    /// reading's mean current, A.
-    fn sigma_mean(&self, r: &ReadingRecord, dark: bool) -> f64 {
-        if self.detector == Detector::Dc {
-            return self.sigma_mean_dc(r, dark);
-        }
-        let var = match self.line_for(r) {
-            Some((l, k)) if !dark => (l.a + l.b * r.r_mean.max(0.0)) * k,
-            _ if dark => rayleigh_variance(r),
-            _ => {
-                let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
-                r.r_std * r.r_std / b
-            }
-        };
-        let (a, _) = variance_factors(r.n, rho(r, self.gap_s));
-        (var.max(0.0) * a / f64::from(r.n.max(1))).sqrt()
-    }
-
-    /// A DC reading's σ of the mean, s/√n: its n samples are independent
-    /// conversions (ρ = 0, [`variance_factors`] gives A = B = 1), so the sample
-    /// variance s² (n − 1 in the denominator) is unbiased and needs no correction.
-    /// s² is the pooled a + b·I where the reading's setting has a line, else the
-    /// reading's own; a dark keeps its own s (its σ is that of the dark readings)
-    /// unless it is a single sample, which has none.
-    fn sigma_mean_dc(&self, r: &ReadingRecord, dark: bool) -> f64 {
-        let own = r.r_std * r.r_std;
-        let var = match self.line_for(r) {
-            Some((l, _)) if !dark || r.n < 2 => l.a + l.b * r.x_mean.max(0.0),
-            _ => own,
-        };
-        (var.max(0.0) / f64::from(r.n.max(1))).sqrt()
-    }
-}
-
-/// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
-/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause.
-fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
-    if r.time_constant_s > 0.0 {
-        let pause = if r.flags & flags::TARGETED != 0 {
-            0.0
-        } else {
-            r.time_constant_s
-        };
-        (-(pause + gap_s.max(0.0)) / r.time_constant_s).exp()
-    } else {
-        0.0
-    }
-}
-
-/// Half the mean R² of a reading's snapshots, (r̄² + s²(n − 1)/n)/2: for a reading
-/// of noise alone (X, Y zero-mean normals of variance σ²) it is unbiased for σ²,
-/// where R's own scatter is only 0.655 σ.
-fn rayleigh_variance(r: &ReadingRecord) -> f64 {
-    let n = f64::from(r.n.max(1));
-    (r.r_mean * r.r_mean + r.r_std * r.r_std * (n - 1.0) / n) / 2.0
-}
-
-/// Weighted least squares of y = a + b x (a, b ≥ 0), re-weighted by the fit: a
-/// point (x, y, f) weighs f/m², m the fitted variance at x and f its relative
-/// degrees of freedom (a variance from more snapshots scatters less).
-///
-/// The first pass weighs each point by its own 1/y² when `own_start` (every run
-/// before reading time: one snapshot count of at least three, and the fit as it
-/// always was), else by f/ȳ², ȳ the points' mean: a variance from two snapshots
-/// (one degree of freedom) can lie arbitrarily near zero, and weighted by its own
-/// 1/y² it would pin the line there.
-fn fit_line(p: &[(f64, f64, f64)], own_start: bool) -> Option<(f64, f64)> {
-    let mean = p.iter().map(|(_, y, _)| y).sum::<f64>() / p.len().max(1) as f64;
-    let mut w: Vec<f64> = p
-        .iter()
-        .map(|(_, y, f)| {
-            let y = if own_start { *y } else { mean };
-            1.0 / (y * y).max(1e-300) * f
-        })
-        .collect();
-    let mut line = None;
-    for _ in 0..4 {
-        let (mut s, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for ((x, y, _), w) in p.iter().zip(&w) {
-            s += w;
-            sx += w * x;
-            sy += w * y;
-            sxx += w * x * x;
-            sxy += w * x * y;
-        }
-        let det = s * sxx - sx * sx;
-        let (mut a, mut b) = if det > 0.0 {
-            ((sxx * sy - sx * sxy) / det, (s * sxy - sx * sy) / det)
-        } else {
-            (sy / s, 0.0)
-        };
-        if a < 0.0 {
-            a = 0.0;
-            b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        }
-        if b < 0.0 {
-            b = 0.0;
-            a = sy / s;
-        }
-        if !(a.is_finite() && b.is_finite()) || a + b <= 0.0 {
-            return None;
-        }
-        for ((x, _, f), w) in p.iter().zip(w.iter_mut()) {
-            let m = a + b * x;
-            *w = 1.0 / (m * m).max(1e-300) * f;
-        }
-        line = Some((a, b));
-    }
-    line
 }
 
 /// The lock-in's reply rounding, relative: six significant digits, a step of
@@ -935,11 +602,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             .filter(|r| r.flags & opts.reject_flags == 0)
             .map(|r| (*r, kind_of.get(&r.step_id) == Some(&StepKind::Dark)))
             .collect();
-        let mut noise = Noise::fit(&all, opts.snapshot_gap_s, detector);
-        if detector == Detector::Dc && !opts.dc_pool_noise {
-            noise.lines.clear();
-        }
-        noise
+        Noise::of_run(&all, opts, detector)
     };
     // Readings kept although they reached the plan's time cap before their target.
     let capped = by_step
@@ -1551,35 +1214,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn variance_factors_match_the_closed_forms() {
-        // Independent snapshots: Var(mean) = σ²/n, E[s²] = σ².
-        assert_eq!(variance_factors(10, 0.0), (1.0, 1.0));
-        // Two snapshots: Var((x1 + x2)/2) = σ²(1 + ρ)/2, E[(x1 − x2)²/2] = σ²(1 − ρ).
-        let (a, b) = variance_factors(2, 0.3);
-        assert!(
-            (a - 1.3).abs() < 1e-15 && (b - 0.7).abs() < 1e-15,
-            "{a} {b}"
-        );
-        // Ten snapshots one time constant apart: A/B = 2.22, the old factor 2.2.
-        let (a, b) = variance_factors(10, (-1.0f64).exp());
-        assert!((a / b - 2.222).abs() < 1e-3, "{}", a / b);
-    }
-
-    #[test]
-    fn a_noise_line_is_recovered_from_exact_variances() {
-        let p: Vec<(f64, f64, f64)> = (0..12)
-            .map(|k| {
-                let x = 1e-4 * f64::from(k);
-                (x, 3e-16 + 3e-12 * x, 1.0)
-            })
-            .collect();
-        let (a, b) = fit_line(&p, true).expect("fits");
-        let (a2, b2) = fit_line(&p, false).expect("fits");
-        assert!((a2 / 3e-16 - 1.0).abs() < 1e-9 && (b2 / 3e-12 - 1.0).abs() < 1e-9);
-        assert!((a / 3e-16 - 1.0).abs() < 1e-9 && (b / 3e-12 - 1.0).abs() < 1e-9);
-    }
-
-    #[test]
     fn disagreeing_readings_scale_the_mean_s_uncertainty_by_the_birge_ratio() {
         let m = |v: f64| Measured { t: 0.0, v, s: 1.0 };
         // Within their noise: 1/√2.
@@ -1605,7 +1239,37 @@ mod tests {
 
     #[test]
     fn the_range_accuracy_is_the_bound_over_root_three() {
-        let r = ReadingRecord {
+        let r = crate::test_support::reading();
+        // 200 nA: 0.2 % + 10 pA of 100 nA is 210 pA, /√3.
+        let (k, u) = range_sigma(&r).expect("a range");
+        assert_eq!(k, 2);
+        assert!((u - 210e-12 / 3f64.sqrt()).abs() < 1e-24, "{u}");
+        assert!(
+            range_sigma(&ReadingRecord {
+                sensitivity: 8,
+                ..r
+            })
+            .is_none()
+        );
+    }
+
+    #[test]
+    fn the_reply_rounding_is_a_sixth_digit_over_root_twelve() {
+        assert!((resolution_rel(1.5e-3) - 1e-8 / 12f64.sqrt() / 1.5e-3).abs() < 1e-18);
+        assert_eq!(resolution_rel(0.0), 0.0);
+    }
+}
+
+/// What the modules' unit tests share.
+#[cfg(test)]
+mod test_support {
+    use gonio_core::dirfile::PairDeg;
+    use gonio_run::ReadingRecord;
+
+    /// A reading of 100 nA on the 6485's 200 nA range (index 2), five samples of
+    /// scatter 1 pA, at instrument time 0: the fields a test does not set.
+    pub(crate) fn reading() -> ReadingRecord {
+        ReadingRecord {
             step_id: 1,
             commanded: None,
             position: [0.0; 4],
@@ -1629,23 +1293,6 @@ mod tests {
             retries: 0,
             physical_s: 0.0,
             wall_s: 0.0,
-        };
-        // 200 nA: 0.2 % + 10 pA of 100 nA is 210 pA, /√3.
-        let (k, u) = range_sigma(&r).expect("a range");
-        assert_eq!(k, 2);
-        assert!((u - 210e-12 / 3f64.sqrt()).abs() < 1e-24, "{u}");
-        assert!(
-            range_sigma(&ReadingRecord {
-                sensitivity: 8,
-                ..r
-            })
-            .is_none()
-        );
-    }
-
-    #[test]
-    fn the_reply_rounding_is_a_sixth_digit_over_root_twelve() {
-        assert!((resolution_rel(1.5e-3) - 1e-8 / 12f64.sqrt() / 1.5e-3).abs() < 1e-18);
-        assert_eq!(resolution_rel(0.0), 0.0);
+        }
     }
 }
