@@ -80,6 +80,7 @@
 //! ([I_dark, 0]) and `incident_a` where a lock-in's has `dark_v` and `incident_v`.
 
 pub mod adaptive;
+mod group;
 mod noise;
 pub mod spectral;
 
@@ -94,6 +95,7 @@ use gonio_process::{Sample, Samples};
 use gonio_run::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
 use serde::Serialize;
 
+use group::{Grouped, flag_reason};
 use noise::Noise;
 pub use noise::variance_factors;
 
@@ -506,25 +508,6 @@ impl Level {
     }
 }
 
-/// The run's instrument time of every reading, s: the instrument clock, continued
-/// across sessions (each session's clock starts again at 0, so a session's first
-/// reading follows the previous session's last). It is the clock the source drifts
-/// by — in the laboratory the system clock, in a simulated run the simulator's.
-fn timeline(by_step: &BTreeMap<i64, &ReadingRecord>) -> BTreeMap<i64, f64> {
-    let mut out = BTreeMap::new();
-    let (mut t, mut last) = (0.0, None::<f64>);
-    for (id, r) in by_step {
-        if let Some(prev) = last
-            && r.physical_s >= prev
-        {
-            t += r.physical_s - prev;
-        }
-        last = Some(r.physical_s);
-        out.insert(*id, t);
-    }
-    out
-}
-
 /// A pair's directions, its (value, budget) per channel as the channels are
 /// reduced, and the union of its readings' flags.
 type PerPair = (PairDeg, Vec<Option<(f64, [f64; N_TERMS])>>, u32);
@@ -588,42 +571,12 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
     .solid_angle_sr();
     let steps = store.steps()?;
     let readings = store.readings()?;
-    // The last reading of a step is the one that counts (a step re-measured after a
-    // fault keeps only its final reading).
-    let mut by_step: BTreeMap<i64, &ReadingRecord> = BTreeMap::new();
-    for r in &readings {
-        by_step.insert(r.step_id, r);
-    }
-    let time = timeline(&by_step);
-    let kind_of: BTreeMap<i64, StepKind> = steps.iter().map(|s| (s.id, s.step.kind)).collect();
-    let noise = {
-        let all: Vec<(&ReadingRecord, bool)> = by_step
-            .values()
-            .filter(|r| r.flags & opts.reject_flags == 0)
-            .map(|r| (*r, kind_of.get(&r.step_id) == Some(&StepKind::Dark)))
-            .collect();
-        Noise::of_run(&all, opts, detector)
-    };
+    let groups = Grouped::new(&steps, &readings);
+    let noise = Noise::of_run(&groups.kept(opts.reject_flags), opts, detector);
     // Readings kept although they reached the plan's time cap before their target.
-    let capped = by_step
-        .values()
-        .filter(|r| r.flags & opts.reject_flags == 0 && r.flags & flags::CAPPED != 0)
-        .count();
-    let channel_names: Vec<Option<String>> = {
-        let mut v: Vec<Option<String>> = Vec::new();
-        for s in &steps {
-            if !v.contains(&s.step.channel) {
-                v.push(s.step.channel.clone());
-            }
-        }
-        v
-    };
-    let channels = if channel_names.iter().all(Option::is_none) {
-        Channels::Single
-    } else {
-        let names: Vec<String> = channel_names.iter().flatten().cloned().collect();
-        Channels::from_names(&names).map_err(|e| missing(format!("channels: {e}")))?
-    };
+    let capped = groups.capped(opts.reject_flags);
+    let channel_names = groups.channel_names();
+    let channels = group::channels(&channel_names).map_err(&missing)?;
     let standard = match &stored.standard_model {
         Some(t) => Some(
             gonio_brdf::Model::from_toml(t, None)
@@ -631,21 +584,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
         ),
         None => None,
     };
-    let of = |kind: StepKind, ch: &Option<String>| -> Vec<(&StoredStep, &ReadingRecord)> {
-        let pick = |want: &Option<String>| {
-            steps
-                .iter()
-                .filter(|s| s.step.kind == kind && &s.step.channel == want)
-                .filter_map(|s| by_step.get(&s.id).map(|r| (s, *r)))
-                .collect::<Vec<_>>()
-        };
-        let v = pick(ch);
-        if v.is_empty() && ch.is_some() {
-            pick(&None)
-        } else {
-            v
-        }
-    };
+    let of = |kind: StepKind, ch: &Option<String>| groups.of(kind, ch);
 
     let mut rejected: BTreeMap<String, usize> = BTreeMap::new();
     let mut max_pos = 0.0f64;
@@ -762,7 +701,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 if k > 0.0 {
                     let (v, sv, u, res) = signal(r);
                     cal.push(Measured {
-                        t: time[&r.step_id],
+                        t: groups.time_of(r),
                         v: v / k,
                         s: sv / k,
                     });
@@ -780,7 +719,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             for (_, r) in &incident {
                 let (v, sv, u, res) = signal(r);
                 cal.push(Measured {
-                    t: time[&r.step_id],
+                    t: groups.time_of(r),
                     v: v / stored.transmittance,
                     s: sv / stored.transmittance,
                 });
@@ -819,7 +758,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 .map(|(_, r)| {
                     let (v, s, _, _) = signal(r);
                     Measured {
-                        t: time[&r.step_id],
+                        t: groups.time_of(r),
                         v,
                         s,
                     }
@@ -910,7 +849,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
                 continue;
             }
             let (v, sv, u, res) = signal(r);
-            let (phi, drift_rel, interp_rel) = flux.at(time[&r.step_id]);
+            let (phi, drift_rel, interp_rel) = flux.at(groups.time_of(r));
             let scale = phi * omega * cos_o;
             let f = v / scale;
             let terms = if v > 0.0 {
@@ -1097,10 +1036,7 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
             budget,
         });
     }
-    let unmeasured = steps
-        .iter()
-        .filter(|s| s.step.kind == StepKind::Sample && !by_step.contains_key(&s.id))
-        .count();
+    let unmeasured = groups.unmeasured();
     let mut samples = Vec::new();
     let mut budget = Vec::new();
     let mut incomplete = 0;
@@ -1194,19 +1130,6 @@ fn position_error(a: &PairDeg, b: &PairDeg) -> f64 {
             .to_degrees()
     };
     d(a.incident, b.incident).max(d(a.outgoing, b.outgoing))
-}
-
-fn flag_reason(f: u32) -> String {
-    if f & flags::UNLOCK != 0 {
-        "unlock".into()
-    } else if f & (flags::INPUT_OVERLOAD | flags::FILTER_OVERLOAD | flags::OUTPUT_OVERLOAD) != 0 {
-        "overload".into()
-    } else if f & flags::CAPPED != 0 {
-        // Only when the caller asks for capped readings to be left out.
-        "capped".into()
-    } else {
-        "overload".into()
-    }
 }
 
 #[cfg(test)]
