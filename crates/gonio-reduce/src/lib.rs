@@ -80,18 +80,30 @@
 //! ([I_dark, 0]) and `incident_a` where a lock-in's has `dark_v` and `incident_v`.
 
 pub mod adaptive;
+mod assemble;
+mod budget;
+mod calibration;
+mod dark;
+mod drift;
+mod group;
+mod noise;
 pub mod spectral;
+mod values;
 
-use std::collections::BTreeMap;
-
-use gonio_core::Channels;
-use gonio_core::dirfile::PairDeg;
 use gonio_core::radiometry::Aperture;
 use gonio_plan::StepKind;
+use gonio_process::Samples;
 pub use gonio_process::reduction::{BudgetTerm, ChannelReport, Report};
-use gonio_process::{Sample, Samples};
-use gonio_run::{ReadingRecord, RunStore, StoreError, StoredStep, flags};
+use gonio_run::{RunStore, StoreError, flags};
 use serde::Serialize;
+
+use calibration::Calibrations;
+use dark::Dark;
+use drift::IncidentFlux;
+use group::Grouped;
+use noise::Noise;
+pub use noise::variance_factors;
+use values::Values;
 
 /// The variance factor of a lock-in mean over samples one time constant apart, as
 /// the reduction used it before the budget was pooled (kept for callers).
@@ -277,631 +289,37 @@ pub struct Reduction {
     pub detector: Detector,
 }
 
-/// A value with its standard uncertainty.
-#[derive(Clone, Copy, Debug)]
-struct Measured {
-    t: f64,
-    v: f64,
-    s: f64,
-}
-
-/// The variance factors of n snapshots whose noise correlates as ρ^|i−j|:
-/// `(A, B)` with Var(mean) = σ² A / n and E\[s²\] = σ² B for the sample variance s²
-/// (n − 1 in the denominator). With S = Σ_{k=1}^{n−1} (1 − k/n) ρ^k,
-/// A = 1 + 2S and B = 1 − 2S/(n − 1).
-pub fn variance_factors(n: u32, rho: f64) -> (f64, f64) {
-    if n < 2 {
-        return (1.0, 1.0);
-    }
-    let nf = f64::from(n);
-    let s: f64 = (1..n)
-        .map(|k| (1.0 - f64::from(k) / nf) * rho.powi(k as i32))
-        .sum();
-    (1.0 + 2.0 * s, 1.0 - 2.0 * s / (nf - 1.0))
-}
-
-/// A noise law pooled over a group of readings: the variance per snapshot (lock-in)
-/// or per sample (picoammeter) is a + b·R at the group's reference time constant.
-#[derive(Clone, Copy, Debug)]
-struct NoiseLine {
-    a: f64,
-    b: f64,
-    /// The time constant of the group's first reading, s: a lock-in reading at
-    /// time constant T has the variance (a + b·R)·[`enbw_ratio`]`(T, t_ref)`.
-    t_ref: f64,
-    /// Whether the readings fitted span more than one time constant.
-    spans_time_constants: bool,
-}
-
-/// The key of readings that share a noise law.
-type NoiseKey = (u64, u8, u32);
-
-/// A lock-in's output noise is white noise of density d(R)² (V²/Hz) through its
-/// output filter, so a snapshot's variance is d²·ENBW(T, slope): readings of one
-/// slope share a law whatever their time constant, and their snapshot count enters
-/// only through [`variance_factors`]. The key is the slope alone. A picoammeter's
-/// noise depends on its integration time, sample count and range (each range has
-/// its own feedback resistor, hence its own noise floor).
-fn noise_key(r: &ReadingRecord, detector: Detector) -> NoiseKey {
-    match detector {
-        Detector::LockIn => (0, r.slope_db, 0),
-        Detector::Dc => (r.time_constant_s.to_bits(), r.sensitivity, r.n),
-    }
-}
-
-/// ENBW(T)/ENBW(t_ref) at one filter slope: t_ref/T, as the SR830's equivalent
-/// noise bandwidth is k(slope)/T (`gonio_proto::sr830::FilterSlope::enbw_hz`).
-/// Exactly 1.0 when T is t_ref (x/x is exact in IEEE 754, and so are a product and
-/// a quotient by 1.0): a run at one time constant pools bit for bit as it did when
-/// the key held the time constant. `None` for a time constant that is not finite
-/// and positive (such a reading is not pooled with others).
-fn enbw_ratio(t: f64, t_ref: f64) -> Option<f64> {
-    if t.to_bits() == t_ref.to_bits() {
-        Some(1.0)
-    } else if t.is_finite() && t > 0.0 && t_ref.is_finite() && t_ref > 0.0 {
-        Some(t_ref / t)
-    } else {
-        None
-    }
-}
-
-/// The ENBW of a slope at T = 1 s, Hz (the manual's 1/4, 1/8, 3/32, 5/64; SR830
-/// manual "Noise Measurements", as `FilterSlope::enbw_hz` states them).
-fn enbw_per_second(slope_db: u8) -> Option<f64> {
-    let slope = gonio_proto::sr830::FilterSlope::from_db(slope_db)?;
-    let tc = gonio_proto::sr830::TimeConstant::all().find(|t| t.seconds() == 1.0)?;
-    Some(slope.enbw_hz(tc))
-}
-
-/// The readings of one noise key while the noise is fitted.
-struct Pool {
-    /// The first reading's time constant, s: the line is the variance at it.
-    t_ref: f64,
-    /// The first reading's snapshot count.
-    n_ref: u32,
-    /// Whether another time constant was seen.
-    spans_time_constants: bool,
-    /// Whether every reading took `n_ref` snapshots, at least 3 ([`fit_line`]'s
-    /// `own_start`).
-    one_count: bool,
-    /// (R, variance at `t_ref`, relative degrees of freedom) per reading.
-    points: Vec<(f64, f64, f64)>,
-}
-
-/// The detector's noise: pooled lines where enough readings share a setting, and
-/// the lock-in's snapshot correlation.
-struct Noise {
-    lines: BTreeMap<NoiseKey, NoiseLine>,
-    gap_s: f64,
+/// The run as every step of a channel's reduction reads it: the options, the
+/// detector and its geometry, the readings grouped by step, the fitted noise and
+/// the stored reference standard.
+struct Run<'a> {
+    /// The reduction's options.
+    opts: &'a Options,
+    /// What the readings are.
     detector: Detector,
+    /// A spectral run's bandpass (for the wavelength term).
+    bandpass: Option<spectral::Bandpass>,
+    /// Whether the plan is isotropic (its samples say so).
+    isotropic: bool,
+    /// The detector's solid angle Ω, sr.
+    omega: f64,
+    /// The transmittance of the filter in the incident beam.
+    transmittance: f64,
+    /// The readings that count, by step, with their instrument times.
+    groups: Grouped<'a>,
+    /// The noise law fitted to the kept readings.
+    noise: Noise,
+    /// The stored reference standard's model.
+    standard: Option<gonio_brdf::Model>,
+    /// The readings kept although capped.
+    capped: usize,
 }
 
-/// Fewest readings a pooled noise line is fitted to.
-const MIN_POOL: usize = 8;
-
-impl Noise {
-    /// Fits a + b·R to the readings' snapshot variances: bright readings give
-    /// s²/B, dark readings (R pure noise, Rayleigh-distributed) half their mean R²,
-    /// both unbiased for the snapshot variance σ² of X. A lock-in's points are
-    /// divided by [`enbw_ratio`] of their time constant to the group's first, so
-    /// that the line is the variance at that one time constant. Weighted least
-    /// squares, re-weighted by the fitted variance (the scatter of a variance
-    /// estimate grows with it).
-    ///
-    /// A DC reading's samples are independent conversions and its mean current is
-    /// signed: every reading (the darks too) gives the point (I, s²), I clamped at
-    /// 0 (a dark current a little below zero has the noise of zero current).
-    fn fit(readings: &[(&ReadingRecord, bool)], gap_s: f64, detector: Detector) -> Noise {
-        let mut groups: BTreeMap<NoiseKey, Pool> = BTreeMap::new();
-        for (r, dark) in readings {
-            if !(r.r_std.is_finite() && r.r_mean.is_finite()) || r.n < 2 {
-                continue;
-            }
-            let point = if detector == Detector::Dc {
-                (r.r_std > 0.0).then(|| (r.x_mean.max(0.0), r.r_std * r.r_std))
-            } else if *dark {
-                Some((0.0, rayleigh_variance(r)))
-            } else if r.r_mean > 3.0 * r.r_std && r.r_std > 0.0 {
-                let (_, b) = variance_factors(r.n, rho(r, gap_s));
-                Some((r.r_mean, r.r_std * r.r_std / b))
-            } else {
-                None
-            };
-            let Some((x, y)) = point else { continue };
-            let pool = groups.entry(noise_key(r, detector)).or_insert(Pool {
-                t_ref: r.time_constant_s,
-                n_ref: r.n,
-                spans_time_constants: false,
-                one_count: true,
-                points: Vec::new(),
-            });
-            let ratio = if detector == Detector::Dc {
-                Some(1.0)
-            } else {
-                enbw_ratio(r.time_constant_s, pool.t_ref)
-            };
-            // A variance from n snapshots has about n − 1 degrees of freedom: its
-            // weight relative to the first reading's (exactly 1 when every reading
-            // takes the same number, as every run before reading time did; n and
-            // n_ref are at least 2 here).
-            let dof = if r.n == pool.n_ref {
-                1.0
-            } else {
-                f64::from(r.n - 1) / f64::from(pool.n_ref - 1)
-            };
-            if let Some(k) = ratio {
-                pool.spans_time_constants |= k != 1.0;
-                pool.one_count &= r.n == pool.n_ref && r.n >= 3;
-                pool.points.push((x, y / k, dof));
-            }
-        }
-        let lines = groups
-            .into_iter()
-            .filter(|(_, p)| p.points.len() >= MIN_POOL)
-            .filter_map(|(k, p)| {
-                fit_line(&p.points, p.one_count).map(|(a, b)| {
-                    let line = NoiseLine {
-                        a,
-                        b,
-                        t_ref: p.t_ref,
-                        spans_time_constants: p.spans_time_constants,
-                    };
-                    (k, line)
-                })
-            })
-            .collect();
-        let noise = Noise {
-            lines,
-            gap_s,
-            detector,
-        };
-        let uncovered = readings
-            .iter()
-            .filter(|(r, dark)| r.n < 2 && !(*dark && detector == Detector::LockIn))
-            .filter(|(r, _)| noise.line_for(r).is_none())
-            .count();
-        if uncovered > 0 {
-            tracing::warn!(
-                readings = uncovered,
-                "single-snapshot readings with no pooled noise line to take their σ from: their noise term is 0"
-            );
-        }
-        noise
-    }
-
-    /// The pooled line for a reading and the factor its variance takes from it:
-    /// its own group's line (scaled by [`enbw_ratio`] for a lock-in). A reading of
-    /// one snapshot (n < 2, whose own scatter says nothing) without one borrows
-    /// the nearest group's: for a lock-in, the line of the nearest slope scaled by
-    /// the ratio of the two filters' ENBW (the density d² behind them is the same);
-    /// for a picoammeter, the line of the same range and integration time at the
-    /// nearest sample count (its samples are independent, so the variance of one
-    /// does not depend on how many are taken).
-    fn line_for(&self, r: &ReadingRecord) -> Option<(NoiseLine, f64)> {
-        let key = noise_key(r, self.detector);
-        if let Some(l) = self.lines.get(&key) {
-            let k = match self.detector {
-                Detector::LockIn => enbw_ratio(r.time_constant_s, l.t_ref),
-                Detector::Dc => Some(1.0),
-            };
-            if let Some(k) = k {
-                return Some((*l, k));
-            }
-        }
-        if r.n >= 2 {
-            return None;
-        }
-        match self.detector {
-            Detector::LockIn => {
-                let own = enbw_per_second(r.slope_db)? / r.time_constant_s;
-                let (&(_, slope, _), l) = self
-                    .lines
-                    .iter()
-                    .min_by_key(|((_, slope, _), _)| slope.abs_diff(r.slope_db))?;
-                let theirs = enbw_per_second(slope)? / l.t_ref;
-                let k = own / theirs;
-                (k.is_finite() && k > 0.0).then_some((*l, k))
-            }
-            Detector::Dc => self
-                .lines
-                .iter()
-                .filter(|((t, range, _), _)| *t == key.0 && *range == key.1)
-                .min_by_key(|((_, _, n), _)| n.abs_diff(r.n))
-                .map(|(_, l)| (*l, 1.0)),
-        }
-    }
-
-    /// The standard deviation of a reading's mean X (or Y), V, or of a DC
-    /// reading's mean current, A.
-    fn sigma_mean(&self, r: &ReadingRecord, dark: bool) -> f64 {
-        if self.detector == Detector::Dc {
-            return self.sigma_mean_dc(r, dark);
-        }
-        let var = match self.line_for(r) {
-            Some((l, k)) if !dark => (l.a + l.b * r.r_mean.max(0.0)) * k,
-            _ if dark => rayleigh_variance(r),
-            _ => {
-                let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
-                r.r_std * r.r_std / b
-            }
-        };
-        let (a, _) = variance_factors(r.n, rho(r, self.gap_s));
-        (var.max(0.0) * a / f64::from(r.n.max(1))).sqrt()
-    }
-
-    /// A DC reading's σ of the mean, s/√n: its n samples are independent
-    /// conversions (ρ = 0, [`variance_factors`] gives A = B = 1), so the sample
-    /// variance s² (n − 1 in the denominator) is unbiased and needs no correction.
-    /// s² is the pooled a + b·I where the reading's setting has a line, else the
-    /// reading's own; a dark keeps its own s (its σ is that of the dark readings)
-    /// unless it is a single sample, which has none.
-    fn sigma_mean_dc(&self, r: &ReadingRecord, dark: bool) -> f64 {
-        let own = r.r_std * r.r_std;
-        let var = match self.line_for(r) {
-            Some((l, _)) if !dark || r.n < 2 => l.a + l.b * r.x_mean.max(0.0),
-            _ => own,
-        };
-        (var.max(0.0) / f64::from(r.n.max(1))).sqrt()
-    }
-}
-
-/// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
-/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause.
-fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
-    if r.time_constant_s > 0.0 {
-        let pause = if r.flags & flags::TARGETED != 0 {
-            0.0
-        } else {
-            r.time_constant_s
-        };
-        (-(pause + gap_s.max(0.0)) / r.time_constant_s).exp()
-    } else {
-        0.0
-    }
-}
-
-/// Half the mean R² of a reading's snapshots, (r̄² + s²(n − 1)/n)/2: for a reading
-/// of noise alone (X, Y zero-mean normals of variance σ²) it is unbiased for σ²,
-/// where R's own scatter is only 0.655 σ.
-fn rayleigh_variance(r: &ReadingRecord) -> f64 {
-    let n = f64::from(r.n.max(1));
-    (r.r_mean * r.r_mean + r.r_std * r.r_std * (n - 1.0) / n) / 2.0
-}
-
-/// Weighted least squares of y = a + b x (a, b ≥ 0), re-weighted by the fit: a
-/// point (x, y, f) weighs f/m², m the fitted variance at x and f its relative
-/// degrees of freedom (a variance from more snapshots scatters less).
-///
-/// The first pass weighs each point by its own 1/y² when `own_start` (every run
-/// before reading time: one snapshot count of at least three, and the fit as it
-/// always was), else by f/ȳ², ȳ the points' mean: a variance from two snapshots
-/// (one degree of freedom) can lie arbitrarily near zero, and weighted by its own
-/// 1/y² it would pin the line there.
-fn fit_line(p: &[(f64, f64, f64)], own_start: bool) -> Option<(f64, f64)> {
-    let mean = p.iter().map(|(_, y, _)| y).sum::<f64>() / p.len().max(1) as f64;
-    let mut w: Vec<f64> = p
-        .iter()
-        .map(|(_, y, f)| {
-            let y = if own_start { *y } else { mean };
-            1.0 / (y * y).max(1e-300) * f
-        })
-        .collect();
-    let mut line = None;
-    for _ in 0..4 {
-        let (mut s, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for ((x, y, _), w) in p.iter().zip(&w) {
-            s += w;
-            sx += w * x;
-            sy += w * y;
-            sxx += w * x * x;
-            sxy += w * x * y;
-        }
-        let det = s * sxx - sx * sx;
-        let (mut a, mut b) = if det > 0.0 {
-            ((sxx * sy - sx * sxy) / det, (s * sxy - sx * sy) / det)
-        } else {
-            (sy / s, 0.0)
-        };
-        if a < 0.0 {
-            a = 0.0;
-            b = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        }
-        if b < 0.0 {
-            b = 0.0;
-            a = sy / s;
-        }
-        if !(a.is_finite() && b.is_finite()) || a + b <= 0.0 {
-            return None;
-        }
-        for ((x, _, f), w) in p.iter().zip(w.iter_mut()) {
-            let m = a + b * x;
-            *w = 1.0 / (m * m).max(1e-300) * f;
-        }
-        line = Some((a, b));
-    }
-    line
-}
-
-/// The lock-in's reply rounding, relative: six significant digits, a step of
-/// 10^(⌊log₁₀ v⌋ − 5), uniformly distributed (σ = step/√12). Not averaged down by
-/// the snapshots: without noise they all round alike.
-fn resolution_rel(v: f64) -> f64 {
-    if v > 0.0 {
-        10f64.powf(v.log10().floor() - 5.0) / 12f64.sqrt() / v
-    } else {
-        0.0
-    }
-}
-
-/// The 6485's reply rounding of a current `i`, A, relative to the signal `v`: its
-/// replies carry seven significant digits (`+1.234567E-09A`, `d.ddddddE±xx`), a
-/// step of 10^(⌊log₁₀ |i|⌋ − 6) on the raw reading, uniformly distributed (σ =
-/// step/√12). The rounding is of the reading, not of the dark-subtracted signal;
-/// like the lock-in's it is not taken as averaged down by the n samples (without
-/// noise they all round alike).
-fn dc_resolution_rel(i: f64, v: f64) -> f64 {
-    if i != 0.0 && i.is_finite() && v > 0.0 {
-        10f64.powf(i.abs().log10().floor() - 6.0) / 12f64.sqrt() / v
-    } else {
-        0.0
-    }
-}
-
-/// The 6485's range accuracy of a DC reading as a standard uncertainty, A, with
-/// the range it belongs to: the manual's 1-year ±bound (Appendix A, ±(% rdg +
-/// offset), [`gonio_proto::k6485::accuracy_a`]) as the half-width of a
-/// rectangular distribution, σ = bound/√3 (GUM 4.3.7): the manual states a limit,
-/// not a distribution. `None` for a range index the 6485 has not.
-fn range_sigma(r: &ReadingRecord) -> Option<(usize, f64)> {
-    let range = gonio_proto::k6485::Range::new(r.sensitivity)?;
-    let bound = gonio_proto::k6485::accuracy_a(range, r.x_mean);
-    Some((usize::from(r.sensitivity), bound / 3f64.sqrt()))
-}
-
-/// The 6485's ranges (2 nA … 20 mA), the range-accuracy coefficients' length.
-const RANGES: usize = gonio_proto::k6485::Range::COUNT as usize;
-
-/// Inverse-variance mean of values, with its uncertainty, scaled by the Birge ratio
-/// √(χ²/(n − 1)) when the values disagree beyond their noise (χ² more than three
-/// standard deviations above n − 1): the scatter of two or three readings is too
-/// uncertain to replace their noise unless it is significant. Without
-/// uncertainties (any of them 0), the plain mean and its scatter's standard error.
-fn weighted_mean(m: &[Measured]) -> (f64, f64) {
-    let n = m.len() as f64;
-    if m.iter().all(|x| x.s > 0.0) {
-        let sw: f64 = m.iter().map(|x| x.s.powi(-2)).sum();
-        let mean = m.iter().map(|x| x.v / (x.s * x.s)).sum::<f64>() / sw;
-        let s = sw.sqrt().recip();
-        if m.len() < 2 {
-            return (mean, s);
-        }
-        let chi2: f64 = m.iter().map(|x| ((x.v - mean) / x.s).powi(2)).sum();
-        let dof = n - 1.0;
-        let s = if chi2 > dof + 3.0 * (2.0 * dof).sqrt() {
-            s * (chi2 / dof).sqrt()
-        } else {
-            s
-        };
-        return (mean, s);
-    }
-    let mean = m.iter().map(|x| x.v).sum::<f64>() / n;
-    if m.len() < 2 {
-        return (mean, 0.0);
-    }
-    let scatter = (m.iter().map(|x| (x.v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
-    (mean, scatter)
-}
-
-/// Linear interpolation in time of measured values, with the interpolated
-/// uncertainty. Beyond the ends the value holds, or with `extend` the first or last
-/// segment's line continues (a drifting source keeps drifting past the last
-/// reference, to the end-of-run calibrations a little later).
-fn interp(m: &[Measured], t: f64, extend: bool) -> (f64, f64) {
-    let line = |a: Measured, b: Measured| {
-        let w = if b.t > a.t {
-            (t - a.t) / (b.t - a.t)
-        } else {
-            0.0
-        };
-        ((1.0 - w) * a.v + w * b.v, ((1.0 - w) * a.s).hypot(w * b.s))
-    };
-    match m {
-        [] => (1.0, 0.0),
-        [only] => (only.v, only.s),
-        _ => {
-            let last = m[m.len() - 1];
-            if t <= m[0].t {
-                return if extend {
-                    line(m[0], m[1])
-                } else {
-                    (m[0].v, m[0].s)
-                };
-            }
-            if t >= last.t {
-                return if extend {
-                    line(m[m.len() - 2], last)
-                } else {
-                    (last.v, last.s)
-                };
-            }
-            let k = m.partition_point(|x| x.t <= t).max(1);
-            line(m[k - 1], m[k])
-        }
-    }
-}
-
-/// The source's relative level g(t) from the drift references.
-enum Level {
-    /// A straight line g = p0 + p1 (t − t̄), fitted by weighted least squares; p0
-    /// and p1 are uncorrelated about the weighted mean time t̄.
-    Line {
-        t_mean: f64,
-        p0: f64,
-        p1: f64,
-        s1: f64,
-    },
-    /// Linear between the references.
-    Piecewise(Vec<Measured>),
-}
-
-impl Level {
-    /// Fits a line to the references, kept when its χ² lies within three standard
-    /// deviations of its degrees of freedom (the references then show nothing a
-    /// line does not); else the references are interpolated.
-    fn from_refs(refs: Vec<Measured>) -> Level {
-        if refs.len() < 3 || refs.iter().any(|m| m.s <= 0.0) {
-            return Level::Piecewise(refs);
-        }
-        let w: Vec<f64> = refs.iter().map(|m| m.s.powi(-2)).collect();
-        let sw: f64 = w.iter().sum();
-        let t_mean = refs.iter().zip(&w).map(|(m, w)| w * m.t).sum::<f64>() / sw;
-        let p0 = refs.iter().zip(&w).map(|(m, w)| w * m.v).sum::<f64>() / sw;
-        let stt: f64 = refs
-            .iter()
-            .zip(&w)
-            .map(|(m, w)| w * (m.t - t_mean).powi(2))
-            .sum();
-        if stt <= 0.0 {
-            return Level::Piecewise(refs);
-        }
-        let p1 = refs
-            .iter()
-            .zip(&w)
-            .map(|(m, w)| w * (m.t - t_mean) * m.v)
-            .sum::<f64>()
-            / stt;
-        let chi2: f64 = refs
-            .iter()
-            .map(|m| ((m.v - p0 - p1 * (m.t - t_mean)) / m.s).powi(2))
-            .sum();
-        let dof = (refs.len() - 2) as f64;
-        if chi2 > dof + 3.0 * (2.0 * dof).sqrt() {
-            return Level::Piecewise(refs);
-        }
-        Level::Line {
-            t_mean,
-            p0,
-            p1,
-            s1: stt.sqrt().recip(),
-        }
-    }
-
-    /// g(t) and its standard uncertainty.
-    fn at(&self, t: f64) -> (f64, f64) {
-        match self {
-            Level::Line { t_mean, p0, p1, .. } => (p0 + p1 * (t - t_mean), 0.0),
-            Level::Piecewise(m) => interp(m, t, true),
-        }
-    }
-
-    /// The relative uncertainty of g(t)/g(t_c), t_c the calibrations' time: the
-    /// budget's `drift` term. A line's offset cancels in the ratio; its slope's
-    /// error does not. Interpolated references carry their own noise.
-    fn ratio_rel(&self, t: f64, t_c: f64) -> f64 {
-        match self {
-            Level::Line { p0, s1, .. } => (t - t_c).abs() * s1 / p0,
-            Level::Piecewise(_) => {
-                let (g, s) = self.at(t);
-                if g > 0.0 { s / g } else { 0.0 }
-            }
-        }
-    }
-
-    /// The relative uncertainty of g at the calibrations' times, shared by every
-    /// sample (0 for a line, whose offset cancels).
-    fn calibration_rel(&self, times: &[f64]) -> f64 {
-        match self {
-            Level::Line { .. } => 0.0,
-            Level::Piecewise(_) => {
-                let n = times.len().max(1) as f64;
-                let v: f64 = times
-                    .iter()
-                    .map(|&t| {
-                        let (g, s) = self.at(t);
-                        if g > 0.0 { (s / g).powi(2) } else { 0.0 }
-                    })
-                    .sum();
-                (v / n / n).sqrt()
-            }
-        }
-    }
-
-    fn describe(&self) -> String {
-        match self {
-            Level::Line { .. } => {
-                "a line fitted to the drift references (its slope's uncertainty)".into()
-            }
-            Level::Piecewise(m) => format!(
-                "the {} drift references interpolated in time (their noise)",
-                m.len()
-            ),
-        }
-    }
-}
-
-/// The run's instrument time of every reading, s: the instrument clock, continued
-/// across sessions (each session's clock starts again at 0, so a session's first
-/// reading follows the previous session's last). It is the clock the source drifts
-/// by — in the laboratory the system clock, in a simulated run the simulator's.
-fn timeline(by_step: &BTreeMap<i64, &ReadingRecord>) -> BTreeMap<i64, f64> {
-    let mut out = BTreeMap::new();
-    let (mut t, mut last) = (0.0, None::<f64>);
-    for (id, r) in by_step {
-        if let Some(prev) = last
-            && r.physical_s >= prev
-        {
-            t += r.physical_s - prev;
-        }
-        last = Some(r.physical_s);
-        out.insert(*id, t);
-    }
-    out
-}
-
-/// A pair's directions, its (value, budget) per channel as the channels are
-/// reduced, and the union of its readings' flags.
-type PerPair = (PairDeg, Vec<Option<(f64, [f64; N_TERMS])>>, u32);
-
-/// The incident flux Φ(t) a sample reading is divided by.
-enum Flux {
-    /// C g(t), g from the drift references.
-    Drift { c: f64, level: Level, t_c: f64 },
-    /// The calibration readings interpolated in time.
-    Interpolated(Vec<Measured>),
-    /// One level for the whole run.
-    Constant(f64),
-}
-
-impl Flux {
-    /// Φ at instrument time `t`, the relative uncertainty of its time dependence
-    /// (the `drift` term) and, for interpolated calibrations, of the interpolated
-    /// calibration itself.
-    fn at(&self, t: f64) -> (f64, f64, f64) {
-        let rel = |v: f64, s: f64| if v > 0.0 { s / v } else { 0.0 };
-        match self {
-            Flux::Drift { c, level, t_c } => {
-                let (g, _) = level.at(t);
-                (c * g, level.ratio_rel(t, *t_c), 0.0)
-            }
-            Flux::Interpolated(m) => {
-                let (v, s) = interp(m, t, false);
-                (v, 0.0, rel(v, s))
-            }
-            Flux::Constant(c) => (*c, 0.0, 0.0),
-        }
-    }
-}
-
-/// The median and the largest of values (0 for none).
-fn median_max(mut v: Vec<f64>) -> (f64, f64) {
-    if v.is_empty() {
-        return (0.0, 0.0);
-    }
-    v.sort_by(f64::total_cmp);
-    (v[v.len() / 2], v[v.len() - 1])
-}
-
-/// Reduces a run to BRDF samples.
+/// Reduces a run to BRDF samples, in steps: the readings grouped by step, the
+/// noise law pooled over them, then per channel its dark, its calibration, its
+/// incident flux through the run, its samples' values and its report, and last
+/// the samples and the report assembled (the crate's modules `group`, `noise`,
+/// `dark`, `calibration`, `drift`, `values`, `budget` and `assemble`).
 pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError> {
     let path = store.path().display().to_string();
     let missing = |why: String| ReduceError::Missing {
@@ -910,7 +328,6 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
     };
     let stored = store.run_meta()?;
     let detector = Detector::of_instrument(&stored.instrument);
-    let bandpass = spectral::Bandpass::of_instrument(&stored.instrument);
     let isotropic = gonio_plan::Plan::from_toml(&stored.plan, None)
         .is_ok_and(|p| matches!(p.points, gonio_plan::plan::Points::Isotropic { .. }));
     let geo = &stored.geometry;
@@ -921,691 +338,92 @@ pub fn reduce(store: &RunStore, opts: &Options) -> Result<Reduction, ReduceError
     .solid_angle_sr();
     let steps = store.steps()?;
     let readings = store.readings()?;
-    // The last reading of a step is the one that counts (a step re-measured after a
-    // fault keeps only its final reading).
-    let mut by_step: BTreeMap<i64, &ReadingRecord> = BTreeMap::new();
-    for r in &readings {
-        by_step.insert(r.step_id, r);
-    }
-    let time = timeline(&by_step);
-    let kind_of: BTreeMap<i64, StepKind> = steps.iter().map(|s| (s.id, s.step.kind)).collect();
-    let noise = {
-        let all: Vec<(&ReadingRecord, bool)> = by_step
-            .values()
-            .filter(|r| r.flags & opts.reject_flags == 0)
-            .map(|r| (*r, kind_of.get(&r.step_id) == Some(&StepKind::Dark)))
-            .collect();
-        let mut noise = Noise::fit(&all, opts.snapshot_gap_s, detector);
-        if detector == Detector::Dc && !opts.dc_pool_noise {
-            noise.lines.clear();
-        }
-        noise
-    };
-    // Readings kept although they reached the plan's time cap before their target.
-    let capped = by_step
-        .values()
-        .filter(|r| r.flags & opts.reject_flags == 0 && r.flags & flags::CAPPED != 0)
-        .count();
-    let channel_names: Vec<Option<String>> = {
-        let mut v: Vec<Option<String>> = Vec::new();
-        for s in &steps {
-            if !v.contains(&s.step.channel) {
-                v.push(s.step.channel.clone());
-            }
-        }
-        v
-    };
-    let channels = if channel_names.iter().all(Option::is_none) {
-        Channels::Single
-    } else {
-        let names: Vec<String> = channel_names.iter().flatten().cloned().collect();
-        Channels::from_names(&names).map_err(|e| missing(format!("channels: {e}")))?
-    };
-    let standard = match &stored.standard_model {
-        Some(t) => Some(
-            gonio_brdf::Model::from_toml(t, None)
-                .map_err(|e| missing(format!("stored reference standard model: {e}")))?,
-        ),
-        None => None,
-    };
-    let of = |kind: StepKind, ch: &Option<String>| -> Vec<(&StoredStep, &ReadingRecord)> {
-        let pick = |want: &Option<String>| {
-            steps
-                .iter()
-                .filter(|s| s.step.kind == kind && &s.step.channel == want)
-                .filter_map(|s| by_step.get(&s.id).map(|r| (s, *r)))
-                .collect::<Vec<_>>()
-        };
-        let v = pick(ch);
-        if v.is_empty() && ch.is_some() {
-            pick(&None)
-        } else {
-            v
-        }
-    };
-
-    let mut rejected: BTreeMap<String, usize> = BTreeMap::new();
-    let mut max_pos = 0.0f64;
-    let mut reports = Vec::new();
-    // Per pair and repeat, the value per channel.
-    let mut values: BTreeMap<(usize, u32), PerPair> = BTreeMap::new();
-    let nc = channels.len();
-    for (ci, ch) in channel_names.iter().enumerate() {
-        let name = channels.name(ci);
-        let darks = of(StepKind::Dark, ch);
-        let dark = if darks.is_empty() {
-            [0.0, 0.0]
-        } else {
-            let n = darks.len() as f64;
-            [
-                darks.iter().map(|(_, r)| r.x_mean).sum::<f64>() / n,
-                darks.iter().map(|(_, r)| r.y_mean).sum::<f64>() / n,
-            ]
-        };
-        // The σ of each component of the dark vector's mean.
-        let dark_sigma = if darks.is_empty() {
-            0.0
-        } else {
-            darks
-                .iter()
-                .map(|(_, r)| noise.sigma_mean(r, true).powi(2))
-                .sum::<f64>()
-                .sqrt()
-                / darks.len() as f64
-        };
-        // A DC dark is a scalar, the mean of the dark currents (the y components
-        // are 0), and its range-accuracy error per range: the mean of the dark
-        // readings' errors, each on its own range.
-        let mut dark_acc = [0.0f64; RANGES];
-        if detector == Detector::Dc {
-            for (_, r) in &darks {
-                let (k, u) = range_sigma(r).ok_or_else(|| {
-                    missing(format!(
-                        "step {}: range index {} is not a 6485 range",
-                        r.step_id, r.sensitivity
-                    ))
-                })?;
-                dark_acc[k] += u / darks.len() as f64;
-            }
-        }
-        // The signal, its noise σ, its unit vector (the direction a dark error
-        // moves it in) and its relative resolution. A DC signal is the mean
-        // current less the dark, signed: a dark error moves it along +1.
-        let signal = |r: &ReadingRecord| match detector {
-            Detector::LockIn => {
-                let (x, y) = (r.x_mean - dark[0], r.y_mean - dark[1]);
-                let s = x.hypot(y);
-                let u = if s > 0.0 { [x / s, y / s] } else { [1.0, 0.0] };
-                (s, noise.sigma_mean(r, false), u, resolution_rel(s))
-            }
-            Detector::Dc => {
-                let v = r.x_mean - dark[0];
-                (
-                    v,
-                    noise.sigma_mean(r, false),
-                    [1.0, 0.0],
-                    dc_resolution_rel(r.x_mean, v),
-                )
-            }
-        };
-        // A reading's range-accuracy error relative to its signal, per range.
-        let range_rel = |r: &ReadingRecord, v: f64| -> Result<[f64; RANGES], ReduceError> {
-            let mut out = [0.0; RANGES];
-            if detector == Detector::Dc && v > 0.0 {
-                let (k, u) = range_sigma(r).ok_or_else(|| {
-                    missing(format!(
-                        "step {}: range index {} is not a 6485 range",
-                        r.step_id, r.sensitivity
-                    ))
-                })?;
-                out[k] = u / v;
-            }
-            Ok(out)
-        };
-        let incident = of(StepKind::Incident, ch);
-        let standard_readings = of(StepKind::Standard, ch);
-        let use_standard = match opts.calibration {
-            Calibration::Incident => false,
-            Calibration::Standard => true,
-            Calibration::Auto => incident.is_empty(),
-        };
-        let mut cal: Vec<Measured> = Vec::new();
-        // The calibration signals' dark sensitivity: Σ u/S over the readings.
-        let mut cal_dark = [0.0f64; 2];
-        let mut cal_res = 0.0f64;
-        // The calibration signals' range-accuracy sensitivity: Σ e/S per range.
-        let mut cal_acc = [0.0f64; RANGES];
-        if use_standard {
-            let model = standard.as_ref().ok_or_else(|| {
-                missing(format!("channel {name}: no reference standard in the run"))
-            })?;
-            let mc = gonio_brdf::Brdf::channels(model);
-            let mut out = vec![0.0; mc.len()];
-            for (s, r) in &standard_readings {
-                let Some(p) = s.step.pair else { continue };
-                let d = p.to_dirs();
-                gonio_brdf::Brdf::eval(model, d.wi, d.wo, &mut out);
-                // An unnamed channel takes a spectrally flat standard's one value.
-                let idx = match mc.index_of(&name).or((mc.len() == 1).then_some(0)) {
-                    Some(i) => i,
-                    None if ch.is_none() && out.iter().all(|v| *v == out[0]) => 0,
-                    None => {
-                        return Err(missing(format!(
-                            "channel {name}: the standard's model has no such channel"
-                        )));
-                    }
-                };
-                let k = out[idx] * omega * d.wo.z;
-                if k > 0.0 {
-                    let (v, sv, u, res) = signal(r);
-                    cal.push(Measured {
-                        t: time[&r.step_id],
-                        v: v / k,
-                        s: sv / k,
-                    });
-                    if v > 0.0 {
-                        cal_dark[0] += u[0] / v;
-                        cal_dark[1] += u[1] / v;
-                    }
-                    cal_res += res.powi(2);
-                    for (a, e) in cal_acc.iter_mut().zip(range_rel(r, v)?) {
-                        *a += e;
-                    }
-                }
-            }
-        } else {
-            for (_, r) in &incident {
-                let (v, sv, u, res) = signal(r);
-                cal.push(Measured {
-                    t: time[&r.step_id],
-                    v: v / stored.transmittance,
-                    s: sv / stored.transmittance,
-                });
-                if v > 0.0 {
-                    cal_dark[0] += u[0] / v;
-                    cal_dark[1] += u[1] / v;
-                }
-                cal_res += res.powi(2);
-                for (a, e) in cal_acc.iter_mut().zip(range_rel(r, v)?) {
-                    *a += e;
-                }
-            }
-        }
-        if cal.is_empty() {
-            return Err(missing(format!(
-                "channel {name}: no {} reading to calibrate with",
-                if use_standard {
-                    "reference-standard"
-                } else {
-                    "incident-beam"
-                }
-            )));
-        }
-        let ncal = cal.len() as f64;
-        let cal_dark = [cal_dark[0] / ncal, cal_dark[1] / ncal];
-        let cal_res = cal_res.sqrt() / ncal;
-        // The calibration's relative range-accuracy error per range: its readings'
-        // own (a plain mean over them, as for the dark) less the dark's, which moves
-        // every calibration signal by −e_dark.
-        let cal_acc: [f64; RANGES] =
-            std::array::from_fn(|k| cal_acc[k] / ncal - dark_acc[k] * cal_dark[0]);
-        cal.sort_by(|a, b| a.t.total_cmp(&b.t));
-        let mut refs: Vec<Measured> = if opts.drift == Drift::Auto {
-            of(StepKind::Reference, ch)
-                .iter()
-                .map(|(_, r)| {
-                    let (v, s, _, _) = signal(r);
-                    Measured {
-                        t: time[&r.step_id],
-                        v,
-                        s,
-                    }
-                })
-                .filter(|m| m.v > 0.0)
-                .collect()
-        } else {
-            Vec::new()
-        };
-        refs.sort_by(|a, b| a.t.total_cmp(&b.t));
-        // Normalise g to its mean so that C is in volts at the run's mean level.
-        if !refs.is_empty() {
-            let mean = refs.iter().map(|m| m.v).sum::<f64>() / refs.len() as f64;
-            for m in &mut refs {
-                m.v /= mean;
-                m.s /= mean;
-            }
-        }
-        let drift_max = refs.iter().map(|m| (m.v - 1.0).abs()).fold(0.0, f64::max);
-        let n_refs = refs.len();
-        // Φ(t), C, the calibration's relative uncertainty, and how drift is followed.
-        let (flux, c_mean, c_rel, drift_source) = if refs.is_empty() {
-            let (c, cs) = weighted_mean(&cal);
-            let spread =
-                opts.drift != Drift::None && cal.iter().any(|m| (m.t - cal[0].t).abs() > 1.0);
-            if spread {
-                (
-                    Flux::Interpolated(cal.clone()),
-                    c,
-                    0.0,
-                    "none: the calibrations, interpolated in time, follow the source".to_string(),
-                )
-            } else {
-                (
-                    Flux::Constant(c),
-                    c,
-                    if c > 0.0 { cs / c } else { 0.0 },
-                    "none: the source's level is held constant".to_string(),
-                )
-            }
-        } else {
-            let level = Level::from_refs(refs);
-            let per: Vec<Measured> = cal
-                .iter()
-                .map(|m| {
-                    let (g, _) = level.at(m.t);
-                    Measured {
-                        t: m.t,
-                        v: m.v / g,
-                        s: m.s / g,
-                    }
-                })
-                .collect();
-            let (c, cs) = weighted_mean(&per);
-            let times: Vec<f64> = cal.iter().map(|m| m.t).collect();
-            let rel = if c > 0.0 { cs / c } else { 0.0 };
-            let rel = rel.hypot(level.calibration_rel(&times));
-            let t_c = times.iter().sum::<f64>() / times.len() as f64;
-            let source = level.describe();
-            (Flux::Drift { c, level, t_c }, c, rel, source)
-        };
-        if c_mean.is_nan() || c_mean <= 0.0 {
-            return Err(missing(format!(
-                "channel {name}: the calibration reading is not above the dark"
-            )));
-        }
-        let standard_rel = if use_standard {
-            opts.standard_rel_sigma.max(0.0)
-        } else {
-            0.0
-        };
-        let mut count = 0;
-        let mut rels: [Vec<f64>; N_TERMS] = Default::default();
-        for (s, r) in of(StepKind::Sample, ch) {
-            let (Some(pair), Some(index)) = (s.step.pair, s.step.plan_index) else {
-                continue;
-            };
-            max_pos = max_pos.max(position_error(&pair, &r.read_pair));
-            if r.flags & opts.reject_flags != 0 {
-                *rejected
-                    .entry(flag_reason(r.flags & opts.reject_flags))
-                    .or_default() += 1;
-                continue;
-            }
-            let cos_o = pair.to_dirs().wo.z;
-            if cos_o <= 0.0 {
-                *rejected.entry("grazing".into()).or_default() += 1;
-                continue;
-            }
-            let (v, sv, u, res) = signal(r);
-            let (phi, drift_rel, interp_rel) = flux.at(time[&r.step_id]);
-            let scale = phi * omega * cos_o;
-            let f = v / scale;
-            let terms = if v > 0.0 {
-                // A dark error d moves S by −u·d and the calibration by −u_c·d: f by
-                // f (u_c/S_c − u/S)·d.
-                let dk = [cal_dark[0] - u[0] / v, cal_dark[1] - u[1] / v];
-                // Each range's error z_k moves f (Eq. A.15 is S/Φ) by the sample's
-                // relative error on it less the calibration's, the dark's moving
-                // both: on one range, gain errors cancel in the ratio.
-                let own = range_rel(r, v)?;
-                let acc = (0..RANGES)
-                    .map(|k| own[k] - dark_acc[k] / v - cal_acc[k])
-                    .map(|c| c * c)
-                    .sum::<f64>()
-                    .sqrt();
-                [
-                    sv / v,
-                    res,
-                    dark_sigma * dk[0].hypot(dk[1]),
-                    c_rel.hypot(interp_rel).hypot(cal_res),
-                    drift_rel,
-                    standard_rel,
-                    acc,
-                    0.0,
-                ]
-            } else {
-                [
-                    sv / scale / f.abs().max(f64::MIN_POSITIVE),
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                ]
-            };
-            for (k, t) in terms.iter().enumerate() {
-                rels[k].push(*t);
-            }
-            let abs: [f64; N_TERMS] = if v > 0.0 {
-                terms.map(|t| t * f)
-            } else {
-                [sv / scale, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-            };
-            let entry = values
-                .entry((index, s.step.repeat))
-                .or_insert_with(|| (pair, vec![None; nc], 0));
-            entry.1[ci] = Some((f, abs));
-            // How a reading was taken is no concern of the sample's.
-            entry.2 |= r.flags & !flags::HOW_READ;
-            count += 1;
-        }
-        let standard_source = if use_standard {
-            "the reference standard's BRDF (its stated relative uncertainty)".to_string()
-        } else {
-            "the reference standard: not used (incident-beam calibration)".to_string()
-        };
-        let calibration_source = format!(
-            "the {} calibration reading(s)' noise (scaled by their Birge ratio when they disagree), and the source's level at their time",
-            cal.len()
-        );
-        let capped_note = if capped > 0 {
-            format!(
-                "; {capped} reading(s) reached the plan's reading.max_s before their target precision (flagged capped) and carry the precision they reached"
-            )
-        } else {
-            String::new()
-        };
-        let sources: Vec<String> = match detector {
-            Detector::Dc => {
-                let cal_readings = if use_standard {
-                    &standard_readings
-                } else {
-                    &incident
-                };
-                let labels = |rs: &[(&StoredStep, &ReadingRecord)]| {
-                    ranges_label(rs.iter().map(|(_, r)| r.sensitivity))
-                };
-                vec![
-                    format!(
-                        "the picoammeter's noise, {} (a mean of n independent samples: s²/n, ρ = 0)",
-                        if noise.lines.is_empty() {
-                            "each reading's own sample scatter".to_string()
-                        } else {
-                            format!(
-                                "pooled per range over the run's readings as a + b·I per sample ({}; other settings: their own s)",
-                                noise
-                                    .lines
-                                    .iter()
-                                    .map(|((_, range, _), l)| format!(
-                                        "{}: a = {:.3e} A², b = {:.3e} A",
-                                        ranges_label(std::iter::once(*range)),
-                                        l.a,
-                                        l.b
-                                    ))
-                                    .collect::<Vec<_>>()
-                                    .join("; ")
-                            )
-                        }
-                    ) + &capped_note,
-                    "the 6485's seven-digit replies (step/√12)".into(),
-                    format!(
-                        "the dark current's noise ({} reading(s), mean {:.3e} A subtracted as a scalar, σ {:.3e} A from s/√n)",
-                        darks.len(),
-                        dark[0],
-                        dark_sigma
-                    ),
-                    calibration_source,
-                    format!("the source's drift: {drift_source}"),
-                    standard_source,
-                    format!(
-                        "the 6485's 1-year accuracy per range (manual App. A, ±(% rdg + offset) A) as a rectangular bound, σ = bound/√3; one error per range: calibration on {}, dark on {}, samples on {}",
-                        labels(cal_readings),
-                        labels(&darks),
-                        labels(&of(StepKind::Sample, ch))
-                    ),
-                ]
-            }
-            Detector::LockIn => vec![
-                format!(
-                    "the lock-in's noise, {} (variance of a mean of correlated snapshots, ρ = e^−(1 + {:.4} s/T))",
-                    match noise.lines.values().next() {
-                        None => "each reading's own snapshot scatter".to_string(),
-                        Some(l) if l.spans_time_constants => format!(
-                            "pooled over the run's readings and their time constants as a + b·R per snapshot at T = {} s, a = {:.3e} V², b = {:.3e} V, scaled to each reading's T by the filter's ENBW (∝ 1/T)",
-                            gonio_core::limits::num(l.t_ref),
-                            l.a,
-                            l.b
-                        ),
-                        Some(l) => format!(
-                            "pooled over the run's readings as a + b·R per snapshot, a = {:.3e} V², b = {:.3e} V",
-                            l.a, l.b
-                        ),
-                    },
-                    opts.snapshot_gap_s
-                ) + &capped_note,
-                "the lock-in's six-digit replies (step/√12)".into(),
-                format!(
-                    "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
-                    darks.len(),
-                    dark_sigma
-                ),
-                calibration_source,
-                format!("the source's drift: {drift_source}"),
-                standard_source,
-            ],
-        };
-        let interpolated = matches!(flux, Flux::Interpolated(_));
-        let c_rel = if interpolated {
-            // The interpolated calibrations' own uncertainty, as the samples carry it.
-            median_max(rels[3].clone()).0
-        } else {
-            c_rel
-        };
-        let budget = sources
-            .into_iter()
-            .enumerate()
-            .map(|(k, source)| {
-                let (rel_median, rel_max) = median_max(std::mem::take(&mut rels[k]));
-                BudgetTerm {
-                    term: DC_TERMS[k],
-                    source,
-                    correlation: DC_CORRELATIONS[k],
-                    rel_median,
-                    rel_max,
-                }
-            })
-            .collect();
-        reports.push(ChannelReport {
-            channel: name,
-            calibration: if use_standard { "standard" } else { "incident" },
-            unit: match detector {
-                Detector::LockIn => "V",
-                Detector::Dc => "A",
-            },
-            dark_v: dark,
-            incident_v: c_mean,
-            incident_rel_sigma: c_rel,
-            calibration_readings: cal.len(),
-            drift_readings: n_refs,
-            drift_max,
-            samples: count,
-            budget,
-        });
-    }
-    let unmeasured = steps
-        .iter()
-        .filter(|s| s.step.kind == StepKind::Sample && !by_step.contains_key(&s.id))
-        .count();
-    let mut samples = Vec::new();
-    let mut budget = Vec::new();
-    let mut incomplete = 0;
-    for (pair, v, fl) in values.into_values() {
-        if v.iter().any(Option::is_none) {
-            incomplete += 1;
-            continue;
-        }
-        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
-        if let (Some(b), Channels::Wavelengths(w)) = (&bandpass, &channels) {
-            for (t, x) in terms.iter_mut().zip(b.terms(w, &value)) {
-                t[N_TERMS - 1] = x;
-            }
-        }
-        let sigma = terms
-            .iter()
-            .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
-            .collect();
-        samples.push(Sample {
-            pair,
-            value,
-            sigma: Some(sigma),
-            flags: fl,
-        });
-        budget.push(terms);
-    }
-    if incomplete > 0 {
-        rejected.insert("missing-channel".into(), incomplete);
-    }
-    if let (Some(b), Channels::Wavelengths(w)) = (&bandpass, &channels)
-        && w.len() >= 2
-    {
-        for (c, report) in reports.iter_mut().enumerate() {
-            let rels = samples
-                .iter()
-                .zip(&budget)
-                .filter(|(s, _)| s.value[c] > 0.0)
-                .map(|(s, t)| t[c][N_TERMS - 1] / s.value[c])
-                .collect();
-            let (rel_median, rel_max) = median_max(rels);
-            report.budget.push(BudgetTerm {
-                term: spectral::TERM,
-                source: b.source(),
-                correlation: spectral::CORRELATION,
-                rel_median,
-                rel_max,
-            });
-        }
-    }
-    if samples.is_empty() {
-        return Err(missing("no sample readings to reduce".into()));
-    }
-    Ok(Reduction {
-        samples: Samples {
-            channels,
-            samples,
-            isotropic,
-        },
-        report: Report {
-            channels: reports,
-            solid_angle_sr: omega,
-            rejected,
-            max_position_error_deg: max_pos,
-            unmeasured,
-            capped,
-        },
-        budget,
+    let groups = Grouped::new(&steps, &readings);
+    let noise = Noise::of_run(&groups.kept(opts.reject_flags), opts, detector);
+    let capped = groups.capped(opts.reject_flags);
+    let names = groups.channel_names();
+    let channels = group::channels(&names).map_err(&missing)?;
+    let standard =
+        calibration::standard_model(stored.standard_model.as_deref()).map_err(&missing)?;
+    let run = Run {
+        opts,
         detector,
-    })
-}
-
-/// The 6485 ranges of readings, as a list of their labels (`2 µA`, `200 nA`).
-fn ranges_label(indices: impl Iterator<Item = u8>) -> String {
-    let set: std::collections::BTreeSet<u8> = indices.collect();
-    if set.is_empty() {
-        return "none".into();
-    }
-    set.into_iter()
-        .map(|k| match gonio_proto::k6485::Range::new(k) {
-            Some(r) => r.to_string(),
-            None => format!("range {k}"),
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-fn position_error(a: &PairDeg, b: &PairDeg) -> f64 {
-    let d = |x: gonio_core::SphericalDeg, y: gonio_core::SphericalDeg| {
-        gonio_core::Dir::from(x)
-            .angle_to(gonio_core::Dir::from(y))
-            .to_degrees()
+        bandpass: spectral::Bandpass::of_instrument(&stored.instrument),
+        isotropic,
+        omega,
+        transmittance: stored.transmittance,
+        groups,
+        noise,
+        standard,
+        capped,
     };
-    d(a.incident, b.incident).max(d(a.outgoing, b.outgoing))
-}
-
-fn flag_reason(f: u32) -> String {
-    if f & flags::UNLOCK != 0 {
-        "unlock".into()
-    } else if f & (flags::INPUT_OVERLOAD | flags::FILTER_OVERLOAD | flags::OUTPUT_OVERLOAD) != 0 {
-        "overload".into()
-    } else if f & flags::CAPPED != 0 {
-        // Only when the caller asks for capped readings to be left out.
-        "capped".into()
-    } else {
-        "overload".into()
+    let mut values = Values::new(channels.len());
+    let mut reports = Vec::new();
+    for (ci, ch) in names.iter().enumerate() {
+        let report = channel(&run, ci, ch, channels.name(ci), &mut values);
+        reports.push(report.map_err(&missing)?);
     }
+    assemble::reduction(&run, channels, values, reports).map_err(missing)
 }
 
+/// Reduces the channel `ch` (index `ci`, named `name`): its dark, its calibration,
+/// the incident flux through the run, its samples' values (into `values`), and
+/// its report. `Err` says what the channel lacks.
+fn channel(
+    run: &Run,
+    ci: usize,
+    ch: &Option<String>,
+    name: String,
+    values: &mut Values,
+) -> Result<ChannelReport, String> {
+    let dark = Dark::of(run.groups.of(StepKind::Dark, ch), &run.noise, run.detector)?;
+    let cal = Calibrations::of(run, ch, &name, &dark)?;
+    let flux = IncidentFlux::of(run, ch, &name, &dark, &cal.measured)?;
+    let samples = run.groups.of(StepKind::Sample, ch);
+    let reduced = values.add(
+        run,
+        &samples,
+        &values::Channel {
+            ci,
+            dark: &dark,
+            cal: &cal,
+            flux: &flux,
+            standard_rel: cal.standard_rel(run.opts),
+        },
+    )?;
+    Ok(budget::report(
+        run,
+        budget::Channel {
+            name,
+            use_standard: cal.use_standard,
+            darks: &dark.readings,
+            dark: dark.xy,
+            dark_sigma: dark.sigma,
+            calibrations: &cal.readings,
+            n_cal: cal.measured.len(),
+            samples: &samples,
+            drift_source: &flux.source,
+            interpolated: flux.interpolated(),
+            c_mean: flux.c,
+            c_rel: flux.c_rel,
+            n_refs: flux.n_refs,
+            drift_max: flux.drift_max,
+            count: reduced.count,
+            rels: reduced.rels,
+        },
+    ))
+}
+
+/// What the modules' unit tests share.
 #[cfg(test)]
-mod tests {
-    use super::*;
+mod test_support {
+    use gonio_core::dirfile::PairDeg;
+    use gonio_run::ReadingRecord;
 
-    #[test]
-    fn variance_factors_match_the_closed_forms() {
-        // Independent snapshots: Var(mean) = σ²/n, E[s²] = σ².
-        assert_eq!(variance_factors(10, 0.0), (1.0, 1.0));
-        // Two snapshots: Var((x1 + x2)/2) = σ²(1 + ρ)/2, E[(x1 − x2)²/2] = σ²(1 − ρ).
-        let (a, b) = variance_factors(2, 0.3);
-        assert!(
-            (a - 1.3).abs() < 1e-15 && (b - 0.7).abs() < 1e-15,
-            "{a} {b}"
-        );
-        // Ten snapshots one time constant apart: A/B = 2.22, the old factor 2.2.
-        let (a, b) = variance_factors(10, (-1.0f64).exp());
-        assert!((a / b - 2.222).abs() < 1e-3, "{}", a / b);
-    }
-
-    #[test]
-    fn a_noise_line_is_recovered_from_exact_variances() {
-        let p: Vec<(f64, f64, f64)> = (0..12)
-            .map(|k| {
-                let x = 1e-4 * f64::from(k);
-                (x, 3e-16 + 3e-12 * x, 1.0)
-            })
-            .collect();
-        let (a, b) = fit_line(&p, true).expect("fits");
-        let (a2, b2) = fit_line(&p, false).expect("fits");
-        assert!((a2 / 3e-16 - 1.0).abs() < 1e-9 && (b2 / 3e-12 - 1.0).abs() < 1e-9);
-        assert!((a / 3e-16 - 1.0).abs() < 1e-9 && (b / 3e-12 - 1.0).abs() < 1e-9);
-    }
-
-    #[test]
-    fn disagreeing_readings_scale_the_mean_s_uncertainty_by_the_birge_ratio() {
-        let m = |v: f64| Measured { t: 0.0, v, s: 1.0 };
-        // Within their noise: 1/√2.
-        let (mean, s) = weighted_mean(&[m(0.0), m(1.0)]);
-        assert_eq!(mean, 0.5);
-        assert!((s - 0.5f64.sqrt()).abs() < 1e-15);
-        // 10σ apart: χ² = 50 on one degree of freedom, σ × √50.
-        let (_, s) = weighted_mean(&[m(0.0), m(10.0)]);
-        assert!((s - 0.5f64.sqrt() * 50f64.sqrt()).abs() < 1e-12, "{s}");
-    }
-
-    #[test]
-    fn the_picoammeter_s_rounding_is_a_seventh_digit_of_the_raw_reading() {
-        // +1.234567E-08A: a step of 1e-14 A, over the signal 1e-8 A.
-        let r = dc_resolution_rel(1.234567e-8, 1e-8);
-        assert!((r - 1e-14 / 12f64.sqrt() / 1e-8).abs() < 1e-22, "{r}");
-        // A negative dark-sized reading rounds on its magnitude.
-        let r = dc_resolution_rel(-2.5e-12, 1e-9);
-        assert!((r - 1e-18 / 12f64.sqrt() / 1e-9).abs() < 1e-24, "{r}");
-        assert_eq!(dc_resolution_rel(0.0, 1e-9), 0.0);
-        assert_eq!(dc_resolution_rel(1e-9, -1e-12), 0.0);
-    }
-
-    #[test]
-    fn the_range_accuracy_is_the_bound_over_root_three() {
-        let r = ReadingRecord {
+    /// A reading of 100 nA on the 6485's 200 nA range (index 2), five samples of
+    /// scatter 1 pA, at instrument time 0: the fields a test does not set.
+    pub(crate) fn reading() -> ReadingRecord {
+        ReadingRecord {
             step_id: 1,
             commanded: None,
             position: [0.0; 4],
@@ -1629,23 +447,6 @@ mod tests {
             retries: 0,
             physical_s: 0.0,
             wall_s: 0.0,
-        };
-        // 200 nA: 0.2 % + 10 pA of 100 nA is 210 pA, /√3.
-        let (k, u) = range_sigma(&r).expect("a range");
-        assert_eq!(k, 2);
-        assert!((u - 210e-12 / 3f64.sqrt()).abs() < 1e-24, "{u}");
-        assert!(
-            range_sigma(&ReadingRecord {
-                sensitivity: 8,
-                ..r
-            })
-            .is_none()
-        );
-    }
-
-    #[test]
-    fn the_reply_rounding_is_a_sixth_digit_over_root_twelve() {
-        assert!((resolution_rel(1.5e-3) - 1e-8 / 12f64.sqrt() / 1.5e-3).abs() < 1e-18);
-        assert_eq!(resolution_rel(0.0), 0.0);
+        }
     }
 }

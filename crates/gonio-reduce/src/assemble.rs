@@ -1,0 +1,154 @@
+//! The last step: the channels' values gathered into the run's samples, each
+//! with its σ (the quadrature sum of its budget's terms) and, in a spectral run,
+//! the wavelength term ([`crate::spectral`]); a pair missing a channel is left
+//! out and counted. With the channels' reports, they make the [`Reduction`].
+
+use gonio_core::Channels;
+use gonio_process::reduction::{BudgetTerm, ChannelReport, Report};
+use gonio_process::{Sample, Samples};
+
+use crate::budget::median_max;
+use crate::spectral::{self, Bandpass};
+use crate::values::{PerPair, Values};
+use crate::{N_TERMS, Reduction, Run};
+
+/// The reduction of the run: its samples, and its report of the channels'
+/// `reports`. `Err` when no sample was reduced.
+pub(crate) fn reduction(
+    run: &Run,
+    channels: Channels,
+    values: Values,
+    mut reports: Vec<ChannelReport>,
+) -> Result<Reduction, String> {
+    let unmeasured = run.groups.unmeasured();
+    let Values {
+        pairs,
+        mut rejected,
+        max_pos,
+        ..
+    } = values;
+    let bandpass = run.bandpass.as_ref();
+    let (samples, budget, incomplete) = samples(pairs.into_values(), bandpass, &channels);
+    if incomplete > 0 {
+        rejected.insert("missing-channel".into(), incomplete);
+    }
+    spectral_terms(&mut reports, &samples, &budget, bandpass, &channels);
+    if samples.is_empty() {
+        return Err("no sample readings to reduce".into());
+    }
+    Ok(Reduction {
+        samples: Samples {
+            channels,
+            samples,
+            isotropic: run.isotropic,
+        },
+        report: Report {
+            channels: reports,
+            solid_angle_sr: run.omega,
+            rejected,
+            max_position_error_deg: max_pos,
+            unmeasured,
+            capped: run.capped,
+        },
+        budget,
+        detector: run.detector,
+    })
+}
+
+/// The samples of the pairs with a value in every channel, each with its budget
+/// per channel (the wavelength term filled in by `bandpass` in a spectral run),
+/// and the number of pairs left out for a missing channel.
+fn samples(
+    pairs: impl Iterator<Item = PerPair>,
+    bandpass: Option<&Bandpass>,
+    channels: &Channels,
+) -> (Vec<Sample>, Vec<Vec<[f64; N_TERMS]>>, usize) {
+    let mut samples = Vec::new();
+    let mut budget = Vec::new();
+    let mut incomplete = 0;
+    for (pair, v, fl) in pairs {
+        if v.iter().any(Option::is_none) {
+            incomplete += 1;
+            continue;
+        }
+        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
+        if let (Some(b), Channels::Wavelengths(w)) = (bandpass, channels) {
+            for (t, x) in terms.iter_mut().zip(b.terms(w, &value)) {
+                t[N_TERMS - 1] = x;
+            }
+        }
+        let sigma = terms
+            .iter()
+            .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .collect();
+        samples.push(Sample {
+            pair,
+            value,
+            sigma: Some(sigma),
+            flags: fl,
+        });
+        budget.push(terms);
+    }
+    (samples, budget, incomplete)
+}
+
+/// Adds the wavelength term to each channel's report of a spectral run of two
+/// wavelengths or more: its median and largest value relative to the samples' f.
+fn spectral_terms(
+    reports: &mut [ChannelReport],
+    samples: &[Sample],
+    budget: &[Vec<[f64; N_TERMS]>],
+    bandpass: Option<&Bandpass>,
+    channels: &Channels,
+) {
+    let (Some(b), Channels::Wavelengths(w)) = (bandpass, channels) else {
+        return;
+    };
+    if w.len() < 2 {
+        return;
+    }
+    for (c, report) in reports.iter_mut().enumerate() {
+        let rels = samples
+            .iter()
+            .zip(budget)
+            .filter(|(s, _)| s.value[c] > 0.0)
+            .map(|(s, t)| t[c][N_TERMS - 1] / s.value[c])
+            .collect();
+        let (rel_median, rel_max) = median_max(rels);
+        report.budget.push(BudgetTerm {
+            term: spectral::TERM,
+            source: b.source(),
+            correlation: spectral::CORRELATION,
+            rel_median,
+            rel_max,
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gonio_core::SphericalDeg;
+    use gonio_core::dirfile::PairDeg;
+
+    /// A complete pair's σ is the quadrature sum of its terms (3, 4: 5); a pair
+    /// missing a channel is counted, not reduced; the flags carry over.
+    #[test]
+    fn complete_pairs_become_samples_with_their_quadrature_sigma() {
+        let pair = PairDeg {
+            incident: SphericalDeg::new(0.0, 0.0),
+            outgoing: SphericalDeg::new(30.0, 0.0),
+        };
+        let mut terms = [0.0; N_TERMS];
+        terms[0] = 3.0;
+        terms[2] = 4.0;
+        let pairs: Vec<PerPair> = vec![(pair, vec![Some((0.5, terms))], 7), (pair, vec![None], 0)];
+        let (samples, budget, incomplete) = samples(pairs.into_iter(), None, &Channels::Single);
+        assert_eq!(incomplete, 1);
+        assert_eq!(samples.len(), 1);
+        assert_eq!(samples[0].value, [0.5]);
+        assert_eq!(samples[0].sigma, Some(vec![5.0]));
+        assert_eq!(samples[0].flags, 7);
+        assert_eq!(budget, [vec![terms]]);
+    }
+}
