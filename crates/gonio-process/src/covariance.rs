@@ -244,7 +244,11 @@ mod tests {
         // χ² from the whitened residuals: |L⁻¹r|² = rᵀC⁻¹r.
         let z = c.whiten(0, &r).expect("positive definite");
         let dense: f64 = z.iter().map(|x| x * x).sum::<f64>() / 7.0;
-        assert!((a.chi2_full - dense).abs() < 1e-12, "{} vs {dense}", a.chi2_full);
+        assert!(
+            (a.chi2_full - dense).abs() < 1e-12,
+            "{} vs {dense}",
+            a.chi2_full
+        );
         // The plain χ² uses each total σ.
         let plain: f64 = r
             .iter()

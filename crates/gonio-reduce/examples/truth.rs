@@ -149,6 +149,24 @@ fn print_summary(name: &str, red: &Reduction, model: &gonio_brdf::Model, r: &[(f
         let _ = z;
         chi_s += zz * zz;
     }
+    if let Some(t) = gonio_reduce::agreement::truth(red, model) {
+        for a in gonio_reduce::agreement::agreements(red, &t) {
+            let top: Vec<String> = a
+                .shifts
+                .iter()
+                .take(3)
+                .map(|(s, x)| format!("{} {x:+.2}", red.covariance.sources[*s].label))
+                .collect();
+            println!(
+                "   full covariance: chi2/n {:.3} (plain {:.3}), mean z {:+.3} (shared fraction {:.3}); shifts: {}",
+                a.chi2_full,
+                a.chi2_plain,
+                a.mean_z,
+                a.shared_fraction,
+                top.join(", ")
+            );
+        }
+    }
     println!(
         "   chi2/n with the common scale removed {:.3}; largest position error {:.2e}°",
         chi_s / n,

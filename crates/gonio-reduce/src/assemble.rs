@@ -8,6 +8,7 @@ use gonio_process::reduction::{BudgetTerm, ChannelReport, Report};
 use gonio_process::{Sample, Samples};
 
 use crate::budget::median_max;
+use crate::correlations::{self, Parts, Shared};
 use crate::spectral::{self, Bandpass};
 use crate::values::{PerPair, Values};
 use crate::{N_TERMS, Reduction, Run};
@@ -28,7 +29,7 @@ pub(crate) fn reduction(
         ..
     } = values;
     let bandpass = run.bandpass.as_ref();
-    let (samples, budget, incomplete) = samples(pairs.into_values(), bandpass, &channels);
+    let (samples, budget, parts, incomplete) = samples(pairs.into_values(), bandpass, &channels);
     if incomplete > 0 {
         rejected.insert("missing-channel".into(), incomplete);
     }
@@ -52,29 +53,57 @@ pub(crate) fn reduction(
         },
         budget,
         detector: run.detector,
+        covariance: correlations::covariance(&parts),
     })
 }
 
 /// The samples of the pairs with a value in every channel, each with its budget
-/// per channel (the wavelength term filled in by `bandpass` in a spectral run),
-/// and the number of pairs left out for a missing channel.
+/// and its parts ([`crate::correlations`]) per channel (the wavelength term filled
+/// in by `bandpass` in a spectral run), and the number of pairs left out for a
+/// missing channel.
+#[allow(clippy::type_complexity)]
 fn samples(
     pairs: impl Iterator<Item = PerPair>,
     bandpass: Option<&Bandpass>,
     channels: &Channels,
-) -> (Vec<Sample>, Vec<Vec<[f64; N_TERMS]>>, usize) {
+) -> (
+    Vec<Sample>,
+    Vec<Vec<[f64; N_TERMS]>>,
+    Vec<Vec<Parts>>,
+    usize,
+) {
     let mut samples = Vec::new();
     let mut budget = Vec::new();
+    let mut all_parts = Vec::new();
     let mut incomplete = 0;
     for (pair, v, fl) in pairs {
         if v.iter().any(Option::is_none) {
             incomplete += 1;
             continue;
         }
-        let (value, mut terms): (Vec<f64>, Vec<[f64; N_TERMS]>) = v.into_iter().flatten().unzip();
+        let mut value = Vec::new();
+        let mut terms: Vec<[f64; N_TERMS]> = Vec::new();
+        let mut parts: Vec<Parts> = Vec::new();
+        for (f, t, p) in v.into_iter().flatten() {
+            value.push(f);
+            terms.push(t);
+            parts.push(p);
+        }
         if let (Some(b), Channels::Wavelengths(w)) = (bandpass, channels) {
-            for (t, x) in terms.iter_mut().zip(b.terms(w, &value)) {
+            let slopes = b.slopes(w, &value);
+            for (((t, p), x), slope) in terms
+                .iter_mut()
+                .zip(&mut parts)
+                .zip(b.terms(w, &value))
+                .zip(slopes)
+            {
                 t[N_TERMS - 1] = x;
+                // One scale error moves every sample of a wavelength the way its
+                // spectrum slopes there.
+                let sign = if slope < 0.0 { -1.0 } else { 1.0 };
+                if x != 0.0 {
+                    p.shared.push((Shared::Wavelength, sign * x));
+                }
             }
         }
         let sigma = terms
@@ -88,8 +117,9 @@ fn samples(
             flags: fl,
         });
         budget.push(terms);
+        all_parts.push(parts);
     }
-    (samples, budget, incomplete)
+    (samples, budget, all_parts, incomplete)
 }
 
 /// Adds the wavelength term to each channel's report of a spectral run of two
@@ -142,8 +172,11 @@ mod tests {
         let mut terms = [0.0; N_TERMS];
         terms[0] = 3.0;
         terms[2] = 4.0;
-        let pairs: Vec<PerPair> = vec![(pair, vec![Some((0.5, terms))], 7), (pair, vec![None], 0)];
-        let (samples, budget, incomplete) = samples(pairs.into_iter(), None, &Channels::Single);
+        let pairs: Vec<PerPair> = vec![
+            (pair, vec![Some((0.5, terms, Parts::default()))], 7),
+            (pair, vec![None], 0),
+        ];
+        let (samples, budget, _, incomplete) = samples(pairs.into_iter(), None, &Channels::Single);
         assert_eq!(incomplete, 1);
         assert_eq!(samples.len(), 1);
         assert_eq!(samples[0].value, [0.5]);

@@ -15,6 +15,7 @@
 use gonio_plan::StepKind;
 
 use crate::calibration::{Measured, weighted_mean};
+use crate::correlations::Shared;
 use crate::dark::Dark;
 use crate::{Drift, Run};
 
@@ -52,6 +53,38 @@ pub(crate) fn interp(m: &[Measured], t: f64, extend: bool) -> (f64, f64) {
             }
             let k = m.partition_point(|x| x.t <= t).max(1);
             line(m[k - 1], m[k])
+        }
+    }
+}
+
+/// The weights [`interp`] gives the values at `t`: (index, weight) of the one or
+/// two values it combines (none for no values). Its σ is the quadrature sum of
+/// weight × σ over them.
+pub(crate) fn interp_weights(m: &[Measured], t: f64, extend: bool) -> Vec<(usize, f64)> {
+    let line = |a: usize, b: usize| {
+        let w = if m[b].t > m[a].t {
+            (t - m[a].t) / (m[b].t - m[a].t)
+        } else {
+            0.0
+        };
+        vec![(a, 1.0 - w), (b, w)]
+    };
+    match m.len() {
+        0 => Vec::new(),
+        1 => vec![(0, 1.0)],
+        n => {
+            if t <= m[0].t {
+                return if extend { line(0, 1) } else { vec![(0, 1.0)] };
+            }
+            if t >= m[n - 1].t {
+                return if extend {
+                    line(n - 2, n - 1)
+                } else {
+                    vec![(n - 1, 1.0)]
+                };
+            }
+            let k = m.partition_point(|x| x.t <= t).max(1);
+            line(k - 1, k)
         }
     }
 }
@@ -133,6 +166,28 @@ impl Level {
         }
     }
 
+    /// The `drift` term ([`Level::ratio_rel`]) as its shared parts: f's relative
+    /// coefficient on each independent error behind it, signed. A line's is its
+    /// slope's error, which moves samples before and after the calibrations' time
+    /// oppositely; interpolated references' are each reference's noise, shared by
+    /// the samples between it and its neighbours (f ∝ 1/g: a reference read high
+    /// lowers them). Their quadrature sum is `ratio_rel`.
+    fn ratio_parts(&self, t: f64, t_c: f64) -> Vec<(Shared, f64)> {
+        match self {
+            Level::Line { p0, s1, .. } => vec![(Shared::DriftSlope, (t - t_c) * s1 / p0)],
+            Level::Piecewise(m) => {
+                let (g, _) = self.at(t);
+                if g <= 0.0 {
+                    return Vec::new();
+                }
+                interp_weights(m, t, true)
+                    .into_iter()
+                    .map(|(k, w)| (Shared::DriftReference(k), -(w * m[k].s) / g))
+                    .collect()
+            }
+        }
+    }
+
     /// The relative uncertainty of g at the calibrations' times, shared by every
     /// sample (0 for a line, whose offset cancels).
     fn calibration_rel(&self, times: &[f64]) -> f64 {
@@ -192,6 +247,17 @@ impl Flux {
                 (v, 0.0, rel(v, s))
             }
             Flux::Constant(c) => (*c, 0.0, 0.0),
+        }
+    }
+}
+
+impl Flux {
+    /// The `drift` term at instrument time `t` as its shared parts
+    /// ([`Level::ratio_parts`]); none without drift references.
+    pub(crate) fn drift_parts(&self, t: f64) -> Vec<(Shared, f64)> {
+        match self {
+            Flux::Drift { level, t_c, .. } => level.ratio_parts(t, *t_c),
+            _ => Vec::new(),
         }
     }
 }

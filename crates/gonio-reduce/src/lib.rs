@@ -80,9 +80,11 @@
 //! ([I_dark, 0]) and `incident_a` where a lock-in's has `dark_v` and `incident_v`.
 
 pub mod adaptive;
+pub mod agreement;
 mod assemble;
 mod budget;
 mod calibration;
+mod correlations;
 mod dark;
 mod drift;
 mod group;
@@ -287,6 +289,10 @@ pub struct Reduction {
     pub budget: Vec<Vec<[f64; N_TERMS]>>,
     /// The detector the readings came from.
     pub detector: Detector,
+    /// The samples' covariance: each one's independent σ and its coefficient on
+    /// every error it shares with others ([`gonio_process::covariance`]); per sample
+    /// and channel they add in quadrature to its σ.
+    pub covariance: gonio_process::covariance::Covariance,
 }
 
 /// The run as every step of a channel's reduction reads it: the options, the

@@ -108,6 +108,30 @@ impl Bandpass {
         )
     }
 
+    /// The slope ∂f/∂λ at each of `wavelengths` (as [`Bandpass::terms`] estimates
+    /// it), 1/(sr nm): which way a wavelength scale error moves each value.
+    pub fn slopes(&self, wavelengths: &[f64], values: &[f64]) -> Vec<f64> {
+        let n = wavelengths.len().min(values.len());
+        if n < 2 {
+            return vec![0.0; n];
+        }
+        let slope =
+            |a: usize, b: usize| (values[b] - values[a]) / (wavelengths[b] - wavelengths[a]);
+        (0..n)
+            .map(|c| match c {
+                0 => slope(0, 1),
+                c if c == n - 1 => slope(n - 2, n - 1),
+                c => {
+                    let (hl, hr) = (
+                        wavelengths[c] - wavelengths[c - 1],
+                        wavelengths[c + 1] - wavelengths[c],
+                    );
+                    (slope(c - 1, c) * hr + slope(c, c + 1) * hl) / (hl + hr)
+                }
+            })
+            .collect()
+    }
+
     /// The term, 1/sr, at each of `wavelengths` (strictly increasing, nm) for one
     /// direction pair's `values` there. Fewer than two wavelengths: all zero.
     pub fn terms(&self, wavelengths: &[f64], values: &[f64]) -> Vec<f64> {

@@ -16,6 +16,7 @@ use gonio_run::{ReadingRecord, flags};
 
 use crate::budget::{self, RANGES};
 use crate::calibration::Calibrations;
+use crate::correlations::{Parts, Shared};
 use crate::dark::{Dark, Signal};
 use crate::drift::IncidentFlux;
 use crate::group::{Read, flag_reason};
@@ -23,7 +24,7 @@ use crate::{Detector, N_TERMS, Run};
 
 /// A pair's directions, its (value, budget) per channel as the channels are
 /// reduced, and the union of its readings' flags.
-pub(crate) type PerPair = (PairDeg, Vec<Option<(f64, [f64; N_TERMS])>>, u32);
+pub(crate) type PerPair = (PairDeg, Vec<Option<(f64, [f64; N_TERMS], Parts)>>, u32);
 
 /// The run's sample values as the channels are reduced, and what was left out.
 pub(crate) struct Values {
@@ -124,12 +125,13 @@ impl Values {
             for (k, t) in terms.iter().enumerate() {
                 rels[k].push(*t);
             }
+            let parts = c.parts(r, &sig, at, run.groups.time_of(r), run.detector)?;
             let nc = self.nc;
             let entry = self
                 .pairs
                 .entry((index, s.step.repeat))
                 .or_insert_with(|| (pair, vec![None; nc], 0));
-            entry.1[c.ci] = Some((at.f, abs));
+            entry.1[c.ci] = Some((at.f, abs, parts));
             // How a reading was taken is no concern of the sample's.
             entry.2 |= r.flags & !flags::HOW_READ;
             count += 1;
@@ -191,6 +193,60 @@ impl Channel<'_> {
         let mut abs = [0.0; N_TERMS];
         abs[0] = sv / scale;
         Ok((terms, abs))
+    }
+}
+
+impl Channel<'_> {
+    /// A sample's error as its independent σ and its coefficients on the shared
+    /// errors ([`crate::correlations`]), 1/sr: the terms of [`Channel::terms`] taken
+    /// apart, so that they add in quadrature to the same σ. The calibration and
+    /// the standard move every sample alike; the wavelength term is added with the
+    /// channels ([`crate::assemble`]).
+    pub(crate) fn parts(
+        &self,
+        r: &ReadingRecord,
+        sig: &Signal,
+        at: Scaled,
+        t: f64,
+        detector: Detector,
+    ) -> Result<Parts, String> {
+        let (_, abs) = self.terms(r, sig, at, detector)?;
+        if sig.v <= 0.0 {
+            return Ok(Parts {
+                independent: abs[0],
+                shared: Vec::new(),
+            });
+        }
+        let (f, v, u, cal) = (at.f, sig.v, sig.u, self.cal);
+        let mut shared = vec![
+            (
+                Shared::DarkX,
+                f * self.dark.sigma * (cal.dark[0] - u[0] / v),
+            ),
+            (
+                Shared::DarkY,
+                f * self.dark.sigma * (cal.dark[1] - u[1] / v),
+            ),
+            (Shared::Calibration, abs[3]),
+            (Shared::Standard, abs[5]),
+        ];
+        let own = budget::range_rel(r, v, detector)?;
+        shared.extend((0..RANGES).map(|k| {
+            let c = own[k] - self.dark.acc[k] / v - cal.acc[k];
+            (Shared::Range(k), f * c)
+        }));
+        shared.extend(
+            self.flux
+                .flux
+                .drift_parts(t)
+                .into_iter()
+                .map(|(k, x)| (k, f * x)),
+        );
+        shared.retain(|(_, x)| *x != 0.0);
+        Ok(Parts {
+            independent: abs[0].hypot(abs[1]),
+            shared,
+        })
     }
 }
 

@@ -57,6 +57,7 @@ fn the_reduced_runs_agree_with_the_truth_within_their_stated_uncertainty() {
             for seed in SEEDS {
                 let (store, model) = truth::measure(&name, &plan, sample, seed, |_| {});
                 let red = reduce(&store, &Options::default()).expect("reduces");
+                truth::assert_covariance_adds_up(&red);
                 let r = truth::residuals(&red, &model);
                 let chi2 = truth::chi2(&r);
                 let corr = truth::chi2_correlated(&red, &model);

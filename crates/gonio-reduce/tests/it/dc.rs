@@ -46,6 +46,7 @@ theta_i = [30]
 theta_o = {{ from = -70, to = 70, step = 5 }}
 [calibration]
 dark = true
+dark_readings = 1           # one dark: the hand computation's
 incident = {{ transmittance = {transmittance} }}
 "#
     )
@@ -179,6 +180,7 @@ fn a_dc_run_reduces_to_the_truth_within_its_stated_uncertainty() {
         let (path, model) = measure("truth", PLAN, seed);
         let store = RunStore::open(&path).expect("opens");
         let red = reduce(&store, &Options::default()).expect("reduces");
+        truth::assert_covariance_adds_up(&red);
         assert_eq!(red.detector, Detector::Dc);
         let n = red.samples.samples.len();
         assert!(n >= 26, "{n} samples");
@@ -339,6 +341,7 @@ fn the_range_accuracy_is_the_manual_s_bound_over_root_three_per_range() {
         let (path, _) = measure("range", &single(t), 23);
         let store = RunStore::open(&path).expect("opens");
         let red = reduce(&store, &Options::default()).expect("reduces");
+        truth::assert_covariance_adds_up(&red);
         let rd = readings(&store, &red);
         assert_eq!(rd.darks.len(), 1);
         assert_eq!(rd.incident.len(), 1);

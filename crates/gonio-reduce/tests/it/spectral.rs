@@ -133,6 +133,7 @@ fn a_spectral_run_reduces_to_the_truth_at_every_wavelength() {
         let (path, model) = measure("truth", seed, |_| {});
         let store = RunStore::open(&path).expect("opens");
         let red = reduce(&store, &Options::default()).expect("reduces");
+        truth::assert_covariance_adds_up(&red);
         let w = wavelengths(&red);
         assert_eq!(
             w,

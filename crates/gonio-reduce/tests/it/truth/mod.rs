@@ -217,3 +217,20 @@ pub fn solve3(mut g: [[f64; 3]; 3], mut b: [f64; 3]) -> [f64; 3] {
     }
     x
 }
+
+/// Every sample's covariance parts add up to its σ on every channel: the
+/// independent σ and the coefficients on the shared errors in quadrature.
+pub fn assert_covariance_adds_up(red: &Reduction) {
+    let c = &red.covariance;
+    assert_eq!(c.independent.len(), red.samples.samples.len());
+    assert_eq!(c.coefficients.len(), red.samples.samples.len());
+    for (i, s) in red.samples.samples.iter().enumerate() {
+        for (ch, sigma) in s.sigma.as_ref().expect("σ").iter().enumerate() {
+            let parts = c.sigma(i, ch);
+            assert!(
+                (parts - sigma).abs() <= 1e-9 * sigma,
+                "sample {i} channel {ch}: parts {parts} vs σ {sigma}"
+            );
+        }
+    }
+}
