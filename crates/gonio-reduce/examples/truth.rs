@@ -86,7 +86,7 @@ fn print_calibration_readings(store: &RunStore) {
             .map(|s| s.step.kind);
         if !matches!(kind, Some(gonio_plan::StepKind::Sample)) {
             println!(
-                "{kind:?} t {:.1} x {:.6e} y {:+.3e} r_std {:.3e} sens {:.0e} flags {} autorange {} retries {}",
+                "{kind:?} t {:.1} x {:.6e} y {:+.3e} r_std {:.3e} sens {:.0e} flags {} autorange {} retries {} tc {} n {}",
                 r.physical_s,
                 r.x_mean,
                 r.y_mean,
@@ -94,7 +94,9 @@ fn print_calibration_readings(store: &RunStore) {
                 r.sensitivity_v,
                 r.flags,
                 r.autorange_steps,
-                r.retries
+                r.retries,
+                r.time_constant_s,
+                r.n
             );
         }
     }

@@ -11,7 +11,7 @@ use crate::budget::median_max;
 use crate::correlations::{self, Parts, Shared};
 use crate::spectral::{self, Bandpass};
 use crate::values::{PerPair, Values};
-use crate::{N_TERMS, Reduction, Run};
+use crate::{N_TERMS, POSITION, Reduction, Run, WAVELENGTH, position};
 
 /// The reduction of the run: its samples, and its report of the channels'
 /// `reports`. `Err` when no sample was reduced.
@@ -29,11 +29,13 @@ pub(crate) fn reduction(
         ..
     } = values;
     let bandpass = run.bandpass.as_ref();
-    let (samples, budget, parts, incomplete) = samples(pairs.into_values(), bandpass, &channels);
+    let (samples, budget, parts, incomplete) =
+        samples(pairs.into_values(), bandpass, &channels, run.isotropic);
     if incomplete > 0 {
         rejected.insert("missing-channel".into(), incomplete);
     }
     spectral_terms(&mut reports, &samples, &budget, bandpass, &channels);
+    position_terms(&mut reports, &samples, &budget, max_pos);
     if samples.is_empty() {
         return Err("no sample readings to reduce".into());
     }
@@ -59,13 +61,15 @@ pub(crate) fn reduction(
 
 /// The samples of the pairs with a value in every channel, each with its budget
 /// and its parts ([`crate::correlations`]) per channel (the wavelength term filled
-/// in by `bandpass` in a spectral run), and the number of pairs left out for a
+/// in by `bandpass` in a spectral run, the position term from the samples'
+/// neighbours: [`crate::position`]), and the number of pairs left out for a
 /// missing channel.
 #[allow(clippy::type_complexity)]
 fn samples(
     pairs: impl Iterator<Item = PerPair>,
     bandpass: Option<&Bandpass>,
     channels: &Channels,
+    isotropic: bool,
 ) -> (
     Vec<Sample>,
     Vec<Vec<[f64; N_TERMS]>>,
@@ -90,36 +94,95 @@ fn samples(
             parts.push(p);
         }
         if let (Some(b), Channels::Wavelengths(w)) = (bandpass, channels) {
-            let slopes = b.slopes(w, &value);
-            for (((t, p), x), slope) in terms
-                .iter_mut()
-                .zip(&mut parts)
-                .zip(b.terms(w, &value))
-                .zip(slopes)
-            {
-                t[N_TERMS - 1] = x;
-                // One scale error moves every sample of a wavelength the way its
-                // spectrum slopes there.
-                let sign = if slope < 0.0 { -1.0 } else { 1.0 };
-                if x != 0.0 {
-                    p.shared.push((Shared::Wavelength, sign * x));
-                }
-            }
+            wavelength_terms(b, w, &value, &mut terms, &mut parts);
         }
-        let sigma = terms
-            .iter()
-            .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
-            .collect();
         samples.push(Sample {
             pair,
             value,
-            sigma: Some(sigma),
+            sigma: None,
             flags: fl,
         });
         budget.push(terms);
         all_parts.push(parts);
     }
+    let pairs: Vec<_> = samples.iter().map(|s| s.pair).collect();
+    let values: Vec<Vec<f64>> = samples.iter().map(|s| s.value.clone()).collect();
+    let reads: Vec<Vec<_>> = all_parts
+        .iter()
+        .map(|p| p.iter().map(|x| x.read).collect())
+        .collect();
+    let position = position::sigmas(&pairs, &values, &reads, isotropic);
+    for (((s, terms), parts), pos) in samples
+        .iter_mut()
+        .zip(&mut budget)
+        .zip(&mut all_parts)
+        .zip(position)
+    {
+        for ((t, p), x) in terms.iter_mut().zip(parts.iter_mut()).zip(pos) {
+            t[POSITION] = x;
+            p.independent = p.independent.hypot(x);
+        }
+        s.sigma = Some(
+            terms
+                .iter()
+                .map(|t| t.iter().map(|x| x * x).sum::<f64>().sqrt())
+                .collect(),
+        );
+    }
     (samples, budget, all_parts, incomplete)
+}
+
+/// A spectral pair's wavelength terms ([`Bandpass::terms`]), into its budget and,
+/// as one shared error per wavelength, its parts: one scale error moves every
+/// sample of a wavelength the way its spectrum slopes there.
+fn wavelength_terms(
+    b: &Bandpass,
+    w: &[f64],
+    value: &[f64],
+    terms: &mut [[f64; N_TERMS]],
+    parts: &mut [Parts],
+) {
+    let slopes = b.slopes(w, value);
+    for (((t, p), x), slope) in terms
+        .iter_mut()
+        .zip(parts)
+        .zip(b.terms(w, value))
+        .zip(slopes)
+    {
+        t[WAVELENGTH] = x;
+        let sign = if slope < 0.0 { -1.0 } else { 1.0 };
+        if x != 0.0 {
+            p.shared.push((Shared::Wavelength, sign * x));
+        }
+    }
+}
+
+/// Adds the position term ([`crate::position`]) to each channel's report: its
+/// median and largest value relative to the samples' f.
+fn position_terms(
+    reports: &mut [ChannelReport],
+    samples: &[Sample],
+    budget: &[Vec<[f64; N_TERMS]>],
+    max_pos: f64,
+) {
+    for (c, report) in reports.iter_mut().enumerate() {
+        let rels = samples
+            .iter()
+            .zip(budget)
+            .filter(|(s, _)| s.value[c] > 0.0)
+            .map(|(s, t)| t[c][POSITION] / s.value[c])
+            .collect();
+        let (rel_median, rel_max) = median_max(rels);
+        report.budget.push(BudgetTerm {
+            term: crate::POSITION_TERM,
+            source: format!(
+                "the read-back directions' offsets from the nominal ones (largest {max_pos:.1e}°) times the BRDF's slope there, from the neighbouring samples (central differences of ln f)"
+            ),
+            correlation: "independent",
+            rel_median,
+            rel_max,
+        });
+    }
 }
 
 /// Adds the wavelength term to each channel's report of a spectral run of two
@@ -142,7 +205,7 @@ fn spectral_terms(
             .iter()
             .zip(budget)
             .filter(|(s, _)| s.value[c] > 0.0)
-            .map(|(s, t)| t[c][N_TERMS - 1] / s.value[c])
+            .map(|(s, t)| t[c][WAVELENGTH] / s.value[c])
             .collect();
         let (rel_median, rel_max) = median_max(rels);
         report.budget.push(BudgetTerm {
@@ -176,7 +239,7 @@ mod tests {
             (pair, vec![Some((0.5, terms, Parts::default()))], 7),
             (pair, vec![None], 0),
         ];
-        let (samples, budget, _, incomplete) = samples(pairs.into_iter(), None, &Channels::Single);
+        let (samples, budget, _, incomplete) = samples(pairs.into_iter(), None, &Channels::Single, true);
         assert_eq!(incomplete, 1);
         assert_eq!(samples.len(), 1);
         assert_eq!(samples[0].value, [0.5]);

@@ -79,8 +79,11 @@ impl Shared {
 /// on each shared error, 1/sr.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct Parts {
-    /// The independent σ (noise and reply rounding).
+    /// The independent σ (noise, reply rounding and, once the samples are
+    /// gathered, the position term).
     pub independent: f64,
+    /// Where the stages stood for the reading.
+    pub read: Option<gonio_core::dirfile::PairDeg>,
     /// The shared errors' coefficients.
     pub shared: Vec<(Shared, f64)>,
 }
@@ -141,6 +144,7 @@ mod tests {
     fn sources_are_per_channel_and_the_sigma_adds_up() {
         let p = |ind: f64, shared: Vec<(Shared, f64)>| Parts {
             independent: ind,
+            read: None,
             shared,
         };
         let parts = vec![

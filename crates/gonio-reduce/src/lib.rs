@@ -89,6 +89,7 @@ mod dark;
 mod drift;
 mod group;
 mod noise;
+mod position;
 pub mod spectral;
 mod values;
 
@@ -159,9 +160,20 @@ pub const DC_CORRELATIONS: [&str; 7] = [
 ];
 
 /// The number of budget terms kept per sample and channel: [`DC_TERMS`], then the
-/// wavelength term of a spectral run ([`spectral::TERM`]; 0 and not reported
-/// otherwise).
-pub const N_TERMS: usize = 8;
+/// wavelength term of a spectral run ([`spectral::TERM`], at [`WAVELENGTH`]; 0 and
+/// not reported otherwise), then the position term ([`POSITION_TERM`], at
+/// [`POSITION`]).
+pub const N_TERMS: usize = 9;
+
+/// The index of the wavelength term in a sample's budget ([`Reduction::budget`]).
+pub const WAVELENGTH: usize = 7;
+
+/// The index of the position term in a sample's budget ([`Reduction::budget`]).
+pub const POSITION: usize = 8;
+
+/// The position term's name: the error of reporting a sample at its nominal
+/// directions when it was read where the stages stood ([`position`](crate)).
+pub const POSITION_TERM: &str = "position";
 
 /// What the run's detector measures, which decides how its readings are reduced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -185,6 +185,7 @@ impl Channel<'_> {
                 self.standard_rel,
                 acc,
                 0.0,
+                0.0,
             ];
             return Ok((terms, terms.map(|t| t * f)));
         }
@@ -214,6 +215,7 @@ impl Channel<'_> {
         if sig.v <= 0.0 {
             return Ok(Parts {
                 independent: abs[0],
+                read: Some(r.read_pair),
                 shared: Vec::new(),
             });
         }
@@ -245,6 +247,7 @@ impl Channel<'_> {
         shared.retain(|(_, x)| *x != 0.0);
         Ok(Parts {
             independent: abs[0].hypot(abs[1]),
+            read: Some(r.read_pair),
             shared,
         })
     }
@@ -346,6 +349,7 @@ mod tests {
             0.01f64.hypot(1e-3),
             2e-3,
             3e-3,
+            0.0,
             0.0,
             0.0,
         ];

@@ -78,7 +78,8 @@ fn the_reduced_runs_agree_with_the_truth_within_their_stated_uncertainty() {
                     }
                 }
                 // The budget is the σ: its terms add in quadrature to every sample's.
-                assert_eq!(ch.budget.len(), TERMS.len());
+                // The lock-in's terms and the position term.
+                assert_eq!(ch.budget.len(), TERMS.len() + 1);
                 for (s, b) in red.samples.samples.iter().zip(&red.budget) {
                     let sum = b[0].iter().map(|x| x * x).sum::<f64>().sqrt();
                     let sigma = s.sigma.as_ref().expect("σ")[0];
