@@ -67,10 +67,17 @@ impl CsvTarget {
         Ok(text.len())
     }
 
-    /// Writes samples ([`file::write_samples`]) and their sidecar; the bytes of the CSV.
-    pub fn write_samples(&self, s: &Samples) -> CliResult<usize> {
+    /// Writes samples ([`file::write_samples`]) and their sidecar, with the
+    /// reduction's covariance when given; the bytes of the CSV.
+    pub fn write_samples(
+        &self,
+        s: &Samples,
+        covariance: Option<&gonio_process::covariance::Covariance>,
+    ) -> CliResult<usize> {
         let text = file::write_samples(s);
-        self.write(text.as_bytes(), &Meta::for_samples(s))?;
+        let mut meta = Meta::for_samples(s);
+        meta.covariance = covariance.cloned();
+        self.write(text.as_bytes(), &meta)?;
         Ok(text.len())
     }
 }

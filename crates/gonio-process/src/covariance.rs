@@ -35,6 +35,10 @@ pub struct Source {
 /// The covariance of a set of samples ([module docs](self)).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Covariance {
+    /// Each row's directions, (θi, φi, θo, φo) in degrees: how a row finds its
+    /// sample, or its node in a table of the samples' own grid.
+    #[serde(default)]
+    pub directions: Vec<[f64; 4]>,
     /// The shared sources.
     pub sources: Vec<Source>,
     /// Per sample, per channel: the independent standard uncertainty, 1/sr.
@@ -224,6 +228,7 @@ mod tests {
             label: term.into(),
         };
         Covariance {
+            directions: Vec::new(),
             sources: vec![src("calibration"), src("dark")],
             independent: (0..n).map(|i| vec![1.0 + i as f64 / n as f64]).collect(),
             coefficients: (0..n)

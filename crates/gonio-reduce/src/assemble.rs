@@ -39,6 +39,8 @@ pub(crate) fn reduction(
     if samples.is_empty() {
         return Err("no sample readings to reduce".into());
     }
+    let pairs_of = |s: &[Sample]| s.iter().map(|x| x.pair).collect::<Vec<_>>();
+    let covariance = correlations::covariance(&pairs_of(&samples), &parts);
     Ok(Reduction {
         samples: Samples {
             channels,
@@ -55,7 +57,7 @@ pub(crate) fn reduction(
         },
         budget,
         detector: run.detector,
-        covariance: correlations::covariance(&parts),
+        covariance,
     })
 }
 
@@ -239,7 +241,8 @@ mod tests {
             (pair, vec![Some((0.5, terms, Parts::default()))], 7),
             (pair, vec![None], 0),
         ];
-        let (samples, budget, _, incomplete) = samples(pairs.into_iter(), None, &Channels::Single, true);
+        let (samples, budget, _, incomplete) =
+            samples(pairs.into_iter(), None, &Channels::Single, true);
         assert_eq!(incomplete, 1);
         assert_eq!(samples.len(), 1);
         assert_eq!(samples[0].value, [0.5]);

@@ -234,9 +234,14 @@ fn lockin_sources(run: &Run, c: &Channel) -> Vec<String> {
         ) + &capped_note(run.capped),
         "the lock-in's six-digit replies (step/√12)".into(),
         format!(
-            "the dark vector's noise ({} reading(s), σ {:.3e} V per component, from half their mean R²)",
+            "the dark vector's noise ({} reading(s), σ {:.3e} V per component, {})",
             c.darks.len(),
-            c.dark_sigma
+            c.dark_sigma,
+            if run.noise.lines.is_empty() {
+                "from half their mean R²"
+            } else {
+                "from the pooled noise law at R = 0"
+            }
         ),
         calibration,
         drift,
@@ -273,10 +278,15 @@ fn dc_sources(run: &Run, c: &Channel) -> Vec<String> {
         ) + &capped_note(run.capped),
         "the 6485's seven-digit replies (step/√12)".into(),
         format!(
-            "the dark current's noise ({} reading(s), mean {:.3e} A subtracted as a scalar, σ {:.3e} A from s/√n)",
+            "the dark current's noise ({} reading(s), mean {:.3e} A subtracted as a scalar, σ {:.3e} A from {})",
             c.darks.len(),
             c.dark[0],
-            c.dark_sigma
+            c.dark_sigma,
+            if run.noise.lines.is_empty() {
+                "s/√n"
+            } else {
+                "the pooled noise law where its setting has one, else s/√n"
+            }
         ),
         calibration,
         drift,

@@ -21,6 +21,7 @@
 
 use std::collections::BTreeSet;
 
+use gonio_core::dirfile::PairDeg;
 use gonio_process::covariance::{Covariance, Source};
 
 /// One independent error behind a shared term.
@@ -83,13 +84,13 @@ pub(crate) struct Parts {
     /// gathered, the position term).
     pub independent: f64,
     /// Where the stages stood for the reading.
-    pub read: Option<gonio_core::dirfile::PairDeg>,
+    pub read: Option<PairDeg>,
     /// The shared errors' coefficients.
     pub shared: Vec<(Shared, f64)>,
 }
 
-/// The covariance of samples from each one's parts per channel.
-pub(crate) fn covariance(parts: &[Vec<Parts>]) -> Covariance {
+/// The covariance of samples at `pairs` from each one's parts per channel.
+pub(crate) fn covariance(pairs: &[PairDeg], parts: &[Vec<Parts>]) -> Covariance {
     let nc = parts.first().map_or(0, Vec::len);
     let keys: Vec<(usize, Shared)> = (0..nc)
         .flat_map(|c| {
@@ -127,6 +128,13 @@ pub(crate) fn covariance(parts: &[Vec<Parts>]) -> Covariance {
         .map(|p| p.iter().map(|x| x.independent).collect())
         .collect();
     Covariance {
+        directions: pairs
+            .iter()
+            .map(|p| {
+                let (i, o) = (p.incident, p.outgoing);
+                [i.theta_deg, i.phi_deg, o.theta_deg, o.phi_deg]
+            })
+            .collect(),
         sources,
         independent,
         coefficients,
@@ -163,7 +171,7 @@ mod tests {
                 p(2.0, vec![(Shared::DarkX, -1.0)]),
             ],
         ];
-        let c = covariance(&parts);
+        let c = covariance(&[], &parts);
         let labels: Vec<(usize, &str)> = c
             .sources
             .iter()

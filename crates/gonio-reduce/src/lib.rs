@@ -49,13 +49,25 @@
 //!   `reading.max_s` before its target (flag `capped`) is reduced like any other,
 //!   with the precision it reached; the report counts them.
 //! - `resolution`: the lock-in's six-digit replies (a rounding step /√12).
-//! - `dark`: the dark vector's own noise, subtracted from every reading: one error
-//!   shared by all samples, larger for weak signals (it is additive).
+//! - `dark`: the dark vector's noise, subtracted from every reading: one error
+//!   shared by all samples, larger for weak signals (it is additive). Each dark
+//!   reading's σ is the pooled law's at R = 0 (the floor every reading of the run
+//!   speaks of), not its own R²'s two degrees of freedom; plans take four dark
+//!   readings by default.
 //! - `calibration`: the calibration readings' noise (scaled up when they disagree),
 //!   and the drift level at the calibrations' time.
 //! - `drift`: the uncertainty of g(t) relative to the calibrations' g.
 //! - `standard`: the reference standard's own BRDF uncertainty
 //!   ([`Options::standard_rel_sigma`]), when the standard calibrates.
+//! - `position` ([`POSITION_TERM`]): the read-back directions' offsets from the
+//!   nominal ones times the BRDF's slope there, from the neighbouring samples.
+//!
+//! **Correlations.** The shared terms are taken apart into the independent errors
+//! behind them — the dark's components, the calibration scale, the drift line's
+//! slope or each drift reference, the standard, each picoammeter range, each
+//! wavelength's scale — each with a signed coefficient per sample
+//! ([`Reduction::covariance`]), so that the full covariance D + VVᵀ is known;
+//! [`agreement`] compares a simulated run with the sample it measured against it.
 //!
 //! **DC readings.** When the run's stored instrument config names a Keithley 6485
 //! picoammeter (`[detector] kind = "k6485"`, [`Detector::of_instrument`]), the

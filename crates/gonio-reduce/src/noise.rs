@@ -300,6 +300,9 @@ impl Noise {
         }
         let var = match self.line_for(r) {
             Some((l, k)) if !dark => (l.a + l.b * r.r_mean.max(0.0)) * k,
+            // A dark's variance is the law's at R = 0: what every reading of the run
+            // says of the floor, not the two degrees of freedom of its own R².
+            Some((l, k)) => l.a * k,
             _ if dark => rayleigh_variance(r),
             _ => {
                 let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
@@ -314,12 +317,12 @@ impl Noise {
     /// conversions (ρ = 0, [`variance_factors`] gives A = B = 1), so the sample
     /// variance s² (n − 1 in the denominator) is unbiased and needs no correction.
     /// s² is the pooled a + b·I where the reading's setting has a line, else the
-    /// reading's own; a dark keeps its own s (its σ is that of the dark readings)
-    /// unless it is a single sample, which has none.
-    fn sigma_mean_dc(&self, r: &ReadingRecord, dark: bool) -> f64 {
+    /// reading's own, a dark's too: the law knows the floor better than a dark's
+    /// few samples.
+    fn sigma_mean_dc(&self, r: &ReadingRecord, _dark: bool) -> f64 {
         let own = r.r_std * r.r_std;
         let var = match self.line_for(r) {
-            Some((l, _)) if !dark || r.n < 2 => l.a + l.b * r.x_mean.max(0.0),
+            Some((l, _)) => l.a + l.b * r.x_mean.max(0.0),
             _ => own,
         };
         (var.max(0.0) / f64::from(r.n.max(1))).sqrt()

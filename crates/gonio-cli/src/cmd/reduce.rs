@@ -50,7 +50,85 @@ pub fn head(path: &Path) -> CliResult<Vec<u8>> {
 }
 
 pub(crate) fn reduction_json(r: &Reduction) -> serde_json::Value {
-    serde_json::to_value(&r.report).unwrap_or_default()
+    let mut v = serde_json::to_value(&r.report).unwrap_or_default();
+    if let Some(o) = v.as_object_mut() {
+        o.insert(
+            "covariance".into(),
+            serde_json::to_value(&r.covariance).unwrap_or_default(),
+        );
+    }
+    v
+}
+
+/// A simulated run against the sample the simulator measured (the run file keeps
+/// it): per channel, χ² per sample and against the full covariance, and the shared
+/// errors' shifts ([`gonio_reduce::agreement`]). `None` for a laboratory run, or
+/// one whose simulated sample is not a model file.
+pub(crate) fn agreement(
+    run: &Path,
+    red: &Reduction,
+) -> Option<Vec<gonio_process::covariance::Agreement>> {
+    let store = gonio_run::RunStore::open(run).ok()?;
+    let meta = store.run_meta().ok()?;
+    let model = gonio_reduce::agreement::simulated_sample(meta.sim_sample.as_deref())?;
+    let truth = gonio_reduce::agreement::truth(red, &model)?;
+    Some(gonio_reduce::agreement::agreements(red, &truth))
+}
+
+/// The agreement's `--json` form: each channel's numbers, the shifts named.
+pub(crate) fn agreement_json(
+    red: &Reduction,
+    a: &[gonio_process::covariance::Agreement],
+) -> serde_json::Value {
+    a.iter()
+        .map(|x| {
+            json!({
+                "channel": red.samples.channels.name(x.channel),
+                "samples": x.n,
+                "chi2_per_sample": x.chi2_plain,
+                "chi2_full_covariance": x.chi2_full,
+                "mean_z": x.mean_z,
+                "shared_fraction": x.shared_fraction,
+                "shifts": x.shifts.iter().map(|(s, e)| json!({
+                    "source": red.covariance.sources[*s].label,
+                    "term": red.covariance.sources[*s].term,
+                    "sigmas": e,
+                })).collect::<Vec<_>>(),
+            })
+        })
+        .collect()
+}
+
+/// Writes what a simulated run's agreement with its truth says, a line a channel.
+pub(crate) fn print_agreement(
+    w: &mut dyn Write,
+    red: &Reduction,
+    a: &[gonio_process::covariance::Agreement],
+) -> std::io::Result<()> {
+    for x in a {
+        let shifts: Vec<String> = x
+            .shifts
+            .iter()
+            .take(2)
+            .map(|(s, e)| format!("{} {e:+.2}σ", red.covariance.sources[*s].label))
+            .collect();
+        writeln!(
+            w,
+            "against the simulated sample, channel {}: χ²/n {:.3} with the full covariance \
+             ({:.3} per sample), mean z {:+.2} (its shared terms allow ±{:.2}); moved most by {}",
+            red.samples.channels.name(x.channel),
+            x.chi2_full,
+            x.chi2_plain,
+            x.mean_z,
+            2.5 * x.shared_fraction,
+            if shifts.is_empty() {
+                "nothing shared".to_string()
+            } else {
+                shifts.join(", ")
+            }
+        )?;
+    }
+    Ok(())
 }
 
 /// Checks every flag's value without reading the run: what a batch does before it
@@ -121,7 +199,9 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             )
         }
         (Content::Table(t), None) => {
-            target.write_table(t)?;
+            let mut meta = gonio_process::file::Meta::for_table(t);
+            meta.covariance = Some(red.covariance.clone());
+            target.write(gonio_process::file::write_table(t).as_bytes(), &meta)?;
             format!("a table of {} nodes", t.grid.len())
         }
         (Content::Table(t), Some(_)) => {
@@ -129,7 +209,7 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             format!("a table of {} nodes (resampled)", t.grid.len())
         }
         (Content::Samples(s), _) => {
-            target.write_samples(s)?;
+            target.write_samples(s, Some(&red.covariance))?;
             format!("{} samples", s.samples.len())
         }
     };
@@ -141,6 +221,9 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             "channels": red.samples.channels.names(),
             "reduction": reduction_json(&red),
         });
+        if let (Some(a), Some(o)) = (agreement(&a.run, &red), v.as_object_mut()) {
+            o.insert("agreement".into(), agreement_json(&red, &a));
+        }
         // The channels' wavelengths (nm), in the order of `channels`; only for
         // wavelength channels, so that other runs' output stays as it was.
         if let (gonio_core::Channels::Wavelengths(w), Some(o)) =
@@ -160,6 +243,9 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             red.samples.samples.len()
         )?;
         print_reduction(&mut w, &red)?;
+        if let Some(ag) = agreement(&a.run, &red) {
+            print_agreement(&mut w, &red, &ag)?;
+        }
         w.flush()
     })())
 }
