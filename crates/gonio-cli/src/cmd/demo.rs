@@ -242,8 +242,15 @@ fn json_report(
             "report": acq.report.display().to_string(),
             "points": acq.points.iter().map(|p| json!({
                 "theta_i": p.theta_i, "theta_o": p.theta_o, "model": p.model,
-                "measured": p.measured, "sigma": p.sigma,
+                "measured": p.measured, "sigma": p.sigma, "z_full": p.z_full,
             })).collect::<Vec<_>>(),
+            "agreement": {
+                "chi2_per_sample": acq.agreement.chi2_plain,
+                "chi2_full_covariance": acq.agreement.chi2_full,
+                "mean_z": acq.agreement.mean_z,
+                "shared_fraction": acq.agreement.shared_fraction,
+                "shifts": acq.shifts.iter().map(|(s, e)| json!({"source": s, "sigmas": e})).collect::<Vec<_>>(),
+            },
         },
         "model": "Lafortune et al. 1997, Table 1: blue paint",
         "channels": ch.names(),
@@ -375,8 +382,8 @@ fn write_acquisition(w: &mut dyn Write, acq: &Acquired, dev: &Deviation) -> std:
     )?;
     writeln!(
         w,
-        "{:>7} {:>7} {:>11} {:>11} {:>10} {:>7}",
-        "theta_i", "theta_o", "model", "measured", "sigma", "dev/s"
+        "{:>7} {:>7} {:>11} {:>11} {:>10} {:>7} {:>7}",
+        "theta_i", "theta_o", "model", "measured", "sigma", "dev/s", "z full"
     )?;
     for p in acq
         .points
@@ -385,13 +392,14 @@ fn write_acquisition(w: &mut dyn Write, acq: &Acquired, dev: &Deviation) -> std:
     {
         writeln!(
             w,
-            "{:>7} {:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2}",
+            "{:>7} {:>7} {:>11.6} {:>11.6} {:>10.2e} {:>7.2} {:>7.2}",
             p.theta_i,
             p.theta_o,
             p.model,
             p.measured,
             p.sigma,
-            (p.measured - p.model) / p.sigma
+            (p.measured - p.model) / p.sigma,
+            p.z_full
         )?;
     }
     writeln!(
@@ -400,6 +408,35 @@ fn write_acquisition(w: &mut dyn Write, acq: &Acquired, dev: &Deviation) -> std:
         acq.points.len(),
         dev.worst,
         100.0 * dev.worst_rel
+    )?;
+    let a = &acq.agreement;
+    let zs: Vec<f64> = acq.points.iter().map(|p| p.z_full).collect();
+    let n = zs.len().max(1) as f64;
+    let mean = zs.iter().sum::<f64>() / n;
+    let rms = (zs.iter().map(|z| z * z).sum::<f64>() / n).sqrt();
+    writeln!(
+        w,
+        "dev/s is each sample's own deviation; its errors are shared (one dark, one \
+         calibration), so they move together: mean dev/s {:+.2} (the shared terms allow \
+         ±{:.2}), χ²/n {:.2}",
+        a.mean_z,
+        2.5 * a.shared_fraction,
+        a.chi2_plain
+    )?;
+    writeln!(
+        w,
+        "z full: the deviations whitened by the full covariance, mean {mean:+.2}, RMS \
+         {rms:.2}, χ²/n {:.2} (N(0, 1): mean 0 ± {:.2}, RMS 1 ± {:.2}); the run was moved \
+         most by {}",
+        a.chi2_full,
+        1.0 / n.sqrt(),
+        (0.5 / n).sqrt(),
+        acq.shifts
+            .iter()
+            .take(2)
+            .map(|(s, e)| format!("the {s} ({e:+.2} of its σ)"))
+            .collect::<Vec<_>>()
+            .join(" and ")
     )?;
     if let Some(p) = &acq.run_file {
         writeln!(w, "run file: {} (gonio show {})", p.display(), p.display())?;
@@ -518,11 +555,19 @@ struct Point {
     model: f64,
     measured: f64,
     sigma: f64,
+    /// The residual whitened by the run's full covariance (a standard normal when
+    /// the stated uncertainties are right, correlations included).
+    z_full: f64,
 }
 
 /// What the demo's acquisition measured.
 struct Acquired {
     points: Vec<Point>,
+    /// The run against the paint it measured: χ² per sample and with the full
+    /// covariance, the mean z and what the shared terms allow.
+    agreement: gonio_process::covariance::Agreement,
+    /// The shared errors' most likely shifts, in their own σ, largest first.
+    shifts: Vec<(String, f64)>,
     steps: usize,
     rejected: Vec<(&'static str, usize)>,
     motion_s: f64,
@@ -615,8 +660,30 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     // The report's incident flux is the full beam; the reading was through the filter.
     let incident_v = cal.incident_v * transmittance;
     let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| runtime(&e))?;
+    let truth = gonio_reduce::agreement::truth(&reduction, &model)
+        .ok_or_else(|| runtime(&"the demo's channel is not the model's"))?;
+    let agreement = gonio_reduce::agreement::agreements(&reduction, &truth)
+        .into_iter()
+        .next()
+        .ok_or_else(|| runtime(&"no covariance to compare against"))?;
+    let residuals: Vec<f64> = reduction
+        .samples
+        .samples
+        .iter()
+        .zip(&truth)
+        .map(|(s, t)| s.value[0] - t[0])
+        .collect();
+    let z_full = reduction
+        .covariance
+        .whiten(0, &residuals)
+        .ok_or_else(|| runtime(&"the covariance is not positive definite"))?;
+    let shifts: Vec<(String, f64)> = agreement
+        .shifts
+        .iter()
+        .map(|(k, e)| (reduction.covariance.sources[*k].label.clone(), *e))
+        .collect();
     let mut points = Vec::new();
-    for s in &reduction.samples.samples {
+    for (s, z_full) in reduction.samples.samples.iter().zip(z_full) {
         let pair = s.pair;
         let d = pair.to_dirs();
         let signed = if pair.outgoing.theta_deg == 0.0 {
@@ -632,6 +699,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
             model: eval1(&model, d.wi, d.wo),
             measured: s.value[0],
             sigma: s.sigma.as_ref().map_or(0.0, |v| v[0]),
+            z_full,
         });
     }
     points.sort_by(|a, b| {
@@ -667,6 +735,8 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     };
     Ok(Acquired {
         points,
+        agreement,
+        shifts,
         steps: steps.len(),
         rejected,
         motion_s: prepared.schedule.motion_s,

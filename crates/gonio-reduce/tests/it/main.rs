@@ -3,6 +3,7 @@
 
 mod closure;
 mod dc;
+mod honest;
 mod pooling;
 mod reading_time;
 mod reduce;
