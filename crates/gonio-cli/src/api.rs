@@ -241,12 +241,13 @@ pub fn micro_merge(
 
 /// `gonio reduce`: what it writes (a table, or the samples) and its `--json`
 /// reduction account. The words still need an `--out`, which is not written.
-pub fn reduce(words: &[String]) -> CliResult<(Content, Value)> {
+pub fn reduce(words: &[String]) -> CliResult<(Content, Value, String)> {
     let Command::Reduce(a) = parse(words)?.0 else {
         return Err(wrong(words));
     };
     let (red, content) = cmd::reduce::compute(&a)?;
-    Ok((content, cmd::reduce::reduction_json(&red)))
+    let sidecar = cmd::reduce::sidecar(&red, &content, a.resampled()).to_json();
+    Ok((content, cmd::reduce::reduction_json(&red), sidecar))
 }
 
 /// Runs an offline command (`reduce`, `check`, `correct`, `harmonics`, `fit`,

@@ -96,11 +96,13 @@ fn run_reduce(py: Python<'_>, words: Vec<String>) -> PyResult<(Bound<'_, PyList>
         let path = PathBuf::from(run);
         py.detach(|| open(&path).map(drop))?;
     }
-    let (content, report) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
+    let (content, report, sidecar) = interrupt::run(py, None, OnInterrupt::Abandon, move || {
         gonio_cli::api::reduce(&words)
     })?
     .map_err(|e| errors::to_py(e, Domain::Data, None))?;
-    let (cols, sidecar) = columns::content_to_py(py, &content)?;
+    // The columns as the command line writes them; the sidecar as it writes it too,
+    // the reduction's covariance included.
+    let (cols, _) = columns::content_to_py(py, &content)?;
     Ok((cols, sidecar, report.to_string()))
 }
 

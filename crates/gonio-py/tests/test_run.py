@@ -134,3 +134,29 @@ def test_missing_foreign_and_damaged_files_are_refused_as_the_command_does(
     assert str(e.value) == cli.error("show", damaged)[1]
     assert "checksum" in str(e.value) or "integrity" in str(e.value)
     assert isinstance(e.value, gonio.GonioError)
+
+
+@pytest.mark.parametrize("name", ["py", "inplane"])
+def test_reduce_carries_the_covariance(runs, name):
+    """Each row of the reduction's covariance (in the sidecar, ``df.attrs["gonio"]``)
+    names a sample's directions; its independent σ and its coefficients on the shared
+    errors add in quadrature to that sample's σ, so a user can form the full χ²."""
+    df = gonio.open_run(runs[name]).reduce()
+    cov = df.attrs["gonio"]["covariance"]
+    assert cov == df.attrs["reduction"]["covariance"]
+    sources = cov["sources"]
+    assert {s["term"] for s in sources} >= {"dark", "calibration"}
+    ind = np.array([row[0] for row in cov["independent"]])
+    coef = np.array(cov["coefficients"])
+    total = np.sqrt(ind**2 + (coef**2).sum(axis=1))
+    key = lambda ti, pi, to, po: (round(ti, 6), round(to, 6), round((po - pi) % 360.0, 6))  # noqa: E731
+    by_dir = {key(*d): s for d, s in zip(cov["directions"], total)}
+    phi_i = df["phi_i_deg"] if "phi_i_deg" in df else 0.0 * df["theta_i_deg"]
+    rows = zip(df["theta_i_deg"], phi_i, df["theta_o_deg"], df["phi_o_deg"], df["sigma_per_sr"])
+    matched = 0
+    for ti, pi, to, po, sigma in rows:
+        k = key(ti, pi, to, po)
+        if k in by_dir:
+            assert by_dir[k] == pytest.approx(sigma, rel=1e-9)
+            matched += 1
+    assert matched == len(cov["directions"])

@@ -60,6 +60,31 @@ pub(crate) fn reduction_json(r: &Reduction) -> serde_json::Value {
     v
 }
 
+impl ReduceArgs {
+    /// Whether `--grid` resamples the samples (the table's nodes are not samples).
+    pub(crate) fn resampled(&self) -> bool {
+        self.grid.grid.is_some()
+    }
+}
+
+/// The sidecar `gonio reduce` writes beside the wide CSV of `content`: with the
+/// reduction's covariance, unless `resampled` (a `--grid` table's nodes are not the
+/// samples the covariance's rows are).
+pub(crate) fn sidecar(
+    red: &Reduction,
+    content: &Content,
+    resampled: bool,
+) -> gonio_process::file::Meta {
+    let mut meta = match content {
+        Content::Table(t) => gonio_process::file::Meta::for_table(t),
+        Content::Samples(s) => gonio_process::file::Meta::for_samples(s),
+    };
+    if !resampled {
+        meta.covariance = Some(red.covariance.clone());
+    }
+    meta
+}
+
 /// A simulated run against the sample the simulator measured (the run file keeps
 /// it): per channel, χ² per sample and against the full covariance, and the shared
 /// errors' shifts ([`gonio_reduce::agreement`]). `None` for a laboratory run, or
@@ -199,8 +224,7 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
             )
         }
         (Content::Table(t), None) => {
-            let mut meta = gonio_process::file::Meta::for_table(t);
-            meta.covariance = Some(red.covariance.clone());
+            let meta = sidecar(&red, &content, false);
             target.write(gonio_process::file::write_table(t).as_bytes(), &meta)?;
             format!("a table of {} nodes", t.grid.len())
         }
