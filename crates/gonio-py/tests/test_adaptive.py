@@ -19,6 +19,7 @@ batch = 0.25
 candidates = 1024
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 """
 

@@ -294,6 +294,7 @@ batch = 0.25
 candidates = 512
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 """
 

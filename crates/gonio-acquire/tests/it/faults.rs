@@ -39,6 +39,7 @@ theta_o = { from = -60, to = 60, step = 20 }
 every = 3
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 

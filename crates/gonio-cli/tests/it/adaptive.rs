@@ -28,6 +28,7 @@ candidates = 2048
 every = 20
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 
@@ -308,7 +309,7 @@ fn a_run_spends_its_budget_never_more_and_records_every_decision() {
         "grid.toml",
         "[points]\nkind = \"grid\"\ntheta_i = [30, 60]\nphi_i = 0\n\
          theta_o = { from = 10, to = 80, step = 10 }\nphi_o = { from = 0, to = 330, step = 30 }\n\
-         [calibration]\ndark = true\nincident = { transmittance = 1e-3 }\n",
+         [calibration]\ndark = true\ndark_readings = 1\nincident = { transmittance = 1e-3 }\n",
     );
     let grid_run = dir.join("grid.gonio");
     acquire(&grid_plan, &grid_run, &["--seed", "3"]);

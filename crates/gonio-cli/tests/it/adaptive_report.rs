@@ -19,6 +19,7 @@ theta_i = [30, 60]
 budget = { points = 120 }
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 

@@ -19,6 +19,7 @@ theta_o = { from = 5, to = 85, step = 10 }
 delta_phi = { from = 0, to = 180, step = 45 }
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 

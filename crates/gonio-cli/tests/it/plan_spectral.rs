@@ -76,6 +76,7 @@ theta_o = { from = -60, to = 70, step = 10 }
 every = 4
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 repeat_at_end = true
 "#,

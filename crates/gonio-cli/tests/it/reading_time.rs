@@ -26,6 +26,7 @@ theta_o = {{ from = -70, to = 70, step = 10 }}
 every = 5
 [calibration]
 dark = true
+dark_readings = 1
 incident = {{ transmittance = 1e-3 }}
 [reading]
 sigma_relative = {sigma:e}

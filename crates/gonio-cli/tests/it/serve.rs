@@ -21,6 +21,7 @@ theta_i = [30]
 theta_o = { from = -60, to = 60, step = 10 }
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 

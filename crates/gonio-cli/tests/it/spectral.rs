@@ -19,6 +19,7 @@ theta_i = [30]
 theta_o = { from = -50, to = 50, step = 25 }
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 

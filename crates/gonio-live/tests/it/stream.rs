@@ -25,6 +25,7 @@ theta_o = { from = -60, to = 60, step = 20 }
 every = 3
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 
@@ -504,7 +505,7 @@ fn the_eta_is_the_runs_own_pace_without_each_sessions_start_up() {
 fn an_adaptive_runs_eta_counts_the_batches_its_budget_has_left() {
     const ADAPTIVE: &str = "[points]\nkind = \"adaptive\"\ntheta_i = [30]\n\
                             budget = { points = 40 }\ncandidates = 1024\n[drift]\nevery = 50\n\
-                            [calibration]\ndark = true\nincident = { transmittance = 1e-3 }\n";
+                            [calibration]\ndark = true\ndark_readings = 1\nincident = { transmittance = 1e-3 }\n";
     let dir = tempfile::tempdir().expect("dir");
     let (run, engine) = setup_plan(dir.path(), 0.0, ADAPTIVE);
     drop(engine);

@@ -88,6 +88,7 @@ theta_o = [20, 45, 70]
 delta_phi = { from = 45, to = 315, step = 90 }
 [calibration]
 dark = true
+dark_readings = 1
 incident = { transmittance = 1e-3 }
 "#;
 
