@@ -42,10 +42,11 @@ fn demo_json_is_one_object_with_the_reference_values() {
     assert!((a30 - 0.418024770928).abs() < 1e-11, "{a30}");
     assert_eq!(v["reciprocity_max_relative_difference"].as_f64(), Some(0.0));
     assert!(v["albedo_max_method_difference"].as_f64().expect("number") < 1e-8);
-    // The acquisition: 99 pairs, 9 shadowed, 90 measured, plus 2 darks, 2 incident
-    // readings and 5 drift references; reduced, within 0.1 % of the model everywhere.
+    // The acquisition: 99 pairs, 9 shadowed, 90 measured, plus 8 darks (the plan's
+    // default four, at the start and the end), 2 incident readings and 5 drift
+    // references; reduced, within 0.1 % of the model everywhere.
     let a = &v["acquisition"];
-    assert_eq!(a["steps"], 99);
+    assert_eq!(a["steps"], 105);
     assert_eq!(a["rejected"]["shadowed"], 9);
     let points = a["points"].as_array().expect("points");
     assert_eq!(points.len(), 90);

@@ -96,7 +96,9 @@ fn a_picoammeter_run_reduces_with_the_dc_budget() {
         .iter()
         .map(|t| t["term"].as_str().expect("term"))
         .collect();
-    assert_eq!(terms, gonio_reduce::DC_TERMS);
+    // The DC terms, then the position term.
+    assert_eq!(terms[..gonio_reduce::DC_TERMS.len()], gonio_reduce::DC_TERMS);
+    assert_eq!(terms[gonio_reduce::DC_TERMS.len()..], [gonio_reduce::POSITION_TERM]);
     assert_eq!(budget[6]["correlation"], "range");
     let acc = budget[6]["rel_median"].as_f64().expect("median");
     let noise = budget[0]["rel_median"].as_f64().expect("median");

@@ -77,17 +77,18 @@ fn a_monochromator_run_selects_every_wavelength_and_closes_its_shutter_for_darks
     ]);
     assert_eq!(v["status"], "complete", "{v}");
     let events = bench_events(&run);
-    // The first band: the drive reads back 450 nm plus the twin's 0.05 nm error,
+    // The first band: the drive reads back 450 nm plus the twin's calibration error
+    // (its seed's draw from the 0.1 nm the config states: −0.04 nm),
     // grating 1 and the open position (no second order under 560 nm).
     assert!(
-        events.contains(&"band 450nm: cs130 at 450.05 nm (grating 1, order filter 1)".to_string()),
+        events.contains(&"band 450nm: cs130 at 449.96 nm (grating 1, order filter 1)".to_string()),
         "{events:?}"
     );
     // 650 nm needs the 590 nm long-pass (position 3) against 325 nm light.
     assert!(
         events
             .iter()
-            .any(|e| e.starts_with("band 650nm: cs130 at 650.05 nm (grating 1, order filter 3)")),
+            .any(|e| e.starts_with("band 650nm: cs130 at 649.96 nm (grating 1, order filter 3)")),
         "{events:?}"
     );
     // Darks by the shutter: no operator is asked to block the beam.
