@@ -653,10 +653,13 @@ pub struct Report {
     pub isotropy: Vec<f64>,
     /// Separability per channel (none when the table cannot be expanded to 4D).
     pub separability: Option<Vec<Separability>>,
+    /// What a BRDF with each property would read under the same sampling and noise
+    /// ([`crate::floor`]); none when it could not be formed.
+    pub floor: Option<crate::floor::Floors>,
 }
 
 /// Measures a table: P_r, P_ec (with the `worst` incident directions), P_i, and
-/// P_s^(k) for each k of `ks`. The energy measure is [`energy`]'s sum when the
+/// P_s^(k) for each k of `ks`, each with its floor ([`crate::floor`]). The energy measure is [`energy`]'s sum when the
 /// outgoing nodes are polar band midpoints over the whole hemisphere, else
 /// [`energy_scattered`] over the table's nodes (a half turn of an isotropic table
 /// unfolded first, [`crate::hemisphere::unfold`]).
@@ -685,7 +688,7 @@ pub fn report_with(
             }
         }
     };
-    Ok(Report {
+    let mut report = Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
         paired: t.grid.is_paired(),
@@ -694,5 +697,15 @@ pub fn report_with(
         energy,
         isotropy: isotropy(t)?,
         separability: separability(t, ks).ok(),
-    })
+        floor: None,
+    };
+    let draws = crate::floor::draws_for(t.values.len());
+    report.floor = match crate::floor::floors(t, measured, &report, ks, draws) {
+        Ok(f) => Some(f),
+        Err(e) => {
+            tracing::warn!(error = %e, "the measures' floors could not be formed");
+            None
+        }
+    };
+    Ok(report)
 }
