@@ -113,8 +113,11 @@ pub struct Floors {
     pub isotropy: Option<Vec<Floor>>,
     /// P_s^(k)'s floor per channel, as (k, floor) in the report's order; none when
     /// A is too large for a full SVD a draw, or P_s was not measured.
-    pub separability: Option<Vec<Vec<(usize, Floor)>>>,
+    pub separability: Option<Vec<KFloors>>,
 }
+
+/// One channel's P_s^(k) floors, as (k, floor).
+pub type KFloors = Vec<(usize, Floor)>;
 
 /// The noise draws a table of `values` node-values with σ gets.
 pub fn draws_for(values: usize) -> usize {
@@ -501,7 +504,7 @@ fn separability_floor(
     report: &Report,
     ks: &[usize],
     draws: usize,
-) -> Result<Option<Vec<Vec<(usize, Floor)>>>, ProcessError> {
+) -> Result<Option<Vec<KFloors>>, ProcessError> {
     let full = measure::full_form(t)?;
     let (p, q) = (full.grid.n_in(), full.grid.n_out());
     if p.min(q) >= crate::svd::MIN_TRUNCATED {
@@ -513,7 +516,7 @@ fn separability_floor(
     let nc = t.channels.len();
     let n = full.grid.len();
     let mut out = Vec::with_capacity(nc);
-    for ch in 0..nc {
+    for (ch, measured) in sep.iter().enumerate().take(nc) {
         let a = measure::matrix(&full, ch);
         let svd = a
             .thin_svd()
@@ -560,7 +563,7 @@ fn separability_floor(
                 None => vec![measure_of(&counterpart)?],
             };
             let (mean, p) = mean_p95(&runs);
-            let value = sep[ch].p_s[j].1;
+            let value = measured.p_s[j].1;
             per_k.push((
                 ks[j],
                 Floor {

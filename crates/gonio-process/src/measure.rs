@@ -277,6 +277,8 @@ pub fn p_ec_sigma(
             } else {
                 0.0
             };
+            // An albedo more than six of its σ below τ has no part.
+            let weight = if weight < 1e-9 { 0.0 } else { weight };
             var += (weight * sn).powi(2);
             lin += weight * sq;
         }

@@ -93,11 +93,7 @@ fn reciprocal_materials_lie_within_their_p_r_floor_and_skewed_ones_above() {
             // skew (P_r 0.07 against 0.004 of skew): no grid this coarse can tell, and
             // the floor says so. The plan grid's 4D twin interpolates every axis and
             // hides the skew of the two darker materials as well.
-            let visible = match (g, name) {
-                (_, "sharp") => false,
-                ("4D", "dark" | "paint") => false,
-                _ => true,
-            };
+            let visible = !matches!((g, name), (_, "sharp") | ("4D", "dark" | "paint"));
             if visible {
                 assert_eq!(above, 8, "{g} {name}: {last}");
                 assert!(
