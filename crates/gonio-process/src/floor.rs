@@ -39,8 +39,9 @@
 //! exceeds its floor. Without σ (a model file, another tool's table) the floor is
 //! the interpolation alone: M₀, and M₀ + 1.645 (M₀ − M₁) as its 95% bound.
 //! P_ec's counterpart has no interpolation part: its floor is the noise's (the
-//! discretisation's bias is in the albedos' quadrature σ instead), and so is
-//! P_s^(k)'s.
+//! discretisation's bias is in the albedos' quadrature σ instead), and 0 without
+//! drawing when every albedo lies more than 8 of its noise σ below τ; P_s^(k)'s is
+//! the noise's too.
 //!
 //! **Cost.** A draw costs a pass of each measure. K is [`DRAW_BUDGET`] over the
 //! table's node-values (nodes × channels), at most [`MAX_DRAWS`] (tables of up to
@@ -74,8 +75,10 @@ pub const MIN_DRAWS: usize = 4;
 /// Node-values (nodes × channels × draws) the draws of one measure may cost.
 pub const DRAW_BUDGET: usize = 1 << 23;
 
-/// The most noise draws of P_s^(k)'s floor (each a full SVD per k and channel).
-pub const MAX_SVD_DRAWS: usize = 32;
+/// The most noise draws of P_s^(k)'s floor (each a full SVD per k and channel): the
+/// most expensive of the floors, and the narrowest (its noise adds to A's whole
+/// tail), so fewer draws suffice.
+pub const MAX_SVD_DRAWS: usize = 16;
 
 /// The standard normal quantile of 0.95.
 const Z95: f64 = 1.644_853_626_951_472_2;
@@ -381,6 +384,24 @@ fn energy_floor(
         let a = e.albedo[ch][row];
         if a > TAU { TAU / a } else { 1.0 }
     };
+    // An incidence whose albedo lies more than 8 of its noise σ below τ adds nothing
+    // to any draw (a chance of 1e-15): when all do, the floor is 0 without drawing.
+    if let Some(sig) = &e.albedo_sigma
+        && e.albedo
+            .iter()
+            .zip(sig)
+            .all(|(a, s)| a.iter().zip(s).all(|(a, s)| a + 8.0 * s < TAU))
+    {
+        return Ok((0..nc)
+            .map(|ch| Floor {
+                mean: 0.0,
+                p95: 0.0,
+                consistent: e.p_ec[ch] <= 0.0,
+                interpolation: 0.0,
+                interpolation_sigma: 0.0,
+            })
+            .collect());
+    }
     let scale;
     let runs: Vec<Vec<f64>> = match measured {
         Some(s) => {
