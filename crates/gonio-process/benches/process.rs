@@ -2,7 +2,8 @@
 //! Throughput of processing: DeYoung's measures and transforms on tabulated BRDFs,
 //! P_s^(k) against a naive reconstruction, nearest-j kernel interpolation against a
 //! brute-force scan, resampling, spherical-harmonic and separable representations
-//! against quadrilinear table evaluation.
+//! against quadrilinear table evaluation; the albedos' quadrature σ and the
+//! measures' floors.
 //!
 //! `cargo bench -p gonio-process --bench process`; figures and the machine are in
 //! BENCHMARKS.md at the repository root. Each reference (a streaming pass over the
@@ -412,8 +413,58 @@ fn harmonics(c: &mut Criterion) {
     );
 }
 
+/// The plan's own grid (config/plan-hemisphere.toml unfolded: θi 0…75 by 15, a full
+/// turn of Δφ by 15, θo 0…80 by 10; 1 296 nodes), one channel of the paint, with a
+/// run's σ (1e-4 relative) when `sigma`.
+fn plan_table(sigma: bool) -> Table {
+    use gonio_process::Axis;
+    let g = Grid::isotropic(
+        Axis::from_deg(0.0, 15.0, 6),
+        Axis::full_turn(24),
+        Axis::from_deg(0.0, 10.0, 9),
+    );
+    let mut t = first_channel(&table(&model(BLUE_PAINT), g));
+    if sigma {
+        t.sigma = Some(t.values.iter().map(|v| 1e-4 * v.abs() + 1e-6).collect());
+    }
+    t
+}
+
+/// The albedos' quadrature σ and the measures' floors, against the measures alone.
+fn floors(c: &mut Criterion) {
+    use gonio_process::{floor, hemisphere};
+    let t = plan_table(true);
+    let mut g = slow(c, "floors, plan grid one channel", 2.0);
+    g.throughput(Throughput::Elements(t.values.len() as u64));
+    g.bench_function("triangulated albedos with quadrature σ (6 rows)", |b| {
+        b.iter(|| black_box(hemisphere::albedos_of_table(black_box(&t)).expect("albedos")))
+    });
+    let r = measure::report(&t, &[1], 5).expect("report");
+    g.bench_function("P_r floor, 64 noise draws", |b| {
+        b.iter(|| black_box(floor::reciprocity_floor(black_box(&t), &r.reciprocity, 64)))
+    });
+    g.bench_function("all floors, 64 noise draws (P_s k = 1)", |b| {
+        b.iter(|| black_box(floor::floors(black_box(&t), None, &r, &[1], 64).expect("floors")))
+    });
+    g.bench_function("report with floors (k = 1)", |b| {
+        b.iter(|| black_box(measure::report(black_box(&t), &[1], 5).expect("report")))
+    });
+    g.finish();
+    let t10 = first_channel(&table(&model(BLUE_PAINT), grid10()));
+    let r10 = measure::report(&t10, &[1, 5], 5).expect("report");
+    let mut g = slow(c, "floors 10deg one channel, no sigma", 2.0);
+    g.throughput(Throughput::Elements(t10.values.len() as u64));
+    g.bench_function("all floors, interpolation alone", |b| {
+        b.iter(|| {
+            black_box(floor::floors(black_box(&t10), None, &r10, &[1, 5], 0).expect("floors"))
+        })
+    });
+    g.finish();
+}
+
 criterion_group!(
     benches,
+    floors,
     measures,
     transforms,
     separability,

@@ -29,12 +29,36 @@
 //! the values of the hull's edge, each hull edge extended radially to the unit
 //! circle; its share of the projected hemisphere is reported, and when the hull does
 //! not surround the normal nothing is extended and the albedo covers the hull only.
+//!
+//! **Quadrature uncertainty.** The albedo's σ from the samples' noise says nothing of
+//! the error of integrating a coarse grid, which at grazing incidence is far larger.
+//! Each albedo also carries a standard uncertainty of its discretisation
+//! ([`IncidentAlbedo::quadrature`]), estimated from the data, in two terms added in
+//! quadrature:
+//! - *the band* beyond the data's edge: the albedo again with the band extrapolated
+//!   from the edge's radial slope (linear in sin θo, and linear in θo, each clipped at
+//!   0) instead of held; the largest change is a rectangular bound about the held
+//!   value, σ = bound/√3 (GUM 4.3.7). The slope at a hull point is that of the
+//!   triangle the inward ray enters: on a polar grid, the last two rings along the
+//!   azimuth. The held value stays the estimate: on the materials the tests measure,
+//!   the linear extrapolations move the band away from the truth at grazing
+//!   incidence (a lobe that peaks between the last two rings slopes upwards into the
+//!   band, then falls), and agree with holding elsewhere.
+//! - *the interior*: the same rule on coarser subsets of the points against all of
+//!   them (Richardson). Points on a polar grid (three quarters of the product of
+//!   their rings and azimuths at least) are thinned to every other azimuth and, apart,
+//!   to every other ring (the outermost kept, so that the hull and the band stay),
+//!   each in both parities; a rule of second order in the spacing then errs by the
+//!   difference over 2² − 1, the parities averaged in square. Scattered points are
+//!   thinned to every other point (√2 the spacing: the difference over 2 − 1). With
+//!   no coarser rule to compare with (too few points) the term is the albedo itself.
 
 use std::collections::BTreeMap;
-use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use gonio_core::SphericalDeg;
 use gonio_core::dirfile::PairDeg;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::samples::Kernel;
@@ -358,9 +382,21 @@ pub struct IncidentAlbedo {
     pub phi_i_deg: f64,
     /// ∫ f cos θo dω per channel.
     pub albedo: Vec<f64>,
-    /// Its standard uncertainty per channel (the samples' σ through the weights,
-    /// taken independent), when the samples have σ.
+    /// Its standard uncertainty per channel from the samples' noise (their σ through
+    /// the weights, taken independent), when the samples have σ.
     pub sigma: Option<Vec<f64>>,
+    /// The standard uncertainty of the discretisation per channel, estimated from
+    /// the data (module docs, "Quadrature uncertainty"): [`Self::quadrature_band`]
+    /// and [`Self::quadrature_interior`] in quadrature. Independent of `sigma`; the
+    /// albedo's whole standard uncertainty is the two in quadrature.
+    pub quadrature: Vec<f64>,
+    /// The band's term: how much the albedo moves when the band from the data's edge
+    /// to the horizon is extrapolated linearly (in sin θo or in θo, clipped at 0)
+    /// rather than held, as a rectangular bound (÷√3).
+    pub quadrature_band: Vec<f64>,
+    /// The interior's term: the same rule on every other ring and every other
+    /// azimuth against all of them, scaled to the fine rule's error (Richardson).
+    pub quadrature_interior: Vec<f64>,
     /// Distinct outgoing directions used.
     pub directions: usize,
     /// Fraction of the projected hemisphere inside the data's convex hull.
@@ -431,89 +467,119 @@ impl Disk {
 }
 
 /// Directional albedos of scattered samples, one per incident direction with at
-/// least three outgoing directions not on a line (module docs). Isotropic samples
-/// are taken in the frame φi = 0 (so all of one θi form one direction).
+/// least three outgoing directions not on a line (module docs), each with the
+/// uncertainty of its discretisation. Isotropic samples are taken in the frame
+/// φi = 0 (so all of one θi form one direction).
 pub fn albedos(s: &Samples) -> Result<Vec<IncidentAlbedo>, ProcessError> {
+    albedos_with(s, true)
+}
+
+/// The key of the incident direction a sample's albedo belongs to: θi and φi in
+/// micro-degrees, φi 0 for isotropic samples and at normal incidence.
+pub(crate) fn incidence_key(isotropic: bool, p: &PairDeg) -> (i64, i64) {
+    let ti = q(p.incident.theta_deg);
+    let pi = if isotropic || ti == 0 {
+        0
+    } else {
+        wrap(p.incident.phi_deg)
+    };
+    (ti, pi)
+}
+
+/// [`albedos`], with the quadrature uncertainty only when asked (the floors' noise
+/// draws need the albedos alone). Incidences are integrated in parallel; each is
+/// the same sum on any number of threads.
+pub(crate) fn albedos_with(
+    s: &Samples,
+    quadrature: bool,
+) -> Result<Vec<IncidentAlbedo>, ProcessError> {
     s.validate()?;
     let nc = s.channels.len();
     let mut groups: BTreeMap<(i64, i64), Disk> = BTreeMap::new();
     for x in &s.samples {
         let p = &x.pair;
-        let ti = q(p.incident.theta_deg);
-        let pi = if s.isotropic || ti == 0 {
-            0
-        } else {
-            wrap(p.incident.phi_deg)
-        };
         let phi = if s.isotropic {
             p.outgoing.phi_deg - p.incident.phi_deg
         } else {
             p.outgoing.phi_deg
         };
         let var: Option<Vec<f64>> = x.sigma.as_ref().map(|v| v.iter().map(|s| s * s).collect());
-        groups.entry((ti, pi)).or_default().add(
-            p.outgoing.theta_deg.to_radians().sin(),
-            phi.to_radians(),
-            &x.value,
-            var.as_deref(),
-        );
+        groups
+            .entry(incidence_key(s.isotropic, p))
+            .or_default()
+            .add(
+                p.outgoing.theta_deg.to_radians().sin(),
+                phi.to_radians(),
+                &x.value,
+                var.as_deref(),
+            );
     }
-    let mut out = Vec::new();
-    for ((ti, pi), disk) in groups {
-        let nodes = disk.nodes();
-        if let Some(a) = integrate(&nodes, nc) {
-            out.push(IncidentAlbedo {
+    let groups: Vec<((i64, i64), Disk)> = groups.into_iter().collect();
+    let out: Vec<Option<IncidentAlbedo>> = groups
+        .into_par_iter()
+        .map(|((ti, pi), disk)| {
+            let nodes = disk.nodes();
+            integrate(&nodes, nc, quadrature).map(|a| IncidentAlbedo {
                 theta_i_deg: ti as f64 * 1e-6,
                 phi_i_deg: pi as f64 * 1e-6,
                 directions: nodes.len(),
                 ..a
-            });
-        }
-    }
-    some_area(out)
+            })
+        })
+        .collect();
+    some_area(out.into_iter().flatten().collect())
 }
 
 /// Directional albedos of a table's incident rows over the triangulated hemisphere
 /// of its outgoing nodes ([`albedos`] without forming a sample a node: one row's
-/// nodes at a time, so a large table costs no more memory than one row). An
-/// isotropic table whose φ+ axis spans a half turn is unfolded row by row (module
-/// docs, bilateral symmetry).
+/// nodes at a time, so a large table costs no more memory than a row a thread), each
+/// with the uncertainty of its discretisation. An isotropic table whose φ+ axis
+/// spans a half turn is unfolded row by row (module docs, bilateral symmetry).
 pub fn albedos_of_table(t: &Table) -> Result<Vec<IncidentAlbedo>, ProcessError> {
+    albedos_of_table_with(t, true)
+}
+
+/// [`albedos_of_table`], with the quadrature uncertainty only when asked. Rows are
+/// integrated in parallel; each is the same sum on any number of threads.
+pub(crate) fn albedos_of_table_with(
+    t: &Table,
+    quadrature: bool,
+) -> Result<Vec<IncidentAlbedo>, ProcessError> {
     let g = &t.grid;
     let (n, q, nc) = (g.len(), g.n_out(), t.channels.len());
     let p = &g.phi_o;
     let half = half_turn(g);
     let on_plane = |phi: f64| [0.0, 180.0, 360.0].iter().any(|x| (phi - x).abs() < 1e-9);
-    let mut out = Vec::new();
-    for r in 0..g.n_in() {
-        let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
-        let mut disk = Disk::default();
-        for k in 0..q {
-            let (c, d) = (k / g.theta_o.n, k % g.theta_o.n);
-            let phi = p.node(c).to_degrees();
-            let rad = g.theta_o.node(d).sin();
-            let i = r * q + k;
-            let v: Vec<f64> = (0..nc).map(|ch| t.values[ch * n + i]).collect();
-            let var: Option<Vec<f64>> = t
-                .sigma
-                .as_ref()
-                .map(|s| (0..nc).map(|ch| s[ch * n + i].powi(2)).collect());
-            disk.add(rad, phi.to_radians(), &v, var.as_deref());
-            if half && !on_plane(phi) && rad > 0.0 {
-                disk.add(rad, (-phi).to_radians(), &v, var.as_deref());
+    let out: Vec<Option<IncidentAlbedo>> = (0..g.n_in())
+        .into_par_iter()
+        .map(|r| {
+            let (a, b) = (r / g.theta_i.n, r % g.theta_i.n);
+            let mut disk = Disk::default();
+            for k in 0..q {
+                let (c, d) = (k / g.theta_o.n, k % g.theta_o.n);
+                let phi = p.node(c).to_degrees();
+                let rad = g.theta_o.node(d).sin();
+                let i = r * q + k;
+                let v: Vec<f64> = (0..nc).map(|ch| t.values[ch * n + i]).collect();
+                let var: Option<Vec<f64>> = t
+                    .sigma
+                    .as_ref()
+                    .map(|s| (0..nc).map(|ch| s[ch * n + i].powi(2)).collect());
+                disk.add(rad, phi.to_radians(), &v, var.as_deref());
+                if half && !on_plane(phi) && rad > 0.0 {
+                    disk.add(rad, (-phi).to_radians(), &v, var.as_deref());
+                }
             }
-        }
-        let nodes = disk.nodes();
-        if let Some(al) = integrate(&nodes, nc) {
-            out.push(IncidentAlbedo {
+            let nodes = disk.nodes();
+            integrate(&nodes, nc, quadrature).map(|al| IncidentAlbedo {
                 theta_i_deg: g.theta_i.node_deg(b),
                 phi_i_deg: g.phi_i.node_deg(a),
                 directions: nodes.len(),
                 ..al
-            });
-        }
-    }
-    some_area(out)
+            })
+        })
+        .collect();
+    some_area(out.into_iter().flatten().collect())
 }
 
 /// The albedos, or why there are none: no incidence spans an area.
@@ -528,32 +594,52 @@ fn some_area(out: Vec<IncidentAlbedo>) -> Result<Vec<IncidentAlbedo>, ProcessErr
     Ok(out)
 }
 
-/// ∫ f dA over the unit disk for one incidence (module docs), or none when the
-/// points span no area.
-fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
-    if nodes.len() < 3 {
+/// The triangulated rule over one incidence's projected points: each point's weight
+/// in Σ w_k f_k (a third of each triangle it is a corner of, and half of each band
+/// sector beside it), with the triangulation it came from.
+struct Rule {
+    /// The triangles, by corner index.
+    triangles: Vec<[usize; 3]>,
+    /// The convex hull, counter-clockwise.
+    hull: Vec<usize>,
+    /// Whether the hull surrounds the normal, so that the band to the horizon is held.
+    surrounds: bool,
+    /// The weight of each point.
+    w: Vec<f64>,
+    /// The hull's area.
+    hull_area: f64,
+    /// The band's area (0 when the hull does not surround the normal).
+    band: f64,
+}
+
+/// z of the cross product of two plane vectors.
+fn cross(a: (f64, f64), b: (f64, f64)) -> f64 {
+    a.0 * b.1 - a.1 * b.0
+}
+
+/// The rule over `pts` (module docs), or none when they span no area.
+fn rule(pts: &[delaunator::Point]) -> Option<Rule> {
+    if pts.len() < 3 {
         return None;
     }
-    let pts: Vec<delaunator::Point> = nodes
-        .iter()
-        .map(|n| delaunator::Point { x: n.x, y: n.y })
-        .collect();
-    let tri = delaunator::triangulate(&pts);
+    let tri = delaunator::triangulate(pts);
     // Points on a line (an in-plane scan) span no area; rounding may still leave
     // slivers, which are not a hemisphere either.
     if tri.triangles.is_empty() {
         return None;
     }
-    // The weight of each node in Σ w_k f_k: a third of each triangle it is a corner of.
-    let mut w = vec![0.0; nodes.len()];
+    let p = |k: usize| (pts[k].x, pts[k].y);
+    let mut w = vec![0.0; pts.len()];
     let mut hull_area = 0.0;
+    let mut triangles = Vec::with_capacity(tri.triangles.len() / 3);
     for t in tri.triangles.chunks_exact(3) {
-        let (a, b, c) = (&nodes[t[0]], &nodes[t[1]], &nodes[t[2]]);
-        let area = 0.5 * ((b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y)).abs();
+        let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+        let area = 0.5 * cross((b.0 - a.0, b.1 - a.1), (c.0 - a.0, c.1 - a.1)).abs();
         hull_area += area;
         for &k in t {
             w[k] += area / 3.0;
         }
+        triangles.push([t[0], t[1], t[2]]);
     }
     if hull_area < 1e-9 {
         return None;
@@ -561,10 +647,7 @@ fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
     // The hull, counter-clockwise in (x, y).
     let mut hull = tri.hull.clone();
     let signed: f64 = (0..hull.len())
-        .map(|i| {
-            let (a, b) = (&nodes[hull[i]], &nodes[hull[(i + 1) % hull.len()]]);
-            a.x * b.y - b.x * a.y
-        })
+        .map(|i| cross(p(hull[i]), p(hull[(i + 1) % hull.len()])))
         .sum();
     if signed < 0.0 {
         hull.reverse();
@@ -572,29 +655,54 @@ fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
     // The band to the horizon, only when the hull surrounds the normal: every edge
     // then sees the origin on its left, and its sector to the unit circle is the
     // circular sector less the triangle (origin, a, b).
-    let surrounds = (0..hull.len()).all(|i| {
-        let (a, b) = (&nodes[hull[i]], &nodes[hull[(i + 1) % hull.len()]]);
-        a.x * b.y - b.x * a.y > 1e-12
-    });
+    let surrounds =
+        (0..hull.len()).all(|i| cross(p(hull[i]), p(hull[(i + 1) % hull.len()])) > 1e-12);
     let mut band = 0.0;
     if surrounds {
         for i in 0..hull.len() {
             let (ia, ib) = (hull[i], hull[(i + 1) % hull.len()]);
-            let (a, b) = (&nodes[ia], &nodes[ib]);
-            let turn = (a.x * b.y - b.x * a.y).atan2(a.x * b.x + a.y * b.y);
-            let sector = 0.5 * turn - 0.5 * (a.x * b.y - b.x * a.y);
-            let sector = sector.max(0.0);
+            let (a, b) = (p(ia), p(ib));
+            let turn = cross(a, b).atan2(a.0 * b.0 + a.1 * b.1);
+            let sector = (0.5 * turn - 0.5 * cross(a, b)).max(0.0);
             band += sector;
             w[ia] += 0.5 * sector;
             w[ib] += 0.5 * sector;
         }
     }
-    let mut albedo = vec![0.0; nc];
-    let mut var = nodes[0].var.as_ref().map(|_| vec![0.0; nc]);
-    for (n, wk) in nodes.iter().zip(&w) {
-        for (a, x) in albedo.iter_mut().zip(&n.value) {
+    Some(Rule {
+        triangles,
+        hull,
+        surrounds,
+        w,
+        hull_area,
+        band,
+    })
+}
+
+/// Σ w_k f_k per channel over the points `idx` of `nodes` (weights in `idx` order).
+fn weighted_sum(nodes: &[Node], idx: &[usize], w: &[f64], nc: usize) -> Vec<f64> {
+    let mut out = vec![0.0; nc];
+    for (&k, wk) in idx.iter().zip(w) {
+        for (a, x) in out.iter_mut().zip(&nodes[k].value) {
             *a += wk * x;
         }
+    }
+    out
+}
+
+/// ∫ f dA over the unit disk for one incidence (module docs), or none when the
+/// points span no area; with `quadrature`, the discretisation's uncertainty as well
+/// (else zeros: the floors' noise draws need the albedo alone).
+fn integrate(nodes: &[Node], nc: usize, quadrature: bool) -> Option<IncidentAlbedo> {
+    let pts: Vec<delaunator::Point> = nodes
+        .iter()
+        .map(|n| delaunator::Point { x: n.x, y: n.y })
+        .collect();
+    let r = rule(&pts)?;
+    let all: Vec<usize> = (0..nodes.len()).collect();
+    let albedo = weighted_sum(nodes, &all, &r.w, nc);
+    let mut var = nodes[0].var.as_ref().map(|_| vec![0.0; nc]);
+    for (n, wk) in nodes.iter().zip(&r.w) {
         match (&mut var, &n.var) {
             (Some(v), Some(nv)) => {
                 for (a, x) in v.iter_mut().zip(nv) {
@@ -604,13 +712,314 @@ fn integrate(nodes: &[Node], nc: usize) -> Option<IncidentAlbedo> {
             (v, _) => *v = None,
         }
     }
+    let (band, interior) = if quadrature {
+        (
+            band_sigma(nodes, &r, nc),
+            interior_sigma(nodes, &pts, &albedo),
+        )
+    } else {
+        (vec![0.0; nc], vec![0.0; nc])
+    };
     Some(IncidentAlbedo {
         theta_i_deg: 0.0,
         phi_i_deg: 0.0,
+        quadrature: band
+            .iter()
+            .zip(&interior)
+            .map(|(a, b)| a.hypot(*b))
+            .collect(),
+        quadrature_band: band,
+        quadrature_interior: interior,
         albedo,
         sigma: var.map(|v| v.into_iter().map(f64::sqrt).collect()),
         directions: nodes.len(),
-        covered: (hull_area / PI).min(1.0),
-        extrapolated: band / PI,
+        covered: (r.hull_area / PI).min(1.0),
+        extrapolated: r.band / PI,
     })
+}
+
+/// Gauss–Legendre nodes and weights on [−1, 1], 8 points (Abramowitz & Stegun,
+/// Table 25.4): the band's integrals across each hull edge.
+const GL8: [(f64, f64); 8] = [
+    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (-0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+    (-0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+    (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+];
+
+/// The outward radial derivative ∂f/∂ρ (ρ = sin θo) per channel at hull point `a`,
+/// from the triangle that the inward ray from `a` enters: on a polar grid, the
+/// difference to the point one ring in along the same azimuth over their radial
+/// distance. 0 when no triangle is entered (a point at the normal).
+fn radial_slope(nodes: &[Node], r: &Rule, around: &[usize], a: usize, nc: usize) -> Vec<f64> {
+    let pa = (nodes[a].x, nodes[a].y);
+    let ra = pa.0.hypot(pa.1);
+    if ra < 1e-12 {
+        return vec![0.0; nc];
+    }
+    let u = (-pa.0 / ra, -pa.1 / ra);
+    for &t in around {
+        let tri = r.triangles[t];
+        let Some(k) = tri.iter().position(|&c| c == a) else {
+            continue;
+        };
+        let (b, c) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+        let e1 = (nodes[b].x - pa.0, nodes[b].y - pa.1);
+        let e2 = (nodes[c].x - pa.0, nodes[c].y - pa.1);
+        let det = cross(e1, e2);
+        if det.abs() < 1e-300 {
+            continue;
+        }
+        let (l1, l2) = (cross(u, e2) / det, cross(e1, u) / det);
+        let tol = -1e-9 * (l1.abs() + l2.abs());
+        if l1 >= tol && l2 >= tol {
+            return (0..nc)
+                .map(|ch| {
+                    let fa = nodes[a].value[ch];
+                    -(l1 * (nodes[b].value[ch] - fa) + l2 * (nodes[c].value[ch] - fa))
+                })
+                .collect();
+        }
+    }
+    vec![0.0; nc]
+}
+
+/// ∫ max(0, A + D (ρ − ρc)) ρ dρ over [ρc, 1]: the band along one ray, extrapolated
+/// linearly in ρ = sin θo and clipped at 0.
+fn band_linear_in_rho(a: f64, d: f64, rc: f64) -> f64 {
+    let (lo, hi) = positive_part(a, d, rc, 1.0);
+    if lo >= hi {
+        return 0.0;
+    }
+    let f = |x: f64| (a - d * rc) * x * x / 2.0 + d * x * x * x / 3.0;
+    f(hi) - f(lo)
+}
+
+/// ∫ max(0, A + E (θ − θc)) sin θ cos θ dθ over [θc, 90°]: the band along one ray,
+/// extrapolated linearly in θo and clipped at 0.
+fn band_linear_in_theta(a: f64, e: f64, tc: f64) -> f64 {
+    let (lo, hi) = positive_part(a, e, tc, FRAC_PI_2);
+    if lo >= hi {
+        return 0.0;
+    }
+    let g = |t: f64| {
+        -(a - e * tc) * (2.0 * t).cos() / 4.0
+            + e * (-t * (2.0 * t).cos() / 4.0 + (2.0 * t).sin() / 8.0)
+    };
+    g(hi) - g(lo)
+}
+
+/// The part of [x0, x1] where A + D (x − x0) ≥ 0.
+fn positive_part(a: f64, d: f64, x0: f64, x1: f64) -> (f64, f64) {
+    if d == 0.0 {
+        return if a > 0.0 { (x0, x1) } else { (x1, x1) };
+    }
+    let z = x0 - a / d;
+    if d > 0.0 {
+        (z.max(x0), x1)
+    } else {
+        (x0, z.min(x1))
+    }
+}
+
+/// The band's term of the discretisation's uncertainty per channel (module docs):
+/// the largest change to the albedo when the band beyond the data's edge is
+/// extrapolated linearly in sin θo or in θo (clipped at 0) from the edge's radial
+/// slope instead of held, taken as a rectangular bound about the held value,
+/// σ = bound/√3 (GUM 4.3.7). 0 when nothing is extended.
+fn band_sigma(nodes: &[Node], r: &Rule, nc: usize) -> Vec<f64> {
+    if !r.surrounds || r.band <= 0.0 {
+        return vec![0.0; nc];
+    }
+    let mut around: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for (t, tri) in r.triangles.iter().enumerate() {
+        for &c in tri {
+            around.entry(c).or_default().push(t);
+        }
+    }
+    let slopes: BTreeMap<usize, Vec<f64>> = r
+        .hull
+        .iter()
+        .map(|&a| {
+            let ts = around.get(&a).map_or(&[][..], Vec::as_slice);
+            (a, radial_slope(nodes, r, ts, a, nc))
+        })
+        .collect();
+    // (held, linear in ρ, linear in θ) per channel, all by the same rule across edges.
+    let mut sums = vec![[0.0; 3]; nc];
+    let h = r.hull.len();
+    for i in 0..h {
+        let (ia, ib) = (r.hull[i], r.hull[(i + 1) % h]);
+        let (a, b) = ((nodes[ia].x, nodes[ia].y), (nodes[ib].x, nodes[ib].y));
+        let turn = cross(a, b).atan2(a.0 * b.0 + a.1 * b.1);
+        let psi_a = a.1.atan2(a.0);
+        let ab = (b.0 - a.0, b.1 - a.1);
+        for (x, wq) in GL8 {
+            let psi = psi_a + 0.5 * turn * (1.0 + x);
+            let u = (psi.cos(), psi.sin());
+            let den = cross(u, ab);
+            if den.abs() < 1e-300 {
+                continue;
+            }
+            let t = (-cross(u, a) / den).clamp(0.0, 1.0);
+            let rc = (a.0 + t * ab.0).hypot(a.1 + t * ab.1);
+            if rc >= 1.0 {
+                continue;
+            }
+            let tc = rc.asin();
+            let wpsi = 0.5 * turn * wq;
+            for (ch, s) in sums.iter_mut().enumerate() {
+                let f = (1.0 - t) * nodes[ia].value[ch] + t * nodes[ib].value[ch];
+                let d = (1.0 - t) * slopes[&ia][ch] + t * slopes[&ib][ch];
+                s[0] += wpsi * f * (1.0 - rc * rc) / 2.0;
+                s[1] += wpsi * band_linear_in_rho(f, d, rc);
+                s[2] += wpsi * band_linear_in_theta(f, d * tc.cos(), tc);
+            }
+        }
+    }
+    sums.iter()
+        .map(|s| (s[1] - s[0]).abs().max((s[2] - s[0]).abs()) / 3f64.sqrt())
+        .collect()
+}
+
+/// Ring and azimuth ranks of the points (rings by sin θo, the normal ring 0 when
+/// measured; azimuths among the points off the normal), and the counts.
+struct Polar {
+    ring: Vec<usize>,
+    azimuth: Vec<Option<usize>>,
+    rings: usize,
+    azimuths: usize,
+    centre: bool,
+}
+
+impl Polar {
+    fn of(pts: &[delaunator::Point]) -> Polar {
+        let turn = (TAU * 1e7).round() as i64;
+        let rkey = |p: &delaunator::Point| (p.x.hypot(p.y) * 1e7).round() as i64;
+        let akey = |p: &delaunator::Point| {
+            let k = (p.y.atan2(p.x).rem_euclid(TAU) * 1e7).round() as i64;
+            if k >= turn { 0 } else { k }
+        };
+        let rings: BTreeMap<i64, usize> = {
+            let mut m: BTreeMap<i64, usize> = pts.iter().map(|p| (rkey(p), 0)).collect();
+            for (k, v) in m.values_mut().enumerate() {
+                *v = k;
+            }
+            m
+        };
+        let azimuths: BTreeMap<i64, usize> = {
+            let mut m: BTreeMap<i64, usize> = pts
+                .iter()
+                .filter(|p| rkey(p) != 0)
+                .map(|p| (akey(p), 0))
+                .collect();
+            for (k, v) in m.values_mut().enumerate() {
+                *v = k;
+            }
+            m
+        };
+        Polar {
+            ring: pts.iter().map(|p| rings[&rkey(p)]).collect(),
+            azimuth: pts
+                .iter()
+                .map(|p| (rkey(p) != 0).then(|| azimuths[&akey(p)]))
+                .collect(),
+            rings: rings.len(),
+            azimuths: azimuths.len(),
+            centre: rings.contains_key(&0),
+        }
+    }
+
+    /// Whether the points lie on (at least three quarters of) the product of their
+    /// rings and azimuths: a plan's or a table's polar grid, holes allowed.
+    fn is_grid(&self) -> bool {
+        let off = self.azimuth.iter().filter(|a| a.is_some()).count();
+        let rings_off = self.rings - usize::from(self.centre);
+        off as f64 >= 0.75 * (rings_off * self.azimuths) as f64
+    }
+}
+
+/// The interior term of the discretisation's uncertainty per channel (module docs):
+/// the albedo by the same rule on coarser subsets of the points, against all of them,
+/// scaled to the error of the fine rule as Richardson's extrapolation does for a
+/// rule whose error is of second order in the spacing.
+fn interior_sigma(nodes: &[Node], pts: &[delaunator::Point], full: &[f64]) -> Vec<f64> {
+    let nc = full.len();
+    let n = nodes.len();
+    let polar = Polar::of(pts);
+    // (direction, kept points); a direction's differences are averaged in square.
+    let mut subsets: Vec<(usize, Vec<usize>)> = Vec::new();
+    // The fine rule's error from a subset with double the spacing in one direction:
+    // Δ/(2² − 1); in both (scattered points, every other one: √2 the spacing), Δ/(2 − 1).
+    let factor = [1.0 / 3.0, 1.0 / 3.0, 1.0];
+    if polar.is_grid() {
+        if polar.azimuths >= 6 {
+            for parity in 0..2 {
+                let keep = (0..n)
+                    .filter(|&k| polar.azimuth[k].is_none_or(|a| a % 2 == parity))
+                    .collect();
+                subsets.push((0, keep));
+            }
+        }
+        if polar.rings >= 3 {
+            let last = polar.rings - 1;
+            for parity in 0..2 {
+                let keep: Vec<usize> = (0..n)
+                    .filter(|&k| {
+                        let r = polar.ring[k];
+                        r % 2 == parity || r == last || (parity == 1 && r == 0)
+                    })
+                    .collect();
+                if keep.len() < n {
+                    subsets.push((1, keep));
+                }
+            }
+        }
+    } else if n >= 8 {
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| {
+            let key = |k: usize| (polar.ring[k], pts[k].y.atan2(pts[k].x).rem_euclid(TAU));
+            let (ka, kb) = (key(a), key(b));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        });
+        for parity in 0..2 {
+            let keep = order
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| j % 2 == parity)
+                .map(|(_, &k)| k)
+                .collect();
+            subsets.push((2, keep));
+        }
+    }
+    let mut sq = vec![[0.0; 3]; nc];
+    let mut count = [0usize; 3];
+    for (dir, keep) in &subsets {
+        let sub: Vec<delaunator::Point> = keep.iter().map(|&k| pts[k].clone()).collect();
+        let Some(r) = rule(&sub) else {
+            continue;
+        };
+        let a = weighted_sum(nodes, keep, &r.w, nc);
+        for ch in 0..nc {
+            sq[ch][*dir] += (a[ch] - full[ch]).powi(2);
+        }
+        count[*dir] += 1;
+    }
+    if count.iter().all(|c| *c == 0) {
+        // No coarser rule to compare with: the albedo is as uncertain as it is large.
+        return full.iter().map(|a| a.abs()).collect();
+    }
+    (0..nc)
+        .map(|ch| {
+            (0..3)
+                .filter(|&d| count[d] > 0)
+                .map(|d| (sq[ch][d] / count[d] as f64) * factor[d] * factor[d])
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect()
 }

@@ -10,7 +10,10 @@
 //! - [`grid`]: uniform and isotropic grids and quadrilinear interpolation.
 //! - [`hemisphere`]: measured samples over the hemisphere: bilateral unfolding of
 //!   isotropic half turns, the data's own grid, the triangulated albedo.
-//! - [`measure`]: P_r, P_ec, P_i, P_s^(k) (Ch. 4).
+//! - [`measure`]: P_r, P_ec, P_i, P_s^(k) (Ch. 4), with the albedos' quadrature
+//!   uncertainty.
+//! - [`floor`]: what each measure reads for a BRDF with the property, under the same
+//!   sampling and noise.
 //! - [`transform`]: the δ-transforms of Ch. 5, weighted by the uncertainties.
 //! - [`separable`]: the k-separable representation (Eq. 5.13–5.14).
 //! - [`sh`]: real spherical harmonics with a symmetric coefficient matrix, exactly
@@ -23,6 +26,7 @@ pub mod adapt;
 pub mod columns;
 pub mod covariance;
 pub mod file;
+pub mod floor;
 pub mod grid;
 pub mod hemisphere;
 pub mod measure;

@@ -121,9 +121,21 @@ pub struct Energy {
     /// The directional albedo M/E per channel and incident direction (Eq. 4.3 as the
     /// sum of Eq. 4.4 before the −1), rows in incident-node order (φi, θi).
     pub albedo: Vec<Vec<f64>>,
-    /// Standard uncertainties of the albedos, same layout, when the data carry σ
-    /// (triangulated form only).
+    /// Standard uncertainties of the albedos from the data's noise, same layout, when
+    /// the data carry σ (triangulated form only).
     pub albedo_sigma: Option<Vec<Vec<f64>>>,
+    /// Standard uncertainties of the albedos from their discretisation, same layout,
+    /// estimated from the data (Richardson on coarser rules, and for the triangulated
+    /// form the band beyond the data's edge: [`sum_quadrature`],
+    /// [`crate::hemisphere::IncidentAlbedo::quadrature`]). Independent of
+    /// `albedo_sigma`; an albedo's whole uncertainty is the two in quadrature.
+    pub albedo_quadrature_sigma: Vec<Vec<f64>>,
+    /// The standard uncertainty of P_ec per channel from the albedos' noise, when the
+    /// data carry σ ([`p_ec_sigma`]).
+    pub p_ec_noise_sigma: Option<Vec<f64>>,
+    /// The standard uncertainty of P_ec per channel from the albedos'
+    /// discretisation ([`p_ec_sigma`]).
+    pub p_ec_quadrature_sigma: Vec<f64>,
     /// The fraction of the outgoing hemisphere's projected solid angle the data
     /// cover: the outgoing axes' bands for the sum (the albedo undercounts by about
     /// this fraction when it is below 1), the smallest convex hull of any incident
@@ -215,16 +227,196 @@ pub fn energy(t: &Table, tau: f64, worst: usize) -> Energy {
             (g.theta_i.node_deg(b), g.phi_i.node_deg(a))
         })
         .collect();
+    let quad = sum_quadrature(t);
+    let (p_ec_noise_sigma, p_ec_quadrature_sigma) = p_ec_sigma(&alb, None, &quad, tau);
     Energy {
         p_ec,
         method: EnergyMethod::Sum,
         incident,
         albedo: alb,
         albedo_sigma: None,
+        albedo_quadrature_sigma: quad,
+        p_ec_noise_sigma,
+        p_ec_quadrature_sigma,
         coverage: span_phi * span_theta,
         extrapolated: 0.0,
         worst,
     }
+}
+
+/// The standard uncertainty of P_ec (Eq. 4.5) per channel, from the albedos' noise
+/// σ (when given) and from their discretisation, both `[channel][row]`.
+///
+/// P_ec averages max(0, ρ − τ) over the incidences, which has no derivative at
+/// ρ = τ; each albedo's part is weighted by the derivative of its expected excess,
+/// Φ((ρ − τ)/u) with u its whole standard uncertainty (noise and discretisation in
+/// quadrature; Φ the standard normal distribution function): 1 well above τ, 0 well
+/// below, ½ at it. The noise is independent between incidences, so its parts add in
+/// quadrature; the discretisation's errors of neighbouring incidences come from the
+/// same grid and are taken as fully correlated, so its parts add linearly.
+pub fn p_ec_sigma(
+    albedo: &[Vec<f64>],
+    noise: Option<&[Vec<f64>]>,
+    quadrature: &[Vec<f64>],
+    tau: f64,
+) -> (Option<Vec<f64>>, Vec<f64>) {
+    let phi = |z: f64| 0.5 * gonio_core::special::erfc(-z / std::f64::consts::SQRT_2);
+    let mut out_noise = Vec::with_capacity(albedo.len());
+    let mut out_quad = Vec::with_capacity(albedo.len());
+    for (ch, a) in albedo.iter().enumerate() {
+        let n = a.len().max(1) as f64;
+        let (mut var, mut lin) = (0.0, 0.0);
+        for (r, x) in a.iter().enumerate() {
+            let sn = noise.map_or(0.0, |s| s[ch][r]);
+            let sq = quadrature[ch][r];
+            let u = sn.hypot(sq);
+            let weight = if u > 0.0 {
+                phi((x - tau) / u)
+            } else if *x > tau {
+                1.0
+            } else {
+                0.0
+            };
+            // An albedo more than six of its σ below τ has no part.
+            let weight = if weight < 1e-9 { 0.0 } else { weight };
+            var += (weight * sn).powi(2);
+            lin += weight * sq;
+        }
+        out_noise.push(var.sqrt() / n);
+        out_quad.push(lin / n);
+    }
+    (noise.map(|_| out_noise), out_quad)
+}
+
+/// The standard uncertainty of the discretisation of every row's sum (Eq. 4.4), per
+/// channel and row: Richardson's estimate from coarser rules on the same nodes.
+/// **Azimuth**: on a full turn of at least four nodes, every other azimuth (each
+/// parity, periodic trapezoid weights) against all; the fine rule's error is the
+/// difference over 2² − 1, the two parities averaged in square. **Polar angle**, on
+/// at least three nodes: the difference to the rule that integrates the quadratic
+/// through each node and its neighbours over its band, taken whole (it sees a peak
+/// at a node that a coarser rule can step over); and on polar band midpoints whose
+/// count is a multiple of 3, the midpoint rule on bands three times as wide (their
+/// midpoints are every third node), the difference over 3² − 1 (it sees what lies
+/// between the nodes). All terms add in quadrature.
+pub fn sum_quadrature(t: &Table) -> Vec<Vec<f64>> {
+    let g = &t.grid;
+    let (p, q) = (g.n_in(), g.n_out());
+    let (np, nt) = (g.phi_o.n, g.theta_o.n);
+    let (dp, dt) = (g.phi_o.delta(), g.theta_o.delta());
+    let th: Vec<f64> = (0..nt).map(|d| g.theta_o.node(d)).collect();
+    let wt: Vec<f64> = th.iter().map(|x| x.sin() * x.cos() * dt).collect();
+    // Azimuth subsets: (kept azimuths, their periodic trapezoid weights).
+    let mut az: Vec<(Vec<usize>, Vec<f64>)> = Vec::new();
+    if g.phi_o.is_periodic() && np >= 4 {
+        for parity in 0..2 {
+            let keep: Vec<usize> = (0..np).filter(|c| c % 2 == parity).collect();
+            let m = keep.len();
+            let w = (0..m)
+                .map(|j| {
+                    let next = (keep[(j + 1) % m] + np - keep[j]) % np;
+                    let prev = (keep[j] + np - keep[(j + m - 1) % m]) % np;
+                    0.5 * (next + prev) as f64 * dp
+                })
+                .collect();
+            az.push((keep, w));
+        }
+    }
+    // Polar rules to compare with: weights per node, and the factor to the fine error.
+    let midpoints = nt >= 3
+        && (g.theta_o.start - 0.5 * dt).abs() < 1e-9
+        && (nt as f64 * dt - FRAC_PI_2).abs() < 1e-9;
+    let mut polar: Vec<(Vec<f64>, f64)> = Vec::new();
+    if midpoints && nt % 3 == 0 {
+        let w = (0..nt)
+            .map(|d| {
+                if d % 3 == 1 {
+                    th[d].sin() * th[d].cos() * 3.0 * dt
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        polar.push((w, 1.0 / 8.0));
+    }
+    if nt >= 3 {
+        polar.push((quadratic_band_weights(&th, dt), 1.0));
+    }
+    (0..t.channels.len())
+        .map(|ch| {
+            let v = t.channel(ch);
+            (0..p)
+                .map(|r| {
+                    let row = &v[r * q..(r + 1) * q];
+                    let at = |c: usize, d: usize| row[c * nt + d];
+                    let ring = |c: usize| (0..nt).map(|d| at(c, d) * wt[d]).sum::<f64>();
+                    let fine: f64 = (0..np).map(|c| ring(c) * dp).sum();
+                    let mut var = 0.0;
+                    if !az.is_empty() {
+                        let ms: f64 = az
+                            .iter()
+                            .map(|(keep, w)| {
+                                let coarse: f64 =
+                                    keep.iter().zip(w).map(|(&c, wc)| ring(c) * wc).sum();
+                                (coarse - fine).powi(2)
+                            })
+                            .sum::<f64>()
+                            / az.len() as f64;
+                        var += ms / 9.0;
+                    }
+                    for (w, factor) in &polar {
+                        let other: f64 = (0..np)
+                            .map(|c| (0..nt).map(|d| at(c, d) * w[d]).sum::<f64>() * dp)
+                            .sum();
+                        var += ((other - fine) * factor).powi(2);
+                    }
+                    var.sqrt()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The weight of each polar node in ∫ f sin θ cos θ dθ when f is taken as the
+/// quadratic through each node and its two neighbours (the first and last nodes'
+/// triples shifted inwards) over the node's band [θ − Δθ/2, θ + Δθ/2] clipped to
+/// [0°, 90°]; 8-point Gauss–Legendre on each band.
+fn quadratic_band_weights(th: &[f64], dt: f64) -> Vec<f64> {
+    const GL8: [(f64, f64); 8] = [
+        (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+        (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+        (-0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+        (-0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+        (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
+        (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+        (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+        (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
+    ];
+    let n = th.len();
+    let mut w = vec![0.0; n];
+    for d in 0..n {
+        let j0 = d.saturating_sub(1).min(n - 3);
+        let (lo, hi) = (
+            (th[d] - 0.5 * dt).max(0.0),
+            (th[d] + 0.5 * dt).min(FRAC_PI_2),
+        );
+        if hi <= lo {
+            continue;
+        }
+        for (x, wq) in GL8 {
+            let t = lo + 0.5 * (hi - lo) * (1.0 + x);
+            let jac = 0.5 * (hi - lo) * wq * t.sin() * t.cos();
+            for j in j0..j0 + 3 {
+                // Lagrange basis of node j over the triple.
+                let l: f64 = (j0..j0 + 3)
+                    .filter(|&m| m != j)
+                    .map(|m| (t - th[m]) / (th[j] - th[m]))
+                    .product();
+                w[j] += jac * l;
+            }
+        }
+    }
+    w
 }
 
 /// The measure of energy conservation of scattered samples, Eq. 4.5 over the
@@ -269,10 +461,15 @@ fn energy_of_rows(
             })
             .collect()
     });
+    let quad: Vec<Vec<f64>> = (0..nc)
+        .map(|ch| rows.iter().map(|r| r.quadrature[ch]).collect())
+        .collect();
     let p_ec = albedo
         .iter()
         .map(|a| a.iter().map(|x| (x - tau).max(0.0)).sum::<f64>() / a.len() as f64)
         .collect();
+    let (p_ec_noise_sigma, p_ec_quadrature_sigma) =
+        p_ec_sigma(&albedo, albedo_sigma.as_deref(), &quad, tau);
     let mut order: Vec<usize> = (0..rows.len()).collect();
     let peak = |r: usize| {
         rows[r]
@@ -299,6 +496,9 @@ fn energy_of_rows(
         incident: rows.iter().map(|r| (r.theta_i_deg, r.phi_i_deg)).collect(),
         albedo,
         albedo_sigma,
+        albedo_quadrature_sigma: quad,
+        p_ec_noise_sigma,
+        p_ec_quadrature_sigma,
         coverage: rows.iter().map(|r| r.covered).fold(1.0, f64::min),
         extrapolated: rows.iter().map(|r| r.extrapolated).fold(0.0, f64::max),
         worst,
@@ -455,10 +655,13 @@ pub struct Report {
     pub isotropy: Vec<f64>,
     /// Separability per channel (none when the table cannot be expanded to 4D).
     pub separability: Option<Vec<Separability>>,
+    /// What a BRDF with each property would read under the same sampling and noise
+    /// ([`crate::floor`]); none when it could not be formed.
+    pub floor: Option<crate::floor::Floors>,
 }
 
 /// Measures a table: P_r, P_ec (with the `worst` incident directions), P_i, and
-/// P_s^(k) for each k of `ks`. The energy measure is [`energy`]'s sum when the
+/// P_s^(k) for each k of `ks`, each with its floor ([`crate::floor`]). The energy measure is [`energy`]'s sum when the
 /// outgoing nodes are polar band midpoints over the whole hemisphere, else
 /// [`energy_scattered`] over the table's nodes (a half turn of an isotropic table
 /// unfolded first, [`crate::hemisphere::unfold`]).
@@ -487,7 +690,7 @@ pub fn report_with(
             }
         }
     };
-    Ok(Report {
+    let mut report = Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
         paired: t.grid.is_paired(),
@@ -496,5 +699,15 @@ pub fn report_with(
         energy,
         isotropy: isotropy(t)?,
         separability: separability(t, ks).ok(),
-    })
+        floor: None,
+    };
+    let draws = crate::floor::draws_for(t.values.len());
+    report.floor = match crate::floor::floors(t, measured, &report, ks, draws) {
+        Ok(f) => Some(f),
+        Err(e) => {
+            tracing::warn!(error = %e, "the measures' floors could not be formed");
+            None
+        }
+    };
+    Ok(report)
 }

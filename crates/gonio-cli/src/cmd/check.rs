@@ -151,6 +151,9 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
                 "P_s: not available (an isotropic table whose φ+ axis is not a full turn)"
             )?;
         }
+        if let Some(f) = &r.floor {
+            write_floors(&mut w, r, f, ks)?;
+        }
         match r.energy.method {
             measure::EnergyMethod::Sum => {
                 if r.energy.coverage < 0.999 {
@@ -171,7 +174,11 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
                 100.0 * r.energy.extrapolated
             )?,
         }
-        writeln!(w, "highest directional albedo (θi, φi: per channel):")?;
+        writeln!(
+            w,
+            "highest directional albedo (θi, φi: per channel; ± the noise's and the \
+             quadrature's standard uncertainties):"
+        )?;
         for (th, ph, a) in &r.energy.worst {
             let row = r.energy.incident.iter().position(|i| *i == (*th, *ph));
             let sigma = row.and_then(|k| {
@@ -180,9 +187,22 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
                     .as_ref()
                     .map(|s| s.iter().map(|c| c[k]).collect::<Vec<_>>())
             });
-            let cell = |(ch, x): (usize, &f64)| match &sigma {
-                Some(s) => format!("{x:.4} ± {:.1e}", s[ch]),
-                None => format!("{x:.4}"),
+            let quad: Option<Vec<f64>> = row.map(|k| {
+                r.energy
+                    .albedo_quadrature_sigma
+                    .iter()
+                    .map(|c| c[k])
+                    .collect()
+            });
+            let cell = |(ch, x): (usize, &f64)| {
+                let mut c = format!("{x:.4}");
+                if let Some(s) = &sigma {
+                    c += &format!(" ± {:.1e} (noise)", s[ch]);
+                }
+                if let Some(q) = &quad {
+                    c += &format!(" ± {:.1e} (quadrature)", q[ch]);
+                }
+                c
             };
             writeln!(
                 w,
@@ -190,6 +210,118 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
                 a.iter().enumerate().map(cell).collect::<Vec<_>>().join(" ")
             )?;
         }
+        let large: Vec<String> = r
+            .energy
+            .incident
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| {
+                r.energy
+                    .albedo
+                    .iter()
+                    .zip(&r.energy.albedo_quadrature_sigma)
+                    .any(|(a, q)| q[*k] > 0.1 * a[*k].abs())
+            })
+            .map(|(_, (th, ph))| format!("θi {th}° φi {ph}°"))
+            .collect();
+        if !large.is_empty() {
+            writeln!(
+                w,
+                "note: the sampling does not resolve the albedo to 10% at {}: its quadrature \
+                 uncertainty is larger; finer outgoing steps there would narrow it",
+                large.join(", ")
+            )?;
+        }
         w.flush()
     })())
+}
+
+/// The floors' block of the text output: each measure against what a BRDF with the
+/// property reads under the same sampling and noise.
+fn write_floors(
+    w: &mut dyn Write,
+    r: &measure::Report,
+    f: &gonio_process::floor::Floors,
+    ks: &[usize],
+) -> std::io::Result<()> {
+    let how = if f.draws == 0 {
+        "no σ in the data: interpolation alone".to_string()
+    } else {
+        format!("{} noise draws of the data's σ", f.draws)
+    };
+    writeln!(
+        w,
+        "floors (what a BRDF with the property reads under the same sampling and noise; {how}):"
+    )?;
+    let multi = r.channels.len() > 1;
+    let line = |w: &mut dyn Write,
+                name: &str,
+                ch: usize,
+                value: String,
+                fl: &gonio_process::floor::Floor,
+                property: &str|
+     -> std::io::Result<()> {
+        let channel = if multi {
+            format!(" [{}]", r.channels[ch])
+        } else {
+            String::new()
+        };
+        let verdict = if fl.consistent {
+            format!("consistent with {property}")
+        } else {
+            "exceeds the floor".to_string()
+        };
+        writeln!(
+            w,
+            "  {name}{channel} {value}  (floor {:.2e}, 95% {:.2e}: {verdict})",
+            fl.mean, fl.p95
+        )
+    };
+    for (ch, fl) in f.reciprocity.iter().enumerate() {
+        line(
+            w,
+            "P_r",
+            ch,
+            format!("{:.2e}", r.reciprocity[ch]),
+            fl,
+            "reciprocal",
+        )?;
+    }
+    for (ch, fl) in f.energy.iter().enumerate() {
+        let mut v = format!("{:.2e}", r.energy.p_ec[ch]);
+        if let Some(n) = &r.energy.p_ec_noise_sigma {
+            v += &format!(" ± {:.1e} (noise)", n[ch]);
+        }
+        v += &format!(" ± {:.1e} (quadrature)", r.energy.p_ec_quadrature_sigma[ch]);
+        line(w, "P_ec", ch, v, fl, "energy conservation")?;
+    }
+    if let Some(iso) = &f.isotropy {
+        for (ch, fl) in iso.iter().enumerate() {
+            line(
+                w,
+                "P_i",
+                ch,
+                format!("{:.2e}", r.isotropy[ch]),
+                fl,
+                "isotropic",
+            )?;
+        }
+    }
+    if let (Some(sep), Some(fs)) = (&r.separability, &f.separability) {
+        for (ch, per_k) in fs.iter().enumerate() {
+            for (j, (k, fl)) in per_k.iter().enumerate() {
+                line(
+                    w,
+                    &format!("P_s^({k})"),
+                    ch,
+                    format!("{:.2e}", sep[ch].p_s[j].1),
+                    fl,
+                    &format!("{k}-separable"),
+                )?;
+            }
+        }
+    } else if r.separability.is_some() && !ks.is_empty() {
+        writeln!(w, "  P_s: no floor (A is too large for a full SVD a draw)")?;
+    }
+    Ok(())
 }

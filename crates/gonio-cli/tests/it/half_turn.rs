@@ -134,6 +134,36 @@ fn shipped_hemisphere_plan_checks_with_no_flags() {
         "max albedo {measured_max} vs {exact_max} (worst row {worst})"
     );
     assert_eq!(e["p_ec"][0], 0.0);
+    // Each albedo states the quadrature's uncertainty beside the noise's, and the two
+    // together hold the paint's true albedo (the whole hemisphere, not the band held
+    // as above) within 2.5σ; at 75°, where the grid misses most, the quadrature's is
+    // the larger by three orders.
+    for (k, row) in incident.iter().enumerate() {
+        let ti = row[0].as_f64().expect("θi");
+        let got = e["albedo"][0][k].as_f64().expect("albedo");
+        let noise = e["albedo_sigma"][0][k].as_f64().expect("σ");
+        let quad = e["albedo_quadrature_sigma"][0][k]
+            .as_f64()
+            .expect("quadrature σ");
+        let mut exact = [0.0];
+        m.albedo(Dir::from(SphericalDeg::new(ti, 0.0)), &mut exact);
+        let z = (got - exact[0]) / noise.hypot(quad);
+        assert!(
+            z.abs() <= 2.5,
+            "θi {ti}: {got} ± {noise} ± {quad} vs {}: z {z}",
+            exact[0]
+        );
+        if ti == 75.0 {
+            assert!(quad > 1000.0 * noise, "{quad} vs {noise}");
+        }
+    }
+    assert!(e["p_ec_quadrature_sigma"][0].as_f64().expect("σ") < 1e-9);
+    // The paint is reciprocal: its P_r, all interpolation between the plan's polar
+    // steps, lies within its floor; its floor came from noise draws of the run's σ.
+    let floor = &v["floor"];
+    assert!(floor["draws"].as_u64().expect("draws") >= 4);
+    assert_eq!(floor["reciprocity"][0]["consistent"], true, "{floor}");
+    assert_eq!(floor["energy"][0]["consistent"], true, "{floor}");
     // The band from θo = 80° to the horizon is 3% of the projected hemisphere; held
     // from the data's edge and said so.
     let (cov, ext) = (
@@ -156,6 +186,16 @@ fn shipped_hemisphere_plan_checks_with_no_flags() {
     // on the unfolded full turn.
     assert_eq!(v["isotropy"][0], 0.0);
     assert!(v["separability"][0]["p_s"][0][1].as_f64().expect("P_s") > 0.0);
+
+    // The text says the same: each albedo with both uncertainties, each measure
+    // against its floor.
+    let text = String::from_utf8(ok(&["check", &s(&run)]).stdout).expect("UTF-8");
+    assert!(
+        text.contains(" (noise) ± ") && text.contains(" (quadrature)"),
+        "{text}"
+    );
+    assert!(text.contains("consistent with reciprocal"), "{text}");
+    assert!(text.contains("noise draws of the data's σ"), "{text}");
 
     // Every other command that needs a table takes the same grid with no flags, and
     // plots show the unfolded hemisphere.

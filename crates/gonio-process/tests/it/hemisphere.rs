@@ -355,6 +355,15 @@ fn a_tables_rows_integrate_as_its_samples_do() {
                     samples.albedo_sigma.as_ref().expect("σ")[ch][j],
                 );
                 assert!((sa - sb).abs() < 1e-15, "{sa} vs {sb}");
+                // And the same discretisation uncertainty.
+                let (qa, qb) = (
+                    rows.albedo_quadrature_sigma[ch][k],
+                    samples.albedo_quadrature_sigma[ch][j],
+                );
+                assert!(
+                    qa > 0.0 && (qa - qb).abs() < 1e-12 * a,
+                    "{inc:?}: {qa} vs {qb}"
+                );
             }
         }
         assert!((rows.coverage - samples.coverage).abs() < 1e-12);

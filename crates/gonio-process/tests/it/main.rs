@@ -1,6 +1,8 @@
 //! The crate's integration tests, one binary (a module per file): linking one test
 //! binary per file cost most of the suite's build time (TESTING.md).
 
+mod albedo_quadrature;
+mod floors;
 mod hemisphere;
 mod limits;
 mod loaders_never_panic;
