@@ -403,6 +403,10 @@ impl Samples {
 /// the standard error of the spread (none for a single unqualified value).
 fn combine(it: impl Iterator<Item = (f64, Option<f64>)>) -> (f64, Option<f64>) {
     let v: Vec<(f64, Option<f64>)> = it.collect();
+    // One value is itself: 1/√(1/σ²) need not give σ back to the last bit.
+    if let [only] = v[..] {
+        return only;
+    }
     if v.iter().all(|(_, s)| s.is_some_and(|s| s > 0.0)) {
         let (mut sw, mut swx) = (0.0, 0.0);
         for (x, s) in &v {

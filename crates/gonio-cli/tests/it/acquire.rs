@@ -547,8 +547,8 @@ fn show_and_runs_refuse_damaged_files_with_status_2() {
     let runs = v["runs"].as_array().expect("runs");
     assert_eq!(runs.len(), 2);
     assert_eq!(runs[0]["status"], "complete");
-X
-    // default four dark readings (at least its repeats).
+    // The list's pairs × 3 repeats and the plan's default four dark readings (at
+    // least its repeats; there were 3).
     assert_eq!(runs[0]["done"], 22);
     assert_eq!(runs[1]["status"], "unreadable");
 }

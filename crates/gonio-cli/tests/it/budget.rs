@@ -35,7 +35,10 @@ fn reduce_json_gives_every_term_of_the_budget_and_keeps_the_old_fields() {
         .collect();
     // The lock-in's terms, then the position term.
     assert_eq!(terms[..gonio_reduce::TERMS.len()], gonio_reduce::TERMS);
-    assert_eq!(terms[gonio_reduce::TERMS.len()..], [gonio_reduce::POSITION_TERM]);
+    assert_eq!(
+        terms[gonio_reduce::TERMS.len()..],
+        [gonio_reduce::POSITION_TERM]
+    );
     for t in budget {
         let (med, max) = (t["rel_median"].as_f64(), t["rel_max"].as_f64());
         let (med, max) = (med.expect("median"), max.expect("max"));

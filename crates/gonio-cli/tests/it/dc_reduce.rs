@@ -97,8 +97,14 @@ fn a_picoammeter_run_reduces_with_the_dc_budget() {
         .map(|t| t["term"].as_str().expect("term"))
         .collect();
     // The DC terms, then the position term.
-    assert_eq!(terms[..gonio_reduce::DC_TERMS.len()], gonio_reduce::DC_TERMS);
-    assert_eq!(terms[gonio_reduce::DC_TERMS.len()..], [gonio_reduce::POSITION_TERM]);
+    assert_eq!(
+        terms[..gonio_reduce::DC_TERMS.len()],
+        gonio_reduce::DC_TERMS
+    );
+    assert_eq!(
+        terms[gonio_reduce::DC_TERMS.len()..],
+        [gonio_reduce::POSITION_TERM]
+    );
     assert_eq!(budget[6]["correlation"], "range");
     let acc = budget[6]["rel_median"].as_f64().expect("median");
     let noise = budget[0]["rel_median"].as_f64().expect("median");
@@ -121,7 +127,8 @@ fn a_picoammeter_run_reduces_with_the_dc_budget() {
     let out = ok(&["reduce", &s(&run), "--out", &s(&d.join("u.csv"))]);
     let text = String::from_utf8_lossy(&out.stdout);
     let lines: Vec<&str> = text.lines().filter(|l| l.starts_with("  σ ")).collect();
-    assert_eq!(lines.len(), 7, "{text}");
+    // The DC terms and the position term.
+    assert_eq!(lines.len(), 8, "{text}");
     assert!(
         lines.iter().any(|l| l.starts_with("  σ range accuracy")),
         "{text}"

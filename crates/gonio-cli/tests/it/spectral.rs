@@ -111,7 +111,12 @@ fn a_monochromator_run_selects_every_wavelength_and_closes_its_shutter_for_darks
             .iter()
             .map(|t| t["term"].as_str().expect("term"))
             .collect();
-        assert_eq!(terms.last(), Some(&"wavelength"), "{terms:?}");
+        // The wavelength term, then the position term.
+        assert_eq!(
+            terms[terms.len() - 2..],
+            ["wavelength", "position"],
+            "{terms:?}"
+        );
     }
 }
 
