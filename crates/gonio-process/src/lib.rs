@@ -6,7 +6,7 @@
 //! run's readings become [`Samples`] in `gonio-reduce`.
 //!
 //! - [`samples`]: scattered samples, the nearest-j Gaussian kernel of Sec. 3.2.1,
-//!   resampling onto grids.
+//!   resampling onto grids with the interpolation error estimated from the data.
 //! - [`grid`]: uniform and isotropic grids and quadrilinear interpolation.
 //! - [`hemisphere`]: measured samples over the hemisphere: bilateral unfolding of
 //!   isotropic half turns, the data's own grid, the triangulated albedo.

@@ -2,6 +2,11 @@
 //! Gaussian kernel of Sec. 3.2.1, resampling onto grids, and recognising samples
 //! that already lie on a uniform grid.
 //!
+//! **Uncertainty.** A resampled value's σ is the samples' noise through the kernel's
+//! weights and the interpolation's own error, estimated from the data
+//! ([`ErrorModel`]), in quadrature; [`Samples::resample_detailed`] states the two
+//! apart ([`Resampled`]).
+//!
 //! **Distance.** Two samples are compared as points of R⁶: the incident and outgoing
 //! unit vectors side by side, d² = |ωi − ωi'|² + |ωo − ωo'|². It is DeYoung's "naive"
 //! choice (Euclidean distance on the unit hemisphere), applied to both directions at
@@ -19,6 +24,15 @@ use crate::{Axis, Grid, ProcessError, Table};
 
 /// Samples per leaf of the interpolator's k-d tree.
 const LEAF: usize = 12;
+
+/// Squared R⁶ distance below which a query is on a sample (a repeat of its pair).
+const EXACT: f64 = 1e-24;
+
+mod interp_error;
+
+pub use interp_error::{
+    ChannelInterpolation, ErrorModel, Estimate, InterpolationReport, Resampled,
+};
 
 /// One sample: a pair of directions, a value per channel (1/sr), its standard
 /// uncertainty where known, and flags.
@@ -148,13 +162,20 @@ impl Samples {
     }
 
     /// Resamples onto a grid with the nearest-j kernel: every node gets a value and,
-    /// when the samples have uncertainties, the kernel-propagated uncertainty.
+    /// when the samples have uncertainties, an uncertainty: the kernel-propagated
+    /// noise and the interpolation's own error ([`Resampled`]) in quadrature.
     ///
     /// Refused when the samples do not cover the grid: a node farther from every
     /// sample than twice the grid's polar spacing (in the R⁶ distance, for incidence
     /// and exitance together) would be invented, not interpolated — an in-plane scan
     /// cannot be resampled onto a hemisphere.
     pub fn resample(&self, grid: Grid, kernel: Kernel) -> Result<Table, ProcessError> {
+        Ok(self.resample_detailed(grid, kernel)?.table)
+    }
+
+    /// [`Samples::resample`], with the noise and the interpolation error of every
+    /// node stated apart.
+    pub fn resample_detailed(&self, grid: Grid, kernel: Kernel) -> Result<Resampled, ProcessError> {
         grid.validate()?;
         let interp = self.interpolator(kernel)?;
         let nc = self.channels.len();
@@ -164,19 +185,18 @@ impl Samples {
             * spacing(&grid.theta_i)
                 .hypot(spacing(&grid.theta_o))
                 .max(1e-6);
-        let rows: Vec<(Vec<f64>, Option<Vec<f64>>, f64)> = (0..n)
+        let pair_of = |i: usize| {
+            let [pi, ti, po, to] = grid.angles(i);
+            PairDeg {
+                incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
+                outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
+            }
+        };
+        // Coverage first: a refusal costs no interpolation.
+        let far = (0..n)
             .into_par_iter()
-            .map(|i| {
-                let [pi, ti, po, to] = grid.angles(i);
-                let pair = PairDeg {
-                    incident: SphericalDeg::new(ti.to_degrees(), pi.to_degrees()),
-                    outgoing: SphericalDeg::new(to.to_degrees(), po.to_degrees()),
-                };
-                let (v, s) = interp.eval(&pair);
-                (v, s, interp.nearest_distance(&pair))
-            })
-            .collect();
-        let far = rows.iter().filter(|r| r.2 > limit).count();
+            .filter(|&i| interp.nearest_distance(&pair_of(i)) > limit)
+            .count();
         if far > 0 {
             return Err(ProcessError::Unsupported(format!(
                 "the samples do not cover the grid: {far} of {n} nodes lie farther than \
@@ -184,18 +204,37 @@ impl Samples {
                 limit.to_degrees()
             )));
         }
+        let model = interp.error_model();
+        let rows: Vec<Estimate> = (0..n)
+            .into_par_iter()
+            .map(|i| model.eval(&pair_of(i)))
+            .collect();
         let mut values = vec![0.0; n * nc];
-        let has_sigma = rows.iter().all(|r| r.1.is_some());
-        let mut sigma = has_sigma.then(|| vec![0.0; n * nc]);
-        for (i, (v, s, _)) in rows.into_iter().enumerate() {
+        let mut interpolation = vec![0.0; n * nc];
+        let has_noise = rows.iter().all(|r| r.noise.is_some());
+        let mut noise = has_noise.then(|| vec![0.0; n * nc]);
+        let mut sigma = has_noise.then(|| vec![0.0; n * nc]);
+        let mut exact = vec![false; n];
+        for (i, r) in rows.into_iter().enumerate() {
+            exact[i] = r.exact;
             for ch in 0..nc {
-                values[ch * n + i] = v[ch];
-                if let (Some(out), Some(s)) = (sigma.as_mut(), s.as_ref()) {
-                    out[ch * n + i] = s[ch];
+                let at = ch * n + i;
+                values[at] = r.value[ch];
+                interpolation[at] = r.interpolation[ch];
+                if let (Some(out), Some(tot), Some(s)) =
+                    (noise.as_mut(), sigma.as_mut(), r.noise.as_ref())
+                {
+                    out[at] = s[ch];
+                    tot[at] = s[ch].hypot(r.interpolation[ch]);
                 }
             }
         }
-        Table::new(self.channels.clone(), grid, values, sigma)
+        Ok(Resampled {
+            table: Table::new(self.channels.clone(), grid, values, sigma)?,
+            noise,
+            interpolation,
+            exact,
+        })
     }
 
     /// Resamples onto the hemisphere grid of `step` ([`crate::GridStep::grid`]); where
@@ -208,7 +247,17 @@ impl Samples {
         step: crate::GridStep,
         kernel: Kernel,
     ) -> Result<Table, ProcessError> {
-        match self.resample(step.grid(), kernel) {
+        Ok(self.resample_step_detailed(step, kernel)?.table)
+    }
+
+    /// [`Samples::resample_step`], with the noise and the interpolation error of
+    /// every node stated apart.
+    pub fn resample_step_detailed(
+        &self,
+        step: crate::GridStep,
+        kernel: Kernel,
+    ) -> Result<Resampled, ProcessError> {
+        match self.resample_detailed(step.grid(), kernel) {
             Err(ProcessError::Unsupported(why)) => match self.incidence_grid(step) {
                 Some(g) => {
                     tracing::debug!(
@@ -216,7 +265,7 @@ impl Samples {
                          resampled at the {} measured",
                         g.n_in()
                     );
-                    self.resample(g, kernel)
+                    self.resample_detailed(g, kernel)
                 }
                 None => Err(ProcessError::Unsupported(why)),
             },
@@ -472,17 +521,8 @@ impl Interpolator<'_> {
     /// σ² = Σ w_k² σ_k² / (Σ w_k)². A query on a sample returns it (repeats at the
     /// same pair averaged).
     pub fn eval(&self, pair: &PairDeg) -> (Vec<f64>, Option<Vec<f64>>) {
-        let q = key(pair, self.samples.isotropic);
-        let near = self.tree.nearest(&q, self.kernel.j);
+        let (weights, _, _) = self.weights(pair);
         let nc = self.samples.channels.len();
-        let exact: Vec<&(f64, usize)> = near.iter().filter(|(d2, _)| *d2 < 1e-24).collect();
-        let weights: Vec<(f64, usize)> = if exact.is_empty() {
-            let mean_d = near.iter().map(|(d2, _)| d2.sqrt()).sum::<f64>() / near.len() as f64;
-            let s2 = 2.0 * (self.kernel.width * mean_d).powi(2);
-            near.iter().map(|&(d2, k)| ((-d2 / s2).exp(), k)).collect()
-        } else {
-            exact.iter().map(|&&(_, k)| (1.0, k)).collect()
-        };
         let sw: f64 = weights.iter().map(|w| w.0).sum();
         let mut v = vec![0.0; nc];
         let mut var = vec![0.0; nc];
@@ -502,6 +542,36 @@ impl Interpolator<'_> {
             }
         }
         (v, known.then(|| var.into_iter().map(f64::sqrt).collect()))
+    }
+
+    /// The kernel's weights at a pair (not normalised) with the samples they weigh,
+    /// whether the pair is a sample's (then only the samples at it take part, with
+    /// equal weights), and the mean distance of the j nearest samples (the kernel's
+    /// width is `width` times it).
+    fn weights(&self, pair: &PairDeg) -> (Vec<(f64, usize)>, bool, f64) {
+        let q = key(pair, self.samples.isotropic);
+        self.weights_of(&self.tree.nearest(&q, self.kernel.j))
+    }
+
+    /// [`Interpolator::weights`] from the j nearest samples (`(d², index)`, nearest
+    /// first).
+    fn weights_of(&self, near: &[(f64, usize)]) -> (Vec<(f64, usize)>, bool, f64) {
+        let mean_d = near.iter().map(|(d2, _)| d2.sqrt()).sum::<f64>() / near.len() as f64;
+        let exact: Vec<&(f64, usize)> = near.iter().filter(|(d2, _)| *d2 < EXACT).collect();
+        if exact.is_empty() {
+            let s2 = 2.0 * (self.kernel.width * mean_d).powi(2);
+            (
+                near.iter().map(|&(d2, k)| ((-d2 / s2).exp(), k)).collect(),
+                false,
+                mean_d,
+            )
+        } else {
+            (
+                exact.iter().map(|&&(_, k)| (1.0, k)).collect(),
+                true,
+                mean_d,
+            )
+        }
     }
 
     /// The kernel's view of a pair: its estimate per channel, the kernel-weighted
@@ -562,7 +632,7 @@ impl Interpolator<'_> {
             .tree
             .nearest(&q, self.kernel.j + 4)
             .into_iter()
-            .filter(|(d2, _)| *d2 >= 1e-24)
+            .filter(|(d2, _)| *d2 >= EXACT)
             .take(self.kernel.j)
             .collect();
         if near.is_empty() {

@@ -4,6 +4,7 @@
 mod albedo_quadrature;
 mod floors;
 mod hemisphere;
+mod interpolation;
 mod limits;
 mod loaders_never_panic;
 mod properties;
