@@ -245,7 +245,7 @@ pub fn reduce(words: &[String]) -> CliResult<(Content, Value, String)> {
     let Command::Reduce(a) = parse(words)?.0 else {
         return Err(wrong(words));
     };
-    let (red, content) = cmd::reduce::compute(&a)?;
+    let (red, content, _) = cmd::reduce::compute(&a)?;
     let sidecar = cmd::reduce::sidecar(&red, &content, a.resampled()).to_json();
     Ok((content, cmd::reduce::reduction_json(&red), sidecar))
 }

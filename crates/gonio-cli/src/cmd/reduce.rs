@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use gonio_dataset::Kind;
 use gonio_process::file::Content;
-use gonio_process::samples::Kernel;
+use gonio_process::samples::{InterpolationReport, Kernel};
 use gonio_reduce::Reduction;
 use serde_json::json;
 
@@ -168,9 +168,12 @@ pub(crate) fn check_values(a: &ReduceArgs) -> CliResult<()> {
     a.reduction.options().map(drop)
 }
 
-/// A run reduced as `gonio reduce` reduces it: the reduction, and what it writes (a
-/// table when the samples form a grid or `--grid` asks for one, else the samples).
-pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
+/// A run reduced as `gonio reduce` reduces it: the reduction, what it writes (a table
+/// when the samples form a grid or `--grid` asks for one, else the samples), and with
+/// `--grid` the resampling's noise and interpolation error.
+pub(crate) fn compute(
+    a: &ReduceArgs,
+) -> CliResult<(Reduction, Content, Option<InterpolationReport>)> {
     let (path, grid) = (a.run.as_path(), a.grid.grid);
     if gonio_dataset::detect(&head(path)?) != Some(Kind::Run) {
         return Err(CliError::Input(format!(
@@ -188,23 +191,55 @@ pub(crate) fn compute(a: &ReduceArgs) -> CliResult<(Reduction, Content)> {
             path.display()
         )));
     };
-    let content = match (red.samples.to_table(), grid) {
-        (Some(t), None) => Content::Table(t),
-        (_, Some(g)) => Content::Table(
-            red.samples
-                .resample_step(g, Kernel::default())
-                .map_err(|e| CliError::process(path, e))?,
-        ),
-        (None, None) => Content::Samples(red.samples.clone()),
+    let (content, resampled) = match (red.samples.to_table(), grid) {
+        (Some(t), None) => (Content::Table(t), None),
+        (_, Some(g)) => {
+            let r = red
+                .samples
+                .resample_step_detailed(g, Kernel::default())
+                .map_err(|e| CliError::process(path, e))?;
+            let report = r.report();
+            (Content::Table(r.table), Some(report))
+        }
+        (None, None) => (Content::Samples(red.samples.clone()), None),
     };
-    Ok((red, content))
+    Ok((red, content, resampled))
+}
+
+/// The resampling's account for `--json`: the nodes interpolated and on a sample,
+/// and per channel the relative interpolation error beside the relative noise.
+fn interpolation_json(r: &InterpolationReport) -> serde_json::Value {
+    serde_json::to_value(r).unwrap_or_default()
+}
+
+/// The resampling's account in text: the interpolation error stated apart from the
+/// noise (the table's σ is the two in quadrature).
+fn print_interpolation(w: &mut dyn Write, r: &InterpolationReport) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "resampled onto {} nodes: {} interpolated, {} on a sample (there σ is the noise alone)",
+        r.nodes, r.interpolated, r.exact
+    )?;
+    for c in &r.channels {
+        let noise = match (c.noise_rel_median, c.noise_rel_max) {
+            (Some(m), Some(x)) => format!("σ noise rel. median {m:.2e}, max {x:.2e}"),
+            _ => "σ noise unknown".into(),
+        };
+        writeln!(
+            w,
+            "  channel {}: σ interpolation rel. median {:.2e}, max {:.2e}; {noise}; \
+             the table's σ is the two in quadrature",
+            c.channel, c.rel_median, c.rel_max
+        )?;
+    }
+    Ok(())
 }
 
 /// `gonio reduce RUN --out TABLE`.
 pub fn run(a: ReduceArgs) -> CliResult<()> {
     let (out, grid, json_out) = (a.out.as_path(), a.grid.grid, a.json.json);
     let target = CsvTarget::new(out, a.force.force)?;
-    let (red, content) = compute(&a)?;
+    let (red, content, interpolation) = compute(&a)?;
     let what = match (&content, grid) {
         _ if a.long => {
             let data = match &content {
@@ -255,6 +290,10 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
         {
             o.insert("wavelengths_nm".into(), json!(w.to_vec()));
         }
+        // With `--grid` only, so that other runs' output stays as it was.
+        if let (Some(r), Some(o)) = (&interpolation, v.as_object_mut()) {
+            o.insert("interpolation".into(), interpolation_json(r));
+        }
         return output::json(&v);
     }
     let mut w = output::stdout();
@@ -269,6 +308,9 @@ pub fn run(a: ReduceArgs) -> CliResult<()> {
         print_reduction(&mut w, &red)?;
         if let Some(ag) = agreement(&a.run, &red) {
             print_agreement(&mut w, &red, &ag)?;
+        }
+        if let Some(r) = &interpolation {
+            print_interpolation(&mut w, r)?;
         }
         w.flush()
     })())
