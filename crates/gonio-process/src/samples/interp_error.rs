@@ -188,10 +188,16 @@ impl<'a> Interpolator<'a> {
                 let near = self.tree.nearest(&keys[k], m);
                 let at = near.iter().take_while(|(d2, _)| *d2 < EXACT).count();
                 if at < near.len() || near.len() == n {
-                    for &(_, i) in &near[..at] {
+                    // k itself is among them; one already grouped stays where it is.
+                    let members: Vec<usize> = near[..at]
+                        .iter()
+                        .map(|&(_, i)| i)
+                        .filter(|&i| group[i] == usize::MAX)
+                        .collect();
+                    for &i in &members {
                         group[i] = groups.len();
                     }
-                    groups.push(near[..at].iter().map(|&(_, i)| i).collect());
+                    groups.push(members);
                     break;
                 }
                 m *= 4;
@@ -251,13 +257,12 @@ impl<'a> Interpolator<'a> {
         (w.into_iter().map(|(x, i)| (x / sw, i)).collect(), mean_d)
     }
 
-    /// The local linear fit at `q` over the nearest samples at 2j distinct pairs (from
-    /// `near`, the nearest few, `(d², index)`, asking the tree for more when they are
-    /// too few), with
-    /// the kernel's Gaussian weights, in the tangent coordinates of the incident and
-    /// outgoing directions (a small ridge keeps a direction the samples do not span,
-    /// such as φi of isotropic samples, at zero slope). None when the samples span
-    /// too little.
+    /// The local linear fit at `q` over the nearest samples at 2j distinct pairs
+    /// (`near` holds the nearest few as `(d², index)`; the tree is asked for more when
+    /// they are too few), with the kernel's Gaussian weights, in the tangent
+    /// coordinates of the incident and outgoing directions (a small ridge keeps a
+    /// direction the samples do not span, such as φi of isotropic samples, at zero
+    /// slope). None when the system is not positive definite.
     fn local_linear(&self, q: &[f64; 6], mut near: Vec<(f64, usize)>) -> Option<Fit> {
         let n = self.samples.samples.len();
         let keys = self.tree.points();
