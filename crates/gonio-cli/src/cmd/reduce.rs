@@ -191,7 +191,7 @@ pub(crate) fn compute(
             path.display()
         )));
     };
-    let (content, resampled) = match (red.samples.to_table(), grid) {
+    let (content, interpolation) = match (red.samples.to_table(), grid) {
         (Some(t), None) => (Content::Table(t), None),
         (_, Some(g)) => {
             let r = red
@@ -203,7 +203,7 @@ pub(crate) fn compute(
         }
         (None, None) => (Content::Samples(red.samples.clone()), None),
     };
-    Ok((red, content, resampled))
+    Ok((red, content, interpolation))
 }
 
 /// The resampling's account for `--json`: the nodes interpolated and on a sample,
