@@ -26,10 +26,11 @@ pub mod adapt;
 pub mod columns;
 pub mod covariance;
 pub mod file;
-pub mod floor;
 pub mod grid;
 pub mod hemisphere;
 pub mod measure;
+/// The measures' floors ([`measure::floor`]), at the crate root as before.
+pub use measure::floor;
 pub mod reduction;
 pub mod samples;
 pub mod separable;

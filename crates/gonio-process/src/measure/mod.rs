@@ -2,6 +2,7 @@
 //! when the table has the property and grows with the departure from it, and none
 //! depends on the number of samples (Sec. 4.1). Every measure is computed per channel.
 
+pub mod floor;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use faer::{Mat, MatRef};
@@ -656,12 +657,12 @@ pub struct Report {
     /// Separability per channel (none when the table cannot be expanded to 4D).
     pub separability: Option<Vec<Separability>>,
     /// What a BRDF with each property would read under the same sampling and noise
-    /// ([`crate::floor`]); none when it could not be formed.
-    pub floor: Option<crate::floor::Floors>,
+    /// ([`floor`]); none when it could not be formed.
+    pub floor: Option<floor::Floors>,
 }
 
 /// Measures a table: P_r, P_ec (with the `worst` incident directions), P_i, and
-/// P_s^(k) for each k of `ks`, each with its floor ([`crate::floor`]). The energy measure is [`energy`]'s sum when the
+/// P_s^(k) for each k of `ks`, each with its floor ([`floor`]). The energy measure is [`energy`]'s sum when the
 /// outgoing nodes are polar band midpoints over the whole hemisphere, else
 /// [`energy_scattered`] over the table's nodes (a half turn of an isotropic table
 /// unfolded first, [`crate::hemisphere::unfold`]).
@@ -701,8 +702,8 @@ pub fn report_with(
         separability: separability(t, ks).ok(),
         floor: None,
     };
-    let draws = crate::floor::draws_for(t.values.len());
-    report.floor = match crate::floor::floors(t, measured, &report, ks, draws) {
+    let draws = floor::draws_for(t.values.len());
+    report.floor = match floor::floors(t, measured, &report, ks, draws) {
         Ok(f) => Some(f),
         Err(e) => {
             tracing::warn!(error = %e, "the measures' floors could not be formed");
