@@ -738,18 +738,9 @@ fn integrate(nodes: &[Node], nc: usize, quadrature: bool) -> Option<IncidentAlbe
     })
 }
 
-/// Gauss–Legendre nodes and weights on [−1, 1], 8 points (Abramowitz & Stegun,
-/// Table 25.4): the band's integrals across each hull edge.
-const GL8: [(f64, f64); 8] = [
-    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (-0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
-    (-0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
-    (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
-    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-];
+// Gauss–Legendre nodes and weights on [−1, 1], 8 points (the table's): the band's integrals across
+// each hull edge.
+use crate::grid::table::GL8;
 
 /// The outward radial derivative ∂f/∂ρ (ρ = sin θo) per channel at hull point `a`,
 /// from the triangle that the inward ray from `a` enters: on a polar grid, the

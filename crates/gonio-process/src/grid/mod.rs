@@ -10,7 +10,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use crate::ProcessError;
 
-mod table;
+pub(crate) mod table;
 
 pub use table::Table;
 pub(crate) use table::{cosine_proposal, interpolate};
