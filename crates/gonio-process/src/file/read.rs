@@ -345,6 +345,178 @@ struct Filled {
     table: Option<TableFill>,
 }
 
+/// One data row's numbers, parsed into buffers reused from row to row.
+struct Row {
+    /// Positions of the fields of the current line.
+    fields: Vec<(usize, usize)>,
+    /// The text and value of each angle in the last row: the angles repeat from row
+    /// to row (a table's rows run through the grid), so a field equal to the last
+    /// row's keeps its parsed value.
+    last_angle: [(String, f64); 4],
+    /// θi, φi, θo, φo, degrees.
+    angles: [f64; 4],
+    value: Vec<f64>,
+    sigma: Vec<f64>,
+    flags: u32,
+}
+
+impl Row {
+    fn new(h: &Header) -> Row {
+        let nc = h.channels.len();
+        Row {
+            fields: Vec::with_capacity(h.cols.len()),
+            last_angle: Default::default(),
+            angles: [0.0; 4],
+            value: vec![0.0; nc],
+            sigma: vec![0.0; nc],
+            flags: 0,
+        }
+    }
+
+    /// Parses line `ln`'s text `l` (trimmed, not blank, not a comment): every field
+    /// checked, the first bad one named.
+    fn parse(
+        &mut self,
+        l: &str,
+        ln: usize,
+        h: &Header,
+        at: &impl Fn(usize, Option<&str>, String) -> FileError,
+    ) -> Result<(), FileError> {
+        let (nc, width, cols) = (h.channels.len(), h.cols.len(), &h.cols);
+        self.fields.clear();
+        let mut s = 0;
+        for (i, b) in l.bytes().enumerate() {
+            if b == b',' {
+                self.fields.push((s, i));
+                s = i + 1;
+            }
+        }
+        self.fields.push((s, l.len()));
+        if self.fields.len() != width {
+            return Err(at(
+                ln,
+                None,
+                format!("{} fields, the header has {width}", self.fields.len()),
+            ));
+        }
+        let fields = &self.fields;
+        // Every field lies on char boundaries of the line (split at ASCII commas).
+        let field = |k: usize| -> &str {
+            let (a, b) = fields[k];
+            let f = l.get(a..b).unwrap_or("");
+            let edge = |c: Option<&u8>| c.is_some_and(|c| c.is_ascii_whitespace() || *c >= 0x80);
+            if edge(f.as_bytes().first()) || edge(f.as_bytes().last()) {
+                f.trim()
+            } else {
+                f
+            }
+        };
+        let num = |k: usize| -> Result<f64, FileError> {
+            let f = field(k);
+            f.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| at(ln, Some(&cols[k]), format!("not a finite number: {f:?}")))
+        };
+        for k in 0..4 {
+            let f = field(k);
+            let (text, x) = &mut self.last_angle[k];
+            if text.as_str() != f {
+                *x = num(k)?;
+                text.clear();
+                text.push_str(f);
+            }
+            self.angles[k] = *x;
+        }
+        for k in [0, 2] {
+            let th = self.angles[k];
+            if !(0.0..=90.0).contains(&th) {
+                return Err(at(
+                    ln,
+                    Some(&cols[k]),
+                    format!("θ must lie in [0, 90], got {th}"),
+                ));
+            }
+        }
+        for (c, v) in self.value.iter_mut().enumerate() {
+            *v = num(4 + c)?;
+        }
+        if h.sigma {
+            for (c, v) in self.sigma.iter_mut().enumerate() {
+                *v = num(4 + nc + c)?;
+                if *v < 0.0 {
+                    return Err(at(
+                        ln,
+                        Some(&cols[4 + nc + c]),
+                        "uncertainty is negative".into(),
+                    ));
+                }
+            }
+        }
+        self.flags = if h.flags {
+            let f = field(width - 1);
+            f.parse::<u32>()
+                .map_err(|_| at(ln, Some("flags"), format!("not a whole number: {f:?}")))?
+        } else {
+            0
+        };
+        Ok(())
+    }
+
+    /// The row as a sample.
+    fn sample(&self, h: &Header) -> Sample {
+        let [ti, pi, to, po] = self.angles;
+        Sample {
+            pair: PairDeg {
+                incident: SphericalDeg::new(ti, pi),
+                outgoing: SphericalDeg::new(to, po),
+            },
+            value: self.value.clone(),
+            sigma: h.sigma.then(|| self.sigma.clone()),
+            flags: self.flags,
+        }
+    }
+}
+
+/// The grid's node of a row's directions, remembering the last node found on each
+/// axis by angle: most rows repeat three of them.
+struct Nodes([(f64, usize); 4]);
+
+impl Nodes {
+    /// The node index of `row` in `g` (in the frame φi = 0 for an isotropic grid).
+    fn index(
+        &mut self,
+        g: &Grid,
+        row: &Row,
+        ln: usize,
+        at: &impl Fn(usize, Option<&str>, String) -> FileError,
+    ) -> Result<usize, FileError> {
+        let [ti, pi, to, po] = row.angles;
+        let (pi, po) = if g.isotropic {
+            (0.0, po - pi)
+        } else {
+            (pi, po)
+        };
+        let mut node = |slot: usize, ax: &Axis, x: f64, name: &str| {
+            let (lx, li) = &mut self.0[slot];
+            if *lx == x {
+                return Ok(*li);
+            }
+            let i = ax
+                .node_at(x.to_radians())
+                .ok_or_else(|| at(ln, Some(name), format!("{x} is not a node of the grid")))?;
+            (*lx, *li) = (x, i);
+            Ok::<usize, FileError>(i)
+        };
+        Ok(g.index(
+            node(0, &g.phi_i, pi, "phi_i")?,
+            node(1, &g.theta_i, ti, "theta_i")?,
+            node(2, &g.phi_o, po, "phi_o")?,
+            node(3, &g.theta_o, to, "theta_o")?,
+        ))
+    }
+}
+
 /// Reads the data rows, each checked and parsed straight into the table's storage
 /// at its node, or into a sample without a grid. This is the reader's hot loop.
 fn read_rows<N>(
@@ -364,17 +536,10 @@ where
         mut ln,
     } = lines;
     let nc = h.channels.len();
-    let width = h.cols.len();
-    let cols = &h.cols;
-    // Positions of the fields of the current line, reused.
-    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
     let mut rows = 0usize;
     let mut samples: Vec<Sample> = Vec::new();
-    let mut value = vec![0.0; nc];
-    let mut sigma = vec![0.0; nc];
-    let mut last_angle: [(String, f64); 4] = Default::default();
-    // The last node found on each axis, by angle: most rows repeat three of them.
-    let mut last_node: [(f64, usize); 4] = [(f64::NAN, 0); 4];
+    let mut row = Row::new(h);
+    let mut nodes = Nodes([(f64::NAN, 0); 4]);
     while next(&mut buf, &mut ln)? {
         let l = std::str::from_utf8(&buf)
             .map_err(|_| at(ln, None, "not UTF-8 text".into()))?
@@ -386,134 +551,28 @@ where
             return Err(at(ln, None, format!("more than {MAX_ROWS} rows")));
         }
         rows += 1;
-        fields.clear();
-        let mut s = 0;
-        for (i, b) in l.bytes().enumerate() {
-            if b == b',' {
-                fields.push((s, i));
-                s = i + 1;
-            }
-        }
-        fields.push((s, l.len()));
-        if fields.len() != width {
-            return Err(at(
-                ln,
-                None,
-                format!("{} fields, the header has {width}", fields.len()),
-            ));
-        }
-        // Every field lies on char boundaries of the line (split at ASCII commas).
-        let field = |k: usize| -> &str {
-            let (a, b) = fields[k];
-            let f = l.get(a..b).unwrap_or("");
-            let edge = |c: Option<&u8>| c.is_some_and(|c| c.is_ascii_whitespace() || *c >= 0x80);
-            if edge(f.as_bytes().first()) || edge(f.as_bytes().last()) {
-                f.trim()
-            } else {
-                f
-            }
-        };
-        let num = |k: usize| -> Result<f64, FileError> {
-            let f = field(k);
-            f.parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| at(ln, Some(&cols[k]), format!("not a finite number: {f:?}")))
-        };
-        // The angles repeat from row to row (a table's rows run through the grid):
-        // a field equal to the last row's keeps its parsed value.
-        let mut angle = |k: usize| -> Result<f64, FileError> {
-            let f = field(k);
-            let (text, x) = &mut last_angle[k];
-            if text.as_str() != f {
-                *x = num(k)?;
-                text.clear();
-                text.push_str(f);
-            }
-            Ok(*x)
-        };
-        let (ti, pi, to, po) = (angle(0)?, angle(1)?, angle(2)?, angle(3)?);
-        for (k, th) in [(0, ti), (2, to)] {
-            if !(0.0..=90.0).contains(&th) {
-                return Err(at(
-                    ln,
-                    Some(&cols[k]),
-                    format!("θ must lie in [0, 90], got {th}"),
-                ));
-            }
-        }
-        for (c, v) in value.iter_mut().enumerate() {
-            *v = num(4 + c)?;
-        }
-        if h.sigma {
-            for (c, v) in sigma.iter_mut().enumerate() {
-                *v = num(4 + nc + c)?;
-                if *v < 0.0 {
-                    return Err(at(
-                        ln,
-                        Some(&cols[4 + nc + c]),
-                        "uncertainty is negative".into(),
-                    ));
-                }
-            }
-        }
-        let flags = if h.flags {
-            let f = field(width - 1);
-            f.parse::<u32>()
-                .map_err(|_| at(ln, Some("flags"), format!("not a whole number: {f:?}")))?
-        } else {
-            0
-        };
+        row.parse(l, ln, h, at)?;
         if grid.is_some() && table.is_none() {
             continue;
         }
         let (Some((from, g)), Some((values, sig, seen))) = (grid.as_ref(), table.as_mut()) else {
-            samples.push(Sample {
-                pair: PairDeg {
-                    incident: SphericalDeg::new(ti, pi),
-                    outgoing: SphericalDeg::new(to, po),
-                },
-                value: value.clone(),
-                sigma: h.sigma.then(|| sigma.clone()),
-                flags,
-            });
+            samples.push(row.sample(h));
             continue;
         };
         let n = g.len();
         if rows > n {
             return Err(grid_count(at, side, from, n, rows, ln));
         }
-        let (pi, po) = if g.isotropic {
-            (0.0, po - pi)
-        } else {
-            (pi, po)
-        };
-        let mut node = |slot: usize, ax: &Axis, x: f64, name: &str| {
-            let (lx, li) = &mut last_node[slot];
-            if *lx == x {
-                return Ok(*li);
-            }
-            let i = ax
-                .node_at(x.to_radians())
-                .ok_or_else(|| at(ln, Some(name), format!("{x} is not a node of the grid")))?;
-            (*lx, *li) = (x, i);
-            Ok::<usize, FileError>(i)
-        };
-        let i = g.index(
-            node(0, &g.phi_i, pi, "phi_i")?,
-            node(1, &g.theta_i, ti, "theta_i")?,
-            node(2, &g.phi_o, po, "phi_o")?,
-            node(3, &g.theta_o, to, "theta_o")?,
-        );
+        let i = nodes.index(g, &row, ln, at)?;
         if std::mem::replace(&mut seen[i], true) {
             return Err(at(ln, None, "this node was already given".into()));
         }
         for ch in 0..nc {
-            values[ch * n + i] = value[ch];
+            values[ch * n + i] = row.value[ch];
         }
         if let Some(out) = sig.as_mut() {
             for ch in 0..nc {
-                out[ch * n + i] = sigma[ch];
+                out[ch * n + i] = row.sigma[ch];
             }
         }
     }
