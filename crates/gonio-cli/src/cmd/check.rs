@@ -105,135 +105,153 @@ pub fn run(a: CheckArgs) -> CliResult<()> {
             r.channels.join(",")
         )?;
         super::write_provenance(&mut w, tab)?;
-        writeln!(
-            w,
-            "{:<28}{}",
-            "measure",
-            r.channels
-                .iter()
-                .map(|c| format!("{c:>14}"))
-                .collect::<String>()
-        )?;
-        let row = |w: &mut dyn Write, name: &str, v: &[f64]| {
-            writeln!(
-                w,
-                "{name:<28}{}",
-                v.iter().map(|x| format!("{x:>14.6e}")).collect::<String>()
-            )
-        };
-        row(
-            &mut w,
-            if r.paired {
-                "P_r (Eq. 4.1)"
-            } else {
-                "P_r (Eq. 4.1, interpolated)"
-            },
-            &r.reciprocity,
-        )?;
-        row(&mut w, "P_ec (Eq. 4.5)", &r.energy.p_ec)?;
-        if g.isotropic {
-            writeln!(
-                w,
-                "{:<28}not measurable: isotropic data (one φi)",
-                "P_i (Eq. 4.10)"
-            )?;
-        } else {
-            row(&mut w, "P_i (Eq. 4.10)", &r.isotropy)?;
-        }
-        if let Some(sep) = &r.separability {
-            for (j, k) in ks.iter().enumerate() {
-                let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
-                row(&mut w, &format!("P_s^({k}) (Eq. 4.20)"), &v)?;
-            }
-        } else {
-            writeln!(
-                w,
-                "P_s: not available (an isotropic table whose φ+ axis is not a full turn)"
-            )?;
-        }
+        write_measures(&mut w, r, g.isotropic, ks)?;
         if let Some(f) = &r.floor {
             write_floors(&mut w, r, f, ks)?;
         }
-        match r.energy.method {
-            measure::EnergyMethod::Sum => {
-                if r.energy.coverage < 0.999 {
-                    writeln!(
-                        w,
-                        "note: the outgoing nodes cover {:.1}% of the projected hemisphere; albedos undercount",
-                        100.0 * r.energy.coverage
-                    )?;
-                }
-            }
-            measure::EnergyMethod::Triangulated => writeln!(
-                w,
-                "albedos: triangulated hemisphere (DeYoung Sec. 4.2.2) over {} incident \
-                 directions; the data cover at least {:.1}% of the projected hemisphere, \
-                 at most {:.1}% held from the data's edge to the horizon",
-                r.energy.incident.len(),
-                100.0 * r.energy.coverage,
-                100.0 * r.energy.extrapolated
-            )?,
-        }
-        writeln!(
-            w,
-            "highest directional albedo (θi, φi: per channel; ± the noise's and the \
-             quadrature's standard uncertainties):"
-        )?;
-        for (th, ph, a) in &r.energy.worst {
-            let row = r.energy.incident.iter().position(|i| *i == (*th, *ph));
-            let sigma = row.and_then(|k| {
-                r.energy
-                    .albedo_sigma
-                    .as_ref()
-                    .map(|s| s.iter().map(|c| c[k]).collect::<Vec<_>>())
-            });
-            let quad: Option<Vec<f64>> = row.map(|k| {
-                r.energy
-                    .albedo_quadrature_sigma
-                    .iter()
-                    .map(|c| c[k])
-                    .collect()
-            });
-            let cell = |(ch, x): (usize, &f64)| {
-                let mut c = format!("{x:.4}");
-                if let Some(s) = &sigma {
-                    c += &format!(" ± {:.1e} (noise)", s[ch]);
-                }
-                if let Some(q) = &quad {
-                    c += &format!(" ± {:.1e} (quadrature)", q[ch]);
-                }
-                c
-            };
-            writeln!(
-                w,
-                "  {th:>6.2}° {ph:>7.2}°: {}",
-                a.iter().enumerate().map(cell).collect::<Vec<_>>().join(" ")
-            )?;
-        }
-        let large: Vec<String> = r
-            .energy
-            .incident
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| {
-                r.energy
-                    .albedo
-                    .iter()
-                    .zip(&r.energy.albedo_quadrature_sigma)
-                    .any(|(a, q)| q[*k] > 0.1 * a[*k].abs())
-            })
-            .map(|(_, (th, ph))| format!("θi {th}° φi {ph}°"))
-            .collect();
-        if !large.is_empty() {
-            writeln!(
-                w,
-                "note: the sampling does not resolve the albedo to 10% at {}: its quadrature \
-                 uncertainty is larger; finer outgoing steps there would narrow it",
-                large.join(", ")
-            )?;
-        }
+        write_energy(&mut w, r)?;
         w.flush()
     })())
+}
+
+/// The measures' block: a row per measure, a column per channel.
+fn write_measures(
+    w: &mut dyn Write,
+    r: &measure::Report,
+    isotropic: bool,
+    ks: &[usize],
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "{:<28}{}",
+        "measure",
+        r.channels
+            .iter()
+            .map(|c| format!("{c:>14}"))
+            .collect::<String>()
+    )?;
+    let row = |w: &mut dyn Write, name: &str, v: &[f64]| {
+        writeln!(
+            w,
+            "{name:<28}{}",
+            v.iter().map(|x| format!("{x:>14.6e}")).collect::<String>()
+        )
+    };
+    row(
+        w,
+        if r.paired {
+            "P_r (Eq. 4.1)"
+        } else {
+            "P_r (Eq. 4.1, interpolated)"
+        },
+        &r.reciprocity,
+    )?;
+    row(w, "P_ec (Eq. 4.5)", &r.energy.p_ec)?;
+    if isotropic {
+        writeln!(
+            w,
+            "{:<28}not measurable: isotropic data (one φi)",
+            "P_i (Eq. 4.10)"
+        )?;
+    } else {
+        row(w, "P_i (Eq. 4.10)", &r.isotropy)?;
+    }
+    if let Some(sep) = &r.separability {
+        for (j, k) in ks.iter().enumerate() {
+            let v: Vec<f64> = sep.iter().map(|s| s.p_s[j].1).collect();
+            row(w, &format!("P_s^({k}) (Eq. 4.20)"), &v)?;
+        }
+    } else {
+        writeln!(
+            w,
+            "P_s: not available (an isotropic table whose φ+ axis is not a full turn)"
+        )?;
+    }
+    Ok(())
+}
+
+/// The energy block: how the albedos were formed, the highest, and where the
+/// sampling does not resolve them.
+fn write_energy(w: &mut dyn Write, r: &measure::Report) -> std::io::Result<()> {
+    match r.energy.method {
+        measure::EnergyMethod::Sum => {
+            if r.energy.coverage < 0.999 {
+                writeln!(
+                    w,
+                    "note: the outgoing nodes cover {:.1}% of the projected hemisphere; albedos undercount",
+                    100.0 * r.energy.coverage
+                )?;
+            }
+        }
+        measure::EnergyMethod::Triangulated => writeln!(
+            w,
+            "albedos: triangulated hemisphere (DeYoung Sec. 4.2.2) over {} incident \
+             directions; the data cover at least {:.1}% of the projected hemisphere, \
+             at most {:.1}% held from the data's edge to the horizon",
+            r.energy.incident.len(),
+            100.0 * r.energy.coverage,
+            100.0 * r.energy.extrapolated
+        )?,
+    }
+    writeln!(
+        w,
+        "highest directional albedo (θi, φi: per channel; ± the noise's and the \
+         quadrature's standard uncertainties):"
+    )?;
+    for (th, ph, a) in &r.energy.worst {
+        let row = r.energy.incident.iter().position(|i| *i == (*th, *ph));
+        let sigma = row.and_then(|k| {
+            r.energy
+                .albedo_sigma
+                .as_ref()
+                .map(|s| s.iter().map(|c| c[k]).collect::<Vec<_>>())
+        });
+        let quad: Option<Vec<f64>> = row.map(|k| {
+            r.energy
+                .albedo_quadrature_sigma
+                .iter()
+                .map(|c| c[k])
+                .collect()
+        });
+        let cell = |(ch, x): (usize, &f64)| {
+            let mut c = format!("{x:.4}");
+            if let Some(s) = &sigma {
+                c += &format!(" ± {:.1e} (noise)", s[ch]);
+            }
+            if let Some(q) = &quad {
+                c += &format!(" ± {:.1e} (quadrature)", q[ch]);
+            }
+            c
+        };
+        writeln!(
+            w,
+            "  {th:>6.2}° {ph:>7.2}°: {}",
+            a.iter().enumerate().map(cell).collect::<Vec<_>>().join(" ")
+        )?;
+    }
+    let large: Vec<String> = r
+        .energy
+        .incident
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| {
+            r.energy
+                .albedo
+                .iter()
+                .zip(&r.energy.albedo_quadrature_sigma)
+                .any(|(a, q)| q[*k] > 0.1 * a[*k].abs())
+        })
+        .map(|(_, (th, ph))| format!("θi {th}° φi {ph}°"))
+        .collect();
+    if !large.is_empty() {
+        writeln!(
+            w,
+            "note: the sampling does not resolve the albedo to 10% at {}: its quadrature \
+             uncertainty is larger; finer outgoing steps there would narrow it",
+            large.join(", ")
+        )?;
+    }
+    Ok(())
 }
 
 /// The floors' block of the text output: each measure against what a BRDF with the

@@ -585,36 +585,96 @@ struct Acquired {
 /// it with `gonio_reduce` (DeYoung Eq. A.15 with the run's own dark,
 /// incident-beam and drift readings).
 fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
-    use gonio_plan::Plan;
-    use gonio_run as run;
-
-    let runtime = |e: &dyn std::fmt::Display| CliError::Runtime(format!("demo acquisition: {e}"));
-    let inst =
-        gonio_driver::InstrumentConfig::from_toml(INSTRUMENT_SIM, None).map_err(|e| runtime(&e))?;
-    let plan = Plan::from_toml(PLAN, None).map_err(|e| runtime(&e))?;
-    let mech = inst.mechanics().map_err(|e| runtime(&e))?;
-    let prepared =
-        gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).map_err(|e| runtime(&e))?;
-    let sim = gonio_sim::SimConfig::default_config().map_err(|e| runtime(&e))?;
     let path = match keep {
         Some(p) => p.to_path_buf(),
         None => std::env::temp_dir().join(format!("gonio-demo-{}.gonio", std::process::id())),
     };
+    let ran = run_plan(&path)?;
+    let steps = ran.store.steps().map_err(|e| demo_error(&e))?;
+    let reduction = gonio_reduce::reduce(&ran.store, &gonio_reduce::Options::default())
+        .map_err(|e| demo_error(&e))?;
+    let cal = reduction
+        .report
+        .channels
+        .first()
+        .ok_or_else(|| demo_error(&"no channel reduced"))?;
+    let dark_v = cal.dark_v[0].hypot(cal.dark_v[1]);
+    // The report's incident flux is the full beam; the reading was through the filter.
+    let incident_v = cal.incident_v * ran.transmittance;
+    let (points, agreement, shifts) = against_the_paint(&reduction)?;
+    let rejected = gonio_plan::rejection_counts(&ran.prepared.checked)
+        .into_iter()
+        .collect();
+    drop(ran.store);
+    let report = write_report(&path, keep)?;
+    let run_file = if keep.is_some() {
+        Some(path)
+    } else {
+        for suffix in ["", "-wal", "-shm"] {
+            let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+        }
+        None
+    };
+    Ok(Acquired {
+        points,
+        agreement,
+        shifts,
+        steps: steps.len(),
+        rejected,
+        motion_s: ran.prepared.schedule.motion_s,
+        raster_motion_s: ran.prepared.schedule.raster_motion_s,
+        physical_s: ran.report.physical_s,
+        wall_s: ran.wall_s,
+        dark_v,
+        incident_v,
+        run_file,
+        report,
+    })
+}
+
+/// A failure of the demo's own acquisition or reduction.
+fn demo_error(e: &dyn std::fmt::Display) -> CliError {
+    CliError::Runtime(format!("demo acquisition: {e}"))
+}
+
+/// What running the plan left: the run file's store, its schedule, the engine's
+/// report.
+struct Ran {
+    store: gonio_run::RunStore,
+    prepared: gonio_plan::Prepared,
+    report: gonio_acquire::engine::SessionReport,
+    transmittance: f64,
+    wall_s: f64,
+}
+
+/// Creates the run file at `path` and runs the embedded plan into it on the
+/// embedded simulator, to completion.
+fn run_plan(path: &Path) -> CliResult<Ran> {
+    use gonio_plan::Plan;
+    use gonio_run as run;
+
+    let inst = gonio_driver::InstrumentConfig::from_toml(INSTRUMENT_SIM, None)
+        .map_err(|e| demo_error(&e))?;
+    let plan = Plan::from_toml(PLAN, None).map_err(|e| demo_error(&e))?;
+    let mech = inst.mechanics().map_err(|e| demo_error(&e))?;
+    let prepared =
+        gonio_plan::prepare(&mech, inst.reading_seconds(), &plan).map_err(|e| demo_error(&e))?;
+    let sim = gonio_sim::SimConfig::default_config().map_err(|e| demo_error(&e))?;
     let inputs = run::Inputs {
         instrument_text: INSTRUMENT_SIM.into(),
         plan_text: PLAN.into(),
         sim: Some((
             gonio_sim::config::DEFAULT_SIM.into(),
-            sim.sample_model_text().map_err(|e| runtime(&e))?,
+            sim.sample_model_text().map_err(|e| demo_error(&e))?,
         )),
         seed: Some(sim.seed),
         notes: Some("gonio demo".into()),
         software: crate::cmd::acquire::SOFTWARE.into(),
         ..run::Inputs::default()
     };
-    let store = run::create(&path, &plan, &prepared, &inputs).map_err(|e| match e {
+    let store = run::create(path, &plan, &prepared, &inputs).map_err(|e| match e {
         run::CreateError::Store(s) if s.is_bad_input() => CliError::Input(s.to_string()),
-        other => runtime(&other),
+        other => demo_error(&other),
     })?;
     let transmittance = plan
         .calibration
@@ -643,29 +703,37 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     )?;
     let wall_s = started.elapsed().as_secs_f64();
     if report.outcome != gonio_acquire::engine::Outcome::Complete {
-        return Err(runtime(&format!(
+        return Err(demo_error(&format!(
             "the run ended {}",
             report.outcome.status()
         )));
     }
-    let steps = store.steps().map_err(|e| runtime(&e))?;
-    let reduction =
-        gonio_reduce::reduce(&store, &gonio_reduce::Options::default()).map_err(|e| runtime(&e))?;
-    let cal = reduction
-        .report
-        .channels
-        .first()
-        .ok_or_else(|| runtime(&"no channel reduced"))?;
-    let dark_v = cal.dark_v[0].hypot(cal.dark_v[1]);
-    // The report's incident flux is the full beam; the reading was through the filter.
-    let incident_v = cal.incident_v * transmittance;
-    let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| runtime(&e))?;
-    let truth = gonio_reduce::agreement::truth(&reduction, &model)
-        .ok_or_else(|| runtime(&"the demo's channel is not the model's"))?;
-    let agreement = gonio_reduce::agreement::agreements(&reduction, &truth)
+    Ok(Ran {
+        store,
+        prepared,
+        report,
+        transmittance,
+        wall_s,
+    })
+}
+
+/// The reduction against the paint the simulator measured: each in-plane sample
+/// beside the model with its deviation whitened by the full covariance, sorted by
+/// (θi, signed θo); the agreement; and the shared sources that moved the run.
+fn against_the_paint(
+    reduction: &gonio_reduce::Reduction,
+) -> CliResult<(
+    Vec<Point>,
+    gonio_process::covariance::Agreement,
+    Vec<(String, f64)>,
+)> {
+    let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| demo_error(&e))?;
+    let truth = gonio_reduce::agreement::truth(reduction, &model)
+        .ok_or_else(|| demo_error(&"the demo's channel is not the model's"))?;
+    let agreement = gonio_reduce::agreement::agreements(reduction, &truth)
         .into_iter()
         .next()
-        .ok_or_else(|| runtime(&"no covariance to compare against"))?;
+        .ok_or_else(|| demo_error(&"no covariance to compare against"))?;
     let residuals: Vec<f64> = reduction
         .samples
         .samples
@@ -676,7 +744,7 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     let z_full = reduction
         .covariance
         .whiten(0, &residuals)
-        .ok_or_else(|| runtime(&"the covariance is not positive definite"))?;
+        .ok_or_else(|| demo_error(&"the covariance is not positive definite"))?;
     let shifts: Vec<(String, f64)> = agreement
         .shifts
         .iter()
@@ -707,45 +775,23 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
             .partial_cmp(&(b.theta_i, b.theta_o))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    let rejected = gonio_plan::rejection_counts(&prepared.checked)
-        .into_iter()
-        .collect();
-    drop(store);
-    // The run report, written before a temporary run file is removed: beside a kept
-    // run file, else in the temporary directory.
+    Ok((points, agreement, shifts))
+}
+
+/// Writes the run report, before a temporary run file is removed: beside a kept run
+/// file, else in the temporary directory. Returns the page's path.
+fn write_report(path: &Path, keep: Option<&Path>) -> CliResult<PathBuf> {
     let report_dir = match keep {
         Some(p) => p.with_extension("report"),
         None => std::env::temp_dir().join(format!("gonio-demo-report-{}", std::process::id())),
     };
-    let page = crate::cmd::report::build_report(&path, &crate::flags::ReduceFlags::default())?;
+    let page = crate::cmd::report::build_report(path, &crate::flags::ReduceFlags::default())?;
     std::fs::create_dir_all(&report_dir)
-        .map_err(|e| runtime(&format!("{}: {e}", report_dir.display())))?;
+        .map_err(|e| demo_error(&format!("{}: {e}", report_dir.display())))?;
     let report_path = report_dir.join("report.html");
     // The temporary directory is this process's own; beside a kept run file, an
     // existing report is never replaced (checked before the acquisition too).
     crate::output::Target::new(&report_path, keep.is_none())?
         .write(gonio_io::report::html(&page).as_bytes())?;
-    let run_file = if keep.is_some() {
-        Some(path)
-    } else {
-        for suffix in ["", "-wal", "-shm"] {
-            let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
-        }
-        None
-    };
-    Ok(Acquired {
-        points,
-        agreement,
-        shifts,
-        steps: steps.len(),
-        rejected,
-        motion_s: prepared.schedule.motion_s,
-        raster_motion_s: prepared.schedule.raster_motion_s,
-        physical_s: report.physical_s,
-        wall_s,
-        dark_v,
-        incident_v,
-        run_file,
-        report: report_path,
-    })
+    Ok(report_path)
 }
