@@ -290,6 +290,16 @@ struct Motion {
 }
 
 impl Motion {
+    /// The drive standing at `nm` from `t` on.
+    fn still(t: f64, nm: f64) -> Motion {
+        Motion {
+            t0: t,
+            t1: t,
+            from_nm: nm,
+            to_nm: nm,
+        }
+    }
+
     fn at(&self, t: f64) -> f64 {
         if t >= self.t1 || self.t1 <= self.t0 {
             self.to_nm
@@ -340,12 +350,7 @@ impl Cs130Twin {
                 filter: if config.filter_wheel { 1 } else { 0 },
                 shutter_open: false,
                 asked_nm: home,
-                motion: Motion {
-                    t0: 0.0,
-                    t1: 0.0,
-                    from_nm: home,
-                    to_nm: home,
-                },
+                motion: Motion::still(0.0, home),
                 motion_until: 0.0,
                 hold_until: 0.0,
                 busy_until: 0.0,
@@ -502,13 +507,7 @@ impl Cs130Device {
             Command::Shutter(open) => self.shutter_open = open,
             Command::Units(u) => self.units = u,
             Command::Abort => {
-                let here = self.motion.at(t);
-                self.motion = Motion {
-                    t0: t,
-                    t1: t,
-                    from_nm: here,
-                    to_nm: here,
-                };
+                self.motion = Motion::still(t, self.motion.at(t));
                 self.motion_until = self.motion_until.min(t);
             }
             Command::Wai => self.hold_until = t.max(self.motion_until),

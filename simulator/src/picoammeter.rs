@@ -152,19 +152,8 @@ impl PicoammeterConfig {
                 format!("{} is not 50 or 60", self.line_frequency_hz),
             );
         }
-        for (field, v) in [("serial", &self.serial), ("firmware", &self.firmware)] {
-            if v.is_empty()
-                || !v
-                    .bytes()
-                    .all(|b| (b.is_ascii_graphic() || b == b' ') && b != b',')
-            {
-                return bad(
-                    field,
-                    "must be non-empty printable ASCII without commas".into(),
-                );
-            }
-        }
-        Ok(())
+        FieldError::identity("serial", &self.serial, true)?;
+        FieldError::identity("firmware", &self.firmware, true)
     }
 
     /// The line frequency (50 Hz for a value [`validate`](Self::validate) refuses).
@@ -394,6 +383,27 @@ impl Picoammeter {
         }
     }
 
+    /// A setting changed; no reply.
+    fn set(&mut self, f: impl FnOnce(&mut Settings)) -> Option<Reply> {
+        f(&mut self.settings);
+        None
+    }
+
+    /// A setting changed that empties the moving filter's stack (a range or filter
+    /// change, zero check); no reply.
+    fn change(&mut self, f: impl FnOnce(&mut Settings)) -> Option<Reply> {
+        self.stack.clear();
+        self.set(f)
+    }
+
+    /// A command refused with SCPI error `code`: EXE in `*ESR?`, the error queued; no
+    /// reply.
+    fn refuse(&mut self, code: i32, message: &str) -> Option<Reply> {
+        self.esr |= EventStatus::EXE;
+        self.queue(code, message);
+        None
+    }
+
     /// Runs one parsed command at [`busy_until`](Self::busy_until): its reply, if any
     /// (readings are written to `out` directly).
     fn execute(&mut self, command: &Command, out: &mut Vec<u8>) -> Option<Reply> {
@@ -421,18 +431,12 @@ impl Picoammeter {
             Command::NextError => Some(Reply::Error(
                 self.errors.pop_front().unwrap_or_else(ScpiError::none),
             )),
-            Command::ZeroCheck(on) => {
-                self.settings.zero_check = *on;
-                self.stack.clear();
-                None
-            }
+            Command::ZeroCheck(on) => self.change(|s| s.zero_check = *on),
             Command::ZeroCorrectAcquire => {
                 if !self.settings.zero_check {
                     // The manual: zero check must be on to acquire (−221 "Settings
                     // conflict" assumed).
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-221, "Settings conflict");
-                    return None;
+                    return self.refuse(-221, "Settings conflict");
                 }
                 let value = match self.last_zero_checked {
                     Some(v) => v,
@@ -444,53 +448,27 @@ impl Picoammeter {
                 self.zero_value = value;
                 None
             }
-            Command::ZeroCorrect(on) => {
-                self.settings.zero_correct = *on;
-                None
-            }
-            Command::SetRange(r) => {
-                self.settings.range = *r;
-                self.settings.autorange = false;
-                self.stack.clear();
-                None
-            }
+            Command::ZeroCorrect(on) => self.set(|s| s.zero_correct = *on),
+            Command::SetRange(r) => self.change(|s| (s.range, s.autorange) = (*r, false)),
             Command::QueryRange => Some(Reply::Range(self.settings.range)),
-            Command::AutoRange(on) => {
-                self.settings.autorange = *on;
-                None
-            }
+            Command::AutoRange(on) => self.set(|s| s.autorange = *on),
             Command::SetNplc(n) => {
                 let max = self.config.line_frequency().max_nplc();
                 if !(MIN_NPLC..=max).contains(n) {
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-222, "Parameter data out of range");
-                    return None;
+                    return self.refuse(-222, "Parameter data out of range");
                 }
-                self.settings.nplc = *n;
-                None
+                self.set(|s| s.nplc = *n)
             }
-            Command::FilterType(t) => {
-                self.settings.filter_type = *t;
-                self.stack.clear();
-                None
-            }
+            Command::FilterType(t) => self.change(|s| s.filter_type = *t),
             Command::FilterCount(n) => {
                 // 1 to 100 (p. 4-8: "a simple average of one to 100 reading
                 // conversions"); the codec has refused the rest with −222.
-                self.settings.filter_count = (*n).clamp(*FILTER_COUNT.start(), *FILTER_COUNT.end());
-                self.stack.clear();
-                None
+                let (lo, hi) = (*FILTER_COUNT.start(), *FILTER_COUNT.end());
+                self.change(|s| s.filter_count = (*n).clamp(lo, hi))
             }
-            Command::Filter(on) => {
-                self.settings.filter_on = *on;
-                self.stack.clear();
-                None
-            }
+            Command::Filter(on) => self.change(|s| s.filter_on = *on),
             Command::FormatElements => None,
-            Command::TriggerCount(n) => {
-                self.settings.trigger_count = *n;
-                None
-            }
+            Command::TriggerCount(n) => self.set(|s| s.trigger_count = *n),
             Command::Initiate => {
                 self.last = self.measure();
                 None
@@ -503,9 +481,7 @@ impl Picoammeter {
             Command::Fetch => {
                 if self.last.is_empty() {
                     // SCPI −230 "Data corrupt or stale": nothing to fetch.
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-230, "Data corrupt or stale");
-                    return None;
+                    return self.refuse(-230, "Data corrupt or stale");
                 }
                 self.readings_reply(out);
                 None

@@ -200,6 +200,28 @@ impl FieldError {
         }
     }
 
+    /// `Err` naming the first row whose value its range refuses, with the range's
+    /// message.
+    pub fn ranges(rows: &[(&str, f64, gonio_core::limits::Range)]) -> Result<(), FieldError> {
+        for (field, v, range) in rows {
+            range.check(*v).map_err(|m| Self::new(*field, m))?;
+        }
+        Ok(())
+    }
+
+    /// `Err` unless `text`, an `*IDN?` field, is non-empty printable ASCII without
+    /// commas (the field separator), spaces allowed when `spaces`.
+    pub fn identity(field: &str, text: &str, spaces: bool) -> Result<(), FieldError> {
+        let ok = |b: u8| (b.is_ascii_graphic() || (spaces && b == b' ')) && b != b',';
+        match !text.is_empty() && text.bytes().all(ok) {
+            true => Ok(()),
+            false => Err(Self::new(
+                field,
+                "must be non-empty printable ASCII without commas",
+            )),
+        }
+    }
+
     /// As the sim config names it: the field under the twin's `table`.
     pub(crate) fn under(self, table: &str) -> (String, String) {
         (format!("{table}.{}", self.field), self.reason)
