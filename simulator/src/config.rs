@@ -16,6 +16,7 @@ use crate::lockin::LockInConfig;
 use crate::monochromator::MonochromatorSim;
 use crate::optics::OpticsConfig;
 use crate::picoammeter::PicoammeterConfig;
+use crate::twin::ensure;
 
 use gonio_core::limits::Range;
 use limits::*;
@@ -270,22 +271,16 @@ impl SimConfig {
             .keys()
             .map(|k| ("kinematics.addresses", k));
         for (table, k) in keys.chain(self.apt.keys().map(|k| ("apt", k))) {
-            if !roles.contains(&k.as_str()) {
-                let m = format!("not a role of this layout ({})", roles.join(", "));
-                return Err((format!("{table}.{k}"), m));
-            }
+            let (ok, all) = (roles.contains(&k.as_str()), roles.join(", "));
+            ensure!(ok; format!("{table}.{k}"), "not a role of this layout ({all})");
         }
         let stages = self.role_stages()?;
         let addrs = self.role_addresses()?;
         for (i, s) in stages.iter().enumerate() {
             let RoleStage::Smc100(a) = s else { continue };
             let f = format!("kinematics.addresses.{}", roles[i]);
-            if !(1..=31).contains(a) {
-                return Err((f, "must be in 1..=31".into()));
-            }
-            if stages[..i].contains(s) {
-                return Err((f, "repeats an address".into()));
-            }
+            ensure!((1..=31).contains(a); f, "must be in 1..=31");
+            ensure!(!stages[..i].contains(s); f, "repeats an address");
         }
         for (role, a) in &self.apt {
             validate_apt(role, a)?;
@@ -364,10 +359,8 @@ fn validate_apt(role: &str, a: &AptDeviceConfig) -> Result<(), Fault> {
     if let Some([lo, hi]) = a.limit_switches_deg {
         POSITION.at(f("limit_switches_deg"), lo)?;
         POSITION.at(f("limit_switches_deg"), hi)?;
-        if lo >= hi {
-            let m = "the reverse switch must be below the forward one";
-            return Err((f("limit_switches_deg"), m.into()));
-        }
+        let m = "the reverse switch must be below the forward one";
+        ensure!(lo < hi; f("limit_switches_deg"), "{m}");
     }
     check_all(
         &f(""),
@@ -378,20 +371,12 @@ fn validate_apt(role: &str, a: &AptDeviceConfig) -> Result<(), Fault> {
             ("keepalive_timeout_s", a.keepalive_timeout_s, TIME),
         ],
     )?;
-    if a.update_period_s < 1e-3 {
-        return Err((f("update_period_s"), "must be at least 0.001 s".into()));
-    }
-    if !matches!(a.stepper_status_bytes, 14 | 28) {
-        let m = "is neither 14 (a K10CR1) nor 28 (the manual)";
-        return Err((
-            f("stepper_status_bytes"),
-            format!("{} {m}", a.stepper_status_bytes),
-        ));
-    }
-    if a.status_without_ack > 1_000_000 {
-        let m = "must be at most 1000000 (0: never stops)";
-        return Err((f("status_without_ack"), m.into()));
-    }
+    ensure!(a.update_period_s >= 1e-3; f("update_period_s"), "must be at least 0.001 s");
+    let n = a.stepper_status_bytes;
+    let m = "is neither 14 (a K10CR1) nor 28 (the manual)";
+    ensure!(matches!(n, 14 | 28); f("stepper_status_bytes"), "{n} {m}");
+    let m = "must be at most 1000000 (0: never stops)";
+    ensure!(a.status_without_ack <= 1_000_000; f("status_without_ack"), "{m}");
     Ok(())
 }
 
@@ -420,10 +405,8 @@ fn validate_controller(i: usize, c: &ControllerConfig, addrs: &[u8]) -> Result<(
             ("start_position", c.start_position, POSITION),
         ],
     )?;
-    if c.positive_limit <= c.negative_limit {
-        let m = "must be greater than `negative_limit`";
-        return Err((f("positive_limit"), m.into()));
-    }
+    let ok = c.positive_limit > c.negative_limit;
+    ensure!(ok; f("positive_limit"), "must be greater than `negative_limit`");
     check_all(
         &f(""),
         &[
@@ -456,10 +439,8 @@ fn validate_optics(o: &OpticsConfig) -> Result<(), Fault> {
             ),
         ],
     )?;
-    if o.min_arm_separation_deg >= 180.0 {
-        let m = "must be less than 180 deg";
-        return Err(("optics.min_arm_separation_deg".into(), m.into()));
-    }
+    let ok = o.min_arm_separation_deg < 180.0;
+    ensure!(ok; "optics.min_arm_separation_deg", "must be less than 180 deg");
     check_all(
         "optics.",
         &[
@@ -502,9 +483,7 @@ fn validate_faults(fl: &FaultConfig) -> Result<(), Fault> {
     for (f, w) in overload.chain(unlock).chain(outage) {
         TIME.at(format!("{f}.from_s"), w.from_s)?;
         TIME.at(format!("{f}.to_s"), w.to_s)?;
-        if w.to_s < w.from_s {
-            return Err((format!("{f}.to_s"), "must not be before `from_s`".into()));
-        }
+        ensure!(w.to_s >= w.from_s; format!("{f}.to_s"), "must not be before `from_s`");
     }
     Ok(())
 }

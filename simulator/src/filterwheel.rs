@@ -59,7 +59,7 @@ use gonio_proto::fw102c::{
     TERMINATOR, TriggerMode,
 };
 
-use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox};
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox, ensure};
 
 /// The identification string the twin answers to `*idn?`: "Returns the model number
 /// and firmware version" (p. 11), in the form Odemis quotes from a real wheel (driver
@@ -124,7 +124,6 @@ impl FilterWheelSim {
     /// Checks every field's range; the first bad field is named in the error. The
     /// positions and filters are checked as the driver's config checks them.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let driver = Fw102cConfig {
             positions: self.positions,
             filters: self.filters.clone(),
@@ -133,20 +132,15 @@ impl FilterWheelSim {
         driver
             .validate()
             .map_err(|e| FieldError::new(e.field, e.reason))?;
-        if !(1..=self.positions).contains(&self.initial_position) {
-            return bad(
-                "initial_position",
-                format!("{} is not in 1..={}", self.initial_position, self.positions),
-            );
-        }
+        let (at, n) = (self.initial_position, self.positions);
+        ensure!((1..=n).contains(&at); "initial_position", "{at} is not in 1..={n}");
         for (field, v, hi) in [
             ("slot_time_high_s", self.slot_time_high_s, 10.0),
             ("slot_time_low_s", self.slot_time_low_s, 10.0),
             ("longpass_rise_nm", self.longpass_rise_nm, 200.0),
         ] {
-            if !(v.is_finite() && v > 0.0 && v <= hi) {
-                return bad(field, format!("{v} is not in (0, {hi}]"));
-            }
+            let ok = v.is_finite() && v > 0.0 && v <= hi;
+            ensure!(ok; field, "{v} is not in (0, {hi}]");
         }
         FieldError::within("latency_s", self.latency_s, 0.0, 1.0)
     }

@@ -52,7 +52,7 @@ use gonio_proto::k6485::{
 };
 use rand::{Rng, SeedableRng};
 
-use crate::twin::FieldError;
+use crate::twin::{FieldError, ensure};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -129,7 +129,6 @@ impl PicoammeterConfig {
     /// Checks that every number is finite and in range, and the `*IDN?` fields are
     /// printable ASCII without commas.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         for (field, v, lo, hi) in [
             ("responsivity_a_per_w", self.responsivity_a_per_w, 0.0, 10.0),
@@ -140,18 +139,13 @@ impl PicoammeterConfig {
         ] {
             FieldError::within(field, v, lo, hi)?;
         }
-        if !self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3)) {
-            return bad("meter_noise_a", "each must be in [0, 1e-3] A".into());
-        }
-        if !self.rise_time_s.iter().all(|v| within(*v, 1e-9, 10.0)) {
-            return bad("rise_time_s", "each must be in [1e-9, 10] s".into());
-        }
-        if LineFrequency::from_hz(self.line_frequency_hz).is_none() {
-            return bad(
-                "line_frequency_hz",
-                format!("{} is not 50 or 60", self.line_frequency_hz),
-            );
-        }
+        let noise = self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3));
+        ensure!(noise; "meter_noise_a", "each must be in [0, 1e-3] A");
+        let rise = self.rise_time_s.iter().all(|v| within(*v, 1e-9, 10.0));
+        ensure!(rise; "rise_time_s", "each must be in [1e-9, 10] s");
+        let hz = self.line_frequency_hz;
+        let ok = LineFrequency::from_hz(hz).is_some();
+        ensure!(ok; "line_frequency_hz", "{hz} is not 50 or 60");
         FieldError::identity("serial", &self.serial, true)?;
         FieldError::identity("firmware", &self.firmware, true)
     }

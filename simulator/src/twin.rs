@@ -173,6 +173,18 @@ impl<D> std::ops::DerefMut for LineTwin<D> {
     }
 }
 
+/// `ensure!(ok; field, reason...)` returns `Err` naming `field` with the formatted
+/// reason unless `ok`: a twin's [`FieldError`], or the sim config's `(field, reason)`.
+macro_rules! ensure {
+    ($ok:expr; $field:expr, $($why:tt)+) => {
+        let ok: bool = $ok;
+        if !ok {
+            return Err($crate::twin::FieldError::new($field, format!($($why)+)).into());
+        }
+    };
+}
+pub(crate) use ensure;
+
 /// A twin's config value that cannot describe an instrument.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{field}: {reason}")]
@@ -181,6 +193,12 @@ pub struct FieldError {
     pub field: String,
     /// What is wrong with it.
     pub reason: String,
+}
+
+impl From<FieldError> for (String, String) {
+    fn from(e: FieldError) -> Self {
+        (e.field, e.reason)
+    }
 }
 
 impl FieldError {

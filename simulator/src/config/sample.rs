@@ -8,6 +8,7 @@ use gonio_brdf::{Brdf, Model};
 use serde::Deserialize;
 
 use super::{KIND, SimConfig, SimConfigError};
+use crate::twin::ensure;
 
 /// The most bytes a table sample (`[sample] table`) may have: 1 GiB, a 5° × 5° full
 /// 4-D RGB table with its uncertainties about twice over. The simulator holds the
@@ -332,32 +333,18 @@ impl SimConfig {
 
     /// The sample's fields: one kind of sample, and a microgeometry's grid and rays.
     pub(crate) fn validate_sample(&self) -> Result<(), (String, String)> {
-        if self.sample.table.is_some() && self.sample.model.is_some() {
-            return Err((
-                "sample.table".into(),
-                "a sample is a model or a table, not both (remove sample.model)".into(),
-            ));
-        }
-        if let Some(m) = &self.sample.micro {
-            if self.sample.model.is_some() || self.sample.table.is_some() {
-                return Err((
-                    "sample.micro".into(),
-                    "a sample is a model, a table or a microgeometry, not more than one \
-                     (remove sample.model or sample.table)"
-                        .into(),
-                ));
-            }
+        let s = &self.sample;
+        let m = "a sample is a model or a table, not both (remove sample.model)";
+        ensure!(s.table.is_none() || s.model.is_none(); "sample.table", "{m}");
+        if let Some(m) = &s.micro {
+            let why = "a sample is a model, a table or a microgeometry, not more than one";
+            let ok = s.model.is_none() && s.table.is_none();
+            ensure!(ok; "sample.micro", "{why} (remove sample.model or sample.table)");
             let [dt, dp] = m.grid;
-            if !(dt > 0.0
-                && dp > 0.0
-                && (90.0 / dt).fract().abs() < 1e-9
-                && (360.0 / dp).fract().abs() < 1e-9)
-            {
-                return Err((
-                    "sample.micro.grid".into(),
-                    format!("[DTHETA, DPHI] must divide 90° and 360°, got {:?}", m.grid),
-                ));
-            }
+            let divides = |step: f64, of: f64| step > 0.0 && (of / step).fract().abs() < 1e-9;
+            let ok = divides(dt, 90.0) && divides(dp, 360.0);
+            let why = "[DTHETA, DPHI] must divide 90° and 360°";
+            ensure!(ok; "sample.micro.grid", "{why}, got {:?}", m.grid);
             // The node cap of a grid (gonio_process::MAX_GRID_NODES).
             gonio_process::GridStep::new(dt, dp).map_err(|e| ("sample.micro.grid".into(), e))?;
             gonio_core::limits::count_at(
