@@ -16,7 +16,7 @@ use crate::lockin::LockInConfig;
 use crate::monochromator::MonochromatorSim;
 use crate::optics::OpticsConfig;
 use crate::picoammeter::PicoammeterConfig;
-use crate::twin::ensure;
+use crate::twin::{FieldError, ensure};
 
 use gonio_core::limits::Range;
 use limits::*;
@@ -338,19 +338,18 @@ impl SimConfig {
 /// A field of the sim config and why its value is refused.
 type Fault = (String, String);
 
-/// Checks `value` against `range` for each row, naming the field `prefix` + its name.
-fn check_all(prefix: &str, rows: &[(&str, f64, Range)]) -> Result<(), Fault> {
-    for (field, v, range) in rows {
-        range.at(format!("{prefix}{field}"), *v)?;
-    }
-    Ok(())
+/// Checks each row's value against its range ([`FieldError::ranges`]), naming the
+/// field under `table`.
+fn check_all(table: &str, rows: &[(&str, f64, Range)]) -> Result<(), Fault> {
+    FieldError::ranges(rows).map_err(|e| e.under(table))
 }
 
 /// `[apt.ROLE]`.
 fn validate_apt(role: &str, a: &AptDeviceConfig) -> Result<(), Fault> {
-    let f = |k: &str| format!("apt.{role}.{k}");
+    let table = format!("apt.{role}");
+    let f = |k: &str| format!("{table}.{k}");
     check_all(
-        &f(""),
+        &table,
         &[
             ("start_position_deg", a.start_position_deg, POSITION),
             ("home_switch_deg", a.home_switch_deg, POSITION),
@@ -363,7 +362,7 @@ fn validate_apt(role: &str, a: &AptDeviceConfig) -> Result<(), Fault> {
         ensure!(lo < hi; f("limit_switches_deg"), "{m}");
     }
     check_all(
-        &f(""),
+        &table,
         &[
             ("velocity", a.velocity, VELOCITY),
             ("acceleration", a.acceleration, ACCELERATION),
@@ -382,7 +381,8 @@ fn validate_apt(role: &str, a: &AptDeviceConfig) -> Result<(), Fault> {
 
 /// `[[controllers]]`, the `i`-th; `addrs` are the kinematics' SMC100 addresses.
 fn validate_controller(i: usize, c: &ControllerConfig, addrs: &[u8]) -> Result<(), Fault> {
-    let f = |k: &str| format!("controllers[{i}].{k}");
+    let table = format!("controllers[{i}]");
+    let f = |k: &str| format!("{table}.{k}");
     if !addrs.contains(&c.address) {
         let m = format!(
             "{} is not one of the kinematics addresses {addrs:?}",
@@ -391,7 +391,7 @@ fn validate_controller(i: usize, c: &ControllerConfig, addrs: &[u8]) -> Result<(
         return Err((f("address"), m));
     }
     check_all(
-        &f(""),
+        &table,
         &[
             ("velocity", c.velocity, VELOCITY),
             ("max_velocity", c.max_velocity, VELOCITY),
@@ -408,7 +408,7 @@ fn validate_controller(i: usize, c: &ControllerConfig, addrs: &[u8]) -> Result<(
     let ok = c.positive_limit > c.negative_limit;
     ensure!(ok; f("positive_limit"), "must be greater than `negative_limit`");
     check_all(
-        &f(""),
+        &table,
         &[
             ("counts_per_unit", c.counts_per_unit, COUNTS_PER_UNIT),
             ("home_timeout_s", c.home_timeout_s, HOME_TIMEOUT),
@@ -423,7 +423,7 @@ fn validate_controller(i: usize, c: &ControllerConfig, addrs: &[u8]) -> Result<(
 fn validate_optics(o: &OpticsConfig) -> Result<(), Fault> {
     use gonio_core::goniometer::{ARM_SEPARATION, LENGTH};
     check_all(
-        "optics.",
+        "optics",
         &[
             ("source_power_w", o.source_power_w, SOURCE_POWER),
             ("beam_diameter_m", o.beam_diameter_m, LENGTH),
@@ -442,7 +442,7 @@ fn validate_optics(o: &OpticsConfig) -> Result<(), Fault> {
     let ok = o.min_arm_separation_deg < 180.0;
     ensure!(ok; "optics.min_arm_separation_deg", "must be less than 180 deg");
     check_all(
-        "optics.",
+        "optics",
         &[
             ("drift_per_hour", o.drift_per_hour, DRIFT_PER_HOUR),
             ("drift_amplitude", o.drift_amplitude, DRIFT_AMPLITUDE),
@@ -461,7 +461,7 @@ fn validate_optics(o: &OpticsConfig) -> Result<(), Fault> {
 /// `[faults]`.
 fn validate_faults(fl: &FaultConfig) -> Result<(), Fault> {
     check_all(
-        "faults.",
+        "faults",
         &[
             ("drop_reply", fl.drop_reply, PROBABILITY),
             ("corrupt_reply", fl.corrupt_reply, PROBABILITY),
