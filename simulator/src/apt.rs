@@ -37,8 +37,16 @@ use gonio_proto::apt::{
     USB_UNIT, VelParams, status,
 };
 
-use crate::controller::Profile;
+use crate::motion::Profile;
 use crate::twin::TimedLine;
+
+/// Stores a parameter set as the host sent it, on the controller's one channel.
+macro_rules! store {
+    ($slot:expr, $sent:expr) => {{
+        $slot = *$sent;
+        $slot.chan = CHANNEL;
+    }};
+}
 
 /// Which controller and stage.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
@@ -416,25 +424,10 @@ impl AptDevice {
 
     /// When a stalled stage sticks, during the profile under way.
     fn stall_time(&self) -> Option<f64> {
-        let s = self.stall_at?;
-        let Activity::Profile(p, _) = self.activity else {
-            return None;
-        };
-        let side = |t: f64| (p.position(t) - s).signum();
-        let (mut lo, mut hi) = (p.t0, p.end());
-        if side(lo) == side(hi) && side(hi) != 0.0 {
-            return None;
+        match self.activity {
+            Activity::Profile(p, _) => p.crossing(self.stall_at?),
+            _ => None,
         }
-        // The profile is monotonic: bisect for the crossing.
-        for _ in 0..80 {
-            let mid = 0.5 * (lo + hi);
-            if side(mid) == side(lo) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        Some(hi)
     }
 
     /// Fault: from now on the stage sticks when it reaches `angle` (mechanical); the
@@ -545,17 +538,15 @@ impl AptDevice {
                 chan: CHANNEL,
                 status: Some(self.dc_status(t)),
             },
-            Some(Kind::ToLimit(bit)) => {
-                self.limit_bits |= bit;
+            Some(Kind::ToLimit(_) | Kind::Velocity) | None => {
+                if let Some(Kind::ToLimit(bit)) = kind {
+                    self.limit_bits |= bit;
+                }
                 Message::MoveStopped {
                     chan: CHANNEL,
                     status: Some(self.dc_status(t)),
                 }
             }
-            Some(Kind::Velocity) | None => Message::MoveStopped {
-                chan: CHANNEL,
-                status: Some(self.dc_status(t)),
-            },
         };
         self.status(&m, true, out);
     }
@@ -651,41 +642,18 @@ impl AptDevice {
             .encode(out),
             // Non-positive velocities are not applied.
             Message::SetVelParams(v) if v.max_velocity > 0 && v.acceleration > 0 => {
-                self.vel = VelParams {
-                    chan: CHANNEL,
-                    ..*v
-                };
+                store!(self.vel, v)
             }
             Message::ReqVelParams { .. } => Message::GetVelParams(self.vel).encode(out),
-            Message::SetJogParams(j) => {
-                self.jog = JogParams {
-                    chan: CHANNEL,
-                    ..*j
-                }
-            }
+            Message::SetJogParams(j) => store!(self.jog, j),
             Message::ReqJogParams { .. } => Message::GetJogParams(self.jog).encode(out),
-            Message::SetHomeParams(h) if h.velocity > 0 => {
-                self.home = HomeParams {
-                    chan: CHANNEL,
-                    ..*h
-                };
-            }
+            Message::SetHomeParams(h) if h.velocity > 0 => store!(self.home, h),
             Message::ReqHomeParams { .. } => Message::GetHomeParams(self.home).encode(out),
-            Message::SetGenMoveParams(g) => {
-                self.genmove = GenMoveParams {
-                    chan: CHANNEL,
-                    ..*g
-                };
-            }
+            Message::SetGenMoveParams(g) => store!(self.genmove, g),
             Message::ReqGenMoveParams { .. } => {
                 Message::GetGenMoveParams(self.genmove).encode(out);
             }
-            Message::SetLimSwitchParams(l) => {
-                self.lim = LimSwitchParams {
-                    chan: CHANNEL,
-                    ..*l
-                }
-            }
+            Message::SetLimSwitchParams(l) => store!(self.lim, l),
             Message::ReqLimSwitchParams { .. } => {
                 Message::GetLimSwitchParams(self.lim).encode(out);
             }
@@ -706,15 +674,6 @@ impl AptDevice {
                 let m = Message::GetStatusUpdate(self.stepper_status(now));
                 self.status_reply(&m, out);
             }
-            Message::MoveHome { .. } if self.enabled => {
-                let from = self.mechanical(now);
-                // In reverse onto the switch, then forward by the offset.
-                let travel = (from - self.cfg.home_switch_deg).rem_euclid(360.0);
-                let to = from - travel + s.to_deg(self.home.offset);
-                let v = s.velocity_from_apt(self.home.velocity).max(1e-6);
-                self.homed = false;
-                self.start_motion(now, to, v, Kind::Home);
-            }
             Message::SetMoveRelParams { distance, .. } => self.move_rel = *distance,
             Message::ReqMoveRelParams { .. } => Message::GetMoveRelParams {
                 chan: CHANNEL,
@@ -727,16 +686,36 @@ impl AptDevice {
                 position: self.move_abs,
             }
             .encode(out),
-            Message::MoveAbsolute { position, .. } if self.enabled => {
+            Message::MoveStop { mode, .. } => self.stop(now, *mode, out),
+            m if self.enabled => self.start(now, m),
+            // Identify flashes a LED; the rest needs no answer, or is not modelled.
+            _ => {}
+        }
+    }
+
+    /// A move message on an enabled channel (any other message is ignored here).
+    fn start(&mut self, now: f64, m: &Message) {
+        let s = self.stage;
+        match m {
+            Message::MoveHome { .. } => {
+                let from = self.mechanical(now);
+                // In reverse onto the switch, then forward by the offset.
+                let travel = (from - self.cfg.home_switch_deg).rem_euclid(360.0);
+                let to = from - travel + s.to_deg(self.home.offset);
+                let v = s.velocity_from_apt(self.home.velocity).max(1e-6);
+                self.homed = false;
+                self.start_motion(now, to, v, Kind::Home);
+            }
+            Message::MoveAbsolute { position, .. } => {
                 let to = s.to_deg(position.unwrap_or(self.move_abs)) - self.offset;
                 self.start_motion(now, to, self.velocity(), Kind::Move);
             }
-            Message::MoveRelative { distance, .. } if self.enabled => {
+            Message::MoveRelative { distance, .. } => {
                 let to = self.mechanical(now) + s.to_deg(distance.unwrap_or(self.move_rel));
                 self.start_motion(now, to, self.velocity(), Kind::Move);
             }
             // A jog: one step (mode 2) or a velocity move (mode 1) at the jog velocity.
-            Message::MoveJog { direction, .. } if self.enabled => {
+            Message::MoveJog { direction, .. } => {
                 let sign = match direction {
                     Direction::Forward => 1.0,
                     Direction::Reverse => -1.0,
@@ -750,7 +729,7 @@ impl AptDevice {
                 let to = self.mechanical(now) + sign * distance;
                 self.start_motion(now, to, v, kind);
             }
-            Message::MoveVelocity { direction, .. } if self.enabled => {
+            Message::MoveVelocity { direction, .. } => {
                 let far = match direction {
                     Direction::Forward => 1.0e7,
                     Direction::Reverse => -1.0e7,
@@ -758,8 +737,6 @@ impl AptDevice {
                 let to = self.mechanical(now) + far;
                 self.start_motion(now, to, self.velocity(), Kind::Velocity);
             }
-            Message::MoveStop { mode, .. } => self.stop(now, *mode, out),
-            // Identify flashes a LED; the rest needs no answer, or is not modelled.
             _ => {}
         }
     }

@@ -21,23 +21,14 @@
 //! `/work/shared/reference/protocol-findings.md` §3. Every behaviour below names its
 //! source beside the code; "assumed" marks the twin's own choice where no source
 //! says, with the reason. `docs/instruments/smc100.md` ("The twin") keeps the same
-//! list. In short:
-//! - §5.2: power-up and `RS` take under 5 s, ending NOT REFERENCED (`0A`).
-//! - §5.3, §5.5: only queries reply; a refused command is not executed and stores an
-//!   error letter, read (and cleared) with `TE` (p. 59, letters confirmed).
-//! - §5.5 command/state table: which states accept which command.
-//! - TS (p. 62–63): the error bits and states; reading clears the latched bits.
-//! - OR (p. 39), PA (p. 41), PW (p. 44), SA (p. 49), ZT (p. 67), and the PR, PT, ST,
-//!   MM, VA, AC, OT, HT, SL, SR command pages: what each command does and its range.
-//! - Assumed: the letter for `PA`/`PR` while MOVING or HOMING (`M`/`L`: the PA page,
-//!   p. 41-42, lists no such letter), `RS` refused in CONFIGURATION (the RS page,
-//!   p. 48, contradicts itself), the state after `ST` in HOMING and after a homing
-//!   time-out (`0B`), `ID?` answered in every state, silence while booting.
+//! list.
 
 use gonio_proto::smc100::{
     Command, ControllerState, ErrorCode, Frame, Param, PositionerErrors, Reply, ReplyBody,
     Smc100Parameters, Status,
 };
+
+pub use crate::motion::Profile;
 
 /// How one simulated controller and stage behave.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
@@ -168,86 +159,6 @@ impl ControllerConfig {
             values,
             other: Vec::new(),
         }
-    }
-}
-
-/// A point-to-point move with a trapezoidal (or triangular) velocity profile.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Profile {
-    /// Start position (counter units).
-    pub from: f64,
-    /// End position.
-    pub to: f64,
-    /// Start time, s.
-    pub t0: f64,
-    /// Peak velocity reached.
-    pub v: f64,
-    /// Acceleration.
-    pub a: f64,
-    /// Duration of the acceleration (and of the deceleration) phase.
-    pub t_acc: f64,
-    /// Total duration.
-    pub duration: f64,
-}
-
-impl Profile {
-    /// A move from `from` to `to` starting at `t0` with velocity `v` and acceleration `a`.
-    pub fn new(from: f64, to: f64, t0: f64, v: f64, a: f64) -> Self {
-        let d = (to - from).abs();
-        let (vp, t_acc, duration) = if d >= v * v / a {
-            // Trapezoid: accelerate to v, cruise, decelerate.
-            (v, v / a, 2.0 * v / a + (d - v * v / a) / v)
-        } else {
-            // Triangle: never reaches v.
-            let t = (d / a).sqrt();
-            (a * t, t, 2.0 * t)
-        };
-        Profile {
-            from,
-            to,
-            t0,
-            v: vp,
-            a,
-            t_acc,
-            duration,
-        }
-    }
-
-    /// The duration of a move of length `distance` (what `PT` answers).
-    pub fn duration_for(distance: f64, v: f64, a: f64) -> f64 {
-        gonio_core::motion::trapezoid_time(distance, v, a)
-    }
-
-    /// Position at time `t`.
-    pub fn position(&self, t: f64) -> f64 {
-        let s = (t - self.t0).clamp(0.0, self.duration);
-        let dir = (self.to - self.from).signum();
-        let travelled = if s <= self.t_acc {
-            0.5 * self.a * s * s
-        } else if s <= self.duration - self.t_acc {
-            0.5 * self.a * self.t_acc * self.t_acc + self.v * (s - self.t_acc)
-        } else {
-            let r = self.duration - s;
-            (self.to - self.from).abs() - 0.5 * self.a * r * r
-        };
-        self.from + dir * travelled
-    }
-
-    /// Speed at time `t`.
-    pub fn speed(&self, t: f64) -> f64 {
-        let s = (t - self.t0).clamp(0.0, self.duration);
-        if s <= self.t_acc {
-            self.a * s
-        } else if s <= self.duration - self.t_acc {
-            self.v
-        } else {
-            self.a * (self.duration - s)
-        }
-    }
-
-    /// When the move ends.
-    pub fn end(&self) -> f64 {
-        self.t0 + self.duration
     }
 }
 
@@ -426,8 +337,7 @@ impl Controller {
     /// simulator puts on the line when it fires is assumed (no source; it is what a
     /// UART sees when its sender's supply collapses).
     pub fn power_cycle(&mut self, now: f64) {
-        let b = self.cfg.boot_time_s;
-        self.boot(now, b);
+        self.boot(now, self.cfg.boot_time_s);
     }
 
     /// A position rounded to the closest encoder (motor step) count: PA page (p. 41),
@@ -452,7 +362,7 @@ impl Controller {
                         // the configured lag disables the motor: DISABLE from MOVING
                         // (`3D`, TS p. 63) with bit 5 (TS p. 62). Assumed from pySMC100
                         // ("a stuck move ends in 3D"); no manual page describes it.
-                        let passed = p.t0 + crossing_time(&p, s + self.offset);
+                        let passed = p.crossing(s + self.offset).unwrap_or(p.t0);
                         if now >= passed + self.cfg.following_error_s {
                             self.activity = Activity::Idle;
                             self.at_rest = s;
@@ -509,33 +419,37 @@ impl Controller {
     /// modelled (keypad only), hence the `D` fallback, unused.
     fn refused(&self) -> ErrorCode {
         let s = self.state;
-        if s.is_not_referenced() {
-            ErrorCode::NotReferenced
-        } else if s.is_configuration() {
-            ErrorCode::InConfiguration
-        } else if s.is_disabled() {
-            ErrorCode::InDisable
-        } else if s.is_homing() {
-            ErrorCode::InHoming
-        } else if s.is_moving() {
-            ErrorCode::InMoving
-        } else if s.is_ready() {
-            ErrorCode::InReady
-        } else {
-            ErrorCode::NotAllowed
-        }
+        [
+            (s.is_not_referenced(), ErrorCode::NotReferenced),
+            (s.is_configuration(), ErrorCode::InConfiguration),
+            (s.is_disabled(), ErrorCode::InDisable),
+            (s.is_homing(), ErrorCode::InHoming),
+            (s.is_moving(), ErrorCode::InMoving),
+            (s.is_ready(), ErrorCode::InReady),
+        ]
+        .into_iter()
+        .find_map(|(is, letter)| is.then_some(letter))
+        .unwrap_or(ErrorCode::NotAllowed)
     }
 
     /// MOVING (`28`, TS p. 63) along a trapezoidal profile at the working `VA` and `AC`
     /// (assumed: the manual gives no profile for a PP; `PT` answers this profile's
-    /// time, and the moves do not block the interface, §5.4).
-    fn start_move(&mut self, now: f64, to: f64) {
+    /// time, and the moves do not block the interface, §5.4); from READY only, to a
+    /// target within [SL, SR] else `G` (PA, PR pages).
+    fn start_move(&mut self, now: f64, to: f64) -> Result<(), ErrorCode> {
+        if !self.state.is_ready() {
+            return Err(self.refused());
+        }
+        if to < self.sl || to > self.sr {
+            return Err(ErrorCode::OutOfLimits);
+        }
         let from = self.counter(now);
         let to = self.quantise(to);
         self.target = to;
         let p = Profile::new(from, to, now, self.velocity, self.acceleration);
         self.activity = Activity::Moving(p);
         self.state = ControllerState::Moving;
+        Ok(())
     }
 
     /// Executes a command addressed to this controller at `now`, as
@@ -621,20 +535,8 @@ impl Controller {
                     Param::PositiveLimit => self.sr,
                     Param::AbsoluteTarget => self.target,
                     Param::RelativeTarget => self.last_relative,
-                    Param::Enabled => {
-                        if s.is_disabled() {
-                            0.0
-                        } else {
-                            1.0
-                        }
-                    }
-                    Param::ConfigurationMode => {
-                        if s.is_configuration() {
-                            1.0
-                        } else {
-                            0.0
-                        }
-                    }
+                    Param::Enabled => f64::from(u8::from(!s.is_disabled())),
+                    Param::ConfigurationMode => f64::from(u8::from(s.is_configuration())),
                     other => self.param(*other),
                 };
                 return reply(ReplyBody::Value(*p, v));
@@ -669,103 +571,22 @@ impl Controller {
     fn execute(&mut self, now: f64, command: &Command) -> Result<(), ErrorCode> {
         let s = self.state;
         match command {
-            Command::Home => {
-                // OR during a home search: `E`, "home sequence already started" (the
-                // letter is TE p. 59's; that OR gets it rather than `L` is assumed,
-                // instruments.md §1.7).
-                if s.is_homing() {
-                    return Err(ErrorCode::HomeStarted);
-                }
-                // OR page (p. 39): "accepted only in NOT REFERENCED state".
-                if !s.is_not_referenced() {
-                    return Err(self.refused());
-                }
-                if self.param(Param::HomeType) == 1.0 {
-                    // HT1: the current position is home, at once (HT page: "use
-                    // current position as HOME").
-                    self.offset = self.cfg.home_position - self.at_rest;
-                    self.target = self.cfg.home_position;
-                    self.state = ControllerState::ReadyFromHoming;
-                    return Ok(());
-                }
-                let from = self.counter(now);
-                // Drive to the switch at the home velocity `OH` (OH page), counted in the
-                // current counter: HOMING from RS-232 (`1E`, TS p. 63). HT2's search is
-                // simplified to one pass onto the switch (assumed).
-                let to = self.cfg.home_switch + self.offset;
-                let oh = self.param(Param::HomeVelocity);
-                let p = Profile::new(from, to, now, oh, self.acceleration);
-                self.activity = Activity::Homing(p);
-                self.state = ControllerState::HomingRemote;
-                Ok(())
-            }
+            Command::Home => self.home(now),
             Command::MoveAbsolute(t) => {
                 // PA page (p. 41): "only accepted in READY state, AND when the new
                 // target position is higher or equal to ... SL, AND lower or equal to
                 // ... SR", else `G`; the target rounds to an encoder count. The letter
                 // in MOVING/HOMING is assumed (see `refused`).
-                if !s.is_ready() {
-                    return Err(self.refused());
-                }
-                if *t < self.sl || *t > self.sr {
-                    return Err(ErrorCode::OutOfLimits);
-                }
-                self.start_move(now, *t);
-                Ok(())
+                self.start_move(now, *t)
             }
             Command::MoveRelative(d) => {
                 // PR page: relative to the current target, READY only, the result
                 // within [SL, SR] else `G` (instruments.md §1.4); letters as PA's.
-                if !s.is_ready() {
-                    return Err(self.refused());
-                }
-                let t = self.target + d;
-                if t < self.sl || t > self.sr {
-                    return Err(ErrorCode::OutOfLimits);
-                }
+                self.start_move(now, self.target + d)?;
                 self.last_relative = *d;
-                self.start_move(now, t);
                 Ok(())
             }
-            Command::Stop => {
-                match self.activity {
-                    Activity::Moving(p) => {
-                        // ST page: "decelerating the positioner immediately with the
-                        // acceleration defined by the AC command"; it ends READY from
-                        // MOVING (`33`, as drivers observe: instruments.md §1.7).
-                        // Decelerate with AC from the current speed: the second half of a
-                        // symmetric profile that peaks at that speed right now.
-                        let x = p.position(now);
-                        let v = p.speed(now);
-                        if v <= 0.0 {
-                            self.at_rest = x - self.offset;
-                            self.activity = Activity::Idle;
-                            self.state = ControllerState::ReadyFromMoving;
-                            self.target = self.quantise(x);
-                            return Ok(());
-                        }
-                        let a = self.acceleration;
-                        let half = v * v / (2.0 * a);
-                        let dir = (p.to - p.from).signum();
-                        let q = Profile::new(x - dir * half, x + dir * half, now - v / a, v, a);
-                        self.target = self.quantise(q.to);
-                        self.activity = Activity::Moving(q);
-                        Ok(())
-                    }
-                    Activity::Homing(p) => {
-                        // ST in HOMING: the search stops where it is, NOT REFERENCED
-                        // from HOMING (`0B`): assumed (UNCONFIRMED; instruments.md
-                        // §1.7 "probably 0B").
-                        self.at_rest = p.position(now) - self.offset;
-                        self.activity = Activity::Idle;
-                        self.state = ControllerState::NotReferencedFromHoming;
-                        Ok(())
-                    }
-                    // §5.5 table: ST is accepted in DISABLE, READY and MOVING/HOMING.
-                    Activity::Idle if s.is_ready() || s.is_disabled() => Ok(()),
-                    Activity::Idle => Err(self.refused()),
-                }
-            }
+            Command::Stop => self.stop(now),
             Command::Reset => {
                 // RS page (p. 48) contradicts itself: its state row allows NOT
                 // REFERENCED, CONFIGURATION, DISABLE, READY and MOTION, its error list
@@ -775,8 +596,7 @@ impl Controller {
                 if s.is_moving() || s.is_homing() || s.is_configuration() {
                     return Err(self.refused());
                 }
-                let b = self.cfg.boot_time_s;
-                self.boot(now, b);
+                self.boot(now, self.cfg.boot_time_s);
                 Ok(())
             }
             // MM page: MM0 READY → DISABLE (`3C`), MM1 DISABLE → READY (`34`) with the
@@ -796,80 +616,18 @@ impl Controller {
                 (false, _, true) | (true, true, _) => Ok(()),
                 _ => Err(self.refused()),
             },
-            Command::SetVelocity(v) | Command::SetAcceleration(v) => {
-                let vel = matches!(command, Command::SetVelocity(_));
-                let param = if vel {
-                    Param::Velocity
-                } else {
-                    Param::Acceleration
-                };
-                if s.is_configuration() {
-                    // In CONFIGURATION, `VA` and `AC` set the maxima (saved by PW0):
-                    // VA and AC pages.
-                    return self.configure(param, *v);
-                }
-                if !(s.is_ready() || s.is_disabled()) {
-                    return Err(self.refused());
-                }
-                // In DISABLE or READY, a working value in (1e-6, the configured maximum]
-                // else `C` (VA, AC pages: "> 10-6 and < 1012", working value ≤ max).
-                let max = self.param(param);
-                if !(*v > 1e-6 && *v <= max) {
-                    return Err(ErrorCode::BadParameter);
-                }
-                if vel {
-                    self.velocity = *v;
-                } else {
-                    self.acceleration = *v;
-                }
-                Ok(())
-            }
-            Command::SetNegativeLimit(v) | Command::SetPositiveLimit(v) => {
-                let neg = matches!(command, Command::SetNegativeLimit(_));
-                if s.is_configuration() {
-                    let param = if neg {
-                        Param::NegativeLimit
-                    } else {
-                        Param::PositiveLimit
-                    };
-                    return self.configure(param, *v);
-                }
-                if !(s.is_ready() || s.is_disabled()) {
-                    return Err(self.refused());
-                }
-                // A working limit must bracket the set-point (assumed: PyMeasure's
-                // validators and instruments.md §1.4; the SL/SR pages give SL ≤ 0 ≤ SR
-                // only for the configured values).
-                let ok = if neg {
-                    *v <= self.target
-                } else {
-                    *v >= self.target
-                };
-                if !ok {
-                    return Err(ErrorCode::BadParameter);
-                }
-                if neg {
-                    self.sl = *v;
-                } else {
-                    self.sr = *v;
-                }
-                Ok(())
-            }
+            Command::SetVelocity(v) => self.set_working(Param::Velocity, *v),
+            Command::SetAcceleration(v) => self.set_working(Param::Acceleration, *v),
+            Command::SetNegativeLimit(v) => self.set_working(Param::NegativeLimit, *v),
+            Command::SetPositiveLimit(v) => self.set_working(Param::PositiveLimit, *v),
             // Configuration parameters change in CONFIGURATION only (PW page, p. 44;
             // §5.5 table "CF"), else the state's letter.
-            Command::Set(p, v) => {
-                if !s.is_configuration() {
-                    return Err(self.refused());
-                }
-                self.configure(*p, *v)
-            }
-            Command::SetStageId(name) => {
-                if !s.is_configuration() {
-                    return Err(self.refused());
-                }
+            Command::Set(p, v) if s.is_configuration() => self.configure(*p, *v),
+            Command::SetStageId(name) if s.is_configuration() => {
                 self.params.stage = name.clone();
                 Ok(())
             }
+            Command::Set(..) | Command::SetStageId(_) => Err(self.refused()),
             Command::ConfigurationMode(true) => {
                 // PW1: NOT REFERENCED to CONFIGURATION (`14`), from nowhere else (PW
                 // page, p. 44: "changes the controller's state from NOT REFERENCED to
@@ -899,6 +657,115 @@ impl Controller {
         }
     }
 
+    /// `OR`: a home search, or at once with HT1.
+    fn home(&mut self, now: f64) -> Result<(), ErrorCode> {
+        let s = self.state;
+        // OR during a home search: `E`, "home sequence already started" (the
+        // letter is TE p. 59's; that OR gets it rather than `L` is assumed,
+        // instruments.md §1.7).
+        if s.is_homing() {
+            return Err(ErrorCode::HomeStarted);
+        }
+        // OR page (p. 39): "accepted only in NOT REFERENCED state".
+        if !s.is_not_referenced() {
+            return Err(self.refused());
+        }
+        if self.param(Param::HomeType) == 1.0 {
+            // HT1: the current position is home, at once (HT page: "use
+            // current position as HOME").
+            self.offset = self.cfg.home_position - self.at_rest;
+            self.target = self.cfg.home_position;
+            self.state = ControllerState::ReadyFromHoming;
+            return Ok(());
+        }
+        let from = self.counter(now);
+        // Drive to the switch at the home velocity `OH` (OH page), counted in the
+        // current counter: HOMING from RS-232 (`1E`, TS p. 63). HT2's search is
+        // simplified to one pass onto the switch (assumed).
+        let to = self.cfg.home_switch + self.offset;
+        let oh = self.param(Param::HomeVelocity);
+        let p = Profile::new(from, to, now, oh, self.acceleration);
+        self.activity = Activity::Homing(p);
+        self.state = ControllerState::HomingRemote;
+        Ok(())
+    }
+
+    /// `ST`: a move decelerates, a home search stops.
+    fn stop(&mut self, now: f64) -> Result<(), ErrorCode> {
+        let s = self.state;
+        match self.activity {
+            Activity::Moving(p) => {
+                // ST page: "decelerating the positioner immediately with the
+                // acceleration defined by the AC command"; it ends READY from
+                // MOVING (`33`, as drivers observe: instruments.md §1.7).
+                // Decelerate with AC from the current speed: the second half of a
+                // symmetric profile that peaks at that speed right now.
+                let x = p.position(now);
+                let v = p.speed(now);
+                if v <= 0.0 {
+                    self.at_rest = x - self.offset;
+                    self.activity = Activity::Idle;
+                    self.state = ControllerState::ReadyFromMoving;
+                    self.target = self.quantise(x);
+                    return Ok(());
+                }
+                let a = self.acceleration;
+                let half = v * v / (2.0 * a);
+                let dir = (p.to - p.from).signum();
+                let q = Profile::new(x - dir * half, x + dir * half, now - v / a, v, a);
+                self.target = self.quantise(q.to);
+                self.activity = Activity::Moving(q);
+                Ok(())
+            }
+            Activity::Homing(p) => {
+                // ST in HOMING: the search stops where it is, NOT REFERENCED
+                // from HOMING (`0B`): assumed (UNCONFIRMED; instruments.md
+                // §1.7 "probably 0B").
+                self.at_rest = p.position(now) - self.offset;
+                self.activity = Activity::Idle;
+                self.state = ControllerState::NotReferencedFromHoming;
+                Ok(())
+            }
+            // §5.5 table: ST is accepted in DISABLE, READY and MOVING/HOMING.
+            Activity::Idle if s.is_ready() || s.is_disabled() => Ok(()),
+            Activity::Idle => Err(self.refused()),
+        }
+    }
+
+    /// `VA`, `AC`, `SL`, `SR`: outside CONFIGURATION a working value, in DISABLE or
+    /// READY only, else the state's letter.
+    fn set_working(&mut self, param: Param, v: f64) -> Result<(), ErrorCode> {
+        let s = self.state;
+        if s.is_configuration() {
+            // In CONFIGURATION, `VA` and `AC` set the maxima (saved by PW0): VA and AC
+            // pages; `SL` and `SR` the configured limits.
+            return self.configure(param, v);
+        }
+        if !(s.is_ready() || s.is_disabled()) {
+            return Err(self.refused());
+        }
+        let ok = match param {
+            // In DISABLE or READY, a working value in (1e-6, the configured maximum]
+            // else `C` (VA, AC pages: "> 10-6 and < 1012", working value ≤ max).
+            Param::Velocity | Param::Acceleration => v > 1e-6 && v <= self.param(param),
+            // A working limit must bracket the set-point (assumed: PyMeasure's
+            // validators and instruments.md §1.4; the SL/SR pages give SL ≤ 0 ≤ SR
+            // only for the configured values).
+            Param::NegativeLimit => v <= self.target,
+            _ => v >= self.target,
+        };
+        if !ok {
+            return Err(ErrorCode::BadParameter);
+        }
+        *match param {
+            Param::Velocity => &mut self.velocity,
+            Param::Acceleration => &mut self.acceleration,
+            Param::NegativeLimit => &mut self.sl,
+            _ => &mut self.sr,
+        } = v;
+        Ok(())
+    }
+
     /// A configuration parameter set in CONFIGURATION: `C` outside the manual's range
     /// ([`Param::accepts`]: the AC, HT, JR, OT, QIL/QIR/QIT, SA, SL, SR, VA pages).
     fn configure(&mut self, p: Param, v: f64) -> Result<(), ErrorCode> {
@@ -908,21 +775,6 @@ impl Controller {
         self.params.set(p, v);
         Ok(())
     }
-}
-
-/// Time from a profile's start until its position passes `x` (which it does).
-fn crossing_time(p: &Profile, x: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, p.duration);
-    let dir = (p.to - p.from).signum();
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if dir * (p.position(p.t0 + mid) - x) < 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    hi
 }
 
 /// Frames addressed to a controller: `true` when `frame` is for `address` (or for all:

@@ -406,23 +406,15 @@ impl SimInstrument {
             let pl = self.faults.power_loss[k];
             if !self.fired_power_losses[k] && now >= pl.at_s {
                 self.fired_power_losses[k] = true;
-                if let Some(c) = self
-                    .controllers
-                    .iter_mut()
-                    .find(|c| c.address() == pl.address)
-                {
+                if let Some(c) = self.controller_mut(pl.address) {
                     c.power_cycle(pl.at_s);
                     out.extend_from_slice(b"\0\r\n");
                     self.stats.power_losses += 1;
                 }
             }
         }
-        for s in &self.faults.stall {
-            if let Some(c) = self
-                .controllers
-                .iter_mut()
-                .find(|c| c.address() == s.address)
-            {
+        for s in self.faults.stall.clone() {
+            if let Some(c) = self.controller_mut(s.address) {
                 c.stall_at(Some(s.at));
             }
         }

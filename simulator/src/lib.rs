@@ -24,6 +24,7 @@ pub mod filterwheel;
 pub mod instrument;
 pub mod lockin;
 pub mod monochromator;
+pub mod motion;
 pub mod optics;
 pub mod picoammeter;
 pub mod pty;
@@ -141,23 +142,22 @@ pub fn check_compatible(instrument: &InstrumentConfig, sim: &SimConfig) -> Resul
         }
         sim_port(instrument, sim, PortUse::Motion(&line))?;
     }
-    match (
-        instrument.monochromator.is_some(),
-        sim.monochromator.is_some(),
-        instrument.filter_wheel.is_some(),
-        sim.filter_wheel.is_some(),
-    ) {
-        (true, false, _, _) => {
-            return Err(SimError::Mismatch(
-                "the instrument has a [monochromator], but the simulator has none".into(),
-            ));
-        }
-        (_, _, true, false) => {
-            return Err(SimError::Mismatch(
-                "the instrument has a [filter_wheel], but the simulator has none".into(),
-            ));
-        }
-        _ => {}
+    let selectors = [
+        (
+            "monochromator",
+            instrument.monochromator.is_some(),
+            sim.monochromator.is_some(),
+        ),
+        (
+            "filter_wheel",
+            instrument.filter_wheel.is_some(),
+            sim.filter_wheel.is_some(),
+        ),
+    ];
+    if let Some((name, ..)) = selectors.iter().find(|(_, wanted, has)| *wanted && !has) {
+        return Err(SimError::Mismatch(format!(
+            "the instrument has a [{name}], but the simulator has none"
+        )));
     }
     match (instrument.detector.kind, sim.picoammeter.is_some()) {
         (DetectorKind::Sr830, true) => Err(SimError::Mismatch(

@@ -105,7 +105,8 @@ use gonio_proto::sr830::{
 };
 use rand::{Rng, SeedableRng};
 
-use crate::twin::FieldError;
+mod config;
+pub use config::{LockInConfig, PointStart};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -142,114 +143,6 @@ const RESET_FREQUENCY_HZ: f64 = 1000.0;
 
 /// The `*RST` sine output amplitude, V rms (p. 4-4, not re-checked: UNCONFIRMED).
 const RESET_AMPLITUDE_V: f64 = 1.0;
-
-/// Physics and noise of the simulated lock-in and its detector front end.
-///
-/// In a TOML file (`[lockin]`) every field is optional (the defaults are
-/// [`Default`]'s) and unknown fields are refused.
-#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct LockInConfig {
-    /// Lock-in R (V rms) per volt of detector signal. A chopped signal is a square wave
-    /// from 0 to V (V peak-to-peak); its fundamental has peak amplitude 2V/π, and the
-    /// lock-in reads the rms value of the fundamental: √2·V/π = 0.4502·V. Default 0.45.
-    pub chop_gain: f64,
-    /// Signal phase relative to the reference, degrees: X = R cos φ, Y = R sin φ.
-    pub phase_deg: f64,
-    /// Signal-independent noise density at the output, V/√Hz. Default 20 nV/√Hz.
-    pub amplifier_noise: f64,
-    /// Shot noise, V/√Hz per √V of signal R: density `shot_noise·√R`. Default 2e-6.
-    pub shot_noise: f64,
-    /// Detector amplitude above which INPUT overload latches, volts. Default 1.4, the
-    /// input limit (1.4 V peak).
-    pub input_overload_v: f64,
-    /// The chopper's frequency, Hz: what `FREQ?` and `SNAP? 9` read on the external
-    /// reference (`FMOD 0`). Default 1000.
-    pub chopper_hz: f64,
-    /// Serial number field of `*IDN?`. Default `s/n00111`.
-    pub serial: String,
-    /// Firmware field of `*IDN?`. Default `ver1.07`.
-    pub firmware: String,
-    /// How the filters start at each point (`"settled"` or `"previous"`; see the module
-    /// docs, "Where a point starts"). Default `"settled"`.
-    pub point_start: PointStart,
-}
-
-/// How the output filters start at a point ([`LockInConfig::point_start`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PointStart {
-    /// Settled on the present input: no transient ([`LockIn::restart`]).
-    #[default]
-    Settled,
-    /// Every stage at the previous reading's X and Y, then the step response to the
-    /// present input ([`LockIn::restart_from`]).
-    Previous,
-}
-
-impl Default for LockInConfig {
-    fn default() -> Self {
-        LockInConfig {
-            chop_gain: 0.45,
-            phase_deg: 0.0,
-            amplifier_noise: 20e-9,
-            shot_noise: 2e-6,
-            input_overload_v: 1.4,
-            chopper_hz: 1000.0,
-            serial: "s/n00111".to_string(),
-            firmware: "ver1.07".to_string(),
-            point_start: PointStart::Settled,
-        }
-    }
-}
-
-impl LockInConfig {
-    /// Checks that every number is finite and in range, and that the `*IDN?` fields are
-    /// printable ASCII without commas.
-    pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: &str| Err(FieldError::new(field, reason));
-        use gonio_core::limits::Range;
-        // Finite ranges, so that no reading can overflow: a gain or an overload level
-        // of up to 1000, noise densities of up to 1 V/√Hz, a phase within a turn.
-        let ranges = [
-            ("chop_gain", self.chop_gain, Range::positive(1e3, "")),
-            (
-                "input_overload_v",
-                self.input_overload_v,
-                Range::positive(1e3, "V"),
-            ),
-            (
-                "amplifier_noise",
-                self.amplifier_noise,
-                Range::closed(0.0, 1.0, "V/√Hz"),
-            ),
-            (
-                "shot_noise",
-                self.shot_noise,
-                Range::closed(0.0, 1.0, "V/√Hz per √V"),
-            ),
-            (
-                "phase_deg",
-                self.phase_deg,
-                Range::closed(-360.0, 360.0, "deg"),
-            ),
-        ];
-        for (field, v, r) in ranges {
-            if let Err(m) = r.check(v) {
-                return bad(field, &m);
-            }
-        }
-        if !(0.001..=102_000.0).contains(&self.chopper_hz) {
-            return bad("chopper_hz", "must be in 0.001..=102000 Hz");
-        }
-        for (field, v) in [("serial", &self.serial), ("firmware", &self.firmware)] {
-            if v.is_empty() || !v.bytes().all(|b| b.is_ascii_graphic() && b != b',') {
-                return bad(field, "must be non-empty printable ASCII without commas");
-            }
-        }
-        Ok(())
-    }
-}
 
 /// Advances a cascade of first-order RC stages (`stages[0]` fed by `u`, each next stage
 /// fed by the previous one, all with time constant `tc`) exactly over `dt` for a constant
@@ -371,11 +264,7 @@ impl LockIn {
             unlocked: false,
             forced_overload: false,
         };
-        let sigma = lockin.noise_sigma();
-        for k in 0..2 {
-            let xi: f64 = lockin.rng.sample(StandardNormal);
-            lockin.noise[k] = sigma * xi;
-        }
+        lockin.redraw_noise(seed);
         lockin
     }
 
@@ -647,20 +536,20 @@ impl LockIn {
         }
     }
 
+    /// A set command: `f` changes the state; no reply.
+    fn set(&mut self, f: impl FnOnce(&mut Self)) -> Option<Reply> {
+        f(self);
+        None
+    }
+
     /// Runs one parsed command: its reply, or the `*ESR?` bits it sets.
     fn execute(&mut self, command: &Command) -> Result<Option<Reply>, u8> {
         let exe = EventStatus::EXE;
         let reply = match command {
             // OUTX: where replies go (a driver quoting the manual; findings §4).
-            Command::SetInterface(i) => {
-                self.interface = *i;
-                None
-            }
+            Command::SetInterface(i) => self.set(|l| l.interface = *i),
             Command::QueryInterface => Some(Reply::Interface(self.interface)),
-            Command::SetReferenceSource(s) => {
-                self.set_reference(*s, self.frequency);
-                None
-            }
+            Command::SetReferenceSource(s) => self.set(|l| l.set_reference(*s, l.frequency)),
             Command::QueryReferenceSource => Some(Reply::ReferenceSource(self.reference)),
             // FREQ sets the internal oscillator only (FREQ command); refused with EXE on
             // the external reference (assumed: "cannot execute").
@@ -673,15 +562,9 @@ impl LockIn {
             }
             Command::QueryFrequency => Some(Reply::Frequency(round_reply(self.detection_hz()))),
             // SLVL: rounded to 2 mV (SLVL command).
-            Command::SetAmplitude(x) => {
-                self.amplitude = round_amplitude(*x);
-                None
-            }
+            Command::SetAmplitude(x) => self.set(|l| l.amplitude = round_amplitude(*x)),
             Command::QueryAmplitude => Some(Reply::Amplitude(round_reply(self.amplitude))),
-            Command::SetSensitivity(s) => {
-                self.sensitivity = *s;
-                None
-            }
+            Command::SetSensitivity(s) => self.set(|l| l.sensitivity = *s),
             Command::QuerySensitivity => Some(Reply::Sensitivity(self.sensitivity)),
             // OFLT: over 30 s "cannot be set" above 200 Hz (OFLT command); EXE assumed.
             Command::SetTimeConstant(t) => {
@@ -692,10 +575,7 @@ impl LockIn {
                 None
             }
             Command::QueryTimeConstant => Some(Reply::TimeConstant(self.time_constant)),
-            Command::SetSlope(s) => {
-                self.slope = *s;
-                None
-            }
+            Command::SetSlope(s) => self.set(|l| l.slope = *s),
             Command::QuerySlope => Some(Reply::Slope(self.slope)),
             // AGAN: see the module docs (instantaneous, 0.9 target: assumed; nothing
             // above 1 s: UNCONFIRMED).
@@ -775,11 +655,7 @@ impl LockIn {
                 None
             }
             // *CLS clears the status bytes (not the enable registers, not modelled).
-            Command::Clear => {
-                self.lias = 0;
-                self.esr = 0;
-                None
-            }
+            Command::Clear => self.set(|l| (l.lias, l.esr) = (0, 0)),
         };
         Ok(reply)
     }

@@ -56,7 +56,7 @@
 
 use gonio_proto::cs130::{Command, ErrorCode, MAX_LINE, Reply, StatusByte, Units};
 
-use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox, TimedLine};
+use crate::twin::{Echo, FieldError, LineDevice, LineTwin, Outbox, TimedLine, ensure};
 
 /// One grating on the twin's turret.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
@@ -184,60 +184,29 @@ impl MonochromatorSim {
 
     /// Checks every field; the first bad one is named.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: String, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v >= lo && v <= hi;
-        if self.gratings.is_empty() {
-            return bad("gratings".into(), "at least one grating is needed".into());
-        }
+        let up_to = |v: f64| within(v, f64::MIN_POSITIVE, 100_000.0);
+        ensure!(!self.gratings.is_empty(); "gratings", "at least one grating is needed");
         for (i, g) in self.gratings.iter().enumerate() {
             let f = |name: &str| format!("gratings[{i}].{name}");
-            if !(1..=3).contains(&g.index) || self.gratings[..i].iter().any(|o| o.index == g.index)
-            {
-                return bad(
-                    f("index"),
-                    format!("{} is not a new number in 1..=3", g.index),
-                );
-            }
-            if !(1..=10_000).contains(&g.lines_per_mm) {
-                return bad(
-                    f("lines_per_mm"),
-                    format!("{} is not in 1..=10000", g.lines_per_mm),
-                );
-            }
-            if !within(g.blaze_nm, f64::MIN_POSITIVE, 100_000.0) {
-                return bad(
-                    f("blaze_nm"),
-                    format!("{} is not in (0, 100000]", g.blaze_nm),
-                );
-            }
-            if !(g.min_nm > 0.0 && g.min_nm < g.max_nm && g.max_nm <= 100_000.0) {
-                return bad(
-                    f("max_nm"),
-                    format!("{}..={} is not 0 < min < max <= 100000", g.min_nm, g.max_nm),
-                );
-            }
-            if !within(g.slew_nm_per_s, f64::MIN_POSITIVE, 100_000.0) {
-                return bad(
-                    f("slew_nm_per_s"),
-                    format!("{} is not in (0, 100000]", g.slew_nm_per_s),
-                );
-            }
+            let new = !self.gratings[..i].iter().any(|o| o.index == g.index);
+            let (n, lines, blaze, slew) = (g.index, g.lines_per_mm, g.blaze_nm, g.slew_nm_per_s);
+            let (lo, hi) = (g.min_nm, g.max_nm);
+            ensure!((1..=3).contains(&n) && new; f("index"), "{n} is not a new number in 1..=3");
+            let ok = (1..=10_000).contains(&lines);
+            ensure!(ok; f("lines_per_mm"), "{lines} is not in 1..=10000");
+            ensure!(up_to(blaze); f("blaze_nm"), "{blaze} is not in (0, 100000]");
+            let ok = lo > 0.0 && lo < hi && hi <= 100_000.0;
+            ensure!(ok; f("max_nm"), "{lo}..={hi} is not 0 < min < max <= 100000");
+            ensure!(up_to(slew); f("slew_nm_per_s"), "{slew} is not in (0, 100000]");
         }
         for (i, fl) in self.filters.iter().enumerate() {
-            if !(1..=6).contains(&fl.position)
-                || self.filters[..i].iter().any(|o| o.position == fl.position)
-            {
-                return bad(
-                    format!("filters[{i}].position"),
-                    format!("{} is not a new position in 1..=6", fl.position),
-                );
-            }
-            if !within(fl.cut_on_nm, f64::MIN_POSITIVE, 100_000.0) {
-                return bad(
-                    format!("filters[{i}].cut_on_nm"),
-                    format!("{} is not in (0, 100000]", fl.cut_on_nm),
-                );
-            }
+            let f = |name: &str| format!("filters[{i}].{name}");
+            let new = !self.filters[..i].iter().any(|o| o.position == fl.position);
+            let (at, cut_on) = (fl.position, fl.cut_on_nm);
+            let ok = (1..=6).contains(&at) && new;
+            ensure!(ok; f("position"), "{at} is not a new position in 1..=6");
+            ensure!(up_to(cut_on); f("cut_on_nm"), "{cut_on} is not in (0, 100000]");
         }
         let ranges = [
             ("bandwidth_nm", self.bandwidth_nm, 0.0, 100.0),
@@ -251,15 +220,10 @@ impl MonochromatorSim {
         for (field, v, lo, hi) in ranges {
             FieldError::within(field, v, lo, hi)?;
         }
-        if self.info.is_empty()
-            || self.info.len() > 200
-            || !self.info.bytes().all(|b| b.is_ascii_graphic() || b == b' ')
-        {
-            return bad(
-                "info".into(),
-                "must be 1 to 200 printable ASCII characters".into(),
-            );
-        }
+        let info = &self.info;
+        let printable = info.bytes().all(|b| b.is_ascii_graphic() || b == b' ');
+        let ok = !info.is_empty() && info.len() <= 200 && printable;
+        ensure!(ok; "info", "must be 1 to 200 printable ASCII characters");
         Ok(())
     }
 }
@@ -290,6 +254,16 @@ struct Motion {
 }
 
 impl Motion {
+    /// The drive standing at `nm` from `t` on.
+    fn still(t: f64, nm: f64) -> Motion {
+        Motion {
+            t0: t,
+            t1: t,
+            from_nm: nm,
+            to_nm: nm,
+        }
+    }
+
     fn at(&self, t: f64) -> f64 {
         if t >= self.t1 || self.t1 <= self.t0 {
             self.to_nm
@@ -340,12 +314,7 @@ impl Cs130Twin {
                 filter: if config.filter_wheel { 1 } else { 0 },
                 shutter_open: false,
                 asked_nm: home,
-                motion: Motion {
-                    t0: 0.0,
-                    t1: 0.0,
-                    from_nm: home,
-                    to_nm: home,
-                },
+                motion: Motion::still(0.0, home),
                 motion_until: 0.0,
                 hold_until: 0.0,
                 busy_until: 0.0,
@@ -502,13 +471,7 @@ impl Cs130Device {
             Command::Shutter(open) => self.shutter_open = open,
             Command::Units(u) => self.units = u,
             Command::Abort => {
-                let here = self.motion.at(t);
-                self.motion = Motion {
-                    t0: t,
-                    t1: t,
-                    from_nm: here,
-                    to_nm: here,
-                };
+                self.motion = Motion::still(t, self.motion.at(t));
                 self.motion_until = self.motion_until.min(t);
             }
             Command::Wai => self.hold_until = t.max(self.motion_until),

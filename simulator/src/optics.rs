@@ -239,12 +239,8 @@ impl Optics {
     /// the filter) when the detector's axis is within its aperture's half-angle of the
     /// beam's axis, scaled by the aperture's share of a wider beam.
     fn direct_beam(&self, t: f64, pair: DirPair, transmittance: f64) -> f64 {
-        let half_angle = self
-            .cfg
-            .detector_radius_m
-            .atan2(self.cfg.detector_distance_m);
         // The beam leaves the source along −wi: the detector must sit opposite it.
-        if std::f64::consts::PI - pair.wo.angle_to(pair.wi) > half_angle {
+        if std::f64::consts::PI - pair.wo.angle_to(pair.wi) > self.half_angle() {
             return 0.0;
         }
         let share = (2.0 * self.cfg.detector_radius_m / self.cfg.beam_diameter_m)
@@ -255,6 +251,13 @@ impl Optics {
             * self.spectral_share()
             * transmittance
             * share
+    }
+
+    /// The detector aperture's half-angle seen from the sample, rad.
+    fn half_angle(&self) -> f64 {
+        self.cfg
+            .detector_radius_m
+            .atan2(self.cfg.detector_distance_m)
     }
 
     /// Source power at physical time `t` (drift included), W.
@@ -318,10 +321,7 @@ impl Optics {
         }
         let mut buf = vec![0.0; self.sample.channels().len()];
         let frc = if self.cfg.integrate_aperture {
-            let a = self
-                .cfg
-                .detector_radius_m
-                .atan2(self.cfg.detector_distance_m);
+            let a = self.half_angle();
             let b = self.cfg.beam_divergence_deg.to_radians();
             let fo = Frame::from_normal(pair.wo);
             let fi = Frame::from_normal(pair.wi);

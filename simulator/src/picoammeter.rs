@@ -52,7 +52,7 @@ use gonio_proto::k6485::{
 };
 use rand::{Rng, SeedableRng};
 
-use crate::twin::FieldError;
+use crate::twin::{FieldError, ensure};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
@@ -129,7 +129,6 @@ impl PicoammeterConfig {
     /// Checks that every number is finite and in range, and the `*IDN?` fields are
     /// printable ASCII without commas.
     pub fn validate(&self) -> Result<(), FieldError> {
-        let bad = |field: &str, reason: String| Err(FieldError::new(field, reason));
         let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         for (field, v, lo, hi) in [
             ("responsivity_a_per_w", self.responsivity_a_per_w, 0.0, 10.0),
@@ -140,31 +139,15 @@ impl PicoammeterConfig {
         ] {
             FieldError::within(field, v, lo, hi)?;
         }
-        if !self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3)) {
-            return bad("meter_noise_a", "each must be in [0, 1e-3] A".into());
-        }
-        if !self.rise_time_s.iter().all(|v| within(*v, 1e-9, 10.0)) {
-            return bad("rise_time_s", "each must be in [1e-9, 10] s".into());
-        }
-        if LineFrequency::from_hz(self.line_frequency_hz).is_none() {
-            return bad(
-                "line_frequency_hz",
-                format!("{} is not 50 or 60", self.line_frequency_hz),
-            );
-        }
-        for (field, v) in [("serial", &self.serial), ("firmware", &self.firmware)] {
-            if v.is_empty()
-                || !v
-                    .bytes()
-                    .all(|b| (b.is_ascii_graphic() || b == b' ') && b != b',')
-            {
-                return bad(
-                    field,
-                    "must be non-empty printable ASCII without commas".into(),
-                );
-            }
-        }
-        Ok(())
+        let noise = self.meter_noise_a.iter().all(|v| within(*v, 0.0, 1e-3));
+        ensure!(noise; "meter_noise_a", "each must be in [0, 1e-3] A");
+        let rise = self.rise_time_s.iter().all(|v| within(*v, 1e-9, 10.0));
+        ensure!(rise; "rise_time_s", "each must be in [1e-9, 10] s");
+        let hz = self.line_frequency_hz;
+        let ok = LineFrequency::from_hz(hz).is_some();
+        ensure!(ok; "line_frequency_hz", "{hz} is not 50 or 60");
+        FieldError::identity("serial", &self.serial, true)?;
+        FieldError::identity("firmware", &self.firmware, true)
     }
 
     /// The line frequency (50 Hz for a value [`validate`](Self::validate) refuses).
@@ -394,6 +377,27 @@ impl Picoammeter {
         }
     }
 
+    /// A setting changed; no reply.
+    fn set(&mut self, f: impl FnOnce(&mut Settings)) -> Option<Reply> {
+        f(&mut self.settings);
+        None
+    }
+
+    /// A setting changed that empties the moving filter's stack (a range or filter
+    /// change, zero check); no reply.
+    fn change(&mut self, f: impl FnOnce(&mut Settings)) -> Option<Reply> {
+        self.stack.clear();
+        self.set(f)
+    }
+
+    /// A command refused with SCPI error `code`: EXE in `*ESR?`, the error queued; no
+    /// reply.
+    fn refuse(&mut self, code: i32, message: &str) -> Option<Reply> {
+        self.esr |= EventStatus::EXE;
+        self.queue(code, message);
+        None
+    }
+
     /// Runs one parsed command at [`busy_until`](Self::busy_until): its reply, if any
     /// (readings are written to `out` directly).
     fn execute(&mut self, command: &Command, out: &mut Vec<u8>) -> Option<Reply> {
@@ -421,18 +425,12 @@ impl Picoammeter {
             Command::NextError => Some(Reply::Error(
                 self.errors.pop_front().unwrap_or_else(ScpiError::none),
             )),
-            Command::ZeroCheck(on) => {
-                self.settings.zero_check = *on;
-                self.stack.clear();
-                None
-            }
+            Command::ZeroCheck(on) => self.change(|s| s.zero_check = *on),
             Command::ZeroCorrectAcquire => {
                 if !self.settings.zero_check {
                     // The manual: zero check must be on to acquire (−221 "Settings
                     // conflict" assumed).
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-221, "Settings conflict");
-                    return None;
+                    return self.refuse(-221, "Settings conflict");
                 }
                 let value = match self.last_zero_checked {
                     Some(v) => v,
@@ -444,53 +442,27 @@ impl Picoammeter {
                 self.zero_value = value;
                 None
             }
-            Command::ZeroCorrect(on) => {
-                self.settings.zero_correct = *on;
-                None
-            }
-            Command::SetRange(r) => {
-                self.settings.range = *r;
-                self.settings.autorange = false;
-                self.stack.clear();
-                None
-            }
+            Command::ZeroCorrect(on) => self.set(|s| s.zero_correct = *on),
+            Command::SetRange(r) => self.change(|s| (s.range, s.autorange) = (*r, false)),
             Command::QueryRange => Some(Reply::Range(self.settings.range)),
-            Command::AutoRange(on) => {
-                self.settings.autorange = *on;
-                None
-            }
+            Command::AutoRange(on) => self.set(|s| s.autorange = *on),
             Command::SetNplc(n) => {
                 let max = self.config.line_frequency().max_nplc();
                 if !(MIN_NPLC..=max).contains(n) {
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-222, "Parameter data out of range");
-                    return None;
+                    return self.refuse(-222, "Parameter data out of range");
                 }
-                self.settings.nplc = *n;
-                None
+                self.set(|s| s.nplc = *n)
             }
-            Command::FilterType(t) => {
-                self.settings.filter_type = *t;
-                self.stack.clear();
-                None
-            }
+            Command::FilterType(t) => self.change(|s| s.filter_type = *t),
             Command::FilterCount(n) => {
                 // 1 to 100 (p. 4-8: "a simple average of one to 100 reading
                 // conversions"); the codec has refused the rest with −222.
-                self.settings.filter_count = (*n).clamp(*FILTER_COUNT.start(), *FILTER_COUNT.end());
-                self.stack.clear();
-                None
+                let (lo, hi) = (*FILTER_COUNT.start(), *FILTER_COUNT.end());
+                self.change(|s| s.filter_count = (*n).clamp(lo, hi))
             }
-            Command::Filter(on) => {
-                self.settings.filter_on = *on;
-                self.stack.clear();
-                None
-            }
+            Command::Filter(on) => self.change(|s| s.filter_on = *on),
             Command::FormatElements => None,
-            Command::TriggerCount(n) => {
-                self.settings.trigger_count = *n;
-                None
-            }
+            Command::TriggerCount(n) => self.set(|s| s.trigger_count = *n),
             Command::Initiate => {
                 self.last = self.measure();
                 None
@@ -503,9 +475,7 @@ impl Picoammeter {
             Command::Fetch => {
                 if self.last.is_empty() {
                     // SCPI −230 "Data corrupt or stale": nothing to fetch.
-                    self.esr |= EventStatus::EXE;
-                    self.queue(-230, "Data corrupt or stale");
-                    return None;
+                    return self.refuse(-230, "Data corrupt or stale");
                 }
                 self.readings_reply(out);
                 None

@@ -72,6 +72,14 @@ impl SimTransport {
         }
     }
 
+    /// Waits on the clock until `t`, if it is later.
+    fn sleep_until(&self, t: f64) {
+        let now = self.clock.seconds();
+        if t > now {
+            self.clock.sleep(crate::clock::secs(t - now));
+        }
+    }
+
     fn gone(&self) -> TransportError {
         TransportError::Disconnected {
             port: self.name(),
@@ -123,10 +131,7 @@ impl Transport for SimTransport {
                 && t < next_reply
                 && stale != Some(t)
             {
-                let now = self.clock.seconds();
-                if t > now {
-                    self.clock.sleep(crate::clock::secs(t - now));
-                }
+                self.sleep_until(t);
                 let bytes = lock(&self.sim).unsolicited(self.port, t);
                 // A device that had nothing to send at `t` after all is not asked
                 // about `t` again: the wait goes on to its replies or its deadline.
@@ -137,17 +142,11 @@ impl Transport for SimTransport {
             match self.in_flight.front() {
                 Some((t, _)) if *t <= deadline => {
                     let (t, bytes) = self.in_flight.pop_front().unwrap_or_default();
-                    let now = self.clock.seconds();
-                    if t > now {
-                        self.clock.sleep(crate::clock::secs(t - now));
-                    }
+                    self.sleep_until(t);
                     self.framer.push(&bytes);
                 }
                 _ => {
-                    let now = self.clock.seconds();
-                    if deadline > now {
-                        self.clock.sleep(crate::clock::secs(deadline - now));
-                    }
+                    self.sleep_until(deadline);
                     return Err(TransportError::Timeout(timeout));
                 }
             }

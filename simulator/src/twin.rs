@@ -173,6 +173,18 @@ impl<D> std::ops::DerefMut for LineTwin<D> {
     }
 }
 
+/// `ensure!(ok; field, reason...)` returns `Err` naming `field` with the formatted
+/// reason unless `ok`: a twin's [`FieldError`], or the sim config's `(field, reason)`.
+macro_rules! ensure {
+    ($ok:expr; $field:expr, $($why:tt)+) => {
+        let ok: bool = $ok;
+        if !ok {
+            return Err($crate::twin::FieldError::new($field, format!($($why)+)).into());
+        }
+    };
+}
+pub(crate) use ensure;
+
 /// A twin's config value that cannot describe an instrument.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{field}: {reason}")]
@@ -181,6 +193,12 @@ pub struct FieldError {
     pub field: String,
     /// What is wrong with it.
     pub reason: String,
+}
+
+impl From<FieldError> for (String, String) {
+    fn from(e: FieldError) -> Self {
+        (e.field, e.reason)
+    }
 }
 
 impl FieldError {
@@ -197,6 +215,28 @@ impl FieldError {
         match v >= lo && v <= hi {
             true => Ok(()),
             false => Err(Self::new(field, format!("{v} is not in [{lo}, {hi}]"))),
+        }
+    }
+
+    /// `Err` naming the first row whose value its range refuses, with the range's
+    /// message.
+    pub fn ranges(rows: &[(&str, f64, gonio_core::limits::Range)]) -> Result<(), FieldError> {
+        for (field, v, range) in rows {
+            range.check(*v).map_err(|m| Self::new(*field, m))?;
+        }
+        Ok(())
+    }
+
+    /// `Err` unless `text`, an `*IDN?` field, is non-empty printable ASCII without
+    /// commas (the field separator), spaces allowed when `spaces`.
+    pub fn identity(field: &str, text: &str, spaces: bool) -> Result<(), FieldError> {
+        let ok = |b: u8| (b.is_ascii_graphic() || (spaces && b == b' ')) && b != b',';
+        match !text.is_empty() && text.bytes().all(ok) {
+            true => Ok(()),
+            false => Err(Self::new(
+                field,
+                "must be non-empty printable ASCII without commas",
+            )),
         }
     }
 
