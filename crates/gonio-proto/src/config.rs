@@ -177,6 +177,47 @@ impl Fields {
     }
 }
 
+/// Declares a motion family's axis config: its own fields, the limits every motion axis
+/// has (`min`, `max` and `tolerance` in `$unit`, `velocity` and `acceleration` as the
+/// family documents them, `home_timeout_s`), then its own further fields.
+macro_rules! axis_config {
+    (
+        $(#[$doc:meta])*
+        pub struct $name:ident {
+            $($(#[$head_attr:meta])* pub $head:ident: $head_ty:ty,)*
+            limits in $unit:literal, commanded by the $who:literal;
+            $(#[$velocity:meta])* velocity;
+            $(#[$acceleration:meta])* acceleration;
+            $($(#[$tail_attr:meta])* pub $tail:ident: $tail_ty:ty,)*
+        }
+    ) => {
+        $(#[$doc])*
+        #[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            $($(#[$head_attr])* pub $head: $head_ty,)*
+            #[doc = concat!("Lowest position the ", $who, " will ever command, ", $unit, ".")]
+            pub min: f64,
+            #[doc = concat!("Highest position the ", $who, " will ever command, ", $unit, ".")]
+            pub max: f64,
+            $(#[$velocity])*
+            #[serde(default)]
+            pub velocity: Option<f64>,
+            $(#[$acceleration])*
+            #[serde(default)]
+            pub acceleration: Option<f64>,
+            #[doc = concat!("Largest |position − target| accepted at the end of a move, ", $unit, ".")]
+            #[serde(default = "crate::config::default_tolerance")]
+            pub tolerance: f64,
+            /// Longest a home search may take, s.
+            #[serde(default = "crate::config::default_home_timeout")]
+            pub home_timeout_s: f64,
+            $($(#[$tail_attr])* pub $tail: $tail_ty,)*
+        }
+    };
+}
+pub(crate) use axis_config;
+
 /// The default of a motion axis' `tolerance`, in its units.
 pub(crate) fn default_tolerance() -> f64 {
     0.01
