@@ -20,37 +20,21 @@ pub struct ConfigError {
 /// One integer field's check: its name, its value and its range.
 pub(crate) type IntCheck = (&'static str, u64, RangeInclusive<u64>);
 
-/// The checks of the link-policy fields every line family's config has, in this order:
-/// `timeout_ms` 1..=60000, `retries` 0..=10, `reconnect_attempts` 0..=100,
-/// `reconnect_delay_ms` 0..=60000 (a family checks them where its order has them).
-pub(crate) fn link_checks(
-    timeout_ms: u64,
-    retries: u32,
-    reconnect_attempts: u32,
-    reconnect_delay_ms: u64,
-) -> [IntCheck; 4] {
-    [
-        ("timeout_ms", timeout_ms, 1..=60_000),
-        ("retries", retries.into(), 0..=10),
-        ("reconnect_attempts", reconnect_attempts.into(), 0..=100),
-        ("reconnect_delay_ms", reconnect_delay_ms, 0..=60_000),
-    ]
-}
-
-/// For a line family's config `$config`: `link_checks()` ([`link_checks`] of its
-/// fields), `timeout()` and `reconnect_delay()`, and a duration accessor `$name()` for
-/// each further field `$field` in ms.
+/// For a line family's config `$config`: `link_checks()`, the ranges of the link-policy
+/// fields every line family has, and `timeout()` and `reconnect_delay()`, and a
+/// duration accessor `$name()` for each further field `$field` in ms.
 macro_rules! line_config {
     ($config:ty $(, $name:ident: $field:ident)*) => {
         impl $config {
-            /// The checks of the link-policy fields.
+            /// The link-policy fields' checks, in this order: a family checks each
+            /// where its order of fields has it.
             fn link_checks(&self) -> [$crate::config::IntCheck; 4] {
-                $crate::config::link_checks(
-                    self.timeout_ms,
-                    self.retries,
-                    self.reconnect_attempts,
-                    self.reconnect_delay_ms,
-                )
+                [
+                    ("timeout_ms", self.timeout_ms, 1..=60_000),
+                    ("retries", self.retries.into(), 0..=10),
+                    ("reconnect_attempts", self.reconnect_attempts.into(), 0..=100),
+                    ("reconnect_delay_ms", self.reconnect_delay_ms, 0..=60_000),
+                ]
             }
             $crate::config::line_config!(@ms timeout: timeout_ms);
             $crate::config::line_config!(@ms reconnect_delay: reconnect_delay_ms);

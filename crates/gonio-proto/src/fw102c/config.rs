@@ -276,19 +276,17 @@ impl Fw102cConfig {
 
     /// The first (lowest) position holding an opaque blank.
     pub fn dark_position(&self) -> Option<u8> {
-        self.filters
-            .iter()
-            .filter(|f| matches!(f, Filter::Dark { .. }))
-            .map(Filter::position)
-            .min()
+        self.lowest("dark")
     }
 
     /// The first (lowest) position holding an empty aperture.
     pub fn open_position(&self) -> Option<u8> {
-        self.filters
-            .iter()
-            .filter(|f| matches!(f, Filter::Open { .. }))
-            .map(Filter::position)
-            .min()
+        self.lowest("open")
+    }
+
+    /// The lowest position of the filters of `kind`.
+    fn lowest(&self, kind: &str) -> Option<u8> {
+        let of_kind = self.filters.iter().filter(|f| f.kind() == kind);
+        of_kind.map(Filter::position).min()
     }
 }
