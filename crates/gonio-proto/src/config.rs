@@ -17,6 +17,9 @@ pub struct ConfigError {
     pub reason: String,
 }
 
+/// A check's outcome: the first bad field, if any.
+type Checked = Result<(), ConfigError>;
+
 /// One integer field's check: its name, its value and its range.
 pub(crate) type IntCheck = (&'static str, u64, RangeInclusive<u64>);
 
@@ -85,12 +88,7 @@ impl Fields {
     }
 
     /// Refuses `field` for `reason()` unless `ok`.
-    pub(crate) fn check(
-        &self,
-        ok: bool,
-        field: &str,
-        reason: impl FnOnce() -> String,
-    ) -> Result<(), ConfigError> {
+    pub(crate) fn check(&self, ok: bool, field: &str, reason: impl FnOnce() -> String) -> Checked {
         if ok {
             Ok(())
         } else {
@@ -104,44 +102,35 @@ impl Fields {
         field: &str,
         v: T,
         range: RangeInclusive<T>,
-    ) -> Result<(), ConfigError> {
+    ) -> Checked {
         self.check(range.contains(&v), field, || {
             format!("{v} is not in {}..={}", range.start(), range.end())
         })
     }
 
     /// Each of `checks` in turn ([`int`](Self::int)).
-    pub(crate) fn ints(
-        &self,
-        checks: impl IntoIterator<Item = IntCheck>,
-    ) -> Result<(), ConfigError> {
+    pub(crate) fn ints(&self, checks: impl IntoIterator<Item = IntCheck>) -> Checked {
         checks
             .into_iter()
             .try_for_each(|(field, v, range)| self.int(field, v, range))
     }
 
     /// A real in (0, `hi`] (so finite).
-    pub(crate) fn positive(&self, field: &str, v: f64, hi: f64) -> Result<(), ConfigError> {
+    pub(crate) fn positive(&self, field: &str, v: f64, hi: f64) -> Checked {
         self.check(v > 0.0 && v <= hi, field, || {
             format!("{v} is not in (0, {hi}]")
         })
     }
 
     /// A real in [`lo`, `hi`] (so finite).
-    pub(crate) fn real(&self, field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    pub(crate) fn real(&self, field: &str, v: f64, lo: f64, hi: f64) -> Checked {
         self.check(v >= lo && v <= hi, field, || {
             format!("{v} is not in [{lo}, {hi}]")
         })
     }
 
     /// A fraction in [0, `hi`), with `why` a larger one is refused.
-    pub(crate) fn fraction_below(
-        &self,
-        field: &str,
-        v: f64,
-        hi: f64,
-        why: &str,
-    ) -> Result<(), ConfigError> {
+    pub(crate) fn fraction_below(&self, field: &str, v: f64, hi: f64, why: &str) -> Checked {
         self.check((0.0..hi).contains(&v), field, || {
             format!("{v} is not in [0, {hi}): {why}")
         })
@@ -154,7 +143,7 @@ impl Fields {
         what: &str,
         v: T,
         mut earlier: impl Iterator<Item = T>,
-    ) -> Result<(), ConfigError> {
+    ) -> Checked {
         self.check(!earlier.any(|o| o == v), field, || {
             format!("{what} {v} is listed twice")
         })

@@ -230,16 +230,14 @@ impl Cs130Config {
                 format!("range {lo}..={hi} nm is not 0 < min < max <= 100000")
             })?;
         }
-        f.check(
-            self.filter_wheel || !self.auto_order_filter,
-            "auto_order_filter",
-            || {
+        if !self.filter_wheel && self.auto_order_filter {
+            return f.bad(
+                "auto_order_filter",
                 "filter_wheel = false: there is no wheel to set order-sorting filters \
-             with; set auto_order_filter = false (and block the second order above \
-             2 × shortest_nm some other way)"
-                    .into()
-            },
-        )?;
+                 with; set auto_order_filter = false (and block the second order above \
+                 2 × shortest_nm some other way)",
+            );
+        }
         f.int("open_filter", self.open_filter, 1..=MAX_FILTER_POSITION)?;
         for (i, o) in self.filters.iter().enumerate() {
             let at = f.entry("filters", i);
