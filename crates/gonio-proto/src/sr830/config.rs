@@ -90,6 +90,34 @@ fn default_baud() -> u32 {
 const EXCHANGE_BITS: f64 = 36.0 * 10.0;
 
 impl Sr830Config {
+    /// Checks every field's range; the first bad field is named in the error.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let f = Fields::new(None);
+        let [timeout, retries, attempts, delay] = self.link_checks();
+        f.int("samples", self.samples, 1..=10_000)?;
+        let why = "a range step could then overload and oscillate";
+        f.fraction_below("min_fraction", self.min_fraction, 0.4, why)?;
+        f.ints([timeout, attempts])?;
+        f.positive("settle_residual", self.settle_residual, 0.5)?;
+        if let Some(n) = &self.noise {
+            f.real("noise.floor", n.floor, 0.0, 1.0)?;
+            f.real("noise.shot", n.shot, 0.0, 1.0)?;
+            f.check(n.floor != 0.0 || n.shot != 0.0, "noise", || {
+                "floor and shot are both 0: no reading is noiseless".into()
+            })?;
+        }
+        if let Some([lo, hi]) = self.time_constant_range {
+            let field = "time_constant_range";
+            f.check(lo <= hi, field, || {
+                format!("{lo} is longer than {hi}: give the shortest first")
+            })?;
+            f.check(self.noise.is_some(), field, || {
+                "needs `noise`: the choice weighs settling against the noise".into()
+            })?;
+        }
+        f.ints([retries, delay])
+    }
+
     /// Sets [`exchange_s`](Self::exchange_s) and [`baud`](Self::baud) for a port at
     /// `baud`.
     pub fn with_baud(mut self, baud: u32) -> Self {
@@ -108,9 +136,7 @@ impl Sr830Config {
             None => vec![self.time_constant],
         }
     }
-}
 
-impl Sr830Config {
     /// Seconds for the filters at `slope` and `tc` to settle within
     /// `settle_residual` of a step: the manual's rounded table at its own 1 %, the
     /// exact cascade otherwise.
@@ -157,36 +183,6 @@ impl Default for Sr830Config {
 }
 
 crate::config::line_config!(Sr830Config);
-
-impl Sr830Config {
-    /// Checks every field's range; the first bad field is named in the error.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let f = Fields::new(None);
-        let [timeout, retries, attempts, delay] = self.link_checks();
-        f.int("samples", self.samples, 1..=10_000)?;
-        let why = "a range step could then overload and oscillate";
-        f.fraction_below("min_fraction", self.min_fraction, 0.4, why)?;
-        f.ints([timeout, attempts])?;
-        f.positive("settle_residual", self.settle_residual, 0.5)?;
-        if let Some(n) = &self.noise {
-            f.real("noise.floor", n.floor, 0.0, 1.0)?;
-            f.real("noise.shot", n.shot, 0.0, 1.0)?;
-            f.check(n.floor != 0.0 || n.shot != 0.0, "noise", || {
-                "floor and shot are both 0: no reading is noiseless".into()
-            })?;
-        }
-        if let Some([lo, hi]) = self.time_constant_range {
-            let field = "time_constant_range";
-            f.check(lo <= hi, field, || {
-                format!("{lo} is longer than {hi}: give the shortest first")
-            })?;
-            f.check(self.noise.is_some(), field, || {
-                "needs `noise`: the choice weighs settling against the noise".into()
-            })?;
-        }
-        f.ints([retries, delay])
-    }
-}
 
 /// Reads a table entry written as an index or as a label.
 struct TableVisitor<V> {
