@@ -3,7 +3,8 @@
 //! ([`Cs130Config::grating_for`]) and the order-sorting filter
 //! ([`Cs130Config::order_filter_for`]).
 
-use std::time::Duration;
+pub use crate::config::ConfigError;
+use crate::config::Fields;
 
 /// Most gratings a turret holds, as far as the config accepts. **UNCONFIRMED** for the
 /// CS130B: its turret size was not found in the stored manual (the older Model 74000
@@ -184,15 +185,7 @@ impl Default for Cs130Config {
     }
 }
 
-/// A config value out of range: the field (as a config file writes it) and why.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("cs130 config {field}: {reason}")]
-pub struct ConfigError {
-    /// The field, as written in a config file (`gratings[1].max_nm`).
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
+crate::config::line_config!(Cs130Config, move_timeout: move_timeout_ms);
 
 /// A wavelength the configured monochromator cannot deliver cleanly: refused before
 /// any byte is sent.
@@ -221,114 +214,54 @@ pub enum SelectError {
 impl Cs130Config {
     /// Checks every field's range; the first bad field is named in the error.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |field: String, reason: String| Err(ConfigError { field, reason });
+        let f = Fields::new(Some("cs130"));
         if self.gratings.is_empty() {
-            return bad("gratings".into(), "at least one grating is needed".into());
+            return f.bad("gratings", "at least one grating is needed");
         }
         for (i, g) in self.gratings.iter().enumerate() {
-            if !(1..=MAX_GRATINGS).contains(&g.index) {
-                return bad(
-                    format!("gratings[{i}].index"),
-                    format!("{} is not in 1..={MAX_GRATINGS}", g.index),
-                );
-            }
-            if self.gratings[..i].iter().any(|o| o.index == g.index) {
-                return bad(
-                    format!("gratings[{i}].index"),
-                    format!("grating {} is listed twice", g.index),
-                );
-            }
-            if !(1..=10_000).contains(&g.lines_per_mm) {
-                return bad(
-                    format!("gratings[{i}].lines_per_mm"),
-                    format!("{} is not in 1..=10000", g.lines_per_mm),
-                );
-            }
-            if !(g.min_nm > 0.0 && g.min_nm < g.max_nm && g.max_nm <= 100_000.0) {
-                return bad(
-                    format!("gratings[{i}].max_nm"),
-                    format!(
-                        "range {}..={} nm is not 0 < min < max <= 100000",
-                        g.min_nm, g.max_nm
-                    ),
-                );
-            }
+            let at = f.entry("gratings", i);
+            let earlier = self.gratings[..i].iter().map(|o| o.index);
+            at.int("index", g.index, 1..=MAX_GRATINGS)?;
+            at.unique("index", "grating", g.index, earlier)?;
+            at.int("lines_per_mm", g.lines_per_mm, 1..=10_000)?;
+            let ok = g.min_nm > 0.0 && g.min_nm < g.max_nm && g.max_nm <= 100_000.0;
+            at.check(ok, "max_nm", || {
+                let (lo, hi) = (g.min_nm, g.max_nm);
+                format!("range {lo}..={hi} nm is not 0 < min < max <= 100000")
+            })?;
         }
         if !self.filter_wheel && self.auto_order_filter {
-            return bad(
-                "auto_order_filter".into(),
+            return f.bad(
+                "auto_order_filter",
                 "filter_wheel = false: there is no wheel to set order-sorting filters \
                  with; set auto_order_filter = false (and block the second order above \
-                 2 × shortest_nm some other way)"
-                    .into(),
+                 2 × shortest_nm some other way)",
             );
         }
-        if !(1..=MAX_FILTER_POSITION).contains(&self.open_filter) {
-            return bad(
-                "open_filter".into(),
-                format!("{} is not in 1..={MAX_FILTER_POSITION}", self.open_filter),
-            );
+        f.int("open_filter", self.open_filter, 1..=MAX_FILTER_POSITION)?;
+        for (i, o) in self.filters.iter().enumerate() {
+            let at = f.entry("filters", i);
+            let earlier = self.filters[..i].iter().map(|o| o.position);
+            at.int("position", o.position, 1..=MAX_FILTER_POSITION)?;
+            at.check(o.position != self.open_filter, "position", || {
+                format!("{} is the open position", o.position)
+            })?;
+            at.unique("position", "position", o.position, earlier)?;
+            at.positive("cut_on_nm", o.cut_on_nm, 100_000.0)?;
         }
-        for (i, f) in self.filters.iter().enumerate() {
-            if !(1..=MAX_FILTER_POSITION).contains(&f.position) {
-                return bad(
-                    format!("filters[{i}].position"),
-                    format!("{} is not in 1..={MAX_FILTER_POSITION}", f.position),
-                );
-            }
-            if f.position == self.open_filter {
-                return bad(
-                    format!("filters[{i}].position"),
-                    format!("{} is the open position", f.position),
-                );
-            }
-            if self.filters[..i].iter().any(|o| o.position == f.position) {
-                return bad(
-                    format!("filters[{i}].position"),
-                    format!("position {} is listed twice", f.position),
-                );
-            }
-            if !(f.cut_on_nm > 0.0 && f.cut_on_nm <= 100_000.0) {
-                return bad(
-                    format!("filters[{i}].cut_on_nm"),
-                    format!("{} is not in (0, 100000]", f.cut_on_nm),
-                );
-            }
-        }
-        let checks: [(&str, f64, f64, f64); 4] = [
-            ("shortest_nm", self.shortest_nm, f64::MIN_POSITIVE, 10_000.0),
-            ("filter_margin_nm", self.filter_margin_nm, 0.0, 500.0),
-            ("approach_nm", self.approach_nm, 0.0, 100.0),
-            (
-                "position_tolerance_nm",
-                self.position_tolerance_nm,
-                f64::MIN_POSITIVE,
-                100.0,
-            ),
-        ];
-        for (field, v, lo, hi) in checks {
-            if !(v >= lo && v <= hi) {
-                return bad(field.into(), format!("{v} is not in [{lo}, {hi}]"));
-            }
-        }
-        let ints: [(&str, u64, u64, u64); 5] = [
-            ("timeout_ms", self.timeout_ms, 1, 60_000),
-            ("move_timeout_ms", self.move_timeout_ms, 1, 600_000),
-            ("retries", u64::from(self.retries), 0, 10),
-            (
-                "reconnect_attempts",
-                u64::from(self.reconnect_attempts),
-                0,
-                100,
-            ),
-            ("reconnect_delay_ms", self.reconnect_delay_ms, 0, 60_000),
-        ];
-        for (field, v, lo, hi) in ints {
-            if !(lo..=hi).contains(&v) {
-                return bad(field.into(), format!("{v} is not in {lo}..={hi}"));
-            }
-        }
-        Ok(())
+        let least = f64::MIN_POSITIVE;
+        f.real("shortest_nm", self.shortest_nm, least, 10_000.0)?;
+        f.real("filter_margin_nm", self.filter_margin_nm, 0.0, 500.0)?;
+        f.real("approach_nm", self.approach_nm, 0.0, 100.0)?;
+        f.real(
+            "position_tolerance_nm",
+            self.position_tolerance_nm,
+            least,
+            100.0,
+        )?;
+        let [timeout, retries, attempts, delay] = self.link_checks();
+        let move_timeout = ("move_timeout_ms", self.move_timeout_ms, 1..=600_000);
+        f.ints([timeout, move_timeout, retries, attempts, delay])
     }
 
     /// The grating for `nm`: among those whose range holds it, the one with the
@@ -393,141 +326,5 @@ impl Cs130Config {
             .iter()
             .find(|f| f.position == position)
             .map(|f| f.cut_on_nm)
-    }
-
-    /// `timeout_ms` as a duration.
-    pub fn timeout(&self) -> Duration {
-        Duration::from_millis(self.timeout_ms)
-    }
-
-    /// `move_timeout_ms` as a duration.
-    pub fn move_timeout(&self) -> Duration {
-        Duration::from_millis(self.move_timeout_ms)
-    }
-
-    /// `reconnect_delay_ms` as a duration.
-    pub fn reconnect_delay(&self) -> Duration {
-        Duration::from_millis(self.reconnect_delay_ms)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn defaults_validate_and_crossovers_fall_where_documented() {
-        let c = Cs130Config::default();
-        c.validate().unwrap();
-        let f = |nm| c.order_filter_for(nm).unwrap();
-        assert_eq!(f(250.0), 1);
-        assert_eq!(f(499.9), 1);
-        assert_eq!(f(500.0), 2);
-        assert_eq!(f(599.9), 2);
-        assert_eq!(f(600.0), 3);
-        assert_eq!(f(1009.9), 3);
-        assert_eq!(f(1010.0), 4);
-        assert_eq!(f(1509.9), 4);
-        assert_eq!(f(1510.0), 5);
-        assert_eq!(f(2000.0), 5);
-        assert_eq!(c.grating_for(900.0).unwrap().index, 1);
-        assert_eq!(c.grating_for(900.1).unwrap().index, 2);
-        assert!(matches!(
-            c.grating_for(2000.5),
-            Err(SelectError::OutOfRange { .. })
-        ));
-        assert!(matches!(
-            c.grating_for(f64::NAN),
-            Err(SelectError::OutOfRange { .. })
-        ));
-    }
-
-    #[test]
-    fn every_chosen_filter_blocks_half_lambda_and_passes_lambda() {
-        let c = Cs130Config::default();
-        let mut nm = 250.0;
-        while nm <= 2000.0 {
-            let p = c.order_filter_for(nm).unwrap();
-            match c.cut_on_nm(p) {
-                None => assert!(nm / 2.0 < c.shortest_nm, "{nm}"),
-                Some(cut) => {
-                    assert!(cut >= nm / 2.0 + c.filter_margin_nm, "{nm}: {cut}");
-                    assert!(cut <= nm - c.filter_margin_nm, "{nm}: {cut}");
-                }
-            }
-            nm += 0.5;
-        }
-    }
-
-    #[test]
-    fn a_gap_in_the_filters_is_refused() {
-        let c = Cs130Config {
-            filters: vec![OrderFilterSpec {
-                position: 2,
-                cut_on_nm: 335.0,
-            }],
-            ..Cs130Config::default()
-        };
-        // 335 blocks λ/2 only up to λ = 650.
-        assert_eq!(c.order_filter_for(650.0), Ok(2));
-        assert_eq!(
-            c.order_filter_for(700.0),
-            Err(SelectError::NoOrderFilter {
-                nm: 700.0,
-                low: 360.0,
-                high: 690.0
-            })
-        );
-    }
-
-    #[test]
-    fn the_documented_toml_parses_and_unknown_keys_are_refused() {
-        let text = "auto_order_filter = false\nshortest_nm = 300.0\n\
-                    [[gratings]]\nindex = 1\nlines_per_mm = 1200\nmin_nm = 250.0\nmax_nm = 900.0\n\
-                    [[filters]]\nposition = 2\ncut_on_nm = 335.0\n";
-        let c: Cs130Config = toml::from_str(text).unwrap();
-        c.validate().unwrap();
-        assert!(!c.auto_order_filter);
-        assert_eq!(c.gratings.len(), 1);
-        assert_eq!(c.cut_on_nm(2), Some(335.0));
-        assert_eq!(c.timeout_ms, 1000);
-        assert!(toml::from_str::<Cs130Config>("speed = 1").is_err());
-        assert!(toml::from_str::<Cs130Config>("[[filters]]\nposition = 2\ncut_on = 3.0").is_err());
-    }
-
-    #[test]
-    fn the_filter_wheel_defaults_to_present_and_without_it_needs_no_auto_filter() {
-        // A config written before the field: a wheel, as before.
-        let c: Cs130Config = toml::from_str("auto_order_filter = true").unwrap();
-        assert!(c.filter_wheel);
-        c.validate().unwrap();
-        // No wheel: order sorting must be turned off in so many words.
-        let c: Cs130Config = toml::from_str("filter_wheel = false").unwrap();
-        let e = c.validate().unwrap_err();
-        assert_eq!(e.field, "auto_order_filter");
-        assert!(e.reason.contains("set auto_order_filter = false"), "{e}");
-        let c: Cs130Config =
-            toml::from_str("filter_wheel = false\nauto_order_filter = false").unwrap();
-        c.validate().unwrap();
-    }
-
-    #[test]
-    fn validation_names_the_field() {
-        let mut c = Cs130Config::default();
-        c.gratings[1].max_nm = 800.0;
-        assert_eq!(c.validate().unwrap_err().field, "gratings[1].max_nm");
-        let mut c = Cs130Config::default();
-        c.filters[0].position = 1;
-        assert_eq!(c.validate().unwrap_err().field, "filters[0].position");
-        let c = Cs130Config {
-            timeout_ms: 0,
-            ..Cs130Config::default()
-        };
-        assert_eq!(c.validate().unwrap_err().field, "timeout_ms");
-        let c = Cs130Config {
-            shortest_nm: f64::NAN,
-            ..Cs130Config::default()
-        };
-        assert_eq!(c.validate().unwrap_err().field, "shortest_nm");
     }
 }

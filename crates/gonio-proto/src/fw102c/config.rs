@@ -2,7 +2,8 @@
 //! mounted, and the session's timing. The lookups that pick a filter for a band are
 //! pure functions of it.
 
-use std::time::Duration;
+pub use crate::config::ConfigError;
+use crate::config::Fields;
 
 use super::{POSITION_COUNTS, Speed};
 
@@ -171,107 +172,55 @@ impl Default for Fw102cConfig {
     }
 }
 
-/// A config value out of its range, naming the field as a config file writes it.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("fw102c config {field}: {reason}")]
-pub struct ConfigError {
-    /// The field (`filters[2].fwhm_nm` for a filter's).
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
-fn positive(v: f64) -> bool {
-    v.is_finite() && v > 0.0
-}
+crate::config::line_config!(
+    Fw102cConfig,
+    move_timeout: move_timeout_ms,
+    poll_interval: poll_interval_ms
+);
 
 impl Fw102cConfig {
     /// Checks every field's range; the first bad field is named in the error.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |field: String, reason: String| Err(ConfigError { field, reason });
-        if !POSITION_COUNTS.contains(&self.positions) {
-            return bad(
-                "positions".into(),
-                format!("{} is not 6 or 12", self.positions),
-            );
-        }
-        if !(positive(self.band_tolerance_nm) && self.band_tolerance_nm <= 50.0) {
-            return bad(
-                "band_tolerance_nm".into(),
-                format!("{} is not in (0, 50]", self.band_tolerance_nm),
-            );
-        }
-        for (field, v, lo, hi) in [
-            ("timeout_ms", self.timeout_ms, 1, 60_000),
-            ("move_timeout_ms", self.move_timeout_ms, 100, 120_000),
-            ("poll_interval_ms", self.poll_interval_ms, 1, 10_000),
-            ("reconnect_delay_ms", self.reconnect_delay_ms, 0, 60_000),
-            ("retries", u64::from(self.retries), 0, 10),
-            (
-                "reconnect_attempts",
-                u64::from(self.reconnect_attempts),
-                0,
-                100,
-            ),
-        ] {
-            if !(lo..=hi).contains(&v) {
-                return bad(field.into(), format!("{v} is not in {lo}..={hi}"));
-            }
-        }
-        let mut seen = Vec::new();
-        for (i, f) in self.filters.iter().enumerate() {
-            let name = |k: &str| format!("filters[{i}].{k}");
-            let p = f.position();
-            if !(1..=self.positions).contains(&p) {
-                return bad(
-                    name("position"),
-                    format!("{p} is not in 1..={}", self.positions),
-                );
-            }
-            if seen.contains(&p) {
-                return bad(name("position"), format!("position {p} is listed twice"));
-            }
-            seen.push(p);
-            match f {
+        let f = Fields::new(Some("fw102c"));
+        f.check(
+            POSITION_COUNTS.contains(&self.positions),
+            "positions",
+            || format!("{} is not 6 or 12", self.positions),
+        )?;
+        f.positive("band_tolerance_nm", self.band_tolerance_nm, 50.0)?;
+        let [timeout, retries, attempts, delay] = self.link_checks();
+        f.ints([
+            timeout,
+            ("move_timeout_ms", self.move_timeout_ms, 100..=120_000),
+            ("poll_interval_ms", self.poll_interval_ms, 1..=10_000),
+            delay,
+            retries,
+            attempts,
+        ])?;
+        for (i, filter) in self.filters.iter().enumerate() {
+            let at = f.entry("filters", i);
+            let p = filter.position();
+            at.int("position", p, 1..=self.positions)?;
+            let earlier = self.filters[..i].iter().map(Filter::position);
+            at.unique("position", "position", p, earlier)?;
+            match filter {
                 Filter::Bandpass {
                     centre_nm,
                     fwhm_nm,
                     peak_transmittance,
                     ..
                 } => {
-                    if !(positive(*centre_nm) && *centre_nm <= 20_000.0) {
-                        return bad(
-                            name("centre_nm"),
-                            format!("{centre_nm} is not in (0, 20000]"),
-                        );
-                    }
-                    if !(positive(*fwhm_nm) && *fwhm_nm <= 1000.0) {
-                        return bad(name("fwhm_nm"), format!("{fwhm_nm} is not in (0, 1000]"));
-                    }
-                    if !(positive(*peak_transmittance) && *peak_transmittance <= 1.0) {
-                        return bad(
-                            name("peak_transmittance"),
-                            format!("{peak_transmittance} is not in (0, 1]"),
-                        );
-                    }
+                    at.positive("centre_nm", *centre_nm, 20_000.0)?;
+                    at.positive("fwhm_nm", *fwhm_nm, 1000.0)?;
+                    at.positive("peak_transmittance", *peak_transmittance, 1.0)?;
                 }
                 Filter::Longpass {
                     cut_on_nm,
                     peak_transmittance,
                     ..
                 } => {
-                    if !(positive(*cut_on_nm) && *cut_on_nm <= 20_000.0) {
-                        return bad(
-                            name("cut_on_nm"),
-                            format!("{cut_on_nm} is not in (0, 20000]"),
-                        );
-                    }
-                    if !(positive(*peak_transmittance) && *peak_transmittance <= 1.0) {
-                        return bad(
-                            name("peak_transmittance"),
-                            format!("{peak_transmittance} is not in (0, 1]"),
-                        );
-                    }
+                    at.positive("cut_on_nm", *cut_on_nm, 20_000.0)?;
+                    at.positive("peak_transmittance", *peak_transmittance, 1.0)?;
                 }
                 Filter::Open { .. } | Filter::Dark { .. } => {}
             }
@@ -327,158 +276,17 @@ impl Fw102cConfig {
 
     /// The first (lowest) position holding an opaque blank.
     pub fn dark_position(&self) -> Option<u8> {
-        self.filters
-            .iter()
-            .filter(|f| matches!(f, Filter::Dark { .. }))
-            .map(Filter::position)
-            .min()
+        self.lowest("dark")
     }
 
     /// The first (lowest) position holding an empty aperture.
     pub fn open_position(&self) -> Option<u8> {
-        self.filters
-            .iter()
-            .filter(|f| matches!(f, Filter::Open { .. }))
-            .map(Filter::position)
-            .min()
+        self.lowest("open")
     }
 
-    pub(crate) fn timeout(&self) -> Duration {
-        Duration::from_millis(self.timeout_ms)
-    }
-    pub(crate) fn move_timeout(&self) -> Duration {
-        Duration::from_millis(self.move_timeout_ms)
-    }
-    pub(crate) fn poll_interval(&self) -> Duration {
-        Duration::from_millis(self.poll_interval_ms)
-    }
-    pub(crate) fn reconnect_delay(&self) -> Duration {
-        Duration::from_millis(self.reconnect_delay_ms)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn parse(text: &str) -> Result<Fw102cConfig, String> {
-        toml::from_str::<Fw102cConfig>(text).map_err(|e| e.to_string())
-    }
-
-    const WHEEL: &str = r#"
-        positions = 6
-        [[filters]]
-        position = 1
-        kind = "open"
-        [[filters]]
-        position = 2
-        kind = "bandpass"
-        centre_nm = 550
-        fwhm_nm = 10
-        [[filters]]
-        position = 3
-        kind = "bandpass"
-        centre_nm = 553.5
-        fwhm_nm = 10
-        peak_transmittance = 0.5
-        [[filters]]
-        position = 4
-        kind = "longpass"
-        cut_on_nm = 495
-        [[filters]]
-        position = 5
-        kind = "longpass"
-        cut_on_nm = 695
-        [[filters]]
-        position = 6
-        kind = "dark"
-    "#;
-
-    #[test]
-    fn a_wheel_parses_with_defaults_and_validates() {
-        let c = parse(WHEEL).unwrap();
-        c.validate().unwrap();
-        assert_eq!(c.speed, Speed::High);
-        assert_eq!(c.filters.len(), 6);
-        assert_eq!(
-            c.filter_at(3),
-            Some(&Filter::Bandpass {
-                position: 3,
-                centre_nm: 553.5,
-                fwhm_nm: 10.0,
-                peak_transmittance: 0.5
-            })
-        );
-        assert_eq!(
-            c.filter_at(4),
-            Some(&Filter::Longpass {
-                position: 4,
-                cut_on_nm: 495.0,
-                peak_transmittance: 1.0
-            })
-        );
-    }
-
-    #[test]
-    fn lookups_pick_by_the_documented_rules() {
-        let c = parse(WHEEL).unwrap();
-        assert_eq!(c.position_for_band(550.0), Some(2));
-        assert_eq!(c.position_for_band(551.0), Some(2));
-        // 552.0 is 2.0 from 550 and 1.5 from 553.5: the nearer wins.
-        assert_eq!(c.position_for_band(552.0), Some(3));
-        assert_eq!(c.position_for_band(555.5), Some(3));
-        assert_eq!(c.position_for_band(555.6), None);
-        assert_eq!(c.position_for_band(600.0), None);
-        // 495 lies in (λ/2, λ) for λ in (495, 990); 695 for λ in (695, 1390).
-        assert_eq!(c.position_for_order_sorting(600.0), Some(4));
-        assert_eq!(c.position_for_order_sorting(495.0), None);
-        assert_eq!(c.position_for_order_sorting(989.0), Some(5));
-        // At 800: 495 has margin min(305, 95) = 95, 695 has min(105, 295) = 105.
-        assert_eq!(c.position_for_order_sorting(800.0), Some(5));
-        assert_eq!(c.position_for_order_sorting(700.0), Some(4));
-        assert_eq!(c.position_for_order_sorting(400.0), None);
-        assert_eq!(c.dark_position(), Some(6));
-        assert_eq!(c.open_position(), Some(1));
-        assert_eq!(Fw102cConfig::default().dark_position(), None);
-    }
-
-    #[test]
-    fn bad_values_name_their_field() {
-        let field = |text: &str| match parse(text) {
-            Ok(c) => c.validate().unwrap_err().field,
-            Err(e) => format!("parse: {e}"),
-        };
-        assert_eq!(field("positions = 8"), "positions");
-        assert_eq!(field("band_tolerance_nm = 0"), "band_tolerance_nm");
-        assert_eq!(field("move_timeout_ms = 50"), "move_timeout_ms");
-        assert_eq!(field("retries = 11"), "retries");
-        assert_eq!(
-            field("[[filters]]\nposition = 7\nkind = \"open\""),
-            "filters[0].position"
-        );
-        assert_eq!(
-            field(
-                "[[filters]]\nposition = 1\nkind = \"open\"\n[[filters]]\nposition = 1\nkind = \"dark\""
-            ),
-            "filters[1].position"
-        );
-        assert_eq!(
-            field("[[filters]]\nposition = 1\nkind = \"bandpass\"\ncentre_nm = 550\nfwhm_nm = -1"),
-            "filters[0].fwhm_nm"
-        );
-        assert_eq!(
-            field(
-                "[[filters]]\nposition = 1\nkind = \"longpass\"\ncut_on_nm = 495\npeak_transmittance = 1.5"
-            ),
-            "filters[0].peak_transmittance"
-        );
-    }
-
-    #[test]
-    fn unknown_keys_and_kinds_are_refused() {
-        assert!(parse("position = 6").is_err());
-        assert!(parse("[[filters]]\nposition = 1\nkind = \"open\"\ncentre_nm = 3").is_err());
-        assert!(parse("[[filters]]\nposition = 1\nkind = \"notch\"").is_err());
-        assert!(parse("[[filters]]\nposition = 1\nkind = \"bandpass\"\ncentre_nm = 550").is_err());
+    /// The lowest position of the filters of `kind`.
+    fn lowest(&self, kind: &str) -> Option<u8> {
+        let of_kind = self.filters.iter().filter(|f| f.kind() == kind);
+        of_kind.map(Filter::position).min()
     }
 }

@@ -1,7 +1,8 @@
 //! How a 6485 session sets the instrument up and reads it, as written in an
 //! instrument config file.
 
-use std::time::Duration;
+pub use crate::config::ConfigError;
+use crate::config::Fields;
 
 use super::{FILTER_COUNT, FilterType, LineFrequency, MIN_NPLC, Range};
 
@@ -109,94 +110,41 @@ impl Default for K6485Config {
     }
 }
 
-/// A config value outside what the driver accepts, naming the field.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{field}: {reason}")]
-pub struct ConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
+crate::config::line_config!(K6485Config, range_settle: range_settle_ms);
 
 impl K6485Config {
     /// Checks every field's range; the first bad field is named in the error.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |field, reason: String| Err(ConfigError { field, reason });
+        let f = Fields::new(None);
         let Some(lf) = LineFrequency::from_hz(self.line_frequency_hz) else {
-            return bad(
-                "line_frequency_hz",
-                format!("{} is not 50 or 60", self.line_frequency_hz),
-            );
+            let hz = self.line_frequency_hz;
+            return f.bad("line_frequency_hz", format!("{hz} is not 50 or 60"));
         };
-        if !(self.nplc >= MIN_NPLC && self.nplc <= lf.max_nplc()) {
-            return bad(
-                "nplc",
+        let max = lf.max_nplc();
+        f.check(self.nplc >= MIN_NPLC && self.nplc <= max, "nplc", || {
+            format!(
+                "{} is not in {MIN_NPLC}..={max} at {} Hz",
+                self.nplc,
+                lf.hz()
+            )
+        })?;
+        f.check(
+            FILTER_COUNT.contains(&self.filter_count),
+            "filter_count",
+            || {
+                let (lo, hi) = (FILTER_COUNT.start(), FILTER_COUNT.end());
                 format!(
-                    "{} is not in {MIN_NPLC}..={} at {} Hz",
-                    self.nplc,
-                    lf.max_nplc(),
-                    lf.hz()
-                ),
-            );
-        }
-        if !FILTER_COUNT.contains(&self.filter_count) {
-            return bad(
-                "filter_count",
-                format!(
-                    "{} is not in {}..={} (1: filter off)",
-                    self.filter_count,
-                    FILTER_COUNT.start(),
-                    FILTER_COUNT.end()
-                ),
-            );
-        }
-        if !(1..=10_000).contains(&self.samples) {
-            return bad("samples", format!("{} is not in 1..=10000", self.samples));
-        }
-        if !(0.0..0.1).contains(&self.min_fraction) {
-            return bad(
-                "min_fraction",
-                format!(
-                    "{} is not in [0, 0.1): a range step down could then overflow and oscillate",
-                    self.min_fraction
-                ),
-            );
-        }
-        if self.range_settle_ms > 60_000 {
-            return bad(
-                "range_settle_ms",
-                format!("{} is not in 0..=60000", self.range_settle_ms),
-            );
-        }
-        if !(self.settle_residual > 0.0 && self.settle_residual <= 0.5) {
-            return bad(
-                "settle_residual",
-                format!("{} is not in (0, 0.5]", self.settle_residual),
-            );
-        }
-        if !(1..=60_000).contains(&self.timeout_ms) {
-            return bad(
-                "timeout_ms",
-                format!("{} is not in 1..=60000", self.timeout_ms),
-            );
-        }
-        if self.retries > 10 {
-            return bad("retries", format!("{} is not in 0..=10", self.retries));
-        }
-        if self.reconnect_attempts > 100 {
-            return bad(
-                "reconnect_attempts",
-                format!("{} is not in 0..=100", self.reconnect_attempts),
-            );
-        }
-        if self.reconnect_delay_ms > 60_000 {
-            return bad(
-                "reconnect_delay_ms",
-                format!("{} is not in 0..=60000", self.reconnect_delay_ms),
-            );
-        }
-        Ok(())
+                    "{} is not in {lo}..={hi} (1: filter off)",
+                    self.filter_count
+                )
+            },
+        )?;
+        f.int("samples", self.samples, 1..=10_000)?;
+        let why = "a range step down could then overflow and oscillate";
+        f.fraction_below("min_fraction", self.min_fraction, 0.1, why)?;
+        f.int("range_settle_ms", self.range_settle_ms, 0..=60_000)?;
+        f.positive("settle_residual", self.settle_residual, 0.5)?;
+        f.ints(self.link_checks())
     }
 
     /// The line frequency (50 Hz for a value [`validate`](Self::validate) refuses).
@@ -234,21 +182,6 @@ impl K6485Config {
     /// `samples` × [`read_s`](Self::read_s).
     pub fn reading_seconds(&self) -> f64 {
         self.samples as f64 * self.read_s()
-    }
-
-    /// The reply timeout beyond the measuring time.
-    pub fn timeout(&self) -> Duration {
-        Duration::from_millis(self.timeout_ms)
-    }
-
-    /// The wait before each reconnection attempt.
-    pub fn reconnect_delay(&self) -> Duration {
-        Duration::from_millis(self.reconnect_delay_ms)
-    }
-
-    /// The wait after a range change.
-    pub fn range_settle(&self) -> Duration {
-        Duration::from_millis(self.range_settle_ms)
     }
 }
 

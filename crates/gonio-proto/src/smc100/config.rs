@@ -3,43 +3,26 @@
 
 use std::time::Duration;
 
-/// What a stage is and how the driver may move it.
-#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct AxisConfig {
-    /// The axis' name in plans and configs (`source`, `detector`, `sample_rot`).
-    pub name: String,
-    /// Controller address on the chain, 1–31.
-    pub address: u8,
-    /// Position units of the stage (`deg` for rotation stages).
-    #[serde(default = "default_units")]
-    pub units: String,
-    /// Lowest position the driver will ever command, units.
-    pub min: f64,
-    /// Highest position the driver will ever command, units.
-    pub max: f64,
-    /// Velocity applied after homing (`VA`), units/s; the controller's own otherwise.
-    #[serde(default)]
-    pub velocity: Option<f64>,
-    /// Acceleration applied after homing (`AC`), units/s².
-    #[serde(default)]
-    pub acceleration: Option<f64>,
-    /// Largest |position − target| accepted at the end of a move, units.
-    #[serde(default = "default_tolerance")]
-    pub tolerance: f64,
-    /// Longest a home search may take, s.
-    #[serde(default = "default_home_timeout")]
-    pub home_timeout_s: f64,
+crate::config::axis_config! {
+    /// What a stage is and how the driver may move it.
+    pub struct AxisConfig {
+        /// The axis' name in plans and configs (`source`, `detector`, `sample_rot`).
+        pub name: String,
+        /// Controller address on the chain, 1–31.
+        pub address: u8,
+        /// Position units of the stage (`deg` for rotation stages).
+        #[serde(default = "default_units")]
+        pub units: String,
+        limits in "units", commanded by the "driver";
+        /// Velocity applied after homing (`VA`), units/s; the controller's own otherwise.
+        velocity;
+        /// Acceleration applied after homing (`AC`), units/s².
+        acceleration;
+    }
 }
 
 fn default_units() -> String {
     "deg".into()
-}
-fn default_tolerance() -> f64 {
-    0.01
-}
-fn default_home_timeout() -> f64 {
-    120.0
 }
 
 /// Timing and retry policy for a chain.

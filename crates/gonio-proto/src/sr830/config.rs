@@ -1,7 +1,8 @@
 //! How an SR830 session sets the instrument up and reads it, as written in an
 //! instrument config file.
 
-use std::time::Duration;
+pub use crate::config::ConfigError;
+use crate::config::Fields;
 
 use super::{FilterSlope, NoiseDensity, Sensitivity, TimeConstant, UnknownLabel};
 
@@ -89,6 +90,34 @@ fn default_baud() -> u32 {
 const EXCHANGE_BITS: f64 = 36.0 * 10.0;
 
 impl Sr830Config {
+    /// Checks every field's range; the first bad field is named in the error.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let f = Fields::new(None);
+        let [timeout, retries, attempts, delay] = self.link_checks();
+        f.int("samples", self.samples, 1..=10_000)?;
+        let why = "a range step could then overload and oscillate";
+        f.fraction_below("min_fraction", self.min_fraction, 0.4, why)?;
+        f.ints([timeout, attempts])?;
+        f.positive("settle_residual", self.settle_residual, 0.5)?;
+        if let Some(n) = &self.noise {
+            f.real("noise.floor", n.floor, 0.0, 1.0)?;
+            f.real("noise.shot", n.shot, 0.0, 1.0)?;
+            f.check(n.floor != 0.0 || n.shot != 0.0, "noise", || {
+                "floor and shot are both 0: no reading is noiseless".into()
+            })?;
+        }
+        if let Some([lo, hi]) = self.time_constant_range {
+            let field = "time_constant_range";
+            f.check(lo <= hi, field, || {
+                format!("{lo} is longer than {hi}: give the shortest first")
+            })?;
+            f.check(self.noise.is_some(), field, || {
+                "needs `noise`: the choice weighs settling against the noise".into()
+            })?;
+        }
+        f.ints([retries, delay])
+    }
+
     /// Sets [`exchange_s`](Self::exchange_s) and [`baud`](Self::baud) for a port at
     /// `baud`.
     pub fn with_baud(mut self, baud: u32) -> Self {
@@ -107,9 +136,7 @@ impl Sr830Config {
             None => vec![self.time_constant],
         }
     }
-}
 
-impl Sr830Config {
     /// Seconds for the filters at `slope` and `tc` to settle within
     /// `settle_residual` of a step: the manual's rounded table at its own 1 %, the
     /// exact cascade otherwise.
@@ -155,99 +182,7 @@ impl Default for Sr830Config {
     }
 }
 
-/// A config value outside what the driver accepts, naming the field.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{field}: {reason}")]
-pub struct ConfigError {
-    /// The field, as written in a config file.
-    pub field: &'static str,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
-impl Sr830Config {
-    /// Checks every field's range; the first bad field is named in the error.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |field, reason: String| Err(ConfigError { field, reason });
-        if !(1..=10_000).contains(&self.samples) {
-            return bad("samples", format!("{} is not in 1..=10000", self.samples));
-        }
-        if !(0.0..0.4).contains(&self.min_fraction) {
-            return bad(
-                "min_fraction",
-                format!(
-                    "{} is not in [0, 0.4): a range step could then overload and oscillate",
-                    self.min_fraction
-                ),
-            );
-        }
-        if !(1..=60_000).contains(&self.timeout_ms) {
-            return bad(
-                "timeout_ms",
-                format!("{} is not in 1..=60000", self.timeout_ms),
-            );
-        }
-        if self.reconnect_attempts > 100 {
-            return bad(
-                "reconnect_attempts",
-                format!("{} is not in 0..=100", self.reconnect_attempts),
-            );
-        }
-        if !(self.settle_residual > 0.0 && self.settle_residual <= 0.5) {
-            return bad(
-                "settle_residual",
-                format!("{} is not in (0, 0.5]", self.settle_residual),
-            );
-        }
-        if let Some(n) = &self.noise {
-            for (field, v) in [("noise.floor", n.floor), ("noise.shot", n.shot)] {
-                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
-                    return bad(field, format!("{v} is not in [0, 1]"));
-                }
-            }
-            if n.floor == 0.0 && n.shot == 0.0 {
-                return bad(
-                    "noise",
-                    "floor and shot are both 0: no reading is noiseless".into(),
-                );
-            }
-        }
-        if let Some([lo, hi]) = self.time_constant_range {
-            if lo > hi {
-                return bad(
-                    "time_constant_range",
-                    format!("{lo} is longer than {hi}: give the shortest first"),
-                );
-            }
-            if self.noise.is_none() {
-                return bad(
-                    "time_constant_range",
-                    "needs `noise`: the choice weighs settling against the noise".into(),
-                );
-            }
-        }
-        if self.retries > 10 {
-            return bad("retries", format!("{} is not in 0..=10", self.retries));
-        }
-        if self.reconnect_delay_ms > 60_000 {
-            return bad(
-                "reconnect_delay_ms",
-                format!("{} is not in 0..=60000", self.reconnect_delay_ms),
-            );
-        }
-        Ok(())
-    }
-
-    /// The reply timeout.
-    pub fn timeout(&self) -> Duration {
-        Duration::from_millis(self.timeout_ms)
-    }
-
-    /// The wait before each reconnection attempt.
-    pub fn reconnect_delay(&self) -> Duration {
-        Duration::from_millis(self.reconnect_delay_ms)
-    }
-}
+crate::config::line_config!(Sr830Config);
 
 /// Reads a table entry written as an index or as a label.
 struct TableVisitor<V> {

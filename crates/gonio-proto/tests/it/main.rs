@@ -3,8 +3,10 @@
 
 mod apt;
 mod cs130;
+mod cs130_config;
 mod cs130_session;
 mod fw102c;
+mod fw102c_config;
 mod fw102c_session;
 mod k6485;
 mod smc100;

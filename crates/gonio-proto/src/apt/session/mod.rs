@@ -15,43 +15,32 @@ use crate::link::KeepAlive;
 use crate::motion::{AxisError, MotionError};
 use crate::smc100::ChainPolicy;
 
-/// One stage on one APT controller, and how the session may move it.
-#[derive(Clone, Debug, PartialEq, serde::Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct AptAxisConfig {
-    /// The axis' name in plans and configs.
-    pub name: String,
-    /// The stage, which fixes the controller and the unit conversions.
-    pub stage: StageKind,
-    /// Lowest position the session will ever command, deg.
-    pub min: f64,
-    /// Highest position the session will ever command, deg.
-    pub max: f64,
-    /// Maximum velocity set up, deg/s; the stage's default otherwise.
-    #[serde(default)]
-    pub velocity: Option<f64>,
-    /// Acceleration set up, deg/s²; the stage's default otherwise.
-    #[serde(default)]
-    pub acceleration: Option<f64>,
-    /// Largest |position − target| accepted at the end of a move, deg.
-    #[serde(default = "default_tolerance")]
-    pub tolerance: f64,
-    /// Longest a home search may take, s.
-    #[serde(default = "default_home_timeout")]
-    pub home_timeout_s: f64,
-    /// Backlash distance set up, deg; the controller's own when absent.
-    #[serde(default)]
-    pub backlash_deg: Option<f64>,
-    /// Ask the controller for its periodic status updates at set-up
-    /// (`HW_START_UPDATEMSGS`).
-    #[serde(default)]
-    pub status_updates: bool,
-    /// Send the "server alive" message (`MOT_ACK_DCSTATUSUPDATE`) every
-    /// [`KEEPALIVE_EVERY`] for the whole session ([`AptSession::keepalive`]). The
-    /// manual requires it on USB (p. 130); off only to show what a controller does
-    /// without it.
-    #[serde(default = "default_keepalive")]
-    pub keepalive: bool,
+crate::config::axis_config! {
+    /// One stage on one APT controller, and how the session may move it.
+    pub struct AptAxisConfig {
+        /// The axis' name in plans and configs.
+        pub name: String,
+        /// The stage, which fixes the controller and the unit conversions.
+        pub stage: StageKind,
+        limits in "deg", commanded by the "session";
+        /// Maximum velocity set up, deg/s; the stage's default otherwise.
+        velocity;
+        /// Acceleration set up, deg/s²; the stage's default otherwise.
+        acceleration;
+        /// Backlash distance set up, deg; the controller's own when absent.
+        #[serde(default)]
+        pub backlash_deg: Option<f64>,
+        /// Ask the controller for its periodic status updates at set-up
+        /// (`HW_START_UPDATEMSGS`).
+        #[serde(default)]
+        pub status_updates: bool,
+        /// Send the "server alive" message (`MOT_ACK_DCSTATUSUPDATE`) every
+        /// [`KEEPALIVE_EVERY`] for the whole session ([`AptSession::keepalive`]). The
+        /// manual requires it on USB (p. 130); off only to show what a controller does
+        /// without it.
+        #[serde(default = "default_keepalive")]
+        pub keepalive: bool,
+    }
 }
 
 /// How often the session's keep-alive goes out. The manual asks for one at least
@@ -64,13 +53,6 @@ fn default_keepalive() -> bool {
     true
 }
 
-fn default_tolerance() -> f64 {
-    0.01
-}
-fn default_home_timeout() -> f64 {
-    120.0
-}
-
 impl AptAxisConfig {
     /// A configuration with the defaults, for `stage` between `min` and `max`.
     pub fn new(name: &str, stage: StageKind, min: f64, max: f64) -> Self {
@@ -81,8 +63,8 @@ impl AptAxisConfig {
             max,
             velocity: None,
             acceleration: None,
-            tolerance: default_tolerance(),
-            home_timeout_s: default_home_timeout(),
+            tolerance: crate::config::default_tolerance(),
+            home_timeout_s: crate::config::default_home_timeout(),
             backlash_deg: None,
             status_updates: false,
             keepalive: true,
