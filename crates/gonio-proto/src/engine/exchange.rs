@@ -62,9 +62,9 @@ pub(crate) trait Wire {
     fn reopened(&mut self, now: Duration);
 }
 
-/// The [`Wire`] items every line family states alike, from its `config`
-/// (`reconnect_attempts`, `reconnect_delay()`), its `port` and `retried` fields and its
-/// error's `Transport`, `Disconnected` and `Protocol` variants (a garbled reply, like a
+/// The [`Wire`] items every line family states alike, from its
+/// [`SessionCore`](super::SessionCore) `core` (the config's `reconnect_attempts` and
+/// `reconnect_delay()`, the port, the retries) and its error's `Transport`, `Disconnected` and `Protocol` variants (a garbled reply, like a
 /// lost one, is worth sending again). The family adds `reopened` (what a reopening
 /// forgets) and, if it needs one, `after_reopen`.
 macro_rules! line_wire {
@@ -74,13 +74,13 @@ macro_rules! line_wire {
 
         fn policy(&self) -> $crate::engine::Policy {
             $crate::engine::Policy {
-                reconnect_attempts: self.config.reconnect_attempts,
-                reconnect_delay: self.config.reconnect_delay(),
+                reconnect_attempts: self.core.config.reconnect_attempts,
+                reconnect_delay: self.core.config.reconnect_delay(),
             }
         }
 
         fn port(&self) -> &str {
-            &self.port
+            &self.core.port
         }
 
         fn transport(command: String, source: $crate::TransportError) -> $error {
@@ -89,7 +89,7 @@ macro_rules! line_wire {
 
         fn disconnected(&self, attempts: u32, source: $crate::TransportError) -> $error {
             $error::Disconnected {
-                port: self.port.clone(),
+                port: self.core.port.clone(),
                 attempts,
                 source,
             }
@@ -104,7 +104,7 @@ macro_rules! line_wire {
         }
 
         fn retried(&mut self) {
-            self.retried += 1;
+            self.core.retried += 1;
         }
     };
 }

@@ -16,10 +16,13 @@
 //! port after a pause.
 
 mod exchange;
+mod session;
 
 pub(crate) use exchange::{
     Fault, Policy, Wire, exchange, line_wire, reopen_at_once, send_reopening,
 };
+pub use session::SessionCore;
+pub(crate) use session::{Read, core_deref, receive};
 
 use std::cell::{Cell, RefCell};
 use std::future::Future;
@@ -205,6 +208,21 @@ impl<'s, T, E: std::fmt::Display> Task<'s, T, E> {
         };
         task.feed(now, None);
         task
+    }
+
+    /// Starts the operation `name` at `now` on the session `s`: `op` is its `async fn`
+    /// (or an `async` closure), given the session and the link.
+    pub(crate) fn run<S: 's>(
+        name: &'static str,
+        now: Duration,
+        s: &'s mut S,
+        op: impl AsyncFnOnce(&mut S, &Link) -> Result<T, E> + 's,
+    ) -> Self
+    where
+        T: 's,
+        E: 's,
+    {
+        Task::new(name, now, move |link| async move { op(s, &link).await })
     }
 
     fn feed(&mut self, now: Duration, event: Option<Event>) {

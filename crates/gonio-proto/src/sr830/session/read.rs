@@ -3,7 +3,7 @@
 use tracing::{debug, warn};
 
 use super::Sr830Session;
-use super::ops::unexpected;
+use super::unexpected;
 use crate::engine::{Link, Wire, secs};
 use crate::number;
 use crate::sr830::{
@@ -59,7 +59,7 @@ impl Sr830Session {
     /// flags. `None` when it must start again: the port was reopened during it (its
     /// samples may predate an instrument restart), or the flags' answer was lost.
     async fn cycle(&mut self, link: &Link) -> Result<Option<Reading>, Sr830Error> {
-        let reconnects = self.reconnects;
+        let reconnects = self.core.reconnects;
         if link.now() < self.settled_at {
             debug!(wait = ?(self.settled_at - link.now()), "sr830: waiting for the filters to settle");
             link.sleep(self.settled_at).await;
@@ -70,7 +70,7 @@ impl Sr830Session {
                 Ok(_) => break,
                 Err(e) if left > 0 && Self::is_transient(&e) => {
                     left -= 1;
-                    self.retried += 1;
+                    self.core.retried += 1;
                 }
                 Err(e) => return Err(e),
             }
@@ -79,7 +79,7 @@ impl Sr830Session {
         let (mut xs, mut ys, mut rs) = (Vec::new(), Vec::new(), Vec::new());
         loop {
             let (x, y) = xy(self.ask(link, &SNAP).await?)?;
-            if self.reconnects != reconnects {
+            if self.core.reconnects != reconnects {
                 return Ok(None);
             }
             xs.push(x);
@@ -96,7 +96,7 @@ impl Sr830Session {
             Err(e) if self.flags_lost(&e) => return Ok(None),
             Err(e) => return Err(e),
         };
-        if self.reconnects != reconnects {
+        if self.core.reconnects != reconnects {
             return Ok(None);
         }
         let (r_mean, r_std) = number::mean_std(&rs);
@@ -122,7 +122,7 @@ impl Sr830Session {
     pub(super) fn flags_lost(&mut self, e: &Sr830Error) -> bool {
         if self.config.retries > 0 && Self::is_transient(e) {
             warn!(error = %e, "sr830: the flags' answer was lost; reading again");
-            self.retried += 1;
+            self.core.retried += 1;
             true
         } else {
             false

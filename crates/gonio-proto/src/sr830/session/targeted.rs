@@ -147,7 +147,7 @@ impl Sr830Session {
     /// `sequential` flag, rather than spaced out), until the rule is met or the next
     /// would pass the cap; then `LIAS?` for the flags.
     async fn segment(&mut self, link: &Link, t: &mut Targeted) -> Result<End, Sr830Error> {
-        let reconnects = self.reconnects;
+        let reconnects = self.core.reconnects;
         let t0 = self.changed_at;
         let tc_s = self.time_constant.seconds();
         let first = t0.saturating_add(secs(FIRST_SNAPSHOT_TC * tc_s));
@@ -159,7 +159,7 @@ impl Sr830Session {
         }
         loop {
             let (x, y) = xy(self.ask(link, &SNAP).await?)?;
-            if self.reconnects != reconnects {
+            if self.core.reconnects != reconnects {
                 return Ok(End::Interrupted);
             }
             let tau = (link.now().saturating_sub(t0)).as_secs_f64() / tc_s;
@@ -204,7 +204,7 @@ impl Sr830Session {
             Err(e) if self.flags_lost(&e) => return Ok(End::Interrupted),
             Err(e) => return Err(e),
         };
-        if self.reconnects != reconnects {
+        if self.core.reconnects != reconnects {
             return Ok(End::Interrupted);
         }
         Ok(End::Read(self.reading_of(t, status)))

@@ -1,0 +1,131 @@
+//! What every line family's session shares besides the link policy: its [`SessionCore`]
+//! (configuration, port, identity and counts, with their getters), the receive loop of
+//! an answer ([`receive`]), and a read's restarts and range changes ([`Read`]).
+
+use std::time::Duration;
+
+use tracing::{debug, warn};
+
+use super::{Fault, Link};
+
+/// What every line family's session keeps besides its own state: the configuration,
+/// the port's name (for errors), the identity set-up read, and the counts a run log
+/// reports. A session reaches it through `Deref`, so its getters are written once.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionCore<C, I> {
+    pub(crate) config: C,
+    pub(crate) port: String,
+    pub(crate) identity: Option<I>,
+    pub(crate) reconnects: usize,
+    pub(crate) retried: u64,
+}
+
+impl<C, I> SessionCore<C, I> {
+    pub(crate) fn new(config: C, port: impl Into<String>) -> Self {
+        SessionCore {
+            config,
+            port: port.into(),
+            identity: None,
+            reconnects: 0,
+            retried: 0,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &C {
+        &self.config
+    }
+
+    /// The identity set-up read, once it has run.
+    pub fn identity(&self) -> Option<&I> {
+        self.identity.as_ref()
+    }
+
+    /// How many times the port was reopened.
+    pub fn reconnects(&self) -> usize {
+        self.reconnects
+    }
+
+    /// Commands sent again (or read cycles restarted) after a lost, late or garbled
+    /// answer: what a run log reports as retries.
+    pub fn retried(&self) -> u64 {
+        self.retried
+    }
+}
+
+/// `Deref` of a line family's session to its `core` field, a [`SessionCore`]`<$config, $identity>`.
+macro_rules! core_deref {
+    ($session:ty, $config:ty, $identity:ty) => {
+        impl std::ops::Deref for $session {
+            type Target = $crate::engine::SessionCore<$config, $identity>;
+
+            fn deref(&self) -> &Self::Target {
+                &self.core
+            }
+        }
+    };
+}
+pub(crate) use core_deref;
+
+/// Lines due by `due`, each read by the family's `rule` (`None`: not part of the
+/// answer, such as a blank line or a prompt; `Err`: a refusal or a garbled line),
+/// until one ends the answer.
+pub(crate) async fn receive<T, E>(
+    link: &Link,
+    due: Duration,
+    mut rule: impl FnMut(&[u8]) -> Option<Result<T, E>>,
+) -> Result<T, Fault<E>> {
+    loop {
+        if let Some(answer) = rule(&link.line(due).await?) {
+            return answer.map_err(Fault::Answer);
+        }
+    }
+}
+
+/// A read's count of restarts and range changes, and the errors that end it.
+pub(crate) struct Read {
+    /// The family, for the log.
+    pub(crate) family: &'static str,
+    /// Consecutive restarts: only these count towards giving up.
+    pub(crate) restarts: usize,
+    /// Range changes made.
+    pub(crate) steps: usize,
+}
+
+/// Most times one read starts over in a row after the port was lost and reopened (or,
+/// on the SR830, the flags' answer was lost).
+pub(crate) const MAX_RESTARTS: usize = 2;
+
+impl Read {
+    pub(crate) fn new(family: &'static str) -> Self {
+        Read {
+            family,
+            restarts: 0,
+            steps: 0,
+        }
+    }
+
+    /// One more restart: `interrupted(restarts)` once that has happened more than
+    /// [`MAX_RESTARTS`] times in a row.
+    pub(crate) fn restart<E>(&mut self, interrupted: impl FnOnce(usize) -> E) -> Result<(), E> {
+        self.restarts += 1;
+        let (family, restarts) = (self.family, self.restarts);
+        if restarts > MAX_RESTARTS {
+            warn!(restarts, "{family}: reading interrupted too often");
+            return Err(interrupted(restarts));
+        }
+        debug!(restarts, "{family}: read starts again");
+        Ok(())
+    }
+
+    /// Counts one more range change: `false` (logged) when `max` have been made
+    /// already, and the read gives up.
+    pub(crate) fn step(&mut self, max: usize) -> bool {
+        if self.steps >= max {
+            warn!(steps = self.steps, "{}: autorange gives up", self.family);
+            return false;
+        }
+        self.steps += 1;
+        true
+    }
+}
