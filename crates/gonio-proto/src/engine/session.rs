@@ -118,14 +118,12 @@ impl Read {
         Ok(())
     }
 
-    /// Counts one more range change: `false` (logged) when `max` have been made
-    /// already, and the read gives up.
-    pub(crate) fn step(&mut self, max: usize) -> bool {
-        if self.steps >= max {
+    /// Whether `max` range changes have been made: autoranging gives up (logged).
+    pub(crate) fn exhausted(&self, max: usize) -> bool {
+        let done = self.steps >= max;
+        if done {
             warn!(steps = self.steps, "{}: autorange gives up", self.family);
-            return false;
         }
-        self.steps += 1;
-        true
+        done
     }
 }

@@ -355,7 +355,7 @@ impl K6485Session {
             let Some(next) = next.filter(|_| self.config.autorange) else {
                 return Ok(reading);
             };
-            if !read.step(MAX_AUTORANGE_STEPS) {
+            if read.exhausted(MAX_AUTORANGE_STEPS) {
                 let last = Box::new(reading);
                 return Err(K6485Error::Autorange {
                     steps: read.steps,
@@ -364,6 +364,7 @@ impl K6485Session {
             }
             debug!(from = %self.range, to = %next, flags = ?f, mean = reading.mean_a, "k6485: autorange step");
             self.ask(link, Command::SetRange(next)).await?;
+            read.steps += 1;
         }
     }
 

@@ -5,7 +5,6 @@
 //! autoranged reading; in `targeted` the reading to a precision target.
 
 mod read;
-mod targeted;
 
 use std::time::Duration;
 
