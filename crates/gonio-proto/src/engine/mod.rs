@@ -18,11 +18,9 @@
 mod exchange;
 mod session;
 
-pub(crate) use exchange::{
-    Fault, Policy, Wire, exchange, line_wire, reopen_at_once, send_reopening,
-};
+pub(crate) use exchange::{Fault, Policy, Wire, exchange, reopen_at_once, send_reopening};
 pub use session::SessionCore;
-pub(crate) use session::{Read, core_deref, receive};
+pub(crate) use session::{Read, line_session, receive};
 
 use std::cell::{Cell, RefCell};
 use std::future::Future;

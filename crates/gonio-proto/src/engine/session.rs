@@ -53,9 +53,16 @@ impl<C, I> SessionCore<C, I> {
     }
 }
 
-/// `Deref` of a line family's session to its `core` field, a [`SessionCore`]`<$config, $identity>`.
-macro_rules! core_deref {
-    ($session:ty, $config:ty, $identity:ty) => {
+/// A line family's session `$session`, whose [`SessionCore`]`<$config, $identity>` is
+/// its field `core`: `Deref` to it (so the getters are the core's), and the engine's
+/// [`Wire`](super::Wire), all from the core and the error `$error`'s `Transport`,
+/// `Disconnected` and `Protocol` variants (a garbled reply, like a lost one, is worth
+/// sending again). A reopening is counted, then handed to the session's own
+/// `fn reopened(&mut self, now: Duration)` (what it forgets); `after_reopen`, when
+/// given, is what must be sent first on a reopened port, with its name.
+macro_rules! line_session {
+    ($session:ty, $config:ty, $identity:ty, $error:ident, $family:literal
+        $(, after_reopen: $first:expr)?) => {
         impl std::ops::Deref for $session {
             type Target = $crate::engine::SessionCore<$config, $identity>;
 
@@ -63,9 +70,55 @@ macro_rules! core_deref {
                 &self.core
             }
         }
+
+        impl $crate::engine::Wire for $session {
+            type Error = $error;
+            const FAMILY: &'static str = $family;
+
+            fn policy(&self) -> $crate::engine::Policy {
+                $crate::engine::Policy {
+                    reconnect_attempts: self.core.config.reconnect_attempts,
+                    reconnect_delay: self.core.config.reconnect_delay(),
+                }
+            }
+
+            fn port(&self) -> &str {
+                &self.core.port
+            }
+
+            fn transport(command: String, source: $crate::TransportError) -> $error {
+                $error::Transport { command, source }
+            }
+
+            fn disconnected(&self, attempts: u32, source: $crate::TransportError) -> $error {
+                let port = self.core.port.clone();
+                $error::Disconnected { port, attempts, source }
+            }
+
+            fn is_transient(e: &$error) -> bool {
+                match e {
+                    $error::Protocol { .. } => true,
+                    $error::Transport { source, .. } => source.is_transient(),
+                    _ => false,
+                }
+            }
+
+            fn retried(&mut self) {
+                self.core.retried += 1;
+            }
+
+            $(fn after_reopen(&self) -> Option<(&'static str, Vec<u8>)> {
+                Some($first)
+            })?
+
+            fn reopened(&mut self, now: std::time::Duration) {
+                self.core.reconnects += 1;
+                <$session>::reopened(self, now);
+            }
+        }
     };
 }
-pub(crate) use core_deref;
+pub(crate) use line_session;
 
 /// Lines due by `due`, each read by the family's `rule` (`None`: not part of the
 /// answer, such as a blank line or a prompt; `Err`: a refusal or a garbled line),

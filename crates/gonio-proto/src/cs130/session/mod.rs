@@ -10,7 +10,7 @@ use tracing::{debug, warn};
 use super::{
     Command, Cs130Config, Cs130Error, MonoState, NO_FILTER_WHEEL, Reply, ReplyError, Units, is_echo,
 };
-use crate::engine::{self, Fault, Link, SessionCore, Task, Wire};
+use crate::engine::{self, Fault, Link, SessionCore, Task};
 
 /// What the session knows the instrument is set to; `None` until read or set.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -76,17 +76,7 @@ pub struct Cs130Session {
     held: bool,
 }
 
-engine::core_deref!(Cs130Session, Cs130Config, String);
-
-impl Wire for Cs130Session {
-    engine::line_wire!(Cs130Error, "cs130");
-
-    /// Counted only: every operation ends with the settings read back or checked
-    /// through `STB?`, and a failed one forgets them.
-    fn reopened(&mut self, _: Duration) {
-        self.core.reconnects += 1;
-    }
-}
+engine::line_session!(Cs130Session, Cs130Config, String, Cs130Error, "cs130");
 
 /// The statement as sent, without terminator: how errors name it.
 fn name(command: &Command) -> String {
@@ -112,6 +102,10 @@ fn unexpected(command: &Command, reply: Option<Reply>) -> Cs130Error {
 }
 
 impl Cs130Session {
+    /// The port was reopened: counted only, since every operation ends with the
+    /// settings read back or checked through `STB?`, and a failed one forgets them.
+    fn reopened(&mut self, _: Duration) {}
+
     /// A session for the monochromator on `port` (its name, for errors); nothing is
     /// sent until an operation starts. Fails if `config` does not
     /// [`validate`](Cs130Config::validate).

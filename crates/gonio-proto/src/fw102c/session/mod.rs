@@ -9,7 +9,7 @@ use tracing::{debug, warn};
 use super::reply::is_echo;
 use super::{Command, Fw102cConfig, Fw102cError, Line, Reply, ReplyError, SensorMode};
 use crate::TransportError;
-use crate::engine::{self, Link, SessionCore, Task, Wire};
+use crate::engine::{self, Link, SessionCore, Task};
 
 /// The FW102C as a state machine: its configuration, the position it last read, and
 /// every decision of its operations. It does no I/O and reads no clock.
@@ -37,17 +37,7 @@ pub struct Fw102cSession {
     position: Option<u8>,
 }
 
-engine::core_deref!(Fw102cSession, Fw102cConfig, String);
-
-impl Wire for Fw102cSession {
-    engine::line_wire!(Fw102cError, "fw102c");
-
-    fn reopened(&mut self, _: Duration) {
-        self.core.reconnects += 1;
-        // The wheel may have been moved or power-cycled meanwhile.
-        self.position = None;
-    }
-}
+engine::line_session!(Fw102cSession, Fw102cConfig, String, Fw102cError, "fw102c");
 
 /// A reply of another kind than the query's: [`Reply::parse`] answers by query, so
 /// this cannot happen; reported as a protocol error rather than a panic.
@@ -68,6 +58,11 @@ fn not_applied(set: Command, read: u8) -> Fw102cError {
 }
 
 impl Fw102cSession {
+    /// The port was reopened: the wheel may have been moved or power-cycled meanwhile.
+    fn reopened(&mut self, _: Duration) {
+        self.position = None;
+    }
+
     /// A session for the wheel on `port` (its name, for errors); nothing is sent until
     /// an operation starts. Fails if `config` does not validate.
     pub fn new(config: Fw102cConfig, port: impl Into<String>) -> Result<Self, Fw102cError> {

@@ -11,7 +11,7 @@ use super::{
     Command, Current, Identity, K6485Config, K6485Error, MAX_AUTORANGE_STEPS, PicoFlags,
     PicoReading, Range, Reply, ReplyError, Sample, StatusWord,
 };
-use crate::engine::{self, Fault, Link, Read, SessionCore, Task, Wire, secs};
+use crate::engine::{self, Fault, Link, Read, SessionCore, Task, secs};
 use crate::number;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
@@ -51,18 +51,7 @@ pub struct K6485Session {
     busy_until: Duration,
 }
 
-engine::core_deref!(K6485Session, K6485Config, Identity);
-
-impl Wire for K6485Session {
-    engine::line_wire!(K6485Error, "k6485");
-
-    fn reopened(&mut self, now: Duration) {
-        self.core.reconnects += 1;
-        // Whatever the instrument was doing is unknown now, and it may have restarted.
-        self.busy_until = now;
-        self.mark_unsettled(now);
-    }
-}
+engine::line_session!(K6485Session, K6485Config, Identity, K6485Error, "k6485");
 
 /// The command as sent, without terminator, for errors.
 fn name(command: &Command) -> String {
@@ -82,6 +71,13 @@ fn unexpected(command: &Command, reply: Option<Reply>) -> K6485Error {
 }
 
 impl K6485Session {
+    /// The port was reopened: whatever the instrument was doing is unknown now, and
+    /// it may have restarted.
+    fn reopened(&mut self, now: Duration) {
+        self.busy_until = now;
+        self.mark_unsettled(now);
+    }
+
     /// A session for the picoammeter on `port` (its name, for errors), at `now`;
     /// nothing is sent until [`start_setup`](Self::start_setup). Fails if `config` does
     /// not [`validate`](K6485Config::validate).

@@ -14,7 +14,7 @@ use super::{
     Command, EventStatus, FilterSlope, Identity, Interface, LiaStatus, Reply, ReplyError,
     Sensitivity, Sr830Config, Sr830Error, TimeConstant,
 };
-use crate::engine::{self, Fault, Link, SessionCore, Task, Wire, secs};
+use crate::engine::{self, Fault, Link, SessionCore, Task, secs};
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
 /// when its filters will have settled, and everything its operations decide: which
@@ -54,23 +54,9 @@ pub struct Sr830Session {
     changed_at: Duration,
 }
 
-engine::core_deref!(Sr830Session, Sr830Config, Identity);
-
-impl Wire for Sr830Session {
-    engine::line_wire!(Sr830Error, "sr830");
-
-    /// Replies go to GPIB until `OUTX 0` is sent again.
-    fn after_reopen(&self) -> Option<(&'static str, Vec<u8>)> {
-        Some(("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes()))
-    }
-
-    fn reopened(&mut self, now: Duration) {
-        self.core.reconnects += 1;
-        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
-        // The instrument may have restarted: let its filters settle again.
-        self.mark_unsettled(now);
-    }
-}
+// Replies go to GPIB until `OUTX 0` is sent again.
+engine::line_session!(Sr830Session, Sr830Config, Identity, Sr830Error, "sr830",
+    after_reopen: ("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes()));
 
 /// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
 /// reported as a protocol error rather than a panic.
@@ -85,6 +71,13 @@ pub(super) fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error 
 }
 
 impl Sr830Session {
+    /// The port was reopened (and `OUTX 0` re-sent): the instrument may have
+    /// restarted, so its filters settle again.
+    fn reopened(&mut self, now: Duration) {
+        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+        self.mark_unsettled(now);
+    }
+
     /// A session for the lock-in on `port` (its name, for errors), at `now`; nothing is
     /// sent until [`start_setup`](Self::start_setup). Fails if `config` does not
     /// [`validate`](Sr830Config::validate).
