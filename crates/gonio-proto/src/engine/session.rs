@@ -60,9 +60,31 @@ impl<C, I> SessionCore<C, I> {
 /// sending again). A reopening is counted, then handed to the session's own
 /// `fn reopened(&mut self, now: Duration)` (what it forgets); `after_reopen`, when
 /// given, is what must be sent first on a reopened port, with its name.
+///
+/// With the codec's `$command`, `$reply` and `$reply_error`, it also writes the
+/// family module's `name` (a command as sent, without terminator: how errors and the
+/// log name it), `protocol` (the error of a line that does not answer a command) and
+/// `unexpected` (a reply of another kind than the query's, which cannot happen since
+/// `Reply::parse` answers by query: reported as a protocol error rather than a panic).
 macro_rules! line_session {
-    ($session:ty, $config:ty, $identity:ty, $error:ident, $family:literal
-        $(, after_reopen: $first:expr)?) => {
+    ($session:ty: $family:literal, $config:ty, $identity:ty, $error:ident;
+        $command:ty, $reply:ty, $reply_error:ident $(; after_reopen: $first:expr)?) => {
+        fn name(command: &$command) -> String {
+            let mut body = Vec::new();
+            command.encode_body(&mut body);
+            String::from_utf8_lossy(&body).into_owned()
+        }
+
+        fn protocol(command: &$command, reply: &[u8], source: $reply_error) -> $error {
+            let (command, reply) = (name(command), reply.to_vec());
+            $error::Protocol { command, reply, source }
+        }
+
+        fn unexpected(command: &$command, reply: Option<$reply>) -> $error {
+            let reply = reply.map(|r| r.to_bytes()).unwrap_or_default();
+            protocol(command, &reply, $reply_error::BadValue)
+        }
+
         impl std::ops::Deref for $session {
             type Target = $crate::engine::SessionCore<$config, $identity>;
 

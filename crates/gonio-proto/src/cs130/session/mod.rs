@@ -76,29 +76,8 @@ pub struct Cs130Session {
     held: bool,
 }
 
-engine::line_session!(Cs130Session, Cs130Config, String, Cs130Error, "cs130");
-
-/// The statement as sent, without terminator: how errors name it.
-fn name(command: &Command) -> String {
-    let mut body = Vec::new();
-    command.encode_body(&mut body);
-    String::from_utf8_lossy(&body).into_owned()
-}
-
-/// A line that is not the echo or the answer expected.
-fn protocol(command: &Command, reply: Vec<u8>, source: ReplyError) -> Cs130Error {
-    Cs130Error::Protocol {
-        command: name(command),
-        reply,
-        source,
-    }
-}
-
-/// An answer of the wrong kind: cannot happen, since [`Reply::parse`] answers by
-/// query; reported as a protocol error rather than a panic.
-fn unexpected(command: &Command, reply: Option<Reply>) -> Cs130Error {
-    let reply = reply.map(|r| r.to_bytes()).unwrap_or_default();
-    protocol(command, reply, ReplyError::BadValue)
+engine::line_session! {
+    Cs130Session: "cs130", Cs130Config, String, Cs130Error; Command, Reply, ReplyError
 }
 
 impl Cs130Session {
@@ -223,7 +202,7 @@ impl Cs130Session {
             if echo {
                 let line = link.line(due).await?;
                 if !is_echo(command, &line) {
-                    return Err(Fault::Answer(protocol(command, line, ReplyError::BadEcho)));
+                    return Err(Fault::Answer(protocol(command, &line, ReplyError::BadEcho)));
                 }
             }
             if !command.is_query() {
@@ -232,7 +211,7 @@ impl Cs130Session {
             let line = link.line(due).await?;
             Reply::parse(command, &line)
                 .map(Some)
-                .map_err(|source| Fault::Answer(protocol(command, line, source)))
+                .map_err(|source| Fault::Answer(protocol(command, &line, source)))
         };
         let bytes = command.to_bytes();
         let reply = engine::exchange(self, link, &name(command), &bytes, retries, receive).await?;

@@ -37,16 +37,8 @@ pub struct Fw102cSession {
     position: Option<u8>,
 }
 
-engine::line_session!(Fw102cSession, Fw102cConfig, String, Fw102cError, "fw102c");
-
-/// A reply of another kind than the query's: [`Reply::parse`] answers by query, so
-/// this cannot happen; reported as a protocol error rather than a panic.
-fn unexpected(query: Command, reply: Option<Reply>) -> Fw102cError {
-    Fw102cError::Protocol {
-        command: query.to_string(),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
-    }
+engine::line_session! {
+    Fw102cSession: "fw102c", Fw102cConfig, String, Fw102cError; Command, Reply, ReplyError
 }
 
 /// A set whose read-back differs.
@@ -135,11 +127,6 @@ impl Fw102cSession {
                 code,
             }
         };
-        let garbled = |line: &[u8], source| Fw102cError::Protocol {
-            command: command.to_string(),
-            reply: line.to_vec(),
-            source,
-        };
         let receive = async |_: &mut Fw102cSession| {
             let due = link.now().saturating_add(timeout).max(until);
             engine::receive(link, due, |line| match Line::classify(line) {
@@ -147,7 +134,7 @@ impl Fw102cSession {
                 // Before this command's echo: the refusal of the set sent before it.
                 Line::Error(e) => Some(Err(refused(after.unwrap_or(command), e.code))),
                 Line::Text(t) if is_echo(&command, t) => Some(Ok(())),
-                Line::Text(_) => Some(Err(garbled(line, ReplyError::BadValue))),
+                Line::Text(_) => Some(Err(protocol(&command, line, ReplyError::BadValue))),
             })
             .await?;
             if !command.is_query() {
@@ -160,12 +147,12 @@ impl Fw102cSession {
                 Line::Text(t) => Some(
                     Reply::parse(&command, t)
                         .map(Some)
-                        .map_err(|source| garbled(line, source)),
+                        .map_err(|source| protocol(&command, line, source)),
                 ),
             })
             .await
         };
-        let (name, retries) = (command.to_string(), self.config.retries);
+        let (name, retries) = (name(&command), self.config.retries);
         engine::exchange(self, link, &name, &command.to_bytes(), retries, receive).await
     }
 
@@ -178,7 +165,7 @@ impl Fw102cSession {
     ) -> Result<Reply, Fw102cError> {
         match self.ask(link, query, after, Duration::ZERO).await? {
             Some(r) => Ok(r),
-            None => Err(unexpected(query, None)),
+            None => Err(unexpected(&query, None)),
         }
     }
 
@@ -197,7 +184,7 @@ impl Fw102cSession {
     async fn init(&mut self, link: &Link) -> Result<String, Fw102cError> {
         let identity = match self.query(link, Command::Identify, None).await? {
             Reply::Identity(id) => id,
-            other => return Err(unexpected(Command::Identify, Some(other))),
+            other => return Err(unexpected(&Command::Identify, Some(other))),
         };
         let upper = identity.to_ascii_uppercase();
         if !(upper.contains("FW102C") || upper.contains("FW212C")) {
@@ -216,20 +203,20 @@ impl Fw102cSession {
                     device,
                 });
             }
-            other => return Err(unexpected(Command::QueryPositionCount, Some(other))),
+            other => return Err(unexpected(&Command::QueryPositionCount, Some(other))),
         }
         let speed = Command::SetSpeed(self.config.speed);
         match self.set(link, speed, Command::QuerySpeed).await? {
             Reply::Speed(v) if v == self.config.speed => {}
             Reply::Speed(v) => return Err(not_applied(speed, v.digit())),
-            other => return Err(unexpected(Command::QuerySpeed, Some(other))),
+            other => return Err(unexpected(&Command::QuerySpeed, Some(other))),
         }
         if self.config.sensors_off_when_idle {
             let sensors = Command::SetSensors(SensorMode::OffWhenIdle);
             match self.set(link, sensors, Command::QuerySensors).await? {
                 Reply::Sensors(SensorMode::OffWhenIdle) => {}
                 Reply::Sensors(SensorMode::AlwaysOn) => return Err(not_applied(sensors, 1)),
-                other => return Err(unexpected(Command::QuerySensors, Some(other))),
+                other => return Err(unexpected(&Command::QuerySensors, Some(other))),
             }
         }
         self.read_position(link).await?;
@@ -269,7 +256,7 @@ impl Fw102cSession {
                     return Ok(());
                 }
                 Ok(Some(Reply::Position(p))) => last = Some(p),
-                Ok(other) => return Err(unexpected(Command::QueryPosition, other)),
+                Ok(other) => return Err(unexpected(&Command::QueryPosition, other)),
                 Err(Fw102cError::Transport {
                     source: TransportError::Timeout(_),
                     ..
@@ -300,7 +287,7 @@ impl Fw102cSession {
                 self.position = Some(p);
                 Ok(p)
             }
-            other => Err(unexpected(Command::QueryPosition, Some(other))),
+            other => Err(unexpected(&Command::QueryPosition, Some(other))),
         }
     }
 }

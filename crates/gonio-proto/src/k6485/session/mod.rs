@@ -51,23 +51,8 @@ pub struct K6485Session {
     busy_until: Duration,
 }
 
-engine::line_session!(K6485Session, K6485Config, Identity, K6485Error, "k6485");
-
-/// The command as sent, without terminator, for errors.
-fn name(command: &Command) -> String {
-    String::from_utf8_lossy(&command.to_bytes())
-        .trim_end()
-        .to_owned()
-}
-
-/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
-/// reported as a protocol error rather than a panic.
-fn unexpected(command: &Command, reply: Option<Reply>) -> K6485Error {
-    K6485Error::Protocol {
-        command: name(command),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
-    }
+engine::line_session! {
+    K6485Session: "k6485", K6485Config, Identity, K6485Error; Command, Reply, ReplyError
 }
 
 impl K6485Session {
@@ -227,14 +212,9 @@ impl K6485Session {
                 return Ok(None);
             }
             let line = link.line(free.saturating_add(timeout)).await?;
-            match Reply::parse(&command, &line) {
-                Ok(reply) => Ok(Some(reply)),
-                Err(source) => Err(Fault::Answer(K6485Error::Protocol {
-                    command: name.clone(),
-                    reply: line,
-                    source,
-                })),
-            }
+            Reply::parse(&command, &line)
+                .map(Some)
+                .map_err(|source| Fault::Answer(protocol(&command, &line, source)))
         };
         let bytes = command.to_bytes();
         let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await;

@@ -55,19 +55,9 @@ pub struct Sr830Session {
 }
 
 // Replies go to GPIB until `OUTX 0` is sent again.
-engine::line_session!(Sr830Session, Sr830Config, Identity, Sr830Error, "sr830",
-    after_reopen: ("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes()));
-
-/// A reply of the wrong kind: cannot happen, since [`Reply::parse`] answers by query;
-/// reported as a protocol error rather than a panic.
-pub(super) fn unexpected(command: &Command, reply: Option<Reply>) -> Sr830Error {
-    let mut name = Vec::new();
-    command.encode_body(&mut name);
-    Sr830Error::Protocol {
-        command: String::from_utf8_lossy(&name).into_owned(),
-        reply: reply.map(|r| r.to_bytes()).unwrap_or_default(),
-        source: ReplyError::BadValue,
-    }
+engine::line_session! {
+    Sr830Session: "sr830", Sr830Config, Identity, Sr830Error; Command, Reply, ReplyError;
+    after_reopen: ("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes())
 }
 
 impl Sr830Session {
@@ -275,8 +265,7 @@ impl Sr830Session {
         link: &Link,
         command: &Command,
     ) -> Result<Option<Reply>, Sr830Error> {
-        let bytes = command.to_bytes();
-        let name = String::from_utf8_lossy(&bytes).trim_end().to_string();
+        let (bytes, name) = (command.to_bytes(), name(command));
         let rereadable = command.expects_reply()
             && !matches!(
                 command,
@@ -289,13 +278,9 @@ impl Sr830Session {
                 return Ok(None);
             }
             let line = link.line(link.now().saturating_add(timeout)).await?;
-            Reply::parse(command, &line).map(Some).map_err(|source| {
-                Fault::Answer(Sr830Error::Protocol {
-                    command: name.clone(),
-                    reply: line,
-                    source,
-                })
-            })
+            Reply::parse(command, &line)
+                .map(Some)
+                .map_err(|source| Fault::Answer(protocol(command, &line, source)))
         };
         let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await?;
         match *command {

@@ -71,24 +71,13 @@ impl Sr830Session {
             };
             read.restarts = 0;
             reading.autorange_steps = read.steps;
-            if !self.config.autorange {
-                return Ok(reading);
-            }
-            let f = reading.flags;
-            let next = ranging::fixed_next(
-                self.sensitivity,
-                reading.r_mean,
-                f.input_overload || f.output_overload,
-                !f.any(),
-                self.config.min_fraction,
-            );
-            let Some(next) = next else {
+            let Some(next) = self.next_range(&reading, false) else {
                 return Ok(reading);
             };
             if read.exhausted(MAX_AUTORANGE_STEPS) {
                 return Err(gave_up(read.steps, reading));
             }
-            debug!(from = %self.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange step");
+            debug!(from = %self.sensitivity, to = %next, flags = ?reading.flags, r = reading.r_mean, "sr830: autorange step");
             self.ask(link, &Command::SetSensitivity(next)).await?;
             read.steps += 1;
         }
@@ -181,6 +170,19 @@ impl Sr830Session {
         }
     }
 
+    /// The range autoranging moves to after `reading`, by the targeted rule or the
+    /// fixed one ([`ranging`]); `None` to keep it, or without autorange.
+    fn next_range(&self, reading: &Reading, targeted: bool) -> Option<Sensitivity> {
+        let f = reading.flags;
+        let (at, r, min) = (self.sensitivity, reading.r_mean, self.config.min_fraction);
+        let (over, clean) = (f.input_overload || f.output_overload, !f.any());
+        match (self.config.autorange, targeted) {
+            (false, _) => None,
+            (true, false) => ranging::fixed_next(at, r, over, clean, min),
+            (true, true) => ranging::targeted_next(at, r, reading.r_std, over, clean, min),
+        }
+    }
+
     /// The reading of a window `w` at the present settings, flagged from `status`;
     /// without a window (every snapshot clipped until the cap), an overload.
     fn reading(
@@ -266,25 +268,14 @@ impl Sr830Session {
                 End::Range(next) => next,
                 End::Read(reading) => {
                     read.restarts = 0;
-                    if !self.config.autorange || t.capped {
-                        return Ok(reading);
-                    }
-                    let f = reading.flags;
-                    let next = ranging::targeted_next(
-                        self.sensitivity,
-                        reading.r_mean,
-                        reading.r_std,
-                        f.input_overload || f.output_overload,
-                        !f.any(),
-                        self.config.min_fraction,
-                    );
+                    let next = self.next_range(&reading, true).filter(|_| !t.capped);
                     let Some(next) = next else {
                         return Ok(reading);
                     };
                     if read.exhausted(MAX_AUTORANGE_STEPS) {
                         return Err(gave_up(read.steps, reading));
                     }
-                    debug!(from = %self.sensitivity, to = %next, flags = ?f, r = reading.r_mean, "sr830: autorange");
+                    debug!(from = %self.sensitivity, to = %next, flags = ?reading.flags, r = reading.r_mean, "sr830: autorange");
                     next
                 }
             };
