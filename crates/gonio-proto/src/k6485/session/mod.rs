@@ -56,13 +56,6 @@ engine::line_session! {
 }
 
 impl K6485Session {
-    /// The port was reopened: whatever the instrument was doing is unknown now, and
-    /// it may have restarted.
-    fn reopened(&mut self, now: Duration) {
-        self.busy_until = now;
-        self.mark_unsettled(now);
-    }
-
     /// A session for the picoammeter on `port` (its name, for errors), at `now`;
     /// nothing is sent until [`start_setup`](Self::start_setup). Fails if `config` does
     /// not [`validate`](K6485Config::validate).
@@ -175,9 +168,10 @@ impl K6485Session {
         tracing::debug!(range = %r, settle = ?wait, "k6485: range set");
     }
 
-    /// After a reconnection: the instrument may have restarted, so wait as after a
-    /// range change.
-    fn mark_unsettled(&mut self, now: Duration) {
+    /// The port was reopened: whatever the instrument was doing is unknown now, and it
+    /// may have restarted, so readings wait as after a range change.
+    fn reopened(&mut self, now: Duration) {
+        self.busy_until = now;
         let wait = self.config.range_settle().max(self.input_settle_time());
         self.settled_at = self.settled_at.max(now.saturating_add(wait));
     }

@@ -61,13 +61,6 @@ engine::line_session! {
 }
 
 impl Sr830Session {
-    /// The port was reopened (and `OUTX 0` re-sent): the instrument may have
-    /// restarted, so its filters settle again.
-    fn reopened(&mut self, now: Duration) {
-        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
-        self.mark_unsettled(now);
-    }
-
     /// A session for the lock-in on `port` (its name, for errors), at `now`; nothing is
     /// sent until [`start_setup`](Self::start_setup). Fails if `config` does not
     /// [`validate`](Sr830Config::validate).
@@ -152,11 +145,8 @@ impl Sr830Session {
         sensitivity: Sensitivity,
         now: Duration,
     ) -> Task<'_, (), Sr830Error> {
-        self.start_set(
-            "sr830.set_sensitivity",
-            Command::SetSensitivity(sensitivity),
-            now,
-        )
+        let set = Command::SetSensitivity(sensitivity);
+        self.start_set("sr830.set_sensitivity", set, now)
     }
 
     /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
@@ -165,8 +155,8 @@ impl Sr830Session {
         time_constant: TimeConstant,
         now: Duration,
     ) -> Task<'_, (), Sr830Error> {
-        let command = Command::SetTimeConstant(time_constant);
-        self.start_set("sr830.set_time_constant", command, now)
+        let set = Command::SetTimeConstant(time_constant);
+        self.start_set("sr830.set_time_constant", set, now)
     }
 
     /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
@@ -232,6 +222,13 @@ impl Sr830Session {
     /// The filter slope.
     pub fn slope(&self) -> FilterSlope {
         self.slope
+    }
+
+    /// The port was reopened (and `OUTX 0` re-sent): the instrument may have
+    /// restarted, so its filters settle again.
+    fn reopened(&mut self, now: Duration) {
+        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+        self.mark_unsettled(now);
     }
 
     /// Readings wait a full settling time from `now`, at the current settings. A
