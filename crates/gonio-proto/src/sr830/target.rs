@@ -228,9 +228,11 @@ fn whitened_rows<'a>(
 #[allow(clippy::needless_range_loop)]
 fn solve(taus: &[f64], values: &[f64], m: usize, kept: usize) -> Option<TransientFit> {
     let p = kept + 1;
-    let rows: Vec<([f64; MAX_PARAMS], f64)> = whitened_rows(taus, values, m, kept).collect();
+    // Columns of the scaled design, and the right-hand side, reduced in place.
+    let (mut a, mut y): (Vec<[f64; MAX_PARAMS]>, Vec<f64>) =
+        whitened_rows(taus, values, m, kept).unzip();
     let mut scale = [0.0; MAX_PARAMS];
-    for (w, _) in &rows {
+    for w in &a {
         for j in 0..p {
             scale[j] += w[j] * w[j];
         }
@@ -241,18 +243,11 @@ fn solve(taus: &[f64], values: &[f64], m: usize, kept: usize) -> Option<Transien
         }
         *v = v.sqrt();
     }
-    // Columns of the scaled design, and the right-hand side, reduced in place.
-    let mut a: Vec<[f64; MAX_PARAMS]> = rows
-        .iter()
-        .map(|(w, _)| {
-            let mut r = [0.0; MAX_PARAMS];
-            for j in 0..p {
-                r[j] = w[j] / scale[j];
-            }
-            r
-        })
-        .collect();
-    let mut y: Vec<f64> = rows.iter().map(|(_, y)| *y).collect();
+    for w in &mut a {
+        for j in 0..p {
+            w[j] /= scale[j];
+        }
+    }
     for j in 0..p {
         let norm = (j..m).map(|i| a[i][j] * a[i][j]).sum::<f64>().sqrt();
         if norm <= 1e-12 {
@@ -685,20 +680,10 @@ pub fn choose_time_constant(
     choices: impl IntoIterator<Item = TimeConstant>,
     exchange_s: f64,
 ) -> Option<ReadEstimate> {
-    choices
-        .into_iter()
-        .map(|tc| {
-            estimate(
-                expected,
-                0.25 * expected,
-                target,
-                noise,
-                slope,
-                tc,
-                exchange_s,
-            )
-        })
-        .min_by(|a, b| a.total_s().total_cmp(&b.total_s()))
+    let step = 0.25 * expected;
+    let time = |tc| estimate(expected, step, target, noise, slope, tc, exchange_s);
+    let fastest = |a: &ReadEstimate, b: &ReadEstimate| a.total_s().total_cmp(&b.total_s());
+    choices.into_iter().map(time).min_by(fastest)
 }
 
 /// The absolute floor a plan without `sigma_absolute` reads to: `sigma_relative` of
