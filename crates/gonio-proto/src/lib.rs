@@ -66,7 +66,7 @@ pub mod smc100;
 pub mod sr830;
 pub mod timing;
 
-pub use engine::Task;
+pub use engine::{SessionCore, Task};
 pub use facts::Unconfirmed;
 pub use framing::{FrameError, Framer, LineFramer};
 pub use link::TransportError;

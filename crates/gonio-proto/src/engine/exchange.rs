@@ -62,57 +62,10 @@ pub(crate) trait Wire {
     fn reopened(&mut self, now: Duration);
 }
 
-/// The [`Wire`] items every line family states alike, from its `config`
-/// (`reconnect_attempts`, `reconnect_delay()`), its `port` and `retried` fields and its
-/// error's `Transport`, `Disconnected` and `Protocol` variants (a garbled reply, like a
-/// lost one, is worth sending again). The family adds `reopened` (what a reopening
-/// forgets) and, if it needs one, `after_reopen`.
-macro_rules! line_wire {
-    ($error:ident, $family:literal) => {
-        type Error = $error;
-        const FAMILY: &'static str = $family;
-
-        fn policy(&self) -> $crate::engine::Policy {
-            $crate::engine::Policy {
-                reconnect_attempts: self.config.reconnect_attempts,
-                reconnect_delay: self.config.reconnect_delay(),
-            }
-        }
-
-        fn port(&self) -> &str {
-            &self.port
-        }
-
-        fn transport(command: String, source: $crate::TransportError) -> $error {
-            $error::Transport { command, source }
-        }
-
-        fn disconnected(&self, attempts: u32, source: $crate::TransportError) -> $error {
-            $error::Disconnected {
-                port: self.port.clone(),
-                attempts,
-                source,
-            }
-        }
-
-        fn is_transient(e: &$error) -> bool {
-            match e {
-                $error::Protocol { .. } => true,
-                $error::Transport { source, .. } => source.is_transient(),
-                _ => false,
-            }
-        }
-
-        fn retried(&mut self) {
-            self.retried += 1;
-        }
-    };
-}
-pub(crate) use line_wire;
-
 /// Sends `bytes` (the command `command`) and returns what `receive` makes of the
-/// answer (it has the session, to note what the answer changes), sending again up to `retries` times after a transient fault and reopening
-/// a vanished port as the session's [`Policy`] allows.
+/// answer (it has the session, to note what the answer changes), sending again up to
+/// `retries` times after a transient fault and reopening a vanished port as the
+/// session's [`Policy`] allows.
 pub(crate) async fn exchange<S: Wire, T>(
     s: &mut S,
     link: &Link,

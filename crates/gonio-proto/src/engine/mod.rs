@@ -16,10 +16,11 @@
 //! port after a pause.
 
 mod exchange;
+mod session;
 
-pub(crate) use exchange::{
-    Fault, Policy, Wire, exchange, line_wire, reopen_at_once, send_reopening,
-};
+pub(crate) use exchange::{Fault, Policy, Wire, exchange, reopen_at_once, send_reopening};
+pub use session::SessionCore;
+pub(crate) use session::{Read, line_session, receive};
 
 use std::cell::{Cell, RefCell};
 use std::future::Future;
@@ -33,14 +34,9 @@ use crate::link::{Deadline, Io, Operation, TransportError};
 /// What happened while the operation waited: the answer to its [`Pending`].
 #[derive(Debug)]
 enum Event {
-    /// The outcome of [`Pending::Transmit`].
-    Sent(Result<(), TransportError>),
-    /// The outcome of [`Pending::Reconnect`].
-    Reconnected(Result<(), TransportError>),
-    /// A line, while [`Pending::Reply`].
-    Line(Vec<u8>),
-    /// A link fault or the reply's timeout, while [`Pending::Reply`].
-    LinkError(TransportError),
+    /// The outcome of [`Pending::Transmit`] or [`Pending::Reconnect`] (no bytes), or
+    /// of [`Pending::Reply`]: a line, a link fault or the reply's timeout.
+    Io(Result<Vec<u8>, TransportError>),
     /// A [`Pending::Poll`] or [`Pending::Sleep`] ended.
     Timer,
     /// The operator aborted at a [`Pending::Poll`].
@@ -118,30 +114,28 @@ impl Link {
         self.0.clears.set(self.0.clears.get() + 1);
     }
 
+    /// Waits on an I/O `pending` and returns its outcome.
+    async fn io(&self, pending: Pending) -> Result<Vec<u8>, TransportError> {
+        match self.wait(pending).await {
+            Event::Io(r) => r,
+            other => unreachable!("I/O answered by {other:?}"),
+        }
+    }
+
     /// Sends `bytes`.
     pub(crate) async fn send(&self, bytes: Vec<u8>) -> Result<(), TransportError> {
-        match self.wait(Pending::Transmit(bytes)).await {
-            Event::Sent(r) => r,
-            other => unreachable!("a transmission answered by {other:?}"),
-        }
+        self.io(Pending::Transmit(bytes)).await.map(drop)
     }
 
     /// Reopens the port.
     pub(crate) async fn reconnect(&self) -> Result<(), TransportError> {
-        match self.wait(Pending::Reconnect).await {
-            Event::Reconnected(r) => r,
-            other => unreachable!("a reconnection answered by {other:?}"),
-        }
+        self.io(Pending::Reconnect).await.map(drop)
     }
 
     /// The next line, due by `due`: a link fault, or [`TransportError::Timeout`] of the
     /// time waited when none came.
     pub(crate) async fn line(&self, due: Duration) -> Result<Vec<u8>, TransportError> {
-        match self.wait(Pending::Reply(due)).await {
-            Event::Line(l) => Ok(l),
-            Event::LinkError(e) => Err(e),
-            other => unreachable!("a reply answered by {other:?}"),
-        }
+        self.io(Pending::Reply(due)).await
     }
 
     /// Waits until `until`.
@@ -205,6 +199,21 @@ impl<'s, T, E: std::fmt::Display> Task<'s, T, E> {
         };
         task.feed(now, None);
         task
+    }
+
+    /// Starts the operation `name` at `now` on the session `s`: `op` is its `async fn`
+    /// (or an `async` closure), given the session and the link.
+    pub(crate) fn run<S: 's>(
+        name: &'static str,
+        now: Duration,
+        s: &'s mut S,
+        op: impl AsyncFnOnce(&mut S, &Link) -> Result<T, E> + 's,
+    ) -> Self
+    where
+        T: 's,
+        E: 's,
+    {
+        Task::new(name, now, move |link| async move { op(s, &link).await })
     }
 
     fn feed(&mut self, now: Duration, event: Option<Event>) {
@@ -285,28 +294,28 @@ impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
 
     fn handle_sent(&mut self, now: Duration, result: Result<(), TransportError>) {
         match self.waiting() {
-            Some(Pending::Transmit(_)) => self.feed(now, Some(Event::Sent(result))),
+            Some(Pending::Transmit(_)) => self.feed(now, Some(Event::Io(result.map(|()| vec![])))),
             _ => self.ignored("sent"),
         }
     }
 
     fn handle_reconnected(&mut self, now: Duration, result: Result<(), TransportError>) {
         match self.waiting() {
-            Some(Pending::Reconnect) => self.feed(now, Some(Event::Reconnected(result))),
+            Some(Pending::Reconnect) => self.feed(now, Some(Event::Io(result.map(|()| vec![])))),
             _ => self.ignored("reconnected"),
         }
     }
 
     fn handle_line(&mut self, now: Duration, line: &[u8]) {
         match self.waiting() {
-            Some(Pending::Reply(_)) => self.feed(now, Some(Event::Line(line.to_vec()))),
+            Some(Pending::Reply(_)) => self.feed(now, Some(Event::Io(Ok(line.to_vec())))),
             _ => self.ignored("line"),
         }
     }
 
     fn handle_link_error(&mut self, now: Duration, error: TransportError) {
         match self.waiting() {
-            Some(Pending::Reply(_)) => self.feed(now, Some(Event::LinkError(error))),
+            Some(Pending::Reply(_)) => self.feed(now, Some(Event::Io(Err(error)))),
             _ => self.ignored("link error"),
         }
     }
@@ -315,7 +324,7 @@ impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
         match self.waiting() {
             Some(Pending::Reply(deadline)) => {
                 let waited = deadline.saturating_sub(self.since);
-                self.feed(now, Some(Event::LinkError(TransportError::Timeout(waited))));
+                self.feed(now, Some(Event::Io(Err(TransportError::Timeout(waited)))));
             }
             Some(Pending::Poll(_) | Pending::Sleep(_)) => self.feed(now, Some(Event::Timer)),
             _ => self.ignored("timeout"),

@@ -112,36 +112,3 @@ pub fn targeted_changes(
         targeted_next(at, r, r_std, over, !over, min_fraction)
     })
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_fixed_reading_walks_one_range_at_a_time() {
-        let v = |i| Sensitivity::new(i).unwrap();
-        // 22 nV of noise from 1 V: down to 200 nV (its tenth, 20 nV, holds it).
-        assert_eq!(fixed_changes(Sensitivity::LEAST, 2.2e-8, 0.1), (20, v(6)));
-        // A signal over range steps up until it fits: 3 mV from 1 mV is 2 steps.
-        assert_eq!(fixed_changes(v(17), 3e-3, 0.1), (2, v(19)));
-        // Within range: nothing.
-        assert_eq!(fixed_changes(v(19), 3e-3, 0.1), (0, v(19)));
-        // Nothing at all reads down to the most sensitive range.
-        assert_eq!(
-            fixed_changes(Sensitivity::LEAST, 0.0, 0.1).1,
-            Sensitivity::MOST
-        );
-    }
-
-    #[test]
-    fn a_targeted_reading_jumps_to_the_range_that_fits() {
-        let v = |i| Sensitivity::new(i).unwrap();
-        // 22 nV ± 10 nV from 1 V: one change, to 100 nV (0.9 × 100 nV ≥ 62 nV).
-        assert_eq!(
-            targeted_changes(Sensitivity::LEAST, 2.2e-8, 1e-8, 0.1),
-            (1, v(5))
-        );
-        // 3 mV from 1 mV: three ranges up to 10 mV, which holds it.
-        assert_eq!(targeted_changes(v(17), 3e-3, 0.0, 0.1), (1, v(20)));
-    }
-}

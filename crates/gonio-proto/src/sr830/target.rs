@@ -101,6 +101,19 @@ pub fn step_residual(order: usize, tau: f64) -> f64 {
 /// Most parameters of the transient model: the value and four coefficients (24 dB/oct).
 const MAX_PARAMS: usize = 5;
 
+/// The model's basis at `tau` for `k` transient terms: 1 (the value), then
+/// e^(−τ) τ^j for j < k; the rest 0.
+fn basis(tau: f64, k: usize) -> [f64; MAX_PARAMS] {
+    let mut b = [0.0; MAX_PARAMS];
+    b[0] = 1.0;
+    let mut p = (-tau).exp();
+    for v in b.iter_mut().skip(1).take(k) {
+        *v = p;
+        p *= tau;
+    }
+    b
+}
+
 /// The transient model fitted to snapshots ([`fit_transient`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransientFit {
@@ -131,13 +144,8 @@ impl TransientFit {
     /// The variance of the fitted transient at `tau`, for unit snapshot variance.
     pub fn transient_variance(&self, tau: f64) -> f64 {
         let k = self.coefficients.len();
-        let e = (-tau).exp();
-        let mut b = [0.0; MAX_PARAMS];
-        let mut p = e;
-        for v in b.iter_mut().skip(1).take(k) {
-            *v = p;
-            p *= tau;
-        }
+        let mut b = basis(tau, k);
+        b[0] = 0.0;
         quad(&self.covariance, &b, k + 1)
     }
 
@@ -196,16 +204,7 @@ fn whitened_rows<'a>(
     m: usize,
     kept: usize,
 ) -> impl Iterator<Item = ([f64; MAX_PARAMS], f64)> + 'a {
-    let row = move |tau: f64| {
-        let mut r = [0.0; MAX_PARAMS];
-        r[0] = 1.0;
-        let mut p = (-tau).exp();
-        for v in r.iter_mut().skip(1).take(kept) {
-            *v = p;
-            p *= tau;
-        }
-        r
-    };
+    let row = move |tau: f64| basis(tau, kept);
     (0..m).map(move |i| {
         let (x, y) = (row(taus[i]), values[i]);
         if i == 0 {
@@ -229,9 +228,11 @@ fn whitened_rows<'a>(
 #[allow(clippy::needless_range_loop)]
 fn solve(taus: &[f64], values: &[f64], m: usize, kept: usize) -> Option<TransientFit> {
     let p = kept + 1;
-    let rows: Vec<([f64; MAX_PARAMS], f64)> = whitened_rows(taus, values, m, kept).collect();
+    // Columns of the scaled design, and the right-hand side, reduced in place.
+    let (mut a, mut y): (Vec<[f64; MAX_PARAMS]>, Vec<f64>) =
+        whitened_rows(taus, values, m, kept).unzip();
     let mut scale = [0.0; MAX_PARAMS];
-    for (w, _) in &rows {
+    for w in &a {
         for j in 0..p {
             scale[j] += w[j] * w[j];
         }
@@ -242,18 +243,11 @@ fn solve(taus: &[f64], values: &[f64], m: usize, kept: usize) -> Option<Transien
         }
         *v = v.sqrt();
     }
-    // Columns of the scaled design, and the right-hand side, reduced in place.
-    let mut a: Vec<[f64; MAX_PARAMS]> = rows
-        .iter()
-        .map(|(w, _)| {
-            let mut r = [0.0; MAX_PARAMS];
-            for j in 0..p {
-                r[j] = w[j] / scale[j];
-            }
-            r
-        })
-        .collect();
-    let mut y: Vec<f64> = rows.iter().map(|(_, y)| *y).collect();
+    for w in &mut a {
+        for j in 0..p {
+            w[j] /= scale[j];
+        }
+    }
     for j in 0..p {
         let norm = (j..m).map(|i| a[i][j] * a[i][j]).sum::<f64>().sqrt();
         if norm <= 1e-12 {
@@ -428,15 +422,37 @@ impl Sequential {
         target: &ReadTarget,
         noise: Option<&dyn Fn(f64) -> f64>,
     ) -> Assessment {
-        let k = self.snaps.len();
-        let none = Assessment {
-            window_start: None,
-            sigma_mean: f64::INFINITY,
-            target: f64::INFINITY,
-            done: false,
+        let best = self.best_window(target, noise);
+        self.start = best.map(|(s, _)| s);
+        let Some((s, sigma)) = best else {
+            return Assessment {
+                window_start: None,
+                sigma_mean: f64::INFINITY,
+                target: f64::INFINITY,
+                done: false,
+            };
         };
+        let n = self.snaps.len() - s;
+        let mean = self.snaps[s..].iter().map(|x| x.r).sum::<f64>() / n as f64;
+        let goal = target.sigma(mean);
+        Assessment {
+            window_start: Some(s),
+            sigma_mean: sigma,
+            target: goal,
+            done: sigma <= goal && n >= target.min_samples.max(1),
+        }
+    }
+
+    /// The transient refitted (up to [`MAX_REFITS`]), then the window's first snapshot
+    /// and the standard deviation of its mean, when a window can be chosen.
+    fn best_window(
+        &mut self,
+        target: &ReadTarget,
+        noise: Option<&dyn Fn(f64) -> f64>,
+    ) -> Option<(usize, f64)> {
+        let k = self.snaps.len();
         if k == 0 {
-            return none;
+            return None;
         }
         if !self.settled_before && (self.fit.is_none() || k <= MAX_REFITS) {
             let taus: Vec<f64> = self.snaps.iter().map(|s| s.tau).collect();
@@ -446,8 +462,7 @@ impl Sequential {
             }
         }
         if !self.settled_before && self.fit.is_none() {
-            self.start = None;
-            return none;
+            return None;
         }
         let value = self.fit.as_ref().map_or(self.snaps[k - 1].r, |f| f.value);
         let var = match noise {
@@ -460,10 +475,7 @@ impl Sequential {
         let var_bias = match (&self.fit, var) {
             (None, _) => 0.0,
             (Some(_), Some(v)) => v,
-            (Some(_), None) => {
-                self.start = None;
-                return none;
-            }
+            (Some(_), None) => return None,
         };
         let allowed = TRANSIENT_FRACTION * target.sigma(value);
         // Backwards over the window's start s: the sums of R, R², the transient's
@@ -471,7 +483,7 @@ impl Sequential {
         let p = self.fit.as_ref().map_or(0, |f| f.coefficients.len());
         let (mut sum_r, mut sum_r2) = (0.0, 0.0);
         let shift = self.snaps[k - 1].r;
-        let mut basis = [0.0; MAX_PARAMS];
+        let mut sum_b = [0.0; MAX_PARAMS];
         let (mut corr, mut tail) = (0.0, 0.0);
         let mut best: Option<(usize, f64)> = None;
         for s in (0..k).rev() {
@@ -488,15 +500,11 @@ impl Sequential {
             let n = (k - s) as f64;
             let bias = match &self.fit {
                 Some(f) => {
-                    let e = (-snap.tau).exp();
-                    let mut pw = e;
-                    for v in basis.iter_mut().skip(1).take(p) {
-                        *v += pw;
-                        pw *= snap.tau;
-                    }
+                    let b = basis(snap.tau, p);
                     let mut mean_b = [0.0; MAX_PARAMS];
                     for j in 1..=p {
-                        mean_b[j] = basis[j] / n;
+                        sum_b[j] += b[j];
+                        mean_b[j] = sum_b[j] / n;
                     }
                     let t: f64 = (1..=p).map(|j| mean_b[j] * f.coefficients[j - 1]).sum();
                     t.abs() + 2.0 * (var_bias * quad(&f.covariance, &mean_b, p + 1)).sqrt()
@@ -522,20 +530,7 @@ impl Sequential {
                 best = Some((s, sigma));
             }
         }
-        let Some((s, sigma)) = best else {
-            self.start = None;
-            return none;
-        };
-        self.start = Some(s);
-        let n = k - s;
-        let mean = self.snaps[s..].iter().map(|x| x.r).sum::<f64>() / n as f64;
-        let goal = target.sigma(mean);
-        Assessment {
-            window_start: Some(s),
-            sigma_mean: sigma,
-            target: goal,
-            done: sigma <= goal && n >= target.min_samples.max(1),
-        }
+        best
     }
 
     /// The window's means, or, when no window could be chosen (a capped reading),
@@ -685,20 +680,10 @@ pub fn choose_time_constant(
     choices: impl IntoIterator<Item = TimeConstant>,
     exchange_s: f64,
 ) -> Option<ReadEstimate> {
-    choices
-        .into_iter()
-        .map(|tc| {
-            estimate(
-                expected,
-                0.25 * expected,
-                target,
-                noise,
-                slope,
-                tc,
-                exchange_s,
-            )
-        })
-        .min_by(|a, b| a.total_s().total_cmp(&b.total_s()))
+    let step = 0.25 * expected;
+    let time = |tc| estimate(expected, step, target, noise, slope, tc, exchange_s);
+    let fastest = |a: &ReadEstimate, b: &ReadEstimate| a.total_s().total_cmp(&b.total_s());
+    choices.into_iter().map(time).min_by(fastest)
 }
 
 /// The absolute floor a plan without `sigma_absolute` reads to: `sigma_relative` of

@@ -3,11 +3,12 @@
 //! known law, and the expected times.
 
 use gonio_core::rng::SplitMix64;
+use gonio_proto::sr830::ranging::{fixed_changes, targeted_changes};
 use gonio_proto::sr830::target::{
     NoiseDensity, ReadTarget, Sequential, TRANSIENT_FRACTION, choose_time_constant, estimate,
     fit_transient, step_residual,
 };
-use gonio_proto::sr830::{FilterSlope, TimeConstant};
+use gonio_proto::sr830::{FilterSlope, Sensitivity, TimeConstant};
 
 /// The output of an N-stage RC cascade (time constant 1) with constant input `u`,
 /// from stage deviations `z0` (stage 1 first) at τ = 0: stage k's deviation is
@@ -373,4 +374,34 @@ fn the_floor_is_the_precision_the_cap_allows_on_the_dimmest_signal() {
     assert!(time(s) <= half && time(s * 0.99) > half, "{s}");
     // About 20 µV: σ_rel·S against the floor density over 15 s.
     assert!((1e-5..4e-5).contains(&s), "{s}");
+}
+
+// Autoranging's rules, on a steady signal (moved from `sr830/ranging.rs`).
+
+#[test]
+fn a_fixed_reading_walks_one_range_at_a_time() {
+    let v = |i| Sensitivity::new(i).unwrap();
+    // 22 nV of noise from 1 V: down to 200 nV (its tenth, 20 nV, holds it).
+    assert_eq!(fixed_changes(Sensitivity::LEAST, 2.2e-8, 0.1), (20, v(6)));
+    // A signal over range steps up until it fits: 3 mV from 1 mV is 2 steps.
+    assert_eq!(fixed_changes(v(17), 3e-3, 0.1), (2, v(19)));
+    // Within range: nothing.
+    assert_eq!(fixed_changes(v(19), 3e-3, 0.1), (0, v(19)));
+    // Nothing at all reads down to the most sensitive range.
+    assert_eq!(
+        fixed_changes(Sensitivity::LEAST, 0.0, 0.1).1,
+        Sensitivity::MOST
+    );
+}
+
+#[test]
+fn a_targeted_reading_jumps_to_the_range_that_fits() {
+    let v = |i| Sensitivity::new(i).unwrap();
+    // 22 nV ± 10 nV from 1 V: one change, to 100 nV (0.9 × 100 nV ≥ 62 nV).
+    assert_eq!(
+        targeted_changes(Sensitivity::LEAST, 2.2e-8, 1e-8, 0.1),
+        (1, v(5))
+    );
+    // 3 mV from 1 mV: three ranges up to 10 mV, which holds it.
+    assert_eq!(targeted_changes(v(17), 3e-3, 0.0, 0.1), (1, v(20)));
 }

@@ -1,15 +1,18 @@
-//! The picoammeter's policy as a sans-IO state machine: [`K6485Session`].
-//!
-//! `ops` holds the exchange (a command and, for a query, its reply once the instrument
-//! has finished measuring) and the operations (set-up, a reading, one command), each an
-//! `async fn` the engine runs.
-
-mod ops;
+//! The picoammeter's policy as a sans-IO state machine, [`K6485Session`]: its
+//! operations as the manual's procedures (set-up, a reading, one command), each an
+//! `async fn` the engine runs, and its exchange (a command and, for a query, its reply
+//! once the instrument has finished measuring).
 
 use std::time::Duration;
 
-use super::{Command, Identity, K6485Config, K6485Error, PicoReading, Range, Reply};
-use crate::engine::{Task, secs};
+use tracing::debug;
+
+use super::{
+    Command, Current, Identity, K6485Config, K6485Error, MAX_AUTORANGE_STEPS, PicoFlags,
+    PicoReading, Range, Reply, ReplyError, Sample, StatusWord,
+};
+use crate::engine::{self, Fault, Link, Read, SessionCore, Task, secs};
+use crate::number;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
 /// a reading may start (after a range change or a change of the light), when the
@@ -40,17 +43,16 @@ use crate::engine::{Task, secs};
 /// port.
 #[derive(Clone, Debug, PartialEq)]
 pub struct K6485Session {
-    config: K6485Config,
-    /// The port's name, for errors.
-    port: String,
+    core: SessionCore<K6485Config, Identity>,
     range: Range,
     /// From this time on, readings are trustworthy.
     settled_at: Duration,
     /// When the instrument will have finished the measurements asked of it.
     busy_until: Duration,
-    reconnects: usize,
-    retried: u64,
-    identity: Option<Identity>,
+}
+
+engine::line_session! {
+    K6485Session: "k6485", K6485Config, Identity, K6485Error; Command, Reply, ReplyError
 }
 
 impl K6485Session {
@@ -64,14 +66,10 @@ impl K6485Session {
     ) -> Result<Self, K6485Error> {
         config.validate()?;
         Ok(K6485Session {
-            port: port.into(),
             range: config.range,
-            config,
+            core: SessionCore::new(config, port),
             settled_at: now,
             busy_until: now,
-            reconnects: 0,
-            retried: 0,
-            identity: None,
         })
     }
 
@@ -90,11 +88,7 @@ impl K6485Session {
     /// Integration and filter are set before the zero is acquired so that the zero is
     /// measured as the readings will be.
     pub fn start_setup(&mut self, now: Duration) -> Task<'_, Identity, K6485Error> {
-        Task::new(
-            "k6485.setup",
-            now,
-            |link| async move { self.setup(&link).await },
-        )
+        Task::run("k6485.setup", now, self, Self::setup)
     }
 
     /// One averaged reading: the settling wait, then `samples` × `READ?` (each answers
@@ -104,17 +98,13 @@ impl K6485Session {
     /// errors; an overflow on 20 mA, an overvoltage or a zero-checked reading is
     /// returned flagged, never valid.
     pub fn start_read(&mut self, now: Duration) -> Task<'_, PicoReading, K6485Error> {
-        Task::new(
-            "k6485.read",
-            now,
-            |link| async move { self.read(&link).await },
-        )
+        Task::run("k6485.read", now, self, Self::read)
     }
 
     /// Sets the range (`CURR:RANG`); readings wait the range-change settling.
     pub fn start_set_range(&mut self, range: Range, now: Duration) -> Task<'_, (), K6485Error> {
-        Task::new("k6485.set_range", now, move |link| async move {
-            self.ask(&link, Command::SetRange(range)).await.map(|_| ())
+        Task::run("k6485.set_range", now, self, async move |s, link| {
+            s.ask(link, Command::SetRange(range)).await.map(drop)
         })
     }
 
@@ -129,8 +119,8 @@ impl K6485Session {
         now: Duration,
     ) -> Task<'s, Option<Reply>, K6485Error> {
         let command = command.clone();
-        Task::new("k6485.execute", now, move |link| async move {
-            self.ask(&link, command).await
+        Task::run("k6485.execute", now, self, async move |s, link| {
+            s.ask(link, command).await
         })
     }
 
@@ -164,27 +154,6 @@ impl K6485Session {
         self.range
     }
 
-    /// The configuration.
-    pub fn config(&self) -> &K6485Config {
-        &self.config
-    }
-
-    /// The identity set-up read, once it has run.
-    pub fn identity(&self) -> Option<&Identity> {
-        self.identity.as_ref()
-    }
-
-    /// How many times the port was reopened.
-    pub fn reconnects(&self) -> usize {
-        self.reconnects
-    }
-
-    /// Queries asked again (or read cycles restarted) after a lost, late or garbled
-    /// reply.
-    pub fn retried(&self) -> u64 {
-        self.retried
-    }
-
     /// The instrument's measuring time for one `READ?` or `INIT`.
     fn read_time(&self) -> Duration {
         secs(self.config.read_s())
@@ -199,10 +168,233 @@ impl K6485Session {
         tracing::debug!(range = %r, settle = ?wait, "k6485: range set");
     }
 
-    /// After a reconnection: the instrument may have restarted, so wait as after a
-    /// range change.
-    fn mark_unsettled(&mut self, now: Duration) {
+    /// The port was reopened: whatever the instrument was doing is unknown now, and it
+    /// may have restarted, so readings wait as after a range change.
+    fn reopened(&mut self, now: Duration) {
+        self.busy_until = now;
         let wait = self.config.range_settle().max(self.input_settle_time());
         self.settled_at = self.settled_at.max(now.saturating_add(wait));
+    }
+
+    /// Sends `command` and, for a query, reads its reply.
+    ///
+    /// - The instrument runs commands in order, and `INIT` and `READ?` keep it
+    ///   measuring for the integration time × the repeat filter's count: the session
+    ///   tracks when it will be free (`busy_until`), and a reply is due the reply
+    ///   timeout after that.
+    /// - Only a query that reads without side effects (`*IDN?`, `CURR:RANG?`,
+    ///   `SYST:LFR?`, `READ?`, `FETC?`) is asked again after a lost or garbled reply,
+    ///   up to `retries` times (`READ?` takes a fresh reading, which is what was asked
+    ///   for). `SYST:ERR?` and `*ESR?` never are: reading them clears what they report.
+    /// - Nothing needs sending first on a reopened RS-232 port (unlike the SR830).
+    /// - `CURR:RANG` and `*RST` update the range tracked and start the wait after a
+    ///   range change.
+    async fn ask(&mut self, link: &Link, command: Command) -> Result<Option<Reply>, K6485Error> {
+        let name = name(&command);
+        let rereadable =
+            command.is_query() && !matches!(command, Command::NextError | Command::EventStatus);
+        let retries = if rereadable { self.config.retries } else { 0 };
+        let measuring = match command {
+            Command::Initiate | Command::Read => self.read_time(),
+            _ => Duration::ZERO,
+        };
+        let timeout = self.config.timeout();
+        let receive = async |s: &mut K6485Session| {
+            let free = s.busy_until.max(link.now()).saturating_add(measuring);
+            s.busy_until = free;
+            if !command.is_query() {
+                return Ok(None);
+            }
+            let line = link.line(free.saturating_add(timeout)).await?;
+            Reply::parse(&command, &line)
+                .map(Some)
+                .map_err(|source| Fault::Answer(protocol(&command, &line, source)))
+        };
+        let bytes = command.to_bytes();
+        let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await;
+        let reply = reply?;
+        match command {
+            Command::SetRange(r) => self.range_changed(link.now(), r),
+            Command::Reset => self.range_changed(link.now(), Range::default()),
+            _ => {}
+        }
+        Ok(reply)
+    }
+
+    /// `commands` in turn, none a query.
+    async fn send_all(&mut self, link: &Link, commands: &[Command]) -> Result<(), K6485Error> {
+        for c in commands {
+            self.ask(link, c.clone()).await?;
+        }
+        Ok(())
+    }
+
+    /// Set-up, as [`K6485Session::start_setup`] lists it.
+    async fn setup(&mut self, link: &Link) -> Result<Identity, K6485Error> {
+        let c = self.config.clone();
+        link.clear_input();
+        let identity = match self.ask(link, Command::Identify).await? {
+            Some(Reply::Identity(id)) if id.picoammeter().is_some() => id,
+            Some(Reply::Identity(id)) => return Err(K6485Error::WrongInstrument(id)),
+            other => return Err(unexpected(&Command::Identify, other)),
+        };
+        debug!(identity = %identity, "k6485: identified");
+        self.send_all(link, &[Command::Reset, Command::Clear])
+            .await?;
+        match self.ask(link, Command::LineFrequency).await? {
+            Some(Reply::LineFrequency(lf)) if lf.hz() == c.line_frequency_hz => {}
+            Some(Reply::LineFrequency(lf)) => {
+                return Err(K6485Error::LineFrequency {
+                    configured: c.line_frequency_hz,
+                    instrument: lf.hz(),
+                });
+            }
+            other => return Err(unexpected(&Command::LineFrequency, other)),
+        }
+        let mut configure = vec![
+            Command::FormatElements,
+            Command::TriggerCount(1),
+            Command::SetNplc(c.nplc),
+        ];
+        if c.filter_on() {
+            configure.extend([
+                Command::FilterType(c.filter_type),
+                Command::FilterCount(c.filter_count),
+                Command::Filter(true),
+            ]);
+        } else {
+            configure.push(Command::Filter(false));
+        }
+        configure.extend([Command::AutoRange(false), Command::ZeroCheck(true)]);
+        self.send_all(link, &configure).await?;
+        if c.zero_correct {
+            // The zero is an input offset current, the same on every range: measured
+            // where it is resolved best, the most sensitive range the session may use
+            // (the manual's example acquires on 2 nA, then autoranges).
+            let zero_range = if c.autorange { Range::MOST } else { c.range };
+            self.ask(link, Command::SetRange(zero_range)).await?;
+            // The zero is measured only once the range has settled.
+            self.settle(link).await;
+            let acquire = [
+                Command::Initiate,
+                Command::ZeroCorrectAcquire,
+                Command::ZeroCorrect(true),
+            ];
+            self.send_all(link, &acquire).await?;
+            if zero_range != c.range {
+                self.ask(link, Command::SetRange(c.range)).await?;
+            }
+        } else {
+            let range = [Command::SetRange(c.range), Command::ZeroCorrect(false)];
+            self.send_all(link, &range).await?;
+        }
+        self.ask(link, Command::ZeroCheck(false)).await?;
+        // Also proves every command before it has run.
+        match self.ask(link, Command::NextError).await? {
+            Some(Reply::Error(e)) if e.is_none() => {}
+            Some(Reply::Error(e)) => return Err(K6485Error::Rejected(e)),
+            other => return Err(unexpected(&Command::NextError, other)),
+        }
+        self.core.identity = Some(identity.clone());
+        Ok(identity)
+    }
+
+    /// A reading, cycle after cycle: see [`cycle`](Self::cycle). With autorange, an
+    /// overflow steps one range up, a clean reading under `min_fraction` of full scale
+    /// one range down, and the cycle runs again.
+    async fn read(&mut self, link: &Link) -> Result<PicoReading, K6485Error> {
+        let mut read = Read::new("k6485");
+        loop {
+            let Some(samples) = self.cycle(link).await? else {
+                read.restart(|restarts| K6485Error::Interrupted { restarts })?;
+                self.core.retried += 1;
+                continue;
+            };
+            read.restarts = 0;
+            let reading = self.reading(&samples, read.steps);
+            let f = reading.flags;
+            let small =
+                !f.any() && reading.mean_a.abs() < self.config.min_fraction * self.range.amps();
+            let next = if f.overflow {
+                self.range.up()
+            } else if small {
+                self.range.down()
+            } else {
+                None
+            };
+            let Some(next) = next.filter(|_| self.config.autorange) else {
+                return Ok(reading);
+            };
+            if read.exhausted(MAX_AUTORANGE_STEPS) {
+                let last = Box::new(reading);
+                return Err(K6485Error::Autorange {
+                    steps: read.steps,
+                    last,
+                });
+            }
+            debug!(from = %self.range, to = %next, flags = ?f, mean = reading.mean_a, "k6485: autorange step");
+            self.ask(link, Command::SetRange(next)).await?;
+            read.steps += 1;
+        }
+    }
+
+    /// Waits until readings are trustworthy (`settled_at`).
+    async fn settle(&self, link: &Link) {
+        if link.now() < self.settled_at {
+            debug!(wait = ?(self.settled_at - link.now()), "k6485: waiting for the input to settle");
+            link.sleep(self.settled_at).await;
+        }
+    }
+
+    /// One read cycle: wait until settled, then `READ?` `samples` times (each answers
+    /// after its own integration, so they are spaced by it). With autorange an
+    /// overflow ends it at once (the other samples would overflow too). `None` if the
+    /// port was reopened meanwhile.
+    async fn cycle(&mut self, link: &Link) -> Result<Option<Vec<Sample>>, K6485Error> {
+        let reconnects = self.core.reconnects;
+        self.settle(link).await;
+        let mut samples = Vec::new();
+        while samples.len() < self.config.samples {
+            let sample = match self.ask(link, Command::Read).await? {
+                Some(Reply::Sample(x)) => x,
+                other => return Err(unexpected(&Command::Read, other)),
+            };
+            if self.core.reconnects != reconnects {
+                return Ok(None);
+            }
+            samples.push(sample);
+            let overflowed = sample.current == Current::Overflow || sample.status.overflow();
+            if overflowed && self.config.autorange && self.range.up().is_some() {
+                break;
+            }
+        }
+        Ok(Some(samples))
+    }
+
+    /// The reading of a cycle's samples: their mean and spread, flags from the values
+    /// and status words.
+    fn reading(&self, samples: &[Sample], autorange_steps: usize) -> PicoReading {
+        let values: Vec<f64> = samples.iter().filter_map(|x| x.current.amps()).collect();
+        let status = StatusWord(samples.iter().fold(0, |acc, x| acc | x.status.0));
+        let flags = PicoFlags {
+            overflow: status.overflow() || samples.iter().any(|x| x.current == Current::Overflow),
+            invalid: samples.iter().any(|x| x.current == Current::Invalid),
+            overvoltage: status.overvoltage(),
+            zero_check: status.zero_check(),
+        };
+        let (mean_a, std_a) = number::mean_std(&values);
+        PicoReading {
+            mean_a,
+            std_a,
+            n: values.len(),
+            samples: self.config.samples,
+            range: self.range,
+            nplc: self.config.nplc,
+            filter_count: self.config.filter_count,
+            flags,
+            autorange_steps,
+            status,
+            timestamp_s: samples.last().map_or(f64::NAN, |x| x.time_s),
+        }
     }
 }

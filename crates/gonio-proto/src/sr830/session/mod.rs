@@ -1,22 +1,20 @@
-//! The lock-in's policy as a sans-IO state machine: [`Sr830Session`].
-//!
-//! Each operation is an `async fn` the engine runs: `ops` holds the exchange (a
-//! command and, for a query, its reply; the settings it changes tracked) with the
-//! link policy it takes from the engine (`OUTX 0` re-sent on a reopened port), and
-//! set-up, any command, the status bytes; `read` the settled, averaged, autoranged
-//! reading; `targeted` the reading to a precision target.
+//! The lock-in's policy as a sans-IO state machine, [`Sr830Session`]. Each operation
+//! is an `async fn` the engine runs: here the exchange (a command and, for a query,
+//! its reply; the settings it changes tracked; `OUTX 0` re-sent on a reopened port),
+//! set-up, any command and the status bytes; in `read` the settled, averaged,
+//! autoranged reading; in `targeted` the reading to a precision target.
 
-mod ops;
 mod read;
-mod targeted;
 
 use std::time::Duration;
 
+use tracing::debug;
+
 use super::{
-    Command, EventStatus, FilterSlope, Identity, LiaStatus, Reply, Sensitivity, Sr830Config,
-    Sr830Error, TimeConstant,
+    Command, EventStatus, FilterSlope, Identity, Interface, LiaStatus, Reply, ReplyError,
+    Sensitivity, Sr830Config, Sr830Error, TimeConstant,
 };
-use crate::engine::{Task, secs};
+use crate::engine::{self, Fault, Link, SessionCore, Task, secs};
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
 /// when its filters will have settled, and everything its operations decide: which
@@ -45,9 +43,7 @@ use crate::engine::{Task, secs};
 /// port.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sr830Session {
-    config: Sr830Config,
-    /// The port's name, for errors.
-    port: String,
+    core: SessionCore<Sr830Config, Identity>,
     sensitivity: Sensitivity,
     time_constant: TimeConstant,
     slope: FilterSlope,
@@ -56,9 +52,12 @@ pub struct Sr830Session {
     /// When the light or a setting last changed: where a targeted reading's transient
     /// starts.
     changed_at: Duration,
-    reconnects: usize,
-    retried: u64,
-    identity: Option<Identity>,
+}
+
+// Replies go to GPIB until `OUTX 0` is sent again.
+engine::line_session! {
+    Sr830Session: "sr830", Sr830Config, Identity, Sr830Error; Command, Reply, ReplyError;
+    after_reopen: ("OUTX 0", Command::SetInterface(Interface::Rs232).to_bytes())
 }
 
 impl Sr830Session {
@@ -72,16 +71,12 @@ impl Sr830Session {
     ) -> Result<Self, Sr830Error> {
         config.validate()?;
         Ok(Sr830Session {
-            port: port.into(),
             sensitivity: config.sensitivity,
             time_constant: config.time_constant,
             slope: config.slope,
-            config,
+            core: SessionCore::new(config, port),
             settled_at: now,
             changed_at: now,
-            reconnects: 0,
-            retried: 0,
-            identity: None,
         })
     }
 
@@ -89,11 +84,7 @@ impl Sr830Session {
     /// (must be an SR830), `*CLS`, `SENS`, `OFLT`, `OFSL`, then `*ESR?`, whose reply also
     /// proves every earlier command has run. Starts the settling wait.
     pub fn start_setup(&mut self, now: Duration) -> Task<'_, Identity, Sr830Error> {
-        Task::new(
-            "sr830.setup",
-            now,
-            |link| async move { self.setup(&link).await },
-        )
+        Task::run("sr830.setup", now, self, Self::setup)
     }
 
     /// One averaged reading: the settling wait, `LIAS?` to clear latched bits, `samples`
@@ -101,11 +92,7 @@ impl Sr830Session {
     /// a range change and a new reading on an overload or a small signal. Faults are
     /// errors; an overloaded or unlocked reading is returned flagged.
     pub fn start_read(&mut self, now: Duration) -> Task<'_, super::Reading, Sr830Error> {
-        Task::new(
-            "sr830.read",
-            now,
-            |link| async move { self.read(&link).await },
-        )
+        Task::run("sr830.read", now, self, Self::read)
     }
 
     /// One reading to a precision target (see [`super::target`]): with a noise law
@@ -123,8 +110,8 @@ impl Sr830Session {
         expected: Option<f64>,
         now: Duration,
     ) -> Task<'_, super::Reading, Sr830Error> {
-        Task::new("sr830.read_targeted", now, move |link| async move {
-            self.read_targeted(&link, target, expected).await
+        Task::run("sr830.read_targeted", now, self, async move |s, link| {
+            s.read_targeted(link, target, expected).await
         })
     }
 
@@ -139,16 +126,16 @@ impl Sr830Session {
         now: Duration,
     ) -> Task<'s, Option<Reply>, Sr830Error> {
         let command = command.clone();
-        Task::new("sr830.execute", now, move |link| async move {
-            self.execute(&link, Some(command)).await
+        Task::run("sr830.execute", now, self, async move |s, link| {
+            s.execute(link, Some(command)).await
         })
     }
 
     /// Reads back `SENS?`, `OFLT?`, `OFSL?` into the settings the session tracks (after
     /// `AGAN`, or a change from the front panel); restarts the settling wait.
     pub fn start_refresh_settings(&mut self, now: Duration) -> Task<'_, (), Sr830Error> {
-        Task::new("sr830.refresh_settings", now, |link| async move {
-            self.execute(&link, None).await.map(drop)
+        Task::run("sr830.refresh_settings", now, self, async |s, link| {
+            s.execute(link, None).await.map(drop)
         })
     }
 
@@ -158,11 +145,8 @@ impl Sr830Session {
         sensitivity: Sensitivity,
         now: Duration,
     ) -> Task<'_, (), Sr830Error> {
-        self.start_set(
-            "sr830.set_sensitivity",
-            Command::SetSensitivity(sensitivity),
-            now,
-        )
+        let set = Command::SetSensitivity(sensitivity);
+        self.start_set("sr830.set_sensitivity", set, now)
     }
 
     /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
@@ -171,8 +155,8 @@ impl Sr830Session {
         time_constant: TimeConstant,
         now: Duration,
     ) -> Task<'_, (), Sr830Error> {
-        let command = Command::SetTimeConstant(time_constant);
-        self.start_set("sr830.set_time_constant", command, now)
+        let set = Command::SetTimeConstant(time_constant);
+        self.start_set("sr830.set_time_constant", set, now)
     }
 
     /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
@@ -186,16 +170,12 @@ impl Sr830Session {
 
     /// `LIAS?`: the LIA status byte (reading clears it).
     pub fn start_lia_status(&mut self, now: Duration) -> Task<'_, LiaStatus, Sr830Error> {
-        Task::new("sr830.lia_status", now, |link| async move {
-            self.lia_status(&link).await
-        })
+        Task::run("sr830.lia_status", now, self, Self::lia_status)
     }
 
     /// `*ESR?`: the standard event status byte (reading clears it).
     pub fn start_event_status(&mut self, now: Duration) -> Task<'_, EventStatus, Sr830Error> {
-        Task::new("sr830.event_status", now, |link| async move {
-            self.event_status(&link).await
-        })
+        Task::run("sr830.event_status", now, self, Self::event_status)
     }
 
     /// `command`, a set whose success has no reply of its own.
@@ -205,8 +185,8 @@ impl Sr830Session {
         command: Command,
         now: Duration,
     ) -> Task<'_, (), Sr830Error> {
-        Task::new(name, now, move |link| async move {
-            self.ask(&link, &command).await.map(drop)
+        Task::run(name, now, self, async move |s, link| {
+            s.ask(link, &command).await.map(drop)
         })
     }
 
@@ -244,25 +224,11 @@ impl Sr830Session {
         self.slope
     }
 
-    /// The configuration.
-    pub fn config(&self) -> &Sr830Config {
-        &self.config
-    }
-
-    /// The identity set-up read, once it has run.
-    pub fn identity(&self) -> Option<&Identity> {
-        self.identity.as_ref()
-    }
-
-    /// How many times the port was reopened.
-    pub fn reconnects(&self) -> usize {
-        self.reconnects
-    }
-
-    /// Queries asked again (or read cycles restarted) after a lost, late or garbled
-    /// reply: what a run log reports as retries.
-    pub fn retried(&self) -> u64 {
-        self.retried
+    /// The port was reopened (and `OUTX 0` re-sent): the instrument may have
+    /// restarted, so its filters settle again.
+    fn reopened(&mut self, now: Duration) {
+        debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+        self.mark_unsettled(now);
     }
 
     /// Readings wait a full settling time from `now`, at the current settings. A
@@ -277,5 +243,142 @@ impl Sr830Session {
             slope = %self.slope,
             "sr830: settling wait restarts"
         );
+    }
+
+    /// Sends `command` and, for a query, reads its reply, due `timeout` after sending
+    /// (a reply carries no echo, so it is parsed as the answer to `command`).
+    ///
+    /// - A lost or garbled answer to a query that only reads is asked again, up to
+    ///   `retries` times. The status bytes are never asked again here: reading them
+    ///   clears them, so a second read could report a latched overload as gone.
+    /// - `SENS`, `OFLT`, `OFSL` and `*RST` update the settings the session tracks and
+    ///   restart the settling wait. (`AGAN`, whose settings are read back, is left to
+    ///   [`execute`](Self::execute).)
+    ///
+    /// The rest is the engine's link policy ([`engine::exchange`]): the input cleared
+    /// after a fault, a vanished port reopened with `OUTX 0` re-sent.
+    pub(super) async fn ask(
+        &mut self,
+        link: &Link,
+        command: &Command,
+    ) -> Result<Option<Reply>, Sr830Error> {
+        let (bytes, name) = (command.to_bytes(), name(command));
+        let rereadable = command.expects_reply()
+            && !matches!(
+                command,
+                Command::LiaStatus(_) | Command::ErrorStatus(_) | Command::EventStatus(_)
+            );
+        let retries = if rereadable { self.config.retries } else { 0 };
+        let timeout = self.config.timeout();
+        let receive = async |_: &mut Sr830Session| {
+            if !command.expects_reply() {
+                return Ok(None);
+            }
+            let line = link.line(link.now().saturating_add(timeout)).await?;
+            Reply::parse(command, &line)
+                .map(Some)
+                .map_err(|source| Fault::Answer(protocol(command, &line, source)))
+        };
+        let reply = engine::exchange(self, link, &name, &bytes, retries, receive).await?;
+        match *command {
+            Command::SetSensitivity(x) => self.sensitivity = x,
+            Command::SetTimeConstant(t) => self.time_constant = t,
+            Command::SetSlope(x) => self.slope = x,
+            Command::Reset => {
+                self.sensitivity = Sensitivity::default();
+                self.time_constant = TimeConstant::default();
+                self.slope = FilterSlope::default();
+            }
+            _ => return Ok(reply),
+        }
+        self.mark_unsettled(link.now());
+        Ok(reply)
+    }
+
+    /// `LIAS?`: the LIA status byte (reading clears it).
+    async fn lia_status(&mut self, link: &Link) -> Result<LiaStatus, Sr830Error> {
+        let command = Command::LiaStatus(None);
+        match self.ask(link, &command).await? {
+            Some(Reply::LiaStatus(s)) => Ok(s),
+            other => Err(unexpected(&command, other)),
+        }
+    }
+
+    /// `*ESR?`: the standard event status byte (reading clears it).
+    async fn event_status(&mut self, link: &Link) -> Result<EventStatus, Sr830Error> {
+        let command = Command::EventStatus(None);
+        match self.ask(link, &command).await? {
+            Some(Reply::EventStatus(s)) => Ok(s),
+            other => Err(unexpected(&command, other)),
+        }
+    }
+
+    /// Set-up: input cleared, `OUTX 0` (replies go to GPIB until then), `*IDN?` (must
+    /// name an SR830), `*CLS`, the configured `SENS`, `OFLT`, `OFSL`, and `*ESR?`, whose
+    /// answer also proves every earlier command has run. It must show no refused
+    /// command (EXE, CMD) and no lost one: an overflowed input or output buffer clears
+    /// both (manual p. 5-2), so INP or QRY means a command may never have run.
+    async fn setup(&mut self, link: &Link) -> Result<Identity, Sr830Error> {
+        link.clear_input();
+        self.ask(link, &Command::SetInterface(Interface::Rs232))
+            .await?;
+        let identity = match self.ask(link, &Command::Identify).await? {
+            Some(Reply::Identity(id)) => id,
+            other => return Err(unexpected(&Command::Identify, other)),
+        };
+        if !identity.is_sr830() {
+            return Err(Sr830Error::WrongInstrument(identity));
+        }
+        debug!(identity = %identity, "sr830: identified");
+        let config = &self.config;
+        let settings = [
+            Command::Clear,
+            Command::SetSensitivity(config.sensitivity),
+            Command::SetTimeConstant(config.time_constant),
+            Command::SetSlope(config.slope),
+        ];
+        for command in &settings {
+            self.ask(link, command).await?;
+        }
+        let esr = self.event_status(link).await?;
+        if esr.has_command_error() || esr.0 & (EventStatus::INP | EventStatus::QRY) != 0 {
+            return Err(Sr830Error::Rejected(esr));
+        }
+        self.core.identity = Some(identity.clone());
+        Ok(identity)
+    }
+
+    /// `command` (or none, for a settings read-back alone); after `AGAN`, or alone, the
+    /// settings are read back (`SENS?`, `OFLT?`, `OFSL?`) and the settling wait
+    /// restarts.
+    async fn execute(
+        &mut self,
+        link: &Link,
+        command: Option<Command>,
+    ) -> Result<Option<Reply>, Sr830Error> {
+        let reply = match &command {
+            Some(c) => self.ask(link, c).await?,
+            None => None,
+        };
+        match command {
+            Some(Command::AutoGain) => debug!("sr830: auto gain done; reading the settings back"),
+            Some(_) => return Ok(reply),
+            None => {}
+        }
+        let settings = [
+            Command::QuerySensitivity,
+            Command::QueryTimeConstant,
+            Command::QuerySlope,
+        ];
+        for query in &settings {
+            match self.ask(link, query).await? {
+                Some(Reply::Sensitivity(x)) => self.sensitivity = x,
+                Some(Reply::TimeConstant(t)) => self.time_constant = t,
+                Some(Reply::Slope(x)) => self.slope = x,
+                other => return Err(unexpected(query, other)),
+            }
+        }
+        self.mark_unsettled(link.now());
+        Ok(reply)
     }
 }
