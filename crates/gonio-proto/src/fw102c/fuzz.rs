@@ -41,23 +41,3 @@ pub fn fuzz_parse_reply(data: &[u8]) {
         assert_eq!(again, Ok(reply), "re-parse of {bytes:?}");
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use proptest::prelude::*;
-
-    proptest! {
-        #[test]
-        fn parsers_never_panic(data in proptest::collection::vec(any::<u8>(), 0..64)) {
-            super::fuzz_parse_line(&data);
-            super::fuzz_parse_reply(&data);
-        }
-
-        #[test]
-        fn positions_round_trip(n in 1u8..=255) {
-            let c = super::Command::SetPosition(n);
-            let bytes = c.to_bytes();
-            prop_assert_eq!(super::Command::parse(&bytes[..bytes.len() - 1]), Ok(c));
-        }
-    }
-}

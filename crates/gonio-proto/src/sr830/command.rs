@@ -527,21 +527,3 @@ fn parse_clean(s: &[u8]) -> Result<Command, CommandError> {
     };
     Ok(command)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn command_errors_name_their_status_bit() {
-        assert_eq!(
-            CommandError::Unknown("X".into()).event_status(),
-            EventStatus(32)
-        );
-        assert_eq!(CommandError::Syntax("SENS").bit(), 5);
-        assert_eq!(
-            CommandError::OutOfRange("SENS").event_status(),
-            EventStatus(16)
-        );
-    }
-}
