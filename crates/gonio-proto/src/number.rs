@@ -54,6 +54,48 @@ pub(crate) fn parse(s: &[u8]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+/// Why a reply value is not the number its query returns.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum ValueError {
+    /// Not a number, or not the integer expected.
+    Bad,
+    /// A number outside what the query can return.
+    OutOfRange(f64),
+}
+
+/// A number in any of the forms [`parse`] reads, surrounding blanks ignored.
+pub(crate) fn real(s: &[u8]) -> Result<f64, ValueError> {
+    parse(s.trim_ascii()).ok_or(ValueError::Bad)
+}
+
+/// An integer in `0..=max`, in any number form (`5`, `5.0`, `+5.000000E+00`).
+pub(crate) fn integer(s: &[u8], max: f64) -> Result<f64, ValueError> {
+    let v = real(s)?;
+    if v.fract() != 0.0 {
+        return Err(ValueError::Bad);
+    }
+    if !(0.0..=max).contains(&v) {
+        return Err(ValueError::OutOfRange(v));
+    }
+    Ok(v)
+}
+
+/// Gives a family's reply error (with `BadValue` and `OutOfRange(f64)`) the
+/// conversion from [`ValueError`].
+macro_rules! value_error_into {
+    ($error:ty) => {
+        impl From<$crate::number::ValueError> for $error {
+            fn from(e: $crate::number::ValueError) -> Self {
+                match e {
+                    $crate::number::ValueError::Bad => <$error>::BadValue,
+                    $crate::number::ValueError::OutOfRange(v) => <$error>::OutOfRange(v),
+                }
+            }
+        }
+    };
+}
+pub(crate) use value_error_into;
+
 /// Mean and sample standard deviation of a detector's readings (n − 1; 0 for one
 /// value; NaN for none).
 pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {

@@ -5,90 +5,44 @@
 use std::fmt;
 
 use super::TERMINATOR;
+use crate::codec::coded_enum;
 
-/// The wheel's rotation speed (`speed=`): 0 slow, 1 high (UNCONFIRMED). In a config
-/// file, `"low"` or `"high"`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Speed {
-    /// `speed=0`.
-    Low,
-    /// `speed=1`.
-    #[default]
-    High,
-}
-
-impl Speed {
-    /// The digit on the wire.
-    pub fn digit(self) -> u8 {
-        match self {
-            Speed::Low => 0,
-            Speed::High => 1,
-        }
-    }
-
-    /// The speed a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Speed> {
-        match d {
-            0 => Some(Speed::Low),
-            1 => Some(Speed::High),
-            _ => None,
-        }
+coded_enum! {
+    /// The wheel's rotation speed (`speed=`): 0 slow, 1 high (UNCONFIRMED). In a config
+    /// file, `"low"` or `"high"`.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum Speed: u8, digit / from_digit {
+        /// `speed=0`.
+        Low = 0,
+        /// `speed=1`.
+        #[default]
+        High = 1,
     }
 }
 
-/// The trigger connector's mode (`trig=`): 0 input (a pulse moves the wheel one
-/// position), 1 output (UNCONFIRMED). Gonio does not use the trigger.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TriggerMode {
-    /// `trig=0`.
-    Input,
-    /// `trig=1`.
-    Output,
-}
-
-/// The position sensors' mode (`sensors=`): 0 switches them off while the wheel is
-/// idle, "to eliminate stray light", 1 keeps them on (UNCONFIRMED wording; Thorlabs
-/// describes the sensors as optical).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SensorMode {
-    /// `sensors=0`: off while idle.
-    OffWhenIdle,
-    /// `sensors=1`: always on.
-    AlwaysOn,
-}
-
-impl TriggerMode {
-    fn digit(self) -> u8 {
-        match self {
-            TriggerMode::Input => 0,
-            TriggerMode::Output => 1,
-        }
-    }
-    /// The mode a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Self> {
-        match d {
-            0 => Some(TriggerMode::Input),
-            1 => Some(TriggerMode::Output),
-            _ => None,
-        }
+coded_enum! {
+    /// The trigger connector's mode (`trig=`): 0 input (a pulse moves the wheel one
+    /// position), 1 output (UNCONFIRMED). Gonio does not use the trigger.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum TriggerMode: u8, digit / from_digit {
+        /// `trig=0`.
+        Input = 0,
+        /// `trig=1`.
+        Output = 1,
     }
 }
 
-impl SensorMode {
-    fn digit(self) -> u8 {
-        match self {
-            SensorMode::OffWhenIdle => 0,
-            SensorMode::AlwaysOn => 1,
-        }
-    }
-    /// The mode a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Self> {
-        match d {
-            0 => Some(SensorMode::OffWhenIdle),
-            1 => Some(SensorMode::AlwaysOn),
-            _ => None,
-        }
+coded_enum! {
+    /// The position sensors' mode (`sensors=`): 0 switches them off while the wheel is
+    /// idle, "to eliminate stray light", 1 keeps them on (UNCONFIRMED wording; Thorlabs
+    /// describes the sensors as optical).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum SensorMode: u8, digit / from_digit {
+        /// `sensors=0`: off while idle.
+        OffWhenIdle = 0,
+        /// `sensors=1`: always on.
+        AlwaysOn = 1,
     }
 }
 

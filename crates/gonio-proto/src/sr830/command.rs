@@ -2,138 +2,73 @@
 //! flags for a command it cannot run.
 
 use super::{EventStatus, FilterSlope, Sensitivity, TERMINATOR, TimeConstant};
+use crate::codec::coded_enum;
 use crate::number;
 
-/// Which interface replies go to, `OUTX` (p. 5-10). Both always listen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Interface {
-    /// `OUTX 0`: RS-232. A program on the serial port must send this first.
-    Rs232,
-    /// `OUTX 1`: GPIB, the factory default.
-    Gpib,
-}
-
-impl Interface {
-    /// The `OUTX` index.
-    pub fn index(self) -> u8 {
-        self as u8
-    }
-
-    /// The interface with `OUTX` index `index` (0 or 1).
-    pub fn from_index(index: u8) -> Option<Self> {
-        match index {
-            0 => Some(Interface::Rs232),
-            1 => Some(Interface::Gpib),
-            _ => None,
-        }
+coded_enum! {
+    /// Which interface replies go to, `OUTX` (p. 5-10). Both always listen.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Interface: u8, index / from_index {
+        /// `OUTX 0`: RS-232. A program on the serial port must send this first.
+        Rs232 = 0,
+        /// `OUTX 1`: GPIB, the factory default.
+        Gpib = 1,
     }
 }
 
-/// The reference source, `FMOD` (manual, FMOD).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ReferenceSource {
-    /// `FMOD 0`: external reference input.
-    External,
-    /// `FMOD 1`: internal oscillator (the `*RST` default).
-    Internal,
-}
-
-impl ReferenceSource {
-    /// The `FMOD` index.
-    pub fn index(self) -> u8 {
-        self as u8
-    }
-
-    /// The source with `FMOD` index `index` (0 or 1).
-    pub fn from_index(index: u8) -> Option<Self> {
-        match index {
-            0 => Some(ReferenceSource::External),
-            1 => Some(ReferenceSource::Internal),
-            _ => None,
-        }
+coded_enum! {
+    /// The reference source, `FMOD` (manual, FMOD).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum ReferenceSource: u8, index / from_index {
+        /// `FMOD 0`: external reference input.
+        External = 0,
+        /// `FMOD 1`: internal oscillator (the `*RST` default).
+        Internal = 1,
     }
 }
 
-/// The quantity `OUTP? i` reads (manual, OUTP?): volts for X, Y, R; degrees for θ.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Output {
-    /// 1: in-phase component X, volts.
-    X = 1,
-    /// 2: quadrature component Y, volts.
-    Y = 2,
-    /// 3: magnitude R, volts.
-    R = 3,
-    /// 4: phase θ, degrees.
-    Theta = 4,
-}
-
-impl Output {
-    /// Every quantity, by code.
-    pub const ALL: [Output; 4] = [Output::X, Output::Y, Output::R, Output::Theta];
-
-    /// The `OUTP?` parameter.
-    pub fn code(self) -> u8 {
-        self as u8
-    }
-
-    /// The quantity for an `OUTP?` parameter 1..=4.
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.into_iter().find(|o| o.code() == code)
+coded_enum! {
+    /// The quantity `OUTP? i` reads (manual, OUTP?): volts for X, Y, R; degrees for θ.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Output: u8, code / from_code {
+        /// 1: in-phase component X, volts.
+        X = 1,
+        /// 2: quadrature component Y, volts.
+        Y = 2,
+        /// 3: magnitude R, volts.
+        R = 3,
+        /// 4: phase θ, degrees.
+        Theta = 4,
     }
 }
 
-/// A value `SNAP?` can read (manual, SNAP?): all of one call are taken at one instant (X with
-/// Y, and R with θ, exactly; the two pairs about 10 µs apart).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SnapParam {
-    /// 1: X, volts.
-    X = 1,
-    /// 2: Y, volts.
-    Y = 2,
-    /// 3: R, volts.
-    R = 3,
-    /// 4: θ, degrees.
-    Theta = 4,
-    /// 5: Aux In 1, volts.
-    AuxIn1 = 5,
-    /// 6: Aux In 2, volts.
-    AuxIn2 = 6,
-    /// 7: Aux In 3, volts.
-    AuxIn3 = 7,
-    /// 8: Aux In 4, volts.
-    AuxIn4 = 8,
-    /// 9: reference frequency, Hz.
-    Frequency = 9,
-    /// 10: CH1 display.
-    Ch1Display = 10,
-    /// 11: CH2 display.
-    Ch2Display = 11,
-}
-
-impl SnapParam {
-    /// Every parameter, by code.
-    pub const ALL: [SnapParam; 11] = [
-        SnapParam::X,
-        SnapParam::Y,
-        SnapParam::R,
-        SnapParam::Theta,
-        SnapParam::AuxIn1,
-        SnapParam::AuxIn2,
-        SnapParam::AuxIn3,
-        SnapParam::AuxIn4,
-        SnapParam::Frequency,
-        SnapParam::Ch1Display,
-        SnapParam::Ch2Display,
-    ];
-
-    /// The `SNAP?` parameter.
-    pub fn code(self) -> u8 {
-        self as u8
-    }
-
-    /// The value for a `SNAP?` parameter 1..=11.
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.into_iter().find(|p| p.code() == code)
+coded_enum! {
+    /// A value `SNAP?` can read (manual, SNAP?): all of one call are taken at one instant
+    /// (X with Y, and R with θ, exactly; the two pairs about 10 µs apart).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum SnapParam: u8, code / from_code {
+        /// 1: X, volts.
+        X = 1,
+        /// 2: Y, volts.
+        Y = 2,
+        /// 3: R, volts.
+        R = 3,
+        /// 4: θ, degrees.
+        Theta = 4,
+        /// 5: Aux In 1, volts.
+        AuxIn1 = 5,
+        /// 6: Aux In 2, volts.
+        AuxIn2 = 6,
+        /// 7: Aux In 3, volts.
+        AuxIn3 = 7,
+        /// 8: Aux In 4, volts.
+        AuxIn4 = 8,
+        /// 9: reference frequency, Hz.
+        Frequency = 9,
+        /// 10: CH1 display.
+        Ch1Display = 10,
+        /// 11: CH2 display.
+        Ch2Display = 11,
     }
 }
 
