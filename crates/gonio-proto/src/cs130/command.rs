@@ -127,6 +127,8 @@ impl CommandError {
     }
 }
 
+crate::codec::line_encoding!(Command, TERMINATOR);
+
 impl Command {
     /// True for queries, which the instrument answers with a line after the echo.
     pub fn is_query(&self) -> bool {
@@ -179,19 +181,6 @@ impl Command {
             Command::Wai => "*WAI".into(),
         };
         out.extend_from_slice(text.as_bytes());
-    }
-
-    /// Appends the statement and its CR LF terminator.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The statement with its terminator.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
     }
 
     /// Parses one received statement (terminator removed), as the instrument does:

@@ -149,16 +149,10 @@ impl Reply {
         };
         out.extend_from_slice(text.as_bytes());
     }
-
-    /// The answer with its CR LF terminator (§15.3).
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode_body(&mut out);
-        out.push(b'\r');
-        out.push(REPLY_TERMINATOR);
-        out
-    }
 }
+
+// Answers end CR LF (§15.3).
+crate::codec::line_encoding!(Reply, &[b'\r', REPLY_TERMINATOR]);
 
 /// A plain decimal integer.
 fn int<T: std::str::FromStr>(field: Option<&str>) -> Option<T> {

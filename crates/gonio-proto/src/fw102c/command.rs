@@ -88,6 +88,8 @@ pub enum CommandError {
     ArgInvalid,
 }
 
+crate::codec::line_encoding!(Command, &[TERMINATOR]);
+
 impl Command {
     /// Whether the wheel answers with a value line.
     pub fn is_query(&self) -> bool {
@@ -106,19 +108,6 @@ impl Command {
     pub fn encode_body(&self, out: &mut Vec<u8>) {
         let text = self.to_string();
         out.extend_from_slice(text.as_bytes());
-    }
-
-    /// Writes the command and its CR.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.push(TERMINATOR);
-    }
-
-    /// The command and its CR, as sent.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
     }
 
     /// Parses one received line, terminator removed: what the wheel does on receipt.

@@ -200,32 +200,20 @@ impl Reply {
         }
     }
 
-    /// The value line as the wheel sends it, CR included.
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// The value line as the wheel sends it, without its CR.
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         let text = match self {
             Reply::Identity(s) => s.clone(),
             Reply::Position(n) | Reply::PositionCount(n) => n.to_string(),
             Reply::Speed(s) => s.digit().to_string(),
-            Reply::Trigger(t) => match t {
-                TriggerMode::Input => "0".into(),
-                TriggerMode::Output => "1".into(),
-            },
-            Reply::Sensors(s) => match s {
-                SensorMode::OffWhenIdle => "0".into(),
-                SensorMode::AlwaysOn => "1".into(),
-            },
+            Reply::Trigger(t) => t.digit().to_string(),
+            Reply::Sensors(s) => s.digit().to_string(),
         };
         out.extend_from_slice(text.as_bytes());
-        out.push(TERMINATOR);
-    }
-
-    /// The value line, CR included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
     }
 }
+
+crate::codec::line_encoding!(Reply, &[TERMINATOR]);
 
 #[cfg(test)]
 mod tests {

@@ -114,6 +114,8 @@ impl CommandError {
     }
 }
 
+crate::codec::line_encoding!(Command, TERMINATOR);
+
 impl Command {
     /// The canonical short-form header (`SYST:ZCH`, `*IDN`), without `?`.
     pub fn header(&self) -> &'static str {
@@ -187,19 +189,6 @@ impl Command {
         }
     }
 
-    /// Appends the command line, terminator included.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The command line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
-    }
-
     /// Parses one command (no `;`, no terminator) as the instrument does: case
     /// ignored, short or long keywords (`SYST:ZCH`, `:system:zcheck`), the optional
     /// `SENS` root and `STAT` leaf, `ON|OFF|1|0` for booleans.
@@ -213,11 +202,10 @@ impl Command {
 /// stands alone, rooted (the codec never writes SCPI's relative paths after `;`, and
 /// refuses them rather than guess).
 pub fn parse_line(line: &[u8]) -> Vec<Result<Command, CommandError>> {
-    line.split(|b| matches!(b, b';' | b'\r' | b'\n'))
-        .map(<[u8]>::trim_ascii)
-        .filter(|s| !s.is_empty())
-        .map(parse_one)
-        .collect()
+    crate::codec::parse_commands(line, |s| {
+        let s = s.trim_ascii();
+        (!s.is_empty()).then(|| parse_one(s))
+    })
 }
 
 /// SCPI keywords: long form, short form. A node matches either, case ignored.

@@ -170,9 +170,12 @@ fn classify(v: f64) -> Current {
     }
 }
 
+crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
+crate::number::value_error_into!(ReplyError);
+
 impl Reply {
-    /// Appends the reply line, terminator included (what the instrument sends).
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// Appends the reply without terminator (what the instrument sends).
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         match self {
             Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
             Reply::EventStatus(s) => out.extend_from_slice(s.0.to_string().as_bytes()),
@@ -193,14 +196,6 @@ impl Reply {
                 format_sci(f64::from(s.status.0), out);
             }
         }
-        out.push(REPLY_TERMINATOR);
-    }
-
-    /// The reply line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
     }
 
     /// Parses the reply line (terminator removed) to `command`. Surrounding whitespace
@@ -214,17 +209,8 @@ impl Reply {
         if line.is_empty() {
             return Err(ReplyError::Empty);
         }
-        let num = |s: &[u8]| number::parse(s.trim_ascii()).ok_or(ReplyError::BadValue);
-        let int = |s: &[u8], max: f64| -> Result<f64, ReplyError> {
-            let v = num(s)?;
-            if v.fract() != 0.0 {
-                return Err(ReplyError::BadValue);
-            }
-            if !(0.0..=max).contains(&v) {
-                return Err(ReplyError::OutOfRange(v));
-            }
-            Ok(v)
-        };
+        let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
+        let int = |s: &[u8], max: f64| number::integer(s, max).map_err(ReplyError::from);
         let reply = match command {
             Command::Identify => {
                 Reply::Identity(Identity::parse(line).ok_or(ReplyError::BadValue)?)

@@ -229,6 +229,8 @@ impl CommandError {
     }
 }
 
+crate::codec::line_encoding!(Command, TERMINATOR);
+
 impl Command {
     /// The four-character mnemonic, upper case.
     pub fn mnemonic(&self) -> &'static str {
@@ -314,19 +316,6 @@ impl Command {
         }
     }
 
-    /// Appends the command line, terminator included (`SENS 20\n`).
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The command line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
-    }
-
     /// Parses one command (no `;`, no terminator) as the instrument does:
     /// case-insensitive, spaces ignored anywhere, numbers in integer, float or
     /// exponent form (`5`, `5.0`, `.5E1`).
@@ -357,11 +346,10 @@ pub fn encode_line(commands: &[Command], out: &mut Vec<u8>) {
 /// firmware still runs the rest of a line after an illegal command is not in the
 /// manual.
 pub fn parse_line(line: &[u8]) -> Vec<Result<Command, CommandError>> {
-    line.split(|b| matches!(b, b';' | b'\r' | b'\n'))
-        .map(clean)
-        .filter(|s| !s.is_empty())
-        .map(|s| parse_clean(&s))
-        .collect()
+    crate::codec::parse_commands(line, |s| {
+        let s = clean(s);
+        (!s.is_empty()).then(|| parse_clean(&s))
+    })
 }
 
 /// Removes spaces and tabs, and upper-cases (what the instrument's own queue display

@@ -86,10 +86,13 @@ fn format_value(v: f64, out: &mut Vec<u8>) {
     }
 }
 
+crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
+crate::number::value_error_into!(ReplyError);
+
 impl Reply {
-    /// Appends the reply line, terminator included (what the instrument sends).
-    /// Values must be finite; floats are written as described at [`Reply::parse`].
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// Appends the reply without terminator (what the instrument sends). Values must
+    /// be finite; floats are written as described at [`Reply::parse`].
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         let int = |i: u8, out: &mut Vec<u8>| out.extend_from_slice(i.to_string().as_bytes());
         match self {
             Reply::Interface(i) => int(i.index(), out),
@@ -112,14 +115,6 @@ impl Reply {
             }
             Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
         }
-        out.push(REPLY_TERMINATOR);
-    }
-
-    /// The reply line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
     }
 
     /// Parses the reply line (terminator removed) to `command`. Surrounding
@@ -134,18 +129,9 @@ impl Reply {
         if line.is_empty() {
             return Err(ReplyError::Empty);
         }
-        let num = |s: &[u8]| number::parse(s.trim_ascii()).ok_or(ReplyError::BadValue);
-        let int = |max: u8| -> Result<u8, ReplyError> {
-            let v = num(line)?;
-            if v.fract() != 0.0 {
-                return Err(ReplyError::BadValue);
-            }
-            if !(0.0..=f64::from(max)).contains(&v) {
-                return Err(ReplyError::OutOfRange(v));
-            }
-            // Exact: an integral value in 0..=max.
-            Ok(v as u8)
-        };
+        let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
+        // Exact: an integral value in 0..=max.
+        let int = |max: u8| Ok::<_, ReplyError>(number::integer(line, f64::from(max))? as u8);
         let out_of_range = |i: u8| ReplyError::OutOfRange(f64::from(i));
         let reply = match command {
             Command::QueryInterface => {
