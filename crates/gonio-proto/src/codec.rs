@@ -283,3 +283,120 @@ pub(crate) fn parse_commands<T>(line: &[u8], parse: impl FnMut(&[u8]) -> Option<
         .filter_map(parse)
         .collect()
 }
+
+/// Why a parameter (or its absence) does not fit its command's row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Refusal {
+    /// Not a parameter of this form at all (missing, extra, not a number).
+    Syntax,
+    /// The right form, outside the allowed values.
+    OutOfRange,
+    /// No row of this shape: the family reports the command as unknown.
+    Unknown,
+}
+
+/// A command's parameter in one family's grammar: written after its mnemonic (with its
+/// separator), read from `I`, the family's view of the received parameters. `()` is
+/// the rule for a command that takes none.
+pub(crate) trait Param<I>: Sized {
+    /// Appends the separator and the parameter.
+    fn write(&self, out: &mut Vec<u8>);
+    /// Reads the parameter.
+    fn read(input: I) -> Result<Self, Refusal>;
+}
+
+/// A family's command set as the manual's table: one row per command, its variant
+/// (with at most one parameter), its mnemonic, `query` or `set`, and optionally
+/// `read: f` for a row whose parameter has its own bounds (`f(input)`). Generates the
+/// enum, `MNEMONICS`, the mnemonic accessor (`$mnemonic`), `is_query`, the encoding
+/// (`encode_row`) and `from_row`, which reads a received command's
+/// parameters once the family's grammar has found its mnemonic and query flag.
+macro_rules! command_table {
+    (
+        $(#[$meta:meta])*
+        pub enum $name:ident, $mnemonic:ident, input: $input:ty {
+            $(
+                $(#[$vmeta:meta])*
+                $variant:ident $(($field:ty))? = $mnem:literal $kind:ident $(, read: $read:expr)?;
+            )+
+        }
+    ) => {
+        $(#[$meta])*
+        pub enum $name {
+            $( $(#[$vmeta])* $variant $(($field))?, )+
+        }
+
+        impl $name {
+            /// Every mnemonic of the table, as written on the line.
+            pub(crate) const MNEMONICS: &'static [&'static str] = &[$($mnem),+];
+
+            /// The mnemonic, as written on the line.
+            pub fn $mnemonic(&self) -> &'static str {
+                match self {
+                    $( $name::$variant { .. } => $mnem, )+
+                }
+            }
+
+            /// True for queries: exactly the commands that reply.
+            pub fn is_query(&self) -> bool {
+                match self {
+                    $( $name::$variant { .. } => $crate::codec::command_table!(@query $kind), )+
+                }
+            }
+
+            /// Appends the mnemonic, `?` for a query, then the parameter, if any, with
+            /// its separator.
+            fn encode_row(&self, out: &mut Vec<u8>) {
+                out.extend_from_slice(self.$mnemonic().as_bytes());
+                if self.is_query() {
+                    out.push(b'?');
+                }
+                #[allow(unused_variables)]
+                match self {
+                    $( $name::$variant $(($crate::codec::command_table!(@bind $field, p)))? => {
+                        $( <$field as $crate::codec::Param<$input>>::write(p, out); )?
+                    } )+
+                }
+            }
+
+            /// The command of the row `mnemonic` (`query` or not) read from `input`, with
+            /// the row's name as written (`?` included); `None` when the table has no
+            /// such row.
+            fn from_row(
+                mnemonic: &str,
+                query: bool,
+                input: $input,
+            ) -> Option<(&'static str, Result<Self, $crate::codec::Refusal>)> {
+                $(
+                    if mnemonic.eq_ignore_ascii_case($mnem)
+                        && query == $crate::codec::command_table!(@query $kind)
+                    {
+                        let read = $crate::codec::command_table!(
+                            @read $input, input, $name::$variant $(, $field)? $(; $read)?
+                        );
+                        return Some(($crate::codec::command_table!(@name $kind $mnem), read));
+                    }
+                )+
+                None
+            }
+        }
+    };
+    (@query query) => { true };
+    (@query set) => { false };
+    (@name query $mnem:literal) => { concat!($mnem, "?") };
+    (@name set $mnem:literal) => { $mnem };
+    (@bind $field:ty, $p:ident) => { $p };
+    (@read $input:ty, $i:ident, $path:path) => {
+        <() as $crate::codec::Param<$input>>::read($i).map(|()| $path)
+    };
+    (@read $input:ty, $i:ident, $path:path; $read:expr) => {
+        ($read)($i).map(|()| $path)
+    };
+    (@read $input:ty, $i:ident, $path:path, $field:ty) => {
+        <$field as $crate::codec::Param<$input>>::read($i).map($path)
+    };
+    (@read $input:ty, $i:ident, $path:path, $field:ty; $read:expr) => {
+        ($read)($i).map($path)
+    };
+}
+pub(crate) use command_table;

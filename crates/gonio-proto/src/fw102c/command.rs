@@ -4,8 +4,8 @@
 
 use std::fmt;
 
-use super::TERMINATOR;
-use crate::codec::coded_enum;
+use super::{POSITION_COUNTS, TERMINATOR};
+use crate::codec::{Param, Refusal, coded_enum, command_table};
 
 coded_enum! {
     /// The wheel's rotation speed (`speed=`): 0 slow, 1 high (UNCONFIRMED). In a config
@@ -46,35 +46,92 @@ coded_enum! {
     }
 }
 
-/// One command to the wheel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Command {
-    /// `*idn?`: the identification string.
-    Identify,
-    /// `pos=n`: move to position n (1-based). The wheel refuses n outside
-    /// 1..=pcount with `CMD_ARG_INVALID` (the twin's model; UNCONFIRMED).
-    SetPosition(u8),
-    /// `pos?`: the present position.
-    QueryPosition,
-    /// `pcount=n`: the number of positions of the mounted wheel, 6 or 12.
-    SetPositionCount(u8),
-    /// `pcount?`.
-    QueryPositionCount,
-    /// `speed=n`.
-    SetSpeed(Speed),
-    /// `speed?`.
-    QuerySpeed,
-    /// `trig=n`.
-    SetTrigger(TriggerMode),
-    /// `trig?`.
-    QueryTrigger,
-    /// `sensors=n`.
-    SetSensors(SensorMode),
-    /// `sensors?`.
-    QuerySensors,
-    /// `save`: keeps the present settings over a power cycle.
-    Save,
+command_table! {
+    /// One command to the wheel (p. 11's table): a lower-case word, `?` for a query,
+    /// `=n` for a value.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Command, word, input: Option<&str> {
+        /// `*idn?`: the identification string.
+        Identify = "*idn" query;
+        /// `pos=n`: move to position n (1-based). The wheel refuses n outside
+        /// 1..=pcount with `CMD_ARG_INVALID` (the twin's model; UNCONFIRMED).
+        SetPosition(u8) = "pos" set, read: |v| nonzero(v);
+        /// `pos?`: the present position.
+        QueryPosition = "pos" query;
+        /// `pcount=n`: the number of positions of the mounted wheel, 6 or 12.
+        SetPositionCount(u8) = "pcount" set, read: |v| {
+            digits(v).and_then(|n| POSITION_COUNTS.contains(&n).then_some(n).ok_or(Refusal::OutOfRange))
+        };
+        /// `pcount?`.
+        QueryPositionCount = "pcount" query;
+        /// `speed=n`.
+        SetSpeed(Speed) = "speed" set;
+        /// `speed?`.
+        QuerySpeed = "speed" query;
+        /// `trig=n`.
+        SetTrigger(TriggerMode) = "trig" set;
+        /// `trig?`.
+        QueryTrigger = "trig" query;
+        /// `sensors=n`.
+        SetSensors(SensorMode) = "sensors" set;
+        /// `sensors?`.
+        QuerySensors = "sensors" query;
+        /// `save`: keeps the present settings over a power cycle.
+        Save = "save" set;
+    }
 }
+
+/// A value after `=`: 1 to 3 decimal digits, 0..=255. No `=` at all is another
+/// command (`pos` alone is not defined).
+fn digits(value: Option<&str>) -> Result<u8, Refusal> {
+    let v = value.ok_or(Refusal::Unknown)?;
+    if v.is_empty() || v.len() > 3 || !v.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(Refusal::Syntax);
+    }
+    v.parse().map_err(|_| Refusal::Syntax)
+}
+
+/// A position: digits, not 0.
+fn nonzero(value: Option<&str>) -> Result<u8, Refusal> {
+    digits(value).and_then(|n| {
+        if n == 0 {
+            Err(Refusal::OutOfRange)
+        } else {
+            Ok(n)
+        }
+    })
+}
+
+impl Param<Option<&str>> for () {
+    fn write(&self, _: &mut Vec<u8>) {}
+    fn read(value: Option<&str>) -> Result<(), Refusal> {
+        value.map_or(Ok(()), |_| Err(Refusal::Unknown))
+    }
+}
+
+impl Param<Option<&str>> for u8 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!("={self}").as_bytes());
+    }
+    fn read(value: Option<&str>) -> Result<u8, Refusal> {
+        digits(value)
+    }
+}
+
+/// The digit-coded settings: `=d`.
+macro_rules! digit_param {
+    ($($t:ty),+) => {$(
+        impl Param<Option<&str>> for $t {
+            fn write(&self, out: &mut Vec<u8>) {
+                self.digit().write(out);
+            }
+            fn read(value: Option<&str>) -> Result<$t, Refusal> {
+                <$t>::from_digit(digits(value)?).ok_or(Refusal::OutOfRange)
+            }
+        }
+    )+};
+}
+digit_param!(Speed, TriggerMode, SensorMode);
 
 /// Why a received line is not a command, as the wheel answers it: the text after
 /// `Command error ` (UNCONFIRMED; Odemis and InstrumentKit match these two).
@@ -91,23 +148,9 @@ pub enum CommandError {
 crate::codec::line_encoding!(Command, &[TERMINATOR]);
 
 impl Command {
-    /// Whether the wheel answers with a value line.
-    pub fn is_query(&self) -> bool {
-        matches!(
-            self,
-            Command::Identify
-                | Command::QueryPosition
-                | Command::QueryPositionCount
-                | Command::QuerySpeed
-                | Command::QueryTrigger
-                | Command::QuerySensors
-        )
-    }
-
     /// Writes the command without its terminator.
     pub fn encode_body(&self, out: &mut Vec<u8>) {
-        let text = self.to_string();
-        out.extend_from_slice(text.as_bytes());
+        self.encode_row(out);
     }
 
     /// Parses one received line, terminator removed: what the wheel does on receipt.
@@ -120,47 +163,18 @@ impl Command {
             .map_err(|_| CommandError::NotDefined)?
             .trim_matches(|c: char| c == ' ' || c == '\t')
             .to_ascii_lowercase();
-        let simple = match text.as_str() {
-            "*idn?" => Some(Command::Identify),
-            "pos?" => Some(Command::QueryPosition),
-            "pcount?" => Some(Command::QueryPositionCount),
-            "speed?" => Some(Command::QuerySpeed),
-            "trig?" => Some(Command::QueryTrigger),
-            "sensors?" => Some(Command::QuerySensors),
-            "save" => Some(Command::Save),
-            _ => None,
+        let (word, value) = match text.split_once('=') {
+            Some((word, value)) => (word, Some(value)),
+            None => (text.as_str(), None),
         };
-        if let Some(c) = simple {
-            return Ok(c);
-        }
-        let Some((word, value)) = text.split_once('=') else {
-            return Err(CommandError::NotDefined);
+        let (word, query) = match word.strip_suffix('?') {
+            Some(w) if value.is_none() => (w, true),
+            _ => (word, false),
         };
-        let number = || -> Result<u8, CommandError> {
-            if value.is_empty() || value.len() > 3 || !value.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(CommandError::ArgInvalid);
-            }
-            value.parse::<u8>().map_err(|_| CommandError::ArgInvalid)
-        };
-        match word {
-            "pos" => match number()? {
-                0 => Err(CommandError::ArgInvalid),
-                n => Ok(Command::SetPosition(n)),
-            },
-            "pcount" => match number()? {
-                n @ (6 | 12) => Ok(Command::SetPositionCount(n)),
-                _ => Err(CommandError::ArgInvalid),
-            },
-            "speed" => Speed::from_digit(number()?)
-                .map(Command::SetSpeed)
-                .ok_or(CommandError::ArgInvalid),
-            "trig" => TriggerMode::from_digit(number()?)
-                .map(Command::SetTrigger)
-                .ok_or(CommandError::ArgInvalid),
-            "sensors" => SensorMode::from_digit(number()?)
-                .map(Command::SetSensors)
-                .ok_or(CommandError::ArgInvalid),
-            _ => Err(CommandError::NotDefined),
+        match Command::from_row(word, query, value) {
+            Some((_, Ok(c))) => Ok(c),
+            None | Some((_, Err(Refusal::Unknown))) => Err(CommandError::NotDefined),
+            Some((_, Err(_))) => Err(CommandError::ArgInvalid),
         }
     }
 }
@@ -168,19 +182,6 @@ impl Command {
 impl fmt::Display for Command {
     /// The command as sent, without its terminator.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Command::Identify => f.write_str("*idn?"),
-            Command::SetPosition(n) => write!(f, "pos={n}"),
-            Command::QueryPosition => f.write_str("pos?"),
-            Command::SetPositionCount(n) => write!(f, "pcount={n}"),
-            Command::QueryPositionCount => f.write_str("pcount?"),
-            Command::SetSpeed(s) => write!(f, "speed={}", s.digit()),
-            Command::QuerySpeed => f.write_str("speed?"),
-            Command::SetTrigger(t) => write!(f, "trig={}", t.digit()),
-            Command::QueryTrigger => f.write_str("trig?"),
-            Command::SetSensors(s) => write!(f, "sensors={}", s.digit()),
-            Command::QuerySensors => f.write_str("sensors?"),
-            Command::Save => f.write_str("save"),
-        }
+        f.write_str(&String::from_utf8_lossy(&crate::codec::Encode::body(self)))
     }
 }
