@@ -328,6 +328,7 @@ macro_rules! command_table {
 
         impl $name {
             /// Every mnemonic of the table, as written on the line.
+            #[allow(dead_code)]
             pub(crate) const MNEMONICS: &'static [&'static str] = &[$($mnem),+];
 
             /// The mnemonic, as written on the line.
