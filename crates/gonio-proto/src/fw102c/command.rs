@@ -123,7 +123,7 @@ macro_rules! digit_param {
     ($($t:ty),+) => {$(
         impl Param<Option<&str>> for $t {
             fn write(&self, out: &mut Vec<u8>) {
-                self.digit().write(out);
+                <u8 as Param<Option<&str>>>::write(&self.digit(), out);
             }
             fn read(value: Option<&str>) -> Result<$t, Refusal> {
                 <$t>::from_digit(digits(value)?).ok_or(Refusal::OutOfRange)
