@@ -269,3 +269,94 @@ mod fw102c_fuzz {
         }
     }
 }
+
+mod fw102c_reply {
+    use gonio_proto::fw102c::{
+        Command, DeviceError, ErrorCode, Line, Reply, ReplyError, SensorMode, Speed, strip_prompt,
+    };
+
+    #[test]
+    fn the_prompt_is_stripped_from_the_next_line() {
+        assert_eq!(strip_prompt(b"> pos?"), b"pos?");
+        assert_eq!(strip_prompt(b">> > 3\n"), b"3");
+        assert_eq!(strip_prompt(b">"), b"");
+        assert_eq!(Line::classify(b"> "), Line::Blank);
+        assert_eq!(Line::classify(b"> pos=2"), Line::Text(b"pos=2"));
+        assert_eq!(
+            Line::classify(b"Command error CMD_ARG_INVALID"),
+            Line::Error(DeviceError {
+                code: ErrorCode::ArgInvalid
+            })
+        );
+        assert_eq!(
+            Line::classify(b"> Command error CMD_NOT_DEFINED"),
+            Line::Error(DeviceError {
+                code: ErrorCode::NotDefined
+            })
+        );
+        assert_eq!(
+            Line::classify(b"Command error CMD_BUSY"),
+            Line::Error(DeviceError {
+                code: ErrorCode::Other("CMD_BUSY".into())
+            })
+        );
+    }
+
+    #[test]
+    fn error_lines_encode_as_parsed() {
+        for code in [ErrorCode::NotDefined, ErrorCode::ArgInvalid] {
+            let mut out = Vec::new();
+            DeviceError { code: code.clone() }.encode(&mut out);
+            let line = out.strip_suffix(b"\r").unwrap();
+            assert_eq!(DeviceError::parse(line), Some(DeviceError { code }));
+        }
+        let mut out = Vec::new();
+        DeviceError {
+            code: ErrorCode::ArgInvalid,
+        }
+        .encode(&mut out);
+        assert_eq!(out, b"Command error CMD_ARG_INVALID\r");
+    }
+
+    #[test]
+    fn values_parse_by_query() {
+        let idn = b"THORLABS FW102C/FW212C Filter Wheel version 1.04";
+        assert_eq!(
+            Reply::parse(&Command::Identify, idn),
+            Ok(Reply::Identity(String::from_utf8_lossy(idn).into()))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"12"),
+            Ok(Reply::Position(12))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"0"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPosition, b"2.0"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::QueryPositionCount, b"6"),
+            Ok(Reply::PositionCount(6))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QuerySpeed, b"0"),
+            Ok(Reply::Speed(Speed::Low))
+        );
+        assert_eq!(
+            Reply::parse(&Command::QuerySpeed, b"2"),
+            Err(ReplyError::BadValue)
+        );
+        assert_eq!(
+            Reply::parse(&Command::QuerySensors, b"0"),
+            Ok(Reply::Sensors(SensorMode::OffWhenIdle))
+        );
+        assert_eq!(
+            Reply::parse(&Command::SetPosition(2), b"2"),
+            Err(ReplyError::NotAQuery)
+        );
+        assert_eq!(Reply::Position(7).to_bytes(), b"7\r");
+    }
+}
