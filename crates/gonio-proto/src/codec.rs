@@ -219,10 +219,13 @@ where
 
 /// A table of the manual's indexed by number (`SENS 0..=26`, the 6485's ranges),
 /// labelled by `$labels` in index order. Generates the ordered newtype with `COUNT`,
-/// `new`, `all`, `index`, a `Display` of the label and `from_label` (what `FromStr`
-/// reads).
+/// `new`, `all`, `index`, a `Display` of the label and a `FromStr` reading it back
+/// ([`find_label`]), which refuses with `$unknown`.
 macro_rules! index_table {
-    ($(#[$meta:meta])* pub struct $name:ident, labels: $labels:ident;) => {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident, labels: $labels:ident, unknown: $err:ty = |$text:ident| $unknown:expr;
+    ) => {
         $(#[$meta])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub struct $name(u8);
@@ -246,9 +249,16 @@ macro_rules! index_table {
                 self.0
             }
 
-            /// The entry labelled `text` ([`$crate::codec::find_label`]'s rule).
-            fn from_label(text: &str) -> Option<Self> {
-                $crate::codec::find_label(&$labels, text).map($name)
+        }
+
+        impl std::str::FromStr for $name {
+            type Err = $err;
+
+            /// Reads a label as `Display` writes it (`"10 mV"`); spaces are optional and
+            /// `u` or `μ` may stand for `µ`. Prefixes are case-sensitive (`mV` is not
+            /// `MV`).
+            fn from_str($text: &str) -> Result<Self, Self::Err> {
+                $crate::codec::find_label(&$labels, $text).map($name).ok_or_else(|| $unknown)
             }
         }
 

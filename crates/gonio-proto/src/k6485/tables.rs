@@ -57,7 +57,7 @@ pub const NAN_VALUE: f64 = 9.91e37;
 index_table! {
     /// A current range of the 6485, 2 nA (index 0) to 20 mA (index 7). Ordered by index:
     /// a greater range has a larger full scale.
-    pub struct Range, labels: RANGE_LABELS;
+    pub struct Range, labels: RANGE_LABELS, unknown: UnknownRange = |text| UnknownRange(text.to_string());
 }
 
 impl Range {
@@ -199,13 +199,3 @@ impl FilterType {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{0:?} is not a 6485 range (expected a label like \"2 nA\", \"20 uA\", \"2 mA\")")]
 pub struct UnknownRange(pub String);
-
-impl std::str::FromStr for Range {
-    type Err = UnknownRange;
-
-    /// A label as [`Display`](std::fmt::Display) writes it, spaces ignored, `u` or `μ`
-    /// accepted for `µ`.
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        Range::from_label(text).ok_or_else(|| UnknownRange(text.to_string()))
-    }
-}

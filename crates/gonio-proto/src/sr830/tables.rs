@@ -1,10 +1,8 @@
 //! The instrument's tables: sensitivities, time constants and filter slopes, with the
 //! settling and noise-bandwidth figures of the manual's "SR830 Basics".
 
-use std::fmt;
-use std::str::FromStr;
-
 use crate::codec::{coded_enum, index_table};
+use std::fmt;
 
 /// Full-scale voltage of each `SENS` index, volts (SENS table, manual ch. 5).
 const SENS_VOLTS: [f64; 27] = [
@@ -47,7 +45,11 @@ index_table! {
     /// Ordered by index, so a greater value is a larger full scale (less sensitive). With
     /// a current input the same index means 1 fA … 1 µA (SENS table); this type
     /// speaks volts only.
-    pub struct Sensitivity, labels: SENS_LABELS;
+    pub struct Sensitivity, labels: SENS_LABELS, unknown: UnknownLabel = |text| UnknownLabel {
+        what: "sensitivity",
+        text: text.to_string(),
+        example: "10 mV",
+    };
 }
 
 impl Sensitivity {
@@ -79,28 +81,17 @@ impl Default for Sensitivity {
     }
 }
 
-impl FromStr for Sensitivity {
-    type Err = UnknownLabel;
-
-    /// Reads a label as [`Display`](fmt::Display) writes it (`"10 mV"`); spaces are
-    /// optional and `uV` or `μV` may stand for `µV`. Prefixes are case-sensitive
-    /// (`mV` is not `MV`).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Sensitivity::from_label(s).ok_or_else(|| UnknownLabel {
-            what: "sensitivity",
-            text: s.to_string(),
-            example: "10 mV",
-        })
-    }
-}
-
 index_table! {
     /// A low-pass filter time constant, `OFLT` index 0 (10 µs) to 19 (30 ks).
     ///
     /// Values over 30 s cannot be set when the detection frequency is above 200 Hz, and a
     /// value below the minimum for the slope and reserve is raised to it (manual, OFLT): the
     /// instrument, not this type, knows those.
-    pub struct TimeConstant, labels: TC_LABELS;
+    pub struct TimeConstant, labels: TC_LABELS, unknown: UnknownLabel = |text| UnknownLabel {
+        what: "time constant",
+        text: text.to_string(),
+        example: "100 ms",
+    };
 }
 
 impl TimeConstant {
@@ -114,20 +105,6 @@ impl Default for TimeConstant {
     /// 100 ms (`OFLT 8`), the `*RST` default (p. 4-4).
     fn default() -> Self {
         TimeConstant(8)
-    }
-}
-
-impl FromStr for TimeConstant {
-    type Err = UnknownLabel;
-
-    /// Reads a label as [`Display`](fmt::Display) writes it (`"100 ms"`, `"1 ks"`);
-    /// spaces optional, `us` or `μs` for `µs`.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        TimeConstant::from_label(s).ok_or_else(|| UnknownLabel {
-            what: "time constant",
-            text: s.to_string(),
-            example: "100 ms",
-        })
     }
 }
 
