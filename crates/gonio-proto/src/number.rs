@@ -80,21 +80,59 @@ pub(crate) fn integer(s: &[u8], max: f64) -> Result<f64, ValueError> {
     Ok(v)
 }
 
-/// Gives a family's reply error (with `BadValue` and `OutOfRange(f64)`) the
-/// conversion from [`ValueError`].
-macro_rules! value_error_into {
-    ($error:ty) => {
-        impl From<$crate::number::ValueError> for $error {
+/// The reply error of an SCPI-style family (SR830, 6485): the four refusals both
+/// share, then the family's own variants. Generates the enum, the conversion from
+/// [`ValueError`] and `query_line`, the check every reply parser begins with.
+macro_rules! scpi_reply_error {
+    ($(#[$meta:meta])* pub enum $name:ident { $($extra:tt)* }) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+        pub enum $name {
+            /// The line is empty.
+            #[error("empty reply")]
+            Empty,
+            /// The command is not a query: the instrument never answers it.
+            #[error("{0} sends no reply")]
+            NotAQuery(&'static str),
+            /// A value that is not a number, or not the integer the query returns.
+            #[error("malformed value")]
+            BadValue,
+            /// A value (an index, a status byte) outside what the query can return.
+            #[error("value {0} out of range for this query")]
+            OutOfRange(f64),
+            $($extra)*
+        }
+
+        impl From<$crate::number::ValueError> for $name {
             fn from(e: $crate::number::ValueError) -> Self {
                 match e {
-                    $crate::number::ValueError::Bad => <$error>::BadValue,
-                    $crate::number::ValueError::OutOfRange(v) => <$error>::OutOfRange(v),
+                    $crate::number::ValueError::Bad => $name::BadValue,
+                    $crate::number::ValueError::OutOfRange(v) => $name::OutOfRange(v),
                 }
+            }
+        }
+
+        impl $name {
+            /// `line` trimmed, if it can answer the command `mnemonic`: a query, and
+            /// not empty.
+            fn query_line<'a>(
+                query: bool,
+                mnemonic: &'static str,
+                line: &'a [u8],
+            ) -> Result<&'a [u8], Self> {
+                let line = line.trim_ascii();
+                if !query {
+                    return Err($name::NotAQuery(mnemonic));
+                }
+                if line.is_empty() {
+                    return Err($name::Empty);
+                }
+                Ok(line)
             }
         }
     };
 }
-pub(crate) use value_error_into;
+pub(crate) use scpi_reply_error;
 
 /// Mean and sample standard deviation of a detector's readings (n − 1; 0 for one
 /// value; NaN for none).

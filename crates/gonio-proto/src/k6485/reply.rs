@@ -117,24 +117,13 @@ pub enum Reply {
     Sample(Sample),
 }
 
-/// Why a reply line could not be understood.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ReplyError {
-    /// The line is empty.
-    #[error("empty reply")]
-    Empty,
-    /// The command is not a query: the instrument never answers it.
-    #[error("{0} sends no reply")]
-    NotAQuery(&'static str),
-    /// A value that is not a number, or not the integer expected.
-    #[error("malformed value")]
-    BadValue,
-    /// A value outside what the query can return.
-    #[error("value {0} out of range for this query")]
-    OutOfRange(f64),
-    /// A reading with another number of elements than READ,TIME,STAT.
-    #[error("expected 3 elements (READ,TIME,STAT), got {0}")]
-    WrongCount(usize),
+crate::number::scpi_reply_error! {
+    /// Why a reply line could not be understood.
+    pub enum ReplyError {
+        /// A reading with another number of elements than READ,TIME,STAT.
+        #[error("expected 3 elements (READ,TIME,STAT), got {0}")]
+        WrongCount(usize),
+    }
 }
 
 /// Writes `v` as the instrument does: sign, one digit, six decimals, `E`, signed
@@ -171,7 +160,6 @@ fn classify(v: f64) -> Current {
 }
 
 crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
-crate::number::value_error_into!(ReplyError);
 
 impl Reply {
     /// Appends the reply without terminator (what the instrument sends).
@@ -202,13 +190,7 @@ impl Reply {
     /// is ignored; numbers in any form (`50`, `+5.000000E+01`); the current's `A`
     /// suffix is optional.
     pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
-        let line = line.trim_ascii();
-        if !command.is_query() {
-            return Err(ReplyError::NotAQuery(command.header()));
-        }
-        if line.is_empty() {
-            return Err(ReplyError::Empty);
-        }
+        let line = ReplyError::query_line(command.is_query(), command.header(), line)?;
         let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
         let int = |s: &[u8], max: f64| number::integer(s, max).map_err(ReplyError::from);
         let reply = match command {

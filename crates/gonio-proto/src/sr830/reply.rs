@@ -48,29 +48,18 @@ pub enum Reply {
     Identity(Identity),
 }
 
-/// Why a reply line could not be understood.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ReplyError {
-    /// The line is empty.
-    #[error("empty reply")]
-    Empty,
-    /// The command is not a query: the instrument never answers it.
-    #[error("{0} sends no reply")]
-    NotAQuery(&'static str),
-    /// A value is not a number, or not the integer the query returns.
-    #[error("malformed value")]
-    BadValue,
-    /// An index or status value outside what the query can return.
-    #[error("value {0} out of range for this query")]
-    OutOfRange(f64),
-    /// `SNAP?` returned a different number of values than asked.
-    #[error("expected {expected} values, got {got}")]
-    WrongCount {
-        /// Values asked.
-        expected: usize,
-        /// Values in the reply.
-        got: usize,
-    },
+crate::number::scpi_reply_error! {
+    /// Why a reply line could not be understood.
+    pub enum ReplyError {
+        /// `SNAP?` returned a different number of values than asked.
+        #[error("expected {expected} values, got {got}")]
+        WrongCount {
+            /// Values asked.
+            expected: usize,
+            /// Values in the reply.
+            got: usize,
+        },
+    }
 }
 
 /// Writes a reply value: the shortest decimal that reads back exactly, with an
@@ -87,7 +76,6 @@ fn format_value(v: f64, out: &mut Vec<u8>) {
 }
 
 crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
-crate::number::value_error_into!(ReplyError);
 
 impl Reply {
     /// Appends the reply without terminator (what the instrument sends). Values must
@@ -122,13 +110,7 @@ impl Reply {
     /// seen to print (`-1.01026`, `1000.00`, `-4.17234e-007`; its rule is not in the
     /// manual); indices and status bytes must be integers in their range.
     pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
-        let line = line.trim_ascii();
-        if !command.is_query() {
-            return Err(ReplyError::NotAQuery(command.mnemonic()));
-        }
-        if line.is_empty() {
-            return Err(ReplyError::Empty);
-        }
+        let line = ReplyError::query_line(command.is_query(), command.mnemonic(), line)?;
         let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
         // Exact: an integral value in 0..=max.
         let int = |max: u8| Ok::<_, ReplyError>(number::integer(line, f64::from(max))? as u8);
