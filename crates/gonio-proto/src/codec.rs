@@ -18,6 +18,12 @@ pub(crate) trait Encode {
     }
 }
 
+/// True when `line` is the echo of `command`: its body, case ignored (both echoing
+/// instruments send back what they received).
+pub(crate) fn echoes(command: &impl Encode, line: &[u8]) -> bool {
+    line.eq_ignore_ascii_case(&command.body())
+}
+
 /// Gives a type with an inherent `encode_body` its `encode` and `to_bytes` (the body
 /// and `$terminator`) and the [`Encode`] the fuzz bodies use.
 macro_rules! line_encoding {

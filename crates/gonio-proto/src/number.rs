@@ -54,6 +54,15 @@ pub(crate) fn parse(s: &[u8]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+/// A plain decimal integer of 1 to `max_digits` digits (no sign, point or blank), as
+/// the Cornerstone 130 and the FW102C write one.
+pub(crate) fn decimal<T: std::str::FromStr>(s: &str, max_digits: usize) -> Option<T> {
+    if s.is_empty() || s.len() > max_digits || !s.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    s.parse().ok()
+}
+
 /// Why a reply value is not the number its query returns.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum ValueError {

@@ -136,11 +136,7 @@ impl Param<&str> for u8 {
         out.extend_from_slice(format!(" {self}").as_bytes());
     }
     fn read(p: &str) -> Result<u8, Refusal> {
-        let p = p.trim();
-        if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(Refusal::Syntax);
-        }
-        p.parse().map_err(|_| Refusal::Syntax)
+        crate::number::decimal(p.trim(), usize::MAX).ok_or(Refusal::Syntax)
     }
 }
 

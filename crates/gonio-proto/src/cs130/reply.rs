@@ -57,9 +57,7 @@ pub enum ReplyError {
 /// the statement as sent; case and surrounding blanks are ignored so that a
 /// statement typed in lower case still matches.
 pub fn is_echo(command: &Command, line: &[u8]) -> bool {
-    let mut sent = Vec::new();
-    command.encode_body(&mut sent);
-    line.trim_ascii().eq_ignore_ascii_case(&sent)
+    crate::codec::echoes(command, line.trim_ascii())
 }
 
 impl Reply {
@@ -83,10 +81,10 @@ impl Reply {
                 .ok_or(bad),
             Command::GratQuery => {
                 let mut fields = text.split(',').map(str::trim);
-                let number = int::<u8>(fields.next()).ok_or(bad.clone())?;
+                let number = fields.next().and_then(int::<u8>).ok_or(bad.clone())?;
                 let lines_per_mm = match fields.next() {
                     None => None,
-                    Some(f) => Some(int::<u32>(Some(f)).ok_or(bad.clone())?),
+                    Some(f) => Some(int::<u32>(f).ok_or(bad.clone())?),
                 };
                 let label = fields.next().map(str::to_string);
                 if fields.next().is_some()
@@ -102,7 +100,7 @@ impl Reply {
                     label,
                 })
             }
-            Command::FilterQuery => int::<u8>(Some(text)).map(Reply::Filter).ok_or(bad),
+            Command::FilterQuery => int::<u8>(text).map(Reply::Filter).ok_or(bad),
             Command::ShutterQuery => match text {
                 "O" | "o" => Ok(Reply::Shutter(true)),
                 "C" | "c" => Ok(Reply::Shutter(false)),
@@ -110,7 +108,7 @@ impl Reply {
             },
             // Decimal, `32` or `00` (§15.9; Model 74000 table): see StatusByte.
             Command::Stb => StatusByte::parse(text).map(Reply::Status).ok_or(bad),
-            Command::Error => int::<u8>(Some(text))
+            Command::Error => int::<u8>(text)
                 .map(|v| Reply::Error(ErrorCode(v)))
                 .ok_or(bad),
             Command::Info => {
@@ -155,10 +153,6 @@ impl Reply {
 crate::codec::line_encoding!(Reply, &[b'\r', REPLY_TERMINATOR]);
 
 /// A plain decimal integer.
-fn int<T: std::str::FromStr>(field: Option<&str>) -> Option<T> {
-    let f = field?;
-    if f.is_empty() || !f.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    f.parse().ok()
+fn int<T: std::str::FromStr>(field: &str) -> Option<T> {
+    crate::number::decimal(field, usize::MAX)
 }

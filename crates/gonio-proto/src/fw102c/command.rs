@@ -85,10 +85,7 @@ command_table! {
 /// command (`pos` alone is not defined).
 fn digits(value: Option<&str>) -> Result<u8, Refusal> {
     let v = value.ok_or(Refusal::Unknown)?;
-    if v.is_empty() || v.len() > 3 || !v.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(Refusal::Syntax);
-    }
-    v.parse().map_err(|_| Refusal::Syntax)
+    crate::number::decimal(v, 3).ok_or(Refusal::Syntax)
 }
 
 /// A position: digits, not 0.

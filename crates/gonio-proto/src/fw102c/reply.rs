@@ -123,9 +123,7 @@ impl<'a> Line<'a> {
 /// Whether `text` (prompt stripped) is the echo of `command`. Case is ignored: the
 /// wheel echoes what it received, and the host sends lower case.
 pub(crate) fn is_echo(command: &Command, text: &[u8]) -> bool {
-    let mut body = Vec::new();
-    command.encode_body(&mut body);
-    text.eq_ignore_ascii_case(&body)
+    crate::codec::echoes(command, text)
 }
 
 /// A query's value.
@@ -163,13 +161,8 @@ impl Reply {
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
         let digit = || -> Result<u8, ReplyError> {
-            let t = std::str::from_utf8(text)
-                .map_err(|_| ReplyError::BadValue)?
-                .trim();
-            if t.is_empty() || t.len() > 3 || !t.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(ReplyError::BadValue);
-            }
-            t.parse().map_err(|_| ReplyError::BadValue)
+            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
+            crate::number::decimal(t.trim(), 3).ok_or(ReplyError::BadValue)
         };
         match query {
             Command::Identify => {
