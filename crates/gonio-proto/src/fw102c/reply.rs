@@ -52,9 +52,10 @@ impl From<CommandError> for ErrorCode {
 
 impl fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // The two known codes are written as `CommandError` names them.
         match self {
-            ErrorCode::NotDefined => f.write_str("CMD_NOT_DEFINED"),
-            ErrorCode::ArgInvalid => f.write_str("CMD_ARG_INVALID"),
+            ErrorCode::NotDefined => CommandError::NotDefined.fmt(f),
+            ErrorCode::ArgInvalid => CommandError::ArgInvalid.fmt(f),
             ErrorCode::Other(s) => f.write_str(s),
         }
     }
@@ -73,11 +74,13 @@ impl DeviceError {
     /// The refusal in `line` (prompt already stripped), if it is one.
     pub fn parse(line: &[u8]) -> Option<DeviceError> {
         let rest = line.strip_prefix(Self::PREFIX)?;
-        let code = match rest {
-            b"CMD_NOT_DEFINED" => ErrorCode::NotDefined,
-            b"CMD_ARG_INVALID" => ErrorCode::ArgInvalid,
-            other => ErrorCode::Other(String::from_utf8_lossy(other).into_owned()),
-        };
+        let known = [CommandError::NotDefined, CommandError::ArgInvalid]
+            .into_iter()
+            .find(|e| e.to_string().as_bytes() == rest);
+        let code = known.map_or_else(
+            || ErrorCode::Other(String::from_utf8_lossy(rest).into_owned()),
+            ErrorCode::from,
+        );
         Some(DeviceError { code })
     }
 
