@@ -46,6 +46,7 @@
 //! by the pump that moves them.
 
 pub mod apt;
+mod codec;
 mod config;
 pub mod cs130;
 mod engine;

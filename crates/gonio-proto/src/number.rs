@@ -54,6 +54,95 @@ pub(crate) fn parse(s: &[u8]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+/// A plain decimal integer of 1 to `max_digits` digits (no sign, point or blank), as
+/// the Cornerstone 130 and the FW102C write one.
+pub(crate) fn decimal<T: std::str::FromStr>(s: &str, max_digits: usize) -> Option<T> {
+    if s.is_empty() || s.len() > max_digits || !s.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    s.parse().ok()
+}
+
+/// Why a reply value is not the number its query returns.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum ValueError {
+    /// Not a number, or not the integer expected.
+    Bad,
+    /// A number outside what the query can return.
+    OutOfRange(f64),
+}
+
+/// A number in any of the forms [`parse`] reads, surrounding blanks ignored.
+pub(crate) fn real(s: &[u8]) -> Result<f64, ValueError> {
+    parse(s.trim_ascii()).ok_or(ValueError::Bad)
+}
+
+/// An integer in `0..=max`, in any number form (`5`, `5.0`, `+5.000000E+00`).
+pub(crate) fn integer(s: &[u8], max: f64) -> Result<f64, ValueError> {
+    let v = real(s)?;
+    if v.fract() != 0.0 {
+        return Err(ValueError::Bad);
+    }
+    if !(0.0..=max).contains(&v) {
+        return Err(ValueError::OutOfRange(v));
+    }
+    Ok(v)
+}
+
+/// The reply error of an SCPI-style family (SR830, 6485): the four refusals both
+/// share, then the family's own variants. Generates the enum, the conversion from
+/// [`ValueError`] and `query_line`, the check every reply parser begins with.
+macro_rules! scpi_reply_error {
+    ($(#[$meta:meta])* pub enum $name:ident { $($extra:tt)* }) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+        pub enum $name {
+            /// The line is empty.
+            #[error("empty reply")]
+            Empty,
+            /// The command is not a query: the instrument never answers it.
+            #[error("{0} sends no reply")]
+            NotAQuery(&'static str),
+            /// A value that is not a number, or not the integer the query returns.
+            #[error("malformed value")]
+            BadValue,
+            /// A value (an index, a status byte) outside what the query can return.
+            #[error("value {0} out of range for this query")]
+            OutOfRange(f64),
+            $($extra)*
+        }
+
+        impl From<$crate::number::ValueError> for $name {
+            fn from(e: $crate::number::ValueError) -> Self {
+                match e {
+                    $crate::number::ValueError::Bad => $name::BadValue,
+                    $crate::number::ValueError::OutOfRange(v) => $name::OutOfRange(v),
+                }
+            }
+        }
+
+        impl $name {
+            /// `line` trimmed, if it can answer the command `mnemonic`: a query, and
+            /// not empty.
+            fn query_line<'a>(
+                query: bool,
+                mnemonic: &'static str,
+                line: &'a [u8],
+            ) -> Result<&'a [u8], Self> {
+                let line = line.trim_ascii();
+                if !query {
+                    return Err($name::NotAQuery(mnemonic));
+                }
+                if line.is_empty() {
+                    return Err($name::Empty);
+                }
+                Ok(line)
+            }
+        }
+    };
+}
+pub(crate) use scpi_reply_error;
+
 /// Mean and sample standard deviation of a detector's readings (n − 1; 0 for one
 /// value; NaN for none).
 pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {

@@ -21,17 +21,3 @@ pub fn exchange_s(out: usize, back: usize, baud: u32, latency_s: f64) -> f64 {
     }
     wire_s(out + back, baud) + latency_s
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bytes_take_ten_bits_each() {
-        // `1TP\r\n` at 57 600 baud: 50 bits.
-        assert!((wire_s(5, 57_600) - 50.0 / 57_600.0).abs() < 1e-15);
-        // A query: both ways and the latency; a command: its bytes alone.
-        assert!((exchange_s(6, 2, 9600, 0.005) - (0.005 + 80.0 / 9600.0)).abs() < 1e-15);
-        assert_eq!(exchange_s(6, 0, 9600, 0.005), wire_s(6, 9600));
-    }
-}

@@ -2,6 +2,7 @@
 //! twin's side.
 
 use super::TERMINATOR;
+use crate::codec::{Param, Refusal, command_table};
 
 /// The units `GOWAVE` takes and `WAVE?` answers in (the `UNITS` command). The session
 /// always selects nanometres.
@@ -49,59 +50,121 @@ impl Units {
     }
 }
 
-/// A statement to the Cornerstone 130 (CS130B manual, 90088262, Appendix I, §15.3):
-/// a keyword, then for some a parameter separated by at least one space. Queries end
-/// in `?` and are answered by one line; commands are answered by nothing but their
-/// echo (§15.4, standard mode).
-#[derive(Clone, Debug, PartialEq)]
-pub enum Command {
-    /// `GOWAVE <λ>`: move the wavelength drive to λ in the present units (§15.4's
-    /// example `GOWAVE 500`; §15.8's `gowave 587.1`). A destination outside the
-    /// grating's range is refused with error 3 (§15.9). Sent with at most three
-    /// decimals.
-    GoWave(f64),
-    /// `WAVE?`: the wavelength, in the present units (§15.4's example answers
-    /// `500.01`).
-    Wave,
-    /// `GRAT <n>`: select grating n (the drive turns the turret): "GRAT x Moves the
-    /// wavelength drive to the grating specified in the integer parameter" (Model
-    /// 74000 command table, whose turret has gratings 1 and 2).
-    Grat(u8),
-    /// `GRAT?`: the grating in use, `n,lines,label` (Model 74000 command table; see
-    /// [`Reply::Grating`](super::Reply::Grating)).
-    GratQuery,
-    /// `FILTER <n>`: move the filter wheel to position n, "Acceptable values range
-    /// from 1 through 6" (Model 74000 command table). Without a wheel the instrument
-    /// flags an error (§15.9's code 6, "accessory not present (usually filter
-    /// wheel)"), so a session configured without one never sends it.
-    Filter(u8),
-    /// `FILTER?`: the filter wheel's position; `0`, with an error set in the status
-    /// byte, "if there is no filter wheel connected, or if the wheel is out of
-    /// position" (Model 74000 command table).
-    FilterQuery,
-    /// `SHUTTER O` / `SHUTTER C`: open or close the shutter (§15.8's example
-    /// `shutter o`).
-    Shutter(bool),
-    /// `SHUTTER?`: `O` or `C`, "simply the one character parameter describing the
-    /// current state" (Model 74000 command table).
-    ShutterQuery,
-    /// `UNITS <u>`: the wavelength units.
-    Units(Units),
-    /// `STB?`: the status byte; reading it clears it (§15.9).
-    Stb,
-    /// `ERROR?`: the latest error code; reading it resets it to 0 (§15.9).
-    Error,
-    /// `INFO?`: the model and firmware, `Oriel, Model 74000 Cornerstone
-    /// 130,SNXXX,VYY.YY.YY` on the Model 74000 (its command table); any printable
-    /// text is accepted, since the CS130B's exact answer was not found.
-    Info,
-    /// `ABORT`: "Stops any wavelength motion immediately, i.e. GOSCAN, GOWAVE, STEP"
-    /// (Model 74000 command table).
-    Abort,
-    /// `*WAI`: hold every later statement until the pending operations (a move) are
-    /// finished (§15.8). The session's way of knowing a move is done: the query sent
-    /// after it is answered only then.
-    Wai,
+command_table! {
+    /// A statement to the Cornerstone 130 (CS130B manual, 90088262, Appendix I, §15.3):
+    /// a keyword, then for some a parameter separated by at least one space. Queries end
+    /// in `?` and are answered by one line; commands are answered by nothing but their
+    /// echo (§15.4, standard mode).
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum Command, keyword, input: &str {
+        /// `GOWAVE <λ>`: move the wavelength drive to λ in the present units (§15.4's
+        /// example `GOWAVE 500`; §15.8's `gowave 587.1`). A destination outside the
+        /// grating's range is refused with error 3 (§15.9). Sent with at most three
+        /// decimals.
+        GoWave(f64) = "GOWAVE" set;
+        /// `WAVE?`: the wavelength, in the present units (§15.4's example answers
+        /// `500.01`).
+        Wave = "WAVE" query;
+        /// `GRAT <n>`: select grating n (the drive turns the turret): "GRAT x Moves the
+        /// wavelength drive to the grating specified in the integer parameter" (Model
+        /// 74000 command table, whose turret has gratings 1 and 2).
+        Grat(u8) = "GRAT" set;
+        /// `GRAT?`: the grating in use, `n,lines,label` (Model 74000 command table; see
+        /// [`Reply::Grating`](super::Reply::Grating)).
+        GratQuery = "GRAT" query;
+        /// `FILTER <n>`: move the filter wheel to position n, "Acceptable values range
+        /// from 1 through 6" (Model 74000 command table). Without a wheel the instrument
+        /// flags an error (§15.9's code 6, "accessory not present (usually filter
+        /// wheel)"), so a session configured without one never sends it.
+        Filter(u8) = "FILTER" set;
+        /// `FILTER?`: the filter wheel's position; `0`, with an error set in the status
+        /// byte, "if there is no filter wheel connected, or if the wheel is out of
+        /// position" (Model 74000 command table).
+        FilterQuery = "FILTER" query;
+        /// `SHUTTER O` / `SHUTTER C`: open or close the shutter (§15.8's example
+        /// `shutter o`).
+        Shutter(bool) = "SHUTTER" set;
+        /// `SHUTTER?`: `O` or `C`, "simply the one character parameter describing the
+        /// current state" (Model 74000 command table).
+        ShutterQuery = "SHUTTER" query;
+        /// `UNITS <u>`: the wavelength units.
+        Units(Units) = "UNITS" set;
+        /// `STB?`: the status byte; reading it clears it (§15.9).
+        Stb = "STB" query;
+        /// `ERROR?`: the latest error code; reading it resets it to 0 (§15.9).
+        Error = "ERROR" query;
+        /// `INFO?`: the model and firmware, `Oriel, Model 74000 Cornerstone
+        /// 130,SNXXX,VYY.YY.YY` on the Model 74000 (its command table); any printable
+        /// text is accepted, since the CS130B's exact answer was not found.
+        Info = "INFO" query;
+        /// `ABORT`: "Stops any wavelength motion immediately, i.e. GOSCAN, GOWAVE, STEP"
+        /// (Model 74000 command table).
+        Abort = "ABORT" set;
+        /// `*WAI`: hold every later statement until the pending operations (a move) are
+        /// finished (§15.8). The session's way of knowing a move is done: the query sent
+        /// after it is answered only then.
+        Wai = "*WAI" set;
+    }
+}
+
+/// A statement's parameter: what follows the keyword (from its first blank on, `""`
+/// for none), trimmed by each reader. Any refusal is error 2.
+impl Param<&str> for () {
+    fn write(&self, _: &mut Vec<u8>) {}
+    fn read(p: &str) -> Result<(), Refusal> {
+        p.is_empty().then_some(()).ok_or(Refusal::Syntax)
+    }
+}
+
+/// A wavelength: any finite number, sent with at most three decimals.
+impl Param<&str> for f64 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!(" {}", format_value(*self)).as_bytes());
+    }
+    fn read(p: &str) -> Result<f64, Refusal> {
+        p.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or(Refusal::Syntax)
+    }
+}
+
+/// A grating or filter position, 0..=255 written as a plain integer.
+impl Param<&str> for u8 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!(" {self}").as_bytes());
+    }
+    fn read(p: &str) -> Result<u8, Refusal> {
+        crate::number::decimal(p.trim(), usize::MAX).ok_or(Refusal::Syntax)
+    }
+}
+
+/// The shutter, `O` (open) or `C`.
+impl Param<&str> for bool {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(if *self { b" O" } else { b" C" });
+    }
+    fn read(p: &str) -> Result<bool, Refusal> {
+        match p.trim().to_ascii_uppercase().as_str() {
+            "O" => Ok(true),
+            "C" => Ok(false),
+            _ => Err(Refusal::Syntax),
+        }
+    }
+}
+
+impl Param<&str> for Units {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!(" {}", self.as_str()).as_bytes());
+    }
+    fn read(p: &str) -> Result<Units, Refusal> {
+        let p = p.trim().to_ascii_uppercase();
+        [Units::Nm, Units::Um, Units::Wn]
+            .into_iter()
+            .find(|u| u.as_str() == p)
+            .ok_or(Refusal::Syntax)
+    }
 }
 
 /// Why a received line is not a statement the instrument runs: the error code it
@@ -127,21 +190,9 @@ impl CommandError {
     }
 }
 
-impl Command {
-    /// True for queries, which the instrument answers with a line after the echo.
-    pub fn is_query(&self) -> bool {
-        matches!(
-            self,
-            Command::Wave
-                | Command::GratQuery
-                | Command::FilterQuery
-                | Command::ShutterQuery
-                | Command::Stb
-                | Command::Error
-                | Command::Info
-        )
-    }
+crate::codec::line_encoding!(Command, TERMINATOR);
 
+impl Command {
     /// True for the statements that start or wait for a mechanism move (`GOWAVE`,
     /// `GRAT`, `FILTER`, `*WAI`): after them the session allows `move_timeout` for
     /// the next echoes and answers.
@@ -162,36 +213,7 @@ impl Command {
 
     /// Appends the statement without terminator.
     pub fn encode_body(&self, out: &mut Vec<u8>) {
-        let text = match self {
-            Command::GoWave(nm) => format!("GOWAVE {}", format_value(*nm)),
-            Command::Wave => "WAVE?".into(),
-            Command::Grat(n) => format!("GRAT {n}"),
-            Command::GratQuery => "GRAT?".into(),
-            Command::Filter(n) => format!("FILTER {n}"),
-            Command::FilterQuery => "FILTER?".into(),
-            Command::Shutter(open) => format!("SHUTTER {}", if *open { 'O' } else { 'C' }),
-            Command::ShutterQuery => "SHUTTER?".into(),
-            Command::Units(u) => format!("UNITS {}", u.as_str()),
-            Command::Stb => "STB?".into(),
-            Command::Error => "ERROR?".into(),
-            Command::Info => "INFO?".into(),
-            Command::Abort => "ABORT".into(),
-            Command::Wai => "*WAI".into(),
-        };
-        out.extend_from_slice(text.as_bytes());
-    }
-
-    /// Appends the statement and its CR LF terminator.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The statement with its terminator.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
+        self.encode_row(out);
     }
 
     /// Parses one received statement (terminator removed), as the instrument does:
@@ -201,58 +223,19 @@ impl Command {
         let text = String::from_utf8_lossy(line);
         let text = text.trim_matches(|c: char| c.is_ascii_whitespace());
         let (keyword, param) = match text.find(|c: char| c.is_ascii_whitespace()) {
-            Some(i) => (&text[..i], Some(text[i..].trim())),
-            None => (text, None),
+            Some(i) => text.split_at(i),
+            None => (text, ""),
         };
-        let keyword = keyword.to_ascii_uppercase();
-        let bare = |c: Command, name: &'static str| match param {
-            None => Ok(c),
-            Some(_) => Err(CommandError::BadParameter(name)),
+        let (keyword, query) = match keyword.strip_suffix('?') {
+            Some(k) => (k, true),
+            None => (keyword, false),
         };
-        match keyword.as_str() {
-            "GOWAVE" => param
-                .and_then(|p| p.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .map(Command::GoWave)
-                .ok_or(CommandError::BadParameter("GOWAVE")),
-            "GRAT" => small_int(param)
-                .map(Command::Grat)
-                .ok_or(CommandError::BadParameter("GRAT")),
-            "FILTER" => small_int(param)
-                .map(Command::Filter)
-                .ok_or(CommandError::BadParameter("FILTER")),
-            "SHUTTER" => match param.map(str::to_ascii_uppercase).as_deref() {
-                Some("O") => Ok(Command::Shutter(true)),
-                Some("C") => Ok(Command::Shutter(false)),
-                _ => Err(CommandError::BadParameter("SHUTTER")),
-            },
-            "UNITS" => match param.map(str::to_ascii_uppercase).as_deref() {
-                Some("NM") => Ok(Command::Units(Units::Nm)),
-                Some("UM") => Ok(Command::Units(Units::Um)),
-                Some("WN") => Ok(Command::Units(Units::Wn)),
-                _ => Err(CommandError::BadParameter("UNITS")),
-            },
-            "WAVE?" => bare(Command::Wave, "WAVE?"),
-            "GRAT?" => bare(Command::GratQuery, "GRAT?"),
-            "FILTER?" => bare(Command::FilterQuery, "FILTER?"),
-            "SHUTTER?" => bare(Command::ShutterQuery, "SHUTTER?"),
-            "STB?" => bare(Command::Stb, "STB?"),
-            "ERROR?" => bare(Command::Error, "ERROR?"),
-            "INFO?" => bare(Command::Info, "INFO?"),
-            "ABORT" => bare(Command::Abort, "ABORT"),
-            "*WAI" => bare(Command::Wai, "*WAI"),
-            _ => Err(CommandError::Unknown(text.to_string())),
+        match Command::from_row(keyword, query, param) {
+            Some((_, Ok(command))) => Ok(command),
+            Some((name, Err(_))) => Err(CommandError::BadParameter(name)),
+            None => Err(CommandError::Unknown(text.to_string())),
         }
     }
-}
-
-/// A parameter 0..=255 written as a plain integer.
-fn small_int(param: Option<&str>) -> Option<u8> {
-    let p = param?;
-    if p.is_empty() || !p.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    p.parse().ok()
 }
 
 /// A number with at most three decimals and no trailing zeros (`500`, `587.1`).
@@ -260,48 +243,4 @@ pub(super) fn format_value(v: f64) -> String {
     let s = format!("{v:.3}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" { "0".into() } else { s.into() }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn statements_encode_as_the_manual_writes_them() {
-        assert_eq!(Command::GoWave(500.0).to_bytes(), b"GOWAVE 500\r\n");
-        assert_eq!(Command::GoWave(587.1).to_bytes(), b"GOWAVE 587.1\r\n");
-        assert_eq!(Command::GoWave(587.12349).to_bytes(), b"GOWAVE 587.123\r\n");
-        assert_eq!(Command::Wave.to_bytes(), b"WAVE?\r\n");
-        assert_eq!(Command::Shutter(true).to_bytes(), b"SHUTTER O\r\n");
-        assert_eq!(Command::Shutter(false).to_bytes(), b"SHUTTER C\r\n");
-        assert_eq!(Command::Grat(2).to_bytes(), b"GRAT 2\r\n");
-        assert_eq!(Command::Filter(3).to_bytes(), b"FILTER 3\r\n");
-        assert_eq!(Command::Units(Units::Nm).to_bytes(), b"UNITS NM\r\n");
-        assert_eq!(Command::Wai.to_bytes(), b"*WAI\r\n");
-    }
-
-    #[test]
-    fn parsing_ignores_case_and_extra_spaces_and_refuses_with_the_manual_codes() {
-        assert_eq!(
-            Command::parse(b"gowave   587.1 "),
-            Ok(Command::GoWave(587.1))
-        );
-        assert_eq!(Command::parse(b"shutter o"), Ok(Command::Shutter(true)));
-        assert_eq!(Command::parse(b"*wai"), Ok(Command::Wai));
-        assert_eq!(Command::parse(b"Filter 4"), Ok(Command::Filter(4)));
-        let e = Command::parse(b"GOWAVE").unwrap_err();
-        assert_eq!(e.code(), 2);
-        assert_eq!(Command::parse(b"GOWAVE nan").unwrap_err().code(), 2);
-        assert_eq!(Command::parse(b"GRAT -1").unwrap_err().code(), 2);
-        assert_eq!(Command::parse(b"WAVE? 3").unwrap_err().code(), 2);
-        assert_eq!(Command::parse(b"GOWAV 500").unwrap_err().code(), 1);
-    }
-
-    #[test]
-    fn units_convert_both_ways() {
-        assert_eq!(Units::Um.to_nm(0.5), 500.0);
-        assert_eq!(Units::Wn.to_nm(20_000.0), 500.0);
-        assert_eq!(Units::Wn.from_nm(500.0), 20_000.0);
-        assert_eq!(Units::Nm.from_nm(500.0), 500.0);
-    }
 }

@@ -57,9 +57,7 @@ pub enum ReplyError {
 /// the statement as sent; case and surrounding blanks are ignored so that a
 /// statement typed in lower case still matches.
 pub fn is_echo(command: &Command, line: &[u8]) -> bool {
-    let mut sent = Vec::new();
-    command.encode_body(&mut sent);
-    line.trim_ascii().eq_ignore_ascii_case(&sent)
+    crate::codec::echoes(command, line.trim_ascii())
 }
 
 impl Reply {
@@ -83,10 +81,10 @@ impl Reply {
                 .ok_or(bad),
             Command::GratQuery => {
                 let mut fields = text.split(',').map(str::trim);
-                let number = int::<u8>(fields.next()).ok_or(bad.clone())?;
+                let number = fields.next().and_then(int::<u8>).ok_or(bad.clone())?;
                 let lines_per_mm = match fields.next() {
                     None => None,
-                    Some(f) => Some(int::<u32>(Some(f)).ok_or(bad.clone())?),
+                    Some(f) => Some(int::<u32>(f).ok_or(bad.clone())?),
                 };
                 let label = fields.next().map(str::to_string);
                 if fields.next().is_some()
@@ -102,7 +100,7 @@ impl Reply {
                     label,
                 })
             }
-            Command::FilterQuery => int::<u8>(Some(text)).map(Reply::Filter).ok_or(bad),
+            Command::FilterQuery => int::<u8>(text).map(Reply::Filter).ok_or(bad),
             Command::ShutterQuery => match text {
                 "O" | "o" => Ok(Reply::Shutter(true)),
                 "C" | "c" => Ok(Reply::Shutter(false)),
@@ -110,7 +108,7 @@ impl Reply {
             },
             // Decimal, `32` or `00` (§15.9; Model 74000 table): see StatusByte.
             Command::Stb => StatusByte::parse(text).map(Reply::Status).ok_or(bad),
-            Command::Error => int::<u8>(Some(text))
+            Command::Error => int::<u8>(text)
                 .map(|v| Reply::Error(ErrorCode(v)))
                 .ok_or(bad),
             Command::Info => {
@@ -149,123 +147,12 @@ impl Reply {
         };
         out.extend_from_slice(text.as_bytes());
     }
-
-    /// The answer with its CR LF terminator (§15.3).
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode_body(&mut out);
-        out.push(b'\r');
-        out.push(REPLY_TERMINATOR);
-        out
-    }
 }
+
+// Answers end CR LF (§15.3).
+crate::codec::line_encoding!(Reply, &[b'\r', REPLY_TERMINATOR]);
 
 /// A plain decimal integer.
-fn int<T: std::str::FromStr>(field: Option<&str>) -> Option<T> {
-    let f = field?;
-    if f.is_empty() || !f.bytes().all(|b| b.is_ascii_digit()) {
-        return None;
-    }
-    f.parse().ok()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn answers_parse_by_query() {
-        assert_eq!(
-            Reply::parse(&Command::Wave, b"500.01"),
-            Ok(Reply::Wavelength(500.01))
-        );
-        assert_eq!(
-            Reply::parse(&Command::Stb, b"00"),
-            Ok(Reply::Status(StatusByte(0)))
-        );
-        // Decimal (§15.9, Model 74000 table): `32` after an error, `00` or `0` without.
-        assert_eq!(
-            Reply::parse(&Command::Stb, b"32"),
-            Ok(Reply::Status(StatusByte(32)))
-        );
-        assert_eq!(
-            Reply::parse(&Command::Stb, b"0"),
-            Ok(Reply::Status(StatusByte(0)))
-        );
-        // The CS260's hexadecimal `20` is nonzero, so still an error.
-        let Ok(Reply::Status(s)) = Reply::parse(&Command::Stb, b"20") else {
-            panic!()
-        };
-        assert!(s.error());
-        for not_a_byte in [&b"2A"[..], b"256", b"-1", b"3.2", b"", b"0032"] {
-            assert_eq!(
-                Reply::parse(&Command::Stb, not_a_byte),
-                Err(ReplyError::BadValue),
-                "{not_a_byte:?}"
-            );
-        }
-        assert_eq!(
-            Reply::parse(&Command::Error, b"3"),
-            Ok(Reply::Error(ErrorCode::DESTINATION))
-        );
-        assert_eq!(
-            Reply::parse(&Command::ShutterQuery, b"C"),
-            Ok(Reply::Shutter(false))
-        );
-        assert_eq!(
-            Reply::parse(&Command::GratQuery, b"2,600,IR"),
-            Ok(Reply::Grating {
-                number: 2,
-                lines_per_mm: Some(600),
-                label: Some("IR".into())
-            })
-        );
-        assert_eq!(
-            Reply::parse(&Command::GratQuery, b"1"),
-            Ok(Reply::Grating {
-                number: 1,
-                lines_per_mm: None,
-                label: None
-            })
-        );
-        assert_eq!(
-            Reply::parse(&Command::Wave, b"abc"),
-            Err(ReplyError::BadValue)
-        );
-        assert_eq!(
-            Reply::parse(&Command::Wave, b"inf"),
-            Err(ReplyError::BadValue)
-        );
-        assert_eq!(
-            Reply::parse(&Command::GoWave(1.0), b"1"),
-            Err(ReplyError::NotAQuery)
-        );
-    }
-
-    #[test]
-    fn the_echo_is_the_statement_as_sent() {
-        assert!(is_echo(&Command::GoWave(500.0), b"GOWAVE 500"));
-        assert!(is_echo(&Command::GoWave(500.0), b"gowave 500 "));
-        assert!(!is_echo(&Command::GoWave(500.0), b"GOWAVE 501"));
-        assert!(!is_echo(&Command::Wave, b"500.01"));
-    }
-
-    #[test]
-    fn answers_encode_as_parsed() {
-        for (q, r) in [
-            (Command::Wave, Reply::Wavelength(500.25)),
-            (Command::FilterQuery, Reply::Filter(3)),
-            (Command::Stb, Reply::Status(StatusByte(32))),
-            (Command::Stb, Reply::Status(StatusByte(0))),
-            (Command::Error, Reply::Error(ErrorCode(6))),
-            (Command::Info, Reply::Info("CORNERSTONE 130 TWIN".into())),
-        ] {
-            let bytes = r.to_bytes();
-            assert!(bytes.ends_with(b"\r\n"));
-            assert_eq!(Reply::parse(&q, &bytes[..bytes.len() - 2]), Ok(r));
-        }
-        assert_eq!(Reply::Status(StatusByte(32)).to_bytes(), b"32\r\n");
-        assert_eq!(Reply::Status(StatusByte(0)).to_bytes(), b"00\r\n");
-        assert_eq!(Reply::Wavelength(500.0).to_bytes(), b"500.00\r\n");
-    }
+fn int<T: std::str::FromStr>(field: &str) -> Option<T> {
+    crate::number::decimal(field, usize::MAX)
 }

@@ -39,10 +39,7 @@ impl StatusByte {
     /// Reads an `STB?` answer (terminator and surrounding blanks removed) by the rule
     /// above: 1 to 3 decimal digits, 0..=255; `None` for anything else.
     pub fn parse(text: &str) -> Option<StatusByte> {
-        if text.is_empty() || text.len() > 3 || !text.bytes().all(|b| b.is_ascii_digit()) {
-            return None;
-        }
-        text.parse::<u8>().ok().map(StatusByte)
+        crate::number::decimal(text, 3).map(StatusByte)
     }
 
     /// True when an error is flagged: any nonzero value (32 is the manual's, §15.9),

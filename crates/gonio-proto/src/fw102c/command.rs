@@ -4,123 +4,131 @@
 
 use std::fmt;
 
-use super::TERMINATOR;
+use super::{POSITION_COUNTS, TERMINATOR};
+use crate::codec::{Param, Refusal, coded_enum, command_table};
 
-/// The wheel's rotation speed (`speed=`): 0 slow, 1 high (UNCONFIRMED). In a config
-/// file, `"low"` or `"high"`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Speed {
-    /// `speed=0`.
-    Low,
-    /// `speed=1`.
-    #[default]
-    High,
-}
-
-impl Speed {
-    /// The digit on the wire.
-    pub fn digit(self) -> u8 {
-        match self {
-            Speed::Low => 0,
-            Speed::High => 1,
-        }
-    }
-
-    /// The speed a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Speed> {
-        match d {
-            0 => Some(Speed::Low),
-            1 => Some(Speed::High),
-            _ => None,
-        }
+coded_enum! {
+    /// The wheel's rotation speed (`speed=`): 0 slow, 1 high (UNCONFIRMED). In a config
+    /// file, `"low"` or `"high"`.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum Speed: u8, digit / from_digit {
+        /// `speed=0`.
+        Low = 0,
+        /// `speed=1`.
+        #[default]
+        High = 1,
     }
 }
 
-/// The trigger connector's mode (`trig=`): 0 input (a pulse moves the wheel one
-/// position), 1 output (UNCONFIRMED). Gonio does not use the trigger.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum TriggerMode {
-    /// `trig=0`.
-    Input,
-    /// `trig=1`.
-    Output,
-}
-
-/// The position sensors' mode (`sensors=`): 0 switches them off while the wheel is
-/// idle, "to eliminate stray light", 1 keeps them on (UNCONFIRMED wording; Thorlabs
-/// describes the sensors as optical).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SensorMode {
-    /// `sensors=0`: off while idle.
-    OffWhenIdle,
-    /// `sensors=1`: always on.
-    AlwaysOn,
-}
-
-impl TriggerMode {
-    fn digit(self) -> u8 {
-        match self {
-            TriggerMode::Input => 0,
-            TriggerMode::Output => 1,
-        }
-    }
-    /// The mode a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Self> {
-        match d {
-            0 => Some(TriggerMode::Input),
-            1 => Some(TriggerMode::Output),
-            _ => None,
-        }
+coded_enum! {
+    /// The trigger connector's mode (`trig=`): 0 input (a pulse moves the wheel one
+    /// position), 1 output (UNCONFIRMED). Gonio does not use the trigger.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum TriggerMode: u8, digit / from_digit {
+        /// `trig=0`.
+        Input = 0,
+        /// `trig=1`.
+        Output = 1,
     }
 }
 
-impl SensorMode {
-    fn digit(self) -> u8 {
-        match self {
-            SensorMode::OffWhenIdle => 0,
-            SensorMode::AlwaysOn => 1,
-        }
-    }
-    /// The mode a digit stands for.
-    pub fn from_digit(d: u8) -> Option<Self> {
-        match d {
-            0 => Some(SensorMode::OffWhenIdle),
-            1 => Some(SensorMode::AlwaysOn),
-            _ => None,
-        }
+coded_enum! {
+    /// The position sensors' mode (`sensors=`): 0 switches them off while the wheel is
+    /// idle, "to eliminate stray light", 1 keeps them on (UNCONFIRMED wording; Thorlabs
+    /// describes the sensors as optical).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum SensorMode: u8, digit / from_digit {
+        /// `sensors=0`: off while idle.
+        OffWhenIdle = 0,
+        /// `sensors=1`: always on.
+        AlwaysOn = 1,
     }
 }
 
-/// One command to the wheel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Command {
-    /// `*idn?`: the identification string.
-    Identify,
-    /// `pos=n`: move to position n (1-based). The wheel refuses n outside
-    /// 1..=pcount with `CMD_ARG_INVALID` (the twin's model; UNCONFIRMED).
-    SetPosition(u8),
-    /// `pos?`: the present position.
-    QueryPosition,
-    /// `pcount=n`: the number of positions of the mounted wheel, 6 or 12.
-    SetPositionCount(u8),
-    /// `pcount?`.
-    QueryPositionCount,
-    /// `speed=n`.
-    SetSpeed(Speed),
-    /// `speed?`.
-    QuerySpeed,
-    /// `trig=n`.
-    SetTrigger(TriggerMode),
-    /// `trig?`.
-    QueryTrigger,
-    /// `sensors=n`.
-    SetSensors(SensorMode),
-    /// `sensors?`.
-    QuerySensors,
-    /// `save`: keeps the present settings over a power cycle.
-    Save,
+command_table! {
+    /// One command to the wheel (p. 11's table): a lower-case word, `?` for a query,
+    /// `=n` for a value.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Command, word, input: Option<&str> {
+        /// `*idn?`: the identification string.
+        Identify = "*idn" query;
+        /// `pos=n`: move to position n (1-based). The wheel refuses n outside
+        /// 1..=pcount with `CMD_ARG_INVALID` (the twin's model; UNCONFIRMED).
+        SetPosition(u8) = "pos" set, read: |v| nonzero(v);
+        /// `pos?`: the present position.
+        QueryPosition = "pos" query;
+        /// `pcount=n`: the number of positions of the mounted wheel, 6 or 12.
+        SetPositionCount(u8) = "pcount" set, read: |v| {
+            digits(v).and_then(|n| POSITION_COUNTS.contains(&n).then_some(n).ok_or(Refusal::OutOfRange))
+        };
+        /// `pcount?`.
+        QueryPositionCount = "pcount" query;
+        /// `speed=n`.
+        SetSpeed(Speed) = "speed" set;
+        /// `speed?`.
+        QuerySpeed = "speed" query;
+        /// `trig=n`.
+        SetTrigger(TriggerMode) = "trig" set;
+        /// `trig?`.
+        QueryTrigger = "trig" query;
+        /// `sensors=n`.
+        SetSensors(SensorMode) = "sensors" set;
+        /// `sensors?`.
+        QuerySensors = "sensors" query;
+        /// `save`: keeps the present settings over a power cycle.
+        Save = "save" set;
+    }
 }
+
+/// A value after `=`: 1 to 3 decimal digits, 0..=255. No `=` at all is another
+/// command (`pos` alone is not defined).
+fn digits(value: Option<&str>) -> Result<u8, Refusal> {
+    let v = value.ok_or(Refusal::Unknown)?;
+    crate::number::decimal(v, 3).ok_or(Refusal::Syntax)
+}
+
+/// A position: digits, not 0.
+fn nonzero(value: Option<&str>) -> Result<u8, Refusal> {
+    digits(value).and_then(|n| {
+        if n == 0 {
+            Err(Refusal::OutOfRange)
+        } else {
+            Ok(n)
+        }
+    })
+}
+
+impl Param<Option<&str>> for () {
+    fn write(&self, _: &mut Vec<u8>) {}
+    fn read(value: Option<&str>) -> Result<(), Refusal> {
+        value.map_or(Ok(()), |_| Err(Refusal::Unknown))
+    }
+}
+
+impl Param<Option<&str>> for u8 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!("={self}").as_bytes());
+    }
+    fn read(value: Option<&str>) -> Result<u8, Refusal> {
+        digits(value)
+    }
+}
+
+/// The digit-coded settings: `=d`.
+macro_rules! digit_param {
+    ($($t:ty),+) => {$(
+        impl Param<Option<&str>> for $t {
+            fn write(&self, out: &mut Vec<u8>) {
+                <u8 as Param<Option<&str>>>::write(&self.digit(), out);
+            }
+            fn read(value: Option<&str>) -> Result<$t, Refusal> {
+                <$t>::from_digit(digits(value)?).ok_or(Refusal::OutOfRange)
+            }
+        }
+    )+};
+}
+digit_param!(Speed, TriggerMode, SensorMode);
 
 /// Why a received line is not a command, as the wheel answers it: the text after
 /// `Command error ` (UNCONFIRMED; Odemis and InstrumentKit match these two).
@@ -134,37 +142,12 @@ pub enum CommandError {
     ArgInvalid,
 }
 
-impl Command {
-    /// Whether the wheel answers with a value line.
-    pub fn is_query(&self) -> bool {
-        matches!(
-            self,
-            Command::Identify
-                | Command::QueryPosition
-                | Command::QueryPositionCount
-                | Command::QuerySpeed
-                | Command::QueryTrigger
-                | Command::QuerySensors
-        )
-    }
+crate::codec::line_encoding!(Command, &[TERMINATOR]);
 
+impl Command {
     /// Writes the command without its terminator.
     pub fn encode_body(&self, out: &mut Vec<u8>) {
-        let text = self.to_string();
-        out.extend_from_slice(text.as_bytes());
-    }
-
-    /// Writes the command and its CR.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.push(TERMINATOR);
-    }
-
-    /// The command and its CR, as sent.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
+        self.encode_row(out);
     }
 
     /// Parses one received line, terminator removed: what the wheel does on receipt.
@@ -177,47 +160,18 @@ impl Command {
             .map_err(|_| CommandError::NotDefined)?
             .trim_matches(|c: char| c == ' ' || c == '\t')
             .to_ascii_lowercase();
-        let simple = match text.as_str() {
-            "*idn?" => Some(Command::Identify),
-            "pos?" => Some(Command::QueryPosition),
-            "pcount?" => Some(Command::QueryPositionCount),
-            "speed?" => Some(Command::QuerySpeed),
-            "trig?" => Some(Command::QueryTrigger),
-            "sensors?" => Some(Command::QuerySensors),
-            "save" => Some(Command::Save),
-            _ => None,
+        let (word, value) = match text.split_once('=') {
+            Some((word, value)) => (word, Some(value)),
+            None => (text.as_str(), None),
         };
-        if let Some(c) = simple {
-            return Ok(c);
-        }
-        let Some((word, value)) = text.split_once('=') else {
-            return Err(CommandError::NotDefined);
+        let (word, query) = match word.strip_suffix('?') {
+            Some(w) if value.is_none() => (w, true),
+            _ => (word, false),
         };
-        let number = || -> Result<u8, CommandError> {
-            if value.is_empty() || value.len() > 3 || !value.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(CommandError::ArgInvalid);
-            }
-            value.parse::<u8>().map_err(|_| CommandError::ArgInvalid)
-        };
-        match word {
-            "pos" => match number()? {
-                0 => Err(CommandError::ArgInvalid),
-                n => Ok(Command::SetPosition(n)),
-            },
-            "pcount" => match number()? {
-                n @ (6 | 12) => Ok(Command::SetPositionCount(n)),
-                _ => Err(CommandError::ArgInvalid),
-            },
-            "speed" => Speed::from_digit(number()?)
-                .map(Command::SetSpeed)
-                .ok_or(CommandError::ArgInvalid),
-            "trig" => TriggerMode::from_digit(number()?)
-                .map(Command::SetTrigger)
-                .ok_or(CommandError::ArgInvalid),
-            "sensors" => SensorMode::from_digit(number()?)
-                .map(Command::SetSensors)
-                .ok_or(CommandError::ArgInvalid),
-            _ => Err(CommandError::NotDefined),
+        match Command::from_row(word, query, value) {
+            Some((_, Ok(c))) => Ok(c),
+            None | Some((_, Err(Refusal::Unknown))) => Err(CommandError::NotDefined),
+            Some((_, Err(_))) => Err(CommandError::ArgInvalid),
         }
     }
 }
@@ -225,70 +179,6 @@ impl Command {
 impl fmt::Display for Command {
     /// The command as sent, without its terminator.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Command::Identify => f.write_str("*idn?"),
-            Command::SetPosition(n) => write!(f, "pos={n}"),
-            Command::QueryPosition => f.write_str("pos?"),
-            Command::SetPositionCount(n) => write!(f, "pcount={n}"),
-            Command::QueryPositionCount => f.write_str("pcount?"),
-            Command::SetSpeed(s) => write!(f, "speed={}", s.digit()),
-            Command::QuerySpeed => f.write_str("speed?"),
-            Command::SetTrigger(t) => write!(f, "trig={}", t.digit()),
-            Command::QueryTrigger => f.write_str("trig?"),
-            Command::SetSensors(s) => write!(f, "sensors={}", s.digit()),
-            Command::QuerySensors => f.write_str("sensors?"),
-            Command::Save => f.write_str("save"),
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_command_encodes_byte_exactly_and_parses_back() {
-        let table: [(Command, &[u8]); 14] = [
-            (Command::Identify, b"*idn?\r"),
-            (Command::SetPosition(1), b"pos=1\r"),
-            (Command::SetPosition(12), b"pos=12\r"),
-            (Command::QueryPosition, b"pos?\r"),
-            (Command::SetPositionCount(6), b"pcount=6\r"),
-            (Command::QueryPositionCount, b"pcount?\r"),
-            (Command::SetSpeed(Speed::Low), b"speed=0\r"),
-            (Command::SetSpeed(Speed::High), b"speed=1\r"),
-            (Command::QuerySpeed, b"speed?\r"),
-            (Command::SetTrigger(TriggerMode::Output), b"trig=1\r"),
-            (Command::QueryTrigger, b"trig?\r"),
-            (Command::SetSensors(SensorMode::OffWhenIdle), b"sensors=0\r"),
-            (Command::QuerySensors, b"sensors?\r"),
-            (Command::Save, b"save\r"),
-        ];
-        for (c, bytes) in table {
-            assert_eq!(c.to_bytes(), bytes, "{c:?}");
-            assert_eq!(Command::parse(&bytes[..bytes.len() - 1]), Ok(c));
-        }
-    }
-
-    #[test]
-    fn the_wheel_refuses_what_it_does_not_know() {
-        use CommandError::*;
-        for (line, e) in [
-            (&b""[..], NotDefined),
-            (b"move=3", NotDefined),
-            (b"pos", NotDefined),
-            (b"pos=0", ArgInvalid),
-            (b"pos=", ArgInvalid),
-            (b"pos=-1", ArgInvalid),
-            (b"pos=x", ArgInvalid),
-            (b"pos=999", ArgInvalid),
-            (b"pcount=7", ArgInvalid),
-            (b"speed=2", ArgInvalid),
-            (b"sensors=1.0", ArgInvalid),
-            (b"\xff", NotDefined),
-        ] {
-            assert_eq!(Command::parse(line), Err(e), "{line:?}");
-        }
-        assert_eq!(Command::parse(b" POS=4 "), Ok(Command::SetPosition(4)));
+        f.write_str(&String::from_utf8_lossy(&crate::codec::Encode::body(self)))
     }
 }

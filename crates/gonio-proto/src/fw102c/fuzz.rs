@@ -2,26 +2,19 @@
 //! every input; a panic means a codec bug. The `cargo fuzz` target is
 //! `fuzz/fuzz_targets/fw102c_line.rs`.
 
-use super::{Command, Line, Reply, strip_prompt};
+use super::{Command, Line, Reply};
+use crate::codec::{self, RoundTrip};
 
 /// Parses `data` as a received command line (the wheel's side); a command that parses
 /// encodes and parses back to itself.
 pub fn fuzz_parse_line(data: &[u8]) {
-    if let Ok(command) = Command::parse(data) {
-        let mut out = Vec::new();
-        command.encode_body(&mut out);
-        assert_eq!(Command::parse(&out), Ok(command), "re-parse of {out:?}");
-    }
+    codec::fuzz_commands(data, |d| vec![Command::parse(d)], RoundTrip::Exact);
 }
 
 /// Classifies `data[1..]` as a received line and parses it as the value of a query
 /// chosen by `data[0]`; a value that parses encodes to a line that parses to the same
-/// value.
+/// value, and only a query has one.
 pub fn fuzz_parse_reply(data: &[u8]) {
-    let Some((&selector, line)) = data.split_first() else {
-        return;
-    };
-    let _ = Line::classify(line);
     let queries = [
         Command::Identify,
         Command::QueryPosition,
@@ -32,32 +25,11 @@ pub fn fuzz_parse_reply(data: &[u8]) {
         // Not a query: must be refused, never parsed.
         Command::SetPosition(1),
     ];
-    let command = queries[usize::from(selector) % queries.len()];
-    if let Ok(reply) = Reply::parse(&command, line) {
-        assert!(command.is_query());
-        let bytes = reply.to_bytes();
-        let body = bytes.strip_suffix(b"\r").unwrap_or(&bytes);
-        let again = Reply::parse(&command, strip_prompt(body));
-        assert_eq!(again, Ok(reply), "re-parse of {bytes:?}");
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use proptest::prelude::*;
-
-    proptest! {
-        #[test]
-        fn parsers_never_panic(data in proptest::collection::vec(any::<u8>(), 0..64)) {
-            super::fuzz_parse_line(&data);
-            super::fuzz_parse_reply(&data);
-        }
-
-        #[test]
-        fn positions_round_trip(n in 1u8..=255) {
-            let c = super::Command::SetPosition(n);
-            let bytes = c.to_bytes();
-            prop_assert_eq!(super::Command::parse(&bytes[..bytes.len() - 1]), Ok(c));
-        }
-    }
+    let _ = data.split_first().map(|(_, line)| Line::classify(line));
+    let parse = |query: &Command, line: &[u8]| {
+        let reply = Reply::parse(query, line);
+        assert!(reply.is_err() || query.is_query(), "{query:?} answered");
+        reply
+    };
+    codec::fuzz_replies(data, &queries, parse, RoundTrip::Exact);
 }

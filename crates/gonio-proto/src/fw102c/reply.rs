@@ -52,9 +52,10 @@ impl From<CommandError> for ErrorCode {
 
 impl fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // The two known codes are written as `CommandError` names them.
         match self {
-            ErrorCode::NotDefined => f.write_str("CMD_NOT_DEFINED"),
-            ErrorCode::ArgInvalid => f.write_str("CMD_ARG_INVALID"),
+            ErrorCode::NotDefined => CommandError::NotDefined.fmt(f),
+            ErrorCode::ArgInvalid => CommandError::ArgInvalid.fmt(f),
             ErrorCode::Other(s) => f.write_str(s),
         }
     }
@@ -73,11 +74,13 @@ impl DeviceError {
     /// The refusal in `line` (prompt already stripped), if it is one.
     pub fn parse(line: &[u8]) -> Option<DeviceError> {
         let rest = line.strip_prefix(Self::PREFIX)?;
-        let code = match rest {
-            b"CMD_NOT_DEFINED" => ErrorCode::NotDefined,
-            b"CMD_ARG_INVALID" => ErrorCode::ArgInvalid,
-            other => ErrorCode::Other(String::from_utf8_lossy(other).into_owned()),
-        };
+        let known = [CommandError::NotDefined, CommandError::ArgInvalid]
+            .into_iter()
+            .find(|e| e.to_string().as_bytes() == rest);
+        let code = known.map_or_else(
+            || ErrorCode::Other(String::from_utf8_lossy(rest).into_owned()),
+            ErrorCode::from,
+        );
         Some(DeviceError { code })
     }
 
@@ -123,9 +126,7 @@ impl<'a> Line<'a> {
 /// Whether `text` (prompt stripped) is the echo of `command`. Case is ignored: the
 /// wheel echoes what it received, and the host sends lower case.
 pub(crate) fn is_echo(command: &Command, text: &[u8]) -> bool {
-    let mut body = Vec::new();
-    command.encode_body(&mut body);
-    text.eq_ignore_ascii_case(&body)
+    crate::codec::echoes(command, text)
 }
 
 /// A query's value.
@@ -163,13 +164,8 @@ impl Reply {
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
         let digit = || -> Result<u8, ReplyError> {
-            let t = std::str::from_utf8(text)
-                .map_err(|_| ReplyError::BadValue)?
-                .trim();
-            if t.is_empty() || t.len() > 3 || !t.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(ReplyError::BadValue);
-            }
-            t.parse().map_err(|_| ReplyError::BadValue)
+            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
+            crate::number::decimal(t.trim(), 3).ok_or(ReplyError::BadValue)
         };
         match query {
             Command::Identify => {
@@ -200,121 +196,24 @@ impl Reply {
         }
     }
 
-    /// The value line as the wheel sends it, CR included.
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// The value line as the wheel sends it, without its CR.
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         let text = match self {
             Reply::Identity(s) => s.clone(),
             Reply::Position(n) | Reply::PositionCount(n) => n.to_string(),
             Reply::Speed(s) => s.digit().to_string(),
-            Reply::Trigger(t) => match t {
-                TriggerMode::Input => "0".into(),
-                TriggerMode::Output => "1".into(),
-            },
-            Reply::Sensors(s) => match s {
-                SensorMode::OffWhenIdle => "0".into(),
-                SensorMode::AlwaysOn => "1".into(),
-            },
+            Reply::Trigger(t) => t.digit().to_string(),
+            Reply::Sensors(s) => s.digit().to_string(),
         };
         out.extend_from_slice(text.as_bytes());
-        out.push(TERMINATOR);
-    }
-
-    /// The value line, CR included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        self.encode(&mut out);
-        out
     }
 }
+
+crate::codec::line_encoding!(Reply, &[TERMINATOR]);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_prompt_is_stripped_from_the_next_line() {
-        assert_eq!(strip_prompt(b"> pos?"), b"pos?");
-        assert_eq!(strip_prompt(b">> > 3\n"), b"3");
-        assert_eq!(strip_prompt(b">"), b"");
-        assert_eq!(Line::classify(b"> "), Line::Blank);
-        assert_eq!(Line::classify(b"> pos=2"), Line::Text(b"pos=2"));
-        assert_eq!(
-            Line::classify(b"Command error CMD_ARG_INVALID"),
-            Line::Error(DeviceError {
-                code: ErrorCode::ArgInvalid
-            })
-        );
-        assert_eq!(
-            Line::classify(b"> Command error CMD_NOT_DEFINED"),
-            Line::Error(DeviceError {
-                code: ErrorCode::NotDefined
-            })
-        );
-        assert_eq!(
-            Line::classify(b"Command error CMD_BUSY"),
-            Line::Error(DeviceError {
-                code: ErrorCode::Other("CMD_BUSY".into())
-            })
-        );
-    }
-
-    #[test]
-    fn error_lines_encode_as_parsed() {
-        for code in [ErrorCode::NotDefined, ErrorCode::ArgInvalid] {
-            let mut out = Vec::new();
-            DeviceError { code: code.clone() }.encode(&mut out);
-            let line = out.strip_suffix(b"\r").unwrap();
-            assert_eq!(DeviceError::parse(line), Some(DeviceError { code }));
-        }
-        let mut out = Vec::new();
-        DeviceError {
-            code: ErrorCode::ArgInvalid,
-        }
-        .encode(&mut out);
-        assert_eq!(out, b"Command error CMD_ARG_INVALID\r");
-    }
-
-    #[test]
-    fn values_parse_by_query() {
-        let idn = b"THORLABS FW102C/FW212C Filter Wheel version 1.04";
-        assert_eq!(
-            Reply::parse(&Command::Identify, idn),
-            Ok(Reply::Identity(String::from_utf8_lossy(idn).into()))
-        );
-        assert_eq!(
-            Reply::parse(&Command::QueryPosition, b"12"),
-            Ok(Reply::Position(12))
-        );
-        assert_eq!(
-            Reply::parse(&Command::QueryPosition, b"0"),
-            Err(ReplyError::BadValue)
-        );
-        assert_eq!(
-            Reply::parse(&Command::QueryPosition, b"2.0"),
-            Err(ReplyError::BadValue)
-        );
-        assert_eq!(
-            Reply::parse(&Command::QueryPositionCount, b"6"),
-            Ok(Reply::PositionCount(6))
-        );
-        assert_eq!(
-            Reply::parse(&Command::QuerySpeed, b"0"),
-            Ok(Reply::Speed(Speed::Low))
-        );
-        assert_eq!(
-            Reply::parse(&Command::QuerySpeed, b"2"),
-            Err(ReplyError::BadValue)
-        );
-        assert_eq!(
-            Reply::parse(&Command::QuerySensors, b"0"),
-            Ok(Reply::Sensors(SensorMode::OffWhenIdle))
-        );
-        assert_eq!(
-            Reply::parse(&Command::SetPosition(2), b"2"),
-            Err(ReplyError::NotAQuery)
-        );
-        assert_eq!(Reply::Position(7).to_bytes(), b"7\r");
-    }
 
     #[test]
     fn echoes_match_their_command_only() {

@@ -1,71 +1,169 @@
 //! Host to instrument: [`Command`], and the SCPI errors the instrument queues for a
 //! command it cannot run.
 
-use super::{EventStatus, FilterType, MIN_NPLC, Range, TERMINATOR};
+use std::ops::RangeInclusive;
+
+use super::{EventStatus, FILTER_COUNT, FilterType, MIN_NPLC, Range, TERMINATOR};
+use crate::codec::{Param, Refusal, command_table};
 use crate::number;
 
 /// Most readings one trigger sequence takes, `TRIG:COUN` (Section 8, "Trigger
 /// model": 1 to 2048).
 pub const MAX_TRIGGER_COUNT: u32 = 2048;
 
-/// A command to the 6485 (SCPI, Sections 12–16 of the manual). Queries answer one
-/// line; the rest answer nothing. Encoded in the short form, absolute (each command
-/// begins at the root), one per line.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Command {
-    /// `*RST`: the reset defaults (IEEE-488.2 common command, Section 12). The session
-    /// sets everything it relies on afterwards, so no default is assumed.
-    Reset,
-    /// `*CLS`: clears the event registers and the error queue.
-    Clear,
-    /// `*IDN?`: manufacturer, model, serial number, firmware.
-    Identify,
-    /// `*ESR?`: the standard event status register (reading clears it).
-    EventStatus,
-    /// `SYST:ERR?`: the oldest entry of the error queue, removed by reading it;
-    /// `0,"No error"` when empty.
-    NextError,
-    /// `SYST:ZCH ON|OFF`: zero check. On, the input is shunted and readings show only
-    /// the instrument's own offset (Section 2, "Zero check and zero correct").
-    ZeroCheck(bool),
-    /// `SYST:ZCOR:ACQ`: take the present (zero-checked) reading as the zero
-    /// correction value. Needs zero check on and a reading taken first (`INIT`).
-    ZeroCorrectAcquire,
-    /// `SYST:ZCOR ON|OFF`: subtract the acquired zero correction value from readings.
-    ZeroCorrect(bool),
-    /// `CURR:RANG <n>`: the range for an expected current of n amps (Table 4-3).
-    SetRange(Range),
-    /// `CURR:RANG?`: the range's full scale, amps.
-    QueryRange,
-    /// `CURR:RANG:AUTO ON|OFF`: the instrument's own autoranging. The session keeps
-    /// it off and ranges itself, so that it always knows the range of a reading.
-    AutoRange(bool),
-    /// `CURR:NPLC <n>`: integration time in power line cycles, 0.01 to 50 (50 Hz) or
-    /// 60 (60 Hz) (Table 4-4). The upper limit depends on the line frequency; the
-    /// codec checks the widest (60).
-    SetNplc(f64),
-    /// `AVER:TCON REP|MOV`: the averaging filter type.
-    FilterType(FilterType),
-    /// `AVER:COUN <n>`: the averaging filter count, 1 to 100 ("a simple average of
-    /// one to 100 reading conversions", p. 4-8; [`FILTER_COUNT`](super::FILTER_COUNT)).
-    FilterCount(u32),
-    /// `AVER ON|OFF`: the averaging filter.
-    Filter(bool),
-    /// `FORM:ELEM READ,TIME,STAT`: readings carry the current, the timestamp and the
-    /// status word (FORMat:ELEMents, p. 13-6). The only element list the codec
-    /// writes and reads.
-    FormatElements,
-    /// `TRIG:COUN <n>`: readings per trigger sequence, 1 to 2048.
-    TriggerCount(u32),
-    /// `INIT`: take readings (the trigger count) and keep the last for `FETC?`.
-    Initiate,
-    /// `READ?`: `INIT` then `FETC?`: a fresh reading. It answers only when the
-    /// conversion (and the repeat filter's conversions) is done.
-    Read,
-    /// `FETC?`: the last reading again, without a new conversion.
-    Fetch,
-    /// `SYST:LFR?`: the line frequency the instrument detected at power-up, 50 or 60.
-    LineFrequency,
+command_table! {
+    /// A command to the 6485 (SCPI, Sections 12–16 of the manual). Queries answer one
+    /// line; the rest answer nothing. Encoded in the short form, absolute (each command
+    /// begins at the root), one per line.
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum Command, header, input: &[u8] {
+        /// `*RST`: the reset defaults (IEEE-488.2 common command, Section 12). The session
+        /// sets everything it relies on afterwards, so no default is assumed.
+        Reset = "*RST" set;
+        /// `*CLS`: clears the event registers and the error queue.
+        Clear = "*CLS" set;
+        /// `*IDN?`: manufacturer, model, serial number, firmware.
+        Identify = "*IDN" query;
+        /// `*ESR?`: the standard event status register (reading clears it).
+        EventStatus = "*ESR" query;
+        /// `SYST:ERR?`: the oldest entry of the error queue, removed by reading it;
+        /// `0,"No error"` when empty.
+        NextError = "SYST:ERR" query;
+        /// `SYST:ZCH ON|OFF`: zero check. On, the input is shunted and readings show only
+        /// the instrument's own offset (Section 2, "Zero check and zero correct").
+        ZeroCheck(bool) = "SYST:ZCH" set;
+        /// `SYST:ZCOR:ACQ`: take the present (zero-checked) reading as the zero
+        /// correction value. Needs zero check on and a reading taken first (`INIT`).
+        ZeroCorrectAcquire = "SYST:ZCOR:ACQ" set;
+        /// `SYST:ZCOR ON|OFF`: subtract the acquired zero correction value from readings.
+        ZeroCorrect(bool) = "SYST:ZCOR" set;
+        /// `CURR:RANG <n>`: the range for an expected current of n amps (Table 4-3).
+        SetRange(Range) = "CURR:RANG" set;
+        /// `CURR:RANG?`: the range's full scale, amps.
+        QueryRange = "CURR:RANG" query;
+        /// `CURR:RANG:AUTO ON|OFF`: the instrument's own autoranging. The session keeps
+        /// it off and ranges itself, so that it always knows the range of a reading.
+        AutoRange(bool) = "CURR:RANG:AUTO" set;
+        /// `CURR:NPLC <n>`: integration time in power line cycles, 0.01 to 50 (50 Hz) or
+        /// 60 (60 Hz) (Table 4-4). The upper limit depends on the line frequency; the
+        /// codec checks the widest (60).
+        SetNplc(f64) = "CURR:NPLC" set, read: |p| {
+            let v = f64::read(p)?;
+            (MIN_NPLC..=60.0).contains(&v).then_some(v).ok_or(Refusal::OutOfRange)
+        };
+        /// `AVER:TCON REP|MOV`: the averaging filter type.
+        FilterType(FilterType) = "AVER:TCON" set;
+        /// `AVER:COUN <n>`: the averaging filter count, 1 to 100 ("a simple average of
+        /// one to 100 reading conversions", p. 4-8; [`FILTER_COUNT`](super::FILTER_COUNT)).
+        FilterCount(u32) = "AVER:COUN" set, read: |p| count(p, FILTER_COUNT);
+        /// `AVER ON|OFF`: the averaging filter.
+        Filter(bool) = "AVER" set;
+        /// `FORM:ELEM READ,TIME,STAT`: readings carry the current, the timestamp and the
+        /// status word (FORMat:ELEMents, p. 13-6). The only element list the codec
+        /// writes and reads.
+        FormatElements = "FORM:ELEM" set, read: format_elements;
+        /// `TRIG:COUN <n>`: readings per trigger sequence, 1 to 2048.
+        TriggerCount(u32) = "TRIG:COUN" set, read: |p| count(p, 1..=MAX_TRIGGER_COUNT);
+        /// `INIT`: take readings (the trigger count) and keep the last for `FETC?`.
+        Initiate = "INIT" set;
+        /// `READ?`: `INIT` then `FETC?`: a fresh reading. It answers only when the
+        /// conversion (and the repeat filter's conversions) is done.
+        Read = "READ" query;
+        /// `FETC?`: the last reading again, without a new conversion.
+        Fetch = "FETC" query;
+        /// `SYST:LFR?`: the line frequency the instrument detected at power-up, 50 or 60.
+        LineFrequency = "SYST:LFR" query;
+    }
+}
+
+impl Param<&[u8]> for () {
+    fn write(&self, _: &mut Vec<u8>) {}
+    fn read(params: &[u8]) -> Result<(), Refusal> {
+        params.is_empty().then_some(()).ok_or(Refusal::Syntax)
+    }
+}
+
+/// `ON|OFF`, read also as `1|0`.
+impl Param<&[u8]> for bool {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(if *self { b" ON" } else { b" OFF" });
+    }
+    fn read(params: &[u8]) -> Result<bool, Refusal> {
+        match params.to_ascii_uppercase().as_slice() {
+            b"ON" | b"1" => Ok(true),
+            b"OFF" | b"0" => Ok(false),
+            _ => Err(Refusal::Syntax),
+        }
+    }
+}
+
+impl Param<&[u8]> for f64 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.push(b' ');
+        number::format(*self, out);
+    }
+    fn read(params: &[u8]) -> Result<f64, Refusal> {
+        number::parse(params).ok_or(Refusal::Syntax)
+    }
+}
+
+impl Param<&[u8]> for u32 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!(" {self}").as_bytes());
+    }
+    fn read(params: &[u8]) -> Result<u32, Refusal> {
+        count(params, 0..=u32::MAX)
+    }
+}
+
+/// The range for an expected current; every full scale is 2 × 10^k, written exactly
+/// as the manual's `2E-9`.
+impl Param<&[u8]> for Range {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(format!(" 2E{}", i32::from(self.index()) - 9).as_bytes());
+    }
+    fn read(params: &[u8]) -> Result<Range, Refusal> {
+        Range::for_current(f64::read(params)?).ok_or(Refusal::OutOfRange)
+    }
+}
+
+impl Param<&[u8]> for FilterType {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.push(b' ');
+        out.extend_from_slice(self.mnemonic().as_bytes());
+    }
+    fn read(params: &[u8]) -> Result<FilterType, Refusal> {
+        match params.to_ascii_uppercase().as_slice() {
+            b"REP" | b"REPEAT" => Ok(FilterType::Repeat),
+            b"MOV" | b"MOVING" => Ok(FilterType::Moving),
+            _ => Err(Refusal::Syntax),
+        }
+    }
+}
+
+/// An integer count within `range`, in any number form.
+fn count(params: &[u8], range: RangeInclusive<u32>) -> Result<u32, Refusal> {
+    let v = f64::read(params)?;
+    let range = f64::from(*range.start())..=f64::from(*range.end());
+    if v.fract() != 0.0 || !range.contains(&v) {
+        return Err(Refusal::OutOfRange);
+    }
+    // Exact: an integer within the range.
+    Ok(v as u32)
+}
+
+/// `READ,TIME,STAT` in any order and form. Other element lists exist (UNIT, VSO on
+/// the 6487) but the codec reads only this one.
+fn format_elements(params: &[u8]) -> Result<(), Refusal> {
+    let mut items: Vec<&'static str> = params
+        .split(|b| *b == b',')
+        .map(|p| element(p.trim_ascii()))
+        .collect::<Option<_>>()
+        .ok_or(Refusal::Syntax)?;
+    items.sort_unstable();
+    (items == ["READ", "STAT", "TIME"])
+        .then_some(())
+        .ok_or(Refusal::Syntax)
 }
 
 /// Why a received command is refused: the SCPI error the instrument queues (read with
@@ -114,90 +212,15 @@ impl CommandError {
     }
 }
 
+crate::codec::line_encoding!(Command, TERMINATOR);
+
 impl Command {
-    /// The canonical short-form header (`SYST:ZCH`, `*IDN`), without `?`.
-    pub fn header(&self) -> &'static str {
-        match self {
-            Command::Reset => "*RST",
-            Command::Clear => "*CLS",
-            Command::Identify => "*IDN",
-            Command::EventStatus => "*ESR",
-            Command::NextError => "SYST:ERR",
-            Command::ZeroCheck(_) => "SYST:ZCH",
-            Command::ZeroCorrectAcquire => "SYST:ZCOR:ACQ",
-            Command::ZeroCorrect(_) => "SYST:ZCOR",
-            Command::SetRange(_) | Command::QueryRange => "CURR:RANG",
-            Command::AutoRange(_) => "CURR:RANG:AUTO",
-            Command::SetNplc(_) => "CURR:NPLC",
-            Command::FilterType(_) => "AVER:TCON",
-            Command::FilterCount(_) => "AVER:COUN",
-            Command::Filter(_) => "AVER",
-            Command::FormatElements => "FORM:ELEM",
-            Command::TriggerCount(_) => "TRIG:COUN",
-            Command::Initiate => "INIT",
-            Command::Read => "READ",
-            Command::Fetch => "FETC",
-            Command::LineFrequency => "SYST:LFR",
-        }
-    }
-
-    /// True for queries (written with `?`): exactly the commands that reply.
-    pub fn is_query(&self) -> bool {
-        matches!(
-            self,
-            Command::Identify
-                | Command::EventStatus
-                | Command::NextError
-                | Command::QueryRange
-                | Command::Read
-                | Command::Fetch
-                | Command::LineFrequency
-        )
-    }
-
     /// Appends the command without terminator (`CURR:RANG 2E-9`, `READ?`).
     pub fn encode_body(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(self.header().as_bytes());
-        if self.is_query() {
-            out.push(b'?');
+        self.encode_row(out);
+        if let Command::FormatElements = self {
+            out.extend_from_slice(b" READ,TIME,STAT");
         }
-        let on_off = |b: bool| if b { " ON" } else { " OFF" };
-        match self {
-            Command::ZeroCheck(b)
-            | Command::ZeroCorrect(b)
-            | Command::AutoRange(b)
-            | Command::Filter(b) => out.extend_from_slice(on_off(*b).as_bytes()),
-            Command::SetRange(r) => {
-                // Every full scale is 2 × 10^k: written exactly as the manual's `2E-9`.
-                out.extend_from_slice(format!(" 2E{}", i32::from(r.index()) - 9).as_bytes());
-            }
-            Command::SetNplc(n) => {
-                out.push(b' ');
-                number::format(*n, out);
-            }
-            Command::FilterType(t) => {
-                out.push(b' ');
-                out.extend_from_slice(t.mnemonic().as_bytes());
-            }
-            Command::FilterCount(n) | Command::TriggerCount(n) => {
-                out.extend_from_slice(format!(" {n}").as_bytes());
-            }
-            Command::FormatElements => out.extend_from_slice(b" READ,TIME,STAT"),
-            _ => {}
-        }
-    }
-
-    /// Appends the command line, terminator included.
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The command line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
     }
 
     /// Parses one command (no `;`, no terminator) as the instrument does: case
@@ -213,11 +236,10 @@ impl Command {
 /// stands alone, rooted (the codec never writes SCPI's relative paths after `;`, and
 /// refuses them rather than guess).
 pub fn parse_line(line: &[u8]) -> Vec<Result<Command, CommandError>> {
-    line.split(|b| matches!(b, b';' | b'\r' | b'\n'))
-        .map(<[u8]>::trim_ascii)
-        .filter(|s| !s.is_empty())
-        .map(parse_one)
-        .collect()
+    crate::codec::parse_commands(line, |s| {
+        let s = s.trim_ascii();
+        (!s.is_empty()).then(|| parse_one(s))
+    })
 }
 
 /// SCPI keywords: long form, short form. A node matches either, case ignored.
@@ -301,110 +323,14 @@ fn parse_one(text: &[u8]) -> Result<Command, CommandError> {
         canonical(&nodes)
     };
     // The header as a `&'static str` for errors.
-    let header: &'static str = match name.as_str() {
-        "*RST" => "*RST",
-        "*CLS" => "*CLS",
-        "*IDN" => "*IDN",
-        "*ESR" => "*ESR",
-        "SYST:ERR" => "SYST:ERR",
-        "SYST:ZCH" => "SYST:ZCH",
-        "SYST:ZCOR:ACQ" => "SYST:ZCOR:ACQ",
-        "SYST:ZCOR" => "SYST:ZCOR",
-        "CURR:RANG" => "CURR:RANG",
-        "CURR:RANG:AUTO" => "CURR:RANG:AUTO",
-        "CURR:NPLC" => "CURR:NPLC",
-        "AVER:TCON" => "AVER:TCON",
-        "AVER:COUN" => "AVER:COUN",
-        "AVER" => "AVER",
-        "FORM:ELEM" => "FORM:ELEM",
-        "TRIG:COUN" => "TRIG:COUN",
-        "INIT" => "INIT",
-        "READ" => "READ",
-        "FETC" => "FETC",
-        "SYST:LFR" => "SYST:LFR",
-        _ => return Err(unknown()),
-    };
-    let syntax = || CommandError::Syntax(header);
-    let range = || CommandError::OutOfRange(header);
-    let boolean = || -> Result<bool, CommandError> {
-        match params.to_ascii_uppercase().as_slice() {
-            b"ON" | b"1" => Ok(true),
-            b"OFF" | b"0" => Ok(false),
-            _ => Err(syntax()),
-        }
-    };
-    let num = || number::parse(params).ok_or_else(syntax);
-    let count = |lo: u32, hi: u32| -> Result<u32, CommandError> {
-        let v = num()?;
-        if v.fract() != 0.0 {
-            return Err(range());
-        }
-        if !(f64::from(lo)..=f64::from(hi)).contains(&v) {
-            return Err(range());
-        }
-        // Exact: an integer within lo..=hi.
-        Ok(v as u32)
-    };
-    let none = |c: Command| {
-        if params.is_empty() {
-            Ok(c)
-        } else {
-            Err(syntax())
-        }
-    };
-    match (header, query) {
-        ("*RST", false) => none(Command::Reset),
-        ("*CLS", false) => none(Command::Clear),
-        ("*IDN", true) => none(Command::Identify),
-        ("*ESR", true) => none(Command::EventStatus),
-        ("SYST:ERR", true) => none(Command::NextError),
-        ("SYST:ZCH", false) => Ok(Command::ZeroCheck(boolean()?)),
-        ("SYST:ZCOR:ACQ", false) => none(Command::ZeroCorrectAcquire),
-        ("SYST:ZCOR", false) => Ok(Command::ZeroCorrect(boolean()?)),
-        ("CURR:RANG", false) => {
-            let v = num()?;
-            Ok(Command::SetRange(Range::for_current(v).ok_or_else(range)?))
-        }
-        ("CURR:RANG", true) => none(Command::QueryRange),
-        ("CURR:RANG:AUTO", false) => Ok(Command::AutoRange(boolean()?)),
-        ("CURR:NPLC", false) => {
-            let v = num()?;
-            if !(MIN_NPLC..=60.0).contains(&v) {
-                return Err(range());
-            }
-            Ok(Command::SetNplc(v))
-        }
-        ("AVER:TCON", false) => match params.to_ascii_uppercase().as_slice() {
-            b"REP" | b"REPEAT" => Ok(Command::FilterType(FilterType::Repeat)),
-            b"MOV" | b"MOVING" => Ok(Command::FilterType(FilterType::Moving)),
-            _ => Err(syntax()),
-        },
-        ("AVER:COUN", false) => Ok(Command::FilterCount(count(
-            *super::FILTER_COUNT.start(),
-            *super::FILTER_COUNT.end(),
-        )?)),
-        ("AVER", false) => Ok(Command::Filter(boolean()?)),
-        ("FORM:ELEM", false) => {
-            let mut items: Vec<&'static str> = params
-                .split(|b| *b == b',')
-                .map(|p| element(p.trim_ascii()))
-                .collect::<Option<_>>()
-                .ok_or_else(syntax)?;
-            items.sort_unstable();
-            if items == ["READ", "STAT", "TIME"] {
-                Ok(Command::FormatElements)
-            } else {
-                // Other element lists exist (UNIT, VSO on the 6487) but the codec
-                // reads only this one.
-                Err(syntax())
-            }
-        }
-        ("TRIG:COUN", false) => Ok(Command::TriggerCount(count(1, MAX_TRIGGER_COUNT)?)),
-        ("INIT", false) => none(Command::Initiate),
-        ("READ", true) => none(Command::Read),
-        ("FETC", true) => none(Command::Fetch),
-        ("SYST:LFR", true) => none(Command::LineFrequency),
-        _ => Err(syntax()),
+    let header = *Command::MNEMONICS
+        .iter()
+        .find(|h| **h == name)
+        .ok_or_else(unknown)?;
+    match Command::from_row(header, query, params) {
+        Some((_, Ok(command))) => Ok(command),
+        Some((_, Err(Refusal::OutOfRange))) => Err(CommandError::OutOfRange(header)),
+        _ => Err(CommandError::Syntax(header)),
     }
 }
 

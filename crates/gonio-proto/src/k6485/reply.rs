@@ -117,24 +117,13 @@ pub enum Reply {
     Sample(Sample),
 }
 
-/// Why a reply line could not be understood.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ReplyError {
-    /// The line is empty.
-    #[error("empty reply")]
-    Empty,
-    /// The command is not a query: the instrument never answers it.
-    #[error("{0} sends no reply")]
-    NotAQuery(&'static str),
-    /// A value that is not a number, or not the integer expected.
-    #[error("malformed value")]
-    BadValue,
-    /// A value outside what the query can return.
-    #[error("value {0} out of range for this query")]
-    OutOfRange(f64),
-    /// A reading with another number of elements than READ,TIME,STAT.
-    #[error("expected 3 elements (READ,TIME,STAT), got {0}")]
-    WrongCount(usize),
+crate::number::scpi_reply_error! {
+    /// Why a reply line could not be understood.
+    pub enum ReplyError {
+        /// A reading with another number of elements than READ,TIME,STAT.
+        #[error("expected 3 elements (READ,TIME,STAT), got {0}")]
+        WrongCount(usize),
+    }
 }
 
 /// Writes `v` as the instrument does: sign, one digit, six decimals, `E`, signed
@@ -170,9 +159,11 @@ fn classify(v: f64) -> Current {
     }
 }
 
+crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
+
 impl Reply {
-    /// Appends the reply line, terminator included (what the instrument sends).
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// Appends the reply without terminator (what the instrument sends).
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         match self {
             Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
             Reply::EventStatus(s) => out.extend_from_slice(s.0.to_string().as_bytes()),
@@ -193,38 +184,15 @@ impl Reply {
                 format_sci(f64::from(s.status.0), out);
             }
         }
-        out.push(REPLY_TERMINATOR);
-    }
-
-    /// The reply line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
     }
 
     /// Parses the reply line (terminator removed) to `command`. Surrounding whitespace
     /// is ignored; numbers in any form (`50`, `+5.000000E+01`); the current's `A`
     /// suffix is optional.
     pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
-        let line = line.trim_ascii();
-        if !command.is_query() {
-            return Err(ReplyError::NotAQuery(command.header()));
-        }
-        if line.is_empty() {
-            return Err(ReplyError::Empty);
-        }
-        let num = |s: &[u8]| number::parse(s.trim_ascii()).ok_or(ReplyError::BadValue);
-        let int = |s: &[u8], max: f64| -> Result<f64, ReplyError> {
-            let v = num(s)?;
-            if v.fract() != 0.0 {
-                return Err(ReplyError::BadValue);
-            }
-            if !(0.0..=max).contains(&v) {
-                return Err(ReplyError::OutOfRange(v));
-            }
-            Ok(v)
-        };
+        let line = ReplyError::query_line(command.is_query(), command.header(), line)?;
+        let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
+        let int = |s: &[u8], max: f64| number::integer(s, max).map_err(ReplyError::from);
         let reply = match command {
             Command::Identify => {
                 Reply::Identity(Identity::parse(line).ok_or(ReplyError::BadValue)?)

@@ -11,7 +11,7 @@
 //! copy of Appendix A (UNCONFIRMED): verify them against the unit's own manual
 //! revision before a reduction relies on them.
 
-use std::fmt;
+use crate::codec::{coded_enum, index_table};
 
 /// Full scale of each range, amps (Table 4-3), most sensitive first.
 const RANGE_AMPS: [f64; 8] = [2e-9, 2e-8, 2e-7, 2e-6, 2e-5, 2e-4, 2e-3, 2e-2];
@@ -54,33 +54,17 @@ pub const OVERFLOW_VALUE: f64 = 9.9e37;
 /// The value an invalid element is sent as, "NAN" (p. 13-6): `+9.91E37`.
 pub const NAN_VALUE: f64 = 9.91e37;
 
-/// A current range of the 6485, 2 nA (index 0) to 20 mA (index 7). Ordered by index:
-/// a greater range has a larger full scale.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Range(u8);
+index_table! {
+    /// A current range of the 6485, 2 nA (index 0) to 20 mA (index 7). Ordered by index:
+    /// a greater range has a larger full scale.
+    pub struct Range, labels: RANGE_LABELS, unknown: UnknownRange = |text| UnknownRange(text.to_string());
+}
 
 impl Range {
-    /// Number of ranges.
-    pub const COUNT: u8 = 8;
     /// 2 nA, the most sensitive range.
     pub const MOST: Range = Range(0);
     /// 20 mA, the least sensitive range.
     pub const LEAST: Range = Range(7);
-
-    /// The range with index `index` (0 = 2 nA … 7 = 20 mA).
-    pub fn new(index: u8) -> Option<Self> {
-        (index < Self::COUNT).then_some(Range(index))
-    }
-
-    /// Every range, most sensitive first.
-    pub fn all() -> impl Iterator<Item = Range> {
-        (0..Self::COUNT).map(Range)
-    }
-
-    /// The index, 0 (2 nA) to 7 (20 mA).
-    pub fn index(self) -> u8 {
-        self.0
-    }
 
     /// Full scale, amps.
     pub fn amps(self) -> f64 {
@@ -143,12 +127,6 @@ impl Default for Range {
     }
 }
 
-impl fmt::Display for Range {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(RANGE_LABELS[usize::from(self.0)])
-    }
-}
-
 /// The 1-year accuracy bound of a reading, amps: ±(% rdg + offset) of Appendix A for
 /// `range`, at 18–28 °C, 0–70 % RH, after zero correction.
 ///
@@ -160,35 +138,20 @@ pub fn accuracy_a(range: Range, reading_a: f64) -> f64 {
     gain * reading_a.abs() + offset
 }
 
-/// The mains frequency the instrument integrates against (`SYST:LFR?`): 1 PLC is
-/// 1/50 s or 1/60 s (p. 4-5; 400 Hz mains counts as 50 Hz).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
-pub enum LineFrequency {
-    /// 50 Hz (and 400 Hz) mains: 1 PLC = 20 ms, NPLC up to 50.
-    #[default]
-    Hz50,
-    /// 60 Hz mains: 1 PLC = 16.67 ms, NPLC up to 60.
-    Hz60,
+coded_enum! {
+    /// The mains frequency the instrument integrates against (`SYST:LFR?`): 1 PLC is
+    /// 1/50 s or 1/60 s (p. 4-5; 400 Hz mains counts as 50 Hz).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+    pub enum LineFrequency: u32, hz / from_hz {
+        /// 50 Hz (and 400 Hz) mains: 1 PLC = 20 ms, NPLC up to 50.
+        #[default]
+        Hz50 = 50,
+        /// 60 Hz mains: 1 PLC = 16.67 ms, NPLC up to 60.
+        Hz60 = 60,
+    }
 }
 
 impl LineFrequency {
-    /// The frequency, Hz.
-    pub fn hz(self) -> u32 {
-        match self {
-            LineFrequency::Hz50 => 50,
-            LineFrequency::Hz60 => 60,
-        }
-    }
-
-    /// The line frequency for 50 or 60 Hz.
-    pub fn from_hz(hz: u32) -> Option<Self> {
-        match hz {
-            50 => Some(LineFrequency::Hz50),
-            60 => Some(LineFrequency::Hz60),
-            _ => None,
-        }
-    }
-
     /// One power line cycle, seconds.
     pub fn plc_s(self) -> f64 {
         1.0 / f64::from(self.hz())
@@ -236,22 +199,3 @@ impl FilterType {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{0:?} is not a 6485 range (expected a label like \"2 nA\", \"20 uA\", \"2 mA\")")]
 pub struct UnknownRange(pub String);
-
-impl std::str::FromStr for Range {
-    type Err = UnknownRange;
-
-    /// A label as [`Display`](fmt::Display) writes it, spaces ignored, `u` or `μ`
-    /// accepted for `µ`.
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        let norm = |s: &str| -> String {
-            s.chars()
-                .filter(|c| !c.is_whitespace())
-                .map(|c| if matches!(c, 'u' | 'μ') { 'µ' } else { c })
-                .collect()
-        };
-        let want = norm(text);
-        Range::all()
-            .find(|r| norm(RANGE_LABELS[usize::from(r.0)]) == want)
-            .ok_or_else(|| UnknownRange(text.to_string()))
-    }
-}

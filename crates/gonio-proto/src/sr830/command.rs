@@ -2,138 +2,73 @@
 //! flags for a command it cannot run.
 
 use super::{EventStatus, FilterSlope, Sensitivity, TERMINATOR, TimeConstant};
+use crate::codec::{Param, Refusal, coded_enum, command_table};
 use crate::number;
 
-/// Which interface replies go to, `OUTX` (p. 5-10). Both always listen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Interface {
-    /// `OUTX 0`: RS-232. A program on the serial port must send this first.
-    Rs232,
-    /// `OUTX 1`: GPIB, the factory default.
-    Gpib,
-}
-
-impl Interface {
-    /// The `OUTX` index.
-    pub fn index(self) -> u8 {
-        self as u8
-    }
-
-    /// The interface with `OUTX` index `index` (0 or 1).
-    pub fn from_index(index: u8) -> Option<Self> {
-        match index {
-            0 => Some(Interface::Rs232),
-            1 => Some(Interface::Gpib),
-            _ => None,
-        }
+coded_enum! {
+    /// Which interface replies go to, `OUTX` (p. 5-10). Both always listen.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Interface: u8, index / from_index {
+        /// `OUTX 0`: RS-232. A program on the serial port must send this first.
+        Rs232 = 0,
+        /// `OUTX 1`: GPIB, the factory default.
+        Gpib = 1,
     }
 }
 
-/// The reference source, `FMOD` (manual, FMOD).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ReferenceSource {
-    /// `FMOD 0`: external reference input.
-    External,
-    /// `FMOD 1`: internal oscillator (the `*RST` default).
-    Internal,
-}
-
-impl ReferenceSource {
-    /// The `FMOD` index.
-    pub fn index(self) -> u8 {
-        self as u8
-    }
-
-    /// The source with `FMOD` index `index` (0 or 1).
-    pub fn from_index(index: u8) -> Option<Self> {
-        match index {
-            0 => Some(ReferenceSource::External),
-            1 => Some(ReferenceSource::Internal),
-            _ => None,
-        }
+coded_enum! {
+    /// The reference source, `FMOD` (manual, FMOD).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum ReferenceSource: u8, index / from_index {
+        /// `FMOD 0`: external reference input.
+        External = 0,
+        /// `FMOD 1`: internal oscillator (the `*RST` default).
+        Internal = 1,
     }
 }
 
-/// The quantity `OUTP? i` reads (manual, OUTP?): volts for X, Y, R; degrees for θ.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Output {
-    /// 1: in-phase component X, volts.
-    X = 1,
-    /// 2: quadrature component Y, volts.
-    Y = 2,
-    /// 3: magnitude R, volts.
-    R = 3,
-    /// 4: phase θ, degrees.
-    Theta = 4,
-}
-
-impl Output {
-    /// Every quantity, by code.
-    pub const ALL: [Output; 4] = [Output::X, Output::Y, Output::R, Output::Theta];
-
-    /// The `OUTP?` parameter.
-    pub fn code(self) -> u8 {
-        self as u8
-    }
-
-    /// The quantity for an `OUTP?` parameter 1..=4.
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.into_iter().find(|o| o.code() == code)
+coded_enum! {
+    /// The quantity `OUTP? i` reads (manual, OUTP?): volts for X, Y, R; degrees for θ.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Output: u8, code / from_code {
+        /// 1: in-phase component X, volts.
+        X = 1,
+        /// 2: quadrature component Y, volts.
+        Y = 2,
+        /// 3: magnitude R, volts.
+        R = 3,
+        /// 4: phase θ, degrees.
+        Theta = 4,
     }
 }
 
-/// A value `SNAP?` can read (manual, SNAP?): all of one call are taken at one instant (X with
-/// Y, and R with θ, exactly; the two pairs about 10 µs apart).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SnapParam {
-    /// 1: X, volts.
-    X = 1,
-    /// 2: Y, volts.
-    Y = 2,
-    /// 3: R, volts.
-    R = 3,
-    /// 4: θ, degrees.
-    Theta = 4,
-    /// 5: Aux In 1, volts.
-    AuxIn1 = 5,
-    /// 6: Aux In 2, volts.
-    AuxIn2 = 6,
-    /// 7: Aux In 3, volts.
-    AuxIn3 = 7,
-    /// 8: Aux In 4, volts.
-    AuxIn4 = 8,
-    /// 9: reference frequency, Hz.
-    Frequency = 9,
-    /// 10: CH1 display.
-    Ch1Display = 10,
-    /// 11: CH2 display.
-    Ch2Display = 11,
-}
-
-impl SnapParam {
-    /// Every parameter, by code.
-    pub const ALL: [SnapParam; 11] = [
-        SnapParam::X,
-        SnapParam::Y,
-        SnapParam::R,
-        SnapParam::Theta,
-        SnapParam::AuxIn1,
-        SnapParam::AuxIn2,
-        SnapParam::AuxIn3,
-        SnapParam::AuxIn4,
-        SnapParam::Frequency,
-        SnapParam::Ch1Display,
-        SnapParam::Ch2Display,
-    ];
-
-    /// The `SNAP?` parameter.
-    pub fn code(self) -> u8 {
-        self as u8
-    }
-
-    /// The value for a `SNAP?` parameter 1..=11.
-    pub fn from_code(code: u8) -> Option<Self> {
-        Self::ALL.into_iter().find(|p| p.code() == code)
+coded_enum! {
+    /// A value `SNAP?` can read (manual, SNAP?): all of one call are taken at one instant
+    /// (X with Y, and R with θ, exactly; the two pairs about 10 µs apart).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum SnapParam: u8, code / from_code {
+        /// 1: X, volts.
+        X = 1,
+        /// 2: Y, volts.
+        Y = 2,
+        /// 3: R, volts.
+        R = 3,
+        /// 4: θ, degrees.
+        Theta = 4,
+        /// 5: Aux In 1, volts.
+        AuxIn1 = 5,
+        /// 6: Aux In 2, volts.
+        AuxIn2 = 6,
+        /// 7: Aux In 3, volts.
+        AuxIn3 = 7,
+        /// 8: Aux In 4, volts.
+        AuxIn4 = 8,
+        /// 9: reference frequency, Hz.
+        Frequency = 9,
+        /// 10: CH1 display.
+        Ch1Display = 10,
+        /// 11: CH2 display.
+        Ch2Display = 11,
     }
 }
 
@@ -198,65 +133,170 @@ impl BitIndex {
     }
 }
 
-/// A command to the SR830. Queries answer one line; the rest answer nothing.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Command {
-    /// `OUTX i`: send replies to this interface (p. 5-10).
-    SetInterface(Interface),
-    /// `OUTX?`: which interface replies go to.
-    QueryInterface,
-    /// `FMOD i`: reference source (manual, FMOD).
-    SetReferenceSource(ReferenceSource),
-    /// `FMOD?`.
-    QueryReferenceSource,
-    /// `FREQ f`: internal oscillator frequency, 0.001 ≤ f ≤ 102000 Hz (manual, FREQ). The
-    /// limit harmonic × f ≤ 102 kHz depends on the instrument's state; it checks that.
-    SetFrequency(f64),
-    /// `FREQ?`: reference frequency, Hz, in any reference mode.
-    QueryFrequency,
-    /// `SLVL x`: sine output amplitude, 0.004 ≤ x ≤ 5.000 V rms (manual, SLVL).
-    SetAmplitude(f64),
-    /// `SLVL?`.
-    QueryAmplitude,
-    /// `SENS i`: sensitivity (SENS table).
-    SetSensitivity(Sensitivity),
-    /// `SENS?`.
-    QuerySensitivity,
-    /// `OFLT i`: time constant (OFLT table).
-    SetTimeConstant(TimeConstant),
-    /// `OFLT?`.
-    QueryTimeConstant,
-    /// `OFSL i`: filter slope.
-    SetSlope(FilterSlope),
-    /// `OFSL?`.
-    QuerySlope,
-    /// `AGAN`: auto gain (manual, AGAN). Slow, and a no-op when the time constant is over
-    /// 1 s; wait for it with any status query.
-    AutoGain,
-    /// `OUTP? i`: one output value.
-    ReadOutput(Output),
-    /// `SNAP? i,j{,k,l,m,n}`: 2 to 6 values at one instant.
-    Snap(SnapParams),
-    /// `LIAS? {i}`: the LIA status byte, or one bit of it; reading clears what it
-    /// reads (p. 5-23).
-    LiaStatus(Option<BitIndex>),
-    /// `ERRS? {i}`: the error status byte, or one bit; reading clears it.
-    ErrorStatus(Option<BitIndex>),
-    /// `*ESR? {i}`: the standard event status byte, or one bit; reading clears it.
-    EventStatus(Option<BitIndex>),
-    /// `*IDN?`: identification string.
-    Identify,
-    /// `*RST`: factory defaults, except communication settings and status registers.
-    Reset,
-    /// `*CLS`: clears every status byte (not the enable registers).
-    Clear,
+command_table! {
+    /// A command to the SR830 (manual ch. 5's command list): a four-character
+    /// mnemonic, `?` for a query, then comma-separated parameters. Queries answer one
+    /// line; the rest answer nothing.
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum Command, mnemonic, input: &[f64] {
+        /// `OUTX i`: send replies to this interface (p. 5-10).
+        SetInterface(Interface) = "OUTX" set;
+        /// `OUTX?`: which interface replies go to.
+        QueryInterface = "OUTX" query;
+        /// `FMOD i`: reference source (manual, FMOD).
+        SetReferenceSource(ReferenceSource) = "FMOD" set;
+        /// `FMOD?`.
+        QueryReferenceSource = "FMOD" query;
+        /// `FREQ f`: internal oscillator frequency, 0.001 ≤ f ≤ 102000 Hz (manual, FREQ). The
+        /// limit harmonic × f ≤ 102 kHz depends on the instrument's state; it checks that.
+        SetFrequency(f64) = "FREQ" set, read: |v| bounded(v, 0.001, 102_000.0);
+        /// `FREQ?`: reference frequency, Hz, in any reference mode.
+        QueryFrequency = "FREQ" query;
+        /// `SLVL x`: sine output amplitude, 0.004 ≤ x ≤ 5.000 V rms (manual, SLVL).
+        SetAmplitude(f64) = "SLVL" set, read: |v| bounded(v, 0.004, 5.0);
+        /// `SLVL?`.
+        QueryAmplitude = "SLVL" query;
+        /// `SENS i`: sensitivity (SENS table).
+        SetSensitivity(Sensitivity) = "SENS" set;
+        /// `SENS?`.
+        QuerySensitivity = "SENS" query;
+        /// `OFLT i`: time constant (OFLT table).
+        SetTimeConstant(TimeConstant) = "OFLT" set;
+        /// `OFLT?`.
+        QueryTimeConstant = "OFLT" query;
+        /// `OFSL i`: filter slope.
+        SetSlope(FilterSlope) = "OFSL" set;
+        /// `OFSL?`.
+        QuerySlope = "OFSL" query;
+        /// `AGAN`: auto gain (manual, AGAN). Slow, and a no-op when the time constant is over
+        /// 1 s; wait for it with any status query.
+        AutoGain = "AGAN" set;
+        /// `OUTP? i`: one output value.
+        ReadOutput(Output) = "OUTP" query;
+        /// `SNAP? i,j{,k,l,m,n}`: 2 to 6 values at one instant.
+        Snap(SnapParams) = "SNAP" query;
+        /// `LIAS? {i}`: the LIA status byte, or one bit of it; reading clears what it
+        /// reads (p. 5-23).
+        LiaStatus(Option<BitIndex>) = "LIAS" query;
+        /// `ERRS? {i}`: the error status byte, or one bit; reading clears it.
+        ErrorStatus(Option<BitIndex>) = "ERRS" query;
+        /// `*ESR? {i}`: the standard event status byte, or one bit; reading clears it.
+        EventStatus(Option<BitIndex>) = "*ESR" query;
+        /// `*IDN?`: identification string.
+        Identify = "*IDN" query;
+        /// `*RST`: factory defaults, except communication settings and status registers.
+        Reset = "*RST" set;
+        /// `*CLS`: clears every status byte (not the enable registers).
+        Clear = "*CLS" set;
+    }
 }
 
-/// Every mnemonic the codec knows, as it appears on the line (upper case).
-const MNEMONICS: [&str; 16] = [
-    "OUTX", "FMOD", "FREQ", "SLVL", "SENS", "OFLT", "OFSL", "AGAN", "OUTP", "SNAP", "LIAS", "ERRS",
-    "*ESR", "*IDN", "*RST", "*CLS",
-];
+/// An index parameter: a non-negative integer (in any number form) of at most 255.
+fn index(v: f64) -> Result<u8, Refusal> {
+    if v.fract() == 0.0 && (0.0..=255.0).contains(&v) {
+        // Exact: an integral value in 0..=255.
+        Ok(v as u8)
+    } else {
+        Err(Refusal::OutOfRange)
+    }
+}
+
+/// The one value of a command that takes one.
+fn one(values: &[f64]) -> Result<f64, Refusal> {
+    match values {
+        [v] => Ok(*v),
+        _ => Err(Refusal::Syntax),
+    }
+}
+
+/// One value within `lo..=hi`.
+fn bounded(values: &[f64], lo: f64, hi: f64) -> Result<f64, Refusal> {
+    let v = one(values)?;
+    (lo..=hi)
+        .contains(&v)
+        .then_some(v)
+        .ok_or(Refusal::OutOfRange)
+}
+
+/// Appends ` i`.
+fn write_int(i: u8, out: &mut Vec<u8>) {
+    out.extend_from_slice(format!(" {i}").as_bytes());
+}
+
+impl Param<&[f64]> for () {
+    fn write(&self, _: &mut Vec<u8>) {}
+    fn read(values: &[f64]) -> Result<(), Refusal> {
+        values.is_empty().then_some(()).ok_or(Refusal::Syntax)
+    }
+}
+
+impl Param<&[f64]> for f64 {
+    fn write(&self, out: &mut Vec<u8>) {
+        out.push(b' ');
+        number::format(*self, out);
+    }
+    fn read(values: &[f64]) -> Result<f64, Refusal> {
+        one(values)
+    }
+}
+
+/// The manual's indexed parameters, ` i`: one integer that the type's table lists.
+macro_rules! index_param {
+    ($($t:ty: $code:ident / $from:ident),+) => {$(
+        impl Param<&[f64]> for $t {
+            fn write(&self, out: &mut Vec<u8>) {
+                write_int(self.$code(), out);
+            }
+            fn read(values: &[f64]) -> Result<$t, Refusal> {
+                <$t>::$from(index(one(values)?)?).ok_or(Refusal::OutOfRange)
+            }
+        }
+    )+};
+}
+index_param!(
+    Interface: index / from_index,
+    ReferenceSource: index / from_index,
+    Sensitivity: index / new,
+    TimeConstant: index / new,
+    FilterSlope: index / from_index,
+    Output: code / from_code
+);
+
+impl Param<&[f64]> for SnapParams {
+    fn write(&self, out: &mut Vec<u8>) {
+        for (k, q) in self.as_slice().iter().enumerate() {
+            out.push(if k == 0 { b' ' } else { b',' });
+            out.extend_from_slice(q.code().to_string().as_bytes());
+        }
+    }
+    fn read(values: &[f64]) -> Result<SnapParams, Refusal> {
+        if !(SnapParams::MIN..=SnapParams::MAX).contains(&values.len()) {
+            return Err(Refusal::Syntax);
+        }
+        let p = values
+            .iter()
+            .map(|x| SnapParam::from_code(index(*x)?).ok_or(Refusal::OutOfRange))
+            .collect::<Result<Vec<_>, _>>()?;
+        SnapParams::new(&p).ok_or(Refusal::OutOfRange)
+    }
+}
+
+impl Param<&[f64]> for Option<BitIndex> {
+    fn write(&self, out: &mut Vec<u8>) {
+        if let Some(b) = self {
+            write_int(b.get(), out);
+        }
+    }
+    fn read(values: &[f64]) -> Result<Option<BitIndex>, Refusal> {
+        match values {
+            [] => Ok(None),
+            [v] => BitIndex::new(index(*v)?)
+                .map(Some)
+                .ok_or(Refusal::OutOfRange),
+            _ => Err(Refusal::Syntax),
+        }
+    }
+}
 
 /// Why a received command is refused, with the `*ESR?` bit the instrument sets for it
 /// (p. 5-2): an illegal command sets CMD (bit 5); one that cannot execute or has
@@ -294,49 +334,9 @@ impl CommandError {
     }
 }
 
+crate::codec::line_encoding!(Command, TERMINATOR);
+
 impl Command {
-    /// The four-character mnemonic, upper case.
-    pub fn mnemonic(&self) -> &'static str {
-        match self {
-            Command::SetInterface(_) | Command::QueryInterface => "OUTX",
-            Command::SetReferenceSource(_) | Command::QueryReferenceSource => "FMOD",
-            Command::SetFrequency(_) | Command::QueryFrequency => "FREQ",
-            Command::SetAmplitude(_) | Command::QueryAmplitude => "SLVL",
-            Command::SetSensitivity(_) | Command::QuerySensitivity => "SENS",
-            Command::SetTimeConstant(_) | Command::QueryTimeConstant => "OFLT",
-            Command::SetSlope(_) | Command::QuerySlope => "OFSL",
-            Command::AutoGain => "AGAN",
-            Command::ReadOutput(_) => "OUTP",
-            Command::Snap(_) => "SNAP",
-            Command::LiaStatus(_) => "LIAS",
-            Command::ErrorStatus(_) => "ERRS",
-            Command::EventStatus(_) => "*ESR",
-            Command::Identify => "*IDN",
-            Command::Reset => "*RST",
-            Command::Clear => "*CLS",
-        }
-    }
-
-    /// True for queries (written with `?`).
-    pub fn is_query(&self) -> bool {
-        matches!(
-            self,
-            Command::QueryInterface
-                | Command::QueryReferenceSource
-                | Command::QueryFrequency
-                | Command::QueryAmplitude
-                | Command::QuerySensitivity
-                | Command::QueryTimeConstant
-                | Command::QuerySlope
-                | Command::ReadOutput(_)
-                | Command::Snap(_)
-                | Command::LiaStatus(_)
-                | Command::ErrorStatus(_)
-                | Command::EventStatus(_)
-                | Command::Identify
-        )
-    }
-
     /// True when the instrument answers with a reply line: every valid query does,
     /// nothing else does (p. 5-2).
     pub fn expects_reply(&self) -> bool {
@@ -347,49 +347,7 @@ impl Command {
     /// space and the comma-separated parameters (`SNAP? 1,2`, `SENS 20`, `LIAS?`).
     /// Values are written in the shortest decimal form that reads back exactly.
     pub fn encode_body(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(self.mnemonic().as_bytes());
-        if self.is_query() {
-            out.push(b'?');
-        }
-        let mut int = |i: u8| {
-            out.push(b' ');
-            out.extend_from_slice(i.to_string().as_bytes());
-        };
-        match self {
-            Command::SetInterface(i) => int(i.index()),
-            Command::SetReferenceSource(s) => int(s.index()),
-            Command::SetSensitivity(s) => int(s.index()),
-            Command::SetTimeConstant(t) => int(t.index()),
-            Command::SetSlope(s) => int(s.index()),
-            Command::ReadOutput(o) => int(o.code()),
-            Command::LiaStatus(Some(b))
-            | Command::ErrorStatus(Some(b))
-            | Command::EventStatus(Some(b)) => int(b.get()),
-            Command::SetFrequency(v) | Command::SetAmplitude(v) => {
-                out.push(b' ');
-                number::format(*v, out);
-            }
-            Command::Snap(p) => {
-                for (k, q) in p.as_slice().iter().enumerate() {
-                    out.push(if k == 0 { b' ' } else { b',' });
-                    out.extend_from_slice(q.code().to_string().as_bytes());
-                }
-            }
-            _ => {}
-        }
-    }
-
-    /// Appends the command line, terminator included (`SENS 20\n`).
-    pub fn encode(&self, out: &mut Vec<u8>) {
-        self.encode_body(out);
-        out.extend_from_slice(TERMINATOR);
-    }
-
-    /// The command line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
+        self.encode_row(out);
     }
 
     /// Parses one command (no `;`, no terminator) as the instrument does:
@@ -422,11 +380,10 @@ pub fn encode_line(commands: &[Command], out: &mut Vec<u8>) {
 /// firmware still runs the rest of a line after an illegal command is not in the
 /// manual.
 pub fn parse_line(line: &[u8]) -> Vec<Result<Command, CommandError>> {
-    line.split(|b| matches!(b, b';' | b'\r' | b'\n'))
-        .map(clean)
-        .filter(|s| !s.is_empty())
-        .map(|s| parse_clean(&s))
-        .collect()
+    crate::codec::parse_commands(line, |s| {
+        let s = clean(s);
+        (!s.is_empty()).then(|| parse_clean(&s))
+    })
 }
 
 /// Removes spaces and tabs, and upper-cases (what the instrument's own queue display
@@ -444,7 +401,7 @@ fn parse_clean(s: &[u8]) -> Result<Command, CommandError> {
     let Some((mn, rest)) = s.split_at_checked(4) else {
         return Err(unknown());
     };
-    let name = *MNEMONICS
+    let name = *Command::MNEMONICS
         .iter()
         .find(|m| m.as_bytes() == mn)
         .ok_or_else(unknown)?;
@@ -460,88 +417,9 @@ fn parse_clean(s: &[u8]) -> Result<Command, CommandError> {
             .map(|p| number::parse(p).ok_or(CommandError::Syntax(name)))
             .collect::<Result<_, _>>()?
     };
-    let range = || CommandError::OutOfRange(name);
-    // An index parameter: a non-negative integer (in any number form) of at most 255.
-    let index = |v: f64| -> Result<u8, CommandError> {
-        if v.fract() == 0.0 && (0.0..=255.0).contains(&v) {
-            // Exact: an integral value in 0..=255.
-            Ok(v as u8)
-        } else {
-            Err(range())
-        }
-    };
-    let bit = |v: f64| index(v).and_then(|i| BitIndex::new(i).ok_or_else(range));
-    let bounded = |v: f64, lo: f64, hi: f64| {
-        if (lo..=hi).contains(&v) {
-            Ok(v)
-        } else {
-            Err(range())
-        }
-    };
-    let command = match (name, query, values.as_slice()) {
-        ("OUTX", false, [i]) => {
-            Command::SetInterface(Interface::from_index(index(*i)?).ok_or_else(range)?)
-        }
-        ("OUTX", true, []) => Command::QueryInterface,
-        ("FMOD", false, [i]) => {
-            Command::SetReferenceSource(ReferenceSource::from_index(index(*i)?).ok_or_else(range)?)
-        }
-        ("FMOD", true, []) => Command::QueryReferenceSource,
-        ("FREQ", false, [f]) => Command::SetFrequency(bounded(*f, 0.001, 102_000.0)?),
-        ("FREQ", true, []) => Command::QueryFrequency,
-        ("SLVL", false, [x]) => Command::SetAmplitude(bounded(*x, 0.004, 5.0)?),
-        ("SLVL", true, []) => Command::QueryAmplitude,
-        ("SENS", false, [i]) => {
-            Command::SetSensitivity(Sensitivity::new(index(*i)?).ok_or_else(range)?)
-        }
-        ("SENS", true, []) => Command::QuerySensitivity,
-        ("OFLT", false, [i]) => {
-            Command::SetTimeConstant(TimeConstant::new(index(*i)?).ok_or_else(range)?)
-        }
-        ("OFLT", true, []) => Command::QueryTimeConstant,
-        ("OFSL", false, [i]) => {
-            Command::SetSlope(FilterSlope::from_index(index(*i)?).ok_or_else(range)?)
-        }
-        ("OFSL", true, []) => Command::QuerySlope,
-        ("AGAN", false, []) => Command::AutoGain,
-        ("OUTP", true, [i]) => {
-            Command::ReadOutput(Output::from_code(index(*i)?).ok_or_else(range)?)
-        }
-        ("SNAP", true, v) if (SnapParams::MIN..=SnapParams::MAX).contains(&v.len()) => {
-            let p = v
-                .iter()
-                .map(|x| SnapParam::from_code(index(*x)?).ok_or_else(range))
-                .collect::<Result<Vec<_>, _>>()?;
-            Command::Snap(SnapParams::new(&p).ok_or_else(range)?)
-        }
-        ("LIAS", true, []) => Command::LiaStatus(None),
-        ("LIAS", true, [i]) => Command::LiaStatus(Some(bit(*i)?)),
-        ("ERRS", true, []) => Command::ErrorStatus(None),
-        ("ERRS", true, [i]) => Command::ErrorStatus(Some(bit(*i)?)),
-        ("*ESR", true, []) => Command::EventStatus(None),
-        ("*ESR", true, [i]) => Command::EventStatus(Some(bit(*i)?)),
-        ("*IDN", true, []) => Command::Identify,
-        ("*RST", false, []) => Command::Reset,
-        ("*CLS", false, []) => Command::Clear,
-        _ => return Err(CommandError::Syntax(name)),
-    };
-    Ok(command)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn command_errors_name_their_status_bit() {
-        assert_eq!(
-            CommandError::Unknown("X".into()).event_status(),
-            EventStatus(32)
-        );
-        assert_eq!(CommandError::Syntax("SENS").bit(), 5);
-        assert_eq!(
-            CommandError::OutOfRange("SENS").event_status(),
-            EventStatus(16)
-        );
+    match Command::from_row(name, query, &values) {
+        Some((_, Ok(command))) => Ok(command),
+        Some((_, Err(Refusal::OutOfRange))) => Err(CommandError::OutOfRange(name)),
+        _ => Err(CommandError::Syntax(name)),
     }
 }

@@ -3,44 +3,20 @@
 //! not survive encode → parse). A `cargo fuzz` target is one line:
 //! `fuzz_target!(|d: &[u8]| gonio_proto::sr830::fuzz::fuzz_parse_line(d));`.
 
-use super::{
-    BitIndex, Command, Output, REPLY_TERMINATOR, Reply, SnapParam, SnapParams, parse_line,
-};
+use super::{BitIndex, Command, Output, Reply, SnapParam, SnapParams, parse_line};
+use crate::codec::{self, RoundTrip};
 
 /// Parses `data` as a received command line; every command that parses is
 /// encoded and parsed again and must come back equal.
 pub fn fuzz_parse_line(data: &[u8]) {
-    for command in parse_line(data).into_iter().flatten() {
-        let mut out = Vec::new();
-        command.encode_body(&mut out);
-        assert_eq!(parse_line(&out), vec![Ok(command)], "re-parse of {out:?}");
-    }
+    codec::fuzz_commands(data, parse_line, RoundTrip::Exact);
 }
 
-/// Parses `data[1..]` as the reply to a query chosen by `data[0]`; a reply that
-/// parses is encoded and parsed again and must come back equal.
+/// Parses `data[1..]` as the reply to a query chosen by `data[0]` (one query of each
+/// reply kind); a reply that parses is encoded and parsed again and must come back
+/// equal.
 pub fn fuzz_parse_reply(data: &[u8]) {
-    let Some((&selector, line)) = data.split_first() else {
-        return;
-    };
-    let queries = sample_queries();
-    let Some(command) = queries.get(usize::from(selector) % queries.len()) else {
-        return;
-    };
-    if let Ok(reply) = Reply::parse(command, line) {
-        let bytes = reply.to_bytes();
-        let body = bytes.strip_suffix(&[REPLY_TERMINATOR]).unwrap_or(&bytes);
-        assert_eq!(
-            Reply::parse(command, body),
-            Ok(reply),
-            "re-parse of {bytes:?}"
-        );
-    }
-}
-
-/// One query of each reply kind.
-fn sample_queries() -> Vec<Command> {
-    let mut q = vec![
+    let mut queries = vec![
         Command::QueryInterface,
         Command::QueryReferenceSource,
         Command::QueryFrequency,
@@ -57,10 +33,8 @@ fn sample_queries() -> Vec<Command> {
         // Not a query: must be refused, not parsed.
         Command::Clear,
     ];
-    for n in SnapParams::MIN..=SnapParams::MAX {
-        if let Some(p) = SnapParams::new(&SnapParam::ALL[..n]) {
-            q.push(Command::Snap(p));
-        }
-    }
-    q
+    let snaps =
+        (SnapParams::MIN..=SnapParams::MAX).filter_map(|n| SnapParams::new(&SnapParam::ALL[..n]));
+    queries.extend(snaps.map(Command::Snap));
+    codec::fuzz_replies(data, &queries, Reply::parse, RoundTrip::Exact);
 }

@@ -48,29 +48,18 @@ pub enum Reply {
     Identity(Identity),
 }
 
-/// Why a reply line could not be understood.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ReplyError {
-    /// The line is empty.
-    #[error("empty reply")]
-    Empty,
-    /// The command is not a query: the instrument never answers it.
-    #[error("{0} sends no reply")]
-    NotAQuery(&'static str),
-    /// A value is not a number, or not the integer the query returns.
-    #[error("malformed value")]
-    BadValue,
-    /// An index or status value outside what the query can return.
-    #[error("value {0} out of range for this query")]
-    OutOfRange(f64),
-    /// `SNAP?` returned a different number of values than asked.
-    #[error("expected {expected} values, got {got}")]
-    WrongCount {
-        /// Values asked.
-        expected: usize,
-        /// Values in the reply.
-        got: usize,
-    },
+crate::number::scpi_reply_error! {
+    /// Why a reply line could not be understood.
+    pub enum ReplyError {
+        /// `SNAP?` returned a different number of values than asked.
+        #[error("expected {expected} values, got {got}")]
+        WrongCount {
+            /// Values asked.
+            expected: usize,
+            /// Values in the reply.
+            got: usize,
+        },
+    }
 }
 
 /// Writes a reply value: the shortest decimal that reads back exactly, with an
@@ -86,10 +75,12 @@ fn format_value(v: f64, out: &mut Vec<u8>) {
     }
 }
 
+crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
+
 impl Reply {
-    /// Appends the reply line, terminator included (what the instrument sends).
-    /// Values must be finite; floats are written as described at [`Reply::parse`].
-    pub fn encode(&self, out: &mut Vec<u8>) {
+    /// Appends the reply without terminator (what the instrument sends). Values must
+    /// be finite; floats are written as described at [`Reply::parse`].
+    pub fn encode_body(&self, out: &mut Vec<u8>) {
         let int = |i: u8, out: &mut Vec<u8>| out.extend_from_slice(i.to_string().as_bytes());
         match self {
             Reply::Interface(i) => int(i.index(), out),
@@ -112,14 +103,6 @@ impl Reply {
             }
             Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
         }
-        out.push(REPLY_TERMINATOR);
-    }
-
-    /// The reply line as bytes, terminator included.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut v = Vec::new();
-        self.encode(&mut v);
-        v
     }
 
     /// Parses the reply line (terminator removed) to `command`. Surrounding
@@ -127,25 +110,10 @@ impl Reply {
     /// seen to print (`-1.01026`, `1000.00`, `-4.17234e-007`; its rule is not in the
     /// manual); indices and status bytes must be integers in their range.
     pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
-        let line = line.trim_ascii();
-        if !command.is_query() {
-            return Err(ReplyError::NotAQuery(command.mnemonic()));
-        }
-        if line.is_empty() {
-            return Err(ReplyError::Empty);
-        }
-        let num = |s: &[u8]| number::parse(s.trim_ascii()).ok_or(ReplyError::BadValue);
-        let int = |max: u8| -> Result<u8, ReplyError> {
-            let v = num(line)?;
-            if v.fract() != 0.0 {
-                return Err(ReplyError::BadValue);
-            }
-            if !(0.0..=f64::from(max)).contains(&v) {
-                return Err(ReplyError::OutOfRange(v));
-            }
-            // Exact: an integral value in 0..=max.
-            Ok(v as u8)
-        };
+        let line = ReplyError::query_line(command.is_query(), command.mnemonic(), line)?;
+        let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
+        // Exact: an integral value in 0..=max.
+        let int = |max: u8| Ok::<_, ReplyError>(number::integer(line, f64::from(max))? as u8);
         let out_of_range = |i: u8| ReplyError::OutOfRange(f64::from(i));
         let reply = match command {
             Command::QueryInterface => {

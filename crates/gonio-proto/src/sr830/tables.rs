@@ -1,8 +1,8 @@
 //! The instrument's tables: sensitivities, time constants and filter slopes, with the
 //! settling and noise-bandwidth figures of the manual's "SR830 Basics".
 
+use crate::codec::{coded_enum, index_table};
 use std::fmt;
-use std::str::FromStr;
 
 /// Full-scale voltage of each `SENS` index, volts (SENS table, manual ch. 5).
 const SENS_VOLTS: [f64; 27] = [
@@ -27,20 +27,6 @@ const TC_LABELS: [&str; 20] = [
     "1 s", "3 s", "10 s", "30 s", "100 s", "300 s", "1 ks", "3 ks", "10 ks", "30 ks",
 ];
 
-/// Finds `text` among `labels`, ignoring spaces, and accepting `u` or the Greek `μ`
-/// for the micro sign `µ`.
-fn find_label(labels: &[&str], text: &str) -> Option<u8> {
-    let norm = |s: &str| -> String {
-        s.chars()
-            .filter(|c| !c.is_whitespace())
-            .map(|c| if matches!(c, 'u' | 'μ') { 'µ' } else { c })
-            .collect()
-    };
-    let want = norm(text);
-    let i = labels.iter().position(|l| norm(l) == want)?;
-    u8::try_from(i).ok()
-}
-
 /// Why a table entry could not be read from text.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{text:?} is not a {what} of the SR830 (expected e.g. {example:?})")]
@@ -53,36 +39,24 @@ pub struct UnknownLabel {
     pub example: &'static str,
 }
 
-/// A sensitivity (full-scale voltage input range), `SENS` index 0 (2 nV) to 26 (1 V).
-///
-/// Ordered by index, so a greater value is a larger full scale (less sensitive). With
-/// a current input the same index means 1 fA … 1 µA (SENS table); this type
-/// speaks volts only.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Sensitivity(u8);
+index_table! {
+    /// A sensitivity (full-scale voltage input range), `SENS` index 0 (2 nV) to 26 (1 V).
+    ///
+    /// Ordered by index, so a greater value is a larger full scale (less sensitive). With
+    /// a current input the same index means 1 fA … 1 µA (SENS table); this type
+    /// speaks volts only.
+    pub struct Sensitivity, labels: SENS_LABELS, unknown: UnknownLabel = |text| UnknownLabel {
+        what: "sensitivity",
+        text: text.to_string(),
+        example: "10 mV",
+    };
+}
 
 impl Sensitivity {
-    /// Number of sensitivities.
-    pub const COUNT: u8 = 27;
     /// The most sensitive range, 2 nV.
     pub const MOST: Sensitivity = Sensitivity(0);
     /// The least sensitive range, 1 V (also the `*RST` default, p. 4-4).
     pub const LEAST: Sensitivity = Sensitivity(26);
-
-    /// The sensitivity with `SENS` index `index`, if it is 0..=26.
-    pub fn new(index: u8) -> Option<Self> {
-        (index < Self::COUNT).then_some(Sensitivity(index))
-    }
-
-    /// Every sensitivity, most sensitive first.
-    pub fn all() -> impl Iterator<Item = Sensitivity> {
-        (0..Self::COUNT).map(Sensitivity)
-    }
-
-    /// The `SENS` index.
-    pub fn index(self) -> u8 {
-        self.0
-    }
 
     /// Full scale, volts.
     pub fn volts(self) -> f64 {
@@ -107,56 +81,20 @@ impl Default for Sensitivity {
     }
 }
 
-impl fmt::Display for Sensitivity {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(SENS_LABELS[usize::from(self.0)])
-    }
+index_table! {
+    /// A low-pass filter time constant, `OFLT` index 0 (10 µs) to 19 (30 ks).
+    ///
+    /// Values over 30 s cannot be set when the detection frequency is above 200 Hz, and a
+    /// value below the minimum for the slope and reserve is raised to it (manual, OFLT): the
+    /// instrument, not this type, knows those.
+    pub struct TimeConstant, labels: TC_LABELS, unknown: UnknownLabel = |text| UnknownLabel {
+        what: "time constant",
+        text: text.to_string(),
+        example: "100 ms",
+    };
 }
-
-impl FromStr for Sensitivity {
-    type Err = UnknownLabel;
-
-    /// Reads a label as [`Display`](fmt::Display) writes it (`"10 mV"`); spaces are
-    /// optional and `uV` or `μV` may stand for `µV`. Prefixes are case-sensitive
-    /// (`mV` is not `MV`).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        find_label(&SENS_LABELS, s)
-            .map(Sensitivity)
-            .ok_or_else(|| UnknownLabel {
-                what: "sensitivity",
-                text: s.to_string(),
-                example: "10 mV",
-            })
-    }
-}
-
-/// A low-pass filter time constant, `OFLT` index 0 (10 µs) to 19 (30 ks).
-///
-/// Values over 30 s cannot be set when the detection frequency is above 200 Hz, and a
-/// value below the minimum for the slope and reserve is raised to it (manual, OFLT): the
-/// instrument, not this type, knows those.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct TimeConstant(u8);
 
 impl TimeConstant {
-    /// Number of time constants.
-    pub const COUNT: u8 = 20;
-
-    /// The time constant with `OFLT` index `index`, if it is 0..=19.
-    pub fn new(index: u8) -> Option<Self> {
-        (index < Self::COUNT).then_some(TimeConstant(index))
-    }
-
-    /// Every time constant, shortest first.
-    pub fn all() -> impl Iterator<Item = TimeConstant> {
-        (0..Self::COUNT).map(TimeConstant)
-    }
-
-    /// The `OFLT` index.
-    pub fn index(self) -> u8 {
-        self.0
-    }
-
     /// The time constant, seconds.
     pub fn seconds(self) -> f64 {
         TC_SECONDS[usize::from(self.0)]
@@ -170,60 +108,22 @@ impl Default for TimeConstant {
     }
 }
 
-impl fmt::Display for TimeConstant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(TC_LABELS[usize::from(self.0)])
+coded_enum! {
+    /// The low-pass filter slope, `OFSL` 0..=3 (manual, OFSL).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+    pub enum FilterSlope: u8, index / from_index {
+        /// 6 dB/oct (index 0).
+        Db6 = 0,
+        /// 12 dB/oct (index 1, the `*RST` default).
+        Db12 = 1,
+        /// 18 dB/oct (index 2).
+        Db18 = 2,
+        /// 24 dB/oct (index 3).
+        Db24 = 3,
     }
-}
-
-impl FromStr for TimeConstant {
-    type Err = UnknownLabel;
-
-    /// Reads a label as [`Display`](fmt::Display) writes it (`"100 ms"`, `"1 ks"`);
-    /// spaces optional, `us` or `μs` for `µs`.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        find_label(&TC_LABELS, s)
-            .map(TimeConstant)
-            .ok_or_else(|| UnknownLabel {
-                what: "time constant",
-                text: s.to_string(),
-                example: "100 ms",
-            })
-    }
-}
-
-/// The low-pass filter slope, `OFSL` 0..=3 (manual, OFSL).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum FilterSlope {
-    /// 6 dB/oct (index 0).
-    Db6,
-    /// 12 dB/oct (index 1, the `*RST` default).
-    Db12,
-    /// 18 dB/oct (index 2).
-    Db18,
-    /// 24 dB/oct (index 3).
-    Db24,
 }
 
 impl FilterSlope {
-    /// Every slope, shallowest first.
-    pub const ALL: [FilterSlope; 4] = [
-        FilterSlope::Db6,
-        FilterSlope::Db12,
-        FilterSlope::Db18,
-        FilterSlope::Db24,
-    ];
-
-    /// The `OFSL` index.
-    pub fn index(self) -> u8 {
-        self as u8
-    }
-
-    /// The slope with `OFSL` index `index`, if it is 0..=3.
-    pub fn from_index(index: u8) -> Option<Self> {
-        Self::ALL.get(usize::from(index)).copied()
-    }
-
     /// The roll-off, dB per octave.
     pub fn db_per_octave(self) -> u8 {
         6 * (self.index() + 1)
@@ -307,6 +207,7 @@ impl fmt::Display for FilterSlope {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::find_label;
 
     #[test]
     fn labels_accept_spacing_and_micro_spellings() {

@@ -92,28 +92,3 @@ impl Sr830Config {
         self.cycle_s(self.time_constant)
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_cycle_is_its_settling_its_snapshots_and_their_exchanges() {
-        let c = Sr830Config {
-            samples: 10,
-            ..Sr830Config::default()
-        }
-        .with_baud(9600);
-        // `LIAS?\n` and `0\r`: 8 bytes and the 5 ms; `SNAP? 1,2\n` and
-        // `0.00123456,-2.34567e-5\r`: 33 bytes and the 5 ms.
-        assert!((lia_status_s(9600) - (0.005 + 80.0 / 9600.0)).abs() < 1e-12);
-        assert!((snapshot_s(9600) - (0.005 + 330.0 / 9600.0)).abs() < 1e-12);
-        let tc = c.time_constant;
-        let expected = 7.0 * 0.1 + 2.0 * lia_status_s(9600) + 10.0 * snapshot_s(9600) + 0.9;
-        assert!(
-            (c.cycle_s(tc) - expected).abs() < 1e-12,
-            "{}",
-            c.cycle_s(tc)
-        );
-    }
-}

@@ -2,6 +2,7 @@
 //! binary per file cost most of the suite's build time (TESTING.md).
 
 mod apt;
+mod codecs;
 mod cs130;
 mod cs130_config;
 mod cs130_session;
