@@ -9,6 +9,7 @@ mod ops;
 
 use std::time::Duration;
 
+use super::message::name_of;
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
@@ -295,7 +296,7 @@ impl AptSession {
     pub fn status_lengths(&self) -> Vec<(&'static str, usize, u64)> {
         self.lengths
             .iter()
-            .map(|(&(id, len), &n)| (status_name(id), len, n))
+            .map(|(&(id, len), &n)| (name_of(id).unwrap_or("other"), len, n))
             .collect()
     }
 
@@ -456,20 +457,6 @@ impl AptSession {
 
     fn check_limits(&self, target: f64) -> Result<(), AxisError> {
         AxisError::check_limits(target, self.axis.min, self.axis.max, "deg")
-    }
-}
-
-/// The name of a status-kind message id.
-fn status_name(id: u16) -> &'static str {
-    use crate::apt::message::id;
-    match id {
-        id::GET_STATUSUPDATE => "MOT_GET_STATUSUPDATE",
-        id::GET_DCSTATUSUPDATE => "MOT_GET_DCSTATUSUPDATE",
-        id::GET_STATUSBITS => "MOT_GET_STATUSBITS",
-        id::MOVE_COMPLETED => "MOT_MOVE_COMPLETED",
-        id::MOVE_STOPPED => "MOT_MOVE_STOPPED",
-        id::MOVE_HOMED => "MOT_MOVE_HOMED",
-        _ => "other",
     }
 }
 

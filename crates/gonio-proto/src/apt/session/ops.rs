@@ -13,8 +13,8 @@ use tracing::{debug, warn};
 use super::{AptSession, AptStatus, Seen};
 use crate::TransportError;
 use crate::apt::{
-    AptInfo, CHANNEL, DcStatus, Direction, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet,
-    StopMode, VelParams, status,
+    AptInfo, CHANNEL, DcStatus, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet, StopMode,
+    VelParams, status,
 };
 use crate::engine::{self, Link, secs};
 use crate::motion::AxisError;
@@ -310,10 +310,7 @@ impl AptSession {
         .await?;
         let home = HomeParams {
             chan: CHANNEL,
-            direction: match stage.home_direction() {
-                Direction::Forward => 1,
-                Direction::Reverse => 2,
-            },
+            direction: stage.home_direction().code(),
             limit_switch: stage.home_limit_switch(),
             velocity: stage.velocity_to_apt(stage.home_velocity()),
             offset: stage.to_counts(stage.home_offset()),
