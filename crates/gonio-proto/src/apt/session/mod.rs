@@ -464,34 +464,6 @@ impl AptSession {
 mod tests {
     use super::*;
 
-    fn status(bits: u32) -> AptStatus {
-        AptStatus {
-            position_deg: 1.0,
-            velocity_raw: None,
-            bits,
-        }
-    }
-
-    #[test]
-    fn status_predicates() {
-        let s = status(status::HOMED | status::CHANNEL_ENABLED | status::MOVING_REV);
-        assert!(s.is_homed() && s.is_enabled() && s.is_moving());
-        assert!(s.faults().is_empty());
-        let s = status(status::REV_HW_LIMIT | status::MOTION_ERROR | status::HOMED);
-        assert_eq!(s.faults(), ["reverse limit switch", "motion error"]);
-        assert!(!s.is_moving() && !s.is_enabled());
-    }
-
-    #[test]
-    fn session_refuses_an_invalid_config() {
-        let mut a = AptAxisConfig::new("rot", StageKind::K10cr1, 0.0, 90.0);
-        a.home_timeout_s = 0.0;
-        match AptSession::new(a, ChainPolicy::default()) {
-            Err(MotionError::Config(m)) => assert!(m.contains("home_timeout_s"), "{m}"),
-            other => panic!("{other:?}"),
-        }
-    }
-
     #[test]
     fn stepper_asks_for_the_stepper_status() {
         let s = AptSession::new(
