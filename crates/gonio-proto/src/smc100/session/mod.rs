@@ -16,6 +16,7 @@ use super::{
     Param, ReplyBody, Smc100Parameters, Status,
 };
 use crate::engine::{Link, Task};
+use crate::motion::{self, Halt};
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
@@ -281,16 +282,16 @@ impl Smc100Session {
         })
     }
 
-    /// Runs the motion `op` as the operation `name`, ended as [`Self::settle`] ends it.
+    /// Runs the motion `op` as the operation `name`, ended as [`motion::settle`] ends it.
     fn motion<'a, T: 'a>(
         &'a mut self,
         name: &'static str,
         now: Duration,
-        op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, ops::Halt> + 'a,
+        op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, Halt> + 'a,
     ) -> Task<'a, T, MotionError> {
         self.task(name, now, async move |s, link| {
             let r = op(s, link).await;
-            s.settle(link, r).await
+            motion::settle(s, link, r).await
         })
     }
 
