@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use tracing::warn;
 
-use crate::engine::Link;
+use crate::engine::{Link, Task};
 pub use crate::smc100::{AxisError, MotionError};
 
 /// Why a motion (a home search, a move) ended early: what ending takes is
@@ -44,7 +44,7 @@ pub(crate) trait Motion {
     /// `e`, at axis `i`.
     fn at(&self, i: usize, e: AxisError) -> MotionError;
     /// Axis `i`'s status.
-    async fn status_of(&mut self, link: &Link, i: usize) -> Result<Self::Status, AxisError>;
+    async fn poll_status(&mut self, link: &Link, i: usize) -> Result<Self::Status, AxisError>;
     /// Stops every stage.
     async fn stop_every(&mut self, link: &Link) -> Result<(), MotionError>;
     /// Axis `i`'s position, if it can be read.
@@ -63,14 +63,10 @@ pub(crate) async fn poll<S: Motion>(
 ) -> Result<(), Halt> {
     let start = link.now();
     while let Some(&(first, _)) = axes.first() {
-        let until = link.now().saturating_add(s.poll_interval());
-        if link.poll_pause(until).await.is_err() {
-            warn!(family = S::FAMILY, operation, "aborted");
-            return Err(Halt::Stop(first, AxisError::Aborted));
-        }
+        pause(s, link, operation).await.map_err(stop(first))?;
         let mut still = Vec::new();
         for (i, target) in axes {
-            let status = s.status_of(link, i).await.map_err(stop(i))?;
+            let status = s.poll_status(link, i).await.map_err(stop(i))?;
             if busy(s, i, target, status, link.now().saturating_sub(start))? {
                 still.push((i, target));
             }
@@ -80,9 +76,31 @@ pub(crate) async fn poll<S: Motion>(
     Ok(())
 }
 
+/// The pause between status polls: an abort point.
+pub(crate) async fn pause<S: Motion>(s: &S, link: &Link, operation: &str) -> Result<(), AxisError> {
+    let until = link.now().saturating_add(s.poll_interval());
+    link.poll_pause(until).await.map_err(|_| {
+        warn!(family = S::FAMILY, operation, "aborted");
+        AxisError::Aborted
+    })
+}
+
 /// An axis' failure during a motion, which stops every stage.
 pub(crate) fn stop(axis: usize) -> impl FnOnce(AxisError) -> Halt {
     move |e| Halt::Stop(axis, e)
+}
+
+/// Runs the motion `op` on `s` as the operation `name`, ended as [`settle`] ends it.
+pub(crate) fn task<'a, S: Motion + 'a, T: 'a>(
+    s: &'a mut S,
+    name: &'static str,
+    now: Duration,
+    op: impl AsyncFnOnce(&mut S, &Link) -> Result<T, Halt> + 'a,
+) -> Task<'a, T, MotionError> {
+    Task::on(s, name, now, async move |s, link| {
+        let r = op(s, link).await;
+        settle(s, link, r).await
+    })
 }
 
 /// The end of a motion: after a fault every stage is stopped, since nothing may keep
@@ -106,7 +124,13 @@ pub(crate) async fn settle<S: Motion, T>(
         }
         Err(Halt::Overdue(i, operation, target, waited)) => {
             let axis = s.axis_name(i);
-            warn!(family = S::FAMILY, axis, operation, ?waited, "past the deadline; stopping every stage");
+            warn!(
+                family = S::FAMILY,
+                axis,
+                operation,
+                ?waited,
+                "past the deadline; stopping every stage"
+            );
             let _ = s.stop_every(link).await;
             let position = s.position_of(link, i).await;
             let e = AxisError::Timeout {

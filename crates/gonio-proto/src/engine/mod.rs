@@ -207,6 +207,24 @@ impl<'s, T, E: std::fmt::Display> Task<'s, T, E> {
         task
     }
 
+    /// Runs `op` on `session` as the operation `name`: what a session's `start_*`
+    /// methods return.
+    pub(crate) fn on<S: 's>(
+        session: &'s mut S,
+        name: &'static str,
+        now: Duration,
+        op: impl AsyncFnOnce(&mut S, &Link) -> Result<T, E> + 's,
+    ) -> Self
+    where
+        T: 's,
+    {
+        Task::new(
+            name,
+            now,
+            move |link| async move { op(session, &link).await },
+        )
+    }
+
     fn feed(&mut self, now: Duration, event: Option<Event>) {
         self.link.0.now.set(now);
         self.since = now;

@@ -13,7 +13,7 @@ use super::message::name_of;
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
-use crate::motion::{AxisError, MotionError};
+use crate::motion::{self, AxisError, MotionError};
 use crate::smc100::ChainPolicy;
 
 /// One stage on one APT controller, and how the session may move it.
@@ -348,7 +348,7 @@ impl AptSession {
     /// showing the search over and the stage homed, within `home_timeout_s`. The pause
     /// between status polls is an abort point.
     pub fn start_home(&mut self, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.home", now, Self::home)
+        motion::task(self, "apt.home", now, Self::home)
     }
 
     /// Moves to `target_deg` (`MOT_MOVE_ABSOLUTE`, long form), checked against the
@@ -357,7 +357,7 @@ impl AptSession {
     /// final position is the output. An absolute move is idempotent: when its outcome
     /// is lost it is sent again. The pause between polls is an abort point.
     pub fn start_move(&mut self, target_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.move", now, async move |s, link| {
+        motion::task(self, "apt.move", now, async move |s, link| {
             s.motion(link, target_deg, false).await
         })
     }
@@ -366,7 +366,7 @@ impl AptSession {
     /// against the limits first. Never sent twice: a lost outcome is
     /// [`AxisError::Ambiguous`].
     pub fn start_move_by(&mut self, delta_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.move_by", now, async move |s, link| {
+        motion::task(self, "apt.move_by", now, async move |s, link| {
             s.motion(link, delta_deg, true).await
         })
     }
@@ -416,9 +416,9 @@ impl AptSession {
         now: Duration,
         op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, AxisError> + 'a,
     ) -> Task<'a, T, MotionError> {
-        Task::new(name, now, move |link| async move {
-            let r = op(&mut *self, &link).await;
-            r.map_err(|source| self.at(source))
+        Task::on(self, name, now, async move |s, link| {
+            let r = op(s, link).await;
+            r.map_err(|source| s.at(source))
         })
     }
 

@@ -16,7 +16,7 @@ use super::{
     Param, ReplyBody, Smc100Parameters, Status,
 };
 use crate::engine::{Link, Task};
-use crate::motion::{self, Halt};
+use crate::motion;
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
@@ -109,7 +109,7 @@ impl Smc100Session {
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).
     pub fn start_identify(&mut self, now: Duration) -> Task<'_, Vec<ControllerInfo>, MotionError> {
-        self.task("smc100.identify", now, Self::identify)
+        Task::on(self, "smc100.identify", now, Self::identify)
     }
 
     /// The named axis' status (`TS`).
@@ -143,7 +143,7 @@ impl Smc100Session {
     /// broadcast could not be sent. Every stage gets its stop; the first failure is
     /// returned.
     pub fn start_stop_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
-        self.task("smc100.stop_all", now, Self::stop_all)
+        Task::on(self, "smc100.stop_all", now, Self::stop_all)
     }
 
     /// Stops one stage (`ST`, then `TE`).
@@ -159,7 +159,7 @@ impl Smc100Session {
     /// between status polls is an abort point.
     pub fn start_home(&mut self, names: &[&str], now: Duration) -> Task<'_, (), MotionError> {
         let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
-        self.motion("smc100.home", now, async move |s, link| {
+        motion::task(self, "smc100.home", now, async move |s, link| {
             s.home(link, &names, false).await
         })
     }
@@ -176,7 +176,7 @@ impl Smc100Session {
     /// [`AxisError::ControllerReset`] or a fault that only a reset clears.
     pub fn start_reset_and_home(&mut self, name: &str, now: Duration) -> Task<'_, (), MotionError> {
         let names = vec![name.to_string()];
-        self.motion("smc100.reset_and_home", now, async move |s, link| {
+        motion::task(self, "smc100.reset_and_home", now, async move |s, link| {
             s.home(link, &names, true).await
         })
     }
@@ -192,7 +192,7 @@ impl Smc100Session {
     ) -> Task<'_, Vec<f64>, MotionError> {
         let targets: Vec<(String, f64)> =
             targets.iter().map(|(n, t)| (n.to_string(), *t)).collect();
-        self.motion("smc100.move", now, async move |s, link| {
+        motion::task(self, "smc100.move", now, async move |s, link| {
             s.move_to(link, &targets).await
         })
     }
@@ -207,7 +207,7 @@ impl Smc100Session {
         now: Duration,
     ) -> Task<'_, f64, MotionError> {
         let name = name.to_string();
-        self.motion("smc100.move_by", now, async move |s, link| {
+        motion::task(self, "smc100.move_by", now, async move |s, link| {
             s.move_by(link, &name, delta).await
         })
     }
@@ -253,20 +253,6 @@ impl Smc100Session {
         })
     }
 
-    /// Runs `op` as the operation `name`.
-    fn task<'a, T: 'a>(
-        &'a mut self,
-        name: &'static str,
-        now: Duration,
-        op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, MotionError> + 'a,
-    ) -> Task<'a, T, MotionError> {
-        Task::new(
-            name,
-            now,
-            move |link| async move { op(&mut *self, &link).await },
-        )
-    }
-
     /// Runs `op` on the axis named `axis` as the operation `name`, its failure
     /// reported at that axis.
     fn on_axis<'a, T: 'a>(
@@ -277,21 +263,8 @@ impl Smc100Session {
         op: impl AsyncFnOnce(&mut Self, &Link, usize) -> Result<T, AxisError> + 'a,
     ) -> Task<'a, T, MotionError> {
         let axis = axis.to_string();
-        self.task(name, now, async move |s, link| {
+        Task::on(self, name, now, async move |s, link| {
             s.on(&axis, async |s, i| op(s, link, i).await).await
-        })
-    }
-
-    /// Runs the motion `op` as the operation `name`, ended as [`motion::settle`] ends it.
-    fn motion<'a, T: 'a>(
-        &'a mut self,
-        name: &'static str,
-        now: Duration,
-        op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, Halt> + 'a,
-    ) -> Task<'a, T, MotionError> {
-        self.task(name, now, async move |s, link| {
-            let r = op(s, link).await;
-            motion::settle(s, link, r).await
         })
     }
 

@@ -335,29 +335,35 @@ impl Smc100Session {
         moves: Vec<(usize, f64)>,
         allow: Duration,
     ) -> Result<Vec<f64>, Halt> {
-        motion::poll(self, link, moves.clone(), "move", |s, i, target, st, elapsed| {
-            let state = st.state;
-            let e = if state.is_ready() {
-                debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
-                return Ok(false);
-            } else if state.is_moving() {
-                if elapsed > allow {
-                    return Err(Halt::Overdue(i, "move", target, allow));
-                }
-                return Ok(true);
-            } else if state == ControllerState::NotReferencedFromReset {
-                AxisError::ControllerReset
-            } else if state.is_not_referenced() {
-                AxisError::NotReferenced { state }
-            } else if state.is_disabled() {
-                let errors = st.errors.0;
-                AxisError::Disabled { state, errors }
-            } else {
-                let operation = "moving";
-                AxisError::WrongState { state, operation }
-            };
-            Err(Halt::Stop(i, e))
-        })
+        motion::poll(
+            self,
+            link,
+            moves.clone(),
+            "move",
+            |s, i, target, st, elapsed| {
+                let state = st.state;
+                let e = if state.is_ready() {
+                    debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
+                    return Ok(false);
+                } else if state.is_moving() {
+                    if elapsed > allow {
+                        return Err(Halt::Overdue(i, "move", target, allow));
+                    }
+                    return Ok(true);
+                } else if state == ControllerState::NotReferencedFromReset {
+                    AxisError::ControllerReset
+                } else if state.is_not_referenced() {
+                    AxisError::NotReferenced { state }
+                } else if state.is_disabled() {
+                    let errors = st.errors.0;
+                    AxisError::Disabled { state, errors }
+                } else {
+                    let operation = "moving";
+                    AxisError::WrongState { state, operation }
+                };
+                Err(Halt::Stop(i, e))
+            },
+        )
         .await?;
         let mut positions = Vec::new();
         for (i, target) in moves {
@@ -485,7 +491,7 @@ impl Motion for Smc100Session {
         Smc100Session::at(self, i, e)
     }
 
-    async fn status_of(&mut self, link: &Link, i: usize) -> Result<Status, AxisError> {
+    async fn poll_status(&mut self, link: &Link, i: usize) -> Result<Status, AxisError> {
         self.read_status(link, i).await
     }
 
