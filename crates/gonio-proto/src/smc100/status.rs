@@ -205,26 +205,29 @@ impl fmt::Display for ControllerState {
 pub struct PositionerErrors(pub u16);
 
 impl PositionerErrors {
-    /// Negative end of run (limit switch).
-    pub const NEGATIVE_END_OF_RUN: u16 = 0x0001;
-    /// Positive end of run.
-    pub const POSITIVE_END_OF_RUN: u16 = 0x0002;
-    /// Peak current limit.
-    pub const PEAK_CURRENT: u16 = 0x0004;
-    /// RMS current limit.
-    pub const RMS_CURRENT: u16 = 0x0008;
-    /// Short-circuit detection.
-    pub const SHORT_CIRCUIT: u16 = 0x0010;
-    /// Following error.
-    pub const FOLLOWING_ERROR: u16 = 0x0020;
-    /// Homing time-out.
-    pub const HOMING_TIMEOUT: u16 = 0x0040;
-    /// Wrong ESP stage (detected at boot).
-    pub const WRONG_STAGE: u16 = 0x0080;
-    /// DC voltage too low.
-    pub const LOW_VOLTAGE: u16 = 0x0100;
-    /// 80 W output power exceeded.
-    pub const OVER_POWER: u16 = 0x0200;
+    crate::motion::status_bits! {
+        impl u16;
+        /// Negative end of run (limit switch).
+        NEGATIVE_END_OF_RUN = 0x0001 "negative end of run",
+        /// Positive end of run.
+        POSITIVE_END_OF_RUN = 0x0002 "positive end of run",
+        /// Peak current limit.
+        PEAK_CURRENT = 0x0004 "peak current limit",
+        /// RMS current limit.
+        RMS_CURRENT = 0x0008 "RMS current limit",
+        /// Short-circuit detection.
+        SHORT_CIRCUIT = 0x0010 "short circuit",
+        /// Following error.
+        FOLLOWING_ERROR = 0x0020 "following error",
+        /// Homing time-out.
+        HOMING_TIMEOUT = 0x0040 "homing time-out",
+        /// Wrong ESP stage (detected at boot).
+        WRONG_STAGE = 0x0080 "wrong ESP stage",
+        /// DC voltage too low.
+        LOW_VOLTAGE = 0x0100 "DC voltage too low",
+        /// 80 W output power exceeded.
+        OVER_POWER = 0x0200 "80 W output power exceeded",
+    }
 
     /// True when every bit of `mask` is set.
     pub fn has(self, mask: u16) -> bool {
