@@ -1,7 +1,7 @@
 //! What the chain's operations cost on the wire, for planning: the exchanges of a
 //! move, a home search and the start-up identification, each as the session's
-//! operation makes them (`session/motion.rs`, `session/home.rs`, `session/ops.rs`),
-//! with the bytes of the session's own command encodings.
+//! operation makes them (`session/ops.rs`), with the bytes of the session's own
+//! command encodings.
 
 use std::time::Duration;
 

@@ -294,7 +294,7 @@ data_struct! {
     /// The 14-byte status of a DC servo channel: `MGMSG_MOT_GET_DCSTATUSUPDATE`
     /// (`0x0491`), and the data of `MGMSG_MOT_MOVE_COMPLETED`, `MOVE_STOPPED` in the long
     /// form the K-Cubes send.
-    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
     pub struct DcStatus {
         /// The channel.
         pub chan: u16,
@@ -318,7 +318,7 @@ data_struct! {
     /// three words "for future use". A K10CR1 sends only the first 14 (PnPQ, tested on
     /// K10CR1s: "K10CR1 uses a 20-byte message; K10CR2 uses a 34-byte message"). Both are
     /// read; the second half is kept as it came, so a message re-encodes to its bytes.
-    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
     pub struct StepperStatus {
         /// The channel.
         pub chan: u16,

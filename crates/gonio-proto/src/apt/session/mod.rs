@@ -13,7 +13,7 @@ use super::message::name_of;
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
-use crate::motion::{self, AxisError, MotionError};
+use crate::motion::{self, AxisError, Halt, MotionError};
 use crate::smc100::ChainPolicy;
 
 /// One stage on one APT controller, and how the session may move it.
@@ -416,9 +416,8 @@ impl AptSession {
         now: Duration,
         op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, AxisError> + 'a,
     ) -> Task<'a, T, MotionError> {
-        Task::on(self, name, now, async move |s, link| {
-            let r = op(s, link).await;
-            r.map_err(|source| s.at(source))
+        motion::task(self, name, now, async move |s, link| {
+            op(s, link).await.map_err(|e| Halt::End(s.at(e)))
         })
     }
 

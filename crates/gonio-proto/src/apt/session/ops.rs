@@ -258,16 +258,9 @@ impl AptSession {
             acceleration: stage.acceleration_to_apt(a),
             max_velocity: stage.velocity_to_apt(v),
         };
+        let (set, get) = (Message::SetVelParams, Message::GetVelParams);
         let ask = Message::ReqVelParams { chan: 1 };
-        self.write(
-            link,
-            "VELPARAMS",
-            vel,
-            Message::SetVelParams,
-            ask,
-            Message::GetVelParams,
-        )
-        .await?;
+        self.write(link, vel, set, ask, get).await?;
         let home = HomeParams {
             chan: CHANNEL,
             direction: stage.home_direction().code(),
@@ -275,16 +268,9 @@ impl AptSession {
             velocity: stage.velocity_to_apt(stage.home_velocity()),
             offset: stage.to_counts(stage.home_offset()),
         };
+        let (set, get) = (Message::SetHomeParams, Message::GetHomeParams);
         let ask = Message::ReqHomeParams { chan: 1 };
-        self.write(
-            link,
-            "HOMEPARAMS",
-            home,
-            Message::SetHomeParams,
-            ask,
-            Message::GetHomeParams,
-        )
-        .await?;
+        self.write(link, home, set, ask, get).await?;
         if let Some(b) = self.axis.backlash_deg {
             let backlash = GenMoveParams {
                 chan: CHANNEL,
@@ -292,8 +278,7 @@ impl AptSession {
             };
             let (set, get) = (Message::SetGenMoveParams, Message::GetGenMoveParams);
             let ask = Message::ReqGenMoveParams { chan: 1 };
-            self.write(link, "GENMOVEPARAMS", backlash, set, ask, get)
-                .await?;
+            self.write(link, backlash, set, ask, get).await?;
         }
         if self.axis.status_updates {
             self.transmit(link, &Message::HwStartUpdateMsgs).await?;
@@ -307,7 +292,6 @@ impl AptSession {
     async fn write<P: Copy + std::fmt::Debug>(
         &mut self,
         link: &Link,
-        what: &str,
         params: P,
         set: fn(P) -> Message,
         ask: Message,
@@ -321,7 +305,7 @@ impl AptSession {
             return Ok(());
         }
         let reason = format!("read back {got:?}, set {params:?}");
-        Err(device(&format!("MOT_SET_{what}"), reason))
+        Err(device(set(params).name(), reason))
     }
 
     /// `MOT_MOVE_HOME`, then a status every poll interval until `MOT_MOVE_HOMED` came
