@@ -9,7 +9,8 @@ use std::time::Duration;
 
 use tracing::warn;
 
-use crate::engine::{Link, Task};
+use crate::engine::{Link, Task, secs};
+use crate::smc100::ChainPolicy;
 pub use crate::smc100::{AxisError, MotionError};
 
 /// Why a motion (a home search, a move) ended early: what ending takes is
@@ -74,6 +75,13 @@ pub(crate) async fn poll<S: Motion>(
         axes = still;
     }
     Ok(())
+}
+
+/// How long a move may take: the policy's margin plus its factor times the move's
+/// estimated duration, `estimate_s`.
+pub(crate) fn allowance(policy: &ChainPolicy, estimate_s: f64) -> Duration {
+    let factor = policy.move_factor;
+    policy.move_margin.saturating_add(secs(estimate_s * factor))
 }
 
 /// The pause between status polls: an abort point.

@@ -44,23 +44,12 @@ pub(super) fn short(p: &[u8]) -> Body {
 }
 
 /// The fields of a long message, in order.
-pub(super) fn long(fields: &[&dyn Put]) -> Body {
+pub(super) fn long(fields: &[&dyn Data]) -> Body {
     let mut data = Vec::new();
     for f in fields {
-        f.put_dyn(&mut data);
+        f.put(&mut data);
     }
     Body::Long(data)
-}
-
-/// [`Data::put`], for a list of fields of different types.
-pub(super) trait Put {
-    fn put_dyn(&self, out: &mut Vec<u8>);
-}
-
-impl<T: Data> Put for T {
-    fn put_dyn(&self, out: &mut Vec<u8>) {
-        self.put(out);
-    }
 }
 
 /// A channel as a short message's parameter byte (255 for any channel beyond it,

@@ -26,9 +26,11 @@ impl Rd<'_> {
 }
 
 /// A field of a data packet: written and read little endian, in the manual's order.
-pub(super) trait Data: Sized {
+pub(super) trait Data {
     fn put(&self, out: &mut Vec<u8>);
-    fn get(r: &mut Rd<'_>) -> Self;
+    fn get(r: &mut Rd<'_>) -> Self
+    where
+        Self: Sized;
 }
 
 macro_rules! data_ints {

@@ -380,7 +380,7 @@ impl AptSession {
         // The policy's margin plus its factor times the trapezoid's duration.
         let (v, a) = self.axis.motion();
         let t = gonio_core::motion::trapezoid_time(target - st.position_deg, v, a);
-        let allow = (self.policy.move_margin).saturating_add(secs(t * self.policy.move_factor));
+        let allow = motion::allowance(&self.policy, t);
         let stage = self.stage();
         let command = if relative {
             Message::MoveRelative {

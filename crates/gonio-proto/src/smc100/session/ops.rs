@@ -267,7 +267,7 @@ impl Smc100Session {
             } else {
                 0.0
             };
-            allow = allow.max(self.allowance(estimate));
+            allow = allow.max(motion::allowance(&self.policy, estimate));
             self.command(link, i, Command::MoveAbsolute(target))
                 .await
                 .map_err(stop(i))?;
@@ -289,19 +289,12 @@ impl Smc100Session {
         let target = from.map_err(|e| self.at(i, e))? + delta;
         self.check_limits(i, target).map_err(|e| self.at(i, e))?;
         let estimate = self.estimate(link, i, delta.abs().max(1e-6)).await?;
-        let allow = self.allowance(estimate);
+        let allow = motion::allowance(&self.policy, estimate);
         self.command(link, i, Command::MoveRelative(delta))
             .await
             .map_err(stop(i))?;
         debug!(axis = %self.axes[i].name, target, "smc100: relative move started");
         Ok(self.await_moves(link, vec![(i, target)], allow).await?[0])
-    }
-
-    /// How long a move may take: the margin plus the factor times the controller's
-    /// estimate.
-    fn allowance(&self, estimate: f64) -> Duration {
-        let p = &self.policy;
-        p.move_margin.saturating_add(secs(estimate * p.move_factor))
     }
 
     /// `PT`: how long the controller says a move of `distance` takes. A controller
