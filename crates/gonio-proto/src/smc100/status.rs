@@ -14,8 +14,8 @@ macro_rules! error_codes {
         }
 
         impl ErrorCode {
-            const TABLE: &[(u8, ErrorCode, &'static str)] =
-                &[$(($letter as u8, ErrorCode::$v, $text)),*];
+            const TABLE: &[(char, ErrorCode, &'static str)] =
+                &[$(($letter, ErrorCode::$v, $text)),*];
         }
     };
 }
@@ -50,14 +50,14 @@ impl ErrorCode {
         Self::TABLE
             .iter()
             .find(|(_, c, _)| *c == self)
-            .map_or('?', |(l, _, _)| *l as char)
+            .map_or('?', |(l, _, _)| *l)
     }
 
     /// The code for a `TE` letter; `None` for letters the manual does not define.
     pub fn from_letter(l: u8) -> Option<ErrorCode> {
         Self::TABLE
             .iter()
-            .find(|(b, _, _)| *b == l)
+            .find(|(b, _, _)| *b == char::from(l))
             .map(|(_, c, _)| *c)
     }
 
