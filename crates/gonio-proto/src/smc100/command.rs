@@ -422,27 +422,18 @@ impl Frame {
             .filter(|b| **b != b' ' && **b != b'\t')
             .map(|b| b.to_ascii_uppercase())
             .collect();
-        let digits = s.iter().take_while(|b| b.is_ascii_digit()).count();
-        if s.get(digits) == Some(&b'.') {
+        let (digits, code, rest) = split(&s);
+        if s.get(digits.len()) == Some(&b'.') {
             return Err(CommandError::Unknown);
         }
-        let address: Option<u8> = if digits == 0 {
-            None
-        } else if digits > 2 {
-            return Err(CommandError::BadAddress);
-        } else {
+        let address = match digits.len() {
+            0 => None,
             // Two ASCII digits at most: always a valid number.
-            let a = s[..digits].iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'));
-            Some(a)
+            1 | 2 => Some(address(digits)),
+            _ => return Err(CommandError::BadAddress),
         };
-        // `QI` and `FR` take a third letter (`QIL`, `FRM`).
-        let len = match s.get(digits..digits + 2) {
-            Some(b"QI" | b"FR") => 3,
-            _ => 2,
-        };
-        let code = s.get(digits..digits + len).ok_or(CommandError::Unknown)?;
+        let code = code.ok_or(CommandError::Unknown)?;
         let code = std::str::from_utf8(code).map_err(|_| CommandError::Unknown)?;
-        let rest = &s[digits + len..];
         let query = rest.first() == Some(&b'?');
         let value = || -> Result<f64, CommandError> {
             // The value is the longest numeric prefix; what follows is ignored.
@@ -497,6 +488,26 @@ impl Frame {
         };
         Ok(Frame { address, command })
     }
+}
+
+/// The address digits at the start of `line`, the command code after them (two letters,
+/// or three for `QI` and `FR` with their third, `QIL`, `FRM`; `None` when the line ends
+/// first) and the rest: how a controller reads a command and a host a reply.
+pub(super) fn split(line: &[u8]) -> (&[u8], Option<&[u8]>, &[u8]) {
+    let digits = line.iter().take_while(|b| b.is_ascii_digit()).count();
+    let len = match line.get(digits..digits + 2) {
+        Some(b"QI" | b"FR") => 3,
+        _ => 2,
+    };
+    match line.get(digits..digits + len) {
+        Some(code) => (&line[..digits], Some(code), &line[digits + len..]),
+        None => (&line[..digits], None, &[]),
+    }
+}
+
+/// One or two address digits as a number.
+pub(super) fn address(digits: &[u8]) -> u8 {
+    digits.iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'))
 }
 
 /// A stage name as `IDxx` carries it: 1–31 printable ASCII characters (the line has
