@@ -10,7 +10,7 @@ mod ops;
 use std::time::Duration;
 
 use super::message::name_of;
-use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
+use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
 use crate::motion::{self, AxisError, Halt, MotionError};
@@ -161,22 +161,6 @@ pub struct AptStatus {
 }
 
 impl AptStatus {
-    fn from_dc(stage: StageKind, s: &DcStatus) -> Self {
-        AptStatus {
-            position_deg: stage.to_deg(s.position),
-            velocity_raw: Some(s.velocity),
-            bits: s.bits,
-        }
-    }
-
-    fn from_stepper(stage: StageKind, s: &StepperStatus) -> Self {
-        AptStatus {
-            position_deg: stage.to_deg(s.position),
-            velocity_raw: None,
-            bits: s.bits,
-        }
-    }
-
     /// Moving, jogging or homing.
     pub fn is_moving(&self) -> bool {
         self.bits & status::MOTION != 0
@@ -443,15 +427,19 @@ impl AptSession {
 
     /// A message read as a status, if it is one of this channel's.
     fn status_of(&self, m: &Message) -> Option<AptStatus> {
-        match m {
+        let (position, velocity_raw, bits) = match m {
             Message::GetDcStatusUpdate(s) if s.chan == CHANNEL => {
-                Some(AptStatus::from_dc(self.stage(), s))
+                (s.position, Some(s.velocity), s.bits)
             }
-            Message::GetStatusUpdate(s) if s.chan == CHANNEL => {
-                Some(AptStatus::from_stepper(self.stage(), s))
-            }
-            _ => None,
-        }
+            Message::GetStatusUpdate(s) if s.chan == CHANNEL => (s.position, None, s.bits),
+            _ => return None,
+        };
+        let position_deg = self.stage().to_deg(position);
+        Some(AptStatus {
+            position_deg,
+            velocity_raw,
+            bits,
+        })
     }
 
     fn check_limits(&self, target: f64) -> Result<(), AxisError> {
