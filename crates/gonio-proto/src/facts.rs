@@ -13,3 +13,11 @@ pub struct Unconfirmed {
     /// What to do on the instrument to settle it.
     pub check: &'static str,
 }
+
+/// A family's list of [`Unconfirmed`] facts, written `"fact" => "check",` each.
+macro_rules! unconfirmed {
+    ($($fact:literal => $check:literal,)*) => {
+        &[$($crate::Unconfirmed { fact: $fact, check: $check }),*]
+    };
+}
+pub(crate) use unconfirmed;

@@ -56,12 +56,7 @@ pub mod fw102c;
 mod idn;
 pub mod k6485;
 pub mod link;
-/// The errors every motion family's session returns: [`motion::AxisError`] on one
-/// axis, [`motion::MotionError`] naming it. They began as the SMC100's, whose
-/// controller-specific variants they keep.
-pub mod motion {
-    pub use crate::smc100::{AxisError, MotionError};
-}
+pub mod motion;
 mod number;
 pub mod smc100;
 pub mod sr830;

@@ -128,21 +128,3 @@ impl Framer for AptFramer {
         self.ready.clear();
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::apt::Message;
-
-    #[test]
-    fn garbage_before_a_message_is_one_desync() {
-        let mut f = AptFramer::new();
-        let mut bytes = vec![0xFF, 0xEE, 0xDD, 0xCC, 0xBB, 0xAA, 0x99];
-        Message::HwReqInfo.encode(&mut bytes);
-        f.push(&bytes);
-        assert!(matches!(f.next_frame(), Some(Err(FrameError::Desync(_)))));
-        assert_eq!(f.next_frame(), Some(Ok(vec![0x05, 0x00, 0, 0, 0x50, 0x01])));
-        assert_eq!(f.next_frame(), None);
-        assert!(!f.has_partial());
-    }
-}

@@ -62,28 +62,18 @@ pub const CHANNEL: u16 = 1;
 
 /// What Gonio relies on about the APT controllers that no manual page confirms, with
 /// how to check it on the unit: `docs/instruments/apt.md` lists the same.
-pub const UNCONFIRMED: &[crate::Unconfirmed] = &[
-    crate::Unconfirmed {
-        fact: "Which status messages a controller counts towards the server-alive limit",
-        check: "`gonio instrument selftest` with `keepalive = false` on one axis: note the move at which completions stop (manual p. 130)",
-    },
-    crate::Unconfirmed {
-        fact: "The length of the stepper status `0x0481` on the unit in hand",
-        check: "`gonio instrument selftest` records the data length of every status message it receives",
-    },
-    crate::Unconfirmed {
-        fact: "The scale of the DC status velocity word",
-        check: "log a `MOT_GET_DCSTATUSUPDATE` during a move at a known velocity (Gonio ignores the word)",
-    },
-    crate::Unconfirmed {
-        fact: "Stage maxima (25 °/s for the PRM1-Z8, 10 °/s for the K10CR1) and the acceleration bounds",
-        check: "compare with the stage's Thorlabs specification sheet",
-    },
-    crate::Unconfirmed {
-        fact: "The PRM1-Z8's home velocity and offset (10 °/s, 4°)",
-        check: "read `MOT_REQ_HOMEPARAMS` on a KDC101 set up by Kinesis",
-    },
-];
+pub const UNCONFIRMED: &[crate::Unconfirmed] = crate::facts::unconfirmed! {
+    "Which status messages a controller counts towards the server-alive limit"
+        => "`gonio instrument selftest` with `keepalive = false` on one axis: note the move at which completions stop (manual p. 130)",
+    "The length of the stepper status `0x0481` on the unit in hand"
+        => "`gonio instrument selftest` records the data length of every status message it receives",
+    "The scale of the DC status velocity word"
+        => "log a `MOT_GET_DCSTATUSUPDATE` during a move at a known velocity (Gonio ignores the word)",
+    "Stage maxima (25 °/s for the PRM1-Z8, 10 °/s for the K10CR1) and the acceleration bounds"
+        => "compare with the stage's Thorlabs specification sheet",
+    "The PRM1-Z8's home velocity and offset (10 °/s, 4°)"
+        => "read `MOT_REQ_HOMEPARAMS` on a KDC101 set up by Kinesis",
+};
 
 /// True for an address the manual defines (host, rack, bays 0–9, USB unit), or 0,
 /// which some controllers put as the source of unsolicited messages.

@@ -4,62 +4,65 @@
 //! that apply to them; the KDC101 documents the limit, motion, homing, tracking,
 //! settled, motion-error, current-limit and enabled bits.
 
-/// Forward (clockwise) hardware limit switch active.
-pub const FWD_HW_LIMIT: u32 = 0x0000_0001;
-/// Reverse (counter-clockwise) hardware limit switch active.
-pub const REV_HW_LIMIT: u32 = 0x0000_0002;
-/// Forward software limit reached.
-pub const FWD_SW_LIMIT: u32 = 0x0000_0004;
-/// Reverse software limit reached.
-pub const REV_SW_LIMIT: u32 = 0x0000_0008;
-/// Moving forward.
-pub const MOVING_FWD: u32 = 0x0000_0010;
-/// Moving in reverse.
-pub const MOVING_REV: u32 = 0x0000_0020;
-/// Jogging forward.
-pub const JOGGING_FWD: u32 = 0x0000_0040;
-/// Jogging in reverse.
-pub const JOGGING_REV: u32 = 0x0000_0080;
-/// Motor connected.
-pub const CONNECTED: u32 = 0x0000_0100;
-/// A home search is under way.
-pub const HOMING: u32 = 0x0000_0200;
-/// The stage has been homed (its position counter is referenced).
-pub const HOMED: u32 = 0x0000_0400;
-/// Initialising.
-pub const INITIALISING: u32 = 0x0000_0800;
-/// Tracking: the position is within the tracking window of the target.
-pub const TRACKING: u32 = 0x0000_1000;
-/// Settled: the position has stayed within the settle window.
-pub const SETTLED: u32 = 0x0000_2000;
-/// Motion error: the position error exceeded its limit (a stalled or blocked stage).
-pub const MOTION_ERROR: u32 = 0x0000_4000;
-/// Instrument error.
-pub const INSTRUMENT_ERROR: u32 = 0x0000_8000;
-/// Interlock open.
-pub const INTERLOCK: u32 = 0x0001_0000;
-/// Over temperature.
-pub const OVER_TEMP: u32 = 0x0002_0000;
-/// Supply voltage fault.
-pub const VOLTAGE_FAULT: u32 = 0x0004_0000;
-/// Commutation error.
-pub const COMMUTATION_ERROR: u32 = 0x0008_0000;
-/// The motor current limit was reached.
-pub const CURRENT_LIMIT: u32 = 0x0100_0000;
-/// Encoder fault.
-pub const ENCODER_FAULT: u32 = 0x0200_0000;
-/// Over current.
-pub const OVER_CURRENT: u32 = 0x0400_0000;
-/// Bus current fault.
-pub const BUS_CURRENT_FAULT: u32 = 0x0800_0000;
-/// Power supply good.
-pub const POWER_OK: u32 = 0x1000_0000;
-/// Active (a move is in progress).
-pub const ACTIVE: u32 = 0x2000_0000;
-/// Error.
-pub const ERROR: u32 = 0x4000_0000;
-/// The channel (motor drive) is enabled.
-pub const CHANNEL_ENABLED: u32 = 0x8000_0000;
+crate::motion::status_bits! {
+    u32;
+    /// Forward (clockwise) hardware limit switch active.
+    FWD_HW_LIMIT = 0x0000_0001 "forward limit switch",
+    /// Reverse (counter-clockwise) hardware limit switch active.
+    REV_HW_LIMIT = 0x0000_0002 "reverse limit switch",
+    /// Forward software limit reached.
+    FWD_SW_LIMIT = 0x0000_0004 "forward software limit",
+    /// Reverse software limit reached.
+    REV_SW_LIMIT = 0x0000_0008 "reverse software limit",
+    /// Moving forward.
+    MOVING_FWD = 0x0000_0010 "moving forward",
+    /// Moving in reverse.
+    MOVING_REV = 0x0000_0020 "moving reverse",
+    /// Jogging forward.
+    JOGGING_FWD = 0x0000_0040 "jogging forward",
+    /// Jogging in reverse.
+    JOGGING_REV = 0x0000_0080 "jogging reverse",
+    /// Motor connected.
+    CONNECTED = 0x0000_0100 "motor connected",
+    /// A home search is under way.
+    HOMING = 0x0000_0200 "homing",
+    /// The stage has been homed (its position counter is referenced).
+    HOMED = 0x0000_0400 "homed",
+    /// Initialising.
+    INITIALISING = 0x0000_0800 "initialising",
+    /// Tracking: the position is within the tracking window of the target.
+    TRACKING = 0x0000_1000 "tracking",
+    /// Settled: the position has stayed within the settle window.
+    SETTLED = 0x0000_2000 "settled",
+    /// Motion error: the position error exceeded its limit (a stalled or blocked stage).
+    MOTION_ERROR = 0x0000_4000 "motion error",
+    /// Instrument error.
+    INSTRUMENT_ERROR = 0x0000_8000 "instrument error",
+    /// Interlock open.
+    INTERLOCK = 0x0001_0000 "interlock",
+    /// Over temperature.
+    OVER_TEMP = 0x0002_0000 "over temperature",
+    /// Supply voltage fault.
+    VOLTAGE_FAULT = 0x0004_0000 "voltage fault",
+    /// Commutation error.
+    COMMUTATION_ERROR = 0x0008_0000 "commutation error",
+    /// The motor current limit was reached.
+    CURRENT_LIMIT = 0x0100_0000 "current limit",
+    /// Encoder fault.
+    ENCODER_FAULT = 0x0200_0000 "encoder fault",
+    /// Over current.
+    OVER_CURRENT = 0x0400_0000 "over current",
+    /// Bus current fault.
+    BUS_CURRENT_FAULT = 0x0800_0000 "bus current fault",
+    /// Power supply good.
+    POWER_OK = 0x1000_0000 "power ok",
+    /// Active (a move is in progress).
+    ACTIVE = 0x2000_0000 "active",
+    /// Error.
+    ERROR = 0x4000_0000 "error",
+    /// The channel (motor drive) is enabled.
+    CHANNEL_ENABLED = 0x8000_0000 "channel enabled",
+}
 
 /// Any motion bit: moving or jogging, either way, or homing.
 pub const MOTION: u32 = MOVING_FWD | MOVING_REV | JOGGING_FWD | JOGGING_REV | HOMING;
@@ -77,39 +80,5 @@ pub const FAULTS: u32 = MOTION_ERROR
 
 /// The names of the bits set in `bits`, for messages.
 pub fn describe(bits: u32) -> Vec<&'static str> {
-    const NAMES: [(u32, &str); 28] = [
-        (FWD_HW_LIMIT, "forward limit switch"),
-        (REV_HW_LIMIT, "reverse limit switch"),
-        (FWD_SW_LIMIT, "forward software limit"),
-        (REV_SW_LIMIT, "reverse software limit"),
-        (MOVING_FWD, "moving forward"),
-        (MOVING_REV, "moving reverse"),
-        (JOGGING_FWD, "jogging forward"),
-        (JOGGING_REV, "jogging reverse"),
-        (CONNECTED, "motor connected"),
-        (HOMING, "homing"),
-        (HOMED, "homed"),
-        (INITIALISING, "initialising"),
-        (TRACKING, "tracking"),
-        (SETTLED, "settled"),
-        (MOTION_ERROR, "motion error"),
-        (INSTRUMENT_ERROR, "instrument error"),
-        (INTERLOCK, "interlock"),
-        (OVER_TEMP, "over temperature"),
-        (VOLTAGE_FAULT, "voltage fault"),
-        (COMMUTATION_ERROR, "commutation error"),
-        (CURRENT_LIMIT, "current limit"),
-        (ENCODER_FAULT, "encoder fault"),
-        (OVER_CURRENT, "over current"),
-        (BUS_CURRENT_FAULT, "bus current fault"),
-        (POWER_OK, "power ok"),
-        (ACTIVE, "active"),
-        (ERROR, "error"),
-        (CHANNEL_ENABLED, "channel enabled"),
-    ];
-    NAMES
-        .iter()
-        .filter(|(m, _)| bits & m != 0)
-        .map(|(_, n)| *n)
-        .collect()
+    crate::motion::bit_names(bits, NAMES)
 }

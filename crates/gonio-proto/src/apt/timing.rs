@@ -21,10 +21,7 @@ fn status_s(stage: StageKind) -> f64 {
     let (ask, answer) = if stage.is_dc_servo() {
         let st = DcStatus {
             chan: 1,
-            position: 0,
-            velocity: 0,
-            reserved: 0,
-            bits: 0,
+            ..DcStatus::default()
         };
         (
             Message::ReqDcStatusUpdate { chan: 1 },
@@ -33,10 +30,7 @@ fn status_s(stage: StageKind) -> f64 {
     } else {
         let st = StepperStatus {
             chan: 1,
-            position: 0,
-            encoder: 0,
-            bits: 0,
-            extra: None,
+            ..StepperStatus::default()
         };
         (
             Message::ReqStatusUpdate { chan: 1 },

@@ -4,63 +4,6 @@
 use super::{ErrorCode, MAX_ADDRESS, TERMINATOR};
 use crate::number;
 
-/// A parameter that can be queried with `xxAA?`; most can also be set, and those the
-/// `ZT` dump lists are the controller's configuration (manual §2, command pages).
-///
-/// Codes of three letters (`QIL`, `FRM`) are the manual's sub-commands: `QI` (motor
-/// current limits) and `FR` (stepper motor configuration) with their third letter.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Param {
-    /// `AC`: acceleration, units/s².
-    Acceleration,
-    /// `VA`: velocity, units/s.
-    Velocity,
-    /// `SL`: negative software limit, units.
-    NegativeLimit,
-    /// `SR`: positive software limit, units.
-    PositiveLimit,
-    /// `PA`: target of the last absolute move, units.
-    AbsoluteTarget,
-    /// `PR`: displacement of the last relative move, units.
-    RelativeTarget,
-    /// `MM`: 1 when READY (enabled), 0 when DISABLE.
-    Enabled,
-    /// `ID`: stage identifier (a string).
-    StageId,
-    /// `BA`: backlash compensation, units.
-    Backlash,
-    /// `BH`: hysteresis compensation, units.
-    Hysteresis,
-    /// `FRM`: micro-steps per full step (PP only).
-    MicroSteps,
-    /// `FRS`: the motion of one full step, units (PP only; it defines the units).
-    FullStep,
-    /// `HT`: home search type, 0–4 (0 MZ switch and index, 1 current position, 2 MZ
-    /// switch only, 3 EoR− switch and index, 4 EoR− switch only).
-    HomeType,
-    /// `JR`: jerk time, s.
-    JerkTime,
-    /// `OH`: home search velocity, units/s.
-    HomeVelocity,
-    /// `OT`: home search time-out, s.
-    HomeTimeout,
-    /// `QIL`: motor peak current limit, A.
-    PeakCurrent,
-    /// `QIR`: motor rms current limit, A.
-    RmsCurrent,
-    /// `QIT`: averaging time of the rms current, s.
-    RmsTime,
-    /// `SA`: RS-485 address.
-    RsAddress,
-    /// `VB`: base velocity, units/s (PP only).
-    BaseVelocity,
-    /// `ZX`: ESP stage check, 1–3 (1 off, 2 read the stage's EEPROM, 3 check at
-    /// power-up).
-    StageCheck,
-    /// `PW`: 1 in CONFIGURATION, 0 otherwise.
-    ConfigurationMode,
-}
-
 /// How a parameter's value is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -72,60 +15,96 @@ enum Kind {
     Text,
 }
 
-/// Every parameter: code, kind, and whether it is configuration (settable in
-/// CONFIGURATION and listed by `ZT`). Configuration entries are in the order the `ZT`
-/// dump lists them: alphabetical by code.
-const PARAMS: [(Param, &str, Kind, bool); 23] = [
-    (Param::Acceleration, "AC", Kind::Real, true),
-    (Param::Backlash, "BA", Kind::Real, true),
-    (Param::Hysteresis, "BH", Kind::Real, true),
-    (Param::MicroSteps, "FRM", Kind::Integer, true),
-    (Param::FullStep, "FRS", Kind::Real, true),
-    (Param::HomeType, "HT", Kind::Integer, true),
-    (Param::JerkTime, "JR", Kind::Real, true),
-    (Param::HomeVelocity, "OH", Kind::Real, true),
-    (Param::HomeTimeout, "OT", Kind::Real, true),
-    (Param::PeakCurrent, "QIL", Kind::Real, true),
-    (Param::RmsCurrent, "QIR", Kind::Real, true),
-    (Param::RmsTime, "QIT", Kind::Real, true),
-    (Param::RsAddress, "SA", Kind::Integer, true),
-    (Param::NegativeLimit, "SL", Kind::Real, true),
-    (Param::PositiveLimit, "SR", Kind::Real, true),
-    (Param::Velocity, "VA", Kind::Real, true),
-    (Param::BaseVelocity, "VB", Kind::Real, true),
-    (Param::StageCheck, "ZX", Kind::Integer, true),
-    (Param::AbsoluteTarget, "PA", Kind::Real, false),
-    (Param::RelativeTarget, "PR", Kind::Real, false),
-    (Param::Enabled, "MM", Kind::Integer, false),
-    (Param::StageId, "ID", Kind::Text, false),
-    (Param::ConfigurationMode, "PW", Kind::Integer, false),
-];
+/// The parameters, one row each: the command code, the kind of value, and whether it
+/// is configuration (settable in CONFIGURATION and listed by `ZT`, in the order the
+/// dump lists them: alphabetical by code). Each variant's doc begins with its code.
+macro_rules! params {
+    (
+        configuration { $($(#[$cdoc:meta])* $c:ident $ccode:literal $ckind:ident,)* }
+        other { $($(#[$odoc:meta])* $o:ident $ocode:literal $okind:ident,)* }
+    ) => {
+        /// A parameter that can be queried with `xxAA?`; most can also be set, and those the
+        /// `ZT` dump lists are the controller's configuration (manual §2, command pages).
+        ///
+        /// Codes of three letters (`QIL`, `FRM`) are the manual's sub-commands: `QI` (motor
+        /// current limits) and `FR` (stepper motor configuration) with their third letter.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Param {
+            $(#[doc = concat!("`", $ccode, "`:")] $(#[$cdoc])* $c,)*
+            $(#[doc = concat!("`", $ocode, "`:")] $(#[$odoc])* $o,)*
+        }
+
+        /// Every parameter: code, kind, and whether it is configuration.
+        const PARAMS: &[(Param, &str, Kind, bool)] = &[
+            $((Param::$c, $ccode, Kind::$ckind, true),)*
+            $((Param::$o, $ocode, Kind::$okind, false),)*
+        ];
+
+        impl Param {
+            /// Every numeric configuration parameter of an SMC100PP (the manual's command
+            /// table, p. 18, less the CC-only `DV`, `FD`, `FE`, `FF`, `KD`, `KI`, `KP`, `KV`, `SC`,
+            /// `SU`), in alphabetical order of its code.
+            pub const CONFIGURATION: [Param; [$($ccode),*].len()] = [$(Param::$c),*];
+        }
+    };
+}
+
+params! {
+    configuration {
+    /// Acceleration, units/s².
+    Acceleration "AC" Real,
+    /// Backlash compensation, units.
+    Backlash "BA" Real,
+    /// Hysteresis compensation, units.
+    Hysteresis "BH" Real,
+    /// Micro-steps per full step (PP only).
+    MicroSteps "FRM" Integer,
+    /// The motion of one full step, units (PP only; it defines the units).
+    FullStep "FRS" Real,
+    /// Home search type, 0–4 (0 MZ switch and index, 1 current position, 2 MZ
+    /// switch only, 3 EoR− switch and index, 4 EoR− switch only).
+    HomeType "HT" Integer,
+    /// Jerk time, s.
+    JerkTime "JR" Real,
+    /// Home search velocity, units/s.
+    HomeVelocity "OH" Real,
+    /// Home search time-out, s.
+    HomeTimeout "OT" Real,
+    /// Motor peak current limit, A.
+    PeakCurrent "QIL" Real,
+    /// Motor rms current limit, A.
+    RmsCurrent "QIR" Real,
+    /// Averaging time of the rms current, s.
+    RmsTime "QIT" Real,
+    /// RS-485 address.
+    RsAddress "SA" Integer,
+    /// Negative software limit, units.
+    NegativeLimit "SL" Real,
+    /// Positive software limit, units.
+    PositiveLimit "SR" Real,
+    /// Velocity, units/s.
+    Velocity "VA" Real,
+    /// Base velocity, units/s (PP only).
+    BaseVelocity "VB" Real,
+    /// ESP stage check, 1–3 (1 off, 2 read the stage's EEPROM, 3 check at
+    /// power-up).
+    StageCheck "ZX" Integer,
+    }
+    other {
+    /// Target of the last absolute move, units.
+    AbsoluteTarget "PA" Real,
+    /// Displacement of the last relative move, units.
+    RelativeTarget "PR" Real,
+    /// 1 when READY (enabled), 0 when DISABLE.
+    Enabled "MM" Integer,
+    /// Stage identifier (a string).
+    StageId "ID" Text,
+    /// 1 in CONFIGURATION, 0 otherwise.
+    ConfigurationMode "PW" Integer,
+    }
+}
 
 impl Param {
-    /// Every numeric configuration parameter of an SMC100PP (the manual's command
-    /// table, p. 18, less the CC-only `DV`, `FD`, `FE`, `FF`, `KD`, `KI`, `KP`, `KV`, `SC`,
-    /// `SU`), in alphabetical order of its code.
-    pub const CONFIGURATION: [Param; 18] = [
-        Param::Acceleration,
-        Param::Backlash,
-        Param::Hysteresis,
-        Param::MicroSteps,
-        Param::FullStep,
-        Param::HomeType,
-        Param::JerkTime,
-        Param::HomeVelocity,
-        Param::HomeTimeout,
-        Param::PeakCurrent,
-        Param::RmsCurrent,
-        Param::RmsTime,
-        Param::RsAddress,
-        Param::NegativeLimit,
-        Param::PositiveLimit,
-        Param::Velocity,
-        Param::BaseVelocity,
-        Param::StageCheck,
-    ];
-
     /// True for a parameter an SMC100PP's `ZT` dump lists: every configuration
     /// parameter but `QIR` and `QIT` (p. 45), which are set and asked for but not
     /// listed. The manual gives only an example dump (p. 67); this is the list
@@ -443,27 +422,18 @@ impl Frame {
             .filter(|b| **b != b' ' && **b != b'\t')
             .map(|b| b.to_ascii_uppercase())
             .collect();
-        let digits = s.iter().take_while(|b| b.is_ascii_digit()).count();
-        if s.get(digits) == Some(&b'.') {
+        let (digits, code, rest) = split(&s);
+        if s.get(digits.len()) == Some(&b'.') {
             return Err(CommandError::Unknown);
         }
-        let address: Option<u8> = if digits == 0 {
-            None
-        } else if digits > 2 {
-            return Err(CommandError::BadAddress);
-        } else {
+        let address = match digits.len() {
+            0 => None,
             // Two ASCII digits at most: always a valid number.
-            let a = s[..digits].iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'));
-            Some(a)
+            1 | 2 => Some(address(digits)),
+            _ => return Err(CommandError::BadAddress),
         };
-        // `QI` and `FR` take a third letter (`QIL`, `FRM`).
-        let len = match s.get(digits..digits + 2) {
-            Some(b"QI" | b"FR") => 3,
-            _ => 2,
-        };
-        let code = s.get(digits..digits + len).ok_or(CommandError::Unknown)?;
+        let code = code.ok_or(CommandError::Unknown)?;
         let code = std::str::from_utf8(code).map_err(|_| CommandError::Unknown)?;
-        let rest = &s[digits + len..];
         let query = rest.first() == Some(&b'?');
         let value = || -> Result<f64, CommandError> {
             // The value is the longest numeric prefix; what follows is ignored.
@@ -518,6 +488,26 @@ impl Frame {
         };
         Ok(Frame { address, command })
     }
+}
+
+/// The address digits at the start of `line`, the command code after them (two letters,
+/// or three for `QI` and `FR` with their third, `QIL`, `FRM`; `None` when the line ends
+/// first) and the rest: how a controller reads a command and a host a reply.
+pub(super) fn split(line: &[u8]) -> (&[u8], Option<&[u8]>, &[u8]) {
+    let digits = line.iter().take_while(|b| b.is_ascii_digit()).count();
+    let len = match line.get(digits..digits + 2) {
+        Some(b"QI" | b"FR") => 3,
+        _ => 2,
+    };
+    match line.get(digits..digits + len) {
+        Some(code) => (&line[..digits], Some(code), &line[digits + len..]),
+        None => (&line[..digits], None, &[]),
+    }
+}
+
+/// One or two address digits as a number.
+pub(super) fn address(digits: &[u8]) -> u8 {
+    digits.iter().fold(0u8, |acc, d| acc * 10 + (d - b'0'))
 }
 
 /// A stage name as `IDxx` carries it: 1–31 printable ASCII characters (the line has

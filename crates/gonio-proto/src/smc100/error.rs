@@ -189,21 +189,5 @@ pub struct ControllerInfo {
 
 /// A positioner error word's named bits, for messages.
 pub fn describe_errors(e: PositionerErrors) -> Vec<&'static str> {
-    let names = [
-        (PositionerErrors::NEGATIVE_END_OF_RUN, "negative end of run"),
-        (PositionerErrors::POSITIVE_END_OF_RUN, "positive end of run"),
-        (PositionerErrors::PEAK_CURRENT, "peak current limit"),
-        (PositionerErrors::RMS_CURRENT, "RMS current limit"),
-        (PositionerErrors::SHORT_CIRCUIT, "short circuit"),
-        (PositionerErrors::FOLLOWING_ERROR, "following error"),
-        (PositionerErrors::HOMING_TIMEOUT, "homing time-out"),
-        (PositionerErrors::WRONG_STAGE, "wrong ESP stage"),
-        (PositionerErrors::LOW_VOLTAGE, "DC voltage too low"),
-        (PositionerErrors::OVER_POWER, "80 W output power exceeded"),
-    ];
-    names
-        .iter()
-        .filter(|(m, _)| e.has(*m))
-        .map(|(_, n)| *n)
-        .collect()
+    crate::motion::bit_names(e.0, PositionerErrors::NAMES)
 }

@@ -48,45 +48,25 @@ pub const MAX_ADDRESS: u8 = 31;
 /// to settle it on a controller. `docs/instruments/smc100.md` ("UNCONFIRMED") lists the
 /// same facts in the same words; `gonio instrument selftest` names them for a chain it
 /// finds. Confirmed facts (with their pages) are in that document's tables.
-pub const UNCONFIRMED: &[crate::Unconfirmed] = &[
-    crate::Unconfirmed {
-        fact: "The number format of replies (decimals, sign, exponent)",
-        check: "read `1TP`, `1VA?` and `1ZT` and note how each value is printed (Gonio parses any form)",
-    },
-    crate::Unconfirmed {
-        fact: "The echo of an address written with a leading zero",
-        check: "send `01TS` and see whether the reply begins `01TS` or `1TS` (Gonio never sends a leading zero)",
-    },
-    crate::Unconfirmed {
-        fact: "Silence from an absent address",
-        check: "on a chain without controller 9, send `9TS` and confirm that nothing comes back",
-    },
-    crate::Unconfirmed {
-        fact: "The letter a `PA` or `PR` sent while MOVING or HOMING stores",
-        check: "send `1PA` with a new target during a move, then `1TE`, and note the letter (Gonio takes `M` or `D`)",
-    },
-    crate::Unconfirmed {
-        fact: "The letter a command refused in JOGGING stores",
-        check: "enter JOGGING from the keypad, send `1PA0`, then `1TE`",
-    },
-    crate::Unconfirmed {
-        fact: "The state after `ST` during HOMING, and after a homing time-out",
-        check: "send `1ST` during a home search, and let another time out (a small `OT`), reading `1TS` after each",
-    },
-    crate::Unconfirmed {
-        fact: "The exact spacing of the `TB` text",
-        check: "send `1TB@` and log the raw bytes (the manual's form, p. 58, is `1TB@ No error`)",
-    },
-    crate::Unconfirmed {
-        fact: "Whether `ID?` answers in every state",
-        check: "send `1ID?` in NOT REFERENCED, READY and MOVING",
-    },
-    crate::Unconfirmed {
-        fact: "Whether `RS` is refused in CONFIGURATION",
-        check: "send `1PW1`, then `1RS` and `1TE` (the RS page, p. 48, contradicts itself)",
-    },
-    crate::Unconfirmed {
-        fact: "The line that closes a `ZT` dump",
-        check: "send `1ZT` and log its last line: `1PW0` (hvl_ccb) or `1PW1` (the manual's p. 67 example); Gonio takes either",
-    },
-];
+pub const UNCONFIRMED: &[crate::Unconfirmed] = crate::facts::unconfirmed! {
+    "The number format of replies (decimals, sign, exponent)"
+        => "read `1TP`, `1VA?` and `1ZT` and note how each value is printed (Gonio parses any form)",
+    "The echo of an address written with a leading zero"
+        => "send `01TS` and see whether the reply begins `01TS` or `1TS` (Gonio never sends a leading zero)",
+    "Silence from an absent address"
+        => "on a chain without controller 9, send `9TS` and confirm that nothing comes back",
+    "The letter a `PA` or `PR` sent while MOVING or HOMING stores"
+        => "send `1PA` with a new target during a move, then `1TE`, and note the letter (Gonio takes `M` or `D`)",
+    "The letter a command refused in JOGGING stores"
+        => "enter JOGGING from the keypad, send `1PA0`, then `1TE`",
+    "The state after `ST` during HOMING, and after a homing time-out"
+        => "send `1ST` during a home search, and let another time out (a small `OT`), reading `1TS` after each",
+    "The exact spacing of the `TB` text"
+        => "send `1TB@` and log the raw bytes (the manual's form, p. 58, is `1TB@ No error`)",
+    "Whether `ID?` answers in every state"
+        => "send `1ID?` in NOT REFERENCED, READY and MOVING",
+    "Whether `RS` is refused in CONFIGURATION"
+        => "send `1PW1`, then `1RS` and `1TE` (the RS page, p. 48, contradicts itself)",
+    "The line that closes a `ZT` dump"
+        => "send `1ZT` and log its last line: `1PW0` (hvl_ccb) or `1PW1` (the manual's p. 67 example); Gonio takes either",
+};

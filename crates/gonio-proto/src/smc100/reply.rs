@@ -1,5 +1,6 @@
 //! Controller to host: [`Reply`] lines, parsed knowing nothing but the line.
 
+use super::command::{address, split};
 use super::{ControllerState, ErrorCode, Frame, Param, PositionerErrors, Status, TERMINATOR};
 use crate::number;
 
@@ -120,22 +121,12 @@ impl Reply {
         if line.is_empty() {
             return Err(ReplyError::Empty);
         }
-        let digits = line.iter().take_while(|b| b.is_ascii_digit()).count();
-        if digits == 0 || digits > 2 {
+        let (digits, code, rest) = split(line);
+        if digits.is_empty() || digits.len() > 2 {
             return Err(ReplyError::NoAddress);
         }
-        let address = line[..digits]
-            .iter()
-            .fold(0u8, |acc, d| acc * 10 + (d - b'0'));
-        // `QI` and `FR` take a third letter (`QIL`, `FRM`).
-        let len = match line.get(digits..digits + 2) {
-            Some(b"QI" | b"FR") => 3,
-            _ => 2,
-        };
-        let code = line
-            .get(digits..digits + len)
-            .ok_or(ReplyError::UnknownCode)?;
-        let rest = &line[digits + len..];
+        let address = address(digits);
+        let code = code.ok_or(ReplyError::UnknownCode)?;
         let num = || number::parse(trim(rest)).ok_or(ReplyError::BadValue);
         let text = || {
             std::str::from_utf8(rest)

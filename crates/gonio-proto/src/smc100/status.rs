@@ -3,144 +3,61 @@
 
 use std::fmt;
 
-/// The `TE` error letters (manual, TE command).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ErrorCode {
-    /// `@`: no error.
-    None,
-    /// `A`: unknown message code or floating-point controller address.
-    UnknownCommand,
-    /// `B`: controller address not correct.
-    BadAddress,
-    /// `C`: parameter missing or out of range.
-    BadParameter,
-    /// `D`: command not allowed (execution not allowed).
-    NotAllowed,
-    /// `E`: home sequence already started.
-    HomeStarted,
-    /// `F`: ESP stage name unknown.
-    UnknownStage,
-    /// `G`: displacement out of limits.
-    OutOfLimits,
-    /// `H`: command not allowed in NOT REFERENCED state.
-    NotReferenced,
-    /// `I`: command not allowed in CONFIGURATION state.
-    InConfiguration,
-    /// `J`: command not allowed in DISABLE state.
-    InDisable,
-    /// `K`: command not allowed in READY state.
-    InReady,
-    /// `L`: command not allowed in HOMING state.
-    InHoming,
-    /// `M`: command not allowed in MOVING state.
-    InMoving,
-    /// `N`: current position out of software limit.
-    PositionOutOfLimit,
-    /// `S`: communication time-out.
-    CommunicationTimeout,
-    /// `U`: error during EEPROM access.
-    Eeprom,
-    /// `V`: error during command execution.
-    Execution,
-    /// `W`: command not allowed for PP version.
-    NotForPp,
-    /// `X`: command not allowed for CC version.
-    NotForCc,
+/// The `TE` error letters, each with the manual's description (manual, TE command):
+/// the enum and its table from one row each.
+macro_rules! error_codes {
+    ($($(#[$doc:meta])* $v:ident $letter:literal $text:literal,)*) => {
+        /// The `TE` error letters (manual, TE command).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ErrorCode {
+            $(#[doc = concat!("`", $letter, "`: ", $text, ".")] $(#[$doc])* $v,)*
+        }
+
+        impl ErrorCode {
+            const TABLE: &[(char, ErrorCode, &'static str)] =
+                &[$(($letter, ErrorCode::$v, $text)),*];
+        }
+    };
+}
+
+error_codes! {
+    None '@' "no error",
+    UnknownCommand 'A' "unknown message code or floating point controller address",
+    BadAddress 'B' "controller address not correct",
+    BadParameter 'C' "parameter missing or out of range",
+    /// (Execution not allowed.)
+    NotAllowed 'D' "command not allowed",
+    HomeStarted 'E' "home sequence already started",
+    UnknownStage 'F' "ESP stage name unknown",
+    OutOfLimits 'G' "displacement out of limits",
+    NotReferenced 'H' "command not allowed in NOT REFERENCED state",
+    InConfiguration 'I' "command not allowed in CONFIGURATION state",
+    InDisable 'J' "command not allowed in DISABLE state",
+    InReady 'K' "command not allowed in READY state",
+    InHoming 'L' "command not allowed in HOMING state",
+    InMoving 'M' "command not allowed in MOVING state",
+    PositionOutOfLimit 'N' "current position out of software limit",
+    CommunicationTimeout 'S' "communication time-out",
+    Eeprom 'U' "error during EEPROM access",
+    Execution 'V' "error during command execution",
+    NotForPp 'W' "command not allowed for PP version",
+    NotForCc 'X' "command not allowed for CC version",
 }
 
 impl ErrorCode {
-    const TABLE: [(u8, ErrorCode, &'static str); 20] = [
-        (b'@', ErrorCode::None, "no error"),
-        (
-            b'A',
-            ErrorCode::UnknownCommand,
-            "unknown message code or floating point controller address",
-        ),
-        (
-            b'B',
-            ErrorCode::BadAddress,
-            "controller address not correct",
-        ),
-        (
-            b'C',
-            ErrorCode::BadParameter,
-            "parameter missing or out of range",
-        ),
-        (b'D', ErrorCode::NotAllowed, "command not allowed"),
-        (
-            b'E',
-            ErrorCode::HomeStarted,
-            "home sequence already started",
-        ),
-        (b'F', ErrorCode::UnknownStage, "ESP stage name unknown"),
-        (b'G', ErrorCode::OutOfLimits, "displacement out of limits"),
-        (
-            b'H',
-            ErrorCode::NotReferenced,
-            "command not allowed in NOT REFERENCED state",
-        ),
-        (
-            b'I',
-            ErrorCode::InConfiguration,
-            "command not allowed in CONFIGURATION state",
-        ),
-        (
-            b'J',
-            ErrorCode::InDisable,
-            "command not allowed in DISABLE state",
-        ),
-        (
-            b'K',
-            ErrorCode::InReady,
-            "command not allowed in READY state",
-        ),
-        (
-            b'L',
-            ErrorCode::InHoming,
-            "command not allowed in HOMING state",
-        ),
-        (
-            b'M',
-            ErrorCode::InMoving,
-            "command not allowed in MOVING state",
-        ),
-        (
-            b'N',
-            ErrorCode::PositionOutOfLimit,
-            "current position out of software limit",
-        ),
-        (
-            b'S',
-            ErrorCode::CommunicationTimeout,
-            "communication time-out",
-        ),
-        (b'U', ErrorCode::Eeprom, "error during EEPROM access"),
-        (b'V', ErrorCode::Execution, "error during command execution"),
-        (
-            b'W',
-            ErrorCode::NotForPp,
-            "command not allowed for PP version",
-        ),
-        (
-            b'X',
-            ErrorCode::NotForCc,
-            "command not allowed for CC version",
-        ),
-    ];
-
     /// The letter `TE` reports.
     pub fn letter(self) -> char {
         Self::TABLE
             .iter()
             .find(|(_, c, _)| *c == self)
-            .map_or('?', |(l, _, _)| *l as char)
+            .map_or('?', |(l, _, _)| *l)
     }
 
     /// The code for a `TE` letter; `None` for letters the manual does not define.
     pub fn from_letter(l: u8) -> Option<ErrorCode> {
         Self::TABLE
             .iter()
-            .find(|(b, _, _)| *b == l)
+            .find(|(b, _, _)| *b == char::from(l))
             .map(|(_, c, _)| *c)
     }
 
@@ -159,79 +76,69 @@ impl fmt::Display for ErrorCode {
     }
 }
 
-/// The controller state, the last two hex digits of a `TS` reply (manual, TS command).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ControllerState {
+/// The controller states with their codes: the enum and its table from one row each.
+macro_rules! controller_states {
+    ($($(#[$doc:meta])* $v:ident = $code:literal,)*) => {
+        /// The controller state, the last two hex digits of a `TS` reply (manual, TS command).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum ControllerState {
+            $($(#[$doc])* $v,)*
+        }
+
+        impl ControllerState {
+            /// Every state, with its code.
+            pub const ALL: [(u8, ControllerState); [$($code),*].len()] =
+                [$(($code, ControllerState::$v)),*];
+        }
+    };
+}
+
+controller_states! {
     /// `0A`: NOT REFERENCED from reset (after power-up or `RS`).
-    NotReferencedFromReset,
+    NotReferencedFromReset = 0x0A,
     /// `0B`: NOT REFERENCED from HOMING.
-    NotReferencedFromHoming,
+    NotReferencedFromHoming = 0x0B,
     /// `0C`: NOT REFERENCED from CONFIGURATION.
-    NotReferencedFromConfiguration,
+    NotReferencedFromConfiguration = 0x0C,
     /// `0D`: NOT REFERENCED from DISABLE.
-    NotReferencedFromDisable,
+    NotReferencedFromDisable = 0x0D,
     /// `0E`: NOT REFERENCED from READY.
-    NotReferencedFromReady,
+    NotReferencedFromReady = 0x0E,
     /// `0F`: NOT REFERENCED from MOVING.
-    NotReferencedFromMoving,
+    NotReferencedFromMoving = 0x0F,
     /// `10`: NOT REFERENCED, ESP stage error.
-    NotReferencedStageError,
+    NotReferencedStageError = 0x10,
     /// `11`: NOT REFERENCED from JOGGING.
-    NotReferencedFromJogging,
+    NotReferencedFromJogging = 0x11,
     /// `14`: CONFIGURATION.
-    Configuration,
+    Configuration = 0x14,
     /// `1E`: HOMING commanded over RS-232.
-    HomingRemote,
+    HomingRemote = 0x1E,
     /// `1F`: HOMING commanded by keypad.
-    HomingKeypad,
+    HomingKeypad = 0x1F,
     /// `28`: MOVING.
-    Moving,
+    Moving = 0x28,
     /// `32`: READY from HOMING.
-    ReadyFromHoming,
+    ReadyFromHoming = 0x32,
     /// `33`: READY from MOVING.
-    ReadyFromMoving,
+    ReadyFromMoving = 0x33,
     /// `34`: READY from DISABLE.
-    ReadyFromDisable,
+    ReadyFromDisable = 0x34,
     /// `35`: READY from JOGGING.
-    ReadyFromJogging,
+    ReadyFromJogging = 0x35,
     /// `3C`: DISABLE from READY.
-    DisableFromReady,
+    DisableFromReady = 0x3C,
     /// `3D`: DISABLE from MOVING (e.g. a following error).
-    DisableFromMoving,
+    DisableFromMoving = 0x3D,
     /// `3E`: DISABLE from JOGGING.
-    DisableFromJogging,
+    DisableFromJogging = 0x3E,
     /// `46`: JOGGING from READY.
-    JoggingFromReady,
+    JoggingFromReady = 0x46,
     /// `47`: JOGGING from DISABLE.
-    JoggingFromDisable,
+    JoggingFromDisable = 0x47,
 }
 
 impl ControllerState {
-    /// Every state, with its code.
-    pub const ALL: [(u8, ControllerState); 21] = [
-        (0x0A, ControllerState::NotReferencedFromReset),
-        (0x0B, ControllerState::NotReferencedFromHoming),
-        (0x0C, ControllerState::NotReferencedFromConfiguration),
-        (0x0D, ControllerState::NotReferencedFromDisable),
-        (0x0E, ControllerState::NotReferencedFromReady),
-        (0x0F, ControllerState::NotReferencedFromMoving),
-        (0x10, ControllerState::NotReferencedStageError),
-        (0x11, ControllerState::NotReferencedFromJogging),
-        (0x14, ControllerState::Configuration),
-        (0x1E, ControllerState::HomingRemote),
-        (0x1F, ControllerState::HomingKeypad),
-        (0x28, ControllerState::Moving),
-        (0x32, ControllerState::ReadyFromHoming),
-        (0x33, ControllerState::ReadyFromMoving),
-        (0x34, ControllerState::ReadyFromDisable),
-        (0x35, ControllerState::ReadyFromJogging),
-        (0x3C, ControllerState::DisableFromReady),
-        (0x3D, ControllerState::DisableFromMoving),
-        (0x3E, ControllerState::DisableFromJogging),
-        (0x46, ControllerState::JoggingFromReady),
-        (0x47, ControllerState::JoggingFromDisable),
-    ];
-
     /// The state's code.
     pub fn code(self) -> u8 {
         Self::ALL
@@ -298,26 +205,29 @@ impl fmt::Display for ControllerState {
 pub struct PositionerErrors(pub u16);
 
 impl PositionerErrors {
-    /// Negative end of run (limit switch).
-    pub const NEGATIVE_END_OF_RUN: u16 = 0x0001;
-    /// Positive end of run.
-    pub const POSITIVE_END_OF_RUN: u16 = 0x0002;
-    /// Peak current limit.
-    pub const PEAK_CURRENT: u16 = 0x0004;
-    /// RMS current limit.
-    pub const RMS_CURRENT: u16 = 0x0008;
-    /// Short-circuit detection.
-    pub const SHORT_CIRCUIT: u16 = 0x0010;
-    /// Following error.
-    pub const FOLLOWING_ERROR: u16 = 0x0020;
-    /// Homing time-out.
-    pub const HOMING_TIMEOUT: u16 = 0x0040;
-    /// Wrong ESP stage (detected at boot).
-    pub const WRONG_STAGE: u16 = 0x0080;
-    /// DC voltage too low.
-    pub const LOW_VOLTAGE: u16 = 0x0100;
-    /// 80 W output power exceeded.
-    pub const OVER_POWER: u16 = 0x0200;
+    crate::motion::status_bits! {
+        impl u16;
+        /// Negative end of run (limit switch).
+        NEGATIVE_END_OF_RUN = 0x0001 "negative end of run",
+        /// Positive end of run.
+        POSITIVE_END_OF_RUN = 0x0002 "positive end of run",
+        /// Peak current limit.
+        PEAK_CURRENT = 0x0004 "peak current limit",
+        /// RMS current limit.
+        RMS_CURRENT = 0x0008 "RMS current limit",
+        /// Short-circuit detection.
+        SHORT_CIRCUIT = 0x0010 "short circuit",
+        /// Following error.
+        FOLLOWING_ERROR = 0x0020 "following error",
+        /// Homing time-out.
+        HOMING_TIMEOUT = 0x0040 "homing time-out",
+        /// Wrong ESP stage (detected at boot).
+        WRONG_STAGE = 0x0080 "wrong ESP stage",
+        /// DC voltage too low.
+        LOW_VOLTAGE = 0x0100 "DC voltage too low",
+        /// 80 W output power exceeded.
+        OVER_POWER = 0x0200 "80 W output power exceeded",
+    }
 
     /// True when every bit of `mask` is set.
     pub fn has(self, mask: u16) -> bool {

@@ -1,7 +1,7 @@
 //! What the chain's operations cost on the wire, for planning: the exchanges of a
 //! move, a home search and the start-up identification, each as the session's
-//! operation makes them (`session/motion.rs`, `session/home.rs`, `session/ops.rs`),
-//! with the bytes of the session's own command encodings.
+//! operation makes them (`session/ops.rs`), with the bytes of the session's own
+//! command encodings.
 
 use std::time::Duration;
 
@@ -129,46 +129,4 @@ pub fn identify_s(axes: &[AxisConfig], baud: u32) -> f64 {
 /// stands from its switch).
 pub fn home_search_s(from: f64, to: f64, home_velocity: f64, acceleration: f64) -> f64 {
     gonio_core::motion::trapezoid_time(to - from, home_velocity, acceleration)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn axis(address: u8) -> AxisConfig {
-        AxisConfig {
-            name: "a".into(),
-            address,
-            units: "deg".into(),
-            min: -170.0,
-            max: 170.0,
-            velocity: Some(20.0),
-            acceleration: None,
-            tolerance: 0.01,
-            home_timeout_s: 120.0,
-        }
-    }
-
-    #[test]
-    fn each_exchange_is_its_bytes_and_the_latency() {
-        let x = move_exchanges(&axis(1), 0, 57_600, Duration::from_millis(50));
-        // `1TP\r\n` out, `1TP-37.5\r\n` back: 15 bytes, 2.6 ms, and the 10 ms.
-        assert!((x.before_s - (0.010 + 150.0 / 57_600.0)).abs() < 1e-12);
-        // `1PA-37.5\r\n` goes out unanswered.
-        assert!((x.command_s - 100.0 / 57_600.0).abs() < 1e-12);
-        // `1TE\r\n`, `1TE@\r\n`; `1TS\r\n`, `1TS000028\r\n`.
-        assert!((x.check_s - (0.010 + 110.0 / 57_600.0)).abs() < 1e-12);
-        assert!((x.status_s - (0.010 + 160.0 / 57_600.0)).abs() < 1e-12);
-        assert_eq!(x.poll_s, 0.05);
-        // Homing sets the configured velocity (`1VA20`) and checks it; no acceleration.
-        let h = home_exchanges(&axis(1), 0, 57_600, Duration::from_millis(50));
-        assert!((h.after_s - (70.0 / 57_600.0 + x.check_s)).abs() < 1e-12);
-    }
-
-    #[test]
-    fn a_search_is_a_trapezoid_at_the_home_velocity() {
-        // 40° at 10 °/s with 80 °/s²: 4 s and an eighth of a second of ramps.
-        assert!((home_search_s(-40.0, 0.0, 10.0, 80.0) - 4.125).abs() < 1e-12);
-        assert_eq!(home_search_s(0.0, 0.0, 10.0, 80.0), 0.0);
-    }
 }

@@ -1111,3 +1111,56 @@ fn lost_status_replies_are_asked_again() {
     drop(op);
     assert_eq!(s.retried(), 1);
 }
+
+/// The framer's report of garbage before a message.
+mod framer_unit {
+    use gonio_proto::apt::{AptFramer, Message};
+    use gonio_proto::{FrameError, Framer};
+
+    #[test]
+    fn garbage_before_a_message_is_one_desync() {
+        let mut f = AptFramer::new();
+        let mut bytes = vec![0xFF, 0xEE, 0xDD, 0xCC, 0xBB, 0xAA, 0x99];
+        Message::HwReqInfo.encode(&mut bytes);
+        f.push(&bytes);
+        assert!(matches!(f.next_frame(), Some(Err(FrameError::Desync(_)))));
+        assert_eq!(f.next_frame(), Some(Ok(vec![0x05, 0x00, 0, 0, 0x50, 0x01])));
+        assert_eq!(f.next_frame(), None);
+        assert!(!f.has_partial());
+    }
+}
+
+/// A channel's status read by its bits, and a session refusing a bad axis.
+mod session_status {
+    use gonio_proto::apt::{AptAxisConfig, AptSession, AptStatus, StageKind, status};
+    use gonio_proto::motion::MotionError;
+    use gonio_proto::smc100::ChainPolicy;
+
+    fn status(bits: u32) -> AptStatus {
+        AptStatus {
+            position_deg: 1.0,
+            velocity_raw: None,
+            bits,
+        }
+    }
+
+    #[test]
+    fn status_predicates() {
+        let s = status(status::HOMED | status::CHANNEL_ENABLED | status::MOVING_REV);
+        assert!(s.is_homed() && s.is_enabled() && s.is_moving());
+        assert!(s.faults().is_empty());
+        let s = status(status::REV_HW_LIMIT | status::MOTION_ERROR | status::HOMED);
+        assert_eq!(s.faults(), ["reverse limit switch", "motion error"]);
+        assert!(!s.is_moving() && !s.is_enabled());
+    }
+
+    #[test]
+    fn session_refuses_an_invalid_config() {
+        let mut a = AptAxisConfig::new("rot", StageKind::K10cr1, 0.0, 90.0);
+        a.home_timeout_s = 0.0;
+        match AptSession::new(a, ChainPolicy::default()) {
+            Err(MotionError::Config(m)) => assert!(m.contains("home_timeout_s"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+    }
+}

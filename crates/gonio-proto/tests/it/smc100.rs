@@ -939,3 +939,103 @@ fn an_unanswered_pt_is_read_as_the_refusal_te_reports() {
         }
     }
 }
+
+/// The line framer (`LineFramer`), which the SMC100 chain reads its replies through.
+mod line_framer {
+    use gonio_proto::{FrameError, LineFramer};
+    use proptest::prelude::*;
+
+    #[test]
+    fn crlf_lines_split_across_chunks() {
+        let mut f = LineFramer::new(b'\n', 64);
+        f.push(b"1TP1");
+        assert!(f.next_line().is_none());
+        f.push(b"2.5\r\n1TS00");
+        assert_eq!(f.next_line(), Some(Ok(b"1TP12.5".to_vec())));
+        assert!(f.next_line().is_none());
+        f.push(b"0033\r\n");
+        assert_eq!(f.next_line(), Some(Ok(b"1TS000033".to_vec())));
+    }
+
+    #[test]
+    fn cr_terminated_replies() {
+        let mut f = LineFramer::new(b'\r', 64);
+        f.push(b"26\r8\r1\r");
+        let lines: Vec<_> = std::iter::from_fn(|| f.next_line()).collect();
+        assert_eq!(
+            lines,
+            vec![Ok(b"26".to_vec()), Ok(b"8".to_vec()), Ok(b"1".to_vec())]
+        );
+    }
+
+    #[test]
+    fn nul_and_overlong_lines_are_errors_and_resynchronise() {
+        let mut f = LineFramer::new(b'\n', 8);
+        f.push(b"1T\0P12\r\n1TE@\r\n");
+        assert_eq!(f.next_line(), Some(Err(FrameError::Nul)));
+        assert_eq!(f.next_line(), Some(Ok(b"1TE@".to_vec())));
+        f.push(b"0123456789ABCDEF\r\nok\r\n");
+        assert_eq!(f.next_line(), Some(Err(FrameError::TooLong(8))));
+        assert_eq!(f.next_line(), Some(Ok(b"ok".to_vec())));
+        assert!(!f.has_partial());
+    }
+
+    proptest! {
+        #[test]
+        fn never_panics_and_never_exceeds_max_len(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let mut f = LineFramer::new(b'\n', 32);
+            f.push(&bytes);
+            while let Some(l) = f.next_line() {
+                if let Ok(l) = l {
+                    prop_assert!(l.len() <= 32);
+                    prop_assert!(!l.contains(&b'\n') && !l.contains(&0));
+                }
+            }
+        }
+    }
+}
+
+/// What the chain's operations cost on the wire (`smc100::timing`).
+mod timing {
+    use std::time::Duration;
+
+    use gonio_proto::smc100::AxisConfig;
+    use gonio_proto::smc100::timing::*;
+
+    fn axis(address: u8) -> AxisConfig {
+        AxisConfig {
+            name: "a".into(),
+            address,
+            units: "deg".into(),
+            min: -170.0,
+            max: 170.0,
+            velocity: Some(20.0),
+            acceleration: None,
+            tolerance: 0.01,
+            home_timeout_s: 120.0,
+        }
+    }
+
+    #[test]
+    fn each_exchange_is_its_bytes_and_the_latency() {
+        let x = move_exchanges(&axis(1), 0, 57_600, Duration::from_millis(50));
+        // `1TP\r\n` out, `1TP-37.5\r\n` back: 15 bytes, 2.6 ms, and the 10 ms.
+        assert!((x.before_s - (0.010 + 150.0 / 57_600.0)).abs() < 1e-12);
+        // `1PA-37.5\r\n` goes out unanswered.
+        assert!((x.command_s - 100.0 / 57_600.0).abs() < 1e-12);
+        // `1TE\r\n`, `1TE@\r\n`; `1TS\r\n`, `1TS000028\r\n`.
+        assert!((x.check_s - (0.010 + 110.0 / 57_600.0)).abs() < 1e-12);
+        assert!((x.status_s - (0.010 + 160.0 / 57_600.0)).abs() < 1e-12);
+        assert_eq!(x.poll_s, 0.05);
+        // Homing sets the configured velocity (`1VA20`) and checks it; no acceleration.
+        let h = home_exchanges(&axis(1), 0, 57_600, Duration::from_millis(50));
+        assert!((h.after_s - (70.0 / 57_600.0 + x.check_s)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_search_is_a_trapezoid_at_the_home_velocity() {
+        // 40° at 10 °/s with 80 °/s²: 4 s and an eighth of a second of ramps.
+        assert!((home_search_s(-40.0, 0.0, 10.0, 80.0) - 4.125).abs() < 1e-12);
+        assert_eq!(home_search_s(0.0, 0.0, 10.0, 80.0), 0.0);
+    }
+}

@@ -1,16 +1,13 @@
 //! Messages, both directions: the header, the typed [`Message`] and the data
-//! structures. Layouts are the manual's, message by message (each variant names its
-//! `MGMSG_` id); a data packet is little endian throughout.
+//! structures. The table below is the manual's messages, one row each (see `codec`'s
+//! `messages!` for what a row says); a data packet is little endian throughout.
 
 use super::{HEADER_LEN, LONG_FLAG, MAX_DATA_LEN};
 
-mod decode;
-mod describe;
-mod encode;
-pub(super) mod id;
+mod codec;
 mod params;
 
-pub(super) use describe::form_of;
+use codec::messages;
 pub use params::{
     AptInfo, DcStatus, Direction, GenMoveParams, HomeParams, JogParams, LimSwitchParams,
     STEPPER_STATUS_EXTRA, StepperStatus, StopMode, VelParams,
@@ -99,35 +96,29 @@ impl Header {
     }
 }
 
-/// One APT message, typed: what the sessions send and read, and what the simulated
-/// controllers read and send. Each variant names its manual `MGMSG_` id. Parameters
-/// that the manual marks unused are written as 0 and ignored when read.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Message {
-    /// `MOD_IDENTIFY` `0x0223` (manual Issue 25 p. 41): flash the front panel LED.
+messages! {
+    /// Flash the front panel LED (manual Issue 25 p. 41).
     Identify {
         /// The channel (0 for a single-channel unit).
         chan: u8,
-    },
-    /// `HW_DISCONNECT` `0x0002`: the host is about to close the port.
-    HwDisconnect,
-    /// `HW_REQ_INFO` `0x0005` (p. 47).
-    HwReqInfo,
-    /// `HW_GET_INFO` `0x0006` (p. 47).
-    HwGetInfo(AptInfo),
-    /// `HW_START_UPDATEMSGS` `0x0011` (p. 46): status updates every 100 ms until
-    /// stopped.
-    HwStartUpdateMsgs,
-    /// `HW_STOP_UPDATEMSGS` `0x0012` (p. 46).
-    HwStopUpdateMsgs,
-    /// `HW_YES_FLASH_PROGRAMMING` `0x0017` (deprecated; sent by some controllers at start).
-    HwYesFlashProgramming,
-    /// `HW_NO_FLASH_PROGRAMMING` `0x0018`: part of a host's initialisation.
-    HwNoFlashProgramming,
-    /// `HW_RESPONSE` `0x0080` (p. 44): the controller reports an error, unspecified.
-    HwResponse,
-    /// `HW_RICHRESPONSE` `0x0081` (p. 45; 68 bytes): an error, with the message that
-    /// caused it, a code and a text.
+    } = MOD_IDENTIFY 0x0223 host short;
+    /// The host is about to close the port.
+    HwDisconnect = HW_DISCONNECT 0x0002 host short;
+    /// (p. 47)
+    HwReqInfo = HW_REQ_INFO 0x0005 host short;
+    /// (p. 47)
+    HwGetInfo(info: AptInfo) = HW_GET_INFO 0x0006 controller long(84);
+    /// Status updates every 100 ms until stopped (p. 46).
+    HwStartUpdateMsgs = HW_START_UPDATEMSGS 0x0011 host short;
+    /// (p. 46)
+    HwStopUpdateMsgs = HW_STOP_UPDATEMSGS 0x0012 host short;
+    /// Deprecated; sent by some controllers at start.
+    HwYesFlashProgramming = HW_YES_FLASH_PROGRAMMING 0x0017 controller short;
+    /// Part of a host's initialisation.
+    HwNoFlashProgramming = HW_NO_FLASH_PROGRAMMING 0x0018 host short;
+    /// The controller reports an error, unspecified (p. 44).
+    HwResponse = HW_RESPONSE 0x0080 controller short;
+    /// An error, with the message that caused it, a code and a text (p. 45; 68 bytes).
     HwRichResponse {
         /// The id of the message that caused it (0 for a spontaneous fault).
         msg_id: u16,
@@ -135,227 +126,188 @@ pub enum Message {
         code: u16,
         /// The description (64 bytes, NUL padded, on the wire).
         notes: String,
-    },
-    /// `MOD_SET_CHANENABLESTATE` `0x0210` (p. 42).
+    } = HW_RICHRESPONSE 0x0081 controller long(68);
+    /// (p. 42)
     SetChanEnableState {
         /// The channel.
         chan: u8,
         /// Enable (`0x01`) or disable (`0x02`).
         enable: bool,
-    },
-    /// `MOD_REQ_CHANENABLESTATE` `0x0211`.
+    } = MOD_SET_CHANENABLESTATE 0x0210 host short;
     ReqChanEnableState {
         /// The channel.
         chan: u8,
-    },
-    /// `MOD_GET_CHANENABLESTATE` `0x0212`.
+    } = MOD_REQ_CHANENABLESTATE 0x0211 host short;
     GetChanEnableState {
         /// The channel.
         chan: u8,
         /// Enabled (`0x01`) or not (`0x02`).
         enabled: bool,
-    },
-    /// `MOT_SET_POSCOUNTER` `0x0410`.
+    } = MOD_GET_CHANENABLESTATE 0x0212 controller short;
     SetPosCounter {
         /// The channel.
         chan: u16,
         /// The new position, counts.
         position: i32,
-    },
-    /// `MOT_REQ_POSCOUNTER` `0x0411`.
+    } = MOT_SET_POSCOUNTER 0x0410 host long(6);
     ReqPosCounter {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_POSCOUNTER` `0x0412`.
+    } = MOT_REQ_POSCOUNTER 0x0411 host short;
     GetPosCounter {
         /// The channel.
         chan: u16,
         /// Position, counts.
         position: i32,
-    },
-    /// `MOT_SET_VELPARAMS` `0x0413`.
-    SetVelParams(VelParams),
-    /// `MOT_REQ_VELPARAMS` `0x0414`.
+    } = MOT_GET_POSCOUNTER 0x0412 controller long(6);
+    SetVelParams(p: VelParams) = MOT_SET_VELPARAMS 0x0413 host long(14);
     ReqVelParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_VELPARAMS` `0x0415`.
-    GetVelParams(VelParams),
-    /// `MOT_SET_JOGPARAMS` `0x0416`.
-    SetJogParams(JogParams),
-    /// `MOT_REQ_JOGPARAMS` `0x0417`.
+    } = MOT_REQ_VELPARAMS 0x0414 host short;
+    GetVelParams(p: VelParams) = MOT_GET_VELPARAMS 0x0415 controller long(14);
+    SetJogParams(p: JogParams) = MOT_SET_JOGPARAMS 0x0416 host long(22);
     ReqJogParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_JOGPARAMS` `0x0418`.
-    GetJogParams(JogParams),
-    /// `MOT_SET_LIMSWITCHPARAMS` `0x0423`.
-    SetLimSwitchParams(LimSwitchParams),
-    /// `MOT_REQ_LIMSWITCHPARAMS` `0x0424`.
+    } = MOT_REQ_JOGPARAMS 0x0417 host short;
+    GetJogParams(p: JogParams) = MOT_GET_JOGPARAMS 0x0418 controller long(22);
+    SetLimSwitchParams(p: LimSwitchParams) = MOT_SET_LIMSWITCHPARAMS 0x0423 host long(16);
     ReqLimSwitchParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_LIMSWITCHPARAMS` `0x0425`.
-    GetLimSwitchParams(LimSwitchParams),
-    /// `MOT_REQ_STATUSBITS` `0x0429`.
+    } = MOT_REQ_LIMSWITCHPARAMS 0x0424 host short;
+    GetLimSwitchParams(p: LimSwitchParams) =
+        MOT_GET_LIMSWITCHPARAMS 0x0425 controller long(16);
     ReqStatusBits {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_STATUSBITS` `0x042A`.
+    } = MOT_REQ_STATUSBITS 0x0429 host short;
     GetStatusBits {
         /// The channel.
         chan: u16,
         /// Status bits.
         bits: u32,
-    },
-    /// `MOT_SET_GENMOVEPARAMS` `0x043A`.
-    SetGenMoveParams(GenMoveParams),
-    /// `MOT_REQ_GENMOVEPARAMS` `0x043B`.
+    } = MOT_GET_STATUSBITS 0x042A controller long(6);
+    SetGenMoveParams(p: GenMoveParams) = MOT_SET_GENMOVEPARAMS 0x043A host long(6);
     ReqGenMoveParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_GENMOVEPARAMS` `0x043C`.
-    GetGenMoveParams(GenMoveParams),
-    /// `MOT_SET_HOMEPARAMS` `0x0440`.
-    SetHomeParams(HomeParams),
-    /// `MOT_REQ_HOMEPARAMS` `0x0441`.
+    } = MOT_REQ_GENMOVEPARAMS 0x043B host short;
+    GetGenMoveParams(p: GenMoveParams) = MOT_GET_GENMOVEPARAMS 0x043C controller long(6);
+    SetHomeParams(p: HomeParams) = MOT_SET_HOMEPARAMS 0x0440 host long(14);
     ReqHomeParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_HOMEPARAMS` `0x0442`.
-    GetHomeParams(HomeParams),
-    /// `MOT_MOVE_HOME` `0x0443`.
+    } = MOT_REQ_HOMEPARAMS 0x0441 host short;
+    GetHomeParams(p: HomeParams) = MOT_GET_HOMEPARAMS 0x0442 controller long(14);
     MoveHome {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_MOVE_HOMED` `0x0444`: the home search finished.
+    } = MOT_MOVE_HOME 0x0443 host short;
+    /// The home search finished.
     MoveHomed {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_SET_MOVERELPARAMS` `0x0445`: the distance a short-form relative move goes.
+    } = MOT_MOVE_HOMED 0x0444 controller short;
+    /// The distance a short-form relative move goes.
     SetMoveRelParams {
         /// The channel.
         chan: u16,
         /// Distance, counts.
         distance: i32,
-    },
-    /// `MOT_REQ_MOVERELPARAMS` `0x0446`.
+    } = MOT_SET_MOVERELPARAMS 0x0445 host long(6);
     ReqMoveRelParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_MOVERELPARAMS` `0x0447`.
+    } = MOT_REQ_MOVERELPARAMS 0x0446 host short;
     GetMoveRelParams {
         /// The channel.
         chan: u16,
         /// Distance, counts.
         distance: i32,
-    },
-    /// `MOT_SET_MOVEABSPARAMS` `0x0450`: the target of a short-form absolute move.
+    } = MOT_GET_MOVERELPARAMS 0x0447 controller long(6);
+    /// The target of a short-form absolute move.
     SetMoveAbsParams {
         /// The channel.
         chan: u16,
         /// Position, counts.
         position: i32,
-    },
-    /// `MOT_REQ_MOVEABSPARAMS` `0x0451`.
+    } = MOT_SET_MOVEABSPARAMS 0x0450 host long(6);
     ReqMoveAbsParams {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_MOVEABSPARAMS` `0x0452`.
+    } = MOT_REQ_MOVEABSPARAMS 0x0451 host short;
     GetMoveAbsParams {
         /// The channel.
         chan: u16,
         /// Position, counts.
         position: i32,
-    },
-    /// `MOT_MOVE_JOG` `0x046A`: a jog (step or continuous, as the jog parameters say).
+    } = MOT_GET_MOVEABSPARAMS 0x0452 controller long(6);
+    /// A jog (step or continuous, as the jog parameters say).
     MoveJog {
         /// The channel.
         chan: u8,
         /// The direction.
         direction: Direction,
-    },
-    /// `MOT_MOVE_RELATIVE` `0x0448`: by `distance` counts (long form), or by the
-    /// stored relative move parameters (short form, `None`).
+    } = MOT_MOVE_JOG 0x046A host short;
+    /// By `distance` counts (long form), or by the stored relative move parameters
+    /// (short form, `None`).
     MoveRelative {
         /// The channel.
         chan: u16,
         /// The distance, counts.
         distance: Option<i32>,
-    },
-    /// `MOT_MOVE_ABSOLUTE` `0x0453`: to `position` counts (long form), or to the
-    /// stored absolute move parameters (short form, `None`).
+    } = MOT_MOVE_RELATIVE 0x0448 host either(6);
+    /// To `position` counts (long form), or to the stored absolute move parameters
+    /// (short form, `None`).
     MoveAbsolute {
         /// The channel.
         chan: u16,
         /// The target, counts.
         position: Option<i32>,
-    },
-    /// `MOT_MOVE_VELOCITY` `0x0457`: move at the maximum velocity until stopped.
+    } = MOT_MOVE_ABSOLUTE 0x0453 host either(6);
+    /// Move at the maximum velocity until stopped.
     MoveVelocity {
         /// The channel.
         chan: u8,
         /// The direction.
         direction: Direction,
-    },
-    /// `MOT_MOVE_COMPLETED` `0x0464`: a move ended; the long form carries the status.
+    } = MOT_MOVE_VELOCITY 0x0457 host short;
+    /// A move ended; the long form carries the status.
     MoveCompleted {
         /// The channel.
         chan: u16,
         /// The status at the end (long form), or `None` (short form).
         status: Option<DcStatus>,
-    },
-    /// `MOT_MOVE_STOP` `0x0465`.
+    } = MOT_MOVE_COMPLETED 0x0464 controller ended(14);
     MoveStop {
         /// The channel.
         chan: u8,
         /// Immediate or profiled.
         mode: StopMode,
-    },
-    /// `MOT_MOVE_STOPPED` `0x0466`: a stop (or a limit switch) ended a move.
+    } = MOT_MOVE_STOP 0x0465 host short;
+    /// A stop (or a limit switch) ended a move.
     MoveStopped {
         /// The channel.
         chan: u16,
         /// The status at the end (long form), or `None` (short form).
         status: Option<DcStatus>,
-    },
-    /// `MOT_REQ_STATUSUPDATE` `0x0480` (stepper controllers).
+    } = MOT_MOVE_STOPPED 0x0466 controller ended(14);
+    /// Stepper controllers.
     ReqStatusUpdate {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_STATUSUPDATE` `0x0481`.
-    GetStatusUpdate(StepperStatus),
-    /// `MOT_REQ_DCSTATUSUPDATE` `0x0490` (DC servo controllers).
+    } = MOT_REQ_STATUSUPDATE 0x0480 host short;
+    GetStatusUpdate(s: StepperStatus) = MOT_GET_STATUSUPDATE 0x0481 controller lengths(14, 28);
+    /// DC servo controllers.
     ReqDcStatusUpdate {
         /// The channel.
         chan: u8,
-    },
-    /// `MOT_GET_DCSTATUSUPDATE` `0x0491`.
-    GetDcStatusUpdate(DcStatus),
-    /// `MOT_ACK_DCSTATUSUPDATE` `0x0492`: the host's keep-alive ("server alive").
-    AckDcStatusUpdate,
-    /// A message this codec does not know, kept whole so that it can be skipped (or
-    /// relayed) rather than taken for garbage.
-    Unknown {
-        /// The id.
-        id: u16,
-        /// The parameter bytes (short form).
-        params: [u8; 2],
-        /// The data packet (long form).
-        data: Option<Vec<u8>>,
-    },
+    } = MOT_REQ_DCSTATUSUPDATE 0x0490 host short;
+    GetDcStatusUpdate(s: DcStatus) = MOT_GET_DCSTATUSUPDATE 0x0491 controller long(14);
+    /// The host's keep-alive ("server alive").
+    AckDcStatusUpdate = MOT_ACK_DCSTATUSUPDATE 0x0492 host short;
 }
 
 /// A message with its addresses: what is on the wire.

@@ -9,10 +9,11 @@ mod ops;
 
 use std::time::Duration;
 
-use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, StepperStatus, status};
+use super::message::name_of;
+use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
-use crate::motion::{AxisError, MotionError};
+use crate::motion::{self, AxisError, Halt, MotionError};
 use crate::smc100::ChainPolicy;
 
 crate::config::axis_config! {
@@ -142,22 +143,6 @@ pub struct AptStatus {
 }
 
 impl AptStatus {
-    fn from_dc(stage: StageKind, s: &DcStatus) -> Self {
-        AptStatus {
-            position_deg: stage.to_deg(s.position),
-            velocity_raw: Some(s.velocity),
-            bits: s.bits,
-        }
-    }
-
-    fn from_stepper(stage: StageKind, s: &StepperStatus) -> Self {
-        AptStatus {
-            position_deg: stage.to_deg(s.position),
-            velocity_raw: None,
-            bits: s.bits,
-        }
-    }
-
     /// Moving, jogging or homing.
     pub fn is_moving(&self) -> bool {
         self.bits & status::MOTION != 0
@@ -277,7 +262,7 @@ impl AptSession {
     pub fn status_lengths(&self) -> Vec<(&'static str, usize, u64)> {
         self.lengths
             .iter()
-            .map(|(&(id, len), &n)| (status_name(id), len, n))
+            .map(|(&(id, len), &n)| (name_of(id).unwrap_or("other"), len, n))
             .collect()
     }
 
@@ -329,7 +314,7 @@ impl AptSession {
     /// showing the search over and the stage homed, within `home_timeout_s`. The pause
     /// between status polls is an abort point.
     pub fn start_home(&mut self, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.home", now, Self::home)
+        motion::task(self, "apt.home", now, Self::home)
     }
 
     /// Moves to `target_deg` (`MOT_MOVE_ABSOLUTE`, long form), checked against the
@@ -338,7 +323,7 @@ impl AptSession {
     /// final position is the output. An absolute move is idempotent: when its outcome
     /// is lost it is sent again. The pause between polls is an abort point.
     pub fn start_move(&mut self, target_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.move", now, async move |s, link| {
+        motion::task(self, "apt.move", now, async move |s, link| {
             s.motion(link, target_deg, false).await
         })
     }
@@ -347,7 +332,7 @@ impl AptSession {
     /// against the limits first. Never sent twice: a lost outcome is
     /// [`AxisError::Ambiguous`].
     pub fn start_move_by(&mut self, delta_deg: f64, now: Duration) -> Task<'_, f64, MotionError> {
-        self.task("apt.move_by", now, async move |s, link| {
+        motion::task(self, "apt.move_by", now, async move |s, link| {
             s.motion(link, delta_deg, true).await
         })
     }
@@ -397,9 +382,8 @@ impl AptSession {
         now: Duration,
         op: impl AsyncFnOnce(&mut Self, &Link) -> Result<T, AxisError> + 'a,
     ) -> Task<'a, T, MotionError> {
-        Task::new(name, now, move |link| async move {
-            let r = op(&mut *self, &link).await;
-            r.map_err(|source| self.at(source))
+        motion::task(self, name, now, async move |s, link| {
+            op(s, link).await.map_err(|e| Halt::End(s.at(e)))
         })
     }
 
@@ -425,15 +409,19 @@ impl AptSession {
 
     /// A message read as a status, if it is one of this channel's.
     fn status_of(&self, m: &Message) -> Option<AptStatus> {
-        match m {
+        let (position, velocity_raw, bits) = match m {
             Message::GetDcStatusUpdate(s) if s.chan == CHANNEL => {
-                Some(AptStatus::from_dc(self.stage(), s))
+                (s.position, Some(s.velocity), s.bits)
             }
-            Message::GetStatusUpdate(s) if s.chan == CHANNEL => {
-                Some(AptStatus::from_stepper(self.stage(), s))
-            }
-            _ => None,
-        }
+            Message::GetStatusUpdate(s) if s.chan == CHANNEL => (s.position, None, s.bits),
+            _ => return None,
+        };
+        let position_deg = self.stage().to_deg(position);
+        Some(AptStatus {
+            position_deg,
+            velocity_raw,
+            bits,
+        })
     }
 
     fn check_limits(&self, target: f64) -> Result<(), AxisError> {
@@ -441,51 +429,9 @@ impl AptSession {
     }
 }
 
-/// The name of a status-kind message id.
-fn status_name(id: u16) -> &'static str {
-    use crate::apt::message::id;
-    match id {
-        id::GET_STATUSUPDATE => "MOT_GET_STATUSUPDATE",
-        id::GET_DCSTATUSUPDATE => "MOT_GET_DCSTATUSUPDATE",
-        id::GET_STATUSBITS => "MOT_GET_STATUSBITS",
-        id::MOVE_COMPLETED => "MOT_MOVE_COMPLETED",
-        id::MOVE_STOPPED => "MOT_MOVE_STOPPED",
-        id::MOVE_HOMED => "MOT_MOVE_HOMED",
-        _ => "other",
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn status(bits: u32) -> AptStatus {
-        AptStatus {
-            position_deg: 1.0,
-            velocity_raw: None,
-            bits,
-        }
-    }
-
-    #[test]
-    fn status_predicates() {
-        let s = status(status::HOMED | status::CHANNEL_ENABLED | status::MOVING_REV);
-        assert!(s.is_homed() && s.is_enabled() && s.is_moving());
-        assert!(s.faults().is_empty());
-        let s = status(status::REV_HW_LIMIT | status::MOTION_ERROR | status::HOMED);
-        assert_eq!(s.faults(), ["reverse limit switch", "motion error"]);
-        assert!(!s.is_moving() && !s.is_enabled());
-    }
-
-    #[test]
-    fn session_refuses_an_invalid_config() {
-        let mut a = AptAxisConfig::new("rot", StageKind::K10cr1, 0.0, 90.0);
-        a.home_timeout_s = 0.0;
-        match AptSession::new(a, ChainPolicy::default()) {
-            Err(MotionError::Config(m)) => assert!(m.contains("home_timeout_s"), "{m}"),
-            other => panic!("{other:?}"),
-        }
-    }
 
     #[test]
     fn stepper_asks_for_the_stepper_status() {

@@ -13,11 +13,11 @@ use tracing::{debug, warn};
 use super::{AptSession, AptStatus, Seen};
 use crate::TransportError;
 use crate::apt::{
-    AptInfo, CHANNEL, DcStatus, Direction, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet,
-    StopMode, VelParams, status,
+    AptInfo, CHANNEL, DcStatus, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet, StopMode,
+    VelParams, status,
 };
 use crate::engine::{self, Link, secs};
-use crate::motion::AxisError;
+use crate::motion::{self, AxisError, Halt, Motion, MotionError, stop};
 
 /// Polls after a move was sent before a still stage away from its target counts as
 /// stopped short (a controller may take a moment to report motion).
@@ -44,14 +44,18 @@ fn fault(st: &AptStatus, command: &str, need_homed: bool) -> Option<AxisError> {
     (need_homed && !st.is_homed()).then_some(AxisError::NotHomed)
 }
 
-/// A move or home search past its deadline, its position still unknown: what
-/// [`AptSession::halted`] stops the stage for and completes.
-fn overdue(operation: &'static str, target: f64, waited: Duration) -> AxisError {
-    AxisError::Timeout {
-        operation,
-        target,
-        position: None,
-        waited,
+/// A move or home search past its deadline: [`motion::settle`] stops the stage and
+/// reads its position.
+fn overdue(operation: &'static str, target: f64, waited: Duration) -> Halt {
+    Halt::Overdue(0, operation, target, waited)
+}
+
+/// The manual's name of a move, relative or absolute.
+fn move_name(relative: bool) -> &'static str {
+    if relative {
+        "MOT_MOVE_RELATIVE"
+    } else {
+        "MOT_MOVE_ABSOLUTE"
     }
 }
 
@@ -212,50 +216,6 @@ impl AptSession {
             .ok_or_else(|| protocol(&request, &m, "not this channel's status"))
     }
 
-    /// The pause between status polls: an abort point.
-    async fn pause(&self, link: &Link, what: &str) -> Result<(), AxisError> {
-        let until = link.now().saturating_add(self.policy.poll_interval);
-        link.poll_pause(until).await.map_err(|_| {
-            warn!("apt: {what} aborted");
-            AxisError::Aborted
-        })
-    }
-
-    /// The end of a move or home search that failed once the stage may be moving: a
-    /// profiled stop, and, past a deadline ([`overdue`]), the position it stopped at.
-    async fn halted<T>(&mut self, link: &Link, r: Result<T, AxisError>) -> Result<T, AxisError> {
-        let stop = Message::MoveStop {
-            chan: 1,
-            mode: StopMode::Profiled,
-        };
-        match r {
-            Ok(v) => Ok(v),
-            Err(AxisError::Timeout {
-                operation,
-                target,
-                waited,
-                ..
-            }) => {
-                warn!(axis = %self.axis.name, operation, ?waited, "apt: past the deadline; stopping the stage");
-                let _ = self.transmit(link, &stop).await;
-                let position = self.position(link).await.ok();
-                Err(AxisError::Timeout {
-                    operation,
-                    target,
-                    position,
-                    waited,
-                })
-            }
-            Err(e) => {
-                warn!(error = %self.at(e.clone()), "apt: stopping the stage after a fault");
-                if let Err(e) = self.transmit(link, &stop).await {
-                    warn!(error = %e, "apt: the stop after a fault was not sent");
-                }
-                Err(e)
-            }
-        }
-    }
-
     /// `HW_REQ_INFO`; the model must be the stage's controller.
     pub(super) async fn identify(&mut self, link: &Link) -> Result<AptInfo, AxisError> {
         let info = pick!(Message::HwGetInfo(i) => i.clone());
@@ -298,36 +258,19 @@ impl AptSession {
             acceleration: stage.acceleration_to_apt(a),
             max_velocity: stage.velocity_to_apt(v),
         };
+        let (set, get) = (Message::SetVelParams, Message::GetVelParams);
         let ask = Message::ReqVelParams { chan: 1 };
-        self.write(
-            link,
-            "VELPARAMS",
-            vel,
-            Message::SetVelParams,
-            ask,
-            Message::GetVelParams,
-        )
-        .await?;
+        self.write(link, vel, set, ask, get).await?;
         let home = HomeParams {
             chan: CHANNEL,
-            direction: match stage.home_direction() {
-                Direction::Forward => 1,
-                Direction::Reverse => 2,
-            },
+            direction: stage.home_direction().code(),
             limit_switch: stage.home_limit_switch(),
             velocity: stage.velocity_to_apt(stage.home_velocity()),
             offset: stage.to_counts(stage.home_offset()),
         };
+        let (set, get) = (Message::SetHomeParams, Message::GetHomeParams);
         let ask = Message::ReqHomeParams { chan: 1 };
-        self.write(
-            link,
-            "HOMEPARAMS",
-            home,
-            Message::SetHomeParams,
-            ask,
-            Message::GetHomeParams,
-        )
-        .await?;
+        self.write(link, home, set, ask, get).await?;
         if let Some(b) = self.axis.backlash_deg {
             let backlash = GenMoveParams {
                 chan: CHANNEL,
@@ -335,8 +278,7 @@ impl AptSession {
             };
             let (set, get) = (Message::SetGenMoveParams, Message::GetGenMoveParams);
             let ask = Message::ReqGenMoveParams { chan: 1 };
-            self.write(link, "GENMOVEPARAMS", backlash, set, ask, get)
-                .await?;
+            self.write(link, backlash, set, ask, get).await?;
         }
         if self.axis.status_updates {
             self.transmit(link, &Message::HwStartUpdateMsgs).await?;
@@ -350,7 +292,6 @@ impl AptSession {
     async fn write<P: Copy + std::fmt::Debug>(
         &mut self,
         link: &Link,
-        what: &str,
         params: P,
         set: fn(P) -> Message,
         ask: Message,
@@ -364,61 +305,61 @@ impl AptSession {
             return Ok(());
         }
         let reason = format!("read back {got:?}, set {params:?}");
-        Err(device(&format!("MOT_SET_{what}"), reason))
+        Err(device(set(params).name(), reason))
     }
 
     /// `MOT_MOVE_HOME`, then a status every poll interval until `MOT_MOVE_HOMED` came
     /// or a status shows the search over and the stage homed, within
     /// `home_timeout_s`.
-    pub(super) async fn home(&mut self, link: &Link) -> Result<f64, AxisError> {
+    pub(super) async fn home(&mut self, link: &Link) -> Result<f64, Halt> {
         // Completions of earlier operations must not end this one.
         link.clear_input();
         self.seen = Seen::default();
-        self.transmit(link, &Message::MoveHome { chan: 1 }).await?;
+        let sent = self.transmit(link, &Message::MoveHome { chan: 1 }).await;
+        sent.map_err(|e| self.at(e))?;
         debug!(axis = %self.axis.name, "apt: home search started");
-        let r = async {
-            let start = link.now();
-            let timeout = secs(self.axis.home_timeout_s);
-            let mut saw_homing = false;
-            loop {
-                self.pause(link, "home search").await?;
-                let st = self.status(link).await?;
+        let timeout = secs(self.axis.home_timeout_s);
+        let (mut saw_homing, mut homed_at) = (false, 0.0);
+        let searching = vec![(0, 0.0)];
+        motion::poll(
+            self,
+            link,
+            searching,
+            "home search",
+            |s, _, _, st, elapsed| {
                 saw_homing |= st.bits & status::HOMING != 0;
                 // The home switch of a stage homing onto a limit switch is not a fault.
                 let limit_only = st.bits & status::FAULTS == 0 && st.is_enabled();
                 if let Some(e) = fault(&st, "MOT_MOVE_HOME", false)
                     && !limit_only
                 {
-                    return Err(e);
+                    return Err(Halt::Stop(0, e));
                 }
-                if self.seen.homed || (saw_homing && !st.is_moving() && st.is_homed()) {
+                if s.seen.homed || (saw_homing && !st.is_moving() && st.is_homed()) {
                     debug!(position = st.position_deg, "apt: homed");
-                    return Ok(st.position_deg);
+                    homed_at = st.position_deg;
+                    return Ok(false);
                 }
-                if link.now().saturating_sub(start) > timeout {
+                if elapsed > timeout {
                     return Err(overdue("home", 0.0, timeout));
                 }
-            }
-        };
-        let r = r.await;
-        self.halted(link, r).await
+                Ok(true)
+            },
+        )
+        .await?;
+        Ok(homed_at)
     }
 
-    /// A move to `value` deg, or by it when `relative`: the status read (the stage
-    /// must be homed and fault-free; a relative target is checked against the limits
-    /// then), the move sent, then a status every poll interval until the stage is
-    /// still within tolerance of the target.
-    pub(super) async fn motion(
+    /// What a move to `value` deg (or by it, when `relative`) needs before it is sent:
+    /// the status read (the stage must be homed and fault-free; a relative target is
+    /// checked against the limits then), and the target, the time allowed and the
+    /// message.
+    async fn aim(
         &mut self,
         link: &Link,
         value: f64,
         relative: bool,
-    ) -> Result<f64, AxisError> {
-        let name = if relative {
-            "MOT_MOVE_RELATIVE"
-        } else {
-            "MOT_MOVE_ABSOLUTE"
-        };
+    ) -> Result<(f64, Duration, Message), AxisError> {
         // A distance need only be finite; its target is checked once the position
         // is known.
         if !relative || !value.is_finite() {
@@ -427,7 +368,7 @@ impl AptSession {
         link.clear_input();
         self.seen = Seen::default();
         let st = self.status(link).await?;
-        if let Some(e) = fault(&st, name, true) {
+        if let Some(e) = fault(&st, move_name(relative), true) {
             return Err(e);
         }
         let target = if relative {
@@ -439,7 +380,7 @@ impl AptSession {
         // The policy's margin plus its factor times the trapezoid's duration.
         let (v, a) = self.axis.motion();
         let t = gonio_core::motion::trapezoid_time(target - st.position_deg, v, a);
-        let allow = (self.policy.move_margin).saturating_add(secs(t * self.policy.move_factor));
+        let allow = motion::allowance(&self.policy, t);
         let stage = self.stage();
         let command = if relative {
             Message::MoveRelative {
@@ -452,57 +393,69 @@ impl AptSession {
                 position: Some(stage.to_counts(target)),
             }
         };
-        let r = async {
-            self.transmit(link, &command).await?;
-            debug!(axis = %self.axis.name, target, "apt: move started");
-            let start = link.now();
-            let (mut polls, mut resent) = (0, 0);
-            loop {
-                self.pause(link, "move").await?;
-                let st = match self.status(link).await {
-                    Ok(st) => st,
-                    // The outcome is unknown: an absolute move may simply go again.
-                    Err(e @ AxisError::Transport(_)) if relative => {
-                        warn!(error = %e, "apt: lost the outcome of a relative move");
-                        return Err(AxisError::Ambiguous {
-                            command: name.into(),
-                        });
-                    }
-                    Err(e @ AxisError::Transport(_)) if resent < self.policy.retries => {
-                        resent += 1;
-                        self.retried += 1;
-                        warn!(error = %e, "apt: lost the outcome of an absolute move; sending it again");
-                        self.transmit(link, &command).await?;
-                        continue;
-                    }
-                    Err(e) => return Err(e),
-                };
-                polls += 1;
-                if let Some(e) = fault(&st, name, true) {
-                    return Err(e);
+        Ok((target, allow, command))
+    }
+
+    /// A move to `value` deg, or by it when `relative` ([`Self::aim`]): the move sent,
+    /// then a status every poll interval until the stage is still within tolerance of
+    /// the target.
+    pub(super) async fn motion(
+        &mut self,
+        link: &Link,
+        value: f64,
+        relative: bool,
+    ) -> Result<f64, Halt> {
+        let aimed = self.aim(link, value, relative).await;
+        let (target, allow, command) = aimed.map_err(|e| self.at(e))?;
+        let name = move_name(relative);
+        self.transmit(link, &command).await.map_err(stop(0))?;
+        debug!(axis = %self.axis.name, target, "apt: move started");
+        let start = link.now();
+        let (mut polls, mut resent) = (0, 0);
+        loop {
+            motion::pause(self, link, "move").await.map_err(stop(0))?;
+            let st = match self.status(link).await {
+                Ok(st) => st,
+                // The outcome is unknown: an absolute move may simply go again.
+                Err(e @ AxisError::Transport(_)) if relative => {
+                    warn!(error = %e, "apt: lost the outcome of a relative move");
+                    let command = name.into();
+                    return Err(Halt::Stop(0, AxisError::Ambiguous { command }));
                 }
-                let tolerance = self.axis.tolerance;
-                if !st.is_moving() {
-                    if (st.position_deg - target).abs() <= tolerance {
-                        debug!(position = st.position_deg, "apt: move done");
-                        return Ok(st.position_deg);
-                    }
-                    let ended = self.seen.completed.is_some() || self.seen.stopped.is_some();
-                    if ended || polls >= GRACE_POLLS {
-                        return Err(AxisError::TargetNotReached {
-                            target,
-                            position: st.position_deg,
-                            tolerance,
-                        });
-                    }
+                Err(e @ AxisError::Transport(_)) if resent < self.policy.retries => {
+                    resent += 1;
+                    self.retried += 1;
+                    warn!(error = %e, "apt: lost the outcome of an absolute move; sending it again");
+                    self.transmit(link, &command).await.map_err(stop(0))?;
+                    continue;
                 }
-                if link.now().saturating_sub(start) > allow {
-                    return Err(overdue("move", target, allow));
+                Err(e) => return Err(Halt::Stop(0, e)),
+            };
+            polls += 1;
+            if let Some(e) = fault(&st, name, true) {
+                return Err(Halt::Stop(0, e));
+            }
+            let tolerance = self.axis.tolerance;
+            if !st.is_moving() {
+                if (st.position_deg - target).abs() <= tolerance {
+                    debug!(position = st.position_deg, "apt: move done");
+                    return Ok(st.position_deg);
+                }
+                let ended = self.seen.completed.is_some() || self.seen.stopped.is_some();
+                if ended || polls >= GRACE_POLLS {
+                    let position = st.position_deg;
+                    let e = AxisError::TargetNotReached {
+                        target,
+                        position,
+                        tolerance,
+                    };
+                    return Err(Halt::Stop(0, e));
                 }
             }
-        };
-        let r = r.await;
-        self.halted(link, r).await
+            if link.now().saturating_sub(start) > allow {
+                return Err(overdue("move", target, allow));
+            }
+        }
     }
 
     /// `MOT_MOVE_STOP`, then `MOT_MOVE_STOPPED` within the move margin, or else a
@@ -574,5 +527,39 @@ impl AptSession {
             stage.velocity_from_apt(v.max_velocity),
             stage.acceleration_from_apt(v.acceleration),
         ))
+    }
+}
+
+impl Motion for AptSession {
+    const FAMILY: &'static str = "apt";
+    type Status = AptStatus;
+
+    fn poll_interval(&self) -> Duration {
+        self.policy.poll_interval
+    }
+
+    fn axis_name(&self, _: usize) -> &str {
+        &self.axis.name
+    }
+
+    fn at(&self, _: usize, e: AxisError) -> MotionError {
+        AptSession::at(self, e)
+    }
+
+    async fn poll_status(&mut self, link: &Link, _: usize) -> Result<AptStatus, AxisError> {
+        self.status(link).await
+    }
+
+    /// A profiled stop.
+    async fn stop_every(&mut self, link: &Link) -> Result<(), MotionError> {
+        let mode = StopMode::Profiled;
+        let sent = self
+            .transmit(link, &Message::MoveStop { chan: 1, mode })
+            .await;
+        sent.map_err(|e| AptSession::at(self, e))
+    }
+
+    async fn position_of(&mut self, link: &Link, _: usize) -> Option<f64> {
+        self.position(link).await.ok()
     }
 }

@@ -15,7 +15,8 @@ use super::{
     AxisConfig, AxisError, ChainPolicy, Command, ControllerInfo, Frame, MAX_ADDRESS, MotionError,
     Param, ReplyBody, Smc100Parameters, Status,
 };
-use crate::engine::Task;
+use crate::engine::{Link, Task};
+use crate::motion;
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,
@@ -108,52 +109,33 @@ impl Smc100Session {
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).
     pub fn start_identify(&mut self, now: Duration) -> Task<'_, Vec<ControllerInfo>, MotionError> {
-        Task::new("smc100.identify", now, |link| async move {
-            self.identify(&link).await
-        })
+        Task::run("smc100.identify", now, self, Self::identify)
     }
 
     /// The named axis' status (`TS`).
-    pub fn start_status<'s>(
-        &'s mut self,
-        name: &str,
-        now: Duration,
-    ) -> Task<'s, Status, MotionError> {
-        let name = name.to_string();
-        Task::new("smc100.status", now, move |link| async move {
-            self.on(&name, async |s, i| s.read_status(&link, i).await)
-                .await
-        })
+    pub fn start_status(&mut self, name: &str, now: Duration) -> Task<'_, Status, MotionError> {
+        self.on_axis("smc100.status", name, now, Self::read_status)
     }
 
     /// The named axis' encoder position (`TP`), units.
-    pub fn start_position<'s>(
-        &'s mut self,
-        name: &str,
-        now: Duration,
-    ) -> Task<'s, f64, MotionError> {
-        let name = name.to_string();
-        Task::new("smc100.position", now, move |link| async move {
-            let tp = Command::TellPosition;
-            self.on(&name, async |s, i| s.read_number(&link, i, tp).await)
-                .await
+    pub fn start_position(&mut self, name: &str, now: Duration) -> Task<'_, f64, MotionError> {
+        self.on_axis("smc100.position", name, now, async |s, link, i| {
+            s.read_number(link, i, Command::TellPosition).await
         })
     }
 
     /// How long the named axis' controller says a move of `distance` units takes with
     /// its working velocity, acceleration and jerk time (`PT`, manual p. 43: "The
     /// controller does not execute any motion"), s.
-    pub fn start_motion_time<'s>(
-        &'s mut self,
+    pub fn start_motion_time(
+        &mut self,
         name: &str,
         distance: f64,
         now: Duration,
-    ) -> Task<'s, f64, MotionError> {
-        let name = name.to_string();
-        Task::new("smc100.motion_time", now, move |link| async move {
-            let pt = Command::MotionTime(distance.abs());
-            self.on(&name, async |s, i| s.read_number(&link, i, pt).await)
-                .await
+    ) -> Task<'_, f64, MotionError> {
+        let pt = Command::MotionTime(distance.abs());
+        self.on_axis("smc100.motion_time", name, now, async |s, link, i| {
+            s.read_number(link, i, pt).await
         })
     }
 
@@ -161,17 +143,13 @@ impl Smc100Session {
     /// broadcast could not be sent. Every stage gets its stop; the first failure is
     /// returned.
     pub fn start_stop_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
-        Task::new("smc100.stop_all", now, |link| async move {
-            self.stop_all(&link).await
-        })
+        Task::run("smc100.stop_all", now, self, Self::stop_all)
     }
 
     /// Stops one stage (`ST`, then `TE`).
-    pub fn start_stop<'s>(&'s mut self, name: &str, now: Duration) -> Task<'s, (), MotionError> {
-        let name = name.to_string();
-        Task::new("smc100.stop", now, move |link| async move {
-            self.on(&name, async |s, i| s.command(&link, i, Command::Stop).await)
-                .await
+    pub fn start_stop(&mut self, name: &str, now: Duration) -> Task<'_, (), MotionError> {
+        self.on_axis("smc100.stop", name, now, async |s, link, i| {
+            s.command(link, i, Command::Stop).await
         })
     }
 
@@ -179,15 +157,10 @@ impl Smc100Session {
     /// REFERENCED, `MM1` from DISABLE, nothing when already READY; then applies the
     /// configured velocity and acceleration. Home searches run concurrently; the wait
     /// between status polls is an abort point.
-    pub fn start_home<'s>(
-        &'s mut self,
-        names: &[&str],
-        now: Duration,
-    ) -> Task<'s, (), MotionError> {
+    pub fn start_home(&mut self, names: &[&str], now: Duration) -> Task<'_, (), MotionError> {
         let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
-        Task::new("smc100.home", now, move |link| async move {
-            let r = self.home(&link, &names, false).await;
-            self.settle(&link, r).await
+        motion::task(self, "smc100.home", now, async move |s, link| {
+            s.home(link, &names, false).await
         })
     }
 
@@ -201,15 +174,10 @@ impl Smc100Session {
     /// Resets the named controller (`RS`), waits for it to come back NOT REFERENCED
     /// (power-up takes under 5 s; 10 s are allowed), and homes it: the recovery after
     /// [`AxisError::ControllerReset`] or a fault that only a reset clears.
-    pub fn start_reset_and_home<'s>(
-        &'s mut self,
-        name: &str,
-        now: Duration,
-    ) -> Task<'s, (), MotionError> {
+    pub fn start_reset_and_home(&mut self, name: &str, now: Duration) -> Task<'_, (), MotionError> {
         let names = vec![name.to_string()];
-        Task::new("smc100.reset_and_home", now, move |link| async move {
-            let r = self.home(&link, &names, true).await;
-            self.settle(&link, r).await
+        motion::task(self, "smc100.reset_and_home", now, async move |s, link| {
+            s.home(link, &names, true).await
         })
     }
 
@@ -217,51 +185,45 @@ impl Smc100Session {
     /// one is READY at its target; the positions read at the end are the output. Every
     /// target is checked against its axis' limits before any byte is sent. The wait
     /// between status polls is an abort point.
-    pub fn start_move<'s>(
-        &'s mut self,
+    pub fn start_move(
+        &mut self,
         targets: &[(&str, f64)],
         now: Duration,
-    ) -> Task<'s, Vec<f64>, MotionError> {
+    ) -> Task<'_, Vec<f64>, MotionError> {
         let targets: Vec<(String, f64)> =
             targets.iter().map(|(n, t)| (n.to_string(), *t)).collect();
-        Task::new("smc100.move", now, move |link| async move {
-            let r = self.move_to(&link, &targets).await;
-            self.settle(&link, r).await
+        motion::task(self, "smc100.move", now, async move |s, link| {
+            s.move_to(link, &targets).await
         })
     }
 
     /// Moves one axis by `delta` from its current target (`PR`), checked against the
     /// limits from the set-point (`TH`). A relative move is never re-sent: a lost
     /// acknowledgement is [`AxisError::Ambiguous`].
-    pub fn start_move_by<'s>(
-        &'s mut self,
+    pub fn start_move_by(
+        &mut self,
         name: &str,
         delta: f64,
         now: Duration,
-    ) -> Task<'s, f64, MotionError> {
+    ) -> Task<'_, f64, MotionError> {
         let name = name.to_string();
-        Task::new("smc100.move_by", now, move |link| async move {
-            let r = self.move_by(&link, &name, delta).await;
-            self.settle(&link, r).await
+        motion::task(self, "smc100.move_by", now, async move |s, link| {
+            s.move_by(link, &name, delta).await
         })
     }
 
     /// Reads the named controller's configuration: `ZT`, and its dump up to `PW0`
     /// (manual, ZT command; accepted in every state but while it saves). The dump is
     /// read again, whole, after a lost or garbled line.
-    pub fn start_read_config<'s>(
-        &'s mut self,
+    pub fn start_read_config(
+        &mut self,
         name: &str,
         now: Duration,
-    ) -> Task<'s, Smc100Parameters, MotionError> {
-        let name = name.to_string();
-        Task::new("smc100.read_config", now, move |link| async move {
-            self.on(&name, async |s, i| {
-                let params = s.dump(&link, i).await?;
-                debug!(axis = %s.axes[i].name, stage = %params.stage, "smc100: configuration read");
-                Ok(params)
-            })
-            .await
+    ) -> Task<'_, Smc100Parameters, MotionError> {
+        self.on_axis("smc100.read_config", name, now, async |s, link, i| {
+            let params = s.dump(link, i).await?;
+            debug!(axis = %s.axes[i].name, stage = %params.stage, "smc100: configuration read");
+            Ok(params)
         })
     }
 
@@ -279,16 +241,30 @@ impl Smc100Session {
     /// refuses a set, the operation still leaves with `PW0` (the only way out; `RS` is
     /// refused in CONFIGURATION), so the sets before the refused one are saved, and
     /// returns the refusal. The stage stays NOT REFERENCED: home it before moving.
-    pub fn start_configure<'s>(
-        &'s mut self,
+    pub fn start_configure(
+        &mut self,
         name: &str,
         changes: &[(Param, f64)],
         now: Duration,
-    ) -> Task<'s, (), MotionError> {
-        let (name, changes) = (name.to_string(), changes.to_vec());
-        Task::new("smc100.configure", now, move |link| async move {
-            self.on(&name, async |s, i| s.configure(&link, i, &changes).await)
-                .await
+    ) -> Task<'_, (), MotionError> {
+        let changes = changes.to_vec();
+        self.on_axis("smc100.configure", name, now, async move |s, link, i| {
+            s.configure(link, i, &changes).await
+        })
+    }
+
+    /// Runs `op` on the axis named `axis` as the operation `name`, its failure
+    /// reported at that axis.
+    fn on_axis<'a, T: 'a>(
+        &'a mut self,
+        name: &'static str,
+        axis: &str,
+        now: Duration,
+        op: impl AsyncFnOnce(&mut Self, &Link, usize) -> Result<T, AxisError> + 'a,
+    ) -> Task<'a, T, MotionError> {
+        let axis = axis.to_string();
+        Task::run(name, now, self, async move |s, link| {
+            s.on(&axis, async |s, i| op(s, link, i).await).await
         })
     }
 

@@ -9,6 +9,7 @@ use tracing::{debug, warn};
 use super::{Smc100Session, line_text};
 use crate::TransportError;
 use crate::engine::{Link, secs};
+use crate::motion::{self, Halt, Motion, stop};
 use crate::smc100::{
     AxisError, Command, ControllerInfo, ControllerState, ErrorCode, MotionError, Param, ReplyBody,
     Status,
@@ -23,30 +24,6 @@ const SAVE_POLL: Duration = Duration::from_millis(500);
 /// Longest a save may keep the controller silent: the manual's "up to 10 s" for `PW0`,
 /// and a margin.
 const SAVE_LIMIT: Duration = Duration::from_secs(15);
-
-/// Why a motion (home searches, moves) ended early: what ending takes is
-/// [`Smc100Session::settle`]'s.
-pub(super) enum Halt {
-    /// A fault at an axis: every stage is stopped first.
-    Stop(usize, AxisError),
-    /// Axis `.0`'s `.1` (`move`, `home`) to `.2` past the `.3` it was allowed: every
-    /// stage is stopped, and the axis' position read.
-    Overdue(usize, &'static str, f64, Duration),
-    /// Nothing to stop (before any move, or a stage READY away from its target): the
-    /// error as it is.
-    End(MotionError),
-}
-
-impl From<MotionError> for Halt {
-    fn from(e: MotionError) -> Self {
-        Halt::End(e)
-    }
-}
-
-/// An axis' failure during a motion, which stops every stage.
-fn stop(axis: usize) -> impl FnOnce(AxisError) -> Halt {
-    move |e| Halt::Stop(axis, e)
-}
 
 /// The text of a reply expected to be text; another reply is kept as its debug form.
 fn text(body: ReplyBody) -> String {
@@ -112,68 +89,6 @@ impl Smc100Session {
             infos.push(info.await?);
         }
         Ok(infos)
-    }
-
-    /// The end of a motion: after a fault every stage is stopped, since nothing may
-    /// keep moving; past a deadline also, and the axis' position read for the error.
-    pub(super) async fn settle<T>(
-        &mut self,
-        link: &Link,
-        r: Result<T, Halt>,
-    ) -> Result<T, MotionError> {
-        match r {
-            Ok(v) => Ok(v),
-            Err(Halt::End(e)) => Err(e),
-            Err(Halt::Stop(i, e)) => {
-                let error = self.at(i, e);
-                warn!(%error, "smc100: stopping every stage after a fault");
-                // The stop's own failure is not the news: the fault is.
-                let _ = self.stop_all(link).await;
-                Err(error)
-            }
-            Err(Halt::Overdue(i, operation, target, waited)) => {
-                warn!(axis = %self.axes[i].name, operation, ?waited, "smc100: past the deadline; stopping every stage");
-                let _ = self.stop_all(link).await;
-                let position = self.read_number(link, i, Command::TellPosition).await;
-                let position = position.ok();
-                let e = AxisError::Timeout {
-                    operation,
-                    target,
-                    position,
-                    waited,
-                };
-                Err(self.at(i, e))
-            }
-        }
-    }
-
-    /// Polls `TS` of each of `axes` (with its target) every `poll_interval`, an abort
-    /// point, while `busy(session, axis, target, status, elapsed)` says it is still on
-    /// its way.
-    async fn poll(
-        &mut self,
-        link: &Link,
-        mut axes: Vec<(usize, f64)>,
-        operation: &str,
-        busy: impl Fn(&Self, usize, f64, Status, Duration) -> Result<bool, Halt>,
-    ) -> Result<(), Halt> {
-        let start = link.now();
-        while let Some(&(first, _)) = axes.first() {
-            let until = link.now().saturating_add(self.policy.poll_interval);
-            if link.poll_pause(until).await.is_err() {
-                warn!(operation, "smc100: aborted");
-                return Err(Halt::Stop(first, AxisError::Aborted));
-            }
-            let mut still = Vec::new();
-            for (i, target) in axes {
-                let status = self.read_status(link, i).await.map_err(stop(i))?;
-                if busy(self, i, target, status, link.now().saturating_sub(start))? {
-                    still.push((i, target));
-                }
-            }
-            axes = still;
-        }
-        Ok(())
     }
 
     /// Polls `TS` of a controller that is silent while busy (booting after `RS`, saving
@@ -255,7 +170,7 @@ impl Smc100Session {
                 return Err(Halt::Stop(i, AxisError::WrongState { state, operation }));
             }
         }
-        self.poll(link, searching, "home", |s, i, _, st, elapsed| {
+        motion::poll(self, link, searching, "home", |s, i, _, st, elapsed| {
             let (state, errors) = (st.state, st.errors.0);
             if state.is_ready() {
                 debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
@@ -352,7 +267,7 @@ impl Smc100Session {
             } else {
                 0.0
             };
-            allow = allow.max(self.allowance(estimate));
+            allow = allow.max(motion::allowance(&self.policy, estimate));
             self.command(link, i, Command::MoveAbsolute(target))
                 .await
                 .map_err(stop(i))?;
@@ -374,19 +289,12 @@ impl Smc100Session {
         let target = from.map_err(|e| self.at(i, e))? + delta;
         self.check_limits(i, target).map_err(|e| self.at(i, e))?;
         let estimate = self.estimate(link, i, delta.abs().max(1e-6)).await?;
-        let allow = self.allowance(estimate);
+        let allow = motion::allowance(&self.policy, estimate);
         self.command(link, i, Command::MoveRelative(delta))
             .await
             .map_err(stop(i))?;
         debug!(axis = %self.axes[i].name, target, "smc100: relative move started");
         Ok(self.await_moves(link, vec![(i, target)], allow).await?[0])
-    }
-
-    /// How long a move may take: the margin plus the factor times the controller's
-    /// estimate.
-    fn allowance(&self, estimate: f64) -> Duration {
-        let p = &self.policy;
-        p.move_margin.saturating_add(secs(estimate * p.move_factor))
     }
 
     /// `PT`: how long the controller says a move of `distance` takes. A controller
@@ -420,29 +328,35 @@ impl Smc100Session {
         moves: Vec<(usize, f64)>,
         allow: Duration,
     ) -> Result<Vec<f64>, Halt> {
-        self.poll(link, moves.clone(), "move", |s, i, target, st, elapsed| {
-            let state = st.state;
-            let e = if state.is_ready() {
-                debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
-                return Ok(false);
-            } else if state.is_moving() {
-                if elapsed > allow {
-                    return Err(Halt::Overdue(i, "move", target, allow));
-                }
-                return Ok(true);
-            } else if state == ControllerState::NotReferencedFromReset {
-                AxisError::ControllerReset
-            } else if state.is_not_referenced() {
-                AxisError::NotReferenced { state }
-            } else if state.is_disabled() {
-                let errors = st.errors.0;
-                AxisError::Disabled { state, errors }
-            } else {
-                let operation = "moving";
-                AxisError::WrongState { state, operation }
-            };
-            Err(Halt::Stop(i, e))
-        })
+        motion::poll(
+            self,
+            link,
+            moves.clone(),
+            "move",
+            |s, i, target, st, elapsed| {
+                let state = st.state;
+                let e = if state.is_ready() {
+                    debug!(axis = %s.axes[i].name, %state, "smc100: stage READY");
+                    return Ok(false);
+                } else if state.is_moving() {
+                    if elapsed > allow {
+                        return Err(Halt::Overdue(i, "move", target, allow));
+                    }
+                    return Ok(true);
+                } else if state == ControllerState::NotReferencedFromReset {
+                    AxisError::ControllerReset
+                } else if state.is_not_referenced() {
+                    AxisError::NotReferenced { state }
+                } else if state.is_disabled() {
+                    let errors = st.errors.0;
+                    AxisError::Disabled { state, errors }
+                } else {
+                    let operation = "moving";
+                    AxisError::WrongState { state, operation }
+                };
+                Err(Halt::Stop(i, e))
+            },
+        )
         .await?;
         let mut positions = Vec::new();
         for (i, target) in moves {
@@ -551,5 +465,34 @@ impl Smc100Session {
             }),
             other => Err(self.unexpected(i, "TE", other, "not an error letter")),
         }
+    }
+}
+
+impl Motion for Smc100Session {
+    const FAMILY: &'static str = "smc100";
+    type Status = Status;
+
+    fn poll_interval(&self) -> Duration {
+        self.policy.poll_interval
+    }
+
+    fn axis_name(&self, i: usize) -> &str {
+        &self.axes[i].name
+    }
+
+    fn at(&self, i: usize, e: AxisError) -> MotionError {
+        Smc100Session::at(self, i, e)
+    }
+
+    async fn poll_status(&mut self, link: &Link, i: usize) -> Result<Status, AxisError> {
+        self.read_status(link, i).await
+    }
+
+    async fn stop_every(&mut self, link: &Link) -> Result<(), MotionError> {
+        self.stop_all(link).await
+    }
+
+    async fn position_of(&mut self, link: &Link, i: usize) -> Option<f64> {
+        self.read_number(link, i, Command::TellPosition).await.ok()
     }
 }
