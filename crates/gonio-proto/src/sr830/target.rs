@@ -353,19 +353,14 @@ pub struct WindowMean {
 /// 4e-18 at 24 dB/oct.
 const MAX_REFITS: usize = 400;
 
-/// The sequential rule for one reading after a change: snapshots go in as they come
-/// ([`push`](Self::push)); [`assess`](Self::assess) chooses the window — the run of
-/// latest snapshots whose mean has the smallest noise while the fitted transient's
-/// share of that mean, plus twice its standard deviation, stays under
-/// [`TRANSIENT_FRACTION`] of the target — and says whether its mean is precise
-/// enough. Early snapshots join the window once the window is long enough to dilute
-/// what transient they carry.
+/// The sequential rule (module doc) for one reading after a change: snapshots go in
+/// as they come ([`push`](Self::push)); [`assess`](Self::assess) chooses the window and
+/// says whether its mean is precise enough.
 #[derive(Clone, Debug)]
 pub struct Sequential {
     order: usize,
     snaps: Vec<Snap>,
     fit: Option<TransientFit>,
-    /// The window's first snapshot at the last assessment.
     start: Option<usize>,
     /// A change long enough ago that no step can still show (see [`Self::new`]).
     settled_before: bool,
