@@ -575,12 +575,8 @@ impl ReadEstimate {
     }
 }
 
-/// Snapshots of the rule simulated by [`estimate`] before the rest is counted from
-/// the noise alone (by then the window's start has settled).
 const ESTIMATE_SNAPSHOTS: usize = 48;
 
-/// Seeds of [`estimate`]'s simulated readings: fixed, so an estimate is a function of
-/// its arguments.
 const ESTIMATE_SEEDS: [u64; 2] = [0x5EED_0001, 0x5EED_0002];
 
 /// Σ_{i,j<n} ρ^|i−j| for snapshots equally spaced with correlation ρ.
@@ -596,9 +592,9 @@ fn correlation_sum(n: usize, rho: f64) -> f64 {
 /// constant `tc` and `slope`, with `exchange_s` the time of one `SNAP?` exchange. The
 /// rule itself is run ([`Sequential`]) on snapshots back to back from
 /// [`FIRST_SNAPSHOT_TC`] on, the step's exact response plus first-order noise of the
-/// law's variance, for two fixed seeds; past 48 snapshots the window's
-/// start is taken as found and its length as the noise needs (the exact correlation
-/// sum). The mean of the two is returned; the cap is not applied.
+/// law's variance, for two fixed seeds (so that it is a function of its arguments);
+/// past 48 snapshots the window's start is taken as found (it has settled by then)
+/// and its length as the noise needs (the exact correlation sum). The mean of the two is returned; the cap is not applied.
 pub fn estimate(
     expected: f64,
     step: f64,
