@@ -15,9 +15,8 @@ use crate::engine::{self, Fault, Link, Read, SessionCore, Task, secs};
 use crate::number;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
-/// a reading may start (after a range change or a change of the light), when the
-/// instrument will have finished measuring, and every decision of its operations. It
-/// does no I/O and reads no clock.
+/// a reading may start, when the instrument will have finished measuring, and its
+/// operations' decisions. It does no I/O and reads no clock.
 ///
 /// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; see [`Operation`](crate::link::Operation) for the order in which a caller drives it:

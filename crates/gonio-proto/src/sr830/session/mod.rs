@@ -17,9 +17,8 @@ use super::{
 use crate::engine::{self, Fault, Link, SessionCore, Task, secs};
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
-/// when its filters will have settled, and everything its operations decide: which
-/// command goes out next, what an answer means, when to wait, ask again, reopen the
-/// port or range. It does no I/O and reads no clock.
+/// when its filters will have settled, and its operations' decisions. It does no I/O
+/// and reads no clock.
 ///
 /// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
