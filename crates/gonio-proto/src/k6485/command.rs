@@ -53,8 +53,7 @@ command_table! {
         };
         /// `AVER:TCON REP|MOV`: the averaging filter type.
         FilterType(FilterType) = "AVER:TCON" set;
-        /// `AVER:COUN <n>`: the averaging filter count, 1 to 100 ("a simple average of
-        /// one to 100 reading conversions", p. 4-8; [`FILTER_COUNT`](super::FILTER_COUNT)).
+        /// `AVER:COUN <n>`: the averaging filter count, [`FILTER_COUNT`](super::FILTER_COUNT).
         FilterCount(u32) = "AVER:COUN" set, read: |p| count(p, FILTER_COUNT);
         /// `AVER ON|OFF`: the averaging filter.
         Filter(bool) = "AVER" set;

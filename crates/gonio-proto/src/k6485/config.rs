@@ -34,22 +34,21 @@ pub struct K6485Config {
     /// full scale in amps.
     #[serde(deserialize_with = "de_range")]
     pub range: Range,
-    /// Range from the host: up one range on an overflow, down one on a clean reading
-    /// under `min_fraction` of full scale, and read again (the instrument's own
-    /// autorange stays off, so that every reading's range is known).
+    /// Range from the host, up one on an overflow, down one per `min_fraction`, and read
+    /// again (the instrument's own autorange stays off, so that every reading's range is
+    /// known).
     pub autorange: bool,
     /// With autorange: a clean reading under this fraction of full scale steps one
     /// range down. In [0, 0.1): the next range is 10× smaller and overflows at 1.05 of
     /// its full scale, so a signal under 0.1 of this one cannot bounce back.
     pub min_fraction: f64,
-    /// Integration time, power line cycles: 0.01 up to the line frequency (50 or 60,
-    /// one second; p. 4-6).
+    /// Integration time, power line cycles: [`MIN_NPLC`](super::MIN_NPLC) up to
+    /// [`LineFrequency::max_nplc`](super::LineFrequency::max_nplc).
     pub nplc: f64,
     /// The mains frequency, Hz (50 or 60): what 1 PLC is, and what `SYST:LFR?` must
     /// answer at set-up.
     pub line_frequency_hz: u32,
-    /// Averaging filter count, 1..=100, the instrument's range for `AVER:COUN`
-    /// ("a simple average of one to 100 reading conversions", p. 4-8). 1 turns the
+    /// Averaging filter count, [`FILTER_COUNT`](super::FILTER_COUNT). 1 turns the
     /// filter off (`AVER OFF`), 2..=100 turn it on (`AVER:COUN n`, `AVER ON`).
     ///
     /// Why off rather than `AVER:COUN 1` with the filter on: an average of one
@@ -86,9 +85,7 @@ pub struct K6485Config {
 }
 
 impl Default for K6485Config {
-    /// 20 mA (safe for any input) with autorange down to 0.05 of full scale, 1 PLC at
-    /// 50 Hz, filter off, 10 samples, zero correction on, 100 ms after a range change,
-    /// settling to 1e-4, 1 s reply timeout, 2 re-asks, 3 reconnections 1 s apart.
+    /// 20 mA, safe for any input, with autorange and zero correction; filter off.
     fn default() -> Self {
         K6485Config {
             range: Range::LEAST,

@@ -20,9 +20,7 @@ const RANGE_LABELS: [&str; 8] = [
     "2 nA", "20 nA", "200 nA", "2 µA", "20 µA", "200 µA", "2 mA", "20 mA",
 ];
 
-/// 1-year accuracy, 18–28 °C, 0–70 % RH, ±(fraction of reading + offset amps), per
-/// range (Appendix A): 0.4 % + 400 fA, 0.4 % + 1 pA, 0.2 % + 10 pA, 0.15 % + 100 pA,
-/// 0.1 % + 1 nA, 0.1 % + 10 nA, 0.1 % + 100 nA, 0.1 % + 1 µA.
+/// (fraction of reading, offset amps) per range, for [`accuracy_a`].
 const ACCURACY: [(f64, f64); 8] = [
     (0.004, 400e-15),
     (0.004, 1e-12),
@@ -39,8 +37,8 @@ const ACCURACY: [(f64, f64); 8] = [
 /// (p. 4-5, Figure 4-1).
 const NOISE_RMS: [f64; 8] = [20e-15, 100e-15, 1e-12, 10e-12, 100e-12, 1e-9, 10e-9, 100e-9];
 
-/// Analog rise time (10 % to 90 %) per range, seconds (Appendix A): 8 ms on the two
-/// nA ranges (large feedback resistor), 500 µs on the others.
+/// Analog rise time (10 % to 90 %) per range, seconds (Appendix A); the nA ranges'
+/// large feedback resistor makes theirs slow.
 const RISE_S: [f64; 8] = [8e-3, 8e-3, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6, 500e-6];
 
 /// A reading over this multiple of full scale overflows (p. 4-2: "full scale readings
@@ -157,8 +155,7 @@ impl LineFrequency {
         1.0 / f64::from(self.hz())
     }
 
-    /// The largest NPLC the instrument accepts at this frequency (p. 4-6: 0.01 to 60 at
-    /// 60 Hz, 0.01 to 50 at 50 Hz: one second at most).
+    /// The largest NPLC the instrument accepts at this frequency: one second (p. 4-6).
     pub fn max_nplc(self) -> f64 {
         f64::from(self.hz())
     }

@@ -320,7 +320,7 @@ pub enum CommandError {
 }
 
 impl CommandError {
-    /// The `*ESR?` bit number the instrument sets: 5 (CMD) or 4 (EXE).
+    /// The `*ESR?` bit number the instrument sets.
     pub fn bit(&self) -> u8 {
         match self {
             CommandError::Unknown(_) | CommandError::Syntax(_) => 5,

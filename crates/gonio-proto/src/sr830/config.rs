@@ -158,9 +158,7 @@ impl Sr830Config {
 }
 
 impl Default for Sr830Config {
-    /// The `*RST` filter settings (1 V, 100 ms, 12 dB/oct; manual p. 4-4), 10 samples,
-    /// autorange on at 0.1 of full scale, 1 s reply timeout, 3 reconnections 1 s apart,
-    /// 2 re-asks of a lost read.
+    /// The `*RST` filter settings (1 V, 100 ms, 12 dB/oct; manual p. 4-4), with autorange.
     fn default() -> Self {
         Sr830Config {
             sensitivity: Sensitivity::default(),

@@ -62,10 +62,7 @@ crate::number::scpi_reply_error! {
     }
 }
 
-/// Writes a reply value: the shortest decimal that reads back exactly, with an
-/// exponent outside 1e-4 ≤ |v| < 1e9 so that six values of a `SNAP?` always fit the
-/// 256-byte output buffer. The firmware's own rule (`1000.00`, `-4.17234e-007`) is
-/// unconfirmed; parsers accept both.
+/// One value, as [`Reply::encode_body`] writes it.
 fn format_value(v: f64, out: &mut Vec<u8>) {
     use std::io::Write;
     if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
@@ -79,7 +76,10 @@ crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
 
 impl Reply {
     /// Appends the reply without terminator (what the instrument sends). Values must
-    /// be finite; floats are written as described at [`Reply::parse`].
+    /// be finite; each is the shortest decimal that reads back exactly, with an exponent
+    /// outside 1e-4 ≤ |v| < 1e9 so that six values of a `SNAP?` always fit the 256-byte
+    /// output buffer. The firmware's own rule ([`Reply::parse`]) is unconfirmed; parsers
+    /// accept both.
     pub fn encode_body(&self, out: &mut Vec<u8>) {
         let int = |i: u8, out: &mut Vec<u8>| out.extend_from_slice(i.to_string().as_bytes());
         match self {

@@ -55,7 +55,7 @@ index_table! {
 impl Sensitivity {
     /// The most sensitive range, 2 nV.
     pub const MOST: Sensitivity = Sensitivity(0);
-    /// The least sensitive range, 1 V (also the `*RST` default, p. 4-4).
+    /// The least sensitive range, 1 V.
     pub const LEAST: Sensitivity = Sensitivity(26);
 
     /// Full scale, volts.
@@ -114,7 +114,7 @@ coded_enum! {
     pub enum FilterSlope: u8, index / from_index {
         /// 6 dB/oct (index 0).
         Db6 = 0,
-        /// 12 dB/oct (index 1, the `*RST` default).
+        /// 12 dB/oct (index 1).
         Db12 = 1,
         /// 18 dB/oct (index 2).
         Db18 = 2,

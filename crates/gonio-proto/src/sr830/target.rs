@@ -353,19 +353,14 @@ pub struct WindowMean {
 /// 4e-18 at 24 dB/oct.
 const MAX_REFITS: usize = 400;
 
-/// The sequential rule for one reading after a change: snapshots go in as they come
-/// ([`push`](Self::push)); [`assess`](Self::assess) chooses the window — the run of
-/// latest snapshots whose mean has the smallest noise while the fitted transient's
-/// share of that mean, plus twice its standard deviation, stays under
-/// [`TRANSIENT_FRACTION`] of the target — and says whether its mean is precise
-/// enough. Early snapshots join the window once the window is long enough to dilute
-/// what transient they carry.
+/// The sequential rule (module doc) for one reading after a change: snapshots go in
+/// as they come ([`push`](Self::push)); [`assess`](Self::assess) chooses the window and
+/// says whether its mean is precise enough.
 #[derive(Clone, Debug)]
 pub struct Sequential {
     order: usize,
     snaps: Vec<Snap>,
     fit: Option<TransientFit>,
-    /// The window's first snapshot at the last assessment.
     start: Option<usize>,
     /// A change long enough ago that no step can still show (see [`Self::new`]).
     settled_before: bool,
@@ -580,12 +575,8 @@ impl ReadEstimate {
     }
 }
 
-/// Snapshots of the rule simulated by [`estimate`] before the rest is counted from
-/// the noise alone (by then the window's start has settled).
 const ESTIMATE_SNAPSHOTS: usize = 48;
 
-/// Seeds of [`estimate`]'s simulated readings: fixed, so an estimate is a function of
-/// its arguments.
 const ESTIMATE_SEEDS: [u64; 2] = [0x5EED_0001, 0x5EED_0002];
 
 /// Σ_{i,j<n} ρ^|i−j| for snapshots equally spaced with correlation ρ.
@@ -601,9 +592,9 @@ fn correlation_sum(n: usize, rho: f64) -> f64 {
 /// constant `tc` and `slope`, with `exchange_s` the time of one `SNAP?` exchange. The
 /// rule itself is run ([`Sequential`]) on snapshots back to back from
 /// [`FIRST_SNAPSHOT_TC`] on, the step's exact response plus first-order noise of the
-/// law's variance, for two fixed seeds; past 48 snapshots the window's
-/// start is taken as found and its length as the noise needs (the exact correlation
-/// sum). The mean of the two is returned; the cap is not applied.
+/// law's variance, for two fixed seeds (so that it is a function of its arguments);
+/// past 48 snapshots the window's start is taken as found (it has settled by then)
+/// and its length as the noise needs (the exact correlation sum). The mean of the two is returned; the cap is not applied.
 pub fn estimate(
     expected: f64,
     step: f64,

@@ -15,9 +15,8 @@ use crate::engine::{self, Fault, Link, Read, SessionCore, Task, secs};
 use crate::number;
 
 /// The 6485 as a state machine: its configuration, the range it was last set to, when
-/// a reading may start (after a range change or a change of the light), when the
-/// instrument will have finished measuring, and every decision of its operations. It
-/// does no I/O and reads no clock.
+/// a reading may start, when the instrument will have finished measuring, and its
+/// operations' decisions. It does no I/O and reads no clock.
 ///
 /// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; see [`Operation`](crate::link::Operation) for the order in which a caller drives it:
@@ -101,7 +100,7 @@ impl K6485Session {
         Task::run("k6485.read", now, self, Self::read)
     }
 
-    /// Sets the range (`CURR:RANG`); readings wait the range-change settling.
+    /// `CURR:RANG`; readings wait the range-change settling.
     pub fn start_set_range(&mut self, range: Range, now: Duration) -> Task<'_, (), K6485Error> {
         Task::run("k6485.set_range", now, self, async move |s, link| {
             s.ask(link, Command::SetRange(range)).await.map(drop)
@@ -168,8 +167,8 @@ impl K6485Session {
         tracing::debug!(range = %r, settle = ?wait, "k6485: range set");
     }
 
-    /// The port was reopened: whatever the instrument was doing is unknown now, and it
-    /// may have restarted, so readings wait as after a range change.
+    /// After a reopen the instrument's state is unknown (it may have restarted): readings
+    /// wait as after a range change.
     fn reopened(&mut self, now: Duration) {
         self.busy_until = now;
         let wait = self.config.range_settle().max(self.input_settle_time());
@@ -299,9 +298,7 @@ impl K6485Session {
         Ok(identity)
     }
 
-    /// A reading, cycle after cycle: see [`cycle`](Self::cycle). With autorange, an
-    /// overflow steps one range up, a clean reading under `min_fraction` of full scale
-    /// one range down, and the cycle runs again.
+    /// [`start_read`](Self::start_read)'s reading, one [`cycle`](Self::cycle) per range.
     async fn read(&mut self, link: &Link) -> Result<PicoReading, K6485Error> {
         let mut read = Read::new("k6485");
         loop {
@@ -346,10 +343,8 @@ impl K6485Session {
         }
     }
 
-    /// One read cycle: wait until settled, then `READ?` `samples` times (each answers
-    /// after its own integration, so they are spaced by it). With autorange an
-    /// overflow ends it at once (the other samples would overflow too). `None` if the
-    /// port was reopened meanwhile.
+    /// One read cycle. With autorange an overflow ends it at once (the other samples
+    /// would overflow too). `None` if the port was reopened meanwhile.
     async fn cycle(&mut self, link: &Link) -> Result<Option<Vec<Sample>>, K6485Error> {
         let reconnects = self.core.reconnects;
         self.settle(link).await;

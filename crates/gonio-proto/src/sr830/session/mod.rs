@@ -17,9 +17,8 @@ use super::{
 use crate::engine::{self, Fault, Link, SessionCore, Task, secs};
 
 /// The SR830 as a state machine: its configuration, the settings it was last set to,
-/// when its filters will have settled, and everything its operations decide: which
-/// command goes out next, what an answer means, when to wait, ask again, reopen the
-/// port or range. It does no I/O and reads no clock.
+/// when its filters will have settled, and its operations' decisions. It does no I/O
+/// and reads no clock.
 ///
 /// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
 /// finishes; its caller hands in bytes, lines, faults and times, and polls out what to
@@ -80,17 +79,21 @@ impl Sr830Session {
         })
     }
 
-    /// Takes the link and applies the configuration: input cleared, `OUTX 0`, `*IDN?`
-    /// (must be an SR830), `*CLS`, `SENS`, `OFLT`, `OFSL`, then `*ESR?`, whose reply also
-    /// proves every earlier command has run. Starts the settling wait.
+    /// Takes the link and applies the configuration: input cleared, `OUTX 0` (replies go
+    /// to GPIB until then), `*IDN?` (must name an SR830), `*CLS`, the configured `SENS`,
+    /// `OFLT`, `OFSL`, and `*ESR?`, whose answer also proves every earlier command has
+    /// run. It must show no refused command (EXE, CMD) and no lost one: an overflowed
+    /// input or output buffer clears both (manual p. 5-2), so INP or QRY means a command
+    /// may never have run. Starts the settling wait.
     pub fn start_setup(&mut self, now: Duration) -> Task<'_, Identity, Sr830Error> {
         Task::run("sr830.setup", now, self, Self::setup)
     }
 
     /// One averaged reading: the settling wait, `LIAS?` to clear latched bits, `samples`
-    /// × `SNAP? 1,2` one time constant apart, `LIAS?` for the flags; with autoranging,
-    /// a range change and a new reading on an overload or a small signal. Faults are
-    /// errors; an overloaded or unlocked reading is returned flagged.
+    /// × `SNAP? 1,2` one time constant apart, `LIAS?` for the flags. With autoranging, an
+    /// input or output overload steps one range less sensitive, a clean signal under
+    /// `min_fraction` of full scale one range more, and the reading starts again. Faults
+    /// are errors; an overloaded or unlocked reading is returned flagged.
     pub fn start_read(&mut self, now: Duration) -> Task<'_, super::Reading, Sr830Error> {
         Task::run("sr830.read", now, self, Self::read)
     }
@@ -139,7 +142,7 @@ impl Sr830Session {
         })
     }
 
-    /// Sets the sensitivity (`SENS`); readings wait for the filters to settle again.
+    /// `SENS`; readings wait for the filters to settle again.
     pub fn start_set_sensitivity(
         &mut self,
         sensitivity: Sensitivity,
@@ -149,7 +152,7 @@ impl Sr830Session {
         self.start_set("sr830.set_sensitivity", set, now)
     }
 
-    /// Sets the time constant (`OFLT`); readings wait for the filters to settle again.
+    /// `OFLT`; readings wait for the filters to settle again.
     pub fn start_set_time_constant(
         &mut self,
         time_constant: TimeConstant,
@@ -159,7 +162,7 @@ impl Sr830Session {
         self.start_set("sr830.set_time_constant", set, now)
     }
 
-    /// Sets the slope (`OFSL`); readings wait for the filters to settle again.
+    /// `OFSL`; readings wait for the filters to settle again.
     pub fn start_set_slope(
         &mut self,
         slope: FilterSlope,
@@ -178,7 +181,7 @@ impl Sr830Session {
         Task::run("sr830.event_status", now, self, Self::event_status)
     }
 
-    /// `command`, a set whose success has no reply of its own.
+    /// A set whose success has no reply of its own.
     fn start_set(
         &mut self,
         name: &'static str,
@@ -214,18 +217,17 @@ impl Sr830Session {
         self.sensitivity
     }
 
-    /// The time constant.
+    /// Likewise the time constant.
     pub fn time_constant(&self) -> TimeConstant {
         self.time_constant
     }
 
-    /// The filter slope.
+    /// Likewise the slope.
     pub fn slope(&self) -> FilterSlope {
         self.slope
     }
 
-    /// The port was reopened (and `OUTX 0` re-sent): the instrument may have
-    /// restarted, so its filters settle again.
+    /// After a reopen the instrument may have restarted: its filters settle again.
     fn reopened(&mut self, now: Duration) {
         debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
         self.mark_unsettled(now);
@@ -295,7 +297,6 @@ impl Sr830Session {
         Ok(reply)
     }
 
-    /// `LIAS?`: the LIA status byte (reading clears it).
     async fn lia_status(&mut self, link: &Link) -> Result<LiaStatus, Sr830Error> {
         let command = Command::LiaStatus(None);
         match self.ask(link, &command).await? {
@@ -304,7 +305,6 @@ impl Sr830Session {
         }
     }
 
-    /// `*ESR?`: the standard event status byte (reading clears it).
     async fn event_status(&mut self, link: &Link) -> Result<EventStatus, Sr830Error> {
         let command = Command::EventStatus(None);
         match self.ask(link, &command).await? {
@@ -313,11 +313,6 @@ impl Sr830Session {
         }
     }
 
-    /// Set-up: input cleared, `OUTX 0` (replies go to GPIB until then), `*IDN?` (must
-    /// name an SR830), `*CLS`, the configured `SENS`, `OFLT`, `OFSL`, and `*ESR?`, whose
-    /// answer also proves every earlier command has run. It must show no refused
-    /// command (EXE, CMD) and no lost one: an overflowed input or output buffer clears
-    /// both (manual p. 5-2), so INP or QRY means a command may never have run.
     async fn setup(&mut self, link: &Link) -> Result<Identity, Sr830Error> {
         link.clear_input();
         self.ask(link, &Command::SetInterface(Interface::Rs232))
@@ -348,9 +343,7 @@ impl Sr830Session {
         Ok(identity)
     }
 
-    /// `command` (or none, for a settings read-back alone); after `AGAN`, or alone, the
-    /// settings are read back (`SENS?`, `OFLT?`, `OFSL?`) and the settling wait
-    /// restarts.
+    /// `command`, or none for a settings read-back alone (as after `AGAN`).
     async fn execute(
         &mut self,
         link: &Link,

@@ -58,10 +58,7 @@ enum End {
 }
 
 impl Sr830Session {
-    /// The fixed read: a cycle (see [`cycle`](Self::cycle)), started again when it was
-    /// interrupted; with autorange, an input or output overload steps one range less
-    /// sensitive, a clean signal under `min_fraction` of full scale one range more,
-    /// and the cycle runs again.
+    /// The fixed read: a [`cycle`](Self::cycle), run again when interrupted or ranged.
     pub(super) async fn read(&mut self, link: &Link) -> Result<Reading, Sr830Error> {
         let mut read = Read::new("sr830");
         loop {
@@ -83,10 +80,9 @@ impl Sr830Session {
         }
     }
 
-    /// One cycle: wait until the filters have settled; `LIAS?` to clear the bits
-    /// latched while settling (asked again if its answer is lost: its value is not
-    /// used); `SNAP? 1,2` `samples` times, one time constant apart; `LIAS?` for the
-    /// flags. `None` when it must start again: the port was reopened during it (its
+    /// One cycle, as [`start_read`](Sr830Session::start_read) lists it; the first `LIAS?`
+    /// is asked again if its answer is lost (its value is not used). `None` when it must
+    /// start again: the port was reopened during it (its
     /// samples may predate an instrument restart), or the flags' answer was lost.
     async fn cycle(&mut self, link: &Link) -> Result<Option<Reading>, Sr830Error> {
         let reconnects = self.core.reconnects;
@@ -213,9 +209,7 @@ impl Sr830Session {
         }
     }
 
-    /// The targeted read: the time constant for the `expected` signal set first (with
-    /// a noise law and a range to choose from), then segments until one yields a
-    /// reading that autoranging keeps.
+    /// The targeted read: segments until one yields a reading that autoranging keeps.
     pub(super) async fn read_targeted(
         &mut self,
         link: &Link,
