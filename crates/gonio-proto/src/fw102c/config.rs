@@ -103,23 +103,9 @@ impl Filter {
     }
 }
 
-/// How a [`Fw102cSession`](super::Fw102cSession) drives the wheel. Embeddable in an
-/// instrument config file (TOML); every field has a default, unknown fields are
-/// refused:
-///
-/// ```toml
-/// positions = 6             # 6 (FW102C) or 12 (FW212C): what pcount? must answer
-/// speed = "high"            # or "low"
-/// sensors_off_when_idle = true
-/// band_tolerance_nm = 2.0
-/// timeout_ms = 1000
-/// move_timeout_ms = 15000
-/// poll_interval_ms = 100
-/// retries = 2
-/// reconnect_attempts = 3
-/// reconnect_delay_ms = 1000
-/// # [[filters]] ... (see Filter)
-/// ```
+/// How a [`Fw102cSession`](super::Fw102cSession) drives the wheel: a table of an
+/// instrument config file (TOML), each field defaulted (see `Default`), unknown fields
+/// refused; `speed` is `"high"` or `"low"`, `[[filters]]` as [`Filter`] shows.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Fw102cConfig {
@@ -179,7 +165,7 @@ crate::config::line_config!(
 );
 
 impl Fw102cConfig {
-    /// Checks every field's range; the first bad field is named in the error.
+    /// Checks every field's range; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let f = Fields::new(Some("fw102c"));
         f.check(

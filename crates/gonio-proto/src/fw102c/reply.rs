@@ -5,12 +5,8 @@ use std::fmt;
 
 use super::{Command, CommandError, SensorMode, Speed, TERMINATOR, TriggerMode};
 
-/// `line` without a leading prompt (`>` and the spaces after it, as many as there
-/// are) and without trailing spaces, tabs or LF.
-///
-/// The prompt ends every answer unterminated, so on a CR-framed link it begins the
-/// next line (`"> pos?"`); a lost command can leave two. A trailing LF is tolerated
-/// for a wheel or adapter that sends CR LF.
+/// `line` without leading prompts (`>` and spaces: a lost command can leave two) and
+/// without trailing spaces, tabs or LF (a wheel or adapter may send CR LF).
 pub fn strip_prompt(line: &[u8]) -> &[u8] {
     let mut rest = line;
     while let Some((&first, tail)) = rest.split_first() {
@@ -123,8 +119,7 @@ impl<'a> Line<'a> {
     }
 }
 
-/// Whether `text` (prompt stripped) is the echo of `command`. Case is ignored: the
-/// wheel echoes what it received, and the host sends lower case.
+/// Whether `text` (prompt stripped) echoes `command`, case ignored.
 pub(crate) fn is_echo(command: &Command, text: &[u8]) -> bool {
     crate::codec::echoes(command, text)
 }
@@ -159,8 +154,8 @@ pub enum ReplyError {
 }
 
 impl Reply {
-    /// Parses the value line answering `query` (prompt stripped, terminator removed).
-    /// Numbers are decimal digits; surrounding spaces are ignored.
+    /// The value line answering `query`, terminator removed: decimal digits,
+    /// surrounding spaces ignored.
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
         let digit = || -> Result<u8, ReplyError> {
