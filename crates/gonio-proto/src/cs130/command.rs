@@ -203,10 +203,9 @@ impl Command {
         )
     }
 
-    /// True when sending it twice does what sending it once does: everything but the
-    /// queries whose reading clears what they report (`STB?`, `ERROR?`, §15.9). Set
-    /// commands are absolute (a wavelength, a position, a state), so a lost echo may
-    /// be answered by sending the command again.
+    /// True when sending it twice does what sending it once does: all but `STB?` and
+    /// `ERROR?`, whose reading clears what they report (§15.9); set commands are
+    /// absolute (a wavelength, a position, a state).
     pub fn is_repeatable(&self) -> bool {
         !matches!(self, Command::Stb | Command::Error)
     }

@@ -236,10 +236,8 @@ impl Cs130Session {
         Ok(())
     }
 
-    /// `FILTER?` answered 0 with a wheel configured: "if there is no filter wheel
-    /// connected, or if the wheel is out of position, 0 is returned and an error is
-    /// set in the status byte" (Model 74000 command table). The error is read back
-    /// (`STB?`, `ERROR?`) so the unit is left clean.
+    /// `FILTER?` answered 0 with a wheel configured ([`Command::FilterQuery`]): the
+    /// error it set is read back (`STB?`, `ERROR?`) so the unit is left clean.
     async fn no_wheel(&mut self, link: &Link) -> Cs130Error {
         warn!("cs130: a filter wheel is configured but FILTER? answered 0");
         self.forget();
