@@ -158,35 +158,29 @@ impl Reply {
     /// surrounding spaces ignored.
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
+        let bad = ReplyError::BadValue;
         let digit = || -> Result<u8, ReplyError> {
-            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
-            crate::number::decimal(t.trim(), 3).ok_or(ReplyError::BadValue)
+            let t = std::str::from_utf8(text).map_err(|_| bad)?;
+            crate::number::decimal(t.trim(), 3).ok_or(bad)
         };
+        let nonzero = || digit().and_then(|n| (n != 0).then_some(n).ok_or(bad));
         match query {
             Command::Identify => {
-                let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
+                let t = std::str::from_utf8(text).map_err(|_| bad)?;
                 if t.is_empty() || t.chars().any(char::is_control) {
-                    return Err(ReplyError::BadValue);
+                    return Err(bad);
                 }
                 Ok(Reply::Identity(t.to_string()))
             }
-            Command::QueryPosition => match digit()? {
-                0 => Err(ReplyError::BadValue),
-                n => Ok(Reply::Position(n)),
-            },
-            Command::QueryPositionCount => match digit()? {
-                0 => Err(ReplyError::BadValue),
-                n => Ok(Reply::PositionCount(n)),
-            },
-            Command::QuerySpeed => Speed::from_digit(digit()?)
-                .map(Reply::Speed)
-                .ok_or(ReplyError::BadValue),
+            Command::QueryPosition => nonzero().map(Reply::Position),
+            Command::QueryPositionCount => nonzero().map(Reply::PositionCount),
+            Command::QuerySpeed => Speed::from_digit(digit()?).map(Reply::Speed).ok_or(bad),
             Command::QueryTrigger => TriggerMode::from_digit(digit()?)
                 .map(Reply::Trigger)
-                .ok_or(ReplyError::BadValue),
+                .ok_or(bad),
             Command::QuerySensors => SensorMode::from_digit(digit()?)
                 .map(Reply::Sensors)
-                .ok_or(ReplyError::BadValue),
+                .ok_or(bad),
             _ => Err(ReplyError::NotAQuery),
         }
     }
