@@ -9,7 +9,7 @@
 //! future with exactly one [`Pending`] (bytes to send, a reconnection, a reply by a
 //! deadline, a pause). So a running operation can never be left waiting for nothing,
 //! time is only what the pump says it is, and a test drives an operation on virtual
-//! time byte by byte, as before.
+//! time byte by byte.
 //!
 //! [`exchange`] is the link policy of every line family, written once: send, receive,
 //! clear the input and send again after a fault that may be retried, reopen a vanished
@@ -159,9 +159,8 @@ enum State<T> {
     Taken,
 }
 
-/// An operation running on a borrowed session `'s`, ending with `T` or the error `E`:
-/// the [`Operation`] every session's `start_*` methods return. It logs the operation's
-/// start and end at `debug`.
+/// The [`Operation`] every session's `start_*` returns: it runs on the borrowed session
+/// `'s`, ends with `T` or `E`, and logs its start and end at `debug`.
 pub struct Task<'s, T, E> {
     /// The operation's name, for the log (`smc100.move`, `sr830.read`).
     name: &'static str,
