@@ -19,25 +19,9 @@ pub const DEFAULT_BAND_TOLERANCE_NM: f64 = 2.0;
 /// rectangular bound.
 pub const CENTRE_UNCERTAINTY_NM: f64 = 1.2;
 
-/// One filter mounted in the wheel, as a config file writes it (`[[filters]]`):
-///
-/// ```toml
-/// [[filters]]
-/// position = 2
-/// kind = "bandpass"
-/// centre_nm = 550
-/// fwhm_nm = 10
-///
-/// [[filters]]
-/// position = 3
-/// kind = "longpass"
-/// cut_on_nm = 495
-///
-/// [[filters]]
-/// position = 6
-/// kind = "dark"     # an opaque blank: the wheel as a shutter
-/// ```
-///
+/// One filter mounted in the wheel: a `[[filters]]` entry, its `kind` one of
+/// `"bandpass"`, `"longpass"`, `"open"`, `"dark"` (an opaque blank: the wheel as a
+/// shutter), with the variant's fields (`position = 2`, `centre_nm = 550`, ...).
 /// `peak_transmittance` (0, 1] is optional on band-pass and long-pass filters
 /// (default 1); the simulated wheel scales its transmittance by it.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
