@@ -12,6 +12,21 @@ use crate::engine::{self, Link, SessionCore, Task};
 
 /// The FW102C as a sans-IO state machine; `gonio_driver::fw102c::Fw102c` pumps its
 /// operations over a port.
+///
+/// ```
+/// use std::time::Duration;
+/// use gonio_proto::fw102c::{Fw102cConfig, Fw102cSession, Fw102cError};
+/// use gonio_proto::link::{Io, Operation};
+///
+/// let mut session = Fw102cSession::new(Fw102cConfig::default(), "sim").unwrap();
+/// // Position 7 on a 6-position wheel: refused before any byte.
+/// let mut op = session.start_select(7, Duration::ZERO);
+/// assert_eq!(op.poll_io(), None);
+/// assert!(matches!(op.poll_output(), Some(Err(Fw102cError::PositionOutOfRange { .. }))));
+/// drop(op);
+/// let mut op = session.start_select(2, Duration::ZERO);
+/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"pos=2\r")));
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fw102cSession {
     core: SessionCore<Fw102cConfig, String>,
