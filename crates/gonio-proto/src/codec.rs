@@ -260,9 +260,7 @@ macro_rules! index_table {
         impl std::str::FromStr for $name {
             type Err = $err;
 
-            /// Reads a label as `Display` writes it (`"10 mV"`); spaces are optional and
-            /// `u` or `μ` may stand for `µ`. Prefixes are case-sensitive (`mV` is not
-            /// `MV`).
+            /// Reads a label as `Display` writes it (`"10 mV"`), by `find_label`'s rule.
             fn from_str($text: &str) -> Result<Self, Self::Err> {
                 $crate::codec::find_label(&$labels, $text).map($name).ok_or_else(|| $unknown)
             }

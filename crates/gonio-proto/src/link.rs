@@ -1,15 +1,12 @@
-//! The link between a session and its instrument, as a session sees it: the I/O it
-//! asks for ([`Io`]), what it waits for ([`Deadline`]), the faults a serial line
-//! reports ([`TransportError`]), and the interface every running operation offers its
-//! pump ([`Operation`]).
+//! The link between a session and its instrument, as a session sees it, and the
+//! interface every running operation offers its pump ([`Operation`]).
 
 use std::time::Duration;
 
 use crate::FrameError;
 
-/// Why an operation on the serial link failed: what a transport reports to the pump
-/// and the pump hands to a session (`handle_sent`, `handle_link_error`), and what the
-/// sessions' typed errors carry.
+/// Why an operation on the serial link failed, as a transport reports it and the
+/// sessions' typed errors carry it.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum TransportError {
     /// No complete line arrived in time.

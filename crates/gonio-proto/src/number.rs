@@ -1,11 +1,10 @@
 //! Numbers as the instruments write and read them.
 
-/// Formats `v` in the shortest decimal form that reads back to the same `f64`, without
-/// an exponent (both instruments accept plain decimals; exponents are accepted on input
-/// but not needed on output for the ranges a goniometer uses).
+/// `v` in the shortest decimal form that reads back to the same `f64` (`Display`'s),
+/// without an exponent: both instruments accept plain decimals, and the ranges a
+/// goniometer uses need no exponent.
 pub(crate) fn format(v: f64, out: &mut Vec<u8>) {
     use std::io::Write;
-    // Display prints no exponent and is the shortest representation that round-trips.
     let _ = write!(out, "{v}");
 }
 

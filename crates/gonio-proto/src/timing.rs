@@ -1,7 +1,6 @@
-//! How long bytes take on a serial line, and an exchange of a command and its reply:
-//! the arithmetic under each family's timing model (what `gonio plan check`
-//! estimates a run from) and under the simulator's wire, so that both count a byte
-//! the same way.
+//! How long bytes and exchanges take on a serial line: under each family's timing
+//! model (what `gonio plan check` estimates a run from) and the simulator's wire, so
+//! both count a byte the same way.
 
 /// Bits one byte takes on an asynchronous line: a start bit, eight data bits, a stop
 /// bit (8N1, the framing of every instrument here).

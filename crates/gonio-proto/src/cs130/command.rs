@@ -65,9 +65,9 @@ command_table! {
         /// `WAVE?`: the wavelength, in the present units (§15.4's example answers
         /// `500.01`).
         Wave = "WAVE" query;
-        /// `GRAT <n>`: select grating n (the drive turns the turret): "GRAT x Moves the
-        /// wavelength drive to the grating specified in the integer parameter" (Model
-        /// 74000 command table, whose turret has gratings 1 and 2).
+        /// `GRAT <n>`: "GRAT x Moves the wavelength drive to the grating specified in
+        /// the integer parameter" (Model 74000 command table, whose turret has gratings
+        /// 1 and 2).
         Grat(u8) = "GRAT" set;
         /// `GRAT?`: the grating in use, `n,lines,label` (Model 74000 command table; see
         /// [`Reply::Grating`](super::Reply::Grating)).
@@ -101,14 +101,13 @@ command_table! {
         /// (Model 74000 command table).
         Abort = "ABORT" set;
         /// `*WAI`: hold every later statement until the pending operations (a move) are
-        /// finished (§15.8). The session's way of knowing a move is done: the query sent
-        /// after it is answered only then.
+        /// finished (§15.8).
         Wai = "*WAI" set;
     }
 }
 
-/// A statement's parameter: what follows the keyword (from its first blank on, `""`
-/// for none), trimmed by each reader. Any refusal is error 2.
+/// What follows the keyword (from its first blank on, `""` for none), trimmed by each
+/// reader. Any refusal is error 2.
 impl Param<&str> for () {
     fn write(&self, _: &mut Vec<u8>) {}
     fn read(p: &str) -> Result<(), Refusal> {
@@ -193,9 +192,8 @@ impl CommandError {
 crate::codec::line_encoding!(Command, TERMINATOR);
 
 impl Command {
-    /// True for the statements that start or wait for a mechanism move (`GOWAVE`,
-    /// `GRAT`, `FILTER`, `*WAI`): after them the session allows `move_timeout` for
-    /// the next echoes and answers.
+    /// True for the statements that start or wait for a mechanism move: after them
+    /// the session allows `move_timeout` for the next echoes and answers.
     pub fn moves(&self) -> bool {
         matches!(
             self,
@@ -203,10 +201,9 @@ impl Command {
         )
     }
 
-    /// True when sending it twice does what sending it once does: everything but the
-    /// queries whose reading clears what they report (`STB?`, `ERROR?`, §15.9). Set
-    /// commands are absolute (a wavelength, a position, a state), so a lost echo may
-    /// be answered by sending the command again.
+    /// True when sending it twice does what sending it once does: all but `STB?` and
+    /// `ERROR?`, whose reading clears what they report (§15.9); set commands are
+    /// absolute (a wavelength, a position, a state).
     pub fn is_repeatable(&self) -> bool {
         !matches!(self, Command::Stb | Command::Error)
     }

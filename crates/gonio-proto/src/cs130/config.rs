@@ -1,7 +1,5 @@
-//! How a CS130 session drives the monochromator, as written in an instrument config
-//! file, and the two choices it makes for a wavelength: the grating
-//! ([`Cs130Config::grating_for`]) and the order-sorting filter
-//! ([`Cs130Config::order_filter_for`]).
+//! The CS130's config and the two choices it makes for a wavelength: the grating and
+//! the order-sorting filter.
 
 pub use crate::config::ConfigError;
 use crate::config::Fields;
@@ -29,12 +27,11 @@ pub const MAX_FILTER_POSITION: u8 = 6;
 /// connected" (Model 74000 command table).
 pub const NO_FILTER_WHEEL: u8 = 0;
 
-/// One grating on the turret: its number (`GRAT n`), groove density and the range
-/// the session uses it for.
+/// One grating on the turret.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GratingSpec {
-    /// Its number on the turret, 1..=[`MAX_GRATINGS`].
+    /// Its number on the turret (`GRAT n`), 1..=[`MAX_GRATINGS`].
     pub index: u8,
     /// Grooves per mm (informative: the run log and the light model name it).
     pub lines_per_mm: u32,
@@ -54,39 +51,9 @@ pub struct OrderFilterSpec {
     pub cut_on_nm: f64,
 }
 
-/// How a [`Cs130Session`](super::Cs130Session) drives the monochromator. Every field
-/// has a default and unknown fields are refused:
-///
-/// ```toml
-/// filter_wheel = true        # false: the unit has no filter wheel (see the field)
-/// auto_order_filter = true
-/// open_filter = 1            # the wheel position with no filter
-/// shortest_nm = 250.0        # shortest wavelength in the beam (lamp, optics)
-/// filter_margin_nm = 10.0
-/// position_tolerance_nm = 2.0
-/// echo = true
-/// timeout_ms = 1000
-/// move_timeout_ms = 60000
-/// retries = 2
-/// reconnect_attempts = 3
-/// reconnect_delay_ms = 1000
-///
-/// [[gratings]]
-/// index = 1
-/// lines_per_mm = 1200
-/// min_nm = 250.0
-/// max_nm = 900.0
-///
-/// [[gratings]]
-/// index = 2
-/// lines_per_mm = 600
-/// min_nm = 900.0
-/// max_nm = 2000.0
-///
-/// [[filters]]
-/// position = 2
-/// cut_on_nm = 335.0
-/// ```
+/// How a [`Cs130Session`](super::Cs130Session) drives the monochromator: a TOML table,
+/// each field defaulted (see `Default`), unknown fields refused; `[[gratings]]` and
+/// `[[filters]]` are arrays of [`GratingSpec`] and [`OrderFilterSpec`].
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Cs130Config {
@@ -98,15 +65,12 @@ pub struct Cs130Config {
     pub filters: Vec<OrderFilterSpec>,
     /// The wheel position with no filter (the open position), 1..=6. Default 1.
     pub open_filter: u8,
-    /// The monochromator has a filter wheel (default true, so configs written before
-    /// this field keep their meaning). A unit without one answers `FILTER?` with `0`
-    /// and flags an error in the status byte (Model 74000 command table), so with
-    /// `false` the session never sends `FILTER?` or `FILTER n`, and reports filter
-    /// position [`NO_FILTER_WHEEL`]. It needs `auto_order_filter = false`: there is no
-    /// wheel to sort orders with, and above 2 × `shortest_nm` the second order must
-    /// then be blocked some other way (the config says so rather than letting it pass
-    /// silently). `filters` and `open_filter` are not used. With `true`, a `FILTER?`
-    /// answered `0` fails the operation with
+    /// The unit has a filter wheel (default true, so older configs keep their
+    /// meaning). With `false` the session never sends `FILTER?` or `FILTER n` (a unit
+    /// without a wheel answers `0` and flags an error) and reports
+    /// [`NO_FILTER_WHEEL`]; `filters` and `open_filter` are unused, and
+    /// `auto_order_filter` must be false: above 2 × `shortest_nm` the second order
+    /// must then be blocked some other way. With `true`, `FILTER?` answering `0` is
     /// [`Cs130Error::NoFilterWheel`](super::Cs130Error::NoFilterWheel).
     pub filter_wheel: bool,
     /// Choose and set the order-sorting filter before every move (`FILTER`). Needs
@@ -212,7 +176,7 @@ pub enum SelectError {
 }
 
 impl Cs130Config {
-    /// Checks every field's range; the first bad field is named in the error.
+    /// Checks every field's range; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let f = Fields::new(Some("cs130"));
         if self.gratings.is_empty() {

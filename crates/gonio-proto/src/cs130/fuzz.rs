@@ -19,8 +19,8 @@ pub fn fuzz_parse_line(data: &[u8]) {
     codec::fuzz_commands(data, |d| vec![Command::parse(d)], RoundTrip::Stable);
 }
 
-/// Parses `data[1..]` as the answer to a query chosen by `data[0]`; an answer that
-/// parses is encoded, and its encoding must parse and encode to the same bytes.
+/// Parses `data[1..]` as the answer to the query `data[0]` picks; an answer that
+/// parses encodes to bytes that parse and encode to themselves.
 pub fn fuzz_parse_reply(data: &[u8]) {
     // One query of each answer kind, and a command that must be refused.
     let queries = [

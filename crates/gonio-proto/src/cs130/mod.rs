@@ -16,8 +16,9 @@
 //!
 //! Errors set the status byte to 32 until `STB?` reads it, and `ERROR?` tells which
 //! (§15.9); `STB?` prints it in decimal, `32` or `00` (§15.9; the Model 74000 command
-//! table), and any nonzero answer counts as an error ([`StatusByte`]). `*WAI` holds every later statement until pending operations (a move) are
-//! done (§15.8), which is how the session knows that a move has ended.
+//! table), and any nonzero answer counts as an error ([`StatusByte`]). `*WAI` holds
+//! every later statement until pending operations (a move) are done (§15.8), which
+//! is how the session knows that a move has ended.
 //!
 //! ```
 //! use gonio_proto::cs130::{Command, Reply, is_echo};
@@ -63,8 +64,7 @@ pub const MAX_LINE: usize = 256;
 /// commands" (§15.8). The session never has more than one outstanding.
 pub const INPUT_BUFFER_STATEMENTS: usize = 20;
 
-/// What the monochromator is set to, as read back or as set by statements whose
-/// status was checked.
+/// What the monochromator is set to, read back or set with its status checked.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MonoState {
     /// The wavelength `WAVE?` reads back, nm.
@@ -119,11 +119,8 @@ pub enum Cs130Error {
     /// The status byte reported an error, and `ERROR?` this code (§15.9).
     #[error("the CS130 refused a statement: error {0}")]
     Rejected(ErrorCode),
-    /// The config has a filter wheel (`filter_wheel = true`, the default), but
-    /// `FILTER?` answered `0`: "if there is no filter wheel connected, or if the wheel
-    /// is out of position, 0 is returned and an error is set in the status byte"
-    /// (Model 74000 command table). The session has read that error back (`STB?`,
-    /// then `ERROR?`), so the unit is left with a clear status byte.
+    /// `filter_wheel = true` but `FILTER?` answered `0` (no wheel connected, or out of
+    /// position); the error it set is read back, leaving the status byte clear.
     #[error(
         "CS130: no filter wheel answered (FILTER? gave 0{}: no wheel connected, or the \
          wheel out of position); fit or seat the wheel, or, if this unit has none, set \

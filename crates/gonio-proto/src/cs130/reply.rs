@@ -22,15 +22,13 @@ pub enum Reply {
         /// Its label, when answered.
         label: Option<String>,
     },
-    /// `FILTER?`: the filter wheel's position, 1 to 6; `0` when "there is no filter
-    /// wheel connected, or … the wheel is out of position", which also sets an error
-    /// in the status byte (Model 74000 command table, `FILTER`).
+    /// `FILTER?`: the filter wheel's position, 1 to 6; `0` without a wheel (see
+    /// [`Command::FilterQuery`]).
     Filter(u8),
-    /// `SHUTTER?`: true when open (`O`), false when closed (`C`): "The response to
-    /// SHUTTER? is simply the one character parameter" (Model 74000 command table).
+    /// `SHUTTER?`: true when open (`O`), false when closed (`C`) (see
+    /// [`Command::ShutterQuery`]).
     Shutter(bool),
-    /// `STB?`: the status byte (§15.9), printed in decimal: `32` after an error, `00`
-    /// otherwise (see [`StatusByte`] for the parsing rule).
+    /// `STB?`: the status byte (§15.9; [`StatusByte`]).
     Status(StatusByte),
     /// `ERROR?`: the latest error code (§15.9).
     Error(ErrorCode),
@@ -53,16 +51,14 @@ pub enum ReplyError {
 }
 
 /// True when `line` (terminator removed) is the echo of `command`: the instrument
-/// "echoes back all characters it receives on the RS232 port" (§15.4), so the echo is
-/// the statement as sent; case and surrounding blanks are ignored so that a
-/// statement typed in lower case still matches.
+/// "echoes back all characters it receives on the RS232 port" (§15.4); case and
+/// surrounding blanks are ignored, so a statement typed in lower case still matches.
 pub fn is_echo(command: &Command, line: &[u8]) -> bool {
     crate::codec::echoes(command, line.trim_ascii())
 }
 
 impl Reply {
-    /// Parses `line` (terminator removed) as the answer to `query`. Surrounding
-    /// blanks are ignored.
+    /// `line` (terminator removed, blanks ignored) as the answer to `query`.
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = std::str::from_utf8(line).map_err(|_| ReplyError::BadValue)?;
         let text = text.trim_matches(|c: char| c.is_ascii_whitespace());

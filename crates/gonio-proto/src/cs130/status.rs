@@ -8,26 +8,21 @@ use std::fmt;
 ///
 /// # On the wire: decimal
 ///
-/// Both manuals give the value in decimal: the CS130B's §15.9 ("set to the value
-/// 32"), and the older Cornerstone 130 (Model 74000) command table: "STB? … The
-/// response will be 32 when an error occurred or 00 when no error is present. Reading
-/// this code clears the status byte." (second-hand text, see
-/// `docs/instruments/cs130.md`). So the instrument prints `32` or `00`. (Gonio once
-/// read it as two hexadecimal digits, `00`/`20`, after the Cornerstone 260 manual's
-/// §16.7; both CS130 texts contradict that.)
+/// Both manuals give it in decimal: the CS130B's §15.9 ("set to the value 32"), and
+/// the Model 74000 command table: "STB? … The response will be 32 when an error
+/// occurred or 00 when no error is present. Reading this code clears the status
+/// byte." (second-hand text, see `docs/instruments/cs130.md`). (Gonio once read it as
+/// hexadecimal, `00`/`20`, after the Cornerstone 260 manual's §16.7; both CS130 texts
+/// contradict that.)
 ///
-/// [`StatusByte::parse`]'s rule, which is right for everything the manuals say the
-/// unit prints and safe for anything else:
+/// [`StatusByte::parse`]'s rule, right for what the manuals say and safe otherwise:
 ///
-/// - the answer is 1 to 3 decimal digits, read as a decimal number 0..=255 (`0`,
-///   `00`, `32`); anything else (a sign, a hex letter, a fraction) is not a status
-///   byte and the exchange fails, so it is never taken for a clean one;
+/// - 1 to 3 decimal digits, 0..=255 (`0`, `00`, `32`); anything else (a sign, a hex
+///   letter, a fraction) fails the exchange, so it is never taken for a clean byte;
 /// - **zero means no error; any nonzero value means an error is flagged**, and the
-///   session then reads `ERROR?`. The manuals name one nonzero value, 32, but the
-///   test does not depend on it: zero is zero in every base and a number whose
-///   digits are not all zero is nonzero in every base, so a unit that printed 32 as
-///   the CS260's hexadecimal `20` is still seen to flag an error (it is kept as the
-///   decimal value 20, which only changes what the log shows).
+///   session reads `ERROR?`. Zero is zero in every base and nonzero digits are
+///   nonzero in every base, so a unit printing 32 as the CS260's hexadecimal `20` is
+///   still seen to flag an error (kept as decimal 20, which only changes the log).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StatusByte(pub u8);
 
@@ -36,14 +31,12 @@ impl StatusByte {
     /// bit 5. The twin sets this; [`error`](Self::error) accepts any nonzero value.
     pub const ERROR: u8 = 32;
 
-    /// Reads an `STB?` answer (terminator and surrounding blanks removed) by the rule
-    /// above: 1 to 3 decimal digits, 0..=255; `None` for anything else.
+    /// An `STB?` answer (terminator and blanks removed) by the rule above.
     pub fn parse(text: &str) -> Option<StatusByte> {
         crate::number::decimal(text, 3).map(StatusByte)
     }
 
-    /// True when an error is flagged: any nonzero value (32 is the manual's, §15.9),
-    /// after which `ERROR?` tells which error.
+    /// True when an error is flagged: any nonzero value; `ERROR?` tells which.
     pub fn error(self) -> bool {
         self.0 != 0
     }

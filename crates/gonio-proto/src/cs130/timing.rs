@@ -1,7 +1,5 @@
-//! What the monochromator's operations cost on the wire, for planning: the take-over
-//! at start-up and the statements around a change of wavelength, each as the
-//! session's operation makes them (`session/ops.rs`), with every statement echoed
-//! when the config says the instrument echoes (§15.4).
+//! What the monochromator's operations cost on the wire, for planning, as the
+//! session's operations make them, echoes included when configured (§15.4).
 
 use gonio_core::spectral_timing::ChangeExchanges;
 
@@ -31,8 +29,8 @@ impl Cs130Config {
         wire_s(self.exchange_bytes(command, answer), baud) + latency
     }
 
-    /// The take-over at start-up (the session's `init`): `INFO?`, `UNITS NM`,
-    /// `GRAT?`, `FILTER?` (with a wheel), `SHUTTER?`, `WAVE?`, `STB?`, s.
+    /// The session's `init` (`INFO?`, `UNITS NM`, `GRAT?`, `FILTER?` with a wheel,
+    /// `SHUTTER?`, `WAVE?`, `STB?`), s.
     pub fn init_s(&self, baud: u32) -> f64 {
         let mut statements = vec![
             (

@@ -62,10 +62,9 @@ pub(crate) trait Wire {
     fn reopened(&mut self, now: Duration);
 }
 
-/// Sends `bytes` (the command `command`) and returns what `receive` makes of the
-/// answer (it has the session, to note what the answer changes), sending again up to
-/// `retries` times after a transient fault and reopening a vanished port as the
-/// session's [`Policy`] allows.
+/// Sends `bytes` (named `command`) and returns what `receive` makes of the answer
+/// (given the session, to note what it changes), sending again up to `retries` times
+/// after a transient fault and reopening a vanished port as [`Policy`] allows.
 pub(crate) async fn exchange<S: Wire, T>(
     s: &mut S,
     link: &Link,

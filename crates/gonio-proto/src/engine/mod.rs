@@ -9,7 +9,7 @@
 //! future with exactly one [`Pending`] (bytes to send, a reconnection, a reply by a
 //! deadline, a pause). So a running operation can never be left waiting for nothing,
 //! time is only what the pump says it is, and a test drives an operation on virtual
-//! time byte by byte, as before.
+//! time byte by byte.
 //!
 //! [`exchange`] is the link policy of every line family, written once: send, receive,
 //! clear the input and send again after a fault that may be retried, reopen a vanished
@@ -159,9 +159,8 @@ enum State<T> {
     Taken,
 }
 
-/// An operation running on a borrowed session `'s`, ending with `T` or the error `E`:
-/// the [`Operation`] every session's `start_*` methods return. It logs the operation's
-/// start and end at `debug`.
+/// The [`Operation`] every session's `start_*` returns: it runs on the borrowed session
+/// `'s`, ends with `T` or `E`, and logs its start and end at `debug`.
 pub struct Task<'s, T, E> {
     /// The operation's name, for the log (`smc100.move`, `sr830.read`).
     name: &'static str,
@@ -252,6 +251,15 @@ impl<'s, T, E: std::fmt::Display> Task<'s, T, E> {
             "session: an event the operation does not wait for, ignored"
         );
     }
+
+    /// Hands `event` in if the operation waits for what `fits`; else logs it ignored.
+    fn answer(&mut self, now: Duration, what: &str, fits: fn(&Pending) -> bool, event: Event) {
+        if self.waiting().is_some_and(fits) {
+            self.feed(now, Some(event));
+        } else {
+            self.ignored(what);
+        }
+    }
 }
 
 impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
@@ -293,31 +301,23 @@ impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
     }
 
     fn handle_sent(&mut self, now: Duration, result: Result<(), TransportError>) {
-        match self.waiting() {
-            Some(Pending::Transmit(_)) => self.feed(now, Some(Event::Io(result.map(|()| vec![])))),
-            _ => self.ignored("sent"),
-        }
+        let fits = |p: &Pending| matches!(p, Pending::Transmit(_));
+        self.answer(now, "sent", fits, Event::Io(result.map(|()| vec![])));
     }
 
     fn handle_reconnected(&mut self, now: Duration, result: Result<(), TransportError>) {
-        match self.waiting() {
-            Some(Pending::Reconnect) => self.feed(now, Some(Event::Io(result.map(|()| vec![])))),
-            _ => self.ignored("reconnected"),
-        }
+        let fits = |p: &Pending| matches!(p, Pending::Reconnect);
+        self.answer(now, "reconnected", fits, Event::Io(result.map(|()| vec![])));
     }
 
     fn handle_line(&mut self, now: Duration, line: &[u8]) {
-        match self.waiting() {
-            Some(Pending::Reply(_)) => self.feed(now, Some(Event::Io(Ok(line.to_vec())))),
-            _ => self.ignored("line"),
-        }
+        let fits = |p: &Pending| matches!(p, Pending::Reply(_));
+        self.answer(now, "line", fits, Event::Io(Ok(line.to_vec())));
     }
 
     fn handle_link_error(&mut self, now: Duration, error: TransportError) {
-        match self.waiting() {
-            Some(Pending::Reply(_)) => self.feed(now, Some(Event::Io(Err(error)))),
-            _ => self.ignored("link error"),
-        }
+        let fits = |p: &Pending| matches!(p, Pending::Reply(_));
+        self.answer(now, "link error", fits, Event::Io(Err(error)));
     }
 
     fn handle_timeout(&mut self, now: Duration) {
@@ -332,10 +332,8 @@ impl<T, E: std::fmt::Display> Operation for Task<'_, T, E> {
     }
 
     fn handle_abort(&mut self, now: Duration) {
-        match self.waiting() {
-            Some(Pending::Poll(_)) => self.feed(now, Some(Event::Abort)),
-            _ => self.ignored("abort"),
-        }
+        let fits = |p: &Pending| matches!(p, Pending::Poll(_));
+        self.answer(now, "abort", fits, Event::Abort);
     }
 }
 

@@ -1,6 +1,4 @@
-//! What every line family's session shares besides the link policy: its [`SessionCore`]
-//! (configuration, port, identity and counts, with their getters), the receive loop of
-//! an answer ([`receive`]), and a read's restarts and range changes ([`Read`]).
+//! What every line family's session shares besides the link policy.
 
 use std::time::Duration;
 
@@ -53,19 +51,16 @@ impl<C, I> SessionCore<C, I> {
     }
 }
 
-/// A line family's session `$session`, whose [`SessionCore`]`<$config, $identity>` is
-/// its field `core`: `Deref` to it (so the getters are the core's), and the engine's
-/// [`Wire`](super::Wire), all from the core and the error `$error`'s `Transport`,
-/// `Disconnected` and `Protocol` variants (a garbled reply, like a lost one, is worth
-/// sending again). A reopening is counted, then handed to the session's own
-/// `fn reopened(&mut self, now: Duration)` (what it forgets); `after_reopen`, when
-/// given, is what must be sent first on a reopened port, with its name.
+/// For `$session`, whose [`SessionCore`]`<$config, $identity>` is its field `core`:
+/// `Deref` to the core, and the engine's [`Wire`](super::Wire) from the core and
+/// `$error`'s `Transport`, `Disconnected` and `Protocol` variants (a garbled reply,
+/// like a lost one, is worth sending again). A reopening is counted, then handed to
+/// the session's own `fn reopened(&mut self, now: Duration)` (what it forgets).
 ///
-/// With the codec's `$command`, `$reply` and `$reply_error`, it also writes the
-/// family module's `name` (a command as sent, without terminator: how errors and the
-/// log name it), `protocol` (the error of a line that does not answer a command) and
-/// `unexpected` (a reply of another kind than the query's, which cannot happen since
-/// `Reply::parse` answers by query: reported as a protocol error rather than a panic).
+/// Also writes the family module's `name` (a command as sent, without terminator:
+/// how errors and the log name it), `protocol` and `unexpected` (a reply of another
+/// kind than the query's, which `Reply::parse` cannot give: a protocol error rather
+/// than a panic).
 macro_rules! line_session {
     ($session:ty: $family:literal, $config:ty, $identity:ty, $error:ident;
         $command:ty, $reply:ty, $reply_error:ident $(; after_reopen: $first:expr)?) => {

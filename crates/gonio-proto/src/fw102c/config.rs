@@ -19,25 +19,9 @@ pub const DEFAULT_BAND_TOLERANCE_NM: f64 = 2.0;
 /// rectangular bound.
 pub const CENTRE_UNCERTAINTY_NM: f64 = 1.2;
 
-/// One filter mounted in the wheel, as a config file writes it (`[[filters]]`):
-///
-/// ```toml
-/// [[filters]]
-/// position = 2
-/// kind = "bandpass"
-/// centre_nm = 550
-/// fwhm_nm = 10
-///
-/// [[filters]]
-/// position = 3
-/// kind = "longpass"
-/// cut_on_nm = 495
-///
-/// [[filters]]
-/// position = 6
-/// kind = "dark"     # an opaque blank: the wheel as a shutter
-/// ```
-///
+/// One filter mounted in the wheel: a `[[filters]]` entry, its `kind` one of
+/// `"bandpass"`, `"longpass"`, `"open"`, `"dark"` (an opaque blank: the wheel as a
+/// shutter), with the variant's fields (`position = 2`, `centre_nm = 550`, ...).
 /// `peak_transmittance` (0, 1] is optional on band-pass and long-pass filters
 /// (default 1); the simulated wheel scales its transmittance by it.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
@@ -103,23 +87,9 @@ impl Filter {
     }
 }
 
-/// How a [`Fw102cSession`](super::Fw102cSession) drives the wheel. Embeddable in an
-/// instrument config file (TOML); every field has a default, unknown fields are
-/// refused:
-///
-/// ```toml
-/// positions = 6             # 6 (FW102C) or 12 (FW212C): what pcount? must answer
-/// speed = "high"            # or "low"
-/// sensors_off_when_idle = true
-/// band_tolerance_nm = 2.0
-/// timeout_ms = 1000
-/// move_timeout_ms = 15000
-/// poll_interval_ms = 100
-/// retries = 2
-/// reconnect_attempts = 3
-/// reconnect_delay_ms = 1000
-/// # [[filters]] ... (see Filter)
-/// ```
+/// How a [`Fw102cSession`](super::Fw102cSession) drives the wheel: a table of an
+/// instrument config file (TOML), each field defaulted (see `Default`), unknown fields
+/// refused; `speed` is `"high"` or `"low"`, `[[filters]]` as [`Filter`] shows.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Fw102cConfig {
@@ -179,7 +149,7 @@ crate::config::line_config!(
 );
 
 impl Fw102cConfig {
-    /// Checks every field's range; the first bad field is named in the error.
+    /// Checks every field's range; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let f = Fields::new(Some("fw102c"));
         f.check(

@@ -11,9 +11,8 @@ pub fn fuzz_parse_line(data: &[u8]) {
     codec::fuzz_commands(data, |d| vec![Command::parse(d)], RoundTrip::Exact);
 }
 
-/// Classifies `data[1..]` as a received line and parses it as the value of a query
-/// chosen by `data[0]`; a value that parses encodes to a line that parses to the same
-/// value, and only a query has one.
+/// Classifies `data[1..]` and parses it as the value of the query `data[0]` picks; a
+/// value that parses round-trips, and only a query has one.
 pub fn fuzz_parse_reply(data: &[u8]) {
     let queries = [
         Command::Identify,

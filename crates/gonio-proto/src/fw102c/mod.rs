@@ -12,8 +12,7 @@
 //! - A command is ASCII ended by CR: "All strings (commands and queries) must be
 //!   terminated by a carriage return" (§5.2), and "All commands and queries are in
 //!   lower case letters" (p. 11): `*idn?`, `pos=3`, `pos?`, `pcount?`, `speed=1`,
-//!   `trig=0`, `sensors=0`, `save`, `baud=0|1` (p. 11). Serial: 115200 baud, 8N1, no
-//!   flow control (§5.2; `baud=0` selects 9600, p. 11).
+//!   `trig=0`, `sensors=0`, `save`, `baud=0|1` (p. 11). Serial: see [`BAUD`].
 //! - The wheel **echoes** every command, CR included (ISIS, Odemis: driver only), then
 //!   sends a query's value and CR, then the prompt: "The prompt symbol '>' will appear
 //!   on power-up and after a command is accepted" (User Guide Rev M); that a space
@@ -26,8 +25,7 @@
 //! Because the prompt carries no terminator, a CR-framed link sees it at the start of
 //! the next line: `"> pos?"`; the power-up prompt likewise begins the first line the
 //! host reads (`"> *idn?"`). [`strip_prompt`] removes it; the session therefore cannot
-//! see a set command end, and reads back (`pos?`, `speed?`) what it set instead. Every
-//! command Gonio encodes is lower case, as p. 11 requires.
+//! see a set command end, and reads back (`pos?`, `speed?`) what it set instead.
 //!
 //! ```
 //! use gonio_proto::fw102c::{Command, Reply};
@@ -57,13 +55,12 @@ pub use session::Fw102cSession;
 /// and of every reply line (ISIS's driver: `terminator = CR`; driver only).
 pub const TERMINATOR: u8 = b'\r';
 
-/// The prompt the wheel sends at power-up and when it is ready for the next command,
-/// unterminated: `>` is the User Guide's (Rev M, quoted by ISIS); the space after it
-/// is Odemis's, which reads up to `"> "` (UNCONFIRMED).
+/// The prompt, unterminated: `>` is the User Guide's (Rev M, quoted by ISIS); the
+/// space after it is Odemis's, which reads up to `"> "` (UNCONFIRMED).
 pub const PROMPT: &[u8] = b"> ";
 
-/// The factory baud rate, 115.2 kbaud (§5.2; `baud=1`, p. 11); 8 data bits, no parity,
-/// one stop bit, no flow control (§5.2).
+/// The factory baud rate, 115.2 kbaud (§5.2; `baud=1`, p. 11; `baud=0` selects 9600);
+/// 8 data bits, no parity, one stop bit, no flow control (§5.2).
 pub const BAUD: u32 = 115_200;
 
 /// The longest reply line a framer should accept: `*idn?` answers about 50
@@ -73,10 +70,9 @@ pub const MAX_LINE: usize = 128;
 /// The wheel sizes the firmware knows (`pcount=`): 6 (FW102C) or 12 (FW212C).
 pub const POSITION_COUNTS: [u8; 2] = [6, 12];
 
-/// What Gonio relies on about the FW102C that no manual page checked confirms, with how
-/// to settle it on a wheel. `docs/instruments/fw102c.md` ("UNCONFIRMED") lists the same
-/// facts in the same words; `gonio instrument selftest` names them for a wheel it
-/// finds. Confirmed facts (with their pages) are in that document's tables.
+/// What Gonio relies on that no manual page checked confirms, and how to settle it on
+/// a wheel; `docs/instruments/fw102c.md` ("UNCONFIRMED") lists the same facts in the
+/// same words, and `gonio instrument selftest` names them.
 pub const UNCONFIRMED: &[crate::Unconfirmed] = &[
     crate::Unconfirmed {
         fact: "`Command error CMD_ARG_INVALID` as the answer to a bad value",

@@ -5,12 +5,8 @@ use std::fmt;
 
 use super::{Command, CommandError, SensorMode, Speed, TERMINATOR, TriggerMode};
 
-/// `line` without a leading prompt (`>` and the spaces after it, as many as there
-/// are) and without trailing spaces, tabs or LF.
-///
-/// The prompt ends every answer unterminated, so on a CR-framed link it begins the
-/// next line (`"> pos?"`); a lost command can leave two. A trailing LF is tolerated
-/// for a wheel or adapter that sends CR LF.
+/// `line` without leading prompts (`>` and spaces: a lost command can leave two) and
+/// without trailing spaces, tabs or LF (a wheel or adapter may send CR LF).
 pub fn strip_prompt(line: &[u8]) -> &[u8] {
     let mut rest = line;
     while let Some((&first, tail)) = rest.split_first() {
@@ -123,8 +119,7 @@ impl<'a> Line<'a> {
     }
 }
 
-/// Whether `text` (prompt stripped) is the echo of `command`. Case is ignored: the
-/// wheel echoes what it received, and the host sends lower case.
+/// Whether `text` (prompt stripped) echoes `command`, case ignored.
 pub(crate) fn is_echo(command: &Command, text: &[u8]) -> bool {
     crate::codec::echoes(command, text)
 }
@@ -159,39 +154,33 @@ pub enum ReplyError {
 }
 
 impl Reply {
-    /// Parses the value line answering `query` (prompt stripped, terminator removed).
-    /// Numbers are decimal digits; surrounding spaces are ignored.
+    /// The value line answering `query`, terminator removed: decimal digits,
+    /// surrounding spaces ignored.
     pub fn parse(query: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
         let text = strip_prompt(line);
+        let bad = ReplyError::BadValue;
         let digit = || -> Result<u8, ReplyError> {
-            let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
-            crate::number::decimal(t.trim(), 3).ok_or(ReplyError::BadValue)
+            let t = std::str::from_utf8(text).map_err(|_| bad)?;
+            crate::number::decimal(t.trim(), 3).ok_or(bad)
         };
+        let nonzero = || digit().and_then(|n| (n != 0).then_some(n).ok_or(bad));
         match query {
             Command::Identify => {
-                let t = std::str::from_utf8(text).map_err(|_| ReplyError::BadValue)?;
+                let t = std::str::from_utf8(text).map_err(|_| bad)?;
                 if t.is_empty() || t.chars().any(char::is_control) {
-                    return Err(ReplyError::BadValue);
+                    return Err(bad);
                 }
                 Ok(Reply::Identity(t.to_string()))
             }
-            Command::QueryPosition => match digit()? {
-                0 => Err(ReplyError::BadValue),
-                n => Ok(Reply::Position(n)),
-            },
-            Command::QueryPositionCount => match digit()? {
-                0 => Err(ReplyError::BadValue),
-                n => Ok(Reply::PositionCount(n)),
-            },
-            Command::QuerySpeed => Speed::from_digit(digit()?)
-                .map(Reply::Speed)
-                .ok_or(ReplyError::BadValue),
+            Command::QueryPosition => nonzero().map(Reply::Position),
+            Command::QueryPositionCount => nonzero().map(Reply::PositionCount),
+            Command::QuerySpeed => Speed::from_digit(digit()?).map(Reply::Speed).ok_or(bad),
             Command::QueryTrigger => TriggerMode::from_digit(digit()?)
                 .map(Reply::Trigger)
-                .ok_or(ReplyError::BadValue),
+                .ok_or(bad),
             Command::QuerySensors => SensorMode::from_digit(digit()?)
                 .map(Reply::Sensors)
-                .ok_or(ReplyError::BadValue),
+                .ok_or(bad),
             _ => Err(ReplyError::NotAQuery),
         }
     }

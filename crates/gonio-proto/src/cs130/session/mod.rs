@@ -1,7 +1,5 @@
-//! The monochromator's policy as a sans-IO state machine, [`Cs130Session`]: its
-//! operations as the manual's procedures (set-up, a move, the shutter, a read-back),
-//! each an `async fn` the engine runs, and its exchange (a statement, its echo and
-//! answer, the hold after `*WAI`).
+//! [`Cs130Session`]: the manual's procedures (set-up, a move, the shutter, a
+//! read-back) as `async fn`s the engine runs, and the hold after `*WAI`.
 
 use std::time::Duration;
 
@@ -42,30 +40,9 @@ impl Known {
     }
 }
 
-/// The Cornerstone 130 as a state machine: its configuration, what it is set to as far
-/// as the session knows, whether a `*WAI` holds it, and every decision of its
-/// operations. It does no I/O and reads no clock.
-///
-/// Each `start_*` method starts an [`Operation`](crate::link::Operation) that borrows the session until it
-/// finishes; see [`Operation`](crate::link::Operation) for the order in which a caller drives it:
-///
-/// ```
-/// use std::time::Duration;
-/// use gonio_proto::link::{Io, Operation};
-/// use gonio_proto::cs130::{Cs130Config, Cs130Error, Cs130Session};
-///
-/// let mut session = Cs130Session::new(Cs130Config::default(), "sim").unwrap();
-/// // Outside every grating's range: refused before any byte.
-/// let mut op = session.start_go(2500.0, Duration::ZERO);
-/// assert_eq!(op.poll_io(), None);
-/// assert!(matches!(op.poll_output(), Some(Err(Cs130Error::Select(_)))));
-/// drop(op);
-/// let mut op = session.start_shutter(false, Duration::ZERO);
-/// assert_eq!(op.poll_io(), Some(Io::Transmit(b"SHUTTER C\r\n")));
-/// ```
-///
-/// `gonio_driver::cs130::Cs130` is the pump that runs these operations over a serial
-/// port.
+/// The Cornerstone 130 as a sans-IO state machine. Each `start_*` returns an
+/// [`Operation`](crate::link::Operation) that borrows the session until it finishes;
+/// `gonio_driver::cs130::Cs130` pumps them over a serial port.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Cs130Session {
     /// Its identity is what `INFO?` answered at init.
@@ -81,12 +58,11 @@ engine::line_session! {
 }
 
 impl Cs130Session {
-    /// The port was reopened: counted only, since every operation ends with the
-    /// settings read back or checked through `STB?`, and a failed one forgets them.
+    /// Counted only: every operation ends with the settings read back or checked
+    /// through `STB?`, and a failed one forgets them.
     fn reopened(&mut self, _: Duration) {}
 
-    /// A session for the monochromator on `port` (its name, for errors); nothing is
-    /// sent until an operation starts. Fails if `config` does not
+    /// A session on `port` (its name, for errors); fails if `config` does not
     /// [`validate`](Cs130Config::validate).
     pub fn new(config: Cs130Config, port: impl Into<String>) -> Result<Self, Cs130Error> {
         config.validate()?;
@@ -97,38 +73,32 @@ impl Cs130Session {
         })
     }
 
-    /// Takes the instrument over: input cleared; `INFO?` (any answer is accepted and
-    /// kept); `UNITS NM`; `GRAT?`, `FILTER?` (only with `filter_wheel`), `SHUTTER?`,
-    /// `WAVE?`; then `STB?`, which must show no error (else `ERROR?`, and
-    /// [`Cs130Error::Rejected`]).
+    /// Input cleared; `INFO?` (any answer kept); `UNITS NM`; `GRAT?`, `FILTER?` (only
+    /// with `filter_wheel`), `SHUTTER?`, `WAVE?`; `STB?`, which must show no error
+    /// (else `ERROR?`, and [`Cs130Error::Rejected`]).
     ///
-    /// A unit without a filter wheel answers `FILTER?` with `0` and flags an error
-    /// (Model 74000 command table), so a config with `filter_wheel = false` does not
-    /// ask; with a wheel configured, a `0` is read back through `STB?` and `ERROR?`
-    /// and reported as [`Cs130Error::NoFilterWheel`], which names the config field.
+    /// A unit without a wheel answers `FILTER?` with `0` and flags an error (Model
+    /// 74000 command table); with a wheel configured, a `0` is read back through
+    /// `STB?` and `ERROR?` and reported as [`Cs130Error::NoFilterWheel`].
     pub fn start_init(&mut self, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::run("cs130.init", now, self, Self::init)
     }
 
-    /// Goes to `nm`. Before any byte: the grating whose range holds `nm`
-    /// ([`Cs130Config::grating_for`]) and, with `auto_order_filter`, the filter
-    /// ([`Cs130Config::order_filter_for`]); a wavelength either refuses ends the
-    /// operation with [`Cs130Error::Select`] and nothing sent. Then, in order:
-    /// `GRAT n` if the grating differs from the one in use (or is unknown),
-    /// `FILTER n` likewise (never without `filter_wheel`), `GOWAVE nm`, `*WAI` (later
-    /// statements wait for the move,
-    /// §15.8), `WAVE?` (answered once the move is done, within `move_timeout`), the
-    /// queries of any setting still unknown, and `STB?`: an error bit is reported
-    /// with `ERROR?`'s code. The read-back wavelength must lie within
-    /// `position_tolerance_nm` of `nm`; it is what the returned state carries.
+    /// Goes to `nm`. Before any byte, [`Cs130Config::grating_for`] and (with
+    /// `auto_order_filter`) [`Cs130Config::order_filter_for`]; a refusal is
+    /// [`Cs130Error::Select`] with nothing sent. Then `GRAT n` and `FILTER n` where
+    /// they differ from what is known (never `FILTER` without `filter_wheel`),
+    /// `GOWAVE nm`, `*WAI` (later statements wait for the move, §15.8), `WAVE?`
+    /// (answered once the move is done, within `move_timeout`), queries of unknown
+    /// settings, `STB?` (an error bit is reported with `ERROR?`'s code). The read-back
+    /// wavelength must lie within `position_tolerance_nm` of `nm`.
     pub fn start_go(&mut self, nm: f64, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::run("cs130.go", now, self, async move |s, link| {
             s.go(link, nm).await
         })
     }
 
-    /// Opens (`SHUTTER O`) or closes (`SHUTTER C`) the shutter, reads any unknown
-    /// setting, and checks `STB?`.
+    /// `SHUTTER O` or `SHUTTER C`, any unknown setting read, `STB?` checked.
     pub fn start_shutter(&mut self, open: bool, now: Duration) -> Task<'_, MonoState, Cs130Error> {
         Task::run("cs130.shutter", now, self, async move |s, link| {
             s.shutter(link, open).await
@@ -141,9 +111,8 @@ impl Cs130Session {
         Task::run("cs130.read_state", now, self, Self::read_state)
     }
 
-    /// Sends any statement and, for a query, reads its answer, with the link policy
-    /// of every exchange. The session's idea of the settings is forgotten when the
-    /// statement may change them, so the next operation reads them again.
+    /// Any statement and, for a query, its answer. The known settings are forgotten
+    /// when it may change them or fails, so the next operation reads them again.
     pub fn start_execute<'s>(
         &'s mut self,
         command: &Command,
@@ -155,7 +124,7 @@ impl Cs130Session {
         })
     }
 
-    /// What the session knows the instrument is set to, when it knows every setting.
+    /// The instrument's settings, when every one is known.
     pub fn state(&self) -> Option<MonoState> {
         self.known.state()
     }
@@ -165,25 +134,19 @@ impl Cs130Session {
         self.core.identity.as_deref()
     }
 
-    /// Forgets every setting (after an error, or a statement that may change them),
-    /// so that the next operation reads or sets them again.
     fn forget(&mut self) {
         self.known = Known::fresh(self.config.filter_wheel);
     }
 
-    /// Sends a statement, reads its echo (when the config says the instrument echoes,
-    /// §15.4) and, for a query, its answer.
+    /// A statement, its echo (when configured, §15.4) and, for a query, its answer.
     ///
-    /// - Echo and answer are each due `timeout` after the statement was sent. After a
-    ///   `*WAI` (§15.8) the instrument holds later statements until the move is done,
-    ///   and after `GRAT`, `FILTER` or `GOWAVE` it may be busy (the manual does not
-    ///   say whether it echoes meanwhile: **UNCONFIRMED**), so until a query has been
-    ///   answered they are due `move_timeout` after.
-    /// - A line that is not the echo, or not a valid answer, is a protocol fault.
+    /// - Each is due `timeout` after sending. After `*WAI` (§15.8) the instrument
+    ///   holds later statements until the move is done, and after `GRAT`, `FILTER` or
+    ///   `GOWAVE` it may be busy (whether it echoes meanwhile: **UNCONFIRMED**), so
+    ///   until a query is answered they are due `move_timeout` after.
     /// - Every statement but `STB?` and `ERROR?`, whose reading clears what they
-    ///   report (§15.9), is sent again after a lost, late or garbled line, up to
-    ///   `retries` times. Set statements are absolute, so sending one twice is
-    ///   harmless.
+    ///   report (§15.9), is resent after a lost, late or garbled line, up to `retries`
+    ///   times: set statements are absolute, so twice is harmless.
     async fn ask(&mut self, link: &Link, command: &Command) -> Result<Option<Reply>, Cs130Error> {
         let c = &self.config;
         let wait = if self.held {
@@ -227,9 +190,8 @@ impl Cs130Session {
         Ok(reply)
     }
 
-    /// One statement of an operation, and what its answer means for the settings the
-    /// session knows. A failure forgets them all (whatever was being set is unknown);
-    /// an error bit in `STB?` is reported with `ERROR?`'s code.
+    /// One statement and what its answer means for the known settings. A failure
+    /// forgets them all (whatever was being set is unknown).
     async fn step(&mut self, link: &Link, command: Command) -> Result<(), Cs130Error> {
         let reply = match self.ask(link, &command).await {
             Ok(reply) => reply,
@@ -274,11 +236,8 @@ impl Cs130Session {
         Ok(())
     }
 
-    /// A wheel is configured but `FILTER?` answered 0: "if there is no filter wheel
-    /// connected, or if the wheel is out of position, 0 is returned and an error is
-    /// set in the status byte" (Model 74000 command table). The error is read back
-    /// (`STB?`, then `ERROR?`), so the unit is left clean, and the failure names the
-    /// config field.
+    /// `FILTER?` answered 0 with a wheel configured ([`Command::FilterQuery`]): the
+    /// error it set is read back (`STB?`, `ERROR?`) so the unit is left clean.
     async fn no_wheel(&mut self, link: &Link) -> Cs130Error {
         warn!("cs130: a filter wheel is configured but FILTER? answered 0");
         self.forget();
@@ -332,8 +291,7 @@ impl Cs130Session {
         Ok(())
     }
 
-    /// The state, every setting known, with the wavelength within
-    /// `position_tolerance_nm` of the one asked for.
+    /// The state, with the wavelength within `position_tolerance_nm` of `asked_nm`.
     fn reached(&self, asked_nm: Option<f64>) -> Result<MonoState, Cs130Error> {
         let Some(state) = self.known.state() else {
             return Err(unexpected(&Command::Wave, None));
@@ -357,8 +315,6 @@ impl Cs130Session {
         Ok(state)
     }
 
-    /// Set-up: input cleared, nothing known taken for granted, `INFO?`, `UNITS NM`,
-    /// every setting read, `STB?`.
     async fn init(&mut self, link: &Link) -> Result<MonoState, Cs130Error> {
         link.clear_input();
         self.forget();
@@ -367,22 +323,17 @@ impl Cs130Session {
         self.confirm(link, None).await
     }
 
-    /// Every setting read back.
     async fn read_state(&mut self, link: &Link) -> Result<MonoState, Cs130Error> {
         self.forget();
         self.read_unknown(link).await?;
         self.reached(None)
     }
 
-    /// `SHUTTER O` or `SHUTTER C`, then the check.
     async fn shutter(&mut self, link: &Link, open: bool) -> Result<MonoState, Cs130Error> {
         self.step(link, Command::Shutter(open)).await?;
         self.confirm(link, None).await
     }
 
-    /// A move: grating and order filter chosen before any byte; `GRAT n` and
-    /// `FILTER n` where they differ from what is known; `GOWAVE` (from below);
-    /// `*WAI`; `WAVE?`; then the check against `nm`.
     async fn go(&mut self, link: &Link, nm: f64) -> Result<MonoState, Cs130Error> {
         let c = &self.config;
         let (grating, min_nm, filter) = c
@@ -420,8 +371,6 @@ impl Cs130Session {
         self.confirm(link, Some(nm)).await
     }
 
-    /// Any statement and, for a query, its answer; the settings are forgotten when it
-    /// may change them or fails.
     async fn execute(
         &mut self,
         link: &Link,

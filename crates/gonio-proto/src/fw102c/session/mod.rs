@@ -1,6 +1,5 @@
-//! The wheel's policy as a sans-IO state machine, [`Fw102cSession`]: its operations as
-//! the manual's procedures (set-up, a move, a position read), each an `async fn` the
-//! engine runs, and its receive rule (a command's echo and, for a query, its value).
+//! [`Fw102cSession`]: the manual's procedures (set-up, a move, a position read) as
+//! `async fn`s the engine runs, and its receive rule (an echo, then a query's value).
 
 use std::time::Duration;
 
@@ -11,8 +10,8 @@ use super::{Command, Fw102cConfig, Fw102cError, Line, Reply, ReplyError, SensorM
 use crate::TransportError;
 use crate::engine::{self, Link, SessionCore, Task};
 
-/// The FW102C as a state machine: its configuration, the position it last read, and
-/// every decision of its operations. It does no I/O and reads no clock.
+/// The FW102C as a sans-IO state machine; `gonio_driver::fw102c::Fw102c` pumps its
+/// operations over a port.
 ///
 /// ```
 /// use std::time::Duration;
@@ -28,8 +27,6 @@ use crate::engine::{self, Link, SessionCore, Task};
 /// let mut op = session.start_select(2, Duration::ZERO);
 /// assert_eq!(op.poll_io(), Some(Io::Transmit(b"pos=2\r")));
 /// ```
-///
-/// `gonio_driver::fw102c::Fw102c` is the pump that runs these operations over a port.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Fw102cSession {
     core: SessionCore<Fw102cConfig, String>,
@@ -50,13 +47,12 @@ fn not_applied(set: Command, read: u8) -> Fw102cError {
 }
 
 impl Fw102cSession {
-    /// The port was reopened: the wheel may have been moved or power-cycled meanwhile.
+    /// The wheel may have been moved or power-cycled meanwhile.
     fn reopened(&mut self, _: Duration) {
         self.position = None;
     }
 
-    /// A session for the wheel on `port` (its name, for errors); nothing is sent until
-    /// an operation starts. Fails if `config` does not validate.
+    /// A session on `port` (its name, for errors); fails if `config` does not validate.
     pub fn new(config: Fw102cConfig, port: impl Into<String>) -> Result<Self, Fw102cError> {
         config.validate()?;
         Ok(Fw102cSession {
@@ -65,18 +61,17 @@ impl Fw102cSession {
         })
     }
 
-    /// Takes the wheel over: `*idn?` (must name a FW102C or FW212C), `pcount?` (must
-    /// equal `positions`), `speed=` and `speed?`, with `sensors_off_when_idle`
-    /// `sensors=0` and `sensors?`, then `pos?`. Each set is read back, because a set
-    /// command's success has no line of its own (see [`crate::fw102c`]). Returns the
-    /// identification string.
+    /// `*idn?` (must name a FW102C or FW212C), `pcount?` (must equal `positions`),
+    /// `speed=` and `speed?`, with `sensors_off_when_idle` `sensors=0` and `sensors?`,
+    /// `pos?`. Each set is read back: its success has no line of its own (see
+    /// [`crate::fw102c`]). Returns the identification string.
     pub fn start_init(&mut self, now: Duration) -> Task<'_, String, Fw102cError> {
         Task::run("fw102c.init", now, self, Self::init)
     }
 
-    /// Turns the wheel to `position`: refused before any byte outside
-    /// 1..=`positions`; then `pos=n` and `pos?` every `poll_interval_ms` until it reads
-    /// n, for at most `move_timeout_ms` ([`Fw102cError::MoveTimeout`]).
+    /// Refused before any byte outside 1..=`positions`; then `pos=n` and `pos?` every
+    /// `poll_interval_ms` until it reads n, for at most `move_timeout_ms`
+    /// ([`Fw102cError::MoveTimeout`]).
     pub fn start_select(&mut self, position: u8, now: Duration) -> Task<'_, (), Fw102cError> {
         Task::run("fw102c.select", now, self, async move |s, link| {
             s.select(link, position).await
@@ -93,24 +88,21 @@ impl Fw102cSession {
         self.position
     }
 
-    /// The identification string set-up read, once it has run.
+    /// What `*idn?` answered at set-up.
     pub fn identity(&self) -> Option<&str> {
         self.core.identity.as_deref()
     }
 
-    /// Sends `command`, reads its echo and, for a query, its value line.
+    /// `command`, its echo and, for a query, its value line.
     ///
-    /// - A set command ends at its echo: success is only the prompt, which carries no
-    ///   CR, and a refusal comes as a line after the echo. So a set is followed by a
-    ///   query (`after` names the set), and a `Command error` line that arrives before
-    ///   that query's echo is the set's refusal.
-    /// - Lines holding only the prompt are skipped; the prompt is stripped from the
-    ///   start of every line.
+    /// - A set ends at its echo: success is only the prompt, which carries no CR, and
+    ///   a refusal comes as a line after the echo. So a set is followed by a query
+    ///   (`after` names the set), and a `Command error` line before that query's echo
+    ///   is the set's refusal.
     /// - The echo is due `timeout` after sending, or at `until` if later (a `pos?`
     ///   during a move may be answered only once the wheel stops), the value `timeout`
     ///   after the echo.
-    /// - Every command Gonio sends is safe to repeat: a lost, late or garbled line
-    ///   sends it again, up to `retries` times.
+    /// - Every command Gonio sends is safe to repeat, up to `retries` times.
     async fn ask(
         &mut self,
         link: &Link,
@@ -180,7 +172,6 @@ impl Fw102cSession {
         self.query(link, query, Some(set)).await
     }
 
-    /// Set-up, as [`start_init`](Self::start_init) lists it.
     async fn init(&mut self, link: &Link) -> Result<String, Fw102cError> {
         let identity = match self.query(link, Command::Identify, None).await? {
             Reply::Identity(id) => id,
@@ -224,9 +215,6 @@ impl Fw102cSession {
         Ok(identity)
     }
 
-    /// A move: the position checked against the wheel's count before any byte,
-    /// `pos=n`, then `pos?` every `poll_interval` until it reads n, for at most
-    /// `move_timeout`.
     async fn select(&mut self, link: &Link, target: u8) -> Result<(), Fw102cError> {
         let positions = self.config.positions;
         if !(1..=positions).contains(&target) {
@@ -280,7 +268,6 @@ impl Fw102cSession {
         }
     }
 
-    /// `pos?`.
     async fn read_position(&mut self, link: &Link) -> Result<u8, Fw102cError> {
         match self.query(link, Command::QueryPosition, None).await? {
             Reply::Position(p) => {
