@@ -415,3 +415,32 @@ macro_rules! command_table {
     };
 }
 pub(crate) use command_table;
+
+/// Named status bits, declared once: a row each, `NAME = value "its name in messages"`
+/// under its doc, makes the constant and its row of `NAMES`, the table [`bit_names`]
+/// reads. `impl` before the type declares them as associated constants.
+macro_rules! status_bits {
+    (impl $t:ty; $($(#[$doc:meta])* $name:ident = $v:literal $text:literal,)*) => {
+        $($(#[$doc])* pub const $name: $t = $v;)*
+        /// Every named bit, with its name for messages.
+        pub(crate) const NAMES: &[($t, &str)] = &[$((Self::$name, $text)),*];
+    };
+    ($t:ty; $($(#[$doc:meta])* $name:ident = $v:literal $text:literal,)*) => {
+        $($(#[$doc])* pub const $name: $t = $v;)*
+        /// Every named bit, with its name for messages.
+        const NAMES: &[($t, &str)] = &[$(($name, $text)),*];
+    };
+}
+pub(crate) use status_bits;
+
+/// The names of the bits set in `bits`, in the order of `names`.
+pub(crate) fn bit_names<T>(bits: T, names: &[(T, &'static str)]) -> Vec<&'static str>
+where
+    T: Copy + Default + PartialEq + std::ops::BitAnd<Output = T>,
+{
+    names
+        .iter()
+        .filter(|(m, _)| bits & *m != T::default())
+        .map(|(_, n)| *n)
+        .collect()
+}

@@ -4,7 +4,7 @@
 //! that apply to them; the KDC101 documents the limit, motion, homing, tracking,
 //! settled, motion-error, current-limit and enabled bits.
 
-crate::motion::status_bits! {
+crate::codec::status_bits! {
     u32;
     /// Forward (clockwise) hardware limit switch active.
     FWD_HW_LIMIT = 0x0000_0001 "forward limit switch",
@@ -80,5 +80,5 @@ pub const FAULTS: u32 = MOTION_ERROR
 
 /// The names of the bits set in `bits`, for messages.
 pub fn describe(bits: u32) -> Vec<&'static str> {
-    crate::motion::bit_names(bits, NAMES)
+    crate::codec::bit_names(bits, NAMES)
 }

@@ -16,6 +16,7 @@
 //! port after a pause.
 
 mod exchange;
+pub(crate) mod motion;
 mod session;
 
 pub(crate) use exchange::{Fault, Policy, Wire, exchange, reopen_at_once, send_reopening};

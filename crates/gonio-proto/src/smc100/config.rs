@@ -44,6 +44,15 @@ pub struct ChainPolicy {
     pub move_factor: f64,
 }
 
+impl ChainPolicy {
+    /// How long a move may take: the margin plus the factor times the move's
+    /// estimated duration, `estimate_s`.
+    pub(crate) fn allowance(&self, estimate_s: f64) -> Duration {
+        self.move_margin
+            .saturating_add(crate::engine::secs(estimate_s * self.move_factor))
+    }
+}
+
 impl Default for ChainPolicy {
     fn default() -> Self {
         ChainPolicy {

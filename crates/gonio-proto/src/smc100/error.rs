@@ -189,5 +189,33 @@ pub struct ControllerInfo {
 
 /// A positioner error word's named bits, for messages.
 pub fn describe_errors(e: PositionerErrors) -> Vec<&'static str> {
-    crate::motion::bit_names(e.0, PositionerErrors::NAMES)
+    crate::codec::bit_names(e.0, PositionerErrors::NAMES)
+}
+
+impl crate::engine::motion::AxisFault for AxisError {
+    fn aborted() -> Self {
+        AxisError::Aborted
+    }
+
+    fn overdue(
+        operation: &'static str,
+        target: f64,
+        position: Option<f64>,
+        waited: Duration,
+    ) -> Self {
+        AxisError::Timeout {
+            operation,
+            target,
+            position,
+            waited,
+        }
+    }
+}
+
+/// Why a motion of either family ended early (`engine::motion`).
+pub(crate) type Halt = crate::engine::motion::Halt<AxisError, MotionError>;
+
+/// An axis' failure during a motion, which stops every stage.
+pub(crate) fn stop(axis: usize) -> impl FnOnce(AxisError) -> Halt {
+    move |e| Halt::Stop(axis, e)
 }

@@ -29,6 +29,7 @@ pub mod timing;
 pub use command::{Command, CommandError, Frame, Param};
 pub use config::{AxisConfig, ChainPolicy};
 pub use error::{AxisError, ControllerInfo, MotionError, describe_errors};
+pub(crate) use error::{Halt, stop};
 pub use params::{DumpError, DumpReader, Smc100Parameters};
 pub use reply::{Reply, ReplyBody, ReplyError};
 pub use session::Smc100Session;

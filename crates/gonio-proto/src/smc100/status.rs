@@ -205,7 +205,7 @@ impl fmt::Display for ControllerState {
 pub struct PositionerErrors(pub u16);
 
 impl PositionerErrors {
-    crate::motion::status_bits! {
+    crate::codec::status_bits! {
         impl u16;
         /// Negative end of run (limit switch).
         NEGATIVE_END_OF_RUN = 0x0001 "negative end of run",

@@ -13,7 +13,9 @@ use super::message::name_of;
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, status};
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
-use crate::motion::{self, AxisError, Halt, MotionError};
+use crate::engine::motion;
+use crate::motion::{AxisError, MotionError};
+use crate::smc100::Halt;
 use crate::smc100::ChainPolicy;
 
 crate::config::axis_config! {

@@ -17,7 +17,9 @@ use crate::apt::{
     VelParams, status,
 };
 use crate::engine::{self, Link, secs};
-use crate::motion::{self, AxisError, Halt, Motion, MotionError, stop};
+use crate::engine::motion::{self, Motion};
+use crate::motion::{AxisError, MotionError};
+use crate::smc100::{Halt, stop};
 
 /// Polls after a move was sent before a still stage away from its target counts as
 /// stopped short (a controller may take a moment to report motion).
@@ -380,7 +382,7 @@ impl AptSession {
         // The policy's margin plus its factor times the trapezoid's duration.
         let (v, a) = self.axis.motion();
         let t = gonio_core::motion::trapezoid_time(target - st.position_deg, v, a);
-        let allow = motion::allowance(&self.policy, t);
+        let allow = self.policy.allowance(t);
         let stage = self.stage();
         let command = if relative {
             Message::MoveRelative {
@@ -533,6 +535,8 @@ impl AptSession {
 impl Motion for AptSession {
     const FAMILY: &'static str = "apt";
     type Status = AptStatus;
+    type AxisError = AxisError;
+    type Error = MotionError;
 
     fn poll_interval(&self) -> Duration {
         self.policy.poll_interval

@@ -16,7 +16,7 @@ use super::{
     Param, ReplyBody, Smc100Parameters, Status,
 };
 use crate::engine::{Link, Task};
-use crate::motion;
+use crate::engine::motion;
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,

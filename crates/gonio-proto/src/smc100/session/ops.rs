@@ -9,7 +9,8 @@ use tracing::{debug, warn};
 use super::{Smc100Session, line_text};
 use crate::TransportError;
 use crate::engine::{Link, secs};
-use crate::motion::{self, Halt, Motion, stop};
+use crate::engine::motion::{self, Motion};
+use crate::smc100::{Halt, stop};
 use crate::smc100::{
     AxisError, Command, ControllerInfo, ControllerState, ErrorCode, MotionError, Param, ReplyBody,
     Status,
@@ -267,7 +268,7 @@ impl Smc100Session {
             } else {
                 0.0
             };
-            allow = allow.max(motion::allowance(&self.policy, estimate));
+            allow = allow.max(self.policy.allowance(estimate));
             self.command(link, i, Command::MoveAbsolute(target))
                 .await
                 .map_err(stop(i))?;
@@ -289,7 +290,7 @@ impl Smc100Session {
         let target = from.map_err(|e| self.at(i, e))? + delta;
         self.check_limits(i, target).map_err(|e| self.at(i, e))?;
         let estimate = self.estimate(link, i, delta.abs().max(1e-6)).await?;
-        let allow = motion::allowance(&self.policy, estimate);
+        let allow = self.policy.allowance(estimate);
         self.command(link, i, Command::MoveRelative(delta))
             .await
             .map_err(stop(i))?;
@@ -471,6 +472,8 @@ impl Smc100Session {
 impl Motion for Smc100Session {
     const FAMILY: &'static str = "smc100";
     type Status = Status;
+    type AxisError = AxisError;
+    type Error = MotionError;
 
     fn poll_interval(&self) -> Duration {
         self.policy.poll_interval
