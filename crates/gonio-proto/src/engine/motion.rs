@@ -38,8 +38,12 @@ pub(crate) trait AxisFault {
     /// The operator aborted at a pause.
     fn aborted() -> Self;
     /// `operation` to `target` not done after `waited`, the axis read at `position`.
-    fn overdue(operation: &'static str, target: f64, position: Option<f64>, waited: Duration)
-    -> Self;
+    fn overdue(
+        operation: &'static str,
+        target: f64,
+        position: Option<f64>,
+        waited: Duration,
+    ) -> Self;
 }
 
 /// A motion family's session, as the motion written once sees it: axes by index.
@@ -79,7 +83,9 @@ pub(crate) async fn poll<S: Motion>(
 ) -> Result<(), HaltOf<S>> {
     let start = link.now();
     while let Some(&(first, _)) = axes.first() {
-        pause(s, link, operation).await.map_err(|e| Halt::Stop(first, e))?;
+        pause(s, link, operation)
+            .await
+            .map_err(|e| Halt::Stop(first, e))?;
         let mut still = Vec::new();
         for (i, target) in axes {
             let status = s.poll_status(link, i).await.map_err(|e| Halt::Stop(i, e))?;
@@ -148,8 +154,10 @@ pub(crate) async fn settle<S: Motion, T>(
             );
             let _ = s.stop_every(link).await;
             let position = s.position_of(link, i).await;
-            Err(s.at(i, S::AxisError::overdue(operation, target, position, waited)))
+            Err(s.at(
+                i,
+                S::AxisError::overdue(operation, target, position, waited),
+            ))
         }
     }
 }
-

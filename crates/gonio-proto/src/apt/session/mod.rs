@@ -11,12 +11,12 @@ use std::time::Duration;
 
 use super::message::name_of;
 use super::{AptInfo, CHANNEL, DcStatus, Message, StageKind, status};
+use crate::engine::motion;
 use crate::engine::{Link, Task};
 use crate::link::KeepAlive;
-use crate::engine::motion;
 use crate::motion::{AxisError, MotionError};
-use crate::smc100::Halt;
 use crate::smc100::ChainPolicy;
+use crate::smc100::Halt;
 
 crate::config::axis_config! {
     /// One stage on one APT controller, and how the session may move it.

@@ -16,8 +16,8 @@ use crate::apt::{
     AptInfo, CHANNEL, DcStatus, GenMoveParams, HEADER_LEN, HomeParams, Message, Packet, StopMode,
     VelParams, status,
 };
-use crate::engine::{self, Link, secs};
 use crate::engine::motion::{self, Motion};
+use crate::engine::{self, Link, secs};
 use crate::motion::{AxisError, MotionError};
 use crate::smc100::{Halt, stop};
 

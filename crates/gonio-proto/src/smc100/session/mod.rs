@@ -15,8 +15,8 @@ use super::{
     AxisConfig, AxisError, ChainPolicy, Command, ControllerInfo, Frame, MAX_ADDRESS, MotionError,
     Param, ReplyBody, Smc100Parameters, Status,
 };
-use crate::engine::{Link, Task};
 use crate::engine::motion;
+use crate::engine::{Link, Task};
 use tracing::debug;
 
 /// A chain of SMC100 controllers on one serial line, as a state machine: the axes,

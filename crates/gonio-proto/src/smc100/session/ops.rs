@@ -8,13 +8,13 @@ use tracing::{debug, warn};
 
 use super::{Smc100Session, line_text};
 use crate::TransportError;
-use crate::engine::{Link, secs};
 use crate::engine::motion::{self, Motion};
-use crate::smc100::{Halt, stop};
+use crate::engine::{Link, secs};
 use crate::smc100::{
     AxisError, Command, ControllerInfo, ControllerState, ErrorCode, MotionError, Param, ReplyBody,
     Status,
 };
+use crate::smc100::{Halt, stop};
 
 /// Pause between status polls while a reset controller boots.
 const BOOT_POLL: Duration = Duration::from_millis(500);
