@@ -601,7 +601,11 @@ fn acquisition(keep: Option<&Path>) -> CliResult<Acquired> {
     let dark_v = cal.dark_v[0].hypot(cal.dark_v[1]);
     // The report's incident flux is the full beam; the reading was through the filter.
     let incident_v = cal.incident_v * ran.transmittance;
-    let (points, agreement, shifts) = against_the_paint(&reduction)?;
+    let Compared {
+        points,
+        agreement,
+        shifts,
+    } = against_the_paint(&reduction)?;
     let rejected = gonio_plan::rejection_counts(&ran.prepared.checked)
         .into_iter()
         .collect();
@@ -720,13 +724,7 @@ fn run_plan(path: &Path) -> CliResult<Ran> {
 /// The reduction against the paint the simulator measured: each in-plane sample
 /// beside the model with its deviation whitened by the full covariance, sorted by
 /// (θi, signed θo); the agreement; and the shared sources that moved the run.
-fn against_the_paint(
-    reduction: &gonio_reduce::Reduction,
-) -> CliResult<(
-    Vec<Point>,
-    gonio_process::covariance::Agreement,
-    Vec<(String, f64)>,
-)> {
+fn against_the_paint(reduction: &gonio_reduce::Reduction) -> CliResult<Compared> {
     let model = Model::from_toml(BLUE_PAINT, None).map_err(|e| demo_error(&e))?;
     let truth = gonio_reduce::agreement::truth(reduction, &model)
         .ok_or_else(|| demo_error(&"the demo's channel is not the model's"))?;
@@ -775,7 +773,18 @@ fn against_the_paint(
             .partial_cmp(&(b.theta_i, b.theta_o))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    Ok((points, agreement, shifts))
+    Ok(Compared {
+        points,
+        agreement,
+        shifts,
+    })
+}
+
+/// The reduction against the paint: [`against_the_paint`]'s result.
+struct Compared {
+    points: Vec<Point>,
+    agreement: gonio_process::covariance::Agreement,
+    shifts: Vec<(String, f64)>,
 }
 
 /// Writes the run report, before a temporary run file is removed: beside a kept run
