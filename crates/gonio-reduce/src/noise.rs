@@ -330,8 +330,11 @@ impl Noise {
 }
 
 /// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
-/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause.
+/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause;
+/// a reading through the SR830's buffer (`flags::BUFFER_RATE`) has its samples one
+/// sample period apart instead of `gap_s`.
 fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
+    let gap_s = flags::buffer_interval_s(r.flags).unwrap_or(gap_s);
     if r.time_constant_s > 0.0 {
         let pause = if r.flags & flags::TARGETED != 0 {
             0.0
