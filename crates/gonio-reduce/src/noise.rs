@@ -472,6 +472,12 @@ mod tests {
             ..r
         };
         assert_eq!(rho(&targeted, 0.05), (-0.05f64 / 0.1).exp());
+        // Through the SR830's buffer at 64 Hz (SRAT 10): the sample period, not the gap.
+        let buffered = ReadingRecord {
+            flags: flags::TARGETED | flags::buffered(10),
+            ..r
+        };
+        assert_eq!(rho(&buffered, 0.05), (-(1.0f64 / 64.0) / 0.1).exp());
         assert_eq!(
             rho(
                 &ReadingRecord {

@@ -39,9 +39,13 @@ const CLIP_STORED: f64 = OUTPUT_OVERLOAD * (1.0 - 1e-4);
 const CLIP_SETTLED_TC: f64 = 10.0;
 
 /// The buffer's fixed cost per reading, in `SNAP?` exchanges: `REST` and `STRT`, the
-/// last `SPTS?` and `TRCL?` lines, and the wait for the last points' transfer
-/// (an estimate; the time model is in `BENCHMARKS.md`, "Reading time").
-const BUFFER_OVERHEAD_EXCHANGES: f64 = 3.0;
+/// look that starts after the last needed point is stored, and its `SPTS?`, `TRCL?`
+/// lines and transfer. Measured, not derived: on the simulated hemisphere plan (paint,
+/// seed 11, 9600 baud, T = 30 ms, 64 Hz) a buffered reading took 0.39 s longer than
+/// the same step read by snapshots at 0.68 s of averaging and 0.05 s longer at
+/// 1.87 s, a line extra = 0.585 s − 0.286 × averaging: 0.585 s is 15.6 exchanges of
+/// 37.5 ms (`BENCHMARKS.md`, "Reading time").
+const BUFFER_OVERHEAD_EXCHANGES: f64 = 16.0;
 
 /// What a targeted read carries from one segment (one transient) to the next.
 struct Targeted {
@@ -381,7 +385,8 @@ impl Sr830Session {
     /// fastest estimate over the allowed time constants with the buffer's samples
     /// ([`estimate`] at the rate [`buffer::buffer_plan`] allows, plus the buffer's
     /// per-reading overhead, [`BUFFER_OVERHEAD_EXCHANGES`] exchanges) against `snap`,
-    /// the `SNAP?` choice. `None` without `buffer`, a noise law, or a gain.
+    /// the `SNAP?` choice. `None` without `buffer`, a noise law, or a gain, and for a
+    /// signal outside the present range or within ten noise σ of zero.
     fn buffer_choice(
         &self,
         expected: f64,
@@ -390,6 +395,15 @@ impl Sr830Session {
     ) -> Option<(ReadEstimate, BufferPlan)> {
         let c = &self.config;
         let noise = c.noise.as_ref().filter(|_| c.buffer)?;
+        // Only a signal the present range fits, well above the noise: a range change
+        // costs a whole buffered look where a snapshot shows it at once, and a dark's
+        // R (noise alone) is no value the transient rule's estimate models.
+        let fs = self.sensitivity.volts();
+        let snr2 =
+            expected * expected / noise.snapshot_variance(expected, self.slope, self.time_constant);
+        if !(c.min_fraction * fs..=0.9 * fs).contains(&expected) || snr2 < 100.0 {
+            return None;
+        }
         let overhead = BUFFER_OVERHEAD_EXCHANGES * c.exchange_s;
         let best = c
             .time_constant_choices()
