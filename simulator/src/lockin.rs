@@ -857,7 +857,7 @@ mod storage_tests {
         assert_eq!(ask(&mut l, 1.2, "SPTS?"), b"12\r");
         let out = ask(&mut l, 1.25, "TRCL? 1,0,12");
         assert_eq!(out.len(), 48, "4 bytes a point, no terminator");
-        let r = TraceRange::new(TraceChannel::Ch1, 0, 12).unwrap();
+        let r = TraceRange::new(TraceChannel::Ch1, 0, 12).expect("valid");
         let Ok(Reply::TraceStored(v)) = Reply::parse(&Command::TraceStored(r), &out) else {
             panic!("not a trace: {out:?}")
         };
@@ -883,7 +883,7 @@ mod storage_tests {
         l.set_input(0.5, 0.01);
         let out = ask(&mut l, 1.0, "TRCB? 1,0,512");
         let Ok(Reply::TraceBinary(v)) = Reply::parse(
-            &Command::TraceBinary(TraceRange::new(TraceChannel::Ch1, 0, 512).unwrap()),
+            &Command::TraceBinary(TraceRange::new(TraceChannel::Ch1, 0, 512).expect("valid")),
             &out,
         ) else {
             panic!("not a trace")

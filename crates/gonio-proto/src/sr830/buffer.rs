@@ -485,12 +485,12 @@ mod tests {
     #[test]
     fn stored_values_decode_as_the_manual_defines_them() {
         // m = 16384 (0x4000), exp = 110: 16384 × 2^−14 = 1.
-        let one = StoredValue::from_bytes([0x00, 0x40, 110, 0]).unwrap();
+        let one = StoredValue::from_bytes([0x00, 0x40, 110, 0]).expect("valid");
         assert_eq!(one.value(), 1.0);
         // m = −1 (0xFFFF), exp = 124: −1.
         assert_eq!(
             StoredValue::from_bytes([0xFF, 0xFF, 124, 0])
-                .unwrap()
+                .expect("valid")
                 .value(),
             -1.0
         );
@@ -528,17 +528,23 @@ mod tests {
     #[test]
     fn the_buffer_rate_keeps_the_transfer_within_the_port() {
         // 300 ms: four samples a time constant, 13.3 Hz, caps it at 8 Hz.
-        let tc = TimeConstant::new(9).unwrap();
+        let tc = TimeConstant::new(9).expect("valid");
         assert_eq!(tc.seconds(), 0.3);
-        assert_eq!(buffer_plan(tc, 9600, 0.6).unwrap().rate, SampleRate::Hz8);
+        assert_eq!(
+            buffer_plan(tc, 9600, 0.6).expect("valid").rate,
+            SampleRate::Hz8
+        );
         // 9600 baud: 8 bytes a sample take 8.33 ms, so at most 72 Hz at a 0.6 load.
-        let p = buffer_plan(TimeConstant::new(6).unwrap(), 9600, 0.6).unwrap();
+        let p = buffer_plan(TimeConstant::new(6).expect("valid"), 9600, 0.6).expect("valid");
         assert_eq!(p.rate, SampleRate::Hz64);
         // 30 ms: four samples a time constant is 133 Hz, the port allows 64.
-        let p = buffer_plan(TimeConstant::new(7).unwrap(), 9600, 0.6).unwrap();
+        let p = buffer_plan(TimeConstant::new(7).expect("valid"), 9600, 0.6).expect("valid");
         assert_eq!(p.rate, SampleRate::Hz64);
         // 10 µs: no rate samples twice a time constant.
-        assert_eq!(buffer_plan(TimeConstant::new(0).unwrap(), 9600, 0.6), None);
+        assert_eq!(
+            buffer_plan(TimeConstant::new(0).expect("valid"), 9600, 0.6),
+            None
+        );
     }
 
     #[test]

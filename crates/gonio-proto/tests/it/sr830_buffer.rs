@@ -77,7 +77,7 @@ fn the_manuals_ascii_trace_parses_with_its_trailing_comma() {
     // TRCA?, p. 5-16: "the response with two points might be
     // "-1.234567e-009,+7.654321e-009,"".
     let q = Command::TraceAscii(range(1, 0, 2));
-    let r = Reply::parse(&q, b"-1.234567e-009,+7.654321e-009,").unwrap();
+    let r = Reply::parse(&q, b"-1.234567e-009,+7.654321e-009,").expect("valid");
     assert_eq!(r, Reply::TraceAscii(vec![-1.234567e-9, 7.654321e-9]));
     assert!(matches!(
         Reply::parse(&q, b"-1.234567e-009,"),
@@ -98,14 +98,14 @@ fn a_non_normalized_trace_decodes_as_m_times_2_to_the_exp_minus_124() {
         0x00, 0xC0, 111, 0, // −16384 × 2^−13 = −2
         0x01, 0x00, 124, 0, // 1 × 2^0 = 1
     ];
-    let Reply::TraceStored(v) = Reply::parse(&q, &bytes).unwrap() else {
+    let Reply::TraceStored(v) = Reply::parse(&q, &bytes).expect("valid") else {
         panic!("not a trace")
     };
     let values: Vec<f64> = v.iter().map(|p| p.value()).collect();
     assert_eq!(values, [1.0, -2.0, 1.0]);
     // Not trimmed as a line is: a CR or a space is data.
     let q1 = Command::TraceStored(range(1, 0, 1));
-    let r = Reply::parse(&q1, &[0x0D, 0x20, 124, 0]).unwrap();
+    let r = Reply::parse(&q1, &[0x0D, 0x20, 124, 0]).expect("valid");
     assert_eq!(
         r,
         Reply::TraceStored(vec![StoredValue {
@@ -126,7 +126,7 @@ fn a_non_normalized_trace_decodes_as_m_times_2_to_the_exp_minus_124() {
         Err(ReplyError::BadValue)
     );
     // And written back without a terminator.
-    assert_eq!(Reply::parse(&q, &bytes).unwrap().to_bytes(), bytes);
+    assert_eq!(Reply::parse(&q, &bytes).expect("valid").to_bytes(), bytes);
 }
 
 #[test]
@@ -134,7 +134,7 @@ fn an_ieee_trace_decodes_little_endian_singles() {
     let q = Command::TraceBinary(range(2, 0, 2));
     let bytes = [0x00, 0x00, 0x80, 0x3F, 0x00, 0x00, 0x20, 0xC1];
     assert_eq!(
-        Reply::parse(&q, &bytes).unwrap(),
+        Reply::parse(&q, &bytes).expect("valid"),
         Reply::TraceBinary(vec![1.0, -10.0])
     );
     // A non-finite single is no value the instrument stores.
@@ -143,7 +143,7 @@ fn an_ieee_trace_decodes_little_endian_singles() {
         Reply::parse(
             &TraceRange::new(TraceChannel::Ch1, 0, 1)
                 .map(Command::TraceBinary)
-                .unwrap(),
+                .expect("valid"),
             &nan
         ),
         Err(ReplyError::BadValue)
@@ -201,7 +201,7 @@ proptest! {
         points in proptest::collection::vec((any::<i16>(), 0u8..=248), 1..20),
         cuts in proptest::collection::vec(0usize..200, 0..6),
     ) {
-        let k = u16::try_from(points.len()).unwrap();
+        let k = u16::try_from(points.len()).expect("valid");
         let trace: Vec<StoredValue> =
             points.iter().map(|(m, e)| StoredValue { mantissa: *m, exponent: *e }).collect();
         let mut stream = b"12\r".to_vec();
@@ -218,8 +218,8 @@ proptest! {
             at = c;
         }
         prop_assert_eq!(f.next_frame(), Some(Ok(b"12".to_vec())));
-        let q = Command::TraceStored(TraceRange::new(TraceChannel::Ch2, 0, k).unwrap());
-        let frame = f.next_frame().unwrap().unwrap();
+        let q = Command::TraceStored(TraceRange::new(TraceChannel::Ch2, 0, k).expect("valid"));
+        let frame = f.next_frame().expect("valid").expect("valid");
         prop_assert_eq!(Reply::parse(&q, &frame), Ok(Reply::TraceStored(trace)));
         prop_assert_eq!(f.next_frame(), Some(Ok(b"5".to_vec())));
         prop_assert_eq!(f.next_frame(), None);
