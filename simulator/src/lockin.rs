@@ -106,6 +106,7 @@ use gonio_proto::sr830::{
 use rand::{Rng, SeedableRng};
 
 mod config;
+mod storage;
 pub use config::{LockInConfig, PointStart};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -236,6 +237,8 @@ pub struct LockIn {
     esr: u8,
     unlocked: bool,
     forced_overload: bool,
+    /// The data buffer (`storage`'s docs).
+    storage: storage::Storage,
 }
 
 impl LockIn {
@@ -263,6 +266,7 @@ impl LockIn {
             esr: EventStatus::PON,
             unlocked: false,
             forced_overload: false,
+            storage: storage::Storage::default(),
         };
         lockin.redraw_noise(seed);
         lockin
@@ -460,8 +464,29 @@ impl LockIn {
         density * self.slope.enbw_hz(self.time_constant).sqrt()
     }
 
-    /// Moves filters and noise from the last event to `now_s` (constant input meanwhile).
+    /// Moves filters and noise from the last event to `now_s` (constant input
+    /// meanwhile), storing a buffer point at each sample instant on the way.
     fn advance(&mut self, now_s: f64) {
+        while let Some(t) = self.storage.next.filter(|t| *t <= now_s) {
+            self.advance_to(t);
+            let v = self.outputs();
+            let ch1 = match self.storage.display[0] {
+                0 => v.x,
+                1 => v.r,
+                _ => 0.0,
+            };
+            let ch2 = match self.storage.display[1] {
+                0 => v.y,
+                1 => v.theta,
+                _ => 0.0,
+            };
+            self.storage.store([ch1, ch2]);
+        }
+        self.advance_to(now_s);
+    }
+
+    /// Moves filters and noise from the last event to `now_s`.
+    fn advance_to(&mut self, now_s: f64) {
         let dt = now_s - self.now;
         if dt.is_nan() || dt <= 0.0 {
             return;
@@ -652,10 +677,44 @@ impl LockIn {
                 self.reference = ReferenceSource::Internal;
                 self.frequency = RESET_FREQUENCY_HZ;
                 self.amplitude = RESET_AMPLITUDE_V;
+                // The buffer's settings too, and its points (assumed: *RST's list,
+                // p. 4-4, names the storage settings; whether it erases the points is
+                // not said).
+                self.storage = storage::Storage::default();
                 None
             }
             // *CLS clears the status bytes (not the enable registers, not modelled).
             Command::Clear => self.set(|l| (l.lias, l.esr) = (0, 0)),
+            // The data buffer: `storage`'s docs (p. 5-14 … 5-18).
+            Command::SetDisplay(d) => {
+                let ch = usize::from(d.channel.code() - 1);
+                self.set(|l| l.storage.display[ch] = d.quantity)
+            }
+            Command::SetSampleRate(r) => self.set(|l| l.storage.rate = *r),
+            Command::QuerySampleRate => Some(Reply::SampleRate(self.storage.rate)),
+            Command::SetEndOfScan(e) => self.set(|l| l.storage.end = *e),
+            Command::QueryEndOfScan => Some(Reply::EndOfScan(self.storage.end)),
+            Command::StartStorage => {
+                let now = self.now;
+                self.set(|l| l.storage.start(now))
+            }
+            Command::PauseStorage => self.set(|l| l.storage.pause()),
+            Command::ResetStorage => self.set(|l| l.storage.reset()),
+            Command::StoredPoints => Some(Reply::StoredPoints(self.storage.len())),
+            Command::TraceAscii(r) => {
+                let v = self.storage.trace(r).ok_or(exe)?;
+                Some(Reply::TraceAscii(
+                    v.iter().map(|p| round_reply(p.value())).collect(),
+                ))
+            }
+            // The stored value as the nearest single float (p. 5-17: IEEE format).
+            Command::TraceBinary(r) => {
+                let v = self.storage.trace(r).ok_or(exe)?;
+                Some(Reply::TraceBinary(
+                    v.iter().map(|p| p.value() as f32).collect(),
+                ))
+            }
+            Command::TraceStored(r) => Some(Reply::TraceStored(self.storage.trace(r).ok_or(exe)?)),
         };
         Ok(reply)
     }
@@ -762,5 +821,83 @@ mod tests {
         advance_cascade(&mut s, 9.0, -1.0, 1.0);
         advance_cascade(&mut s, 9.0, f64::NAN, 1.0);
         assert_eq!(s, before);
+    }
+}
+
+#[cfg(test)]
+mod storage_tests {
+    use super::*;
+    use gonio_proto::sr830::{StoredValue, TraceChannel, TraceRange};
+
+    /// Runs `line` at `t` and returns the reply bytes.
+    fn ask(l: &mut LockIn, t: f64, line: &str) -> Vec<u8> {
+        let mut out = Vec::new();
+        l.handle_line(t, line.as_bytes(), &mut out);
+        out
+    }
+
+    fn quiet() -> LockIn {
+        let config = LockInConfig {
+            amplifier_noise: 0.0,
+            shot_noise: 0.0,
+            ..LockInConfig::default()
+        };
+        let mut l = LockIn::new(config, 1);
+        ask(&mut l, 0.0, "OUTX 0;SENS 20;OFLT 7;OFSL 3");
+        l
+    }
+
+    #[test]
+    fn the_buffer_stores_the_outputs_at_the_sample_rate() {
+        let mut l = quiet();
+        l.set_input(0.0, 0.01);
+        l.restart(0.0, 1);
+        // 64 Hz: STRT at 1 s, points at 1 + k/64 s.
+        ask(&mut l, 1.0, "SRAT 10;SEND 0;REST;STRT");
+        assert_eq!(ask(&mut l, 1.2, "SPTS?"), b"12\r");
+        let out = ask(&mut l, 1.25, "TRCL? 1,0,12");
+        assert_eq!(out.len(), 48, "4 bytes a point, no terminator");
+        let r = TraceRange::new(TraceChannel::Ch1, 0, 12).expect("valid");
+        let Ok(Reply::TraceStored(v)) = Reply::parse(&Command::TraceStored(r), &out) else {
+            panic!("not a trace: {out:?}")
+        };
+        // Settled, noiseless: X = 0.45 × 10 mV, to the format's resolution.
+        for p in &v {
+            assert!((p.value() - 0.0045).abs() < 0.0045 * 3.1e-5, "{p:?}");
+        }
+        assert_eq!(v[0], StoredValue::from_value(0.0045));
+        // j + k beyond SPTS? answers nothing and sets EXE.
+        assert_eq!(ask(&mut l, 1.26, "TRCL? 1,10,10"), b"");
+        assert_eq!(ask(&mut l, 1.27, "*ESR? 4"), b"1\r");
+        // Y (CH2) is zero at phase 0; PAUS stops storing, REST empties.
+        assert_eq!(ask(&mut l, 1.3, "PAUS;SPTS?"), b"19\r");
+        assert_eq!(ask(&mut l, 2.0, "SPTS?"), b"19\r");
+        assert_eq!(ask(&mut l, 2.0, "TRCA? 2,0,2"), b"0,0,\r");
+        assert_eq!(ask(&mut l, 2.0, "REST;SPTS?"), b"0\r");
+    }
+
+    #[test]
+    fn the_buffer_follows_a_step_at_its_sample_instants() {
+        let mut l = quiet();
+        ask(&mut l, 0.0, "SRAT 13;REST;STRT");
+        l.set_input(0.5, 0.01);
+        let out = ask(&mut l, 1.0, "TRCB? 1,0,512");
+        let Ok(Reply::TraceBinary(v)) = Reply::parse(
+            &Command::TraceBinary(TraceRange::new(TraceChannel::Ch1, 0, 512).expect("valid")),
+            &out,
+        ) else {
+            panic!("not a trace")
+        };
+        // Points k/512 s after STRT, k = 1 …: zero before the step at 0.5 s, then
+        // the 24 dB/oct step response 0.0045·(1 − e^−a Σ_{j<4} a^j/j!), a = (t − 0.5)/T.
+        for (k, x) in v.iter().enumerate() {
+            let t = (k + 1) as f64 / 512.0;
+            let a = ((t - 0.5) / 0.03).max(0.0);
+            let expect = 0.0045 * (1.0 - (-a).exp() * (1.0 + a + a * a / 2.0 + a * a * a / 6.0));
+            assert!(
+                (f64::from(*x) - expect).abs() <= 0.0045 * 1e-4 + 1e-12,
+                "{k}: {x} vs {expect}"
+            );
+        }
     }
 }

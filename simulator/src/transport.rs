@@ -48,8 +48,8 @@ impl SimTransport {
         let clock = lock(&sim).clock().clone();
         let framer: Box<dyn Framer> = match port {
             Port::Motion => Box::new(LineFramer::new(b'\n', gonio_proto::smc100::MAX_LINE)),
-            Port::Detector => Box::new(LineFramer::new(
-                b'\r',
+            // Lines ended by CR, and the SR830's binary traces by their length.
+            Port::Detector => Box::new(gonio_proto::sr830::Sr830Framer::new(
                 gonio_proto::sr830::MAX_LINE.max(gonio_proto::k6485::MAX_LINE),
             )),
             Port::Apt(_) => Box::new(AptFramer::new()),
@@ -97,6 +97,7 @@ impl Transport for SimTransport {
         }
         let out_time = sim.wire_time(self.port, bytes.len());
         drop(sim);
+        self.framer.sent(bytes);
         self.clock.advance(crate::clock::secs(out_time));
         let mut sim = lock(&self.sim);
         let reply = sim.port_bytes(self.port, bytes);

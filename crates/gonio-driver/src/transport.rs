@@ -61,6 +61,13 @@ pub enum Framing {
     },
     /// Thorlabs APT binary messages (6-byte header, optional data packet).
     Apt,
+    /// The SR830's: lines ending in CR, except the binary replies to `TRCB?` and
+    /// `TRCL?`, cut by the length their query asks for
+    /// ([`gonio_proto::sr830::Sr830Framer`]).
+    Sr830 {
+        /// The longest line accepted.
+        max_line: usize,
+    },
 }
 
 impl Framing {
@@ -72,6 +79,7 @@ impl Framing {
                 max_line,
             } => Box::new(LineFramer::new(terminator, max_line)),
             Framing::Apt => Box::new(gonio_proto::apt::AptFramer::new()),
+            Framing::Sr830 { max_line } => Box::new(gonio_proto::sr830::Sr830Framer::new(max_line)),
         }
     }
 }
@@ -154,6 +162,7 @@ impl SerialTransport {
 
 impl Transport for SerialTransport {
     fn send(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.framer.sent(bytes);
         let r = {
             let port = self.port()?;
             port.write_all(bytes).and_then(|_| port.flush())

@@ -29,6 +29,9 @@ pub trait Framer: Send + std::fmt::Debug {
     fn next_frame(&mut self) -> Option<Result<Vec<u8>, FrameError>>;
     /// Forgets everything buffered.
     fn clear(&mut self);
+    /// The host sent `bytes`: a framer whose replies' lengths depend on the query
+    /// (the SR830's binary `TRCL?`) learns them here. Line and message framers ignore it.
+    fn sent(&mut self, _bytes: &[u8]) {}
 }
 
 impl Framer for LineFramer {

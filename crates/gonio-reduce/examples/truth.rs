@@ -2,7 +2,11 @@
 //! sample, reduced, against the sample's own BRDF, with the simulator's noise and
 //! effects switched on and off one at a time.
 //!
-//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [percentiles]`
+//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [buffer] [percentiles]`
+//!
+//! `buffer` lets the lock-in read through its data buffer where its estimate says
+//! that is faster (`buffer = true` added to `config/instrument-sim.toml`'s
+//! `[detector.lockin]`).
 
 #[path = "../tests/it/truth/mod.rs"]
 mod truth;
@@ -31,7 +35,8 @@ fn main() {
     let integrate = args.iter().any(|a| a == "integrate");
     let transient = args.iter().any(|a| a == "transient");
     let plan = std::fs::read_to_string(truth::root().join(&plan_path)).expect("plan");
-    let (store, model) = truth::measure("example", &plan, sample, seed, |s| {
+    let buffer = args.iter().any(|a| a == "buffer");
+    let tweak = |s: &mut gonio_sim::SimConfig| {
         if quiet {
             s.lockin.amplifier_noise = 0.0;
             s.lockin.shot_noise = 0.0;
@@ -40,7 +45,52 @@ fn main() {
         if transient {
             s.lockin.point_start = gonio_sim::lockin::PointStart::Previous;
         }
-    });
+    };
+    let (store, model) = if buffer {
+        truth::measure_buffered("example", &plan, sample, seed, tweak)
+    } else {
+        truth::measure("example", &plan, sample, seed, tweak)
+    };
+    let readings = store.readings().expect("readings");
+    if args.iter().any(|a| a == "compare") {
+        let (plain, _) = truth::measure("example2", &plan, sample, seed, tweak);
+        let other = plain.readings().expect("readings");
+        let mut prev = (0.0, 0.0);
+        for (a, b) in readings.iter().zip(other.iter()) {
+            let rel = a.r_mean / b.r_mean - 1.0;
+            let (da, db) = (a.physical_s - prev.0, b.physical_s - prev.1);
+            prev = (a.physical_s, b.physical_s);
+            if gonio_run::flags::buffer_interval_s(a.flags).is_some() {
+                println!(
+                    "buffered step {}: {:.3e} V {:.2} s (n {}, T {}) vs {:.2} s (n {}, T {})",
+                    a.step_id, a.r_mean, da, a.n, a.time_constant_s, db, b.n, b.time_constant_s
+                );
+            }
+            if rel.abs() > 1e-3 {
+                println!(
+                    "step {} {}: {:.6e} (n {}, flags {:#x}, sens {}) vs {:.6e} (n {}, sens {}) {rel:+.3e}",
+                    a.step_id,
+                    b.step_id,
+                    a.r_mean,
+                    a.n,
+                    a.flags,
+                    a.sensitivity,
+                    b.r_mean,
+                    b.n,
+                    b.sensitivity
+                );
+            }
+        }
+    }
+    let buffered = readings
+        .iter()
+        .filter(|r| gonio_run::flags::buffer_interval_s(r.flags).is_some())
+        .count();
+    let physical = readings.iter().map(|r| r.physical_s).fold(0.0, f64::max);
+    println!(
+        "instrument time {physical:.1} s; {buffered} of {} readings through the buffer",
+        readings.len()
+    );
     if args.iter().any(|a| a == "cal") {
         print_calibration_readings(&store);
     }

@@ -330,8 +330,11 @@ impl Noise {
 }
 
 /// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
-/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause.
+/// a target (`flags::TARGETED`), whose snapshots follow one another without a pause;
+/// a reading through the SR830's buffer (`flags::BUFFER_RATE`) has its samples one
+/// sample period apart instead of `gap_s`.
 fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
+    let gap_s = flags::buffer_interval_s(r.flags).unwrap_or(gap_s);
     if r.time_constant_s > 0.0 {
         let pause = if r.flags & flags::TARGETED != 0 {
             0.0
@@ -469,6 +472,12 @@ mod tests {
             ..r
         };
         assert_eq!(rho(&targeted, 0.05), (-0.05f64 / 0.1).exp());
+        // Through the SR830's buffer at 64 Hz (SRAT 10): the sample period, not the gap.
+        let buffered = ReadingRecord {
+            flags: flags::TARGETED | flags::buffered(10),
+            ..r
+        };
+        assert_eq!(rho(&buffered, 0.05), (-(1.0f64 / 64.0) / 0.1).exp());
         assert_eq!(
             rho(
                 &ReadingRecord {

@@ -142,9 +142,32 @@ pub mod flags {
     /// exchange apart, not a time constant plus one), averaged over the window the
     /// settling rule chose. The reduction's snapshot correlation follows.
     pub const TARGETED: u32 = 1 << 11;
+    /// Bits 12–15: a targeted reading taken through the SR830's data buffer holds its
+    /// sample rate's `SRAT` index plus one (1 … 14), its samples 1/rate apart rather
+    /// than one exchange; 0 for a reading by snapshots.
+    pub const BUFFER_RATE: u32 = 0xF << 12;
     /// Bits that say how a reading was taken, not that anything is wrong with it: a
     /// reading carrying only these is not "flagged".
-    pub const HOW_READ: u32 = TARGETED;
+    pub const HOW_READ: u32 = TARGETED | BUFFER_RATE;
+
+    /// The [`BUFFER_RATE`] bits of a reading through the buffer at `SRAT srat`
+    /// (0 … 13; anything else, the triggered rate included, sets none).
+    pub fn buffered(srat: u8) -> u32 {
+        if srat <= 13 {
+            (u32::from(srat) + 1) << 12
+        } else {
+            0
+        }
+    }
+
+    /// The seconds between a buffered reading's samples (62.5 mHz × 2^srat), when
+    /// `bits` holds a [`BUFFER_RATE`].
+    pub fn buffer_interval_s(bits: u32) -> Option<f64> {
+        let i = (bits & BUFFER_RATE) >> 12;
+        (1..=14)
+            .contains(&i)
+            .then(|| 16.0 / f64::from(1u32 << (i - 1)))
+    }
 
     /// True when `bits` holds a flag that questions the reading (any but
     /// [`HOW_READ`]'s).
@@ -193,6 +216,13 @@ mod tests {
         assert_eq!(all, 0b1111_0000_1111);
         assert_eq!(flags::CAPPED, 1024);
         assert_eq!(flags::TARGETED, 2048);
+        // A buffered reading at 64 Hz (SRAT 10) is not flagged; its samples 1/64 s apart.
+        let b = flags::TARGETED | flags::buffered(10);
+        assert!(!flags::questioned(b));
+        assert_eq!(flags::buffer_interval_s(b), Some(1.0 / 64.0));
+        assert_eq!(flags::buffer_interval_s(flags::buffered(0)), Some(16.0));
+        assert_eq!(flags::buffer_interval_s(flags::TARGETED), None);
+        assert_eq!(flags::buffered(14), 0);
         assert_eq!(
             flags::text(flags::SHADOWED | flags::CAPPED),
             "shadowed, capped"

@@ -11,6 +11,7 @@ mod filterwheel;
 mod filterwheel_twin;
 mod loaders_never_panic;
 mod lockin;
+mod lockin_buffer;
 mod mixed;
 mod monochromator;
 mod optics;

@@ -540,6 +540,9 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         if targeted && r.lockin().is_some() {
             bits |= flags::TARGETED;
         }
+        if let Some(rate) = r.lockin().and_then(|l| l.sample_rate) {
+            bits |= flags::buffered(rate.index());
+        }
         ReadingRecord {
             step_id: s.id,
             commanded: s.step.stages,

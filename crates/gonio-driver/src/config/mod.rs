@@ -418,8 +418,7 @@ impl DetectorConfig {
             baud: self.baud,
             flow: self.flow,
             framing: match self.kind {
-                DetectorKind::Sr830 => Framing::Lines {
-                    terminator: gonio_proto::sr830::REPLY_TERMINATOR,
+                DetectorKind::Sr830 => Framing::Sr830 {
                     max_line: gonio_proto::sr830::MAX_LINE,
                 },
                 DetectorKind::K6485 => Framing::Lines {

@@ -1,6 +1,7 @@
 //! Host to instrument: [`Command`], multi-command lines, and the errors the instrument
 //! flags for a command it cannot run.
 
+use super::buffer::{DisplayDef, EndOfScan, SampleRate, TraceChannel, TraceRange};
 use super::{EventStatus, FilterSlope, Sensitivity, TERMINATOR, TimeConstant};
 use crate::codec::{Param, Refusal, coded_enum, command_table};
 use crate::number;
@@ -188,6 +189,30 @@ command_table! {
         Reset = "*RST" set;
         /// `*CLS`: clears every status byte (not the enable registers).
         Clear = "*CLS" set;
+        /// `DDEF i,j,k`: what display channel i shows, and so stores (p. 5-8).
+        SetDisplay(DisplayDef) = "DDEF" set;
+        /// `SRAT i`: the buffer's sample rate (p. 5-15).
+        SetSampleRate(SampleRate) = "SRAT" set;
+        /// `SRAT?`.
+        QuerySampleRate = "SRAT" query;
+        /// `SEND i`: 1 Shot or Loop at the end of the buffer (p. 5-15).
+        SetEndOfScan(EndOfScan) = "SEND" set;
+        /// `SEND?`.
+        QueryEndOfScan = "SEND" query;
+        /// `STRT`: starts or resumes storage; ignored while storing (p. 5-15).
+        StartStorage = "STRT" set;
+        /// `PAUS`: pauses storage (p. 5-15).
+        PauseStorage = "PAUS" set;
+        /// `REST`: resets the buffer, at any time (p. 5-15).
+        ResetStorage = "REST" set;
+        /// `SPTS?`: the points stored, at any time (p. 5-16).
+        StoredPoints = "SPTS" query;
+        /// `TRCA? i,j,k`: points as ASCII, each followed by a comma (p. 5-16).
+        TraceAscii(TraceRange) = "TRCA" query;
+        /// `TRCB? i,j,k`: points as IEEE floats, 4 bytes each, no terminator (p. 5-17).
+        TraceBinary(TraceRange) = "TRCB" query;
+        /// `TRCL? i,j,k`: points as stored, 4 bytes each, no terminator (p. 5-17).
+        TraceStored(TraceRange) = "TRCL" query;
     }
 }
 
@@ -259,8 +284,67 @@ index_param!(
     Sensitivity: index / new,
     TimeConstant: index / new,
     FilterSlope: index / from_index,
-    Output: code / from_code
+    Output: code / from_code,
+    SampleRate: index / from_index,
+    EndOfScan: index / from_index
 );
+
+/// Appends ` a,b,c`.
+fn write_ints(v: [u32; 3], out: &mut Vec<u8>) {
+    out.extend_from_slice(format!(" {},{},{}", v[0], v[1], v[2]).as_bytes());
+}
+
+/// Three integers, each within its `max`.
+fn three(values: &[f64], max: [f64; 3]) -> Result<[u16; 3], Refusal> {
+    let [a, b, c] = values else {
+        return Err(Refusal::Syntax);
+    };
+    let mut out = [0u16; 3];
+    for (o, (v, m)) in out.iter_mut().zip([a, b, c].into_iter().zip(max)) {
+        if v.fract() != 0.0 || !(0.0..=m).contains(v) {
+            return Err(Refusal::OutOfRange);
+        }
+        // Exact: an integral value in 0..=max ≤ 16383.
+        *o = *v as u16;
+    }
+    Ok(out)
+}
+
+impl Param<&[f64]> for DisplayDef {
+    fn write(&self, out: &mut Vec<u8>) {
+        let v = [self.channel.code(), self.quantity, self.ratio];
+        write_ints(v.map(u32::from), out);
+    }
+    fn read(values: &[f64]) -> Result<DisplayDef, Refusal> {
+        let [i, j, k] = three(values, [2.0, 4.0, 2.0])?;
+        let channel = u8::try_from(i)
+            .ok()
+            .and_then(TraceChannel::from_code)
+            .ok_or(Refusal::OutOfRange)?;
+        // Exact: j ≤ 4 and k ≤ 2.
+        DisplayDef::new(channel, j as u8, k as u8).ok_or(Refusal::OutOfRange)
+    }
+}
+
+impl Param<&[f64]> for TraceRange {
+    fn write(&self, out: &mut Vec<u8>) {
+        let v = [
+            self.channel.code().into(),
+            self.start.into(),
+            self.count.into(),
+        ];
+        write_ints(v, out);
+    }
+    fn read(values: &[f64]) -> Result<TraceRange, Refusal> {
+        let max = f64::from(super::buffer::BUFFER_POINTS);
+        let [i, j, k] = three(values, [2.0, max, max])?;
+        let channel = u8::try_from(i)
+            .ok()
+            .and_then(TraceChannel::from_code)
+            .ok_or(Refusal::OutOfRange)?;
+        TraceRange::new(channel, j, k).ok_or(Refusal::OutOfRange)
+    }
+}
 
 impl Param<&[f64]> for SnapParams {
     fn write(&self, out: &mut Vec<u8>) {
@@ -341,6 +425,12 @@ impl Command {
     /// nothing else does (p. 5-2).
     pub fn expects_reply(&self) -> bool {
         self.is_query()
+    }
+
+    /// True for `TRCB?` and `TRCL?`, whose replies are binary, 4 bytes a point, with no
+    /// terminator (p. 5-17).
+    pub fn is_binary_trace(&self) -> bool {
+        matches!(self, Command::TraceBinary(_) | Command::TraceStored(_))
     }
 
     /// Appends the command without terminator: the mnemonic, `?` for a query, then a

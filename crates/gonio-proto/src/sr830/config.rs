@@ -25,6 +25,7 @@ use super::{FilterSlope, NoiseDensity, Sensitivity, TimeConstant, UnknownLabel};
 /// # Only for plans with a [reading] target:
 /// noise = { floor = 20e-9, shot = 2e-6 }
 /// time_constant_range = ["10 ms", "300 ms"]
+/// buffer = true
 /// ```
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -70,6 +71,11 @@ pub struct Sr830Config {
     /// (labels or `OFLT` indices); it needs `noise`. Absent: `time_constant` always.
     #[serde(deserialize_with = "de_time_constant_range")]
     pub time_constant_range: Option<[TimeConstant; 2]>,
+    /// A targeted reading may read through the instrument's data buffer (`SRAT`,
+    /// `STRT`, `SPTS?`, `TRCL?`) instead of `SNAP?` polling, when its estimate says that
+    /// is faster at the port's baud rate ([`buffer`](super::buffer)). Needs `noise`.
+    /// Default off.
+    pub buffer: bool,
     /// Seconds one `SNAP?` exchange takes on the wire (36 characters both ways at the
     /// port's baud rate): set from the instrument config, never read from a file.
     #[serde(skip)]
@@ -174,6 +180,7 @@ impl Default for Sr830Config {
             settle_residual: 0.01,
             noise: None,
             time_constant_range: None,
+            buffer: false,
             exchange_s: EXCHANGE_BITS / 9600.0,
             baud: default_baud(),
         }

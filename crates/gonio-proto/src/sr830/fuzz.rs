@@ -3,7 +3,9 @@
 //! not survive encode → parse). A `cargo fuzz` target is one line:
 //! `fuzz_target!(|d: &[u8]| gonio_proto::sr830::fuzz::fuzz_parse_line(d));`.
 
-use super::{BitIndex, Command, Output, Reply, SnapParam, SnapParams, parse_line};
+use super::{
+    BitIndex, Command, Output, Reply, SnapParam, SnapParams, TraceChannel, TraceRange, parse_line,
+};
 use crate::codec::{self, RoundTrip};
 
 /// Parses `data` as a received command line; every command that parses is
@@ -30,11 +32,24 @@ pub fn fuzz_parse_reply(data: &[u8]) {
         Command::ErrorStatus(None),
         Command::EventStatus(None),
         Command::Identify,
+        Command::QuerySampleRate,
+        Command::QueryEndOfScan,
+        Command::StoredPoints,
         // Not a query: must be refused, not parsed.
         Command::Clear,
     ];
     let snaps =
         (SnapParams::MIN..=SnapParams::MAX).filter_map(|n| SnapParams::new(&SnapParam::ALL[..n]));
     queries.extend(snaps.map(Command::Snap));
+    // Traces of 1 … 4 points, in each format.
+    for k in 1..=4 {
+        if let Some(r) = TraceRange::new(TraceChannel::Ch1, 0, k) {
+            queries.extend([
+                Command::TraceAscii(r),
+                Command::TraceBinary(r),
+                Command::TraceStored(r),
+            ]);
+        }
+    }
     codec::fuzz_replies(data, &queries, Reply::parse, RoundTrip::Exact);
 }

@@ -27,6 +27,7 @@
 //! bytes ([`LiaStatus`], [`EventStatus`], [`ErrorStatus`]) and [`Reply`] (instrument
 //! to host).
 
+pub mod buffer;
 mod command;
 mod config;
 pub mod ranging;
@@ -40,6 +41,9 @@ pub mod timing;
 
 pub mod fuzz;
 
+pub use buffer::{
+    DisplayDef, EndOfScan, SampleRate, Sr830Framer, StoredValue, TraceChannel, TraceRange,
+};
 pub use command::{
     BitIndex, Command, CommandError, Interface, Output, ReferenceSource, SnapParam, SnapParams,
     encode_line, parse_line,

@@ -71,6 +71,9 @@ pub struct Reading {
     /// A targeted reading reached its time cap before its target precision: kept, at
     /// the precision it reached.
     pub capped: bool,
+    /// Read through the data buffer at this rate (its samples 1/rate apart), rather
+    /// than by `SNAP?`: the spacing the samples' correlation follows.
+    pub sample_rate: Option<super::SampleRate>,
 }
 
 impl Reading {

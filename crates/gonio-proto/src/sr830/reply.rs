@@ -1,5 +1,6 @@
 //! Instrument to host: [`Reply`] lines, read knowing the query they answer.
 
+use super::buffer::{self, EndOfScan, SampleRate, StoredValue};
 use super::{
     Command, ErrorStatus, EventStatus, FilterSlope, Interface, LiaStatus, REPLY_TERMINATOR,
     ReferenceSource, Sensitivity, TimeConstant,
@@ -46,6 +47,18 @@ pub enum Reply {
     Bit(bool),
     /// `*IDN?`.
     Identity(Identity),
+    /// `SRAT?`.
+    SampleRate(SampleRate),
+    /// `SEND?`.
+    EndOfScan(EndOfScan),
+    /// `SPTS?`: points stored.
+    StoredPoints(u16),
+    /// `TRCA?`: the points, in the trace's unit.
+    TraceAscii(Vec<f64>),
+    /// `TRCB?`: the points as IEEE single floats (binary, no terminator).
+    TraceBinary(Vec<f32>),
+    /// `TRCL?`: the points as stored (binary, no terminator).
+    TraceStored(Vec<StoredValue>),
 }
 
 crate::number::scpi_reply_error! {
@@ -72,7 +85,34 @@ fn format_value(v: f64, out: &mut Vec<u8>) {
     }
 }
 
-crate::codec::line_encoding!(Reply, &[REPLY_TERMINATOR]);
+impl Reply {
+    /// Appends the reply as the instrument sends it: the body, then CR, except a binary
+    /// trace (`TRCB?`, `TRCL?`), which has no terminator (p. 5-17).
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        self.encode_body(out);
+        if !self.is_binary() {
+            out.push(REPLY_TERMINATOR);
+        }
+    }
+
+    /// The reply as bytes, as [`encode`](Self::encode) writes them.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut v = Vec::new();
+        self.encode(&mut v);
+        v
+    }
+
+    /// True for the binary traces, sent without a terminator.
+    pub fn is_binary(&self) -> bool {
+        matches!(self, Reply::TraceBinary(_) | Reply::TraceStored(_))
+    }
+}
+
+impl crate::codec::Encode for Reply {
+    fn encode_body(&self, out: &mut Vec<u8>) {
+        Reply::encode_body(self, out)
+    }
+}
 
 impl Reply {
     /// Appends the reply without terminator (what the instrument sends). Values must
@@ -102,6 +142,25 @@ impl Reply {
                 }
             }
             Reply::Identity(id) => out.extend_from_slice(id.to_string().as_bytes()),
+            Reply::SampleRate(r) => int(r.index(), out),
+            Reply::EndOfScan(e) => int(e.index(), out),
+            Reply::StoredPoints(n) => out.extend_from_slice(n.to_string().as_bytes()),
+            Reply::TraceAscii(vs) => {
+                for v in vs {
+                    format_value(*v, out);
+                    out.push(b',');
+                }
+            }
+            Reply::TraceBinary(vs) => {
+                for v in vs {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            Reply::TraceStored(vs) => {
+                for v in vs {
+                    out.extend_from_slice(&v.to_bytes());
+                }
+            }
         }
     }
 
@@ -110,6 +169,26 @@ impl Reply {
     /// seen to print (`-1.01026`, `1000.00`, `-4.17234e-007`; its rule is not in the
     /// manual); indices and status bytes must be integers in their range.
     pub fn parse(command: &Command, line: &[u8]) -> Result<Reply, ReplyError> {
+        // A binary trace is its bytes, untrimmed: 4 a point, no terminator (p. 5-17).
+        let wrong = |expected: u16| ReplyError::WrongCount {
+            expected: usize::from(expected),
+            got: line.len() / buffer::POINT_BYTES,
+        };
+        match command {
+            Command::TraceBinary(r) if line.len() == r.binary_len() => {
+                // The instrument stores finite values only.
+                let v = buffer::decode_trcb(line)
+                    .filter(|v| v.iter().all(|x| x.is_finite()))
+                    .ok_or(ReplyError::BadValue)?;
+                return Ok(Reply::TraceBinary(v));
+            }
+            Command::TraceStored(r) if line.len() == r.binary_len() => {
+                let v = buffer::decode_trcl(line).ok_or(ReplyError::BadValue)?;
+                return Ok(Reply::TraceStored(v));
+            }
+            Command::TraceBinary(r) | Command::TraceStored(r) => return Err(wrong(r.count)),
+            _ => {}
+        }
         let line = ReplyError::query_line(command.is_query(), command.mnemonic(), line)?;
         let num = |s: &[u8]| number::real(s).map_err(ReplyError::from);
         // Exact: an integral value in 0..=max.
@@ -161,6 +240,33 @@ impl Reply {
             Command::EventStatus(None) => Reply::EventStatus(EventStatus(int(255)?)),
             Command::Identify => {
                 Reply::Identity(Identity::parse(line).ok_or(ReplyError::BadValue)?)
+            }
+            Command::QuerySampleRate => {
+                let i = int(14)?;
+                Reply::SampleRate(SampleRate::from_index(i).ok_or(out_of_range(i))?)
+            }
+            Command::QueryEndOfScan => {
+                let i = int(1)?;
+                Reply::EndOfScan(EndOfScan::from_index(i).ok_or(out_of_range(i))?)
+            }
+            Command::StoredPoints => {
+                let n = number::integer(line, f64::from(buffer::BUFFER_POINTS))?;
+                // Exact: an integral value in 0..=16383.
+                Reply::StoredPoints(n as u16)
+            }
+            Command::TraceAscii(r) => {
+                let body = line.strip_suffix(b",").unwrap_or(line);
+                let values = body
+                    .split(|b| *b == b',')
+                    .map(num)
+                    .collect::<Result<Vec<f64>, _>>()?;
+                if values.len() != usize::from(r.count) {
+                    return Err(ReplyError::WrongCount {
+                        expected: usize::from(r.count),
+                        got: values.len(),
+                    });
+                }
+                Reply::TraceAscii(values)
             }
             _ => return Err(ReplyError::NotAQuery(command.mnemonic())),
         };

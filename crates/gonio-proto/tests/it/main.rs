@@ -12,5 +12,6 @@ mod fw102c_session;
 mod k6485;
 mod smc100;
 mod sr830;
+mod sr830_buffer;
 mod sr830_target;
 mod unconfirmed;

@@ -51,6 +51,9 @@ pub struct Sr830Session {
     /// When the light or a setting last changed: where a targeted reading's transient
     /// starts.
     changed_at: Duration,
+    /// The sample rate the data buffer was set up at (`DDEF`, `SEND`, `SRAT` sent),
+    /// until the port is reopened.
+    buffer_rate: Option<super::SampleRate>,
 }
 
 // Replies go to GPIB until `OUTX 0` is sent again.
@@ -76,6 +79,7 @@ impl Sr830Session {
             core: SessionCore::new(config, port),
             settled_at: now,
             changed_at: now,
+            buffer_rate: None,
         })
     }
 
@@ -230,6 +234,7 @@ impl Sr830Session {
     /// After a reopen the instrument may have restarted: its filters settle again.
     fn reopened(&mut self, now: Duration) {
         debug!(port = %self.port, reconnects = self.reconnects, "sr830: port reopened; OUTX 0 re-sent");
+        self.buffer_rate = None;
         self.mark_unsettled(now);
     }
 
@@ -271,7 +276,15 @@ impl Sr830Session {
                 Command::LiaStatus(_) | Command::ErrorStatus(_) | Command::EventStatus(_)
             );
         let retries = if rereadable { self.config.retries } else { 0 };
-        let timeout = self.config.timeout();
+        // A binary trace is due once its bytes have had time to arrive (p. 5-17: sent
+        // without pauses, at the baud rate).
+        let timeout = match command {
+            Command::TraceBinary(r) | Command::TraceStored(r) | Command::TraceAscii(r) => {
+                let bytes = r.binary_len() * if command.is_binary_trace() { 1 } else { 4 };
+                self.config.timeout() + secs(super::buffer::wire_seconds(bytes, self.config.baud))
+            }
+            _ => self.config.timeout(),
+        };
         let receive = async |_: &mut Sr830Session| {
             if !command.expects_reply() {
                 return Ok(None);

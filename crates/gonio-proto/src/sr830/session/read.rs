@@ -10,9 +10,11 @@ use tracing::{debug, trace, warn};
 use super::{Sr830Session, unexpected};
 use crate::engine::{Link, Read, Wire, secs};
 use crate::number;
+use crate::sr830::buffer::{self, BufferPlan, DisplayDef, EndOfScan, TraceChannel, TraceRange};
 use crate::sr830::ranging::{self, OUTPUT_OVERLOAD};
 use crate::sr830::target::{
-    FIRST_SNAPSHOT_TC, ReadTarget, Sequential, WindowMean, choose_time_constant,
+    FIRST_SNAPSHOT_TC, ReadEstimate, ReadTarget, Sequential, WindowMean, choose_time_constant,
+    estimate,
 };
 use crate::sr830::{
     Command, LiaStatus, MAX_AUTORANGE_STEPS, Reading, ReadingFlags, Reply, Sensitivity, SnapParams,
@@ -26,10 +28,24 @@ const SNAP: Command = Command::Snap(SnapParams::XY);
 /// snapshot within 1e-5 of it is taken as clipped.
 const CLIP: f64 = OUTPUT_OVERLOAD * (1.0 - 1e-5);
 
+/// A buffered point within 1e-4 of the clip level is taken as clipped: a stored
+/// point carries 15 significant bits (p. 5-17), so a clipped output may be stored up
+/// to 2^−15 ≈ 3e-5 below it.
+const CLIP_STORED: f64 = OUTPUT_OVERLOAD * (1.0 - 1e-4);
+
 /// A clipped snapshot this many time constants after the change means the value
 /// itself is over range: a 24 dB/oct step has come within 1 % by then (manual's
 /// settling table, 10 T), so only a step of over a hundred full scales still clips.
 const CLIP_SETTLED_TC: f64 = 10.0;
+
+/// The buffer's fixed cost per reading, in `SNAP?` exchanges: `REST` and `STRT`, the
+/// look that starts after the last needed point is stored, and its `SPTS?`, `TRCL?`
+/// lines and transfer. Measured, not derived: on the simulated hemisphere plan (paint,
+/// seed 11, 9600 baud, T = 30 ms, 64 Hz) a buffered reading took 0.39 s longer than
+/// the same step read by snapshots at 0.68 s of averaging and 0.05 s longer at
+/// 1.87 s, a line extra = 0.585 s − 0.286 × averaging: 0.585 s is 15.6 exchanges of
+/// 37.5 ms (`BENCHMARKS.md`, "Reading time").
+const BUFFER_OVERHEAD_EXCHANGES: f64 = 16.0;
 
 /// What a targeted read carries from one segment (one transient) to the next.
 struct Targeted {
@@ -206,6 +222,7 @@ impl Sr830Session {
             flags: ReadingFlags::from_status(status),
             autorange_steps: steps,
             capped,
+            sample_rate: None,
         }
     }
 
@@ -237,6 +254,8 @@ impl Sr830Session {
             }
             _ => None,
         };
+        let buffered = expected.and_then(|e| self.buffer_choice(e.abs(), &t.target, choice));
+        let choice = buffered.map(|(c, _)| c).or(choice);
         // Sent even when it is already set: the transient then always starts at the
         // same instant after a move, so a resumed run reads what an uninterrupted one
         // did whatever the time constant was left at.
@@ -254,7 +273,14 @@ impl Sr830Session {
         }
         let mut read = Read::new("sr830");
         loop {
-            let next = match self.segment(link, &mut t, read.steps).await? {
+            let end = match buffered {
+                Some((est, plan)) => {
+                    self.segment_buffered(link, &mut t, read.steps, plan, est)
+                        .await?
+                }
+                None => self.segment(link, &mut t, read.steps).await?,
+            };
+            let next = match end {
                 End::Interrupted => {
                     read.restart(|restarts| Sr830Error::Interrupted { restarts })?;
                     continue;
@@ -353,6 +379,219 @@ impl Sr830Session {
             steps,
             t.capped,
         )))
+    }
+
+    /// Whether to read through the buffer, and at which time constant and rate: the
+    /// fastest estimate over the allowed time constants with the buffer's samples
+    /// ([`estimate`] at the rate [`buffer::buffer_plan`] allows, plus the buffer's
+    /// per-reading overhead, [`BUFFER_OVERHEAD_EXCHANGES`] exchanges) against `snap`,
+    /// the `SNAP?` choice. `None` without `buffer`, a noise law, or a gain, and for a
+    /// signal outside the present range or within ten noise σ of zero.
+    fn buffer_choice(
+        &self,
+        expected: f64,
+        target: &ReadTarget,
+        snap: Option<ReadEstimate>,
+    ) -> Option<(ReadEstimate, BufferPlan)> {
+        let c = &self.config;
+        let noise = c.noise.as_ref().filter(|_| c.buffer)?;
+        // Only a signal the present range fits, well above the noise: a range change
+        // costs a whole buffered look where a snapshot shows it at once, and a dark's
+        // R (noise alone) is no value the transient rule's estimate models.
+        let fs = self.sensitivity.volts();
+        let snr2 =
+            expected * expected / noise.snapshot_variance(expected, self.slope, self.time_constant);
+        if !(c.min_fraction * fs..=0.9 * fs).contains(&expected) || snr2 < 100.0 {
+            return None;
+        }
+        let overhead = BUFFER_OVERHEAD_EXCHANGES * c.exchange_s;
+        let best = c
+            .time_constant_choices()
+            .into_iter()
+            .filter_map(|tc| {
+                let plan = buffer::buffer_plan(tc, c.baud, buffer::BUFFER_LOAD)?;
+                let step = 0.25 * expected;
+                let e = estimate(expected, step, target, noise, self.slope, tc, 1.0 / plan.hz);
+                Some((e, plan))
+            })
+            .min_by(|a, b| a.0.total_s().total_cmp(&b.0.total_s()))?;
+        let snap_s = snap.map_or(f64::INFINITY, |s| s.total_s());
+        let faster = best.0.total_s() + overhead < snap_s;
+        debug!(
+            expected,
+            buffered_s = best.0.total_s() + overhead,
+            snap_s,
+            faster,
+            "sr830: buffer or snapshots"
+        );
+        faster.then_some(best)
+    }
+
+    /// Sets the buffer up for `plan`'s rate (once until the port is reopened): CH1
+    /// and CH2 show X and Y, 1 Shot, the rate.
+    async fn buffer_setup(&mut self, link: &Link, plan: &BufferPlan) -> Result<(), Sr830Error> {
+        if self.buffer_rate == Some(plan.rate) {
+            return Ok(());
+        }
+        if self.buffer_rate.is_none() {
+            for d in DisplayDef::XY {
+                self.ask(link, &Command::SetDisplay(d)).await?;
+            }
+            self.ask(link, &Command::SetEndOfScan(EndOfScan::OneShot))
+                .await?;
+        }
+        self.ask(link, &Command::SetSampleRate(plan.rate)).await?;
+        self.buffer_rate = Some(plan.rate);
+        Ok(())
+    }
+
+    /// `count` points of `channel` from bin `start`, by `TRCL?`.
+    async fn trace(
+        &mut self,
+        link: &Link,
+        channel: TraceChannel,
+        start: u16,
+        count: u16,
+    ) -> Result<Vec<f64>, Sr830Error> {
+        let Some(range) = TraceRange::new(channel, start, count) else {
+            unreachable!("bins within SPTS?, which is at most the buffer's length");
+        };
+        let command = Command::TraceStored(range);
+        match self.ask(link, &command).await? {
+            Some(Reply::TraceStored(v)) => Ok(v.into_iter().map(|p| p.value()).collect()),
+            other => Err(unexpected(&command, other)),
+        }
+    }
+
+    /// One transient read through the buffer: `REST`, `STRT`, then, from when a
+    /// clipped output would mean over range (or the estimate `est` expects the target
+    /// met, if sooner), `SPTS?` and the new points of X and Y by `TRCL?`, again and
+    /// again (storage goes on meanwhile: 1 Shot bins keep their numbers), each
+    /// point at its sample instant in the rule, until the rule is met, the cap or the
+    /// buffer's end is reached; then `LIAS?` for the flags. Clipped points are
+    /// treated as [`segment`](Self::segment) treats clipped snapshots.
+    async fn segment_buffered(
+        &mut self,
+        link: &Link,
+        t: &mut Targeted,
+        steps: usize,
+        plan: BufferPlan,
+        est: ReadEstimate,
+    ) -> Result<End, Sr830Error> {
+        let reconnects = self.core.reconnects;
+        self.buffer_setup(link, &plan).await?;
+        self.ask(link, &Command::ResetStorage).await?;
+        self.ask(link, &Command::StartStorage).await?;
+        // The first point one period after STRT arrived (the twin's assumption; the
+        // fit is invariant under a shift of the time origin, so an instrument that
+        // samples a little earlier or later does not bias it).
+        let started = link.now();
+        let t0 = self.changed_at.min(started);
+        let tc_s = self.time_constant.seconds();
+        let period = 1.0 / plan.hz;
+        let tau_of = |i: usize| ((started - t0).as_secs_f64() + (i + 1) as f64 * period) / tc_s;
+        t.seq = Sequential::new(usize::from(self.slope.index()) + 1, tau_of(0));
+        t.clipped = false;
+        // A first look once a clipped output would mean over range (10 T), so that a
+        // wrong range costs no more than with snapshots; then when the estimate
+        // expects the target met.
+        let clip_look = t0.saturating_add(secs((CLIP_SETTLED_TC + 1.0) * tc_s));
+        let first_look = t0.saturating_add(secs(est.total_s())).min(clip_look);
+        if link.now() < first_look {
+            link.sleep(first_look).await;
+        }
+        let mut have: u16 = 0;
+        let cap = t.started.saturating_add(secs(t.target.max_s));
+        loop {
+            let n = match self.ask(link, &Command::StoredPoints).await? {
+                Some(Reply::StoredPoints(n)) => n,
+                other => return Err(unexpected(&Command::StoredPoints, other)),
+            };
+            if self.core.reconnects != reconnects {
+                return Ok(End::Interrupted);
+            }
+            if n > have {
+                let k = n - have;
+                let xs = self.trace(link, TraceChannel::Ch1, have, k).await?;
+                let ys = self.trace(link, TraceChannel::Ch2, have, k).await?;
+                if self.core.reconnects != reconnects {
+                    return Ok(End::Interrupted);
+                }
+                let fs = self.sensitivity.volts();
+                for (i, (x, y)) in xs.into_iter().zip(ys).enumerate() {
+                    let tau = tau_of(usize::from(have) + i);
+                    if [x, y, x.hypot(y)]
+                        .iter()
+                        .any(|v| v.abs() >= CLIP_STORED * fs)
+                    {
+                        let late = tau >= CLIP_SETTLED_TC || t.after_range;
+                        if t.seq.window_start().is_some() || late {
+                            if let Some(next) = ranging::overload_range(self.sensitivity) {
+                                debug!(
+                                    tau,
+                                    x, y, "sr830: buffered output clipped after the transient"
+                                );
+                                return Ok(End::Range(next));
+                            }
+                            t.clipped = true;
+                        }
+                        continue;
+                    }
+                    t.after_range = false;
+                    t.seq.push(tau, x, y);
+                }
+                have = n;
+                if self.assess(t) {
+                    break;
+                }
+            }
+            let finish = link.now().saturating_add(secs(self.config.exchange_s));
+            if finish > cap || have >= buffer::BUFFER_POINTS {
+                warn!(
+                    max_s = t.target.max_s,
+                    points = have,
+                    "sr830: buffered reading capped before its target"
+                );
+                t.capped = true;
+                break;
+            }
+            // Looked at again at once: the transfer then runs while storage goes on,
+            // and only the last look's points are left to carry at the end.
+            if n == have {
+                link.sleep(link.now().saturating_add(secs(period))).await;
+            }
+        }
+        let Some(status) = self.flags(link, reconnects).await? else {
+            return Ok(End::Interrupted);
+        };
+        let own = if t.clipped {
+            LiaStatus::OUTPUT_OVERLOAD
+        } else {
+            0
+        };
+        let status = LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own);
+        let mut reading = self.reading(t.seq.result(), status, steps, t.capped);
+        reading.sample_rate = Some(plan.rate);
+        Ok(End::Read(reading))
+    }
+
+    /// Assesses the segment's samples against the target: whether the window's mean
+    /// meets it.
+    fn assess(&self, t: &mut Targeted) -> bool {
+        let noise = self.config.noise;
+        let (slope, tc) = (self.slope, self.time_constant);
+        let law = noise.map(|n| move |r: f64| n.snapshot_variance(r, slope, tc));
+        let a = t
+            .seq
+            .assess(&t.target, law.as_ref().map(|f| f as &dyn Fn(f64) -> f64));
+        debug!(
+            samples = t.seq.len(),
+            window = ?a.window_start,
+            sigma_mean = a.sigma_mean,
+            target = a.target,
+            "sr830: buffered samples assessed"
+        );
+        a.done
     }
 
     /// Adds an unclipped snapshot at `tau` to the segment: whether the window's mean

@@ -59,6 +59,39 @@ pub fn measure(
     (store, model)
 }
 
+/// [`measure`] with the lock-in allowed to read through its data buffer
+/// (`buffer = true` in `config/instrument-sim.toml`'s `[detector.lockin]`).
+#[allow(dead_code)]
+pub fn measure_buffered(
+    name: &str,
+    plan_text: &str,
+    sample: Option<&str>,
+    seed: u64,
+    tweak: impl FnOnce(&mut SimConfig),
+) -> (RunStore, Model) {
+    let path = root().join("config/instrument-sim.toml");
+    let text = std::fs::read_to_string(&path)
+        .expect("inst")
+        .replace("[detector.lockin]\n", "[detector.lockin]\nbuffer = true\n");
+    let inst = InstrumentConfig::from_toml(&text, Some(&path)).expect("inst");
+    let mut sim = SimConfig::default_config().expect("sim");
+    if let Some(text) = sample {
+        let m = Model::from_toml(text, None).expect("sample model");
+        sim.set_sample(std::sync::Arc::new(m), text.to_string());
+    }
+    tweak(&mut sim);
+    let run = Run {
+        name,
+        instrument: (&inst, text),
+        sim: &sim,
+        sim_text: gonio_sim::config::DEFAULT_SIM.into(),
+        plan_text,
+        seed,
+    };
+    let (_, store, model) = run.acquire();
+    (store, model)
+}
+
 /// One simulated acquisition: an instrument config with its text, a simulator
 /// config with the text a run file keeps, a plan and a seed.
 pub struct Run<'a> {
