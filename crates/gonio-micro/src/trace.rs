@@ -18,7 +18,10 @@
 //! above the block's maximum. The traversal keeps integer block coordinates in the
 //! unwrapped plane (the patch repeats; lookups wrap), descends into the child the ray
 //! is in, steps to the next block across the nearer boundary, and climbs one level
-//! when a step leaves the parent block.
+//! when a step leaves the parent block while the ray is above the new parent's
+//! maximum (below it the parent could not be skipped). The maxima are stored as `f32`
+//! rounded up (plus a hair for the traversal's rounding): a bound stays a bound, the
+//! cell test itself is exact `f64`.
 
 use gonio_core::Vec3;
 
@@ -245,11 +248,21 @@ impl Tracer {
         if !(fx.is_finite() && fy.is_finite() && fx.abs() < 1e15 && fy.abs() < 1e15) {
             return;
         }
-        let i = Level::wrap(fx as i64, self.hf.nx());
-        let j = Level::wrap(fy as i64, self.hf.ny());
+        let (bx, by) = (fx as i64, fy as i64);
+        let i = Level::wrap(bx, self.hf.nx());
+        let j = Level::wrap(by, self.hf.ny());
         let c = self.hf.corners(i, j);
-        let m = self.levels[0].max[j * self.hf.nx() + i];
-        std::hint::black_box(c[0] + c[2] + f64::from(m));
+        // The blocks above the cell on the levels a primary ray descends through
+        // (the higher ones stay in the cache anyway). The loads are independent, so
+        // their misses overlap instead of following one another as in a descent.
+        let mut sum = c[0] + c[2];
+        let (mut bx, mut by) = (bx, by);
+        for lev in self.levels.iter().take(3) {
+            sum += lev.max_at(bx, by);
+            bx >>= lev.up_x;
+            by >>= lev.up_y;
+        }
+        std::hint::black_box(sum);
     }
 
     /// The height field.
@@ -409,12 +422,18 @@ impl Tracer {
             }
             t = t_out;
             if l < top {
-                // Climb when the step left the parent block.
+                // Climb when the step left the parent block, unless the ray is already
+                // below the new parent's highest corner: then the parent could not be
+                // skipped (going up, the ray is lowest where it enters; going down,
+                // lower still further on), and climbing would only descend again.
                 let (ux, uy) = (lev.up_x, lev.up_y);
-                if (bx >> ux) != (obx >> ux) || (by >> uy) != (oby >> uy) {
+                let (px, py) = (bx >> ux, by >> uy);
+                if (px != obx >> ux || py != oby >> uy)
+                    && o.z + d.z * t > self.levels[l + 1].max_at(px, py)
+                {
                     l += 1;
-                    bx >>= ux;
-                    by >>= uy;
+                    bx = px;
+                    by = py;
                 }
             }
         }
