@@ -2,7 +2,10 @@
 //! Rays traced per second on a 1024 × 1024 Gaussian height field (2 097 152
 //! triangles): first hits by the max-mip hierarchy, by a flat grid DDA and by brute
 //! force over every cell; and whole paths (every bounce, ideal mirrors) on one thread
-//! and on all.
+//! and on all. Then the issue-40 case, `gonio micro`'s own work: the Gaussian gold
+//! surface of `config/micro-gaussian-gold.toml` (512 × 512 cells, a conductor)
+//! tabulated on its default 10°,15° grid, 1024 rays an incident node (221 184
+//! rays), on one thread and on two.
 //!
 //! `cargo bench -p gonio-micro --bench trace -- --warm-up-time 1 --measurement-time 3`;
 //! figures and the machine are in BENCHMARKS.md ("Virtual gonioreflectometer").
@@ -63,9 +66,34 @@ fn rays(hf: &HeightField, n: usize, grazing: bool) -> Vec<Ray> {
 }
 
 fn bench(c: &mut Criterion) {
+    bench_gold_table(c);
     for l in [5.0, 40.0] {
         bench_surface(c, l);
     }
+}
+
+/// The table `gonio micro config/micro-gaussian-gold.toml` traces (its surface and
+/// grid), with 1024 rays an incident node instead of 100 000.
+fn bench_gold_table(c: &mut Criterion) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../config/micro-gaussian-gold.toml");
+    let sample = Sample::load(&path).expect("the gold surface");
+    let sim = Simulation::new(sample, SimOptions::default()).expect("simulation");
+    let grid = gonio_process::Grid::hemisphere(9, 24);
+    let rays = 1024;
+    let mut g = c.benchmark_group("table_gold_512x512");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements((rays * grid.n_in()) as u64));
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        g.bench_function(format!("{threads}_threads"), |b| {
+            b.iter(|| pool.install(|| sim.to_table(&grid, rays, 1).expect("table").stats.exits))
+        });
+    }
+    g.finish();
 }
 
 fn bench_surface(c: &mut Criterion, l: f64) {

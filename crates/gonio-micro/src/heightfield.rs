@@ -16,6 +16,7 @@ use gonio_core::Vec3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 
 use crate::MicroError;
 
@@ -345,22 +346,30 @@ impl HeightField {
         let l = p.correlation_length / p.spacing;
         let kx = periodic_kernel(nx, l);
         let ky = periodic_kernel(ny, l);
-        let mut tmp = vec![0.0; nx.max(ny)];
-        for j in 0..ny {
-            let row = &mut h[j * nx..(j + 1) * nx];
-            convolve(row, &kx, &mut tmp[..nx]);
-            row.copy_from_slice(&tmp[..nx]);
-        }
-        let mut col = vec![0.0; ny];
-        for i in 0..nx {
-            for j in 0..ny {
-                col[j] = h[j * nx + i];
+        // Rows, then columns (through a transposed copy), each on its own: in
+        // parallel, and every value is the same sum in the same order on any number
+        // of threads.
+        let mut rows = vec![0.0; nx * ny];
+        rows.par_chunks_mut(nx)
+            .zip(h.par_chunks(nx))
+            .for_each(|(out, row)| convolve(row, &kx, out));
+        let mut cols = vec![0.0; nx * ny];
+        cols.par_chunks_mut(ny).enumerate().for_each(|(i, col)| {
+            for (j, c) in col.iter_mut().enumerate() {
+                *c = rows[j * nx + i];
             }
-            convolve(&col, &ky, &mut tmp[..ny]);
-            for j in 0..ny {
-                h[j * nx + i] = tmp[j];
+        });
+        drop(rows);
+        h.par_chunks_mut(ny)
+            .zip(cols.par_chunks(ny))
+            .for_each(|(out, col)| convolve(col, &ky, out));
+        // `h` holds the columns: back to rows.
+        cols.par_chunks_mut(nx).enumerate().for_each(|(j, row)| {
+            for (i, r) in row.iter_mut().enumerate() {
+                *r = h[i * ny + j];
             }
-        }
+        });
+        let mut h = cols;
         let n = h.len() as f64;
         let mean = h.iter().sum::<f64>() / n;
         h.iter_mut().for_each(|v| *v -= mean);

@@ -68,11 +68,11 @@ pub fn fresnel_conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
     let t1 = a2b2 + c2;
     let a = (0.5 * (a2b2 + t0)).max(0.0).sqrt();
     let t2 = 2.0 * a * c;
-    let rs = (t1 - t2) / (t1 + t2);
     let t3 = c2 * a2b2 + s2 * s2;
     let t4 = t2 * s2;
-    let rp = rs * (t3 - t4) / (t3 + t4);
-    (0.5 * (rs + rp)).clamp(0.0, 1.0)
+    // (Rs + Rp)/2 = Rs (1 + (t3 − t4)/(t3 + t4))/2 = Rs t3/(t3 + t4): one division,
+    // not three (this runs at every bounce on a conductor).
+    ((t1 - t2) * t3 / ((t1 + t2) * (t3 + t4))).clamp(0.0, 1.0)
 }
 
 /// The unpolarised Fresnel reflectance from air onto a dielectric of relative index

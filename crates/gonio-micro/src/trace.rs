@@ -18,7 +18,10 @@
 //! above the block's maximum. The traversal keeps integer block coordinates in the
 //! unwrapped plane (the patch repeats; lookups wrap), descends into the child the ray
 //! is in, steps to the next block across the nearer boundary, and climbs one level
-//! when a step leaves the parent block.
+//! when a step leaves the parent block while the ray is above the new parent's
+//! maximum (below it the parent could not be skipped). The maxima are stored as `f32`
+//! rounded up (plus a hair for the traversal's rounding): a bound stays a bound, the
+//! cell test itself is exact `f64`.
 
 use gonio_core::Vec3;
 
@@ -66,11 +69,24 @@ struct Level {
     /// Cells per block along x and y.
     bx: usize,
     by: usize,
+    /// Block widths along x and y (`bx·dx`, `by·dy`).
+    wx: f64,
+    wy: f64,
+    /// How far block coordinates shift right to give the parent's (0 or 1 each
+    /// way: a level merges 2 × 2, 2 × 1 or 1 × 2 blocks).
+    up_x: u32,
+    up_y: u32,
     /// Blocks along x and y.
     nbx: usize,
     nby: usize,
-    /// Highest corner of each block, row-major.
-    max: Vec<f64>,
+    /// `nbx − 1` and `nby − 1` when the counts are powers of two (wrapping is then
+    /// a mask), else `None`.
+    mask_x: Option<i64>,
+    mask_y: Option<i64>,
+    /// Highest corner of each block, raised by a hair (see `Tracer::new`) and
+    /// rounded up to `f32` (half the bytes for the cache: the lookups are what a
+    /// traversal waits for), row-major.
+    max: Vec<f32>,
 }
 
 impl Level {
@@ -86,7 +102,15 @@ impl Level {
 
     #[inline]
     fn max_at(&self, bx: i64, by: i64) -> f64 {
-        self.max[Level::wrap(by, self.nby) * self.nbx + Level::wrap(bx, self.nbx)]
+        let i = match self.mask_x {
+            Some(m) => (bx & m) as usize,
+            None => bx.rem_euclid(self.nbx as i64) as usize,
+        };
+        let j = match self.mask_y {
+            Some(m) => (by & m) as usize,
+            None => by.rem_euclid(self.nby as i64) as usize,
+        };
+        f64::from(self.max[j * self.nbx + i])
     }
 }
 
@@ -97,6 +121,22 @@ pub struct Tracer {
     levels: Vec<Level>,
     /// Length of a horizontal ray's search before it counts as leaving at the horizon.
     horizon: f64,
+    /// `1/dx`, `1/dy`.
+    inv_dx: f64,
+    inv_dy: f64,
+}
+
+/// What every cell test of one ray shares, worked out once a ray.
+#[derive(Clone, Copy, Debug)]
+struct Pre {
+    o: Vec3,
+    d: Vec3,
+    /// `1/d.x`, `1/d.y` (infinite along an axis the ray does not move on).
+    inv_x: f64,
+    inv_y: f64,
+    /// The direction in cell units: `d.x/dx`, `d.y/dy`.
+    du: f64,
+    dv: f64,
 }
 
 /// `floor(p / size)`, but the lower block when `p` lies on a boundary and the ray
@@ -112,13 +152,20 @@ fn coord(p: f64, d: f64, size: f64) -> i64 {
     }
 }
 
-/// Narrows `[lo, hi]` to the parameters where `o + t·d` lies within `[a, b]`.
+/// The least `f32` at or above `x` (a height bound stays a bound).
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x { y.next_up() } else { y }
+}
+
+/// Narrows `[lo, hi]` to the parameters where `o + t·d` lies within `[a, b]`;
+/// `inv` is `1/d`.
 #[inline]
-fn slab(o: f64, d: f64, a: f64, b: f64, lo: &mut f64, hi: &mut f64) -> bool {
+fn slab(o: f64, d: f64, inv: f64, a: f64, b: f64, lo: &mut f64, hi: &mut f64) -> bool {
     if d == 0.0 {
         return o >= a && o <= b;
     }
-    let (t0, t1) = ((a - o) / d, (b - o) / d);
+    let (t0, t1) = ((a - o) * inv, (b - o) * inv);
     let (t0, t1) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
     *lo = lo.max(t0);
     *hi = hi.min(t1);
@@ -129,42 +176,50 @@ impl Tracer {
     /// Builds the max-mip hierarchy of `hf`.
     pub fn new(hf: HeightField) -> Tracer {
         let (nx, ny) = (hf.nx(), hf.ny());
+        let (dx, dy) = (hf.dx(), hf.dy());
+        // Every maximum is raised by a hair above the rounding of the traversal's
+        // parameters, so that a block whose highest corner the ray grazes at its
+        // edge is never skipped for an error in the last bit.
+        let hair = 1e-12 * (hf.max_height().abs().max(hf.min_height().abs()) + dx + dy);
         let mut max = Vec::with_capacity(nx * ny);
         for j in 0..ny {
             for i in 0..nx {
                 let c = hf.corners(i, j);
-                max.push(c[0].max(c[1]).max(c[2]).max(c[3]));
+                max.push(round_up(c[0].max(c[1]).max(c[2]).max(c[3]) + hair));
             }
         }
-        let mut levels = vec![Level {
-            bx: 1,
-            by: 1,
-            nbx: nx,
-            nby: ny,
+        let level = |bx: usize, by: usize, nbx: usize, nby: usize, max: Vec<f32>| Level {
+            bx,
+            by,
+            wx: bx as f64 * dx,
+            wy: by as f64 * dy,
+            up_x: 0,
+            up_y: 0,
+            nbx,
+            nby,
+            mask_x: nbx.is_power_of_two().then_some(nbx as i64 - 1),
+            mask_y: nby.is_power_of_two().then_some(nby as i64 - 1),
             max,
-        }];
-        while let Some(last) = levels.last() {
+        };
+        let mut levels = vec![level(1, 1, nx, ny, max)];
+        while let Some(last) = levels.last_mut() {
             let mx = last.nbx >= 2 && last.nbx % 2 == 0;
             let my = last.nby >= 2 && last.nby % 2 == 0;
             if !mx && !my {
                 break;
             }
+            last.up_x = u32::from(mx);
+            last.up_y = u32::from(my);
             let (fx, fy) = (if mx { 2 } else { 1 }, if my { 2 } else { 1 });
             let (nbx, nby) = (last.nbx / fx, last.nby / fy);
-            let mut m = vec![f64::NEG_INFINITY; nbx * nby];
+            let mut m = vec![f32::NEG_INFINITY; nbx * nby];
             for j in 0..last.nby {
                 for i in 0..last.nbx {
                     let k = (j / fy) * nbx + i / fx;
                     m[k] = m[k].max(last.max[j * last.nbx + i]);
                 }
             }
-            let next = Level {
-                bx: last.bx * fx,
-                by: last.by * fy,
-                nbx,
-                nby,
-                max: m,
-            };
+            let next = level(last.bx * fx, last.by * fy, nbx, nby, m);
             levels.push(next);
         }
         let (lx, ly) = hf.period();
@@ -172,9 +227,42 @@ impl Tracer {
             // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
             horizon: (16.0 * (lx + ly))
                 .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
+            inv_dx: 1.0 / dx,
+            inv_dy: 1.0 / dy,
             hf,
             levels,
         }
+    }
+
+    /// Reads the data of the cell where a ray from `o` along `d` crosses the middle
+    /// of the height range (about where a primary ray hits), so that it is in the
+    /// cache when that ray is traced a little later. Only a hint: nothing depends on
+    /// it but the time.
+    pub(crate) fn warm(&self, o: Vec3, d: Vec3) {
+        let mid = 0.5 * (self.hf.min_height() + self.hf.max_height());
+        if d.z >= 0.0 {
+            return;
+        }
+        let p = o + d * ((mid - o.z) / d.z);
+        let (fx, fy) = ((p.x * self.inv_dx).floor(), (p.y * self.inv_dy).floor());
+        if !(fx.is_finite() && fy.is_finite() && fx.abs() < 1e15 && fy.abs() < 1e15) {
+            return;
+        }
+        let (bx, by) = (fx as i64, fy as i64);
+        let i = Level::wrap(bx, self.hf.nx());
+        let j = Level::wrap(by, self.hf.ny());
+        let c = self.hf.corners(i, j);
+        // The blocks above the cell on the levels a primary ray descends through
+        // (the higher ones stay in the cache anyway). The loads are independent, so
+        // their misses overlap instead of following one another as in a descent.
+        let mut sum = c[0] + c[2];
+        let (mut bx, mut by) = (bx, by);
+        for lev in self.levels.iter().take(3) {
+            sum += lev.max_at(bx, by);
+            bx >>= lev.up_x;
+            by >>= lev.up_y;
+        }
+        std::hint::black_box(sum);
     }
 
     /// The height field.
@@ -253,10 +341,22 @@ impl Tracer {
         }
     }
 
+    fn pre(&self, ray: &Ray) -> Pre {
+        let (o, d) = (ray.o, ray.d);
+        Pre {
+            o,
+            d,
+            inv_x: 1.0 / d.x,
+            inv_y: 1.0 / d.y,
+            du: d.x * self.inv_dx,
+            dv: d.y * self.inv_dy,
+        }
+    }
+
     /// The hierarchical DDA, starting at level `start` and climbing up to `top`.
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
+        let pre = self.pre(ray);
         let (o, d) = (ray.o, ray.d);
-        let (dx, dy) = (self.hf.dx(), self.hf.dy());
         let sx: i64 = if d.x > 0.0 {
             1
         } else if d.x < 0.0 {
@@ -271,26 +371,22 @@ impl Tracer {
         } else {
             0
         };
+        // The boundary ahead of block b is that of block b + 1 when moving up.
+        let (ax, ay) = (i64::from(sx > 0), i64::from(sy > 0));
         let mut l = start;
         let mut t = t0;
         let p = o + d * t;
-        let mut bx = coord(p.x, d.x, self.levels[l].bx as f64 * dx);
-        let mut by = coord(p.y, d.y, self.levels[l].by as f64 * dy);
+        let mut bx = coord(p.x, d.x, self.levels[l].wx);
+        let mut by = coord(p.y, d.y, self.levels[l].wy);
         loop {
             let lev = &self.levels[l];
-            let wx = lev.bx as f64 * dx;
-            let wy = lev.by as f64 * dy;
-            let tx = if sx > 0 {
-                ((bx + 1) as f64 * wx - o.x) / d.x
-            } else if sx < 0 {
-                (bx as f64 * wx - o.x) / d.x
+            let tx = if sx != 0 {
+                ((bx + ax) as f64 * lev.wx - o.x) * pre.inv_x
             } else {
                 f64::INFINITY
             };
-            let ty = if sy > 0 {
-                ((by + 1) as f64 * wy - o.y) / d.y
-            } else if sy < 0 {
-                (by as f64 * wy - o.y) / d.y
+            let ty = if sy != 0 {
+                ((by + ay) as f64 * lev.wy - o.y) * pre.inv_y
             } else {
                 f64::INFINITY
             };
@@ -298,7 +394,7 @@ impl Tracer {
             let zmin = (o.z + d.z * t).min(o.z + d.z * t_out);
             if zmin <= lev.max_at(bx, by) {
                 if l == 0 {
-                    if let Some(h) = self.cell_hit(ray, bx, by, t0, t1) {
+                    if let Some(h) = self.cell_hit(ray, &pre, bx, by, t0, t1) {
                         return Some(h);
                     }
                 } else {
@@ -306,10 +402,10 @@ impl Tracer {
                     let child = &self.levels[l];
                     let p = o + d * t;
                     if child.bx < lev.bx {
-                        bx = coord(p.x, d.x, child.bx as f64 * dx).clamp(2 * bx, 2 * bx + 1);
+                        bx = coord(p.x, d.x, child.wx).clamp(2 * bx, 2 * bx + 1);
                     }
                     if child.by < lev.by {
-                        by = coord(p.y, d.y, child.by as f64 * dy).clamp(2 * by, 2 * by + 1);
+                        by = coord(p.y, d.y, child.wy).clamp(2 * by, 2 * by + 1);
                     }
                     continue;
                 }
@@ -326,11 +422,15 @@ impl Tracer {
             }
             t = t_out;
             if l < top {
-                let parent = &self.levels[l + 1];
-                let rx = (parent.bx / lev.bx) as i64;
-                let ry = (parent.by / lev.by) as i64;
-                let (px, py) = (bx.div_euclid(rx), by.div_euclid(ry));
-                if px != obx.div_euclid(rx) || py != oby.div_euclid(ry) {
+                // Climb when the step left the parent block, unless the ray is already
+                // below the new parent's highest corner: then the parent could not be
+                // skipped (going up, the ray is lowest where it enters; going down,
+                // lower still further on), and climbing would only descend again.
+                let (ux, uy) = (lev.up_x, lev.up_y);
+                let (px, py) = (bx >> ux, by >> uy);
+                if (px != obx >> ux || py != oby >> uy)
+                    && o.z + d.z * t > self.levels[l + 1].max_at(px, py)
+                {
                     l += 1;
                     bx = px;
                     by = py;
@@ -340,6 +440,7 @@ impl Tracer {
     }
 
     fn brute(&self, ray: &Ray, t0: f64, t1: f64) -> Option<Hit> {
+        let pre = self.pre(ray);
         let (o, d) = (ray.o, ray.d);
         let (nx, ny) = (self.hf.nx() as i64, self.hf.ny() as i64);
         let (a, b) = (o + d * t0, o + d * t1);
@@ -352,7 +453,7 @@ impl Tracer {
             for kx in cx0.div_euclid(nx)..=cx1.div_euclid(nx) {
                 for j in 0..ny {
                     for i in 0..nx {
-                        if let Some(h) = self.cell_hit(ray, kx * nx + i, ky * ny + j, t0, t1)
+                        if let Some(h) = self.cell_hit(ray, &pre, kx * nx + i, ky * ny + j, t0, t1)
                             && best.is_none_or(|b| h.t < b.t)
                         {
                             best = Some(h);
@@ -367,16 +468,30 @@ impl Tracer {
     /// The first hit in unwrapped cell `(ix, iy)` within `[t0, t1]` (see the module
     /// docs).
     #[inline]
-    fn cell_hit(&self, ray: &Ray, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
+    fn cell_hit(&self, ray: &Ray, pre: &Pre, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
         let hf = &self.hf;
-        let (o, d) = (ray.o, ray.d);
+        let (o, d) = (pre.o, pre.d);
         let (dx, dy) = (hf.dx(), hf.dy());
         let x0 = ix as f64 * dx;
         let y0 = iy as f64 * dy;
         let (mut lo, mut hi) = (t0, t1);
-        if !slab(o.x, d.x, x0, (ix + 1) as f64 * dx, &mut lo, &mut hi)
-            || !slab(o.y, d.y, y0, (iy + 1) as f64 * dy, &mut lo, &mut hi)
-        {
+        if !slab(
+            o.x,
+            d.x,
+            pre.inv_x,
+            x0,
+            (ix + 1) as f64 * dx,
+            &mut lo,
+            &mut hi,
+        ) || !slab(
+            o.y,
+            d.y,
+            pre.inv_y,
+            y0,
+            (iy + 1) as f64 * dy,
+            &mut lo,
+            &mut hi,
+        ) {
             return None;
         }
         if lo > hi {
@@ -385,8 +500,8 @@ impl Tracer {
         let i = Level::wrap(ix, hf.nx());
         let j = Level::wrap(iy, hf.ny());
         let c = hf.corners(i, j);
-        let (ou, du) = ((o.x - x0) / dx, d.x / dx);
-        let (ov, dv) = ((o.y - y0) / dy, d.y / dy);
+        let (ou, du) = ((o.x - x0) * self.inv_dx, pre.du);
+        let (ov, dv) = ((o.y - y0) * self.inv_dy, pre.dv);
         // The diagonal u = v: w(t) = u − v.
         let (w0, dw) = (ou - ov, du - dv);
         let tri_at = |t: f64| -> u8 { if w0 + dw * t >= 0.0 { 0 } else { 1 } };

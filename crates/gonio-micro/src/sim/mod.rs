@@ -36,9 +36,9 @@ use gonio_process::Table;
 use gonio_process::sh::ShBrdf;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use crate::material::{Scratch, uniform};
 use crate::trace::{Method, Ray, Tracer};
@@ -47,8 +47,6 @@ use crate::{MicroError, Sample};
 /// Rays a block: each block has its own random stream, so results do not depend on
 /// how blocks are spread over threads.
 pub const BLOCK: usize = 1024;
-/// Blocks traced in parallel before their sums are merged (in block order).
-const ROUND: usize = 64;
 /// The most rays a simulation may trace per incident direction of a table, or in all
 /// for a spherical-harmonic estimate: 10⁹, hours of tracing at the default
 /// hundred thousand's pace of a second or so. More is refused, not left to run for
@@ -81,26 +79,64 @@ fn block_rng(seed: u64, purpose: u64, incident: usize, block: usize) -> ChaCha8R
     r
 }
 
-/// Runs `task(k)` for `k` in `0..n` in parallel rounds and hands the results to
-/// `merge` in order of `k`, whatever the number of threads. Between rounds (tens
-/// of milliseconds) a raised `cancel` flag stops it: [`MicroError::Cancelled`].
+/// Runs `task(k)` for `k` in `0..n` on every thread of the current rayon pool and
+/// hands the results to `merge` in order of `k`, whatever the number of threads. A
+/// raised `cancel` flag stops it before the next task: [`MicroError::Cancelled`].
+///
+/// There are no rounds: each worker takes the next `k`, runs it, and files the
+/// result; whoever files the one `merge` waits for merges it and every result
+/// queued behind it. So no worker idles at a barrier while the slowest task of a
+/// round finishes, and the merging runs beside the tracing instead of between it.
+/// The queue holds only the results that finished before an earlier one: about
+/// one per thread.
 fn run_ordered<A: Send>(
     n: usize,
     cancel: Option<&AtomicBool>,
     task: impl Fn(usize) -> A + Sync,
-    mut merge: impl FnMut(usize, A),
+    merge: impl FnMut(usize, A) + Send,
 ) -> Result<(), MicroError> {
-    let mut start = 0;
-    while start < n {
-        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(MicroError::Cancelled);
+    struct Queue<A, M> {
+        next: usize,
+        done: BTreeMap<usize, A>,
+        merge: M,
+    }
+    let queue = Mutex::new(Queue {
+        next: 0,
+        done: BTreeMap::new(),
+        merge,
+    });
+    let handed = AtomicUsize::new(0);
+    let stopped = AtomicBool::new(false);
+    let worker = || {
+        loop {
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                stopped.store(true, Ordering::Relaxed);
+                return;
+            }
+            let k = handed.fetch_add(1, Ordering::Relaxed);
+            if k >= n {
+                return;
+            }
+            let a = task(k);
+            // A panicking merge poisons the lock; the panic itself reaches the caller
+            // through rayon, so the poison carries no new information.
+            let mut q = queue.lock().unwrap_or_else(|e| e.into_inner());
+            let q = &mut *q;
+            q.done.insert(k, a);
+            while let Some(a) = q.done.remove(&q.next) {
+                (q.merge)(q.next, a);
+                q.next += 1;
+            }
         }
-        let end = (start + ROUND).min(n);
-        let out: Vec<A> = (start..end).into_par_iter().map(&task).collect();
-        for (k, a) in out.into_iter().enumerate() {
-            merge(start + k, a);
+    };
+    let threads = rayon::current_num_threads().clamp(1, n.max(1));
+    rayon::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|_| worker());
         }
-        start = end;
+    });
+    if stopped.load(Ordering::Relaxed) {
+        return Err(MicroError::Cancelled);
     }
     Ok(())
 }
@@ -300,10 +336,19 @@ impl Simulation {
         &self.tracer
     }
 
-    /// Traces one path from `wi_s` (surface frame). `w` starts at 1 and ends as the
-    /// energy carried out; returns how it ended, its bounces and last direction.
+    /// A path's start: a uniform point of the plane `z = h_max` over the patch.
+    fn start(&self, rng: &mut ChaCha8Rng) -> Vec3 {
+        let hf = self.tracer.surface();
+        let (lx, ly) = hf.period();
+        Vec3::new(uniform(rng) * lx, uniform(rng) * ly, hf.max_height())
+    }
+
+    /// Traces one path from `o` (a [`Simulation::start`]) towards `−wi_s` (surface
+    /// frame). `w` starts at 1 and ends as the energy carried out; returns how it
+    /// ended, its bounces and last direction.
     fn path(
         &self,
+        o: Vec3,
         wi_s: Vec3,
         rng: &mut ChaCha8Rng,
         w: &mut [f64],
@@ -313,7 +358,7 @@ impl Simulation {
         let (lx, ly) = hf.period();
         let (nx, ny) = (hf.nx() as i64, hf.ny() as i64);
         w.fill(1.0);
-        let mut o = Vec3::new(uniform(rng) * lx, uniform(rng) * ly, hf.max_height());
+        let mut o = o;
         let mut d = -wi_s;
         let mut ray_skip = None;
         let mut t_min = 0.0;
@@ -442,7 +487,8 @@ impl Simulation {
                 let mut scratch = Scratch::new(nc);
                 let mut out = (Vec::new(), Vec::new(), Vec::new(), TraceStats::default());
                 for _ in 0..rays {
-                    let (end, k, d) = self.path(wi_s, &mut rng, &mut w, &mut scratch);
+                    let o = self.start(&mut rng);
+                    let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
                     self.count(&mut out.3, end, k, &w);
                     if end == End::Exit {
                         out.0.push(self.to_sample(d));

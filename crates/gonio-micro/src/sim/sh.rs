@@ -83,8 +83,9 @@ impl Simulation {
                     let z = 1.0 - uniform(&mut rng);
                     let phi = TAU * uniform(&mut rng);
                     let wi = Dir::from_angles(z.acos(), phi);
+                    let o = self.start(&mut rng);
                     let (end, order, d) =
-                        self.path(self.to_surface(wi.vec()), &mut rng, &mut w, &mut scratch);
+                        self.path(o, self.to_surface(wi.vec()), &mut rng, &mut w, &mut scratch);
                     self.count(&mut st, end, order, &w);
                     if end != End::Exit {
                         continue;

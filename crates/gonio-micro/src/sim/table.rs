@@ -3,7 +3,7 @@
 
 use std::f64::consts::TAU;
 
-use gonio_core::Dir;
+use gonio_core::{Dir, Vec3};
 use gonio_process::{Axis, Grid, Table};
 
 use super::{
@@ -269,19 +269,31 @@ impl Simulation {
         let n = BLOCK.min(job.rays - b * BLOCK);
         let mut w = vec![0.0; job.nc];
         let mut scratch = Scratch::new(job.nc);
-        for _ in 0..n {
-            let turn = if grid.isotropic {
-                TAU * uniform(&mut rng)
-            } else {
-                0.0
-            };
-            let wi_r = if grid.isotropic {
-                wi.rotate_about_normal(turn)
-            } else {
-                wi
-            };
-            let (end, k, d) =
-                self.path(self.to_surface(wi_r.vec()), &mut rng, &mut w, &mut scratch);
+        // Every ray's turn and start are drawn first, so that the cells where the
+        // next ray will land can be read into the cache while this one is traced:
+        // the rays start anywhere on the patch, and waiting for memory is most of a
+        // primary ray's time otherwise.
+        let rays: Vec<(f64, Vec3)> = (0..n)
+            .map(|_| {
+                let turn = if grid.isotropic {
+                    TAU * uniform(&mut rng)
+                } else {
+                    0.0
+                };
+                let wi_r = if grid.isotropic {
+                    wi.rotate_about_normal(turn)
+                } else {
+                    wi
+                };
+                (turn, self.to_surface(wi_r.vec()))
+            })
+            .collect();
+        let starts: Vec<Vec3> = (0..n).map(|_| self.start(&mut rng)).collect();
+        for (r, (&(turn, wi_s), &o)) in rays.iter().zip(&starts).enumerate() {
+            if let (Some(&(_, wn)), Some(&on)) = (rays.get(r + 1), starts.get(r + 1)) {
+                self.tracer.warm(on, -wn);
+            }
+            let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
             self.count(&mut acc.stats, end, k, &w);
             if end != End::Exit {
                 continue;
