@@ -219,7 +219,7 @@ fn channel(d: &FitData, ch: usize) -> FitData {
 fn thin(d: &FitData, max: usize) -> FitData {
     let step = d.len().div_ceil(max);
     let keep: Vec<usize> = (0..d.len()).step_by(step).collect();
-    let pick = |v: &Vec<f64>| keep.iter().map(|&i| v[i]).collect();
+    let pick = |v: &std::sync::Arc<[f64]>| keep.iter().map(|&i| v[i]).collect();
     FitData {
         channels: d.channels.clone(),
         wi: keep.iter().map(|&i| d.wi[i]).collect(),
