@@ -259,14 +259,6 @@ impl Rows for Samples {
     }
 }
 
-/// The first row at which `bad` holds for some channel.
-fn first_row(r: &impl Rows, bad: impl Fn(usize, usize) -> bool + Sync) -> Option<usize> {
-    let nc = r.channels().len();
-    (0..r.len())
-        .into_par_iter()
-        .position_first(|i| (0..nc).any(|ch| bad(i, ch)))
-}
-
 /// Pairs, values and residual weights, channel by channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitData {
@@ -338,37 +330,43 @@ impl FitData {
         if n == 0 {
             return Err(FitError::Data("no samples".into()));
         }
-        // A row's values are checked before its uncertainties: the first faulty row
-        // is reported, whichever its fault.
-        let bad_value = first_row(c, |i, ch| !c.value(i, ch).is_finite());
-        let bad_sigma = first_row(c, |i, ch| {
-            c.sigma(i, ch).is_some_and(|s| !(s.is_finite() && s >= 0.0))
-        });
-        match (bad_value, bad_sigma) {
-            (Some(i), s) if s.is_none_or(|s| i <= s) => {
-                return Err(FitError::Data(format!(
-                    "sample {i} ({:?}) has a value that is not a finite number",
-                    c.pair(i)
-                )));
-            }
-            (_, Some(i)) => {
-                return Err(FitError::Data(format!(
-                    "sample {i} has an uncertainty that is not a finite non-negative number"
-                )));
-            }
-            _ => {}
-        }
-        let without = first_row(c, |i, ch| !c.sigma(i, ch).is_some_and(|s| s > 0.0));
-        let (objective, objective_rule) = opts.objective_given(without)?;
-        let chi_square = objective == Objective::Chi2;
         let cutoff = opts.cutoff_deg;
         let keep = |i: usize| {
             let (ti, to) = c.thetas(i);
             ti <= cutoff && to <= cutoff && ti < 90.0 && to < 90.0
         };
+        // One sequential pass for every check (a few operations a row: parallel
+        // passes would cost more in synchronisation on a loaded machine than they
+        // save). Rows are checked in order, a row's values before its
+        // uncertainties: the first faulty row is reported, whichever its fault.
+        let (mut without, mut all_kept) = (None, true);
+        for i in 0..n {
+            let (mut bad_value, mut bad_sigma) = (false, false);
+            for ch in 0..nc {
+                bad_value |= !c.value(i, ch).is_finite();
+                let s = c.sigma(i, ch);
+                bad_sigma |= s.is_some_and(|s| !(s.is_finite() && s >= 0.0));
+                if without.is_none() && !s.is_some_and(|s| s > 0.0) {
+                    without = Some(i);
+                }
+            }
+            if bad_value {
+                return Err(FitError::Data(format!(
+                    "sample {i} ({:?}) has a value that is not a finite number",
+                    c.pair(i)
+                )));
+            }
+            if bad_sigma {
+                return Err(FitError::Data(format!(
+                    "sample {i} has an uncertainty that is not a finite non-negative number"
+                )));
+            }
+            all_kept &= keep(i);
+        }
+        let (objective, objective_rule) = opts.objective_given(without)?;
+        let chi_square = objective == Objective::Chi2;
         // The rows kept, when some are left out (usually none is: no index list).
-        let kept: Option<Vec<usize>> =
-            (!(0..n).into_par_iter().all(keep)).then(|| (0..n).filter(|i| keep(*i)).collect());
+        let kept: Option<Vec<usize>> = (!all_kept).then(|| (0..n).filter(|i| keep(*i)).collect());
         let row = |k: usize| kept.as_ref().map_or(k, |v| v[k]);
         let m = kept.as_ref().map_or(n, Vec::len);
         if m == 0 {
