@@ -304,8 +304,8 @@ impl FitData {
         FitData::from_rows(s, opts)
     }
 
-    /// From columns. Refuses columns of different lengths, NaN or infinite values and
-    /// uncertainties, data with no pair above the cutoff, and data from a single
+    /// From columns. Refuses columns of different lengths, NaN or infinite angles,
+    /// values and uncertainties, data with no pair above the cutoff, and data from a single
     /// incident direction (the lobes' Cx, Cz and n are then not separately
     /// determined). Negative values are kept: noise around a small BRDF is
     /// legitimately negative, and dropping it would bias the fit upwards. Errors name
@@ -350,10 +350,16 @@ impl FitData {
                     without = Some(i);
                 }
             }
+            let p = c.pair(i);
+            let angles = [p.incident, p.outgoing].map(|d| [d.theta_deg, d.phi_deg]);
+            if !angles.as_flattened().iter().all(|x| x.is_finite()) {
+                return Err(FitError::Data(format!(
+                    "sample {i} ({p:?}) has an angle that is not a finite number"
+                )));
+            }
             if bad_value {
                 return Err(FitError::Data(format!(
-                    "sample {i} ({:?}) has a value that is not a finite number",
-                    c.pair(i)
+                    "sample {i} ({p:?}) has a value that is not a finite number"
                 )));
             }
             if bad_sigma {

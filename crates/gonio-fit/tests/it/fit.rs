@@ -651,8 +651,8 @@ fn columns_give_each_kept_rows_directions_values_and_weights() {
     }
 }
 
-/// Faulty columns are refused naming the first faulty row, a row's values before its
-/// σ; columns of different lengths are refused.
+/// Faulty columns are refused naming the first faulty row, a row's angles before its
+/// values before its σ; columns of different lengths are refused.
 #[test]
 fn faulty_columns_name_the_first_faulty_row() {
     let truth = Model::from_toml(RGB, None).expect("model");
@@ -684,6 +684,14 @@ fn faulty_columns_name_the_first_faulty_row() {
     let e = fault(&[(2, 1, 300, f64::NAN), (1, 2, 300, f64::NAN)]);
     assert!(
         e.starts_with("sample 300 (") && e.contains("not a finite number"),
+        "{e}"
+    );
+    // An angle that is not a number.
+    let mut c = columns_of(&s);
+    c.0[1][77] = f64::NAN;
+    let e = from_cols(&s.channels, &c, true, &opts).expect_err("NaN φi");
+    assert!(
+        e.to_string().starts_with("sample 77 (") && e.to_string().contains("angle"),
         "{e}"
     );
     // σ = 0 is refused by χ² asked for, and makes the default rule choose the cosines.
