@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use gonio_core::dirfile::PairDeg;
-use gonio_core::{Channels, SphericalDeg};
+use gonio_core::{Channels, SphericalDeg, sin_cos_deg};
 use gonio_process::{Samples, Table};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -259,6 +259,43 @@ impl Rows for Samples {
     }
 }
 
+/// The sine and cosine of the last angle seen, degrees.
+#[derive(Clone, Copy)]
+struct SinCos {
+    bits: u64,
+    sc: (f64, f64),
+}
+
+impl Default for SinCos {
+    fn default() -> Self {
+        // NaN's bits: no finite angle matches them.
+        SinCos {
+            bits: f64::NAN.to_bits(),
+            sc: (f64::NAN, f64::NAN),
+        }
+    }
+}
+
+impl SinCos {
+    /// `sin_cos_deg(x)`, computed only when `x` differs from the last angle.
+    fn of(&mut self, x: f64) -> (f64, f64) {
+        if x.to_bits() != self.bits {
+            *self = SinCos {
+                bits: x.to_bits(),
+                sc: sin_cos_deg(x),
+            };
+        }
+        self.sc
+    }
+
+    /// The unit vector of `d`, as `Dir::from(d)` computes it.
+    fn dir(d: SphericalDeg, theta: &mut SinCos, phi: &mut SinCos) -> [f64; 3] {
+        let (st, ct) = theta.of(d.theta_deg);
+        let (sp, cp) = phi.of(d.phi_deg);
+        [st * cp, st * sp, ct]
+    }
+}
+
 /// Pairs, values and residual weights, channel by channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitData {
@@ -398,17 +435,25 @@ impl FitData {
         }
         // The directions' trigonometry is most of this function's time on large
         // inputs: in parallel, written in place into the shared arrays (collecting
-        // into vectors first would touch and copy twice the memory).
+        // into vectors first would touch and copy twice the memory), and each angle's
+        // sine and cosine reused while it repeats from row to row (a measurement's
+        // rows come in runs of one θi, φi and θo): the same values as
+        // `Dir::from(SphericalDeg)`, computed once a run.
+        const PART: usize = 4096;
         let zeros = || -> Arc<[[f64; 3]]> { (0..m).map(|_| [0.0; 3]).collect() };
         let (mut wi, mut wo) = (zeros(), zeros());
         if let (Some(a), Some(b)) = (Arc::get_mut(&mut wi), Arc::get_mut(&mut wo)) {
-            a.par_iter_mut()
-                .zip(b.par_iter_mut())
+            a.par_chunks_mut(PART)
+                .zip(b.par_chunks_mut(PART))
                 .enumerate()
-                .for_each(|(k, (a, b))| {
-                    let d = c.pair(row(k)).to_dirs();
-                    *a = [d.wi.x, d.wi.y, d.wi.z];
-                    *b = [d.wo.x, d.wo.y, d.wo.z];
+                .for_each(|(part, (a, b))| {
+                    let mut memo = [SinCos::default(); 4];
+                    for (j, (a, b)) in a.iter_mut().zip(b.iter_mut()).enumerate() {
+                        let p = c.pair(row(part * PART + j));
+                        let [ti, pi, to, po] = &mut memo;
+                        *a = SinCos::dir(p.incident, ti, pi);
+                        *b = SinCos::dir(p.outgoing, to, po);
+                    }
                 });
         }
         // Straight into the shared columns: one allocation and one pass each.
