@@ -1,6 +1,6 @@
 #![allow(missing_docs)] // criterion_group! generates undocumented functions
-//! Time of a 3-lobe + Lambert RGB lobe fit to ~100 000 noisy samples, and of the
-//! pieces it is made of.
+//! Time of a 3-lobe + Lambert RGB lobe fit to ~100 000 noisy samples, of the
+//! pieces it is made of, and of its data from samples and from columns.
 //!
 //! `cargo bench -p gonio-fit --bench fit`; figures and the machine are in BENCHMARKS.md
 //! at the repository root. Before timing, the bench fits once and asserts that the fit
@@ -21,7 +21,7 @@ use criterion::{Criterion, SamplingMode, criterion_group, criterion_main};
 use gonio_brdf::{Brdf, Model};
 use gonio_core::dirfile::PairDeg;
 use gonio_core::{Channels, SphericalDeg};
-use gonio_fit::data::{DataOptions, FitData};
+use gonio_fit::data::{Columns, DataOptions, FitData};
 use gonio_fit::lobes::{LobeBasis, Shape};
 use gonio_fit::varpro;
 use gonio_fit::{FitOptions, LobeFit, fit_lobes};
@@ -219,7 +219,7 @@ fn channel(d: &FitData, ch: usize) -> FitData {
 fn thin(d: &FitData, max: usize) -> FitData {
     let step = d.len().div_ceil(max);
     let keep: Vec<usize> = (0..d.len()).step_by(step).collect();
-    let pick = |v: &Vec<f64>| keep.iter().map(|&i| v[i]).collect();
+    let pick = |v: &std::sync::Arc<[f64]>| keep.iter().map(|&i| v[i]).collect();
     FitData {
         channels: d.channels.clone(),
         wi: keep.iter().map(|&i| d.wi[i]).collect(),
@@ -344,6 +344,48 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("evaluate_jacobian", |b| {
         b.iter(|| varpro::evaluate(&basis, black_box(&red), &theta, true))
+    });
+    g.finish();
+
+    // The data a fit sees, from a reader's rows (a `Sample` a row) and from its
+    // columns (what a column reader gives): the same FitData.
+    let nc = s.channels.len();
+    let col = |f: &dyn Fn(&gonio_process::Sample) -> f64| -> Vec<f64> {
+        s.samples.iter().map(f).collect()
+    };
+    let angles = [
+        col(&|x| x.pair.incident.theta_deg),
+        col(&|x| x.pair.incident.phi_deg),
+        col(&|x| x.pair.outgoing.theta_deg),
+        col(&|x| x.pair.outgoing.phi_deg),
+    ];
+    let values: Vec<Vec<f64>> = (0..nc).map(|ch| col(&|x| x.value[ch])).collect();
+    let sigma: Vec<Vec<f64>> = (0..nc)
+        .map(|ch| col(&|x| x.sigma.as_ref().expect("σ set")[ch]))
+        .collect();
+    let values: Vec<&[f64]> = values.iter().map(Vec::as_slice).collect();
+    let sigma: Vec<&[f64]> = sigma.iter().map(Vec::as_slice).collect();
+    let columns = Columns {
+        channels: &s.channels,
+        theta_i: &angles[0],
+        phi_i: &angles[1],
+        theta_o: &angles[2],
+        phi_o: &angles[3],
+        values: &values,
+        sigma: Some(&sigma),
+    };
+    let opts = DataOptions::default();
+    assert_eq!(
+        FitData::from_columns(&columns, &opts).expect("columns"),
+        data
+    );
+    let mut g = c.benchmark_group("fit_data");
+    g.sample_size(20).measurement_time(Duration::from_secs(3));
+    g.bench_function("from_samples", |b| {
+        b.iter(|| FitData::from_samples(black_box(&s), &opts).expect("data"))
+    });
+    g.bench_function("from_columns", |b| {
+        b.iter(|| FitData::from_columns(black_box(&columns), &opts).expect("data"))
     });
     g.finish();
 }

@@ -248,14 +248,14 @@ pub fn fit_model(kind: Kind, data: &FitData) -> Result<Vec<Compared>, FitError> 
             let wrms = (residuals.iter().map(|r| r * r).sum::<f64>() / m).sqrt();
             let rms = (residuals
                 .iter()
-                .zip(&one.weight[0])
+                .zip(one.weight[0].iter())
                 .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
                 .sum::<f64>()
                 / m)
                 .sqrt();
             let scale = (one.y[0]
                 .iter()
-                .zip(&one.weight[0])
+                .zip(one.weight[0].iter())
                 .map(|(y, w)| (y * w).powi(2))
                 .sum::<f64>()
                 / m)

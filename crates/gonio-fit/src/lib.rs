@@ -15,7 +15,7 @@ pub mod fit;
 pub mod lobes;
 pub mod varpro;
 
-pub use data::{DataOptions, FitData, Metric, Objective};
+pub use data::{Columns, DataOptions, FitData, Metric, Objective};
 pub use fit::{FitOptions, LobeFit, MAX_LOBES, fit_lobes};
 pub use lobes::{Diffuse, Shape};
 

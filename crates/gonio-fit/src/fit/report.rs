@@ -122,7 +122,7 @@ pub(super) fn report(g: &Group, names: &Channels, channel: Option<usize>) -> Vec
         let wrms = (res.iter().map(|r| r * r).sum::<f64>() / m as f64).sqrt();
         let rms = (res
             .iter()
-            .zip(&g.data.weight[ch])
+            .zip(g.data.weight[ch].iter())
             .map(|(r, w)| if *w != 0.0 { (r / w).powi(2) } else { 0.0 })
             .sum::<f64>()
             / m as f64)

@@ -381,7 +381,7 @@ pub fn evaluate_prepared(
     let mut jtj = vec![0.0; p * p];
     let mut jtr = vec![0.0; p];
     let mut full = jac.then(|| Full {
-        residuals: Vec::with_capacity(nc * prep.data.len()),
+        residuals: prep.spare_residuals(nc * prep.data.len()),
         grams: Vec::with_capacity(nc),
     });
     let limits = prep.limits.as_deref().filter(|l| !l.is_empty());
@@ -399,10 +399,16 @@ pub fn evaluate_prepared(
         };
         let parts = chunk_pass(basis, prep, theta, ch, &mut cl, &c, jac);
         let mut acc = vec![0.0; if jac { (k + q) * q } else { 1 }];
-        for (a, r) in parts {
+        for a in parts {
             acc = add_into(acc, a);
-            if let Some(f) = full.as_mut() {
-                f.residuals.extend_from_slice(&r);
+        }
+        if let Some(f) = full.as_mut() {
+            // The residuals, in the columns' blocks after [WA | V]: copied out in
+            // order, into a buffer of an earlier evaluation's.
+            for block in cl.cols.chunks(CHUNK * (k + q)) {
+                let len = block.len() / (k + q);
+                f.residuals
+                    .extend_from_slice(&block[len * (k + p)..len * (k + q)]);
             }
         }
         if !jac {
@@ -475,9 +481,9 @@ fn bounded_solve(
 }
 
 /// The parallel pass over channel `ch`'s chunks at the coefficients `c`: per
-/// chunk, with X = [WA | V | r] (V = W ∂A/∂θ c), Xᵀ[V | r], (k + p + 1) × (p + 1)
-/// row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r], whose last entry is Σr² — and
-/// the chunk's residuals; without the Jacobian only Σr².
+/// chunk, with X = [WA | V | r] (V = W ∂A/∂θ c) left in the chunk's block,
+/// Xᵀ[V | r], (k + p + 1) × (p + 1) row-major — (WA)ᵀ[V | r] then [V | r]ᵀ[V | r],
+/// whose last entry is Σr²; without the Jacobian only Σr².
 fn chunk_pass(
     basis: &dyn Basis,
     prep: &Prepared,
@@ -486,7 +492,7 @@ fn chunk_pass(
     cl: &mut Columns,
     c: &[f64],
     jac: bool,
-) -> Vec<(Vec<f64>, Vec<f64>)> {
+) -> Vec<Vec<f64>> {
     let (k, p) = (basis.n_cols(), basis.n_params());
     let s = basis.scratch_len().max(1);
     let q = if jac { p + 1 } else { 0 };
@@ -519,14 +525,13 @@ fn chunk_pass(
                 }
             }
             if !jac {
-                return (vec![dot(r, r)], Vec::new());
+                return vec![dot(r, r)];
             }
-            let r = r.to_vec();
             let chunk = prep.chunk(ch, lo, lo + len);
             basis.directional(theta, ch, &chunk, cc, sc, c, &mut vr[..len * p]);
             let mut acc = vec![0.0; width];
             gram_tail(block, stride, k, len, &mut acc);
-            (acc, r)
+            acc
         })
         .collect()
 }

@@ -94,11 +94,14 @@ impl<'a> Projected<'a> {
         let (jtj, jtr) = e.normal.take()?;
         let finite = e.cost.is_finite() && jtj.iter().chain(&jtr).all(|x| x.is_finite());
         let out = finite.then(|| compress(&jtj, &jtr, e.cost, self.basis.n_params()));
-        if let Ok(mut l) = self.last.lock()
-            && finite
-            && l.as_ref().is_none_or(|b| e.cost <= b.1.cost)
-        {
-            *l = Some((self.theta.as_slice().to_vec(), e));
+        if let Ok(mut l) = self.last.lock() {
+            if finite && l.as_ref().is_none_or(|b| e.cost <= b.1.cost) {
+                if let Some((_, old)) = l.replace((self.theta.as_slice().to_vec(), e)) {
+                    self.prep.give_back(old);
+                }
+            } else {
+                self.prep.give_back(e);
+            }
         }
         out
     }

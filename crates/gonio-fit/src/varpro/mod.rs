@@ -176,6 +176,9 @@ pub struct Prepared<'a> {
     /// The columns' and scratch buffers of the last evaluation, reused: allocating
     /// megabytes anew each time costs page faults and zeroing.
     buffers: std::sync::Mutex<Option<(Vec<f64>, Vec<f64>)>>,
+    /// Residual buffers of evaluations no longer needed, reused likewise (a search
+    /// keeps only its best evaluation's).
+    spare: std::sync::Mutex<Vec<Vec<f64>>>,
     /// Incident directions at which the directional albedo is held ≤ 1 (the energy
     /// constraint), if any.
     pub limits: Option<Vec<[f64; 3]>>,
@@ -195,14 +198,35 @@ impl<'a> Prepared<'a> {
             .weight
             .iter()
             .zip(&data.y)
-            .map(|(w, y)| w.iter().zip(y).map(|(w, y)| w * y).collect())
+            .map(|(w, y)| w.iter().zip(y.iter()).map(|(w, y)| w * y).collect())
             .collect();
         Prepared {
             data,
             uv,
             wy,
             buffers: std::sync::Mutex::new(None),
+            spare: std::sync::Mutex::new(Vec::new()),
             limits: None,
+        }
+    }
+
+    /// An empty buffer for `n` residuals: a spare one if there is one.
+    fn spare_residuals(&self, n: usize) -> Vec<f64> {
+        let mut v = self
+            .spare
+            .lock()
+            .ok()
+            .and_then(|mut s| s.pop())
+            .unwrap_or_default();
+        v.clear();
+        v.reserve(n);
+        v
+    }
+
+    /// Hands back an evaluation's residual buffer for the next evaluations.
+    fn give_back(&self, e: Evaluation) {
+        if let (Some(f), Ok(mut s)) = (e.full, self.spare.lock()) {
+            s.push(f.residuals);
         }
     }
 

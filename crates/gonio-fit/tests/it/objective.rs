@@ -52,7 +52,7 @@ fn weights(s: &Samples, objective: Option<Objective>, use_sigma: bool) -> (Objec
     )
     .expect("data");
     assert_eq!(d.chi_square, d.objective == Objective::Chi2);
-    (d.objective, d.weight[0].clone())
+    (d.objective, d.weight[0].to_vec())
 }
 
 fn close(a: &[f64], b: &[f64]) {
