@@ -6,6 +6,7 @@ pub mod floor;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::grid::interpolate;
@@ -622,6 +623,7 @@ pub fn separability(t: &Table, ks: &[usize]) -> Result<Vec<Separability>, Proces
     let (p, q) = (full.grid.n_in(), full.grid.n_out());
     let k_max = ks.iter().copied().max().unwrap_or(0);
     (0..full.channels.len())
+        .into_par_iter()
         .map(|ch| {
             // The channel's rows (φi, θi) of q values are Aᵀ in column-major order: a
             // view, not a copy, with A's singular values.
@@ -679,27 +681,36 @@ pub fn report_with(
     ks: &[usize],
     worst: usize,
 ) -> Result<Report, ProcessError> {
-    let (reciprocity, reciprocity_nodes) = reciprocity(t);
-    let energy = match measured {
-        Some(s) => energy_scattered(s, 1.0, worst)?,
-        None => {
-            let sum = energy(t, 1.0, worst);
-            if sum.coverage >= 0.999 {
-                sum
-            } else {
-                energy_triangulated(t, 1.0, worst).unwrap_or(sum)
-            }
-        }
-    };
+    // The measures are independent of each other: computed side by side, each the
+    // same numbers on any number of threads.
+    let (((reciprocity, reciprocity_nodes), energy), (isotropy, separability)) = rayon::join(
+        || {
+            rayon::join(
+                || reciprocity(t),
+                || match measured {
+                    Some(s) => energy_scattered(s, 1.0, worst),
+                    None => {
+                        let sum = energy(t, 1.0, worst);
+                        Ok(if sum.coverage >= 0.999 {
+                            sum
+                        } else {
+                            energy_triangulated(t, 1.0, worst).unwrap_or(sum)
+                        })
+                    }
+                },
+            )
+        },
+        || rayon::join(|| isotropy(t), || separability(t, ks).ok()),
+    );
     let mut report = Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
         paired: t.grid.is_paired(),
         reciprocity,
         reciprocity_nodes,
-        energy,
-        isotropy: isotropy(t)?,
-        separability: separability(t, ks).ok(),
+        energy: energy?,
+        isotropy: isotropy?,
+        separability,
         floor: None,
     };
     let draws = floor::draws_for(t.values.len());
