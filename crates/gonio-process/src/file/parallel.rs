@@ -301,7 +301,8 @@ fn number(f: &[u8]) -> Option<f64> {
 fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
     let width = roles.names.len();
     let nc = roles.values.len();
-    let guess = text.len() / 24 + 1;
+    // At most a row a line: the chunk's columns are allocated once.
+    let guess = text.iter().filter(|b| **b == b'\n').count() + 1;
     let mut out = Parsed {
         slots: (0..slots.len())
             .map(|_| Vec::with_capacity(guess))

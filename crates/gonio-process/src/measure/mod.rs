@@ -69,6 +69,10 @@ impl Reciprocals {
     }
 }
 
+/// Nodes a block of a parallel sum has: fixed, so that the sum's order does not
+/// depend on the number of threads.
+const SUM_BLOCK: usize = 1 << 14;
+
 /// P_r, DeYoung Eq. 4.1, per channel: the RMS difference between each value and its
 /// reciprocal, with the factor 2 for each pair counted twice. Nodes whose reciprocal
 /// lies outside the table are left out of both sums; the count used is returned.
@@ -80,12 +84,27 @@ pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
     let out = (0..t.channels.len())
         .map(|ch| {
             let v = t.channel(ch);
+            // Fixed blocks of nodes summed on rayon, their sums added in order: the
+            // same bits on any number of threads.
+            let blocks: Vec<(f64, usize)> = (0..n)
+                .step_by(SUM_BLOCK)
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .map(|start| {
+                    let (mut sum, mut count) = (0.0, 0usize);
+                    for i in start..(start + SUM_BLOCK).min(n) {
+                        if let Some(r) = rec.value(g, v, i) {
+                            sum += (v[i] - r).powi(2);
+                            count += 1;
+                        }
+                    }
+                    (sum, count)
+                })
+                .collect();
             let (mut sum, mut count) = (0.0, 0usize);
-            for i in 0..n {
-                if let Some(r) = rec.value(g, v, i) {
-                    sum += (v[i] - r).powi(2);
-                    count += 1;
-                }
+            for (s, c) in blocks {
+                sum += s;
+                count += c;
             }
             used = count;
             if count == 0 {
