@@ -61,12 +61,12 @@ fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     Mat::from_fn(m, n, |i, j| blocks[i / PRODUCT_ROWS][(i % PRODUCT_ROWS, j)])
 }
 
+/// A thin SVD's U and V.
+type Vectors = (Mat<f64>, Mat<f64>);
+
 /// The singular values of `a`, descending, and its thin U and V when `vectors`, by
 /// faer on one thread (the same bits on any number of threads).
-fn svd_seq(
-    a: MatRef<'_, f64>,
-    vectors: bool,
-) -> Result<(Vec<f64>, Option<(Mat<f64>, Mat<f64>)>), ProcessError> {
+fn svd_seq(a: MatRef<'_, f64>, vectors: bool) -> Result<(Vec<f64>, Option<Vectors>), ProcessError> {
     let (m, n) = a.shape();
     let k = m.min(n);
     let mut s = faer::diag::Diag::<f64>::zeros(k);

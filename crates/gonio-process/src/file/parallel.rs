@@ -640,6 +640,9 @@ pub fn read_columns_in<R: Read>(
     })
 }
 
+/// A row off a grid: its index, the axis and the angle.
+type OffGrid = (usize, &'static str, f64);
+
 /// Micro-degrees: angles keyed exactly for any grid a plan or file writes (as
 /// `Samples::to_table` keys them).
 fn q(x: f64) -> i64 {
@@ -728,7 +731,7 @@ impl Columns {
                 from_sidecar = true;
             }
         }
-        let Some((gline, g)) = this.grid.clone() else {
+        let Some((gline, g)) = this.grid else {
             return match this.recognise() {
                 Some((g, idx)) => this.place(g, &idx, path),
                 None => Ok(Content::Samples(this.to_samples())),
@@ -751,7 +754,7 @@ impl Columns {
     /// the first row (in file order) off the grid is an error.
     fn nodes_on(&self, g: &Grid, path: Option<&Path>) -> Result<Vec<u32>, FileError> {
         let [ti, pi, to, po] = &self.angles;
-        let runs: Vec<Result<Vec<u32>, (usize, &str, f64)>> = (0..self.rows())
+        let runs: Vec<Result<Vec<u32>, OffGrid>> = (0..self.rows())
             .step_by(ROW_CHUNK)
             .collect::<Vec<_>>()
             .into_par_iter()
