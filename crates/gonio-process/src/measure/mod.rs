@@ -545,41 +545,60 @@ pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), Pr
     let mut mu = vec![0.0; m * nc];
     let mut mu_sigma = use_sigma.then(|| vec![0.0; m * nc]);
     let mut p_i = vec![0.0; nc];
-    let mut vals = vec![0.0; na];
-    let mut sig = vec![0.0; na];
     // Both azimuth axes the same full turn: φ+ = φo − φi stays on the nodes.
     let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
     for ch in 0..nc {
         let v = t.channel(ch);
         let s = t.channel_sigma(ch);
-        let mut total = 0.0;
-        for j in 0..m {
-            let [_, ti, pp, to] = mg.angles(j);
-            let [_, b, c, d] = mg.unindex(j);
-            for a in 0..na {
-                if same_phi {
-                    // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
-                    let k = g.index(a, b, (a + c) % g.phi_o.n, d);
-                    vals[a] = v[k];
-                    if let Some(s) = s {
-                        sig[a] = s[k];
+        // Each node of the mean on rayon, its spread added in node order below: the
+        // same bits as a serial loop, on any number of threads.
+        let per_node: Vec<(f64, f64, f64)> = (0..m)
+            .into_par_iter()
+            .map_init(
+                || (vec![0.0; na], vec![0.0; na]),
+                |(vals, sig), j| {
+                    let [_, ti, pp, to] = mg.angles(j);
+                    let [_, b, c, d] = mg.unindex(j);
+                    for a in 0..na {
+                        if same_phi {
+                            // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
+                            let k = g.index(a, b, (a + c) % g.phi_o.n, d);
+                            vals[a] = v[k];
+                            if let Some(s) = s {
+                                sig[a] = s[k];
+                            }
+                            continue;
+                        }
+                        let pi = g.phi_i.node(a);
+                        vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
+                        if let Some(s) = s {
+                            sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
+                        }
                     }
-                    continue;
-                }
-                let pi = g.phi_i.node(a);
-                vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
-                if let Some(s) = s {
-                    sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
-                }
-            }
-            let mean = vals.iter().sum::<f64>() / na as f64;
-            total += (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+                    let mean = vals.iter().sum::<f64>() / na as f64;
+                    let spread =
+                        (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+                    if use_sigma {
+                        let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
+                        let wm = vals
+                            .iter()
+                            .zip(sig.iter())
+                            .map(|(x, s)| x / (s * s))
+                            .sum::<f64>()
+                            / sw;
+                        (wm, sw.sqrt().recip(), spread)
+                    } else {
+                        (mean, 0.0, spread)
+                    }
+                },
+            )
+            .collect();
+        let mut total = 0.0;
+        for (j, (mean, sd, spread)) in per_node.into_iter().enumerate() {
+            total += spread;
+            mu[ch * m + j] = mean;
             if let Some(ms) = mu_sigma.as_mut() {
-                let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
-                mu[ch * m + j] = vals.iter().zip(&sig).map(|(x, s)| x / (s * s)).sum::<f64>() / sw;
-                ms[ch * m + j] = sw.sqrt().recip();
-            } else {
-                mu[ch * m + j] = mean;
+                ms[ch * m + j] = sd;
             }
         }
         p_i[ch] = total / m as f64;
