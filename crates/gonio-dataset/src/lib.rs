@@ -294,7 +294,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Opened, DatasetError> {
         // text.
         let data = match f {
             formats::Format::CsvLong => formats::read_long_file(path, MAX_TEXT_BYTES)?,
-            _ => formats::read_csv_file(path, MAX_TEXT_BYTES)?,
+            _ => read_wide_csv(path)?,
         };
         (Kind::Csv, from_data(data, path)?)
     } else {
@@ -362,8 +362,54 @@ fn csv_format(path: &Path) -> Result<Option<formats::Format>, DatasetError> {
     if toml_kind(&head).is_some() {
         return Ok(None);
     }
-    Ok(formats::detect(&head)
-        .filter(|f| matches!(f, formats::Format::Csv | formats::Format::CsvLong)))
+    match formats::detect(&head) {
+        Some(f @ (formats::Format::Csv | formats::Format::CsvLong)) => Ok(Some(f)),
+        // Another tool's table: the columns in another order, units in the names.
+        None if gonio_process::file::is_columns_header(&head) => Ok(Some(formats::Format::Csv)),
+        _ => Ok(None),
+    }
+}
+
+/// Reads a wide CSV table or sample file with its sidecar, in parallel and in any
+/// column order (`gonio_process::file::read_columns`). A file in Gonio's own column
+/// order that this refuses is read again by the streaming reader, so that its
+/// errors stay word for word what they were.
+fn read_wide_csv(path: &Path) -> Result<Data, DatasetError> {
+    let columns = || -> Result<Data, DatasetError> {
+        let meta = formats::read_sidecar(path)?;
+        let whole =
+            |why: String| gonio_core::tomlfile::FileError::whole("BRDF table", Some(path), why);
+        let len = gonio_core::input::regular_file(path)
+            .map_err(|e| whole(format!("cannot read: {}", e.reason())))?
+            .len();
+        if len > MAX_TEXT_BYTES {
+            return Err(DatasetError::TooLarge(path.to_path_buf()));
+        }
+        let file = std::fs::File::open(path).map_err(|e| whole(format!("cannot read: {e}")))?;
+        if !file.metadata().is_ok_and(|m| m.is_file()) {
+            return Err(whole("cannot read: not a regular file".into()).into());
+        }
+        let cols = gonio_process::file::read_columns(
+            std::io::Read::take(file, MAX_TEXT_BYTES),
+            len,
+            Some(path),
+        )?;
+        Ok(match cols.into_content(meta.as_ref(), Some(path))? {
+            gonio_process::file::Content::Table(t) => Data::Table(t),
+            gonio_process::file::Content::Samples(s) => Data::Samples(s),
+        })
+    };
+    match columns() {
+        Ok(d) => Ok(d),
+        Err(e) => {
+            let head = gonio_core::input::read_head(path, 64 << 10).unwrap_or_default();
+            if formats::detect(&head) == Some(formats::Format::Csv) {
+                Ok(formats::read_csv_file(path, MAX_TEXT_BYTES)?)
+            } else {
+                Err(e)
+            }
+        }
+    }
 }
 
 /// What a format reader gave, as a dataset: samples that form a complete uniform grid

@@ -23,9 +23,107 @@
 //! (Eckart–Young): P_s^(k) from a truncated run is an upper bound, tight to second
 //! order in the Ritz vectors' error.
 
-use faer::{Mat, MatRef, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::matmul::matmul;
+use faer::linalg::svd::ComputeSvdVectors;
+use faer::{Accum, Mat, MatRef, Par};
+use rayon::prelude::*;
 
 use crate::ProcessError;
+
+/// Rows of a product's output computed as one unit of parallel work.
+const PRODUCT_ROWS: usize = 128;
+
+/// The product `a b`, its rows in fixed blocks of [`PRODUCT_ROWS`] on rayon, each
+/// block by faer's sequential kernel: the blocks do not depend on the number of
+/// threads, so neither does any bit of the result (faer's own parallel product
+/// splits the sums by thread count).
+fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let (m, n) = (a.nrows(), b.ncols());
+    let blocks: Vec<Mat<f64>> = (0..m)
+        .step_by(PRODUCT_ROWS)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|r0| {
+            let rows = PRODUCT_ROWS.min(m - r0);
+            let mut out = Mat::zeros(rows, n);
+            matmul(
+                out.as_mut(),
+                Accum::Replace,
+                a.subrows(r0, rows),
+                b,
+                1.0,
+                Par::Seq,
+            );
+            out
+        })
+        .collect();
+    Mat::from_fn(m, n, |i, j| blocks[i / PRODUCT_ROWS][(i % PRODUCT_ROWS, j)])
+}
+
+/// A thin SVD's U and V.
+type Vectors = (Mat<f64>, Mat<f64>);
+
+/// The singular values of `a`, descending, and its thin U and V when `vectors`, by
+/// faer on one thread (the same bits on any number of threads).
+fn svd_seq(a: MatRef<'_, f64>, vectors: bool) -> Result<(Vec<f64>, Option<Vectors>), ProcessError> {
+    let (m, n) = a.shape();
+    let k = m.min(n);
+    let mut s = faer::diag::Diag::<f64>::zeros(k);
+    let (mut u, mut v) = if vectors {
+        (Some(Mat::zeros(m, k)), Some(Mat::zeros(n, k)))
+    } else {
+        (None, None)
+    };
+    let compute = if vectors {
+        ComputeSvdVectors::Thin
+    } else {
+        ComputeSvdVectors::No
+    };
+    let mut mem = MemBuffer::new(faer::linalg::svd::svd_scratch::<f64>(
+        m,
+        n,
+        compute,
+        compute,
+        Par::Seq,
+        Default::default(),
+    ));
+    faer::linalg::svd::svd(
+        a,
+        s.as_mut(),
+        u.as_mut().map(|x| x.as_mut()),
+        v.as_mut().map(|x| x.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
+    let values = s.column_vector().iter().copied().collect();
+    Ok((values, u.zip(v)))
+}
+
+/// The eigenvalues of the symmetric `a` (its lower triangle), ascending, on one
+/// thread.
+fn eigenvalues_seq(a: MatRef<'_, f64>) -> Option<Vec<f64>> {
+    let n = a.nrows();
+    let mut s = faer::diag::Diag::<f64>::zeros(n);
+    let mut mem = MemBuffer::new(faer::linalg::evd::self_adjoint_evd_scratch::<f64>(
+        n,
+        faer::linalg::evd::ComputeEigenvectors::No,
+        Par::Seq,
+        Default::default(),
+    ));
+    faer::linalg::evd::self_adjoint_evd(
+        a,
+        s.as_mut(),
+        None,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .ok()?;
+    Some(s.column_vector().iter().copied().collect())
+}
 
 /// Below this many rows or columns a full SVD is used: it costs milliseconds.
 pub const MIN_TRUNCATED: usize = 256;
@@ -71,11 +169,10 @@ impl Spectrum {
     }
 }
 
-/// The full SVD's singular values (faer).
+/// The full SVD's singular values (faer, on one thread: the same bits on any
+/// number of threads).
 pub fn full(a: MatRef<'_, f64>) -> Result<Spectrum, ProcessError> {
-    let values = a
-        .singular_values()
-        .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
+    let (values, _) = svd_seq(a, false)?;
     Ok(Spectrum {
         values,
         tails: None,
@@ -129,8 +226,8 @@ fn extend_basis(basis: &mut Vec<f64>, rows: usize, y: &mut [f64], rng: &mut Spli
             break;
         }
         let k = MatRef::from_column_major_slice(basis.as_slice(), rows, m);
-        let c = k.transpose() * MatRef::from_column_major_slice(&*y, rows, b);
-        let kc = k * &c;
+        let c = product(k.transpose(), MatRef::from_column_major_slice(&*y, rows, b));
+        let kc = product(k, c.as_ref());
         for j in 0..b {
             for (v, s) in y[j * rows..(j + 1) * rows]
                 .iter_mut()
@@ -177,7 +274,7 @@ fn truncated(a: MatRef<'_, f64>, k_max: usize, b: usize) -> Option<Spectrum> {
     let max_basis = MAX_BASIS.min(p.min(q) / 2);
     let mut rng = SplitMix(0x6f6e_696f_5f73_7664);
     let omega = Mat::from_fn(q, b, |_, _| rng.next());
-    let mut y: Vec<f64> = mat_to_vec(&(a * &omega));
+    let mut y: Vec<f64> = mat_to_vec(&product(a, omega.as_ref()));
     let mut basis: Vec<f64> = Vec::with_capacity(p * max_basis);
     let mut w: Vec<f64> = Vec::with_capacity(q * max_basis);
     let mut prev: Vec<f64> = Vec::new();
@@ -188,11 +285,11 @@ fn truncated(a: MatRef<'_, f64>, k_max: usize, b: usize) -> Option<Spectrum> {
         }
         let m = basis.len() / p;
         let knew = MatRef::from_column_major_slice(&basis[m0 * p..], p, m - m0);
-        let wn = a.transpose() * knew;
+        let wn = product(a.transpose(), knew);
         w.extend_from_slice(&mat_to_vec(&wn));
         let wr = MatRef::from_column_major_slice(w.as_slice(), q, m);
-        let gram = wr.transpose() * wr;
-        let mut ev = gram.self_adjoint_eigenvalues(Side::Lower).ok()?;
+        let gram = product(wr.transpose(), wr);
+        let mut ev = eigenvalues_seq(gram.as_ref())?;
         ev.reverse();
         let sv: Vec<f64> = ev.iter().take(k_max).map(|l| l.max(0.0).sqrt()).collect();
         let done = prev.len() == sv.len()
@@ -207,16 +304,19 @@ fn truncated(a: MatRef<'_, f64>, k_max: usize, b: usize) -> Option<Spectrum> {
         if m + b > max_basis {
             return None;
         }
-        y = mat_to_vec(&(a * &wn));
+        y = mat_to_vec(&product(a, wn.as_ref()));
     }
     let m = basis.len() / p;
     let wr = MatRef::from_column_major_slice(w.as_slice(), q, m);
-    let svd = wr.thin_svd().ok()?;
-    let s = svd.S().column_vector();
-    let values: Vec<f64> = (0..k_max).map(|j| s[j]).collect();
-    let vk = svd.U().subcols(0, k_max).to_owned();
-    let uk = MatRef::from_column_major_slice(basis.as_slice(), p, m) * svd.V().subcols(0, k_max);
-    let av = a * &vk;
+    let (s, vectors) = svd_seq(wr, true).ok()?;
+    let (su, sv) = vectors?;
+    let values: Vec<f64> = s[..k_max].to_vec();
+    let vk = su.subcols(0, k_max).to_owned();
+    let uk = product(
+        MatRef::from_column_major_slice(basis.as_slice(), p, m),
+        sv.subcols(0, k_max),
+    );
+    let av = product(a, vk.as_ref());
     let sigma1 = values[0];
     let residual = (0..k_max)
         .map(|j| {

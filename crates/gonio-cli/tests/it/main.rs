@@ -5,6 +5,7 @@ mod acquire;
 mod adaptive;
 mod adaptive_report;
 mod budget;
+mod check_tables;
 mod cli;
 mod colour;
 mod common;

@@ -32,10 +32,14 @@ use gonio_core::Channels;
 
 use crate::{Samples, Table};
 
+mod parallel;
 mod read;
 mod sidecar;
 mod write;
 
+pub use parallel::{
+    BLOCK, CHUNK, Columns, Roles, header_roles, is_columns_header, read_columns, read_columns_in,
+};
 pub(crate) use read::parse_header;
 pub use read::{EXPECTED_COLUMNS, MAX_ROWS, read, read_from};
 pub use sidecar::{AxisMeta, GridMeta, Meta};

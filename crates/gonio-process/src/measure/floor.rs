@@ -291,11 +291,15 @@ pub fn isotropic_counterpart(t: &Table) -> Result<Table, ProcessError> {
     let g = &t.grid;
     let n = g.len();
     let mut values = vec![0.0; t.values.len()];
-    for ch in 0..t.channels.len() {
-        for i in 0..n {
-            values[ch * n + i] = mu.eval_angles(ch, g.angles(i));
-        }
-    }
+    // Each node on its own: the same numbers on any number of threads.
+    values
+        .par_chunks_mut(n.max(1))
+        .enumerate()
+        .for_each(|(ch, out)| {
+            out.par_iter_mut()
+                .enumerate()
+                .for_each(|(i, v)| *v = mu.eval_angles(ch, g.angles(i)));
+        });
     Ok(t.with_values(values, t.sigma.clone()))
 }
 
@@ -310,24 +314,38 @@ pub fn floors(
     draws: usize,
 ) -> Result<Floors, ProcessError> {
     let draws = if t.sigma.is_some() { draws } else { 0 };
-    let reciprocity = reciprocity_floor(t, &report.reciprocity, draws)?;
-    let isotropy = if t.grid.isotropic {
-        None
-    } else {
-        Some(isotropy_floor(t, &report.isotropy, draws)?)
-    };
-    let energy = energy_floor(t, measured, report, draws)?;
-    let separability = match &report.separability {
-        Some(_) => separability_floor(t, report, ks, draws.min(MAX_SVD_DRAWS))?,
-        None => None,
-    };
+    // The four floors are independent: formed side by side, each the same numbers
+    // on any number of threads.
+    let ((reciprocity, isotropy), (energy, separability)) = rayon::join(
+        || {
+            rayon::join(
+                || reciprocity_floor(t, &report.reciprocity, draws),
+                || {
+                    if t.grid.isotropic {
+                        Ok(None)
+                    } else {
+                        isotropy_floor(t, &report.isotropy, draws).map(Some)
+                    }
+                },
+            )
+        },
+        || {
+            rayon::join(
+                || energy_floor(t, measured, report, draws),
+                || match &report.separability {
+                    Some(_) => separability_floor(t, report, ks, draws.min(MAX_SVD_DRAWS)),
+                    None => Ok(None),
+                },
+            )
+        },
+    );
     Ok(Floors {
         draws,
         seed: SEED,
-        reciprocity,
-        energy,
-        isotropy,
-        separability,
+        reciprocity: reciprocity?,
+        energy: energy?,
+        isotropy: isotropy?,
+        separability: separability?,
     })
 }
 

@@ -6,6 +6,7 @@ pub mod floor;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use faer::{Mat, MatRef};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::grid::interpolate;
@@ -68,6 +69,10 @@ impl Reciprocals {
     }
 }
 
+/// Nodes a block of a parallel sum has: fixed, so that the sum's order does not
+/// depend on the number of threads.
+const SUM_BLOCK: usize = 1 << 14;
+
 /// P_r, DeYoung Eq. 4.1, per channel: the RMS difference between each value and its
 /// reciprocal, with the factor 2 for each pair counted twice. Nodes whose reciprocal
 /// lies outside the table are left out of both sums; the count used is returned.
@@ -79,12 +84,27 @@ pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
     let out = (0..t.channels.len())
         .map(|ch| {
             let v = t.channel(ch);
+            // Fixed blocks of nodes summed on rayon, their sums added in order: the
+            // same bits on any number of threads.
+            let blocks: Vec<(f64, usize)> = (0..n)
+                .step_by(SUM_BLOCK)
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .map(|start| {
+                    let (mut sum, mut count) = (0.0, 0usize);
+                    for i in start..(start + SUM_BLOCK).min(n) {
+                        if let Some(r) = rec.value(g, v, i) {
+                            sum += (v[i] - r).powi(2);
+                            count += 1;
+                        }
+                    }
+                    (sum, count)
+                })
+                .collect();
             let (mut sum, mut count) = (0.0, 0usize);
-            for i in 0..n {
-                if let Some(r) = rec.value(g, v, i) {
-                    sum += (v[i] - r).powi(2);
-                    count += 1;
-                }
+            for (s, c) in blocks {
+                sum += s;
+                count += c;
             }
             used = count;
             if count == 0 {
@@ -525,41 +545,60 @@ pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), Pr
     let mut mu = vec![0.0; m * nc];
     let mut mu_sigma = use_sigma.then(|| vec![0.0; m * nc]);
     let mut p_i = vec![0.0; nc];
-    let mut vals = vec![0.0; na];
-    let mut sig = vec![0.0; na];
     // Both azimuth axes the same full turn: φ+ = φo − φi stays on the nodes.
     let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
     for ch in 0..nc {
         let v = t.channel(ch);
         let s = t.channel_sigma(ch);
-        let mut total = 0.0;
-        for j in 0..m {
-            let [_, ti, pp, to] = mg.angles(j);
-            let [_, b, c, d] = mg.unindex(j);
-            for a in 0..na {
-                if same_phi {
-                    // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
-                    let k = g.index(a, b, (a + c) % g.phi_o.n, d);
-                    vals[a] = v[k];
-                    if let Some(s) = s {
-                        sig[a] = s[k];
+        // Each node of the mean on rayon, its spread added in node order below: the
+        // same bits as a serial loop, on any number of threads.
+        let per_node: Vec<(f64, f64, f64)> = (0..m)
+            .into_par_iter()
+            .map_init(
+                || (vec![0.0; na], vec![0.0; na]),
+                |(vals, sig), j| {
+                    let [_, ti, pp, to] = mg.angles(j);
+                    let [_, b, c, d] = mg.unindex(j);
+                    for a in 0..na {
+                        if same_phi {
+                            // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
+                            let k = g.index(a, b, (a + c) % g.phi_o.n, d);
+                            vals[a] = v[k];
+                            if let Some(s) = s {
+                                sig[a] = s[k];
+                            }
+                            continue;
+                        }
+                        let pi = g.phi_i.node(a);
+                        vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
+                        if let Some(s) = s {
+                            sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
+                        }
                     }
-                    continue;
-                }
-                let pi = g.phi_i.node(a);
-                vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
-                if let Some(s) = s {
-                    sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
-                }
-            }
-            let mean = vals.iter().sum::<f64>() / na as f64;
-            total += (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+                    let mean = vals.iter().sum::<f64>() / na as f64;
+                    let spread =
+                        (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+                    if use_sigma {
+                        let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
+                        let wm = vals
+                            .iter()
+                            .zip(sig.iter())
+                            .map(|(x, s)| x / (s * s))
+                            .sum::<f64>()
+                            / sw;
+                        (wm, sw.sqrt().recip(), spread)
+                    } else {
+                        (mean, 0.0, spread)
+                    }
+                },
+            )
+            .collect();
+        let mut total = 0.0;
+        for (j, (mean, sd, spread)) in per_node.into_iter().enumerate() {
+            total += spread;
+            mu[ch * m + j] = mean;
             if let Some(ms) = mu_sigma.as_mut() {
-                let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
-                mu[ch * m + j] = vals.iter().zip(&sig).map(|(x, s)| x / (s * s)).sum::<f64>() / sw;
-                ms[ch * m + j] = sw.sqrt().recip();
-            } else {
-                mu[ch * m + j] = mean;
+                ms[ch * m + j] = sd;
             }
         }
         p_i[ch] = total / m as f64;
@@ -622,6 +661,7 @@ pub fn separability(t: &Table, ks: &[usize]) -> Result<Vec<Separability>, Proces
     let (p, q) = (full.grid.n_in(), full.grid.n_out());
     let k_max = ks.iter().copied().max().unwrap_or(0);
     (0..full.channels.len())
+        .into_par_iter()
         .map(|ch| {
             // The channel's rows (φi, θi) of q values are Aᵀ in column-major order: a
             // view, not a copy, with A's singular values.
@@ -679,27 +719,36 @@ pub fn report_with(
     ks: &[usize],
     worst: usize,
 ) -> Result<Report, ProcessError> {
-    let (reciprocity, reciprocity_nodes) = reciprocity(t);
-    let energy = match measured {
-        Some(s) => energy_scattered(s, 1.0, worst)?,
-        None => {
-            let sum = energy(t, 1.0, worst);
-            if sum.coverage >= 0.999 {
-                sum
-            } else {
-                energy_triangulated(t, 1.0, worst).unwrap_or(sum)
-            }
-        }
-    };
+    // The measures are independent of each other: computed side by side, each the
+    // same numbers on any number of threads.
+    let (((reciprocity, reciprocity_nodes), energy), (isotropy, separability)) = rayon::join(
+        || {
+            rayon::join(
+                || reciprocity(t),
+                || match measured {
+                    Some(s) => energy_scattered(s, 1.0, worst),
+                    None => {
+                        let sum = energy(t, 1.0, worst);
+                        Ok(if sum.coverage >= 0.999 {
+                            sum
+                        } else {
+                            energy_triangulated(t, 1.0, worst).unwrap_or(sum)
+                        })
+                    }
+                },
+            )
+        },
+        || rayon::join(|| isotropy(t), || separability(t, ks).ok()),
+    );
     let mut report = Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
         paired: t.grid.is_paired(),
         reciprocity,
         reciprocity_nodes,
-        energy,
-        isotropy: isotropy(t)?,
-        separability: separability(t, ks).ok(),
+        energy: energy?,
+        isotropy: isotropy?,
+        separability,
         floor: None,
     };
     let draws = floor::draws_for(t.values.len());

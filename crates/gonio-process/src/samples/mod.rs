@@ -356,17 +356,7 @@ impl Samples {
         let axis = |m: &BTreeMap<i64, ()>| -> Option<(Axis, BTreeMap<i64, usize>)> {
             let v: Vec<i64> = m.keys().copied().collect();
             let idx = v.iter().enumerate().map(|(i, k)| (*k, i)).collect();
-            if v.len() == 1 {
-                return Some((Axis::single((v[0] as f64 * 1e-6).to_radians()), idx));
-            }
-            let step = v[1] - v[0];
-            if v.windows(2).any(|w| w[1] - w[0] != step) {
-                return None;
-            }
-            Some((
-                Axis::from_deg(v[0] as f64 * 1e-6, step as f64 * 1e-6, v.len()),
-                idx,
-            ))
+            Some((axis_of_keys(&v)?, idx))
         };
         let (api, ipi) = axis(&pis)?;
         let (ati, iti) = axis(&tis)?;
@@ -443,6 +433,27 @@ impl Samples {
             channels: t.channels.clone(),
             samples,
             isotropic: t.grid.isotropic,
+        }
+    }
+}
+
+/// The uniform axis of distinct angles keyed in micro-degrees, ascending (a single
+/// node for one), or None when their steps differ: how [`Samples::to_table`] and the
+/// column reader (`file::Columns`) recognise a grid, so that both give the same axes.
+pub(crate) fn axis_of_keys(v: &[i64]) -> Option<Axis> {
+    match v {
+        [] => None,
+        [only] => Some(Axis::single((*only as f64 * 1e-6).to_radians())),
+        [a, b, ..] => {
+            let step = b - a;
+            if v.windows(2).any(|w| w[1] - w[0] != step) {
+                return None;
+            }
+            Some(Axis::from_deg(
+                *a as f64 * 1e-6,
+                step as f64 * 1e-6,
+                v.len(),
+            ))
         }
     }
 }

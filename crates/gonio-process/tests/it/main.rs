@@ -2,6 +2,7 @@
 //! binary per file cost most of the suite's build time (TESTING.md).
 
 mod albedo_quadrature;
+mod columns_reader;
 mod floors;
 mod hemisphere;
 mod interpolation;

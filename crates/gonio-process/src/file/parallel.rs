@@ -1,0 +1,945 @@
+//! The table and sample CSV read as columns, in parallel: any tool's file.
+//!
+//! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes, cuts each block
+//! at line boundaries into chunks of about [`CHUNK`] bytes, and parses the chunks on
+//! rayon, each into its own short columns, which are appended in file order. The
+//! blocks and chunks depend on the bytes alone, never on the number of threads, and a
+//! number's parse does not depend on its neighbours: the columns, and any error
+//! (the first in file order), are the same on any number of threads.
+//!
+//! The header may come from another tool: the columns in any order, the angles as
+//! `theta_i`, `theta_i_deg`, `theta_i [deg]` or `theta_i (°)` (degrees; radians are
+//! refused rather than guessed), the values as `f_r_<channel>_per_sr`,
+//! `f_r_<channel> [1/sr]` or a format-1 channel name, the uncertainties likewise
+//! with `sigma`, and `flags`. A name that could mean two columns (two θi, a σ without
+//! its channel) is refused, naming the header line.
+//!
+//! [`Columns::into_content`] makes the table: with a grid (a `# grid:` line or the
+//! sidecar) each row goes to its node; without one the grid is recognised from the
+//! values themselves, as `Samples::to_table` recognises it, and the table is built
+//! straight from the columns when each node is given once (the same table, bit for
+//! bit, that the samples would give). Anything else is samples.
+
+use std::io::Read;
+use std::path::Path;
+
+use gonio_core::dirfile::PairDeg;
+use gonio_core::tomlfile::FileError;
+use gonio_core::{Channels, SphericalDeg};
+use rayon::prelude::*;
+
+use super::{Content, KIND, MAX_LINE, MAX_ROWS, Meta, SIDECAR_KIND, sidecar_path};
+use crate::{Axis, Grid, Sample, Samples, Table};
+
+/// Bytes read at a time: the text held at once.
+pub const BLOCK: usize = 16 << 20;
+
+/// Bytes a chunk of a block has (cut at the next line end): the unit of parallel work.
+pub const CHUNK: usize = 256 << 10;
+
+/// Rows per unit of parallel work once the columns are read.
+const ROW_CHUNK: usize = 1 << 16;
+
+/// What each column of the header is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Roles {
+    /// The header's names, trimmed, in file order.
+    pub names: Vec<String>,
+    /// The columns (0-based) of θi, φi, θo, φo.
+    pub angles: [usize; 4],
+    /// The channels, in the order of their value columns.
+    pub channels: Channels,
+    /// Each channel's value column.
+    pub values: Vec<usize>,
+    /// Each channel's uncertainty column, when the file has them.
+    pub sigma: Option<Vec<usize>>,
+    /// The flags column.
+    pub flags: Option<usize>,
+}
+
+impl Roles {
+    /// The slots parsed as numbers: angles, values, uncertainties, in that order, as
+    /// file columns.
+    fn slots(&self) -> Vec<usize> {
+        let mut s: Vec<usize> = self.angles.to_vec();
+        s.extend(&self.values);
+        if let Some(sg) = &self.sigma {
+            s.extend(sg);
+        }
+        s
+    }
+}
+
+/// What a column's name says it is.
+enum Role {
+    Angle(usize),
+    Value(String),
+    Sigma(String),
+    Flags,
+}
+
+/// A name and the unit written after it in brackets (`theta_i [deg]`, `f_r (1/sr)`).
+fn split_unit(c: &str) -> (&str, Option<&str>) {
+    for (open, close) in [('[', ']'), ('(', ')')] {
+        if let Some(s) = c.strip_suffix(close)
+            && let Some(i) = s.rfind(open)
+        {
+            return (s[..i].trim(), Some(s[i + 1..].trim()));
+        }
+    }
+    (c, None)
+}
+
+/// The role of one header name, or why it has none.
+fn role_of(col: &str) -> Result<Role, String> {
+    let (base, unit) = split_unit(col);
+    const ANGLES: [&str; 4] = ["theta_i", "phi_i", "theta_o", "phi_o"];
+    let lower = base.to_ascii_lowercase();
+    let (stem, suffix_unit) = match lower.rsplit_once('_') {
+        Some((s, u @ ("deg" | "rad"))) if ANGLES.contains(&s) => (s.to_string(), Some(u)),
+        _ => (lower.clone(), None),
+    };
+    if let Some(k) = ANGLES.iter().position(|a| *a == stem) {
+        return match unit.or(suffix_unit) {
+            None | Some("deg" | "degree" | "degrees" | "°") => Ok(Role::Angle(k)),
+            Some("rad" | "radian" | "radians") => Err(format!(
+                "column {col:?} is in radians; the angles are read in degrees"
+            )),
+            Some(u) => Err(format!(
+                "column {col:?}: {u:?} is not an angle unit (degrees: deg or °)"
+            )),
+        };
+    }
+    if base == "flags" && unit.is_none() {
+        return Ok(Role::Flags);
+    }
+    let per_sr = |u: Option<&str>| matches!(u, Some("1/sr" | "sr^-1" | "sr-1" | "per sr"));
+    for (prefix, sigma) in [("f_r", false), ("sigma", true)] {
+        let channel = if let Some(rest) = base.strip_prefix(prefix) {
+            let rest = match rest.strip_suffix("_per_sr") {
+                Some(r) if unit.is_none() => Some(r),
+                None if per_sr(unit) => Some(rest),
+                _ => None,
+            };
+            match rest {
+                Some("") => Some("value".to_string()),
+                Some(r) => r
+                    .strip_prefix('_')
+                    .filter(|c| !c.is_empty())
+                    .map(str::to_string),
+                None => None,
+            }
+        } else {
+            None
+        };
+        if let Some(c) = channel {
+            return Ok(if sigma {
+                Role::Sigma(c)
+            } else {
+                Role::Value(c)
+            });
+        }
+    }
+    if unit.is_none() {
+        // Format 1: `sigma_<channel>` and the bare channel names.
+        if let Some(c) = base.strip_prefix("sigma_").filter(|c| !c.is_empty()) {
+            return Ok(Role::Sigma(c.to_string()));
+        }
+        if !base.is_empty() {
+            return Ok(Role::Value(base.to_string()));
+        }
+    }
+    Err(format!("column {col:?} is not one Gonio reads"))
+}
+
+/// The roles of a header row's columns, in any order; an error names what is
+/// missing, given twice or not understood.
+pub fn header_roles(head: &str) -> Result<Roles, String> {
+    let names: Vec<String> = head
+        .split(',')
+        .map(|c| c.trim().trim_matches('"').trim().to_string())
+        .collect();
+    let mut angles = [None::<usize>; 4];
+    let mut values: Vec<(String, usize)> = Vec::new();
+    let mut sigmas: Vec<(String, usize)> = Vec::new();
+    let mut flags = None;
+    let twice = |a: usize, b: usize| {
+        format!(
+            "columns {} ({:?}) and {} ({:?}) both name the same quantity",
+            a + 1,
+            names[a],
+            b + 1,
+            names[b]
+        )
+    };
+    for (j, c) in names.iter().enumerate() {
+        match role_of(c)? {
+            Role::Angle(k) => {
+                if let Some(a) = angles[k] {
+                    return Err(twice(a, j));
+                }
+                angles[k] = Some(j);
+            }
+            Role::Flags => {
+                if let Some(a) = flags {
+                    return Err(twice(a, j));
+                }
+                flags = Some(j);
+            }
+            Role::Value(ch) => {
+                if let Some((_, a)) = values.iter().find(|(c, _)| *c == ch) {
+                    return Err(twice(*a, j));
+                }
+                values.push((ch, j));
+            }
+            Role::Sigma(ch) => {
+                if let Some((_, a)) = sigmas.iter().find(|(c, _)| *c == ch) {
+                    return Err(twice(*a, j));
+                }
+                sigmas.push((ch, j));
+            }
+        }
+    }
+    let [Some(ti), Some(pi), Some(to), Some(po)] = angles else {
+        return Err(format!(
+            "no column for {}; expected theta_i_deg, phi_i_deg, theta_o_deg and phi_o_deg \
+             (in any order; theta_i, theta_i [deg] and the like also read)",
+            ["θi", "φi", "θo", "φo"]
+                .iter()
+                .zip(angles)
+                .filter(|(_, a)| a.is_none())
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    };
+    let chans: Vec<&str> = values.iter().map(|(c, _)| c.as_str()).collect();
+    let channels = Channels::from_names(&chans).map_err(|e| format!("channels: {e}"))?;
+    let sigma = if sigmas.is_empty() {
+        None
+    } else {
+        if let Some((ch, j)) = sigmas.iter().find(|(c, _)| !chans.contains(&c.as_str())) {
+            return Err(format!(
+                "column {} ({:?}) is the uncertainty of {ch:?}, which has no value column",
+                j + 1,
+                names[*j]
+            ));
+        }
+        let mut s = Vec::with_capacity(values.len());
+        for (ch, _) in &values {
+            let Some((_, j)) = sigmas.iter().find(|(c, _)| c == ch) else {
+                return Err(format!(
+                    "the uncertainty of channel {ch:?} is missing: either every channel \
+                     has one or none"
+                ));
+            };
+            s.push(*j);
+        }
+        Some(s)
+    };
+    Ok(Roles {
+        angles: [ti, pi, to, po],
+        values: values.iter().map(|v| v.1).collect(),
+        channels,
+        sigma,
+        flags,
+        names,
+    })
+}
+
+/// A table or sample file as columns ([`read_columns`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Columns {
+    /// What each column is.
+    pub roles: Roles,
+    /// θi, φi, θo, φo (degrees), one entry a row, whatever the file's column order.
+    pub angles: [Vec<f64>; 4],
+    /// Each channel's values (1/sr), in the order of `roles.channels`.
+    pub values: Vec<Vec<f64>>,
+    /// Each channel's standard uncertainties (1/sr), when the file has them.
+    pub sigma: Option<Vec<Vec<f64>>>,
+    /// Each row's flags, when the file has the column.
+    pub flags: Option<Vec<u32>>,
+    /// `# isotropic: true` above the header.
+    pub isotropic: bool,
+    /// A `# grid:` line above the header, and its line number.
+    pub grid: Option<(usize, Grid)>,
+    /// The header's line number (1-based).
+    pub header_line: usize,
+    /// Lines after the header that are blank or comments, ascending: row r is on
+    /// line `header_line + 1 + r` plus those of them before it.
+    skipped: Vec<usize>,
+}
+
+/// A chunk's rows as parsed: numbers by slot, flags, and the first error.
+struct Parsed {
+    slots: Vec<Vec<f64>>,
+    flags: Vec<u32>,
+    /// Lines in the chunk (its newlines, or one more for an unterminated last line).
+    lines: usize,
+    /// Blank and comment lines, 0-based within the chunk.
+    skipped: Vec<usize>,
+    /// The first bad line (0-based within the chunk), the column, the message.
+    error: Option<(usize, Option<usize>, String)>,
+}
+
+/// Trims ASCII whitespace (and a line's `\r`) from both ends.
+fn trim(b: &[u8]) -> &[u8] {
+    b.trim_ascii()
+}
+
+/// A field's number: std's correctly rounded parse, finite only.
+fn number(f: &[u8]) -> Option<f64> {
+    std::str::from_utf8(f)
+        .ok()?
+        .parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+}
+
+/// Parses the lines of one chunk (whole lines, the last maybe unterminated).
+fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
+    let width = roles.names.len();
+    let nc = roles.values.len();
+    // At most a row a line: the chunk's columns are allocated once.
+    let guess = text.iter().filter(|b| **b == b'\n').count() + 1;
+    let mut out = Parsed {
+        slots: (0..slots.len())
+            .map(|_| Vec::with_capacity(guess))
+            .collect(),
+        flags: Vec::with_capacity(if roles.flags.is_some() { guess } else { 0 }),
+        lines: 0,
+        skipped: Vec::new(),
+        error: None,
+    };
+    let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
+    // The angles repeat from row to row: a field equal to the last row's keeps its value.
+    let mut last: [(&[u8], f64); 4] = [(&[][..], 0.0); 4];
+    for (k, line) in text.split_inclusive(|b| *b == b'\n').enumerate() {
+        out.lines += 1;
+        if line.len() > MAX_LINE {
+            out.error = Some((k, None, format!("longer than {MAX_LINE} bytes")));
+            return out;
+        }
+        let l = trim(line);
+        if l.is_empty() || l[0] == b'#' {
+            out.skipped.push(k);
+            continue;
+        }
+        fields.clear();
+        let mut s = 0;
+        for (i, b) in l.iter().enumerate() {
+            if *b == b',' {
+                fields.push((s, i));
+                s = i + 1;
+            }
+        }
+        fields.push((s, l.len()));
+        if fields.len() != width {
+            out.error = Some((
+                k,
+                None,
+                format!("{} fields, the header has {width}", fields.len()),
+            ));
+            return out;
+        }
+        let field = |j: usize| trim(&l[fields[j].0..fields[j].1]);
+        let bad = |j: usize| {
+            let f = String::from_utf8_lossy(field(j)).into_owned();
+            (k, Some(j), format!("not a finite number: {f:?}"))
+        };
+        for (slot, &j) in slots.iter().enumerate() {
+            let f = field(j);
+            let x = if slot < 4 {
+                let (text, x) = &mut last[slot];
+                if *text != f {
+                    match number(f) {
+                        Some(v) => (*text, *x) = (f, v),
+                        None => {
+                            out.error = Some(bad(j));
+                            return out;
+                        }
+                    }
+                }
+                let x = *x;
+                if slot % 2 == 0 && !(0.0..=90.0).contains(&x) {
+                    out.error = Some((k, Some(j), format!("θ must lie in [0, 90], got {x}")));
+                    return out;
+                }
+                x
+            } else {
+                match number(f) {
+                    Some(v) if slot >= 4 + nc && v < 0.0 => {
+                        out.error = Some((k, Some(j), "uncertainty is negative".into()));
+                        return out;
+                    }
+                    Some(v) => v,
+                    None => {
+                        out.error = Some(bad(j));
+                        return out;
+                    }
+                }
+            };
+            out.slots[slot].push(x);
+        }
+        if let Some(j) = roles.flags {
+            let f = field(j);
+            match std::str::from_utf8(f)
+                .ok()
+                .and_then(|s| s.parse::<u32>().ok())
+            {
+                Some(v) => out.flags.push(v),
+                None => {
+                    let f = String::from_utf8_lossy(f).into_owned();
+                    out.error = Some((k, Some(j), format!("not a whole number: {f:?}")));
+                    return out;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Cuts `text` into chunks of about `size` bytes, each ending at a line end (the
+/// last maybe not).
+fn chunks(text: &[u8], size: usize) -> Vec<&[u8]> {
+    let mut out = Vec::with_capacity(text.len() / size + 1);
+    let mut rest = text;
+    while !rest.is_empty() {
+        let cut = if rest.len() <= size {
+            rest.len()
+        } else {
+            match rest[size - 1..].iter().position(|b| *b == b'\n') {
+                Some(i) => size + i,
+                None => rest.len(),
+            }
+        };
+        let (a, b) = rest.split_at(cut);
+        out.push(a);
+        rest = b;
+    }
+    out
+}
+
+/// Reads the lines up to the header: the header row (trimmed), its line number, a
+/// grid line, `# isotropic: true`, and the byte offset of the first data line.
+struct Head {
+    text: String,
+    line: usize,
+    grid: Option<(usize, Grid)>,
+    isotropic: bool,
+    end: usize,
+}
+
+/// The head of the text in `buf` (which starts at the file's first byte), or `None`
+/// when `buf` ends before the header row's line does.
+fn head(buf: &[u8], eof: bool, path: Option<&Path>) -> Result<Option<Head>, FileError> {
+    let at = |line: usize, field: Option<&str>, msg: String| {
+        FileError::at_line(KIND, path, line, field, msg)
+    };
+    let mut pos = 0;
+    let mut line = 0;
+    let mut grid = None;
+    let mut isotropic = false;
+    loop {
+        let Some(len) = buf[pos..]
+            .iter()
+            .position(|b| *b == b'\n')
+            .map(|i| i + 1)
+            .or((eof && pos < buf.len()).then_some(buf.len() - pos))
+        else {
+            if eof {
+                return Err(FileError::whole(KIND, path, "no header row"));
+            }
+            if buf.len() - pos > MAX_LINE {
+                return Err(at(line + 1, None, format!("longer than {MAX_LINE} bytes")));
+            }
+            return Ok(None);
+        };
+        line += 1;
+        let mut raw = &buf[pos..pos + len];
+        pos += len;
+        if line == 1 {
+            raw = gonio_core::text::strip_bom_bytes(raw);
+        }
+        if raw.len() > MAX_LINE {
+            return Err(at(line, None, format!("longer than {MAX_LINE} bytes")));
+        }
+        let l = std::str::from_utf8(raw)
+            .map_err(|_| at(line, None, "not UTF-8 text".into()))?
+            .trim();
+        if l.is_empty() {
+            continue;
+        }
+        if let Some(c) = l.strip_prefix('#') {
+            if let Some((k, v)) = c.split_once(':') {
+                match k.trim() {
+                    "grid" => {
+                        let g = super::read::parse_grid(v.trim())
+                            .map_err(|m| at(line, Some("grid"), m))?;
+                        grid = Some((line, g));
+                    }
+                    "isotropic" => isotropic = v.trim() == "true",
+                    _ => {}
+                }
+            }
+            continue;
+        }
+        return Ok(Some(Head {
+            text: l.to_string(),
+            line,
+            grid,
+            isotropic,
+            end: pos,
+        }));
+    }
+}
+
+/// Whether `bytes` (a file's first bytes) start, after blank and `#` lines, with a
+/// header row [`header_roles`] reads: a table or sample file in any column order.
+pub fn is_columns_header(bytes: &[u8]) -> bool {
+    let bytes = gonio_core::text::strip_bom_bytes(bytes);
+    let text = match std::str::from_utf8(bytes) {
+        Ok(t) => t,
+        Err(e) => std::str::from_utf8(&bytes[..e.valid_up_to()]).unwrap_or(""),
+    };
+    text.lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .is_some_and(|h| h.contains(',') && header_roles(h).is_ok())
+}
+
+/// Reads a table or sample file of at most `len` bytes from `r` as columns: the
+/// header in any column order ([`header_roles`]), the rows parsed in parallel, block
+/// by block (module docs). Errors name `path`, the line and the column.
+pub fn read_columns<R: Read>(r: R, len: u64, path: Option<&Path>) -> Result<Columns, FileError> {
+    read_columns_in(r, len, path, BLOCK, CHUNK)
+}
+
+/// [`read_columns`] with other block and chunk sizes (bytes, at least 1): the same
+/// columns and errors for any sizes, which is what the tests vary.
+pub fn read_columns_in<R: Read>(
+    mut r: R,
+    len: u64,
+    path: Option<&Path>,
+    block: usize,
+    chunk: usize,
+) -> Result<Columns, FileError> {
+    let (block, chunk) = (block.max(1), chunk.max(1));
+    let _span = tracing::debug_span!("read_columns", bytes = len).entered();
+    let at = |line: usize, field: Option<&str>, msg: String| {
+        FileError::at_line(KIND, path, line, field, msg)
+    };
+    let mut buf: Vec<u8> = Vec::with_capacity(block.min(len as usize + 1).min(BLOCK) + 1);
+    let mut eof = false;
+    // Reads up to `block` bytes more (to `block` when short of it).
+    let mut fill = |buf: &mut Vec<u8>, eof: &mut bool| -> Result<(), FileError> {
+        let want = if buf.len() < block {
+            block - buf.len()
+        } else {
+            block
+        };
+        let got = std::io::Read::take(&mut r, want as u64)
+            .read_to_end(buf)
+            .map_err(|e| FileError::whole(KIND, path, format!("cannot read: {e}")))?;
+        *eof = got < want;
+        Ok(())
+    };
+    let h = loop {
+        fill(&mut buf, &mut eof)?;
+        if let Some(h) = head(&buf, eof, path)? {
+            break h;
+        }
+    };
+    let roles = header_roles(&h.text).map_err(|m| at(h.line, None, m))?;
+    buf.drain(..h.end);
+    let slots = roles.slots();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); slots.len()];
+    let mut flags: Vec<u32> = Vec::new();
+    let mut skipped = Vec::new();
+    let mut line = h.line;
+    let mut rows = 0usize;
+    loop {
+        if !eof && buf.len() < block {
+            fill(&mut buf, &mut eof)?;
+        }
+        // Whole lines only, but for the file's last.
+        let end = if eof {
+            buf.len()
+        } else {
+            match buf.iter().rposition(|b| *b == b'\n') {
+                Some(i) => i + 1,
+                None if buf.len() > MAX_LINE => {
+                    return Err(at(line + 1, None, format!("longer than {MAX_LINE} bytes")));
+                }
+                None => {
+                    fill(&mut buf, &mut eof)?;
+                    continue;
+                }
+            }
+        };
+        let parts = chunks(&buf[..end], chunk);
+        let parsed: Vec<Parsed> = parts
+            .par_iter()
+            .map(|c| parse_chunk(c, &roles, &slots))
+            .collect();
+        if rows == 0 && !parsed.is_empty() {
+            // Reserve for the whole file from the first block's density.
+            let (n, bytes) = (parsed.iter().map(|p| p.slots[0].len()).sum::<usize>(), end);
+            let est = ((len as f64 / bytes.max(1) as f64) * n as f64 * 1.01) as usize + 16;
+            let est = est.min(MAX_ROWS);
+            cols.iter_mut().for_each(|c| c.reserve_exact(est));
+            if roles.flags.is_some() {
+                flags.reserve_exact(est);
+            }
+        }
+        for p in parsed {
+            if let Some((k, col, msg)) = p.error {
+                return Err(at(line + 1 + k, col.map(|j| roles.names[j].as_str()), msg));
+            }
+            let got = p.slots[0].len();
+            if rows + got > MAX_ROWS {
+                let k = (0..p.lines)
+                    .filter(|k| p.skipped.binary_search(k).is_err())
+                    .nth(MAX_ROWS - rows)
+                    .unwrap_or(0);
+                return Err(at(line + 1 + k, None, format!("more than {MAX_ROWS} rows")));
+            }
+            rows += got;
+            for (c, s) in cols.iter_mut().zip(p.slots) {
+                c.extend_from_slice(&s);
+            }
+            flags.extend_from_slice(&p.flags);
+            skipped.extend(p.skipped.iter().map(|k| line + 1 + k));
+            line += p.lines;
+        }
+        buf.drain(..end);
+        if eof && buf.is_empty() {
+            break;
+        }
+    }
+    if rows == 0 {
+        return Err(FileError::whole(KIND, path, "no data rows"));
+    }
+    let nc = roles.values.len();
+    let mut it = cols.into_iter();
+    let angles = [(); 4].map(|_| it.next().unwrap_or_default());
+    let values: Vec<Vec<f64>> = it.by_ref().take(nc).collect();
+    let sigma = roles.sigma.is_some().then(|| it.collect());
+    tracing::debug!(rows, channels = nc, "read as columns");
+    Ok(Columns {
+        flags: roles.flags.is_some().then_some(flags),
+        roles,
+        angles,
+        values,
+        sigma,
+        isotropic: h.isotropic,
+        grid: h.grid,
+        header_line: h.line,
+        skipped,
+    })
+}
+
+/// A row off a grid: its index, the axis and the angle.
+type OffGrid = (usize, &'static str, f64);
+
+/// Micro-degrees: angles keyed exactly for any grid a plan or file writes (as
+/// `Samples::to_table` keys them).
+fn q(x: f64) -> i64 {
+    (x * 1e6).round() as i64
+}
+
+/// An azimuth's key in [0°, 360°).
+fn wrap(x: f64) -> i64 {
+    q(x.rem_euclid(360.0)) % 360_000_000
+}
+
+impl Columns {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        self.angles[0].len()
+    }
+
+    /// The line (1-based) of row `r` (0-based).
+    pub fn line_of(&self, r: usize) -> usize {
+        let mut line = self.header_line + 1 + r;
+        for s in &self.skipped {
+            if *s <= line {
+                line += 1;
+            } else {
+                break;
+            }
+        }
+        line
+    }
+
+    /// The rows as samples, one a row.
+    pub fn to_samples(&self) -> Samples {
+        let nc = self.values.len();
+        let samples = (0..self.rows())
+            .map(|r| Sample {
+                pair: PairDeg {
+                    incident: SphericalDeg::new(self.angles[0][r], self.angles[1][r]),
+                    outgoing: SphericalDeg::new(self.angles[2][r], self.angles[3][r]),
+                },
+                value: (0..nc).map(|c| self.values[c][r]).collect(),
+                sigma: self
+                    .sigma
+                    .as_ref()
+                    .map(|s| (0..nc).map(|c| s[c][r]).collect()),
+                flags: self.flags.as_ref().map_or(0, |f| f[r]),
+            })
+            .collect();
+        Samples {
+            channels: self.roles.channels.clone(),
+            samples,
+            isotropic: self.isotropic,
+        }
+    }
+
+    /// The content: a table when a grid is given (the `# grid:` line, else the
+    /// sidecar `meta`, whose columns must be the header's) and the rows are its
+    /// nodes; without one, a table when the values form a complete uniform grid with
+    /// each node once (module docs); else samples. `path` names the CSV in errors.
+    pub fn into_content(
+        self,
+        meta: Option<&Meta>,
+        path: Option<&Path>,
+    ) -> Result<Content, FileError> {
+        let side = |field: &str, msg: String| FileError {
+            field: Some(field.into()),
+            ..FileError::whole(SIDECAR_KIND, path.map(sidecar_path).as_deref(), msg)
+        };
+        let mut this = self;
+        let mut from_sidecar = false;
+        if let Some(m) = meta {
+            if m.columns != this.roles.names {
+                return Err(side(
+                    "columns",
+                    format!(
+                        "describes the columns {}, the CSV has {}; the two do not belong together",
+                        m.columns.join(","),
+                        this.roles.names.join(",")
+                    ),
+                ));
+            }
+            this.isotropic = m.isotropic;
+            if this.grid.is_none()
+                && let Some(g) = m.grid()
+            {
+                this.grid = Some((0, g.map_err(|e| side("grid", e))?));
+                from_sidecar = true;
+            }
+        }
+        let Some((gline, g)) = this.grid else {
+            return match this.recognise() {
+                Some((g, idx)) => this.place(g, &idx, path),
+                None => Ok(Content::Samples(this.to_samples())),
+            };
+        };
+        let (n, rows) = (g.len(), this.rows());
+        if rows != n {
+            let msg = |what: &str| format!("the grid has {n} nodes, the {what} {rows} rows");
+            return Err(if from_sidecar {
+                side("grid", msg("CSV"))
+            } else {
+                FileError::at_line(KIND, path, gline, Some("grid"), msg("file"))
+            });
+        }
+        let idx = this.nodes_on(&g, path)?;
+        this.place(g, &idx, path)
+    }
+
+    /// The node of each row on a given grid, in parallel over fixed runs of rows;
+    /// the first row (in file order) off the grid is an error.
+    fn nodes_on(&self, g: &Grid, path: Option<&Path>) -> Result<Vec<u32>, FileError> {
+        let [ti, pi, to, po] = &self.angles;
+        let runs: Vec<Result<Vec<u32>, OffGrid>> = (0..self.rows())
+            .step_by(ROW_CHUNK)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|start| {
+                let end = (start + ROW_CHUNK).min(self.rows());
+                let mut cache = [(f64::NAN, 0usize); 4];
+                let mut out = Vec::with_capacity(end - start);
+                for r in start..end {
+                    let (a, c) = if g.isotropic {
+                        (0.0, po[r] - pi[r])
+                    } else {
+                        (pi[r], po[r])
+                    };
+                    let mut node = |slot: usize, ax: &Axis, x: f64, name: &'static str| {
+                        let (lx, li) = &mut cache[slot];
+                        if *lx == x {
+                            return Ok(*li);
+                        }
+                        let i = ax.node_at(x.to_radians()).ok_or((r, name, x))?;
+                        (*lx, *li) = (x, i);
+                        Ok(i)
+                    };
+                    let i = g.index(
+                        node(0, &g.phi_i, a, "phi_i")?,
+                        node(1, &g.theta_i, ti[r], "theta_i")?,
+                        node(2, &g.phi_o, c, "phi_o")?,
+                        node(3, &g.theta_o, to[r], "theta_o")?,
+                    );
+                    out.push(i as u32);
+                }
+                Ok(out)
+            })
+            .collect();
+        let mut idx = Vec::with_capacity(self.rows());
+        for run in runs {
+            match run {
+                Ok(v) => idx.extend_from_slice(&v),
+                Err((r, name, x)) => {
+                    return Err(FileError::at_line(
+                        KIND,
+                        path,
+                        self.line_of(r),
+                        Some(name),
+                        format!("{x} is not a node of the grid"),
+                    ));
+                }
+            }
+        }
+        Ok(idx)
+    }
+
+    /// The table of rows placed at their nodes `idx` (each node once, else an error
+    /// at the repeat's line).
+    fn place(self, g: Grid, idx: &[u32], path: Option<&Path>) -> Result<Content, FileError> {
+        let n = g.len();
+        let in_order = idx.par_iter().enumerate().all(|(r, i)| *i as usize == r);
+        if !in_order {
+            let mut seen = vec![false; n];
+            for (r, i) in idx.iter().enumerate() {
+                if std::mem::replace(&mut seen[*i as usize], true) {
+                    return Err(FileError::at_line(
+                        KIND,
+                        path,
+                        self.line_of(r),
+                        None,
+                        "this node was already given",
+                    ));
+                }
+            }
+        }
+        let gather = |cols: Vec<Vec<f64>>| -> Vec<f64> {
+            if in_order && cols.len() == 1 {
+                // One channel in grid order: the column is the table's array.
+                return cols.into_iter().next().unwrap_or_default();
+            }
+            let mut out = Vec::with_capacity(n * cols.len());
+            for c in cols {
+                if in_order {
+                    out.extend_from_slice(&c);
+                } else {
+                    let start = out.len();
+                    out.resize(start + n, 0.0);
+                    let dst = &mut out[start..];
+                    for (r, i) in idx.iter().enumerate() {
+                        dst[*i as usize] = c[r];
+                    }
+                }
+            }
+            out
+        };
+        let Columns {
+            roles,
+            values,
+            sigma,
+            ..
+        } = self;
+        let values = gather(values);
+        let sigma = sigma.map(gather);
+        Table::new(roles.channels, g, values, sigma)
+            .map(Content::Table)
+            .map_err(|e| FileError::whole(KIND, path, e.to_string()))
+    }
+
+    /// The grid the rows form without a given one, and each row's node, when their
+    /// angles make a complete uniform grid with each node once: the grid
+    /// `Samples::to_table` recognises. None otherwise (repeats, gaps, uneven steps).
+    fn recognise(&self) -> Option<(Grid, Vec<u32>)> {
+        let rows = self.rows();
+        let iso = self.isotropic;
+        if self
+            .values
+            .iter()
+            .chain(self.sigma.iter().flatten())
+            .any(|c| c.len() != rows)
+        {
+            return None;
+        }
+        // Each row's keys (φi, θi, φo, θo) as `Samples::to_table` makes them.
+        let key = |r: usize| -> [i64; 4] {
+            let [ti, pi, to, po] = [0, 1, 2, 3].map(|k| self.angles[k][r]);
+            let (a, c) = if iso {
+                (0, wrap(po - pi))
+            } else {
+                (wrap(pi), wrap(po))
+            };
+            [a, q(ti), c, q(to)]
+        };
+        let starts: Vec<usize> = (0..rows).step_by(ROW_CHUNK).collect();
+        let sets: Vec<[std::collections::BTreeSet<i64>; 4]> = starts
+            .par_iter()
+            .map(|&s| {
+                let mut sets: [std::collections::BTreeSet<i64>; 4] = Default::default();
+                let mut last = [i64::MIN; 4];
+                for r in s..(s + ROW_CHUNK).min(rows) {
+                    let k = key(r);
+                    for a in 0..4 {
+                        if k[a] != last[a] {
+                            sets[a].insert(k[a]);
+                            last[a] = k[a];
+                        }
+                    }
+                }
+                sets
+            })
+            .collect();
+        let mut all: [std::collections::BTreeSet<i64>; 4] = Default::default();
+        for s in sets {
+            for (a, b) in all.iter_mut().zip(s) {
+                a.extend(b);
+            }
+        }
+        let keys: [Vec<i64>; 4] = all.map(|s| s.into_iter().collect());
+        let axes: Vec<Axis> = keys
+            .iter()
+            .map(|k| crate::samples::axis_of_keys(k))
+            .collect::<Option<_>>()?;
+        let grid = Grid {
+            phi_i: axes[0],
+            theta_i: axes[1],
+            phi_o: axes[2],
+            theta_o: axes[3],
+            isotropic: iso,
+        };
+        grid.validate().ok()?;
+        if grid.len() != rows {
+            return None;
+        }
+        let idx: Vec<u32> = starts
+            .par_iter()
+            .flat_map_iter(|&s| {
+                let keys = &keys;
+                let grid = &grid;
+                (s..(s + ROW_CHUNK).min(rows)).map(move |r| {
+                    let k = key(r);
+                    let at = |a: usize| keys[a].binary_search(&k[a]).unwrap_or(0);
+                    grid.index(at(0), at(1), at(2), at(3)) as u32
+                })
+            })
+            .collect();
+        let mut seen = vec![false; rows];
+        for i in &idx {
+            if std::mem::replace(&mut seen[*i as usize], true) {
+                return None;
+            }
+        }
+        Some((grid, idx))
+    }
+}
