@@ -67,79 +67,64 @@ pub struct FitArgs {
     json: JsonFlag,
 }
 
-/// The samples of a sample CSV that reads and validates cleanly, as they are; `None`
-/// for anything else (a run, a table, another format, a file with faults), which goes
-/// through `gonio_dataset::open` and its errors. A fit needs the samples, not a grid:
-/// the dataset's grid recognition (`Samples::to_table`) and the table's samples back
-/// (`Samples::from_table`) were a third of `gonio fit`'s time on a 98 000-row CSV
-/// (BENCHMARKS.md), and give the same samples.
-fn plain_samples(path: &Path) -> Option<gonio_process::Samples> {
+/// The rows of a sample CSV that reads and validates cleanly, as columns; `None` for
+/// anything else (a run, a table with a `# grid:` line, another format, a file with
+/// faults), which goes through `gonio_dataset::open` and its errors. A fit needs the
+/// rows, not a grid: the dataset's grid recognition and the table's samples back were
+/// a third of `gonio fit`'s time on a 98 000-row CSV, and a `Sample` a row (two `Vec`s
+/// each) most of its page faults (BENCHMARKS.md). The columns are parsed on every
+/// core (`gonio_process::file::read_columns`) and go to the fit as they are.
+fn plain_columns(path: &Path) -> Option<gonio_process::file::Columns> {
     let bytes = gonio_core::input::read_bounded(path, gonio_dataset::MAX_TEXT_BYTES).ok()?;
     if gonio_dataset::detect(&bytes) != Some(gonio_dataset::Kind::Csv) {
         return None;
     }
-    let s = read_halves(&bytes, path)?;
-    (s.samples.len() <= gonio_process::file::MAX_ROWS && s.validate().is_ok()).then_some(s)
+    let c = gonio_process::file::read_columns(&bytes[..], bytes.len() as u64, Some(path)).ok()?;
+    (c.grid.is_none() && valid(&c)).then_some(c)
 }
 
-/// Rows at which a sample file is worth reading in two halves.
-const SPLIT_ROWS: usize = 20_000;
+/// What `Samples::validate` asks of samples, asked of columns: rows within
+/// `MAX_ROWS`, finite values, finite non-negative σ, directions in the upper
+/// hemisphere. A file that fails is left to the dataset's reading, which names the
+/// fault.
+fn valid(c: &gonio_process::file::Columns) -> bool {
+    let n = c.rows();
+    let finite = |v: &Vec<f64>| v.iter().all(|x| x.is_finite());
+    let [ti, pi, to, po] = &c.angles;
+    n > 0
+        && n <= gonio_process::file::MAX_ROWS
+        && c.values.iter().all(finite)
+        && c.sigma
+            .as_ref()
+            .is_none_or(|s| s.iter().flatten().all(|x| x.is_finite() && *x >= 0.0))
+        && ti.iter().chain(to).all(|t| (0.0..=90.0).contains(t))
+        && finite(pi)
+        && finite(po)
+}
 
-/// A sample file read by `gonio_process::file::read` in two halves at once, each the
-/// file's header lines and half of its rows, joined in order: the reader's work is a
-/// row at a time, so the halves give the file's samples, on two cores in about half
-/// the time (52 → 28 ms on a 98 000-row file, quiet machine; BENCHMARKS.md). A table
-/// (`# grid:`), a small file or any fault in either half is `None`, left to the
-/// whole-file reading that reports it.
-fn read_halves(bytes: &[u8], path: &Path) -> Option<gonio_process::Samples> {
-    use gonio_process::file::{Content, read_from};
-    use std::io::Read;
-    // The reader checks each line's UTF-8 itself; both halves are read in place, the
-    // second behind a copy of the header lines only.
-    let samples = |c: Option<Content>| match c? {
-        Content::Samples(s) => Some(s),
-        Content::Table(_) => None,
-    };
-    let whole = || samples(read_from(bytes, bytes.len() as u64, None, Some(path)).ok());
-    // The header: every line up to the first that is neither blank nor a comment.
-    let mut end = 0;
-    for line in bytes.split_inclusive(|b| *b == b'\n') {
-        end += line.len();
-        let l = gonio_core::text::strip_bom_bytes(line).trim_ascii();
-        if let Some(c) = l.strip_prefix(b"#") {
-            let key = c
-                .split(|b| *b == b':')
-                .next()
-                .unwrap_or_default()
-                .trim_ascii();
-            if c.contains(&b':') && key == b"grid" {
-                return None;
-            }
-        } else if !l.is_empty() {
-            break;
-        }
-    }
-    let (head, body) = bytes.split_at(end);
-    if body.len() < SPLIT_ROWS * 16 {
-        return whole();
-    }
-    let mid = body.len() / 2;
-    let cut = mid + body[mid..].iter().position(|b| *b == b'\n')? + 1;
-    let (first, rest) = bytes.split_at(end + cut);
-    let (a, b) = std::thread::scope(|sc| {
-        let h = sc.spawn(|| {
-            let len = (head.len() + rest.len()) as u64;
-            samples(read_from(head.chain(rest), len, None, Some(path)).ok())
-        });
-        let a = samples(read_from(first, first.len() as u64, None, Some(path)).ok());
-        (a, h.join().ok().flatten())
-    });
-    let (mut a, b) = (a?, b?);
-    if a.channels != b.channels || a.isotropic != b.isotropic {
-        return None;
-    }
-    a.samples.extend(b.samples);
-    Some(a)
+/// The fit's view of a file's columns.
+fn fit_columns(
+    c: &gonio_process::file::Columns,
+    opts: &DataOptions,
+) -> Result<FitData, gonio_fit::FitError> {
+    let values: Vec<&[f64]> = c.values.iter().map(Vec::as_slice).collect();
+    let sigma: Option<Vec<&[f64]>> = c
+        .sigma
+        .as_ref()
+        .map(|s| s.iter().map(Vec::as_slice).collect());
+    let [theta_i, phi_i, theta_o, phi_o] = &c.angles;
+    FitData::from_columns(
+        &gonio_fit::Columns {
+            channels: &c.roles.channels,
+            theta_i,
+            phi_i,
+            theta_o,
+            phi_o,
+            values: &values,
+            sigma: sigma.as_deref(),
+        },
+        opts,
+    )
 }
 
 fn input_err(path: &Path, e: impl std::fmt::Display) -> CliError {
@@ -285,27 +270,39 @@ pub(crate) fn compute(a: &FitArgs, given: Option<gonio_process::Samples>) -> Cli
         metric,
         objective,
     } = settings(a)?;
-    let samples = match given.or_else(|| plain_samples(&a.input)) {
-        Some(s) => s,
-        None => {
-            let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
-            // A MERL table is fitted on at most 200 000 of its valid bins (evenly strided).
-            opened.data.to_samples(200_000, &a.input)?
-        }
+    let data_opts = DataOptions {
+        metric,
+        cutoff_deg: a.cutoff,
+        use_sigma: !a.unweighted,
+        objective,
     };
-    let data = FitData::from_samples(
-        &samples,
-        &DataOptions {
-            metric,
-            cutoff_deg: a.cutoff,
-            use_sigma: !a.unweighted,
-            objective,
-        },
-    )
+    let columns = if given.is_none() {
+        plain_columns(&a.input)
+    } else {
+        None
+    };
+    let data = if let Some(c) = columns {
+        let data = fit_columns(&c, &data_opts);
+        // Not needed again, and the process ends with this command.
+        std::mem::forget(c);
+        data
+    } else {
+        let samples = match given {
+            Some(s) => s,
+            None => {
+                let opened = gonio_dataset::open(&a.input, &a.reduction.open_options()?)?;
+                // A MERL table is fitted on at most 200 000 of its valid bins (evenly
+                // strided).
+                opened.data.to_samples(200_000, &a.input)?
+            }
+        };
+        let data = FitData::from_samples(&samples, &data_opts);
+        // Freeing a sample's two small allocations one by one is milliseconds on a
+        // 100 000-row input, and the process ends with this command.
+        std::mem::forget(samples);
+        data
+    }
     .map_err(|e| input_err(&a.input, e))?;
-    // Not needed again, and the process ends with this command: freeing a sample's
-    // two small allocations one by one is milliseconds on a 100 000-row input.
-    std::mem::forget(samples);
     let opts = FitOptions {
         shape: Shape {
             lobes: a.lobes,
@@ -580,32 +577,51 @@ mod tests {
     }
 
     #[test]
-    fn the_halves_read_the_same_samples_as_the_whole_file() {
-        let path = Path::new("test.csv");
+    fn the_columns_give_the_data_the_samples_give() {
+        let dir = std::env::temp_dir().join(format!("gonio-fit-columns-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("s.csv");
+        let opts = DataOptions {
+            metric: Metric::Lafortune,
+            cutoff_deg: 80.0,
+            use_sigma: true,
+            objective: None,
+        };
         for nl in ["\n", "\r\n"] {
-            for rows in [30_000, 30_001, 100] {
+            for rows in [30_001, 100] {
                 let t = text(rows, nl);
-                let whole = match gonio_process::file::read(&t, Some(path)).expect("reads") {
+                std::fs::write(&path, &t).expect("write");
+                let samples = match gonio_process::file::read(&t, Some(&path)).expect("reads") {
                     gonio_process::file::Content::Samples(s) => s,
                     gonio_process::file::Content::Table(_) => panic!("samples"),
                 };
-                let halves = read_halves(t.as_bytes(), path).expect("halves");
-                assert_eq!(halves, whole, "{rows} rows");
-                assert!(halves.isotropic && halves.samples.len() == rows);
+                let c = plain_columns(&path).expect("columns");
+                assert!(c.isotropic && c.rows() == rows);
+                let (a, b) = (
+                    fit_columns(&c, &opts).expect("fits"),
+                    FitData::from_samples(&samples, &opts).expect("fits"),
+                );
+                assert_eq!((a.y, a.weight, a.wi, a.wo), (b.y, b.weight, b.wi, b.wo));
             }
         }
-        // A fault in either half is left to the whole-file reading.
-        for at in [100, 29_000] {
-            let mut t = text(30_000, "\n");
-            let line = t.lines().nth(3 + at).expect("a row").to_string();
-            t = t.replacen(&line, &line.replace("0.03", "x"), 1);
-            assert!(read_halves(t.as_bytes(), path).is_none(), "row {at}");
+        // A fault is left to the dataset's reading, which names it.
+        let t = text(300, "\n");
+        let row = t.lines().nth(3 + 100).expect("a row").to_string();
+        for bad in [
+            row.replace("0.03", "x"),
+            row.replace("0.03", "-0.03"),
+            format!("95{}", &row[row.find(',').expect("comma")..]),
+        ] {
+            std::fs::write(&path, t.replacen(&row, &bad, 1)).expect("write");
+            assert!(plain_columns(&path).is_none(), "{bad}");
         }
-        // A table is not read as samples.
-        let grid = format!(
-            "# grid: isotropic=false phi_i=0:90:1 theta_i=0:45:1 phi_o=0:90:1 theta_o=0:45:2\n{}",
-            text(30_000, "\n")
-        );
-        assert!(read_halves(grid.as_bytes(), path).is_none());
+        // A table is not read as rows.
+        std::fs::write(
+            &path,
+            format!("# grid: isotropic=false phi_i=0:90:1 theta_i=0:45:1 phi_o=0:90:1 theta_o=0:45:2\n{t}"),
+        )
+        .expect("write");
+        assert!(plain_columns(&path).is_none());
+        std::fs::remove_dir_all(&dir).expect("clean");
     }
 }
