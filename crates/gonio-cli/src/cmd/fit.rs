@@ -75,11 +75,19 @@ pub struct FitArgs {
 /// each) most of its page faults (BENCHMARKS.md). The columns are parsed on every
 /// core (`gonio_process::file::read_columns`) and go to the fit as they are.
 fn plain_columns(path: &Path) -> Option<gonio_process::file::Columns> {
-    let bytes = gonio_core::input::read_bounded(path, gonio_dataset::MAX_TEXT_BYTES).ok()?;
-    if gonio_dataset::detect(&bytes) != Some(gonio_dataset::Kind::Csv) {
+    let head = gonio_core::input::read_head(path, 64 << 10).ok()?;
+    if gonio_dataset::detect(&head) != Some(gonio_dataset::Kind::Csv) {
         return None;
     }
-    let c = gonio_process::file::read_columns(&bytes[..], bytes.len() as u64, Some(path)).ok()?;
+    // Streamed from the file: the reader's one buffer is the only copy of the text.
+    let file = std::fs::File::open(path).ok()?;
+    let len = file.metadata().ok().filter(|m| m.is_file())?.len();
+    let max = gonio_dataset::MAX_TEXT_BYTES;
+    if len > max {
+        return None;
+    }
+    let c =
+        gonio_process::file::read_columns(std::io::Read::take(file, max), len, Some(path)).ok()?;
     (c.grid.is_none() && valid(&c)).then_some(c)
 }
 
