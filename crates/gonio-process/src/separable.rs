@@ -58,13 +58,8 @@ pub struct SeparableBrdf {
 
 /// The rank-k approximation of `a` from a thin SVD: (U_k D_k, V_k).
 fn truncated(a: &Mat<f64>, k: usize) -> Result<(Mat<f64>, Mat<f64>), ProcessError> {
-    let svd = a
-        .thin_svd()
-        .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
+    let (s, u, v) = crate::svd::thin(a.as_ref())?;
     let k = k.min(a.nrows()).min(a.ncols());
-    let s = svd.S().column_vector();
-    let u = svd.U();
-    let v = svd.V();
     let us = Mat::from_fn(a.nrows(), k, |r, j| u[(r, j)] * s[j]);
     let vk = Mat::from_fn(a.ncols(), k, |c, j| v[(c, j)]);
     Ok((us, vk))

@@ -169,6 +169,15 @@ impl Spectrum {
     }
 }
 
+/// The thin SVD of `a` on this thread, (singular values, U, V): faer's default
+/// parallelism splits the work by the number of threads, so that its last bits would
+/// depend on it (issue 40: the same bytes on any number of threads).
+pub(crate) fn thin(a: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>), ProcessError> {
+    let (s, uv) = svd_seq(a, true)?;
+    let (u, v) = uv.ok_or_else(|| ProcessError::Numerics("SVD without its vectors".into()))?;
+    Ok((s, u, v))
+}
+
 /// The full SVD's singular values (faer, on one thread: the same bits on any
 /// number of threads).
 pub fn full(a: MatRef<'_, f64>) -> Result<Spectrum, ProcessError> {

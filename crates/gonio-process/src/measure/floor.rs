@@ -557,14 +557,11 @@ fn separability_floor(
     let mut out = Vec::with_capacity(nc);
     for (ch, measured) in sep.iter().enumerate().take(nc) {
         let a = measure::matrix(&full, ch);
-        let svd = a
-            .thin_svd()
-            .map_err(|e| ProcessError::Numerics(format!("SVD did not converge: {e:?}")))?;
-        let (u, s, v) = (svd.U(), svd.S().column_vector(), svd.V());
+        let (s, u, v) = crate::svd::thin(a.as_ref())?;
         let scale = scale_of(full.channel(ch));
         let mut per_k = Vec::with_capacity(ks.len());
         for (j, &k) in ks.iter().enumerate() {
-            let k = k.min(s.nrows());
+            let k = k.min(s.len());
             // A^(k) in the table's value order: rows (φi, θi), columns (φo, θo).
             let mut ak = vec![0.0; n];
             for r in 0..p {

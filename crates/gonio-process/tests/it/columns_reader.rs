@@ -382,3 +382,24 @@ fn a_header_from_any_tool_is_recognised_and_others_are_not() {
         assert!(!file::is_columns_header(no.as_bytes()), "{no}");
     }
 }
+
+#[test]
+fn the_floors_are_the_same_bytes_on_one_and_two_threads() {
+    // A is 72 × 72, below the truncated SVD's size: the separability floor takes a
+    // full SVD with its vectors, then its noise draws side by side on rayon.
+    let t = paint_table(12, 6, true);
+    let floors_in = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let r = measure::report_with(&t, None, &[1, 5], 5).expect("report");
+            let f = gonio_process::floor::floors(&t, None, &r, &[1, 5], 8).expect("floors");
+            format!("{f:?}")
+        })
+    };
+    let one = floors_in(1);
+    assert!(one.contains("separability: Some"), "{one}");
+    assert_eq!(one, floors_in(2));
+}
