@@ -169,10 +169,13 @@ impl Spectrum {
     }
 }
 
+/// A thin SVD: the singular values, U and V.
+pub(crate) type Thin = (Vec<f64>, Mat<f64>, Mat<f64>);
+
 /// The thin SVD of `a` on this thread, (singular values, U, V): faer's default
 /// parallelism splits the work by the number of threads, so that its last bits would
 /// depend on it (issue 40: the same bytes on any number of threads).
-pub(crate) fn thin(a: MatRef<'_, f64>) -> Result<(Vec<f64>, Mat<f64>, Mat<f64>), ProcessError> {
+pub(crate) fn thin(a: MatRef<'_, f64>) -> Result<Thin, ProcessError> {
     let (s, uv) = svd_seq(a, true)?;
     let (u, v) = uv.ok_or_else(|| ProcessError::Numerics("SVD without its vectors".into()))?;
     Ok((s, u, v))

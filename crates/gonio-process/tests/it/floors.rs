@@ -279,3 +279,39 @@ fn floors_are_the_same_on_any_number_of_threads() {
     assert!(one.floor.is_some());
     assert_eq!(one, two);
 }
+
+/// P_i's counterpart on a grid whose azimuth axes are the same full turn (φo − φi on
+/// μ_i's nodes: looked up) equals μ_i evaluated at each node's angles (interpolated):
+/// the lookup is the interpolation's value at a node, to rounding. A table whose
+/// value depends on φi, so that μ_i is not the table itself.
+#[test]
+fn the_isotropic_counterpart_is_mu_at_each_node() {
+    let (_, m) = &materials()[0];
+    let g = Grid::full(
+        Axis::full_turn(12),
+        Axis::from_deg(5.0, 15.0, 6),
+        Axis::full_turn(12),
+        Axis::from_deg(0.0, 10.0, 9),
+    );
+    let t = noisy(m, g, 3, |[pi, ..]| 1.0 + 0.3 * pi.cos());
+    let (mu, _) = measure::isotropic_mean(&t, false).expect("mean");
+    let c = floor::isotropic_counterpart(&t).expect("counterpart");
+    let scale = t.values.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    for ch in 0..t.channels.len() {
+        for i in 0..g.len() {
+            let want = mu.eval_angles(ch, g.angles(i));
+            let got = c.channel(ch)[i];
+            assert!(
+                (got - want).abs() <= 1e-12 * scale,
+                "node {i}: {got} against {want}"
+            );
+        }
+    }
+    // μ_i is not the table: the φi dependence is averaged out.
+    assert!(
+        t.values
+            .iter()
+            .zip(&c.values)
+            .any(|(a, b)| (a - b).abs() > 0.01 * scale)
+    );
+}

@@ -182,6 +182,26 @@ impl Sr830Session {
         }
     }
 
+    /// The flags at a window's end ([`Self::flags`]), with the output overload bit
+    /// the window's own: the bit latched during the transient too, and the window's
+    /// points were checked against the clip level one by one instead.
+    async fn window_flags(
+        &mut self,
+        link: &Link,
+        reconnects: usize,
+        clipped: bool,
+    ) -> Result<Option<LiaStatus>, Sr830Error> {
+        let own = if clipped {
+            LiaStatus::OUTPUT_OVERLOAD
+        } else {
+            0
+        };
+        Ok(self
+            .flags(link, reconnects)
+            .await?
+            .map(|s| LiaStatus((s.0 & !LiaStatus::OUTPUT_OVERLOAD) | own)))
+    }
+
     /// The range autoranging moves to after `reading`, by the targeted rule or the
     /// fixed one ([`ranging`]); `None` to keep it, or without autorange.
     fn next_range(&self, reading: &Reading, targeted: bool) -> Option<Sensitivity> {
@@ -362,17 +382,9 @@ impl Sr830Session {
                 break;
             }
         }
-        let Some(status) = self.flags(link, reconnects).await? else {
+        let Some(status) = self.window_flags(link, reconnects, t.clipped).await? else {
             return Ok(End::Interrupted);
         };
-        // The output overload bit latched during the transient too; the window's
-        // snapshots were checked against the clip level one by one instead.
-        let own = if t.clipped {
-            LiaStatus::OUTPUT_OVERLOAD
-        } else {
-            0
-        };
-        let status = LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own);
         Ok(End::Read(self.reading(
             t.seq.result(),
             status,
@@ -561,15 +573,9 @@ impl Sr830Session {
                 link.sleep(link.now().saturating_add(secs(period))).await;
             }
         }
-        let Some(status) = self.flags(link, reconnects).await? else {
+        let Some(status) = self.window_flags(link, reconnects, t.clipped).await? else {
             return Ok(End::Interrupted);
         };
-        let own = if t.clipped {
-            LiaStatus::OUTPUT_OVERLOAD
-        } else {
-            0
-        };
-        let status = LiaStatus((status.0 & !LiaStatus::OUTPUT_OVERLOAD) | own);
         let mut reading = self.reading(t.seq.result(), status, steps, t.capped);
         reading.sample_rate = Some(plan.rate);
         Ok(End::Read(reading))

@@ -39,24 +39,7 @@ pub fn measure(
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
 ) -> (RunStore, Model) {
-    let (inst, inst_text) =
-        InstrumentConfig::load_with_text(&root().join("config/instrument-sim.toml")).expect("inst");
-    let mut sim = SimConfig::default_config().expect("sim");
-    if let Some(text) = sample {
-        let m = Model::from_toml(text, None).expect("sample model");
-        sim.set_sample(std::sync::Arc::new(m), text.to_string());
-    }
-    tweak(&mut sim);
-    let run = Run {
-        name,
-        instrument: (&inst, inst_text),
-        sim: &sim,
-        sim_text: gonio_sim::config::DEFAULT_SIM.into(),
-        plan_text,
-        seed,
-    };
-    let (_, store, model) = run.acquire();
-    (store, model)
+    measure_in(name, plan_text, sample, seed, tweak, false)
 }
 
 /// [`measure`] with the lock-in allowed to read through its data buffer
@@ -69,10 +52,22 @@ pub fn measure_buffered(
     seed: u64,
     tweak: impl FnOnce(&mut SimConfig),
 ) -> (RunStore, Model) {
+    measure_in(name, plan_text, sample, seed, tweak, true)
+}
+
+fn measure_in(
+    name: &str,
+    plan_text: &str,
+    sample: Option<&str>,
+    seed: u64,
+    tweak: impl FnOnce(&mut SimConfig),
+    buffer: bool,
+) -> (RunStore, Model) {
     let path = root().join("config/instrument-sim.toml");
-    let text = std::fs::read_to_string(&path)
-        .expect("inst")
-        .replace("[detector.lockin]\n", "[detector.lockin]\nbuffer = true\n");
+    let mut text = std::fs::read_to_string(&path).expect("inst");
+    if buffer {
+        text = text.replace("[detector.lockin]\n", "[detector.lockin]\nbuffer = true\n");
+    }
     let inst = InstrumentConfig::from_toml(&text, Some(&path)).expect("inst");
     let mut sim = SimConfig::default_config().expect("sim");
     if let Some(text) = sample {
