@@ -1,7 +1,8 @@
 //! Every input Gonio takes, opened one way.
 //!
 //! [`detect`] recognises a file's [`Kind`] from its content alone (never its name):
-//! a run file (SQLite with Gonio's header), a MERL binary, ASTM text, Gonio's CSV
+//! a run file (SQLite with Gonio's header), a MERL binary, an RGL material
+//! (`.bsdf`, Mitsuba 3's `measured`), ASTM text, Gonio's CSV
 //! (a table when it has a grid line, else samples), or a TOML file — a separable
 //! representation, spherical harmonics, or else an analytic model. [`open`] reads
 //! it into a [`Dataset`], reducing a run file on the way (its
@@ -14,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use gonio_brdf::{Brdf, Model};
 use gonio_core::Channels;
-use gonio_io::formats::{self, Data, FormatError, MerlBrdf};
+use gonio_io::formats::{self, Data, FormatError, MerlBrdf, RglBsdf};
 use gonio_process::hemisphere::{self, Fill, Symmetry};
 use gonio_process::samples::Kernel;
 use gonio_process::separable::SeparableBrdf;
@@ -41,6 +42,8 @@ pub enum Kind {
     Run,
     /// A MERL binary table.
     Merl,
+    /// An RGL material (a tensor file, `.bsdf`).
+    Rgl,
     /// ASTM E1392-style text.
     Astm,
     /// Gonio's CSV: a table or samples, wide (a column a channel) or long (a row a
@@ -60,6 +63,7 @@ impl Kind {
         match self {
             Kind::Run => "run",
             Kind::Merl => "merl",
+            Kind::Rgl => "rgl",
             Kind::Astm => "astm",
             Kind::Csv => "csv",
             Kind::Separable => "separable",
@@ -181,6 +185,8 @@ pub enum Dataset {
     Samples(Samples),
     /// A MERL table of half/difference bins.
     Merl(Box<MerlBrdf>),
+    /// An RGL material, evaluated as Mitsuba 3's `measured` plugin does.
+    Rgl(Box<RglBsdf>),
     /// An analytic model.
     Model(Box<Model>),
     /// A k-separable representation.
@@ -238,6 +244,7 @@ pub fn detect(bytes: &[u8]) -> Option<Kind> {
     }
     formats::detect(bytes).map(|f| match f {
         formats::Format::Merl => Kind::Merl,
+        formats::Format::Rgl => Kind::Rgl,
         formats::Format::Astm => Kind::Astm,
         formats::Format::Csv | formats::Format::CsvLong => Kind::Csv,
     })
@@ -346,6 +353,7 @@ pub fn open_bytes(bytes: &[u8], path: &Path) -> Result<(Kind, Dataset), DatasetE
     let kind = match detected {
         Some(formats::Format::Astm) => Kind::Astm,
         Some(formats::Format::Csv | formats::Format::CsvLong) => Kind::Csv,
+        Some(formats::Format::Rgl) => Kind::Rgl,
         _ => Kind::Merl,
     };
     let read = match detected {
@@ -419,6 +427,7 @@ fn from_data(data: Data, path: &Path) -> Result<Dataset, DatasetError> {
     Ok(match data {
         Data::Table(t) => Dataset::Table(t),
         Data::Merl(m) => Dataset::Merl(Box::new(m)),
+        Data::Rgl(r) => Dataset::Rgl(r),
         Data::Samples(s) => {
             s.validate().map_err(|e| DatasetError::process(path, e))?;
             match s.to_table() {
@@ -436,6 +445,7 @@ impl Dataset {
             Dataset::Table(t) => &t.channels,
             Dataset::Samples(s) => &s.channels,
             Dataset::Merl(m) => m.channels(),
+            Dataset::Rgl(r) => r.channels(),
             Dataset::Model(m) => m.channels(),
             Dataset::Separable(s) => s.channels(),
             Dataset::Harmonics(h) => &h.channels,
@@ -448,6 +458,7 @@ impl Dataset {
             Dataset::Table(_) => "table",
             Dataset::Samples(_) => "samples",
             Dataset::Merl(_) => "MERL table",
+            Dataset::Rgl(_) => "RGL material",
             Dataset::Model(_) => "model",
             Dataset::Separable(_) => "separable representation",
             Dataset::Harmonics(_) => "spherical harmonics",
@@ -461,6 +472,7 @@ impl Dataset {
             Dataset::Table(t) => Some(t),
             Dataset::Samples(_) => None,
             Dataset::Merl(m) => Some(m.as_ref()),
+            Dataset::Rgl(r) => Some(r.as_ref()),
             Dataset::Model(m) => Some(m.as_ref()),
             Dataset::Separable(s) => Some(s.as_ref()),
             Dataset::Harmonics(h) => Some(h.as_ref()),
@@ -468,12 +480,16 @@ impl Dataset {
     }
 
     /// True for data defined everywhere by a formula or factors (a model, a
-    /// separable or harmonics representation, a MERL table), which a grid samples
+    /// separable or harmonics representation, a MERL table, an RGL material), which a grid samples
     /// exactly rather than resamples.
     pub fn is_analytic(&self) -> bool {
         matches!(
             self,
-            Dataset::Merl(_) | Dataset::Model(_) | Dataset::Separable(_) | Dataset::Harmonics(_)
+            Dataset::Merl(_)
+                | Dataset::Rgl(_)
+                | Dataset::Model(_)
+                | Dataset::Separable(_)
+                | Dataset::Harmonics(_)
         )
     }
 
@@ -599,6 +615,7 @@ impl Dataset {
             Dataset::Table(t) => Data::Table(t.clone()),
             Dataset::Samples(s) => Data::Samples(s.clone()),
             Dataset::Merl(m) => Data::Merl(m.as_ref().clone()),
+            Dataset::Rgl(r) => Data::Rgl(r.clone()),
             d => Data::Table(d.to_table(None, path)?),
         })
     }

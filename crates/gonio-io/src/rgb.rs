@@ -149,6 +149,8 @@ pub fn to_rgb(data: &Data, conversion: &Conversion) -> Result<Data, RgbError> {
         }
         // A MERL table's channels are R, G, B: handled above.
         Data::Merl(_) => data.clone(),
+        // Spectral RGL: its values on the 10° grid, converted.
+        Data::Rgl(r) => return to_rgb(&Data::Samples(crate::formats::rgl_samples(r)), conversion),
     })
 }
 

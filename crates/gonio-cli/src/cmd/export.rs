@@ -12,16 +12,26 @@ use crate::error::{CliError, CliResult};
 use crate::flags::{JsonFlag, ReduceFlags};
 use crate::output;
 
-/// `gonio export`: write a run, table or samples as MERL binary, ASTM E1392 text or
-/// CSV.
+/// `gonio export`: write a run, table, samples or model as MERL binary, ASTM E1392
+/// text, CSV or an RGL material (`.bsdf`, Mitsuba 3's `measured`).
 #[derive(clap::Args)]
 pub struct ExportArgs {
     /// The input.
     input: PathBuf,
-    /// merl, astm, csv or csv-long (a row per pair per wavelength: wavelength
-    /// channels only).
+    /// merl, astm, csv, csv-long (a row per pair per wavelength: wavelength
+    /// channels only) or rgl (the RGL material `.bsdf` Mitsuba 3 renders).
     #[arg(long)]
     format: String,
+    /// rgl: incidence angles θi, from 0° to 85°.
+    #[arg(long, default_value_t = 8, value_name = "N")]
+    rgl_incidences: usize,
+    /// rgl: nodes a side of each incidence's sample square (the RGL database has 32
+    /// or 64).
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    rgl_slice: usize,
+    /// rgl: nodes a side of each incidence's VNDF.
+    #[arg(long, default_value_t = 128, value_name = "N")]
+    rgl_vndf: usize,
     /// The file to write.
     #[arg(long)]
     out: PathBuf,
@@ -47,6 +57,7 @@ pub(crate) struct Exported {
     from: &'static str,
     symmetry: Option<gonio_process::hemisphere::Symmetry>,
     colour: Option<String>,
+    rgl: Option<gonio_io::formats::rgl::InterpolationError>,
 }
 
 impl Exported {
@@ -64,6 +75,16 @@ impl Exported {
             ("colour", json!(self.colour)),
         ] {
             v.insert(k.into(), x);
+        }
+        if let Some(r) = &self.rgl {
+            v.insert(
+                "interpolation".into(),
+                json!({
+                    "at_nodes": r.at_nodes,
+                    "between": r.between,
+                    "theta_max_deg": r.theta_max_deg,
+                }),
+            );
         }
         serde_json::Value::Object(v)
     }
@@ -105,7 +126,7 @@ impl ExportTarget {
 fn format_of(a: &ExportArgs) -> CliResult<Format> {
     Format::from_name(&a.format).ok_or_else(|| {
         CliError::Input(format!(
-            "--format: merl, astm, csv or csv-long, got {:?}",
+            "--format: merl, astm, csv, csv-long or rgl, got {:?}",
             a.format
         ))
     })
@@ -118,6 +139,9 @@ pub(crate) fn compute(a: &ExportArgs, given: Option<Dataset>) -> CliResult<Expor
     let colour = a.colour.conversion()?;
     let format = format_of(a)?;
     let dataset = crate::cmd::open_data(input, &a.reduction, given)?;
+    if matches!(format, Format::Rgl) {
+        return rgl(a, &dataset);
+    }
     let mut data = dataset.to_format_data(input)?;
     // MERL holds R, G, B: wavelength channels go through the colour conversion.
     let mut converted = None;
@@ -154,7 +178,71 @@ pub(crate) fn compute(a: &ExportArgs, given: Option<Dataset>) -> CliResult<Expor
         from: data.kind(),
         symmetry,
         colour: converted,
+        rgl: None,
     })
+}
+
+/// The RGL material of the input: a BRDF evaluated exactly at the format's nodes,
+/// a table (samples tabulated on their own grid first) through its interpolation,
+/// with the nodes beyond the table's θ marked not valid.
+fn rgl(a: &ExportArgs, dataset: &Dataset) -> CliResult<Exported> {
+    let input = a.input.as_path();
+    let opts = gonio_io::formats::RglOptions {
+        incidences: a.rgl_incidences,
+        slice: a.rgl_slice,
+        vndf: a.rgl_vndf,
+        ..Default::default()
+    };
+    let tab;
+    let (src, reach): (&dyn gonio_brdf::Brdf, Option<(f64, f64)>) = match dataset {
+        Dataset::Table(t) => (t, Some(theta_reach(t))),
+        Dataset::Samples(_) => {
+            tab = dataset.to_table(None, input)?;
+            (&tab, Some(theta_reach(&tab)))
+        }
+        d => match d.brdf() {
+            Some(b) => (b, None),
+            None => {
+                return Err(CliError::Input(format!(
+                    "{}: nothing to evaluate",
+                    input.display()
+                )));
+            }
+        },
+    };
+    let valid = move |wi: gonio_core::Dir, wo: gonio_core::Dir| match reach {
+        Some((ti, to)) => wi.theta() <= ti && wo.theta() <= to,
+        None => true,
+    };
+    let description = format!(
+        "Gonio {}: {} from {}",
+        env!("CARGO_PKG_VERSION"),
+        dataset.describe(),
+        input.display()
+    );
+    let r = gonio_io::formats::RglBsdf::from_brdf(src, &opts, &description, &valid)
+        .map_err(|e| CliError::Input(format!("{}: {e}", input.display())))?;
+    let err = r.interpolation_error(src, 75.0);
+    tracing::debug!(
+        at_nodes = err.at_nodes,
+        between = err.between,
+        "rgl interpolation error"
+    );
+    Ok(Exported {
+        bytes: r.to_bytes(),
+        sidecar: None,
+        format: Format::Rgl,
+        from: dataset.describe(),
+        symmetry: None,
+        colour: None,
+        rgl: Some(err),
+    })
+}
+
+/// The largest θi and θo a table holds (radians, with a 1e-9 margin).
+fn theta_reach(t: &gonio_process::Table) -> (f64, f64) {
+    let max = |a: &gonio_process::grid::Axis| a.node(a.n.saturating_sub(1));
+    (max(&t.grid.theta_i) + 1e-9, max(&t.grid.theta_o) + 1e-9)
 }
 
 /// `gonio export` of its input or of `given` data: with `write`, the file written
@@ -200,6 +288,16 @@ pub fn run(a: ExportArgs) -> CliResult<()> {
         )?;
         if let Some(s) = symmetry {
             writeln!(w, "symmetry: {}", s.describe())?;
+        }
+        if let Some(r) = &e.rgl {
+            writeln!(
+                w,
+                "interpolation error (f_r cos θo, relative RMS): {:.3}% at the file's nodes, \
+                 {:.2}% between them (θi, θo ≤ {}°)",
+                100.0 * r.at_nodes,
+                100.0 * r.between,
+                r.theta_max_deg
+            )?;
         }
         if let Some(c) = converted {
             writeln!(

@@ -107,7 +107,7 @@ pub fn csv_read(data: &[u8]) {
                 }
             }
         }
-        Ok(Data::Merl(_)) => panic!("the CSV reader gave a MERL table"),
+        Ok(Data::Merl(_) | Data::Rgl(_)) => panic!("the CSV reader gave a binary format"),
         Err(e) => {
             let _ = e.to_string();
         }

@@ -7,6 +7,7 @@
 //! | ASTM E1392-style text (the Cornell measurements) | [`astm`] | scattered samples, any channels | [`Data::Samples`] |
 //! | CSV samples or table (`gonio_process::file`) | — | samples, or a table on a grid | [`Data::Samples`] or [`Data::Table`] |
 //! | long-form spectral CSV (a row per pair per wavelength) | [`long`] | samples with wavelength channels | [`Data::Samples`] |
+//! | RGL material `.bsdf` (Dupuy & Jakob 2018; Mitsuba 3's `measured`) | [`rgl`] | a BRDF in the paper's adaptive parameterisation, RGB or spectral | [`Data::Rgl`] ([`RglBsdf`]) |
 //!
 //! [`detect`] recognises a format from the bytes alone (never from a file name);
 //! [`read`] detects and parses, [`read_as`] parses as a given format; [`write()`] and
@@ -45,10 +46,12 @@ pub mod astm;
 pub mod fuzz;
 pub mod long;
 pub mod merl;
+pub mod rgl;
 
 pub use astm::{read_astm, write_astm};
 pub use long::{long_meta, read_long, write_long};
 pub use merl::{Bin, FromSamples, MerlBrdf, read_merl, write_merl};
+pub use rgl::{RglBsdf, RglOptions};
 
 /// The largest file [`read_file`] reads (4 GiB): far beyond any BRDF Gonio writes
 /// (a full CSV of [`gonio_process::file::MAX_ROWS`] rows is about 3 GB), and a
@@ -69,19 +72,28 @@ pub enum Format {
     Csv,
     /// The long-form spectral CSV: a row per pair per wavelength ([`long`]).
     CsvLong,
+    /// The RGL material of Mitsuba 3's `measured` plugin ([`rgl`]).
+    Rgl,
 }
 
 impl Format {
     /// Every format, in the order [`detect`] tries them.
-    pub const ALL: [Format; 4] = [Format::Merl, Format::Astm, Format::Csv, Format::CsvLong];
+    pub const ALL: [Format; 5] = [
+        Format::Merl,
+        Format::Rgl,
+        Format::Astm,
+        Format::Csv,
+        Format::CsvLong,
+    ];
 
-    /// The short name commands take (`merl`, `astm`, `csv`, `csv-long`).
+    /// The short name commands take (`merl`, `astm`, `csv`, `csv-long`, `rgl`).
     pub fn name(self) -> &'static str {
         match self {
             Format::Merl => "merl",
             Format::Astm => "astm",
             Format::Csv => "csv",
             Format::CsvLong => "csv-long",
+            Format::Rgl => "rgl",
         }
     }
 
@@ -92,6 +104,7 @@ impl Format {
             Format::Astm => "ASTM E1392 BRDF",
             Format::Csv => "BRDF table",
             Format::CsvLong => "long-form spectral BRDF CSV",
+            Format::Rgl => "RGL material",
         }
     }
 
@@ -103,7 +116,8 @@ impl Format {
     }
 
     /// The format a file name's extension suggests: `.binary` or `.merl` (MERL),
-    /// `.astm` (ASTM), `.csv` (CSV; never the long form, which is asked for by name).
+    /// `.astm` (ASTM), `.csv` (CSV; never the long form, which is asked for by name),
+    /// `.bsdf` (RGL).
     /// Only a hint for writing; reading detects the format from the content.
     pub fn from_extension(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
@@ -111,6 +125,7 @@ impl Format {
             "binary" | "merl" => Some(Format::Merl),
             "astm" => Some(Format::Astm),
             "csv" => Some(Format::Csv),
+            "bsdf" => Some(Format::Rgl),
             _ => None,
         }
     }
@@ -131,6 +146,8 @@ pub enum Data {
     Samples(Samples),
     /// A table on a grid (a CSV with a `grid:` line).
     Table(Table),
+    /// An RGL material (a BRDF in its own right).
+    Rgl(Box<RglBsdf>),
 }
 
 impl Data {
@@ -140,6 +157,7 @@ impl Data {
             Data::Merl(m) => gonio_brdf::Brdf::channels(m),
             Data::Samples(s) => &s.channels,
             Data::Table(t) => &t.channels,
+            Data::Rgl(r) => gonio_brdf::Brdf::channels(r.as_ref()),
         }
     }
 
@@ -149,16 +167,19 @@ impl Data {
             Data::Merl(_) => "MERL table",
             Data::Samples(_) => "samples",
             Data::Table(_) => "table",
+            Data::Rgl(_) => "RGL material",
         }
     }
 
     /// The data as samples: a MERL table's valid bin centres
-    /// ([`MerlBrdf::to_samples`]), a table's nodes, or the samples themselves.
+    /// ([`MerlBrdf::to_samples`]), a table's nodes, the samples themselves, or an
+    /// RGL material's values on the 10° × 10° grid ([`rgl_table`]).
     pub fn to_samples(&self) -> Samples {
         match self {
             Data::Merl(m) => m.to_samples(),
             Data::Samples(s) => s.clone(),
             Data::Table(t) => Samples::from_table(t),
+            Data::Rgl(r) => rgl_samples(r),
         }
     }
 
@@ -168,8 +189,29 @@ impl Data {
         match self {
             Data::Merl(m) => Some(m),
             Data::Table(t) => Some(t),
+            Data::Rgl(r) => Some(r.as_ref()),
             Data::Samples(_) => None,
         }
+    }
+}
+
+/// An RGL material evaluated on the 10° × 10° grid (the grid analytic inputs are
+/// tabulated on by default), as a CSV or ASTM export of it holds.
+pub fn rgl_table(r: &RglBsdf) -> Result<Table, FormatError> {
+    let step = gonio_process::GridStep {
+        dtheta_deg: 10.0,
+        dphi_deg: 10.0,
+    };
+    Table::from_brdf(r, step.grid())
+        .map_err(|e| FormatError::whole(Some(Format::Rgl), None, e.to_string()))
+}
+
+/// [`rgl_table`]'s nodes as samples (none if it cannot be formed, which a material
+/// [`RglBsdf::read`] accepted never gives: its values are finite).
+pub(crate) fn rgl_samples(r: &RglBsdf) -> Samples {
+    match rgl_table(r) {
+        Ok(t) => Samples::from_table(&t),
+        Err(_) => Samples::from_brdf(r, &[]),
     }
 }
 
@@ -291,6 +333,9 @@ impl std::error::Error for FormatError {}
 pub fn detect(bytes: &[u8]) -> Option<Format> {
     if merl::is_merl(bytes) {
         return Some(Format::Merl);
+    }
+    if rgl::tensor::is_tensor_file(bytes) {
+        return Some(Format::Rgl);
     }
     detect_text(bytes).ok()
 }
@@ -417,6 +462,7 @@ pub fn read_as(format: Format, bytes: &[u8], path: Option<&Path>) -> Result<Data
         Format::Astm => read_astm(utf8(format, bytes, path)?, path).map(Data::Samples),
         Format::Csv => read_csv(utf8(format, bytes, path)?, path),
         Format::CsvLong => read_long(utf8(format, bytes, path)?, None, path),
+        Format::Rgl => RglBsdf::read(bytes, path).map(|r| Data::Rgl(Box::new(r))),
     }
 }
 
@@ -509,6 +555,10 @@ pub fn write_csv(data: &Data) -> String {
         Data::Table(t) => gonio_process::file::write_table(t),
         Data::Samples(s) => gonio_process::file::write_samples(s),
         Data::Merl(m) => gonio_process::file::write_samples(&m.to_samples()),
+        Data::Rgl(r) => match rgl_table(r) {
+            Ok(t) => gonio_process::file::write_table(&t),
+            Err(_) => gonio_process::file::write_samples(&rgl_samples(r)),
+        },
     }
 }
 
@@ -518,6 +568,10 @@ pub fn csv_meta(data: &Data) -> Meta {
         Data::Table(t) => Meta::for_table(t),
         Data::Samples(s) => Meta::for_samples(s),
         Data::Merl(m) => Meta::for_samples(&m.to_samples()),
+        Data::Rgl(r) => match rgl_table(r) {
+            Ok(t) => Meta::for_table(&t),
+            Err(_) => Meta::for_samples(&rgl_samples(r)),
+        },
     }
 }
 
@@ -536,6 +590,8 @@ pub fn csv_meta(data: &Data) -> Meta {
 pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
     Ok(match (format, data) {
         (Format::Merl, Data::Merl(m)) => write_merl(m),
+        // Evaluated exactly at the bin centres, as the plugin would.
+        (Format::Merl, Data::Rgl(r)) => write_merl(&MerlBrdf::from_brdf(r.as_ref())?),
         (Format::Merl, Data::Table(t)) => write_merl(&MerlBrdf::from_table(t)?),
         (Format::Merl, Data::Samples(s)) => {
             write_merl(&MerlBrdf::from_samples(s, &FromSamples::default())?)
@@ -544,6 +600,21 @@ pub fn write(format: Format, data: &Data) -> Result<Vec<u8>, FormatError> {
         (Format::Astm, d) => write_astm(&d.to_samples()).into_bytes(),
         (Format::Csv, d) => write_csv(d).into_bytes(),
         (Format::CsvLong, d) => write_long(d)?.into_bytes(),
+        (Format::Rgl, Data::Rgl(r)) => r.to_bytes(),
+        (Format::Rgl, Data::Samples(_)) => {
+            return Err(FormatError::whole(
+                Some(Format::Rgl),
+                None,
+                "scattered samples: tabulate them first (`gonio export` does)",
+            ));
+        }
+        (Format::Rgl, d) => {
+            let b = d.as_brdf().ok_or_else(|| {
+                FormatError::whole(Some(Format::Rgl), None, "nothing to evaluate")
+            })?;
+            RglBsdf::from_brdf(b, &RglOptions::default(), "written by Gonio", &|_, _| true)?
+                .to_bytes()
+        }
     })
 }
 
