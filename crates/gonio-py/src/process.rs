@@ -28,14 +28,20 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// A DataFrame's columns as Python hands them over: `(columns, isotropic, label)`.
 type Frame<'py> = (Vec<(String, PyReadonlyArray1<'py, f64>)>, bool, PathBuf);
 
-/// The data `source` is: a path (str or os.PathLike), a `NativeModel`, or a
-/// DataFrame's columns.
+/// The data `source` is: a path (str or os.PathLike), a `NativeModel`, a
+/// `NativeBsdf`, or a DataFrame's columns.
 pub(crate) fn source(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
     if let Ok(m) = obj.cast::<NativeModel>() {
         let model = m.get().model.clone();
         return Ok(Source::Data(
             Dataset::Model(Box::new(model)),
             PathBuf::from("<model>"),
+        ));
+    }
+    if let Ok(b) = obj.cast::<crate::model::NativeBsdf>() {
+        return Ok(Source::Data(
+            Dataset::Rgl(Box::new(b.get().bsdf.clone())),
+            PathBuf::from("<bsdf>"),
         ));
     }
     if let Ok((cols, isotropic, label)) = obj.extract::<Frame<'_>>() {

@@ -184,9 +184,21 @@ pub(crate) fn compute(a: &ExportArgs, given: Option<Dataset>) -> CliResult<Expor
 
 /// The RGL material of the input: a BRDF evaluated exactly at the format's nodes,
 /// a table (samples tabulated on their own grid first) through its interpolation,
-/// with the nodes beyond the table's θ marked not valid.
+/// with the nodes beyond the table's θ marked not valid; an RGL material as it is.
 fn rgl(a: &ExportArgs, dataset: &Dataset) -> CliResult<Exported> {
     let input = a.input.as_path();
+    // An RGL material is written as it was read: resampling it would only lose.
+    if let Dataset::Rgl(r) = dataset {
+        return Ok(Exported {
+            bytes: r.to_bytes(),
+            sidecar: None,
+            format: Format::Rgl,
+            from: dataset.describe(),
+            symmetry: None,
+            colour: None,
+            rgl: None,
+        });
+    }
     let opts = gonio_io::formats::RglOptions {
         incidences: a.rgl_incidences,
         slice: a.rgl_slice,

@@ -2,7 +2,8 @@
 
 The same crates as the ``gonio`` command, in this process: a run file opens as a
 ``Run`` whose readings and reduction are DataFrames with the command's columns,
-units and values; models evaluate on numpy arrays; ``check``, ``correct``,
+units and values; models and RGL materials (``open_bsdf``) evaluate on numpy
+arrays; ``check``, ``correct``,
 ``harmonics``, ``fit``, ``colour``, ``export``, ``report``, ``verify``,
 ``plan.check``, ``plan.compare`` and ``instrument.check`` return the command's
 numbers and write its files; ``acquire`` drives the instrument (or the
@@ -20,7 +21,7 @@ from gonio import instrument, micro, plan
 from gonio._commands import colour, export, report, verify
 from gonio._frame import read_csv
 from gonio._instrument import Simulator, acquire, resume
-from gonio._model import Model, load_model
+from gonio._model import Bsdf, Model, load_model, open_bsdf
 from gonio._native import (
     ConfigError,
     DataError,
@@ -36,6 +37,7 @@ from gonio._progress import Progress
 from gonio._run import Run, open_run
 
 __all__ = [
+    "Bsdf",
     "ConfigError",
     "DataError",
     "FitResult",
@@ -59,6 +61,7 @@ __all__ = [
     "instrument",
     "load_model",
     "micro",
+    "open_bsdf",
     "open_run",
     "plan",
     "read_csv",

@@ -98,11 +98,13 @@ def export(
     observer: str | int = "1931",
     adaptation: str = "bradford",
 ) -> Any:
-    """``data`` (a path, a ``Run``, a ``Model`` or a DataFrame of samples) in a
+    """``data`` (a path, a ``Run``, a ``Model``, a ``Bsdf`` or a DataFrame of samples) in a
     format other tools read, as ``gonio export`` writes it: ``"merl"`` (MERL
     binary; wavelength channels go to R, G, B through the colour conversion, a half
     turn of an isotropic material is unfolded), ``"astm"`` (ASTM E1392 text),
-    ``"csv"`` or ``"csv-long"`` (a row per pair per wavelength).
+    ``"csv"``, ``"csv-long"`` (a row per pair per wavelength) or ``"rgl"`` (the
+    RGL material ``.bsdf`` Mitsuba 3's ``measured`` plugin renders; its json holds
+    the interpolation error).
 
     With ``out``, writes the file (a CSV with its sidecar ``out.json``), refusing
     an existing one unless ``force``, and returns ``gonio export --json``'s dict;

@@ -10,8 +10,8 @@
 //! columns at the sampled y), each by solving the quadratic of a linear density over
 //! one patch. Parameters between their nodes blend every stored array (data and
 //! CDFs) linearly, slice by slice, as the plugin does. Everything here is the
-//! plugin's arithmetic in `f64`; its tables are `f32`, so the two agree to about
-//! 1e-7 relative.
+//! plugin's arithmetic in `f64` on its tables rounded to `f32` as the plugin stores
+//! them, so the two agree to the plugin's own `f32` rounding (about 1e-7 relative).
 
 /// Float epsilon of the plugin's `f32` (2⁻²⁴), by which a sample is kept off the
 /// square's edges.
@@ -128,8 +128,9 @@ impl Warp2D {
                 if normalize {
                     norm = 1.0 / acc;
                 }
-                cond[c0..].iter_mut().for_each(|c| *c *= norm);
-                marg[m0..].iter_mut().for_each(|m| *m *= norm);
+                // Stored as f32, as the plugin stores them.
+                cond[c0..].iter_mut().for_each(|c| *c = f32r(*c * norm));
+                marg[m0..].iter_mut().for_each(|m| *m = f32r(*m * norm));
             } else if normalize {
                 let mut sum = 0.0;
                 for y in 0..h - 1 {
@@ -139,7 +140,8 @@ impl Warp2D {
                 }
                 norm = 1.0 / (sx * sy * sum);
             }
-            out.extend(slice.iter().map(|v| *v as f64 * norm));
+            let norm = f32r(norm);
+            out.extend(slice.iter().map(|v| f32r(*v as f64 * norm)));
         }
         Ok(Warp2D {
             w,
@@ -272,6 +274,11 @@ impl Warp2D {
     }
 }
 
+/// `x` rounded to the nearest `f32`.
+fn f32r(x: f64) -> f64 {
+    x as f32 as f64
+}
+
 /// The patch a coordinate falls in (clamped into [0, 1], the last patch for 1) and
 /// the fraction across it.
 fn cell(x: f64, n: usize) -> (usize, f64) {
@@ -353,4 +360,23 @@ mod tests {
         assert_eq!(w.eval([0.3, 0.6], &[-3.0]), a);
         assert_eq!(w.eval([0.3, 0.6], &[7.0]), b);
     }
+}
+#[cfg(test)]
+mod probe {
+    #[test]
+    fn probe() {
+        let w = super::tests_warp();
+        for p in [0.0, 0.3, 1.0] {
+            for u in [[0.2, 0.7], [0.9, 0.1], [0.55, 0.45]] {
+                let (x, pdf) = w.sample(u, &[p]);
+                let (inv, pdf2) = w.invert(u, &[p]);
+                println!("{p} {u:?} {x:?} {pdf} {inv:?} {pdf2} {}", w.eval(u, &[p]));
+            }
+        }
+    }
+}
+#[cfg(test)]
+fn tests_warp() -> Warp2D {
+    let data: Vec<f32> = (0..40).map(|i| 0.5 + ((i * 7) % 11) as f32).collect();
+    Warp2D::new(&data, 5, 4, vec![vec![0.0, 1.0]], true, true).unwrap()
 }
