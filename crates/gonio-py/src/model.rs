@@ -228,14 +228,14 @@ fn eval_pairs<'py>(
 
 /// The directional albedo of the BRDF `get` gives of `slf`, at each incident polar
 /// angle (degrees) at azimuth `phi_i`, interruptibly.
-fn albedo_of<'py, T: pyo3::PyClass + Sync + Send>(
+fn albedo_of<'py, T>(
     slf: Bound<'py, T>,
     get: fn(&T) -> &dyn Brdf,
     theta_i: Vec<f64>,
     phi_i: f64,
 ) -> PyResult<Bound<'py, PyArray2<f64>>>
 where
-    T: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True>,
+    T: pyo3::PyClass<Frozen = pyo3::pyclass::boolean_struct::True> + Sync + Send,
 {
     let py = slf.py();
     if let Some(t) = theta_i.iter().find(|t| !(0.0..=90.0).contains(*t)) {
