@@ -345,3 +345,13 @@ def test_export_json_reports_the_interpolation_error(tmp_path: pathlib.Path) -> 
     assert report["interpolation"]["at_nodes"] < 1e-5
     assert 0 < report["interpolation"]["between"] < 0.15
     assert out.read_bytes()[:12] == b"tensor_file\0"
+
+
+def test_lobes_fit_to_an_rgl_material(exported: list) -> None:
+    # The Cook–Torrance material read back and fitted by Lafortune lobes: the fit
+    # reproduces the material's albedo at normal incidence (the lobes' own integral).
+    _, model, path, _ = exported[1]
+    fitted = gonio.fit(gonio.open_bsdf(path))
+    rho = np.asarray(fitted.model.albedo([10.0]))[0]
+    truth = np.asarray(model.albedo([10.0]))[0]
+    assert np.all(np.abs(rho - truth) <= 0.1 * truth), (rho, truth)

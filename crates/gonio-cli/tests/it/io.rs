@@ -257,3 +257,91 @@ fn exported_csv_is_what_pandas_reads_and_format_1_still_reads() {
         )
     );
 }
+
+#[test]
+fn a_run_exports_to_rgl_and_the_material_is_an_input_like_any_other() {
+    let d = scratch("rgl");
+    let run = acquire(&d, ISO_PLAN);
+    let bsdf = d.join("run.bsdf");
+    let v: Value = serde_json::from_slice(
+        &ok(&[
+            "export",
+            &s(&run),
+            "--format",
+            "rgl",
+            "--out",
+            &s(&bsdf),
+            "--json",
+        ])
+        .stdout,
+    )
+    .expect("json");
+    assert_eq!(
+        (v["format"].as_str(), v["from"].as_str()),
+        (Some("rgl"), Some("table"))
+    );
+    // At the nodes the file holds the reduced table as interpolated; between them the
+    // format's resolution.
+    assert!(
+        v["interpolation"]["at_nodes"].as_f64().expect("number") < 1e-4,
+        "{v}"
+    );
+    assert!(
+        v["interpolation"]["between"].as_f64().expect("number") < 0.15,
+        "{v}"
+    );
+    let bytes = std::fs::read(&bsdf).expect("written");
+    assert_eq!(&bytes[..12], b"tensor_file\0");
+    // Written again: refused without --force (exit 2), the file untouched.
+    let again = gonio(&["export", &s(&run), "--format", "rgl", "--out", &s(&bsdf)]);
+    assert_eq!(again.status.code(), Some(2));
+    assert_eq!(std::fs::read(&bsdf).expect("still there"), bytes);
+    // Bad resolutions are refused before anything is written.
+    let bad = gonio(&[
+        "export",
+        &s(&run),
+        "--format",
+        "rgl",
+        "--rgl-slice",
+        "1",
+        "--out",
+        &s(&d.join("bad.bsdf")),
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("slice: 1 nodes"));
+    assert!(!d.join("bad.bsdf").exists());
+    // The material is an input: checked, plotted, exported to CSV and back to itself
+    // (fitted in crates/gonio-py/tests/test_rgl.py).
+    let check: Value =
+        serde_json::from_slice(&ok(&["check", &s(&bsdf), "--json"]).stdout).expect("json");
+    let pr = check["reciprocity"]
+        .as_array()
+        .expect("reciprocity per channel");
+    assert_eq!(pr.len(), 3);
+    assert!(pr.iter().all(|p| p.as_f64().is_some_and(f64::is_finite)));
+    ok(&[
+        "plot",
+        &s(&bsdf),
+        "--kind",
+        "albedo",
+        "--out",
+        &s(&d.join("albedo.svg")),
+    ]);
+    ok(&[
+        "export",
+        &s(&bsdf),
+        "--format",
+        "csv",
+        "--out",
+        &s(&d.join("t.csv")),
+    ]);
+    ok(&[
+        "export",
+        &s(&bsdf),
+        "--format",
+        "rgl",
+        "--out",
+        &s(&d.join("same.bsdf")),
+    ]);
+    assert_eq!(std::fs::read(d.join("same.bsdf")).expect("written"), bytes);
+}
