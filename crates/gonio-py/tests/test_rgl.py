@@ -355,3 +355,16 @@ def test_lobes_fit_to_an_rgl_material(exported: list) -> None:
     rho = np.asarray(fitted.model.albedo([10.0]))[0]
     truth = np.asarray(model.albedo([10.0]))[0]
     assert np.all(np.abs(rho - truth) <= 0.1 * truth), (rho, truth)
+
+
+def test_the_example_renders_an_export(exported: list, tmp_path: pathlib.Path) -> None:
+    import importlib.util
+
+    root = pathlib.Path(__file__).resolve().parents[3]
+    spec = importlib.util.spec_from_file_location("render_rgl", root / "examples/render_rgl.py")
+    assert spec is not None and spec.loader is not None
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    out = tmp_path / "sphere.png"
+    example.render(str(exported[0][2]), str(out), size=24, spp=4)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
