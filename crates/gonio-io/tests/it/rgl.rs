@@ -250,3 +250,35 @@ proptest! {
         fuzz::rgl_read(&good);
     }
 }
+
+#[test]
+fn the_valid_mask_marks_the_nodes_beyond_the_source() {
+    // A source that holds data only up to θo = 60°: the mask is 0 exactly at the
+    // nodes whose outgoing direction lies beyond.
+    let opts = RglOptions {
+        slice: 12,
+        incidences: 3,
+        ..RglOptions::default()
+    };
+    let reach = 60f64.to_radians();
+    let r =
+        RglBsdf::from_brdf(&lambert(0.5), &opts, "", &|_, wo| wo.theta() <= reach).expect("writes");
+    let mask = r.valid.clone().expect("a mask");
+    let (ns, mut beyond) = (12, 0);
+    for (k, theta) in r.theta_i.iter().enumerate() {
+        let pairs: Vec<_> = r
+            .node_pairs()
+            .into_iter()
+            .filter(|(wi, _)| (wi.theta() - *theta as f64).abs() < 1e-6)
+            .collect();
+        let marked = mask[k * ns * ns..(k + 1) * ns * ns]
+            .iter()
+            .filter(|v| **v == 0)
+            .count();
+        let far = pairs.iter().filter(|(_, wo)| wo.theta() > reach).count();
+        // Nodes below the horizon hold nothing and are marked too.
+        assert_eq!(marked, far + ns * ns - pairs.len(), "θi {theta}");
+        beyond += far;
+    }
+    assert!(beyond > 0);
+}
