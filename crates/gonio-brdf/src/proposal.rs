@@ -119,6 +119,17 @@ pub struct Weighted {
 }
 
 impl Weighted {
+    /// Cosine-weighted about the normal, all the weight: what tabulated and measured
+    /// BRDFs sample with (their shape is unknown in advance; it covers the
+    /// hemisphere).
+    pub const COSINE: Weighted = Weighted {
+        weight: 1.0,
+        proposal: Proposal::CosinePower {
+            axis: Dir::Z,
+            n: 1.0,
+        },
+    };
+
     /// Appends `proposal` with `weight` to `out`, merging it into an identical one
     /// already there (models with per-channel parameters often repeat themselves).
     pub fn push_merged(out: &mut Vec<Weighted>, weight: f64, proposal: Proposal) {

@@ -90,6 +90,26 @@ impl Exported {
     }
 }
 
+impl Exported {
+    /// An RGL material made from `from`, with its interpolation error when it was
+    /// resampled.
+    fn rgl(
+        r: &gonio_io::formats::RglBsdf,
+        from: &Dataset,
+        err: Option<gonio_io::formats::rgl::InterpolationError>,
+    ) -> Exported {
+        Exported {
+            bytes: r.to_bytes(),
+            sidecar: None,
+            format: Format::Rgl,
+            from: from.describe(),
+            symmetry: None,
+            colour: None,
+            rgl: err,
+        }
+    }
+}
+
 /// Where `gonio export` writes: a file, or a CSV and its sidecar.
 pub(crate) enum ExportTarget {
     /// MERL or ASTM.
@@ -189,15 +209,7 @@ fn rgl(a: &ExportArgs, dataset: &Dataset) -> CliResult<Exported> {
     let input = a.input.as_path();
     // An RGL material is written as it was read: resampling it would only lose.
     if let Dataset::Rgl(r) = dataset {
-        return Ok(Exported {
-            bytes: r.to_bytes(),
-            sidecar: None,
-            format: Format::Rgl,
-            from: dataset.describe(),
-            symmetry: None,
-            colour: None,
-            rgl: None,
-        });
+        return Ok(Exported::rgl(r, dataset, None));
     }
     let opts = gonio_io::formats::RglOptions {
         incidences: a.rgl_incidences,
@@ -240,15 +252,7 @@ fn rgl(a: &ExportArgs, dataset: &Dataset) -> CliResult<Exported> {
         between = err.between,
         "rgl interpolation error"
     );
-    Ok(Exported {
-        bytes: r.to_bytes(),
-        sidecar: None,
-        format: Format::Rgl,
-        from: dataset.describe(),
-        symmetry: None,
-        colour: None,
-        rgl: Some(err),
-    })
+    Ok(Exported::rgl(&r, dataset, Some(err)))
 }
 
 /// The largest θi and θo a table holds (radians, with a 1e-9 margin).

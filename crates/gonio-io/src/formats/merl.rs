@@ -55,7 +55,7 @@ use std::fmt;
 use std::io::{self, Write};
 use std::path::Path;
 
-use gonio_brdf::{Brdf, Proposal, Weighted};
+use gonio_brdf::{Brdf, Weighted};
 use gonio_core::dirfile::PairDeg;
 use gonio_core::{Channels, Dir, DirPair, HalfDiff, SphericalDeg};
 use gonio_process::grid::Axis;
@@ -782,13 +782,7 @@ impl Brdf for MerlBrdf {
     /// Cosine-weighted about the normal (a measured table's shape is unknown in
     /// advance; this density covers the hemisphere).
     fn proposals(&self, _wi: Dir, out: &mut Vec<Weighted>) {
-        out.push(Weighted {
-            weight: 1.0,
-            proposal: Proposal::CosinePower {
-                axis: Dir::Z,
-                n: 1.0,
-            },
-        });
+        out.push(Weighted::COSINE);
     }
 
     /// Reciprocal by construction: `(wi, wo)` and `(wo, wi)` fall in the same bin

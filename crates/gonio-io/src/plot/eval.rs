@@ -2,7 +2,7 @@
 
 use std::f64::consts::{PI, TAU};
 
-use gonio_brdf::{Brdf, Proposal, Weighted};
+use gonio_brdf::{Brdf, Weighted};
 use gonio_core::dirfile::PairDeg;
 use gonio_core::{Channels, Dir, SphericalDeg};
 use gonio_process::Samples;
@@ -47,13 +47,7 @@ impl Brdf for SampledBrdf<'_> {
     }
 
     fn proposals(&self, _wi: Dir, out: &mut Vec<Weighted>) {
-        out.push(Weighted {
-            weight: 1.0,
-            proposal: Proposal::CosinePower {
-                axis: Dir::Z,
-                n: 1.0,
-            },
-        });
+        out.push(Weighted::COSINE);
     }
 
     fn is_reciprocal(&self) -> bool {

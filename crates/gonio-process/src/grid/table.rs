@@ -169,13 +169,7 @@ impl Table {
 /// The proposal tabulated BRDFs sample with: cosine-weighted about the normal (a
 /// table's shape is unknown in advance, and this density covers the hemisphere).
 pub(crate) fn cosine_proposal(out: &mut Vec<gonio_brdf::Weighted>) {
-    out.push(gonio_brdf::Weighted {
-        weight: 1.0,
-        proposal: gonio_brdf::Proposal::CosinePower {
-            axis: Dir::from_angles(0.0, 0.0),
-            n: 1.0,
-        },
-    });
+    out.push(gonio_brdf::Weighted::COSINE);
 }
 
 impl gonio_brdf::Brdf for Table {

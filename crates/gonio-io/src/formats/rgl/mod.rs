@@ -45,7 +45,7 @@ pub mod warp;
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
 
-use gonio_brdf::{Brdf, Proposal, Weighted};
+use gonio_brdf::{Brdf, Weighted};
 use gonio_core::{Channels, Dir, Vec3};
 use rayon::prelude::*;
 
@@ -105,7 +105,6 @@ pub struct RglBsdf {
     ndf: Warp2D,
     sigma: Warp2D,
     vndf: Warp2D,
-    luminance: Warp2D,
     spectra: Warp2D,
     isotropic: bool,
     jacobian: bool,
@@ -281,7 +280,8 @@ impl RglBsdf {
             "vndf",
             Warp2D::new(vndf, vndf_s[3], vndf_s[2], params.clone(), true, true),
         )?;
-        let lum_w = w(
+        // Built as the plugin builds it (which checks it), though Gonio only evaluates.
+        w(
             "luminance",
             Warp2D::new(lum, lum_s[3], lum_s[2], params.clone(), true, true),
         )?;
@@ -321,7 +321,6 @@ impl RglBsdf {
             ndf: ndf_w,
             sigma: sigma_w,
             vndf: vndf_w,
-            luminance: lum_w,
             spectra: spec_w,
             isotropic,
             jacobian: jac[0] != 0,
@@ -375,33 +374,6 @@ impl RglBsdf {
             };
             *o = self.spectra.eval(sample, &[phi_i, theta_i, lambda]) * scale;
         }
-    }
-
-    /// The plugin's sampling density of `wo` for `wi` (solid angle), as its `pdf`.
-    pub fn pdf_plugin(&self, wi: Dir, wo: Dir) -> f64 {
-        let (wi, wo) = (wi.vec(), wo.vec());
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return 0.0;
-        }
-        let h = Vec3::new(wi.x + wo.x, wi.y + wo.y, wi.z + wo.z);
-        let len = dot(h, h).sqrt();
-        if len == 0.0 {
-            return 0.0;
-        }
-        let m = Vec3::new(h.x / len, h.y / len, h.z / len);
-        let (theta_i, phi_i) = (elevation(wi), wi.y.atan2(wi.x));
-        let (theta_m, phi_m) = (elevation(m), m.y.atan2(m.x));
-        let mut u_m = [
-            theta2u(theta_m),
-            phi2u(if self.isotropic { phi_m - phi_i } else { phi_m }),
-        ];
-        u_m[1] -= u_m[1].floor();
-        let params = [phi_i, theta_i];
-        let (sample, vndf_pdf) = self.vndf.invert(u_m, &params);
-        let lum = self.luminance.eval(sample, &params);
-        let sin_m = (1.0 - m.z * m.z).max(0.0).sqrt();
-        let jac = (2.0 * PI * PI * u_m[0] * sin_m).max(1e-6) * 4.0 * dot(wi, m);
-        vndf_pdf * lum / jac
     }
 
     /// Writes `brdf` in the format at the resolutions of `opts` (see the module).
@@ -820,13 +792,7 @@ impl Brdf for RglBsdf {
 
     /// Cosine-weighted about the normal, as for any measured table.
     fn proposals(&self, _wi: Dir, out: &mut Vec<Weighted>) {
-        out.push(Weighted {
-            weight: 1.0,
-            proposal: Proposal::CosinePower {
-                axis: Dir::Z,
-                n: 1.0,
-            },
-        });
+        out.push(Weighted::COSINE);
     }
 
     fn is_reciprocal(&self) -> bool {
