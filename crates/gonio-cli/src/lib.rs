@@ -86,7 +86,8 @@ enum Command {
     /// Levenberg–Marquardt; write the model file and report parameters with standard
     /// errors. `--compare` also fits Ward, Blinn-Phong and Cook–Torrance.
     Fit(cmd::fit::FitArgs),
-    /// Write a run, table or samples as MERL binary, ASTM E1392 text or CSV.
+    /// Write a run, table, samples, model or RGL material as MERL binary, ASTM E1392
+    /// text, CSV or an RGL material (`.bsdf`, for Mitsuba 3).
     Export(cmd::export::ExportArgs),
     /// Plot a run, table, samples, MERL file or model (PNG or SVG by the extension).
     Plot(cmd::plot::PlotArgs),
