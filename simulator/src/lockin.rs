@@ -369,6 +369,30 @@ impl LockIn {
         self.latch();
     }
 
+    /// [`restart_from`](Self::restart_from) at `now_s`, the step having begun at
+    /// `since_s` ≤ `now_s` (the stages stopped then): every stage then follows the
+    /// cascade's exact step response to the present input for `now_s − since_s`, the
+    /// input unchanged meanwhile. The noise is drawn at `now_s` from its stationary law,
+    /// as at a restart, so the same `from`, `seed`, interval and calls give the same
+    /// bytes.
+    pub fn restart_from_since(
+        &mut self,
+        since_s: f64,
+        now_s: f64,
+        seed: u64,
+        from: Option<[f64; 2]>,
+    ) {
+        self.restart_from(now_s, seed, from);
+        let dt = now_s - since_s;
+        if dt > 0.0 {
+            let tc = self.time_constant.seconds();
+            let (ux, uy) = self.filter_input();
+            advance_cascade(&mut self.x_stages, ux, dt, tc);
+            advance_cascade(&mut self.y_stages, uy, dt, tc);
+            self.latch();
+        }
+    }
+
     /// Reseeds the generator with `seed` and draws both noise channels from their
     /// stationary law.
     fn redraw_noise(&mut self, seed: u64) {

@@ -79,8 +79,13 @@ impl Bench for FaultBench {
         self.inner.select_channel(channel)
     }
 
-    fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
-        self.inner.at_step(step_id, previous);
+    fn at_step_since(
+        &mut self,
+        step_id: i64,
+        previous: Option<[f64; 2]>,
+        since: std::time::Duration,
+    ) {
+        self.inner.at_step_since(step_id, previous, since);
         for (at, hook) in &mut self.hooks {
             if *at == step_id
                 && let Some(h) = hook.take()

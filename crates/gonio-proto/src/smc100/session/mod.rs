@@ -55,6 +55,9 @@ pub struct Smc100Session {
     axes: Vec<AxisConfig>,
     policy: ChainPolicy,
     retried: u64,
+    /// When the last move was seen to have ended: the arrival of the status reply
+    /// that found its last stage READY (`None` until a move ends).
+    stopped: Option<Duration>,
 }
 
 impl Smc100Session {
@@ -88,6 +91,7 @@ impl Smc100Session {
             axes,
             policy,
             retried: 0,
+            stopped: None,
         })
     }
 
@@ -105,6 +109,15 @@ impl Smc100Session {
     /// made: what a run log reports as retries.
     pub fn retried(&self) -> u64 {
         self.retried
+    }
+
+    /// When the last move (`start_move`, `start_move_by`) was seen to have ended: the
+    /// arrival of the status reply that found its last stage READY, before the
+    /// positions are read back. Every stage has stopped by then, so what depends on
+    /// where the stages stand (the light on a detector) holds from this instant on.
+    /// `None` while a move runs, after one that failed, and before the first.
+    pub fn stopped_at(&self) -> Option<Duration> {
+        self.stopped
     }
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).

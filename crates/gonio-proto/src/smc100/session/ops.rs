@@ -329,6 +329,7 @@ impl Smc100Session {
         moves: Vec<(usize, f64)>,
         allow: Duration,
     ) -> Result<Vec<f64>, Halt> {
+        self.stopped = None;
         motion::poll(
             self,
             link,
@@ -359,6 +360,7 @@ impl Smc100Session {
             },
         )
         .await?;
+        self.stopped = Some(link.now());
         let mut positions = Vec::new();
         for (i, target) in moves {
             let tp = Command::TellPosition;
