@@ -60,4 +60,13 @@ impl Bench for SimBench {
     fn at_step(&mut self, step_id: i64, previous: Option<[f64; 2]>) {
         lock(&self.sim).begin_point(step_id as u64, previous);
     }
+
+    fn at_step_since(
+        &mut self,
+        step_id: i64,
+        previous: Option<[f64; 2]>,
+        since: std::time::Duration,
+    ) {
+        lock(&self.sim).begin_point_since(step_id as u64, previous, since.as_secs_f64());
+    }
 }

@@ -231,11 +231,24 @@ impl SimInstrument {
     /// ([`LockIn::restart`]). The picoammeter restarts the same way in both.
     pub fn begin_point(&mut self, key: u64, previous: Option<[f64; 2]>) {
         let now = self.clock.seconds();
+        self.begin_point_since(key, previous, now);
+    }
+
+    /// [`begin_point`](Self::begin_point), the stages having stopped at `since_s`
+    /// (no later than now): with `point_start = "previous"` the filters' step starts
+    /// there, so that by now they have followed the point's light for `now − since_s`
+    /// ([`LockIn::restart_from_since`]). The light has not changed since: nothing
+    /// moves between a move's end and its reading.
+    pub fn begin_point_since(&mut self, key: u64, previous: Option<[f64; 2]>, since_s: f64) {
+        let now = self.clock.seconds();
         self.sync(now);
         let seed = splitmix64(self.seed ^ splitmix64(key));
         match self.lockin.config().point_start {
             PointStart::Settled => self.lockin.restart(now, seed),
-            PointStart::Previous => self.lockin.restart_from(now, seed, previous),
+            PointStart::Previous => {
+                self.lockin
+                    .restart_from_since(since_s.min(now), now, seed, previous)
+            }
         }
         if let Some(p) = &mut self.pico {
             p.restart(now, seed);

@@ -66,8 +66,13 @@
 //!   reading's mean X and Y (zero for a run's first reading, a dark output), and the
 //!   input is the present signal from then on, so each output is the cascade's exact
 //!   step response y(t) = u + (y₀ − u)·e^(−a)·Σ_{j<N} a^j/j!, a = (t − t₀)/T, from
-//!   t₀ = the call's time. What this leaves out: the light swept during the move (the
-//!   filters' real path through it), the time between the move's end and the call, and
+//!   t₀ = the call's time, or the instant the stages stopped when the engine gives it
+//!   ([`LockIn::restart_from_since`]: the controllers' READY). The interval from
+//!   READY to the call is the read-back of the moved axes' positions, so the first
+//!   step of a resumed session (which reads and commands every axis) is read a few
+//!   exchanges further into its transient than the uninterrupted run read it: the
+//!   one departure from "the same bytes", in this mode only. What this leaves out:
+//!   the light swept during the move (the filters' real path through it), and
 //!   the difference between a reading's mean and the filters' state at its end (noise,
 //!   or a residue of the previous transient averaged in). It is exact when the filters
 //!   had settled on the previous reading and the move is short against T; after a move
@@ -367,6 +372,30 @@ impl LockIn {
         self.y_stages = [start(y0); STAGES];
         self.redraw_noise(seed);
         self.latch();
+    }
+
+    /// [`restart_from`](Self::restart_from) at `now_s`, the step having begun at
+    /// `since_s` ≤ `now_s` (the stages stopped then): every stage then follows the
+    /// cascade's exact step response to the present input for `now_s − since_s`, the
+    /// input unchanged meanwhile. The noise is drawn at `now_s` from its stationary law,
+    /// as at a restart, so the same `from`, `seed`, interval and calls give the same
+    /// bytes.
+    pub fn restart_from_since(
+        &mut self,
+        since_s: f64,
+        now_s: f64,
+        seed: u64,
+        from: Option<[f64; 2]>,
+    ) {
+        self.restart_from(now_s, seed, from);
+        let dt = now_s - since_s;
+        if dt > 0.0 {
+            let tc = self.time_constant.seconds();
+            let (ux, uy) = self.filter_input();
+            advance_cascade(&mut self.x_stages, ux, dt, tc);
+            advance_cascade(&mut self.y_stages, uy, dt, tc);
+            self.latch();
+        }
     }
 
     /// Reseeds the generator with `seed` and draws both noise channels from their

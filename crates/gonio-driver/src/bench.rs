@@ -69,6 +69,19 @@ pub trait Bench: Send {
         let _ = (step_id, previous);
     }
 
+    /// [`at_step`](Self::at_step), the stages having stopped at `since` (no later than
+    /// now, on the instrument's clock): the light has been the point's from then on,
+    /// so a simulator starts the transient there.
+    fn at_step_since(
+        &mut self,
+        step_id: i64,
+        previous: Option<[f64; 2]>,
+        since: std::time::Duration,
+    ) {
+        let _ = since;
+        self.at_step(step_id, previous);
+    }
+
     /// True when a person makes the changes, so that a call may take minutes: the
     /// engine then keeps the instrument's lines alive meanwhile (the APT keep-alive).
     fn waits_for_a_person(&self) -> bool {

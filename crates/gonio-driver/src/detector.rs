@@ -44,6 +44,19 @@ pub trait DetectorDevice: Send {
     }
     /// The light changed (a stage moved): the next reading waits for it to settle.
     fn input_changed(&mut self);
+    /// The light changed at `at`, no later than now (the stages stopped then, as
+    /// their controllers told it): the next reading's settling is timed from `at`.
+    fn input_changed_at(&mut self, at: std::time::Duration) {
+        let _ = at;
+        self.input_changed();
+    }
+    /// Does ahead, before the light reaches the detector (while the stages move), what
+    /// a [`read_to`](Self::read_to) of `target` and `expected` would first set (a
+    /// lock-in's time constant). Nothing for a family without a targeted mode.
+    fn prepare(&mut self, target: &ReadTarget, expected: Option<f64>) -> Result<(), DetectorError> {
+        let _ = (target, expected);
+        Ok(())
+    }
     /// The range index in force ([`Columns::range`]).
     fn range(&self) -> u8;
     /// Sets the range by its index ([`Columns::range`]): after a resume, the range the
@@ -263,6 +276,12 @@ impl<T: Transport + 'static, C: Clock + 'static> DetectorDevice for Sr830<T, C> 
     }
     fn input_changed(&mut self) {
         Sr830::input_changed(self);
+    }
+    fn input_changed_at(&mut self, at: std::time::Duration) {
+        Sr830::input_changed_at(self, at);
+    }
+    fn prepare(&mut self, target: &ReadTarget, expected: Option<f64>) -> Result<(), DetectorError> {
+        Ok(Sr830::prepare_targeted(self, target, expected)?)
     }
     fn range(&self) -> u8 {
         self.sensitivity().index()

@@ -10,6 +10,7 @@
 //! every line.
 
 use std::any::Any;
+use std::time::Duration;
 
 use crate::apt::{AptAxis, StageKind};
 use crate::clock::Clock;
@@ -54,6 +55,15 @@ pub trait MotionDevice: Send + std::fmt::Debug {
     ) -> Slot<'a, Result<Vec<f64>, MotionError>>;
     /// Moves one axis by `delta`; never re-sent.
     fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError>;
+    /// When the line's last move was seen to have ended, before its positions were
+    /// read back; `None` where the family does not tell (the move's return is then
+    /// taken).
+    fn stopped_at(&self) -> Option<Duration> {
+        None
+    }
+    /// Forgets what the line kept of where its last moves left the stages (nothing
+    /// where the family keeps nothing): the next move asks the controllers.
+    fn forget_positions(&mut self) {}
     /// Stops every stage on the line.
     fn stop_all(&mut self) -> Result<(), MotionError>;
     /// Resets the named axis' controller where the family can, and homes it.
@@ -130,6 +140,12 @@ impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for Smc100Chain<T,
     }
     fn move_by(&mut self, name: &str, delta: f64) -> Result<f64, MotionError> {
         Smc100Chain::move_by(self, name, delta)
+    }
+    fn stopped_at(&self) -> Option<Duration> {
+        Smc100Chain::stopped_at(self)
+    }
+    fn forget_positions(&mut self) {
+        Smc100Chain::forget_positions(self);
     }
     fn stop_all(&mut self) -> Result<(), MotionError> {
         Smc100Chain::stop_all(self)
@@ -273,6 +289,8 @@ pub struct Motion<C: Clock + Clone> {
     clock: C,
     abort: AbortFlag,
     beats: Heartbeat,
+    /// When the last move's stages had all stopped, as the controllers told it.
+    stopped: Option<Duration>,
 }
 
 impl<C: Clock + Clone> Motion<C> {
@@ -300,6 +318,7 @@ impl<C: Clock + Clone> Motion<C> {
             clock,
             abort,
             beats,
+            stopped: None,
         })
     }
 
@@ -416,6 +435,7 @@ impl<C: Clock + Clone> Motion<C> {
             per_line[line].push((name, target));
         }
         self.check_limits(targets)?;
+        self.stopped = None;
         let used: Vec<usize> = (0..self.lines.len())
             .filter(|i| !per_line[*i].is_empty())
             .collect();
@@ -472,10 +492,34 @@ impl<C: Clock + Clone> Motion<C> {
                 return Err(errors.swap_remove(k));
             }
         }
+        // The light is final once the last line's stages stopped; a line that does
+        // not tell is taken as stopped now.
+        let now = self.clock.now();
+        self.stopped = used
+            .iter()
+            .map(|i| self.lines[*i].stopped_at().unwrap_or(now).min(now))
+            .max()
+            .or(Some(now));
         Ok(targets
             .iter()
             .map(|(n, t)| ended.iter().find(|(m, _)| m == n).map_or(*t, |(_, p)| *p))
             .collect())
+    }
+
+    /// When the last successful [`move_to`](Self::move_to) had every stage stopped, as
+    /// the controllers told it (the status reply that found the last one READY), before
+    /// the positions were read back: from then on the light on the detector is the
+    /// new point's. `None` before the first move and after a failed one.
+    pub fn stopped_at(&self) -> Option<Duration> {
+        self.stopped
+    }
+
+    /// Forgets what every line kept of where its last moves left the stages: the next
+    /// move reads every position and commands every axis.
+    pub fn forget_positions(&mut self) {
+        for l in &mut self.lines {
+            l.forget_positions();
+        }
     }
 
     /// Refuses the whole move if any target is outside its axis' limits, before any

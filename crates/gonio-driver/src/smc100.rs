@@ -125,6 +125,19 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         self.session.retried()
     }
 
+    /// When the last move was seen to have ended (the status reply that found its last
+    /// stage READY, before the positions were read back); `None` before the first and
+    /// after one that failed.
+    pub fn stopped_at(&self) -> Option<std::time::Duration> {
+        self.session.stopped_at()
+    }
+
+    /// Forgets where the last moves left the stages: the next move reads every
+    /// position and commands every axis.
+    pub fn forget_positions(&mut self) {
+        self.session.forget_held();
+    }
+
     /// The axes, in configuration order.
     pub fn axes(&self) -> &[AxisConfig] {
         self.session.axes()

@@ -218,6 +218,27 @@ impl<T: Transport, C: Clock> Sr830<T, C> {
         self.session.input_changed(self.clock.now());
     }
 
+    /// The light on the detector changed at `at` (the stages stopped then; no later
+    /// than now): the next reading waits a full settling time from `at`, and a targeted
+    /// reading times its transient from it.
+    pub fn input_changed_at(&mut self, at: Duration) {
+        self.session.input_changed(at.min(self.clock.now()));
+    }
+
+    /// Sets up ahead what a reading to `target` of a signal about `expected` V needs
+    /// before light reaches the detector (the time constant, `OFLT`), as
+    /// [`read_targeted`](Self::read_targeted) would first do: the engine sends it while
+    /// the stages move to the point. See
+    /// [`gonio_proto::sr830::Sr830Session::start_prepare_targeted`].
+    pub fn prepare_targeted(
+        &mut self,
+        target: &ReadTarget,
+        expected: Option<f64>,
+    ) -> Result<(), Sr830Error> {
+        let _span = debug_span!("sr830.prepare_targeted", port = %self.port, expected).entered();
+        run!(self, start_prepare_targeted(*target, expected))
+    }
+
     /// The sensitivity the instrument is set to (as far as the driver knows).
     pub fn sensitivity(&self) -> Sensitivity {
         self.session.sensitivity()

@@ -2,7 +2,11 @@
 //! sample, reduced, against the sample's own BRDF, with the simulator's noise and
 //! effects switched on and off one at a time.
 //!
-//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [buffer] [percentiles]`
+//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [buffer] [budget] [percentiles]`
+//!
+//! `budget` prints where the instrument's time went: motion and reading per step
+//! (the engine's `step timing` events) and the lines sent on each line, by command
+//! (the driver's wire log).
 //!
 //! `buffer` lets the lock-in read through its data buffer where its estimate says
 //! that is faster (`buffer = true` added to `config/instrument-sim.toml`'s
@@ -36,6 +40,10 @@ fn main() {
     let transient = args.iter().any(|a| a == "transient");
     let plan = std::fs::read_to_string(truth::root().join(&plan_path)).expect("plan");
     let buffer = args.iter().any(|a| a == "buffer");
+    let budget = args
+        .iter()
+        .any(|a| a == "budget")
+        .then(budget::Budget::install);
     let tweak = |s: &mut gonio_sim::SimConfig| {
         if quiet {
             s.lockin.amplifier_noise = 0.0;
@@ -91,6 +99,9 @@ fn main() {
         "instrument time {physical:.1} s; {buffered} of {} readings through the buffer",
         readings.len()
     );
+    if let Some(b) = &budget {
+        b.print(&readings);
+    }
     if args.iter().any(|a| a == "cal") {
         print_calibration_readings(&store);
     }
@@ -289,5 +300,136 @@ fn print_detail(red: &Reduction, r: &[(f64, f64)]) {
             "   z {:+.2} f {:.3e} rel sigma {:.2e} {}",
             x.1, x.0, x.2, x.3
         );
+    }
+}
+
+/// Where the instrument's time goes, from the engine's and the driver's tracing
+/// events: a subscriber of its own, so the example needs no subscriber crate.
+mod budget {
+    use std::collections::BTreeMap;
+    use std::fmt::Debug;
+    use std::sync::{Arc, Mutex};
+
+    use tracing::field::{Field, Visit};
+    use tracing::span::{Attributes, Id, Record};
+    use tracing::{Event, Metadata, Subscriber};
+
+    #[derive(Default)]
+    struct Tally {
+        steps: usize,
+        moving_s: f64,
+        reading_s: f64,
+        rereads: u64,
+        /// Lines sent, by line (`motion`: an SMC100 address first; else `detector`)
+        /// and command.
+        sent: BTreeMap<(&'static str, String), usize>,
+    }
+
+    /// The tally, shared with the subscriber.
+    pub struct Budget(Arc<Mutex<Tally>>);
+
+    struct Counter(Arc<Mutex<Tally>>);
+
+    #[derive(Default)]
+    struct Fields {
+        moving_s: Option<f64>,
+        reading_s: Option<f64>,
+        rereads: u64,
+        dir: Option<String>,
+        line: Option<String>,
+    }
+
+    impl Visit for Fields {
+        fn record_f64(&mut self, field: &Field, value: f64) {
+            match field.name() {
+                "moving_s" => self.moving_s = Some(value),
+                "reading_s" => self.reading_s = Some(value),
+                _ => {}
+            }
+        }
+        fn record_u64(&mut self, field: &Field, value: u64) {
+            if field.name() == "rereads" {
+                self.rereads = value;
+            }
+        }
+        fn record_i64(&mut self, field: &Field, value: i64) {
+            self.record_u64(field, value.max(0) as u64);
+        }
+        fn record_str(&mut self, field: &Field, value: &str) {
+            self.record_debug(field, &format_args!("{value}"));
+        }
+        fn record_debug(&mut self, field: &Field, value: &dyn Debug) {
+            match field.name() {
+                "dir" => self.dir = Some(format!("{value:?}")),
+                "line" => self.line = Some(format!("{value:?}")),
+                _ => {}
+            }
+        }
+    }
+
+    /// The command of a line sent: an SMC100's two letters after its address, an
+    /// SR830's mnemonic.
+    fn command(line: &str) -> (&'static str, String) {
+        let body = line.trim_start_matches(|c: char| c.is_ascii_digit());
+        if body.len() < line.len() {
+            ("motion", body.chars().take(2).collect())
+        } else {
+            let end = line
+                .find(|c: char| c == ' ' || c == '\\' || c.is_ascii_digit())
+                .unwrap_or(line.len());
+            ("detector", line[..end].to_string())
+        }
+    }
+
+    impl Subscriber for Counter {
+        fn enabled(&self, m: &Metadata<'_>) -> bool {
+            m.is_event()
+                && (m.target() == "gonio_driver::wire"
+                    || m.target().starts_with("gonio_acquire::engine"))
+        }
+        fn new_span(&self, _: &Attributes<'_>) -> Id {
+            Id::from_u64(1)
+        }
+        fn record(&self, _: &Id, _: &Record<'_>) {}
+        fn record_follows_from(&self, _: &Id, _: &Id) {}
+        fn event(&self, e: &Event<'_>) {
+            let mut f = Fields::default();
+            e.record(&mut f);
+            let mut t = self.0.lock().expect("tally");
+            if let (Some(m), Some(r)) = (f.moving_s, f.reading_s) {
+                t.steps += 1;
+                t.moving_s += m;
+                t.reading_s += r;
+                t.rereads += f.rereads;
+            } else if f.dir.as_deref() == Some("tx")
+                && let Some(line) = f.line
+            {
+                *t.sent.entry(command(&line)).or_default() += 1;
+            }
+        }
+        fn enter(&self, _: &Id) {}
+        fn exit(&self, _: &Id) {}
+    }
+
+    impl Budget {
+        /// Installs the counting subscriber for the whole process.
+        pub fn install() -> Budget {
+            let tally = Arc::new(Mutex::new(Tally::default()));
+            tracing::subscriber::set_global_default(Counter(tally.clone())).expect("subscriber");
+            Budget(tally)
+        }
+
+        /// The budget: motion, reading, and each line's commands.
+        pub fn print(&self, readings: &[gonio_run::ReadingRecord]) {
+            let t = self.0.lock().expect("tally");
+            let window: u64 = readings.iter().map(|r| u64::from(r.n)).sum();
+            println!(
+                "budget: {} steps; motion {:.1} s, reading {:.1} s ({} rereads); {} snapshots in the readings' windows",
+                t.steps, t.moving_s, t.reading_s, t.rereads, window
+            );
+            for ((line, cmd), n) in &t.sent {
+                println!("   {line} {cmd}: {n}");
+            }
+        }
     }
 }

@@ -404,19 +404,6 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             let _ = self.events.send(Event::Bench { what });
             self.setup = Some(setup);
         }
-        let axes = self.mech.axes.clone();
-        let moved = match &s.step.stages {
-            Some(t) => self.gonio.motion.move_to(&targets(&axes, t)),
-            None => axes
-                .iter()
-                .map(|a| self.gonio.motion.position(a))
-                .collect::<Result<Vec<f64>, _>>(),
-        };
-        let positions = match moved {
-            Ok(p) => p,
-            Err(e) => return self.motion_failed(id, e),
-        };
-        let position = [positions[0], positions[1], positions[2], positions[3]];
         // What the filters held before the move, and the level to expect: the last
         // reading before this step in the run file, so a resumed run sees what an
         // uninterrupted one saw.
@@ -430,8 +417,39 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             .map(|r| r.r_mean)
             .filter(|r| r.is_finite() && *r > 0.0);
         let target = self.target_for(s.step.kind)?;
-        self.bench.at_step(id, held);
-        self.gonio.detector.input_changed();
+        let move_start = self.physical_s();
+        // What the reading sets before it needs light (the lock-in's time constant for
+        // the expected level) goes out before the move, not after it: the filters
+        // then meet the new light at their new settings.
+        if let Some(t) = &target
+            && let Err(e) = self.gonio.detector.prepare(t, expected)
+        {
+            return self.detector_failed(id, e);
+        }
+        let axes = self.mech.axes.clone();
+        let moved = match &s.step.stages {
+            Some(t) => self.gonio.motion.move_to(&targets(&axes, t)),
+            None => axes
+                .iter()
+                .map(|a| self.gonio.motion.position(a))
+                .collect::<Result<Vec<f64>, _>>(),
+        };
+        let positions = match moved {
+            Ok(p) => p,
+            Err(e) => return self.motion_failed(id, e),
+        };
+        let position = [positions[0], positions[1], positions[2], positions[3]];
+        let read_start = self.physical_s();
+        // The light is the point's from when the controllers saw the stages stop, not
+        // from after the positions were read back: the filters' settling is timed
+        // from there.
+        let now = self.gonio.motion.clock().now();
+        let stopped = match s.step.stages {
+            Some(_) => self.gonio.motion.stopped_at().unwrap_or(now).min(now),
+            None => now,
+        };
+        self.bench.at_step_since(id, held, stopped);
+        self.gonio.detector.input_changed_at(stopped);
         let mut reading = match self.read(target.as_ref(), expected) {
             Ok(r) => r,
             Err(e) => return self.detector_failed(id, e),
@@ -453,6 +471,14 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             };
         }
         let record = self.record(s, position, &reading, retried_before, target.is_some());
+        // Where the instrument's time went, for the reading-time budget (the `truth`
+        // example sums these).
+        tracing::debug!(
+            moving_s = read_start - move_start,
+            reading_s = record.physical_s - read_start,
+            rereads,
+            "step timing"
+        );
         let mut events = Vec::new();
         if record.retries > 0 {
             events.push(EventRecord {
@@ -692,7 +718,8 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             Disposition::Skip => Ok(StepOutcome::Skip(m)),
             Disposition::Again => {
                 // Survived the driver's own retries: measure the step again, within
-                // the engine's attempts.
+                // the engine's attempts, from what the controllers say.
+                self.gonio.motion.forget_positions();
                 self.fault(Some(id), &m, true)?;
                 Ok(StepOutcome::Again(m))
             }

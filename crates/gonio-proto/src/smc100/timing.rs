@@ -64,7 +64,9 @@ fn position_s(address: u8, baud: u32) -> f64 {
 
 /// An axis' part in a move of the chain on serial line `line` (the session's
 /// `Motion`): `TP`; for a move that goes somewhere, `PT`; `PA`, whose arrival starts
-/// the stage; `TE`; then, every `poll`, `TS` until READY; `TP` at the end.
+/// the stage; `TE`; then, every `poll`, `TS` until READY; `TP` at the end. After a
+/// move the session holds the positions it read back (`holds`): no `TP` before, and
+/// nothing for an axis whose target is unchanged.
 pub fn move_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration) -> AxisExchanges {
     let a = axis.address;
     AxisExchanges {
@@ -81,6 +83,7 @@ pub fn move_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration)
         status_s: status_s(a, baud),
         poll_s: poll.as_secs_f64(),
         after_s: position_s(a, baud),
+        holds: true,
     }
 }
 
@@ -104,6 +107,7 @@ pub fn home_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration)
             + axis
                 .acceleration
                 .map_or(0.0, |v| set(Command::SetAcceleration(v))),
+        holds: false,
     }
 }
 

@@ -405,3 +405,56 @@ fn a_targeted_reading_jumps_to_the_range_that_fits() {
     // 3 mV from 1 mV: three ranges up to 10 mV, which holds it.
     assert_eq!(targeted_changes(v(17), 3e-3, 0.0, 0.1), (1, v(20)));
 }
+
+/// The time constant a targeted reading needs goes out ahead of it
+/// (`start_prepare_targeted`, what the engine sends before a move): the reading to the
+/// same target and level then begins with its snapshot, times its transient from the
+/// light's change, and sends no `OFLT` again; one for another level chooses and sends
+/// its own.
+#[test]
+fn a_prepared_reading_starts_with_its_snapshot() {
+    use gonio_proto::link::{Io, Operation};
+    use gonio_proto::sr830::{Sr830Config, Sr830Session};
+    use std::time::Duration;
+    let config = Sr830Config {
+        noise: Some(noise()),
+        time_constant_range: Some([
+            TimeConstant::new(7).unwrap(),
+            TimeConstant::new(11).unwrap(),
+        ]),
+        ..Sr830Config::default()
+    };
+    let mut s = Sr830Session::new(config.clone(), "sim", Duration::ZERO).expect("session");
+    let t = target();
+    let chosen = choose_time_constant(
+        0.1,
+        &t,
+        &noise(),
+        s.slope(),
+        config.time_constant_choices(),
+        config.exchange_s,
+    )
+    .expect("a choice")
+    .time_constant;
+    let oflt = format!("OFLT {}\n", chosen.index());
+    let mut op = s.start_prepare_targeted(t, Some(0.1), Duration::ZERO);
+    assert_eq!(op.poll_io(), Some(Io::Transmit(oflt.as_bytes())));
+    op.handle_sent(Duration::from_millis(8), Ok(()));
+    assert!(matches!(op.poll_output(), Some(Ok(()))));
+    drop(op);
+    assert_eq!(s.time_constant(), chosen);
+    // The stages stopped at 1.5 s.
+    s.input_changed(Duration::from_millis(1500));
+    let mut op = s.start_read_targeted(t, Some(0.1), Duration::from_millis(1600));
+    assert_eq!(op.poll_io(), Some(Io::Transmit(&b"SNAP? 1,2\n"[..])));
+    drop(op);
+    // Prepared for 0.1 V, read for 1 µV: chosen again, and sent.
+    let mut s = Sr830Session::new(config.clone(), "sim", Duration::ZERO).expect("session");
+    let mut op = s.start_prepare_targeted(t, Some(0.1), Duration::ZERO);
+    op.poll_io();
+    op.handle_sent(Duration::ZERO, Ok(()));
+    assert!(matches!(op.poll_output(), Some(Ok(()))));
+    drop(op);
+    let mut op = s.start_read_targeted(t, Some(1e-6), Duration::ZERO);
+    assert!(matches!(op.poll_io(), Some(Io::Transmit(b)) if b.starts_with(b"OFLT ")));
+}

@@ -54,6 +54,9 @@ pub struct Sr830Session {
     /// The sample rate the data buffer was set up at (`DDEF`, `SEND`, `SRAT` sent),
     /// until the port is reopened.
     buffer_rate: Option<super::SampleRate>,
+    /// The settings a targeted reading chose ahead of it
+    /// ([`start_prepare_targeted`](Self::start_prepare_targeted)), already sent.
+    prepared: Option<read::Prepared>,
 }
 
 // Replies go to GPIB until `OUTX 0` is sent again.
@@ -80,6 +83,7 @@ impl Sr830Session {
             settled_at: now,
             changed_at: now,
             buffer_rate: None,
+            prepared: None,
         })
     }
 
@@ -119,6 +123,23 @@ impl Sr830Session {
     ) -> Task<'_, super::Reading, Sr830Error> {
         Task::run("sr830.read_targeted", now, self, async move |s, link| {
             s.read_targeted(link, target, expected).await
+        })
+    }
+
+    /// The non-optical part of a targeted reading, done ahead of it (while the stages
+    /// move to its point): the time constant for a signal of `expected` V chosen and
+    /// sent (`OFLT`), as [`start_read_targeted`](Self::start_read_targeted) would
+    /// first do. The next targeted reading to the same `target` and `expected` then
+    /// starts from its snapshots; the transient is timed from the later of this and
+    /// [`input_changed`](Self::input_changed).
+    pub fn start_prepare_targeted(
+        &mut self,
+        target: super::ReadTarget,
+        expected: Option<f64>,
+        now: Duration,
+    ) -> Task<'_, (), Sr830Error> {
+        Task::run("sr830.prepare_targeted", now, self, async move |s, link| {
+            s.prepare_targeted(link, target, expected).await.map(drop)
         })
     }
 

@@ -63,6 +63,15 @@ struct Targeted {
     capped: bool,
 }
 
+/// A targeted reading's settings chosen ahead of it, and what they were chosen for.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Prepared {
+    target: ReadTarget,
+    expected: Option<f64>,
+    /// The buffer's choice (the time constant chosen is already sent).
+    buffered: Option<(ReadEstimate, BufferPlan)>,
+}
+
 /// How a segment ends.
 enum End {
     /// The port was reopened during it, or the flags' answer was lost.
@@ -261,36 +270,15 @@ impl Sr830Session {
             clipped: false,
             capped: false,
         };
-        let choice = match (expected, &self.config.noise) {
-            (Some(e), Some(noise)) if self.config.time_constant_range.is_some() => {
-                choose_time_constant(
-                    e.abs(),
-                    &t.target,
-                    noise,
-                    self.slope,
-                    self.config.time_constant_choices(),
-                    self.config.exchange_s,
-                )
-            }
-            _ => None,
+        let prepared = self
+            .prepared
+            .take()
+            .filter(|p| p.target == target && p.expected == expected);
+        let buffered = match prepared {
+            Some(p) => p.buffered,
+            None => self.prepare_targeted(link, target, expected).await?,
         };
-        let buffered = expected.and_then(|e| self.buffer_choice(e.abs(), &t.target, choice));
-        let choice = buffered.map(|(c, _)| c).or(choice);
-        // Sent even when it is already set: the transient then always starts at the
-        // same instant after a move, so a resumed run reads what an uninterrupted one
-        // did whatever the time constant was left at.
-        if let Some(c) = choice {
-            debug!(
-                expected,
-                from = %self.time_constant,
-                to = %c.time_constant,
-                settle_s = c.settle_s,
-                averaging_s = c.averaging_s,
-                "sr830: time constant for the expected signal"
-            );
-            self.ask(link, &Command::SetTimeConstant(c.time_constant))
-                .await?;
-        }
+        self.prepared = None;
         let mut read = Read::new("sr830");
         loop {
             let end = match buffered {
@@ -327,6 +315,54 @@ impl Sr830Session {
                 return Err(gave_up(read.steps, last));
             }
         }
+    }
+
+    /// The time constant (and whether to read through the buffer) for a signal of
+    /// `expected` V, chosen and sent; kept for the reading to `target` that follows.
+    /// Returns the buffer's choice.
+    pub(super) async fn prepare_targeted(
+        &mut self,
+        link: &Link,
+        target: ReadTarget,
+        expected: Option<f64>,
+    ) -> Result<Option<(ReadEstimate, BufferPlan)>, Sr830Error> {
+        self.prepared = None;
+        let choice = match (expected, &self.config.noise) {
+            (Some(e), Some(noise)) if self.config.time_constant_range.is_some() => {
+                choose_time_constant(
+                    e.abs(),
+                    &target,
+                    noise,
+                    self.slope,
+                    self.config.time_constant_choices(),
+                    self.config.exchange_s,
+                )
+            }
+            _ => None,
+        };
+        let buffered = expected.and_then(|e| self.buffer_choice(e.abs(), &target, choice));
+        let choice = buffered.map(|(c, _)| c).or(choice);
+        // Sent even when it is already set: the transient then always starts at the
+        // same instant, so a resumed run reads what an uninterrupted one did whatever
+        // the time constant was left at.
+        if let Some(c) = choice {
+            debug!(
+                expected,
+                from = %self.time_constant,
+                to = %c.time_constant,
+                settle_s = c.settle_s,
+                averaging_s = c.averaging_s,
+                "sr830: time constant for the expected signal"
+            );
+            self.ask(link, &Command::SetTimeConstant(c.time_constant))
+                .await?;
+        }
+        self.prepared = Some(Prepared {
+            target,
+            expected,
+            buffered,
+        });
+        Ok(buffered)
     }
 
     /// One transient, from the last change at the present time constant: snapshots
