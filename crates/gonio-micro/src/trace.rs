@@ -318,8 +318,14 @@ impl Tracer {
     /// The first hit of `ray` on the surface, found by `method`; `None` when the ray
     /// leaves (or, for a horizontal ray, travels the search length without a hit).
     pub fn first_hit(&self, ray: &Ray, method: Method) -> Option<Hit> {
-        let (t0, t1, _) = self.span(ray)?;
-        match method {
+        self.first_hit_or_horizon(ray, method).ok()
+    }
+
+    /// [`Tracer::first_hit`], or why there is none: `Err(true)` when the search
+    /// was cut off at the horizon (the `span`'s flag, without working it out again).
+    pub(crate) fn first_hit_or_horizon(&self, ray: &Ray, method: Method) -> Result<Hit, bool> {
+        let (t0, t1, horizon) = self.span(ray).ok_or(false)?;
+        let hit = match method {
             Method::MaxMip => {
                 // Start at the level whose blocks are as wide as the ray's horizontal
                 // travel, not at the top: most rays meet the surface within a few
@@ -340,7 +346,8 @@ impl Tracer {
             }
             Method::Grid => self.traverse(ray, t0, t1, 0, 0),
             Method::BruteForce => self.brute(ray, t0, t1),
-        }
+        };
+        hit.ok_or(horizon)
     }
 
     fn pre(&self, ray: &Ray) -> Pre {

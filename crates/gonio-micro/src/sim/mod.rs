@@ -394,16 +394,18 @@ impl Simulation {
                 t_min,
                 skip: ray_skip,
             };
-            let Some(h) = self.tracer.first_hit(&ray, self.opts.method) else {
-                let cut_off = self.tracer.span(&ray).is_some_and(|s| s.2);
-                let end = if cut_off {
-                    End::Horizon
-                } else if d.z > 0.0 {
-                    End::Exit
-                } else {
-                    End::Leaked
-                };
-                return (end, bounces, d);
+            let h = match self.tracer.first_hit_or_horizon(&ray, self.opts.method) {
+                Ok(h) => h,
+                Err(cut_off) => {
+                    let end = if cut_off {
+                        End::Horizon
+                    } else if d.z > 0.0 {
+                        End::Exit
+                    } else {
+                        End::Leaked
+                    };
+                    return (end, bounces, d);
+                }
             };
             if bounces == self.opts.max_bounces {
                 return (End::Capped, bounces, d);
