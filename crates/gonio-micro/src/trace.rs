@@ -98,6 +98,8 @@ impl Level {
     fn wrap(k: i64, n: usize) -> usize {
         if n.is_power_of_two() {
             (k & (n as i64 - 1)) as usize
+        } else if (0..n as i64).contains(&k) {
+            k as usize
         } else {
             k.rem_euclid(n as i64) as usize
         }
@@ -570,8 +572,8 @@ impl Tracer {
     #[inline]
     fn wrap_cell(&self, c: [i64; 2]) -> (usize, usize) {
         (
-            c[0].rem_euclid(self.hf.nx() as i64) as usize,
-            c[1].rem_euclid(self.hf.ny() as i64) as usize,
+            Level::wrap(c[0], self.hf.nx()),
+            Level::wrap(c[1], self.hf.ny()),
         )
     }
 }
