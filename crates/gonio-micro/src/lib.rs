@@ -45,10 +45,12 @@
 //! ```
 //!
 //! # Design
-//! - **Determinism.** Rays are split into blocks of [`sim::BLOCK`], each with its own
-//!   ChaCha8 stream named by the seed, the purpose, the incident node and the block;
-//!   blocks run in parallel (rayon) and their sums are merged in block order, so the
-//!   same seed gives the same bytes on any number of threads.
+//! - **Determinism.** Every ray has its own counter-based stream (SplitMix64) named
+//!   by the seed, the purpose, the incident node and its index; a segment's start
+//!   points are drawn in spatial order by a tree whose splits have streams of their
+//!   own. Blocks of [`sim::BLOCK`] rays run in parallel (rayon) and their sums are
+//!   merged in ray order, so the same seed gives the same bytes on any number of
+//!   threads.
 //! - **Periodicity.** The patch tiles the plane: rays that leave it sideways meet
 //!   its copies, so there are no edges to fall off, and every bounce is traced.
 //! - **Exactness where it is cheap.** Facets are planar triangles, so normals are

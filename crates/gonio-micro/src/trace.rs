@@ -72,6 +72,9 @@ struct Level {
     /// Block widths along x and y (`bx·dx`, `by·dy`).
     wx: f64,
     wy: f64,
+    /// `1/wx` and `1/wy` where they are exact (the widths powers of two).
+    inv_wx: Option<f64>,
+    inv_wy: Option<f64>,
     /// How far block coordinates shift right to give the parent's (0 or 1 each
     /// way: a level merges 2 × 2, 2 × 1 or 1 × 2 blocks).
     up_x: u32,
@@ -95,12 +98,14 @@ impl Level {
     fn wrap(k: i64, n: usize) -> usize {
         if n.is_power_of_two() {
             (k & (n as i64 - 1)) as usize
+        } else if (0..n as i64).contains(&k) {
+            k as usize
         } else {
             k.rem_euclid(n as i64) as usize
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn max_at(&self, bx: i64, by: i64) -> f64 {
         let i = match self.mask_x {
             Some(m) => (bx & m) as usize,
@@ -141,15 +146,43 @@ struct Pre {
 
 /// `floor(p / size)`, but the lower block when `p` lies on a boundary and the ray
 /// moves towards −: the block the ray is about to cross.
+///
+/// `inv` is `1/size` when that is exact (`size` a power of two): a multiplication
+/// then gives the quotient's very bits, without a division's latency on the
+/// traversal's path.
 #[inline]
-fn coord(p: f64, d: f64, size: f64) -> i64 {
-    let u = p / size;
-    let f = u.floor();
+fn coord(p: f64, d: f64, size: f64, inv: Option<f64>) -> i64 {
+    let u = match inv {
+        Some(inv) => p * inv,
+        None => p / size,
+    };
+    let f = floor(u);
     if d < 0.0 && u == f {
         f as i64 - 1
     } else {
         f as i64
     }
+}
+
+/// `x.floor()`, exactly, without a call: the baseline x86-64 target has no rounding
+/// instruction, and std's `floor` was a libm call costing 4 % of a table's time.
+/// Below 2⁵² in magnitude the truncation to an integer is exact, and one less than
+/// it is the floor of a negative non-integer; beyond, every `f64` is an integer (or
+/// infinite, or NaN) and its own floor.
+#[inline]
+pub(crate) fn floor(x: f64) -> f64 {
+    if x.abs() < 4_503_599_627_370_496.0 {
+        let t = x as i64 as f64;
+        if t > x { t - 1.0 } else { t }
+    } else {
+        x
+    }
+}
+
+/// `1/x` when it is exact: `x` a normal power of two whose inverse is normal too.
+fn exact_inverse(x: f64) -> Option<f64> {
+    let inv = 1.0 / x;
+    (x.is_normal() && inv.is_normal() && x.to_bits() & ((1u64 << 52) - 1) == 0).then_some(inv)
 }
 
 /// The least `f32` at or above `x` (a height bound stays a bound).
@@ -193,6 +226,8 @@ impl Tracer {
             by,
             wx: bx as f64 * dx,
             wy: by as f64 * dy,
+            inv_wx: exact_inverse(bx as f64 * dx),
+            inv_wy: exact_inverse(by as f64 * dy),
             up_x: 0,
             up_y: 0,
             nbx,
@@ -232,37 +267,6 @@ impl Tracer {
             hf,
             levels,
         }
-    }
-
-    /// Reads the data of the cell where a ray from `o` along `d` crosses the middle
-    /// of the height range (about where a primary ray hits), so that it is in the
-    /// cache when that ray is traced a little later. Only a hint: nothing depends on
-    /// it but the time.
-    pub(crate) fn warm(&self, o: Vec3, d: Vec3) {
-        let mid = 0.5 * (self.hf.min_height() + self.hf.max_height());
-        if d.z >= 0.0 {
-            return;
-        }
-        let p = o + d * ((mid - o.z) / d.z);
-        let (fx, fy) = ((p.x * self.inv_dx).floor(), (p.y * self.inv_dy).floor());
-        if !(fx.is_finite() && fy.is_finite() && fx.abs() < 1e15 && fy.abs() < 1e15) {
-            return;
-        }
-        let (bx, by) = (fx as i64, fy as i64);
-        let i = Level::wrap(bx, self.hf.nx());
-        let j = Level::wrap(by, self.hf.ny());
-        let c = self.hf.corners(i, j);
-        // The blocks above the cell on the levels a primary ray descends through
-        // (the higher ones stay in the cache anyway). The loads are independent, so
-        // their misses overlap instead of following one another as in a descent.
-        let mut sum = c[0] + c[2];
-        let (mut bx, mut by) = (bx, by);
-        for lev in self.levels.iter().take(3) {
-            sum += lev.max_at(bx, by);
-            bx >>= lev.up_x;
-            by >>= lev.up_y;
-        }
-        std::hint::black_box(sum);
     }
 
     /// The height field.
@@ -316,14 +320,20 @@ impl Tracer {
     /// The first hit of `ray` on the surface, found by `method`; `None` when the ray
     /// leaves (or, for a horizontal ray, travels the search length without a hit).
     pub fn first_hit(&self, ray: &Ray, method: Method) -> Option<Hit> {
-        let (t0, t1, _) = self.span(ray)?;
-        match method {
+        self.first_hit_or_horizon(ray, method).ok()
+    }
+
+    /// [`Tracer::first_hit`], or why there is none: `Err(true)` when the search
+    /// was cut off at the horizon (the `span`'s flag, without working it out again).
+    pub(crate) fn first_hit_or_horizon(&self, ray: &Ray, method: Method) -> Result<Hit, bool> {
+        let (t0, t1, horizon) = self.span(ray).ok_or(false)?;
+        let hit = match method {
             Method::MaxMip => {
                 // Start at the level whose blocks are as wide as the ray's horizontal
                 // travel, not at the top: most rays meet the surface within a few
                 // cells, and descending ten levels would cost more than it saves.
                 let (d, span) = (ray.d, t1 - t0);
-                let cells = (d.x.abs() * span / self.hf.dx()).max(d.y.abs() * span / self.hf.dy());
+                let cells = (d.x.abs() * span * self.inv_dx).max(d.y.abs() * span * self.inv_dy);
                 let top = self.levels.len() - 1;
                 let start = if cells.is_finite() {
                     let mut l = 0;
@@ -338,7 +348,8 @@ impl Tracer {
             }
             Method::Grid => self.traverse(ray, t0, t1, 0, 0),
             Method::BruteForce => self.brute(ray, t0, t1),
-        }
+        };
+        hit.ok_or(horizon)
     }
 
     fn pre(&self, ray: &Ray) -> Pre {
@@ -376,8 +387,8 @@ impl Tracer {
         let mut l = start;
         let mut t = t0;
         let p = o + d * t;
-        let mut bx = coord(p.x, d.x, self.levels[l].wx);
-        let mut by = coord(p.y, d.y, self.levels[l].wy);
+        let mut bx = coord(p.x, d.x, self.levels[l].wx, self.levels[l].inv_wx);
+        let mut by = coord(p.y, d.y, self.levels[l].wy, self.levels[l].inv_wy);
         loop {
             let lev = &self.levels[l];
             let tx = if sx != 0 {
@@ -402,10 +413,10 @@ impl Tracer {
                     let child = &self.levels[l];
                     let p = o + d * t;
                     if child.bx < lev.bx {
-                        bx = coord(p.x, d.x, child.wx).clamp(2 * bx, 2 * bx + 1);
+                        bx = coord(p.x, d.x, child.wx, child.inv_wx).clamp(2 * bx, 2 * bx + 1);
                     }
                     if child.by < lev.by {
-                        by = coord(p.y, d.y, child.wy).clamp(2 * by, 2 * by + 1);
+                        by = coord(p.y, d.y, child.wy, child.inv_wy).clamp(2 * by, 2 * by + 1);
                     }
                     continue;
                 }
@@ -561,8 +572,8 @@ impl Tracer {
     #[inline]
     fn wrap_cell(&self, c: [i64; 2]) -> (usize, usize) {
         (
-            c[0].rem_euclid(self.hf.nx() as i64) as usize,
-            c[1].rem_euclid(self.hf.ny() as i64) as usize,
+            Level::wrap(c[0], self.hf.nx()),
+            Level::wrap(c[1], self.hf.ny()),
         )
     }
 }

@@ -26,6 +26,7 @@
 //! draws a uniformly random `φi` for every ray and bins `φo − φi`: the average over
 //! the sample's turns. A full grid traces every (φi, θi) node.
 
+mod rays;
 mod sh;
 mod table;
 
@@ -34,18 +35,18 @@ pub use table::{SEGMENT_BLOCKS, SEGMENT_RAYS, TablePart, segments};
 use gonio_core::{Dir, Vec3};
 use gonio_process::Table;
 use gonio_process::sh::ShBrdf;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::material::{Scratch, uniform};
-use crate::trace::{Method, Ray, Tracer};
+use crate::trace::{Method, Ray, Tracer, floor};
 use crate::{MicroError, Sample};
+use rays::{KeyRng, Rect, SegmentOrder};
 
-/// Rays a block: each block has its own random stream, so results do not depend on
-/// how blocks are spread over threads.
+/// Rays a block: the unit of work a thread takes. A block's rays and their random
+/// streams depend on the seed and their indices alone (module `rays`), so results do
+/// not depend on how blocks are spread over threads.
 pub const BLOCK: usize = 1024;
 /// The most rays a simulation may trace per incident direction of a table, or in all
 /// for a spherical-harmonic estimate: 10⁹, hours of tracing at the default
@@ -70,14 +71,6 @@ pub const ORDERS: [&str; 3] = ["1", "2", "3+"];
 const PURPOSE_TRACE: u64 = 1;
 const PURPOSE_TABLE: u64 = 2;
 const PURPOSE_SH: u64 = 3;
-
-/// The random stream of one block: ChaCha8 seeded with `seed`, on the stream that
-/// `purpose`, the incident index and the block index name.
-fn block_rng(seed: u64, purpose: u64, incident: usize, block: usize) -> ChaCha8Rng {
-    let mut r = ChaCha8Rng::seed_from_u64(seed);
-    r.set_stream((purpose << 56) ^ ((incident as u64) << 28) ^ block as u64);
-    r
-}
 
 /// Runs `task(k)` for `k` in `0..n` on every thread of the current rayon pool and
 /// hands the results to `merge` in order of `k`, whatever the number of threads. A
@@ -336,11 +329,42 @@ impl Simulation {
         &self.tracer
     }
 
-    /// A path's start: a uniform point of the plane `z = h_max` over the patch.
-    fn start(&self, rng: &mut ChaCha8Rng) -> Vec3 {
+    /// Block `b`'s rays among the `rays` rays of incident node `inc` (0 where there
+    /// is one): each one's start, a uniform point of the plane `z = h_max` over the
+    /// patch, and its own random stream, drawn in the spatial order of its segment
+    /// (module `rays`).
+    fn block_rays(
+        &self,
+        seed: u64,
+        purpose: u64,
+        inc: usize,
+        rays: usize,
+        b: usize,
+    ) -> Vec<(Vec3, KeyRng)> {
+        let seg = b / SEGMENT_BLOCKS;
+        let n_seg = SEGMENT_RAYS.min(rays - seg * SEGMENT_RAYS);
+        let first = (b % SEGMENT_BLOCKS) * BLOCK;
+        let end = (first + BLOCK).min(n_seg);
         let hf = self.tracer.surface();
         let (lx, ly) = hf.period();
-        Vec3::new(uniform(rng) * lx, uniform(rng) * ly, hf.max_height())
+        let order = SegmentOrder {
+            key: [seed, purpose, inc as u64, seg as u64],
+            n: n_seg as u64,
+            patch: Rect {
+                x0: 0.0,
+                y0: 0.0,
+                w: lx,
+                h: ly,
+            },
+        };
+        let base = (seg * SEGMENT_RAYS) as u64;
+        let mut out = Vec::with_capacity(end - first);
+        order.visit(first as u64..end as u64, &mut |k, leaf| {
+            let mut rng = KeyRng::new(&[seed, purpose, inc as u64, base + k]);
+            let (x, y) = leaf.at(uniform(&mut rng), uniform(&mut rng));
+            out.push((Vec3::new(x, y, hf.max_height()), rng));
+        });
+        out
     }
 
     /// Traces one path from `o` (a [`Simulation::start`]) towards `−wi_s` (surface
@@ -350,7 +374,7 @@ impl Simulation {
         &self,
         o: Vec3,
         wi_s: Vec3,
-        rng: &mut ChaCha8Rng,
+        rng: &mut KeyRng,
         w: &mut [f64],
         scratch: &mut Scratch,
     ) -> (End, u32, Vec3) {
@@ -370,16 +394,18 @@ impl Simulation {
                 t_min,
                 skip: ray_skip,
             };
-            let Some(h) = self.tracer.first_hit(&ray, self.opts.method) else {
-                let cut_off = self.tracer.span(&ray).is_some_and(|s| s.2);
-                let end = if cut_off {
-                    End::Horizon
-                } else if d.z > 0.0 {
-                    End::Exit
-                } else {
-                    End::Leaked
-                };
-                return (end, bounces, d);
+            let h = match self.tracer.first_hit_or_horizon(&ray, self.opts.method) {
+                Ok(h) => h,
+                Err(cut_off) => {
+                    let end = if cut_off {
+                        End::Horizon
+                    } else if d.z > 0.0 {
+                        End::Exit
+                    } else {
+                        End::Leaked
+                    };
+                    return (end, bounces, d);
+                }
             };
             if bounces == self.opts.max_bounces {
                 return (End::Capped, bounces, d);
@@ -401,8 +427,8 @@ impl Simulation {
                 return (End::Leaked, bounces, d);
             };
             d = nd;
-            let kx = (p.x / lx).floor();
-            let ky = (p.y / ly).floor();
+            let kx = floor(p.x / lx);
+            let ky = floor(p.y / ly);
             o = Vec3::new(p.x - kx * lx, p.y - ky * ly, p.z);
             ray_skip = Some((
                 h.cell[0] - kx as i64 * nx,
@@ -481,13 +507,10 @@ impl Simulation {
             n_blocks,
             self.cancel_flag(),
             |b| {
-                let mut rng = block_rng(seed, PURPOSE_TRACE, 0, b);
-                let rays = BLOCK.min(n_rays - b * BLOCK);
                 let mut w = vec![0.0; nc];
                 let mut scratch = Scratch::new(nc);
                 let mut out = (Vec::new(), Vec::new(), Vec::new(), TraceStats::default());
-                for _ in 0..rays {
-                    let o = self.start(&mut rng);
+                for (o, mut rng) in self.block_rays(seed, PURPOSE_TRACE, 0, n_rays, b) {
                     let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
                     self.count(&mut out.3, end, k, &w);
                     if end == End::Exit {

@@ -7,8 +7,7 @@ use gonio_core::Dir;
 use gonio_process::sh::{ShBrdf, basis, eval_basis, taper};
 
 use super::{
-    BLOCK, End, PURPOSE_SH, ShEstimate, Simulation, TraceStats, block_rng, mean_and_error,
-    run_ordered,
+    BLOCK, End, PURPOSE_SH, ShEstimate, Simulation, TraceStats, mean_and_error, run_ordered,
 };
 use crate::MicroError;
 use crate::material::{Scratch, uniform};
@@ -69,8 +68,6 @@ impl Simulation {
             n_blocks,
             self.cancel_flag(),
             |b| {
-                let mut rng = block_rng(seed, PURPOSE_SH, 0, b);
-                let n = BLOCK.min(rays - b * BLOCK);
                 let mut s = vec![0.0; nc * nt];
                 let mut s2 = vec![0.0; nc * nt];
                 let mut st = TraceStats::default();
@@ -78,12 +75,11 @@ impl Simulation {
                 let mut wt = vec![0.0; nc];
                 let mut scratch = Scratch::new(nc);
                 let (mut ya, mut yb) = (Vec::new(), Vec::new());
-                for _ in 0..n {
+                for (o, mut rng) in self.block_rays(seed, PURPOSE_SH, 0, rays, b) {
                     // Uniform over the hemisphere: cos θ uniform in (0, 1].
                     let z = 1.0 - uniform(&mut rng);
                     let phi = TAU * uniform(&mut rng);
                     let wi = Dir::from_angles(z.acos(), phi);
-                    let o = self.start(&mut rng);
                     let (end, order, d) =
                         self.path(o, self.to_surface(wi.vec()), &mut rng, &mut w, &mut scratch);
                     self.count(&mut st, end, order, &w);

@@ -6,12 +6,14 @@ use std::f64::consts::TAU;
 use gonio_core::{Dir, Vec3};
 use gonio_process::{Axis, Grid, Table};
 
+use super::rays::KeyRng;
 use super::{
-    BLOCK, End, IncidentAlbedo, MicroResult, PURPOSE_TABLE, Simulation, TraceStats, block_rng,
-    mean_and_error, run_ordered,
+    BLOCK, End, IncidentAlbedo, MicroResult, PURPOSE_TABLE, Simulation, TraceStats, mean_and_error,
+    run_ordered,
 };
 use crate::MicroError;
 use crate::material::{Scratch, uniform};
+use crate::trace::floor;
 
 /// Blocks a segment: the unit a table's sums are kept in, merged in segment order.
 /// A chunk of a simulation traced apart ([`Simulation::table_part`]) is whole
@@ -265,16 +267,14 @@ impl Simulation {
         if wi.z <= 1e-12 {
             return acc;
         }
-        let mut rng = block_rng(job.seed, PURPOSE_TABLE, inc, b);
-        let n = BLOCK.min(job.rays - b * BLOCK);
         let mut w = vec![0.0; job.nc];
         let mut scratch = Scratch::new(job.nc);
-        // Every ray's turn and start are drawn first, so that the cells where the
-        // next ray will land can be read into the cache while this one is traced:
-        // the rays start anywhere on the patch, and waiting for memory is most of a
-        // primary ray's time otherwise.
-        let rays: Vec<(f64, Vec3)> = (0..n)
-            .map(|_| {
+        // The rays in the spatial order of their segment (module `rays`): each
+        // one's turn is drawn from its own stream after its start.
+        let rays: Vec<(Vec3, KeyRng, f64, Vec3)> = self
+            .block_rays(job.seed, PURPOSE_TABLE, inc, job.rays, b)
+            .into_iter()
+            .map(|(o, mut rng)| {
                 let turn = if grid.isotropic {
                     TAU * uniform(&mut rng)
                 } else {
@@ -285,14 +285,10 @@ impl Simulation {
                 } else {
                     wi
                 };
-                (turn, self.to_surface(wi_r.vec()))
+                (o, rng, turn, self.to_surface(wi_r.vec()))
             })
             .collect();
-        let starts: Vec<Vec3> = (0..n).map(|_| self.start(&mut rng)).collect();
-        for (r, (&(turn, wi_s), &o)) in rays.iter().zip(&starts).enumerate() {
-            if let (Some(&(_, wn)), Some(&on)) = (rays.get(r + 1), starts.get(r + 1)) {
-                self.tracer.warm(on, -wn);
-            }
+        for (o, mut rng, turn, wi_s) in rays {
             let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
             self.count(&mut acc.stats, end, k, &w);
             if end != End::Exit {
@@ -300,10 +296,9 @@ impl Simulation {
             }
             let wo = self.to_sample(d);
             let slot = (k.min(3)) as usize; // 1, 2, 3+
-            let cell = job.cells.locate(
-                wo.theta(),
-                wo.phi() - if grid.isotropic { turn } else { 0.0 },
-            );
+            let cell = job
+                .cells
+                .locate(wo.z, wo.phi() - if grid.isotropic { turn } else { 0.0 });
             acc.add(slot, cell, &w);
         }
         acc
@@ -607,9 +602,8 @@ impl TablePart {
 /// The cells of outgoing directions around a grid's outgoing nodes.
 struct OutCells {
     phi: Axis,
-    theta: Axis,
-    /// `(lo, hi)` polar bounds of each θo node.
-    bounds: Vec<(f64, f64)>,
+    /// `(cos lo, cos hi)` of each θo node's polar bounds.
+    cos_bounds: Vec<(f64, f64)>,
     /// `Ω_proj` of each outgoing node, index `c·nθ + d`.
     omega: Vec<f64>,
 }
@@ -639,36 +633,32 @@ impl OutCells {
         }
         OutCells {
             phi: *phi,
-            theta: *theta,
-            bounds,
+            cos_bounds: bounds.iter().map(|(lo, hi)| (lo.cos(), hi.cos())).collect(),
             omega,
         }
     }
 
-    /// The outgoing node whose cell holds `(theta, phi)`, if any.
-    fn locate(&self, theta: f64, phi: f64) -> Option<usize> {
-        let d = if self.theta.n == 1 {
-            0
-        } else {
-            let k = ((theta - self.theta.start) / self.theta.step + 0.5).floor();
-            if !(k >= 0.0 && k < self.theta.n as f64) {
-                return None;
-            }
-            k as usize
-        };
-        let (lo, hi) = self.bounds[d];
-        if !(theta >= lo && theta <= hi) || self.omega[d] <= 0.0 {
+    /// The outgoing node whose cell holds the direction of polar cosine `cos_theta`
+    /// and azimuth `phi`, if any. The polar cell is found among the bounds' cosines
+    /// (a binary search, not an `acos`: one `atan2` fewer an exit).
+    fn locate(&self, cos_theta: f64, phi: f64) -> Option<usize> {
+        // The cells' upper bounds do not decrease, so their cosines do not increase.
+        let d = self
+            .cos_bounds
+            .partition_point(|&(_, c_hi)| c_hi > cos_theta);
+        let &(c_lo, _) = self.cos_bounds.get(d)?;
+        if cos_theta.is_nan() || cos_theta > c_lo || self.omega[d] <= 0.0 {
             return None;
         }
         let c = if self.phi.n == 1 {
             0
         } else if self.phi.is_periodic() {
-            let k = ((phi - self.phi.start) / self.phi.step + 0.5).floor();
+            let k = floor((phi - self.phi.start) / self.phi.step + 0.5);
             k.rem_euclid(self.phi.n as f64) as usize % self.phi.n
         } else {
             let mut found = None;
             for p in [phi, phi - TAU, phi + TAU] {
-                let k = ((p - self.phi.start) / self.phi.step + 0.5).floor();
+                let k = floor((p - self.phi.start) / self.phi.step + 0.5);
                 if k >= 0.0 && k < self.phi.n as f64 {
                     found = Some(k as usize);
                     break;
@@ -676,7 +666,7 @@ impl OutCells {
             }
             found?
         };
-        Some(c * self.theta.n + d)
+        Some(c * self.cos_bounds.len() + d)
     }
 }
 
@@ -691,13 +681,13 @@ mod tests {
         let cells = OutCells::new(&Axis::full_turn(36), &Axis::polar_midpoints(9));
         let total: f64 = cells.omega.iter().sum();
         assert!((total - PI).abs() < 1e-12, "{total}");
-        assert_eq!(cells.locate(0.01, 0.0), Some(0));
-        assert_eq!(cells.locate(0.01, TAU - 0.01), Some(0));
-        assert_eq!(cells.locate(0.2, 14f64.to_radians()), Some(9 + 1));
+        assert_eq!(cells.locate(0.01f64.cos(), 0.0), Some(0));
+        assert_eq!(cells.locate(0.01f64.cos(), TAU - 0.01), Some(0));
+        assert_eq!(cells.locate(0.2f64.cos(), 14f64.to_radians()), Some(9 + 1));
         // Nodes 0°..80° every 10°: the last cell stops at 85°.
         let cells = OutCells::new(&Axis::single(0.0), &Axis::from_deg(0.0, 10.0, 9));
-        assert_eq!(cells.locate(86f64.to_radians(), 1.0), None);
-        assert_eq!(cells.locate(84f64.to_radians(), 1.0), Some(8));
-        assert_eq!(cells.locate(4f64.to_radians(), 1.0), Some(0));
+        assert_eq!(cells.locate(86f64.to_radians().cos(), 1.0), None);
+        assert_eq!(cells.locate(84f64.to_radians().cos(), 1.0), Some(8));
+        assert_eq!(cells.locate(4f64.to_radians().cos(), 1.0), Some(0));
     }
 }
