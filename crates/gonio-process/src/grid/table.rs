@@ -265,6 +265,13 @@ pub(crate) const GL8: [(f64, f64); 8] = [
 
 /// Quadrilinear interpolation of `v` (one channel, grid order) at (φi, θi, φo, θo).
 pub(crate) fn interpolate(g: &Grid, v: &[f64], ang: [f64; 4]) -> f64 {
+    interpolate_by(g, |k| v[k], ang)
+}
+
+/// [`interpolate`] of the values `v(node)` gives, formed where they are read (the
+/// floors' counterparts are measured without being stored).
+#[inline]
+pub(crate) fn interpolate_by(g: &Grid, v: impl Fn(usize) -> f64, ang: [f64; 4]) -> f64 {
     let [mut pi, ti, mut po, to] = ang;
     if g.isotropic {
         po -= pi;
@@ -291,7 +298,7 @@ pub(crate) fn interpolate(g: &Grid, v: &[f64], ang: [f64; 4]) -> f64 {
                     if wd == 0.0 {
                         continue;
                     }
-                    acc += wa * wb * wc * wd * v[g.index(a, b, c, d)];
+                    acc += wa * wb * wc * wd * v(g.index(a, b, c, d));
                 }
             }
         }
