@@ -5,6 +5,7 @@
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use gonio_core::{Channels, Dir};
+use rayon::prelude::*;
 
 use super::{Axis, Grid};
 use crate::ProcessError;
@@ -49,14 +50,17 @@ impl Table {
                 s.len()
             )));
         }
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        // The first bad value in order, looked for on rayon.
+        if let Some(i) = values.par_iter().position_first(|v| !v.is_finite()) {
             return Err(ProcessError::Value(format!(
                 "value {i} is not finite ({})",
                 values[i]
             )));
         }
         if let Some(s) = &sigma
-            && let Some(i) = s.iter().position(|v| !(v.is_finite() && *v >= 0.0))
+            && let Some(i) = s
+                .par_iter()
+                .position_first(|v| !(v.is_finite() && *v >= 0.0))
         {
             return Err(ProcessError::Value(format!(
                 "uncertainty {i} is not a finite non-negative number ({})",
