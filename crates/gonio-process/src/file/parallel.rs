@@ -579,11 +579,26 @@ pub fn read_columns_in<R: Read>(
                 }
             }
         };
-        let parts = chunks(&buf[..end], chunk);
-        let parsed: Vec<Parsed> = parts
-            .par_iter()
-            .map(|c| parse_chunk(c, &roles, &slots))
-            .collect();
+        // This block's whole lines are parsed (on rayon, from a scoped thread) while
+        // this thread reads the next block behind the rest of its last line: the
+        // same reads, so the same blocks, as one after the other.
+        let mut next: Vec<u8> = Vec::with_capacity(buf.capacity());
+        next.extend_from_slice(&buf[end..]);
+        let (parsed, read) = std::thread::scope(|s| {
+            let parse = s.spawn(|| {
+                chunks(&buf[..end], chunk)
+                    .par_iter()
+                    .map(|c| parse_chunk(c, &roles, &slots))
+                    .collect::<Vec<Parsed>>()
+            });
+            let read = if eof {
+                Ok(())
+            } else {
+                fill(&mut next, &mut eof)
+            };
+            (parse.join(), read)
+        });
+        let parsed = parsed.unwrap_or_else(|e| std::panic::resume_unwind(e));
         if rows == 0 && !parsed.is_empty() {
             // Columns for the whole file from the first block's density, zeroed by
             // the allocator (fresh pages: touched first by the copies below, on
@@ -635,7 +650,9 @@ pub fn read_columns_in<R: Read>(
         copies
             .into_par_iter()
             .for_each(|(to, from)| to.copy_from_slice(from));
-        buf.drain(..end);
+        // A read's error after this block's own (the order of one after the other).
+        read?;
+        buf = next;
         if eof && buf.is_empty() {
             break;
         }
