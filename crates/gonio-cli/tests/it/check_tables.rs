@@ -108,3 +108,41 @@ fn another_tools_table_checks_as_gonios_own_on_any_number_of_threads() {
         "{err}"
     );
 }
+
+/// An RGB table with σ, as `gonio micro` writes it (with its sidecar): its floors
+/// draw noise (each draw's from its place in one stream, channel by channel), and
+/// `gonio check` prints the same bytes on 1 and 2 rayon threads.
+#[test]
+fn an_rgb_table_with_sigma_checks_the_same_on_any_number_of_threads() {
+    let d = scratch("check-tables-rgb");
+    let table = d.join("micro.csv");
+    let config = root().join("config/micro-gaussian-gold.toml");
+    ok(&[
+        "micro",
+        &s(&config),
+        "--grid",
+        "15,30",
+        "--rays",
+        "200",
+        "--out",
+        &s(&table),
+    ]);
+    for json in [false, true] {
+        let mut a = vec!["check", table.to_str().expect("path"), "--k", "1,2"];
+        if json {
+            a.push("--json");
+        }
+        let (one, two) = (on_threads(1, &a), on_threads(2, &a));
+        assert_eq!(
+            String::from_utf8_lossy(&one.stdout),
+            String::from_utf8_lossy(&two.stdout),
+            "json {json}"
+        );
+        if json {
+            let v: Value = serde_json::from_slice(&one.stdout).expect("json");
+            assert_eq!(v["channels"], serde_json::json!(["R", "G", "B"]));
+            assert!(v["floor"]["draws"].as_u64().is_some_and(|k| k > 0), "{v}");
+            assert_eq!(v["floor"]["reciprocity"].as_array().map(Vec::len), Some(3));
+        }
+    }
+}

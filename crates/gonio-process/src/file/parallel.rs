@@ -2,7 +2,8 @@
 //!
 //! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes, cuts each block
 //! at line boundaries into chunks of about [`CHUNK`] bytes, and parses the chunks on
-//! rayon, each into its own short columns, which are appended in file order. The
+//! rayon, each into its own short columns, which are copied to their places in the
+//! whole file's columns (known from the chunks' lengths), on rayon as well. The
 //! blocks and chunks depend on the bytes alone, never on the number of threads, and a
 //! number's parse does not depend on its neighbours: the columns, and any error
 //! (the first in file order), are the same on any number of threads.
@@ -578,24 +579,43 @@ pub fn read_columns_in<R: Read>(
                 }
             }
         };
-        let parts = chunks(&buf[..end], chunk);
-        let parsed: Vec<Parsed> = parts
-            .par_iter()
-            .map(|c| parse_chunk(c, &roles, &slots))
-            .collect();
+        // This block's whole lines are parsed (on rayon, from a scoped thread) while
+        // this thread reads the next block behind the rest of its last line: the
+        // same reads, so the same blocks, as one after the other.
+        let mut next: Vec<u8> = Vec::with_capacity(buf.capacity());
+        next.extend_from_slice(&buf[end..]);
+        let (parsed, read) = std::thread::scope(|s| {
+            let parse = s.spawn(|| {
+                chunks(&buf[..end], chunk)
+                    .par_iter()
+                    .map(|c| parse_chunk(c, &roles, &slots))
+                    .collect::<Vec<Parsed>>()
+            });
+            let read = if eof {
+                Ok(())
+            } else {
+                fill(&mut next, &mut eof)
+            };
+            (parse.join(), read)
+        });
+        let parsed = parsed.unwrap_or_else(|e| std::panic::resume_unwind(e));
         if rows == 0 && !parsed.is_empty() {
-            // Reserve for the whole file from the first block's density.
+            // Columns for the whole file from the first block's density, zeroed by
+            // the allocator (fresh pages: touched first by the copies below, on
+            // rayon).
             let (n, bytes) = (parsed.iter().map(|p| p.slots[0].len()).sum::<usize>(), end);
             let est = ((len as f64 / bytes.max(1) as f64) * n as f64 * 1.01) as usize + 16;
             let est = est.min(MAX_ROWS);
-            cols.iter_mut().for_each(|c| c.reserve_exact(est));
+            cols.iter_mut().for_each(|c| *c = vec![0.0; est]);
             if roles.flags.is_some() {
                 flags.reserve_exact(est);
             }
         }
-        for p in parsed {
-            if let Some((k, col, msg)) = p.error {
-                return Err(at(line + 1 + k, col.map(|j| roles.names[j].as_str()), msg));
+        let first = rows;
+        for p in &parsed {
+            if let Some((k, col, msg)) = &p.error {
+                let field = col.map(|j| roles.names[j].as_str());
+                return Err(at(line + 1 + k, field, msg.clone()));
             }
             let got = p.slots[0].len();
             if rows + got > MAX_ROWS {
@@ -606,14 +626,33 @@ pub fn read_columns_in<R: Read>(
                 return Err(at(line + 1 + k, None, format!("more than {MAX_ROWS} rows")));
             }
             rows += got;
-            for (c, s) in cols.iter_mut().zip(p.slots) {
-                c.extend_from_slice(&s);
-            }
             flags.extend_from_slice(&p.flags);
             skipped.extend(p.skipped.iter().map(|k| line + 1 + k));
             line += p.lines;
         }
-        buf.drain(..end);
+        // The chunks' columns copied to their places (known from their lengths) on
+        // rayon, rather than appended one after the other.
+        for c in cols.iter_mut() {
+            if c.len() < rows {
+                // More rows than the first block's density promised.
+                c.resize(rows.max(c.len() + c.len() / 2), 0.0);
+            }
+        }
+        let mut copies: Vec<(&mut [f64], &[f64])> = Vec::new();
+        for (j, c) in cols.iter_mut().enumerate() {
+            let mut rest = &mut c[first..rows];
+            for p in &parsed {
+                let (here, after) = rest.split_at_mut(p.slots[j].len());
+                copies.push((here, &p.slots[j]));
+                rest = after;
+            }
+        }
+        copies
+            .into_par_iter()
+            .for_each(|(to, from)| to.copy_from_slice(from));
+        // A read's error after this block's own (the order of one after the other).
+        read?;
+        buf = next;
         if eof && buf.is_empty() {
             break;
         }
@@ -621,6 +660,7 @@ pub fn read_columns_in<R: Read>(
     if rows == 0 {
         return Err(FileError::whole(KIND, path, "no data rows"));
     }
+    cols.iter_mut().for_each(|c| c.truncate(rows));
     let nc = roles.values.len();
     let mut it = cols.into_iter();
     let angles = [(); 4].map(|_| it.next().unwrap_or_default());
@@ -849,8 +889,11 @@ impl Columns {
             roles,
             values,
             sigma,
+            angles,
             ..
         } = self;
+        // The angles are the grid's now: freed before the table is gathered.
+        drop(angles);
         let values = gather(values);
         let sigma = sigma.map(gather);
         Table::new(roles.channels, g, values, sigma)
@@ -934,12 +977,14 @@ impl Columns {
                 })
             })
             .collect();
-        let mut seen = vec![false; rows];
-        for i in &idx {
-            if std::mem::replace(&mut seen[*i as usize], true) {
-                return None;
-            }
-        }
-        Some((grid, idx))
+        // Each node once: whether any is repeated does not depend on the order the
+        // rows are marked in, so they are marked on rayon.
+        let seen: Vec<std::sync::atomic::AtomicBool> = (0..rows)
+            .map(|_| std::sync::atomic::AtomicBool::new(false))
+            .collect();
+        let repeat = idx
+            .par_iter()
+            .any(|i| seen[*i as usize].swap(true, std::sync::atomic::Ordering::Relaxed));
+        (!repeat).then_some((grid, idx))
     }
 }

@@ -13,7 +13,7 @@ use crate::ProcessError;
 pub(crate) mod table;
 
 pub use table::Table;
-pub(crate) use table::{cosine_proposal, interpolate};
+pub(crate) use table::{cosine_proposal, interpolate, interpolate_by};
 
 /// Tolerance, in radians, within which an angle counts as lying on a node; far below
 /// any grid spacing a goniometer uses and far above the rounding of degree ↔ radian

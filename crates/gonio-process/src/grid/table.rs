@@ -5,6 +5,7 @@
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use gonio_core::{Channels, Dir};
+use rayon::prelude::*;
 
 use super::{Axis, Grid};
 use crate::ProcessError;
@@ -49,14 +50,17 @@ impl Table {
                 s.len()
             )));
         }
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        // The first bad value in order, looked for on rayon.
+        if let Some(i) = values.par_iter().position_first(|v| !v.is_finite()) {
             return Err(ProcessError::Value(format!(
                 "value {i} is not finite ({})",
                 values[i]
             )));
         }
         if let Some(s) = &sigma
-            && let Some(i) = s.iter().position(|v| !(v.is_finite() && *v >= 0.0))
+            && let Some(i) = s
+                .par_iter()
+                .position_first(|v| !(v.is_finite() && *v >= 0.0))
         {
             return Err(ProcessError::Value(format!(
                 "uncertainty {i} is not a finite non-negative number ({})",
@@ -259,6 +263,13 @@ pub(crate) const GL8: [(f64, f64); 8] = [
 
 /// Quadrilinear interpolation of `v` (one channel, grid order) at (φi, θi, φo, θo).
 pub(crate) fn interpolate(g: &Grid, v: &[f64], ang: [f64; 4]) -> f64 {
+    interpolate_by(g, |k| v[k], ang)
+}
+
+/// [`interpolate`] of the values `v(node)` gives, formed where they are read (the
+/// floors' counterparts are measured without being stored).
+#[inline]
+pub(crate) fn interpolate_by(g: &Grid, v: impl Fn(usize) -> f64, ang: [f64; 4]) -> f64 {
     let [mut pi, ti, mut po, to] = ang;
     if g.isotropic {
         po -= pi;
@@ -285,7 +296,7 @@ pub(crate) fn interpolate(g: &Grid, v: &[f64], ang: [f64; 4]) -> f64 {
                     if wd == 0.0 {
                         continue;
                     }
-                    acc += wa * wb * wc * wd * v[g.index(a, b, c, d)];
+                    acc += wa * wb * wc * wd * v(g.index(a, b, c, d));
                 }
             }
         }

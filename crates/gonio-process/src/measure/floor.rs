@@ -50,12 +50,22 @@
 //! nodes, and their draws scatter little). P_s^(k)'s floor needs a full SVD per draw and k, so it
 //! is formed only when A has fewer than [`crate::svd::MIN_TRUNCATED`] rows or
 //! columns, with at most [`MAX_SVD_DRAWS`] draws.
+//!
+//! **Memory.** The floors work channel by channel and form no counterpart of the
+//! whole table's size: on a paired grid P_r's counterparts (once, twice, three times
+//! over) are read where the measure reads them, and on equal azimuth axes P_i's are
+//! lookups in μ_i, itself the size of one incident azimuth's table; elsewhere one
+//! channel's counterpart is formed. A draw's noise is drawn from its place in the
+//! draw's one stream (SplitMix64's state is a counter), so a draw forms at most one
+//! channel's values (P_ec's none), the numbers are those of the stream drawn whole,
+//! and the four floors run side by side.
 
 use gonio_core::Channels;
 use gonio_core::rng::{GOLDEN_GAMMA, SplitMix64, splitmix64};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::grid::interpolate;
 use crate::measure::{self, EnergyMethod, Reciprocals, Report};
 use crate::{ProcessError, Samples, Table, hemisphere};
 
@@ -127,12 +137,26 @@ pub fn draws_for(values: usize) -> usize {
     (DRAW_BUDGET / values.max(1)).clamp(MIN_DRAWS, MAX_DRAWS)
 }
 
-/// The generator of draw `k`.
-fn rng(k: usize, stream: u64) -> SplitMix64 {
-    SplitMix64::new(splitmix64(
+/// The seed of draw `k`'s stream.
+fn draw_seed(k: usize, stream: u64) -> u64 {
+    splitmix64(
         SEED ^ stream.wrapping_mul(GOLDEN_GAMMA)
             ^ (k as u64 + 1).wrapping_mul(0x2545_f491_4f6c_dd1d),
-    ))
+    )
+}
+
+/// The generator of draw `k`.
+fn rng(k: usize, stream: u64) -> SplitMix64 {
+    SplitMix64::new(draw_seed(k, stream))
+}
+
+/// The generator of draw `k` positioned after its first `normals` normal numbers:
+/// SplitMix64's state is a counter, advanced by [`GOLDEN_GAMMA`] a word, and a normal
+/// takes two words, so any part of a draw's noise is drawn on its own, the very
+/// numbers of the one stream (a block, a node, on any thread).
+fn rng_at(k: usize, stream: u64, normals: usize) -> SplitMix64 {
+    let words = (2 * normals as u64).wrapping_mul(GOLDEN_GAMMA);
+    SplitMix64::new(draw_seed(k, stream).wrapping_add(words))
 }
 
 /// The draws' mean and 95th percentile, the latter as a normal distribution's with
@@ -191,76 +215,85 @@ fn noisy(c: &Table, gain: &[f64], sigma: &[f64], g: &mut SplitMix64) -> Table {
     c.with_values(values, None)
 }
 
-/// The floor of a measure `m` (per channel) whose counterpart operator is `sym`, for
-/// the data's values `value` (module docs).
-fn interpolated_floor(
-    t: &Table,
-    value: &[f64],
+/// What the interpolated floors (P_r's, P_i's) share: the table's σ, the draws and
+/// the size of rounding.
+struct Interpolated<'a> {
+    t: &'a Table,
     draws: usize,
     stream: u64,
-    sym: &dyn Fn(&Table) -> Result<Table, ProcessError>,
-    m: &(dyn Fn(&Table) -> Result<Vec<f64>, ProcessError> + Sync),
-) -> Result<Vec<Floor>, ProcessError> {
-    let nc = t.channels.len();
-    let s1 = sym(t)?;
-    let s2 = sym(&s1)?;
-    let s3 = sym(&s2)?;
-    let (m1, m2, m3) = (m(&s1)?, m(&s2)?, m(&s3)?);
-    let scale = scale_of(&t.values);
-    let tiny = 1e-12 * scale;
-    let interp: Vec<(f64, f64)> = (0..nc)
-        .map(|ch| extrapolate(m1[ch], m2[ch], m3[ch], tiny))
-        .collect();
-    let sigma = match &t.sigma {
-        Some(s) if draws > 0 => s,
-        _ => {
-            return Ok((0..nc)
-                .map(|ch| {
-                    let (m0, sd) = interp[ch];
-                    let p = m0 + Z95 * sd;
-                    Floor {
-                        mean: m0,
-                        p95: p,
-                        consistent: at_most(value[ch], p, scale),
-                        interpolation: m0,
-                        interpolation_sigma: sd,
-                    }
-                })
-                .collect());
-        }
-    };
-    let runs: Vec<Vec<f64>> = (0..draws)
-        .into_par_iter()
-        .map(|k| {
-            let mut g = rng(k, stream);
-            let gain: Vec<f64> = (0..nc)
-                .map(|ch| {
-                    let (m0, sd) = interp[ch];
-                    let z = g.next_normal();
-                    if m1[ch] > tiny {
-                        (m0 + sd * z).max(0.0) / m1[ch]
-                    } else {
-                        1.0
-                    }
-                })
-                .collect();
-            m(&noisy(&s1, &gain, sigma, &mut g))
-        })
-        .collect::<Result<_, _>>()?;
-    Ok((0..nc)
-        .map(|ch| {
-            let v: Vec<f64> = runs.iter().map(|r| r[ch]).collect();
-            let (mean, p) = mean_p95(&v);
-            let (m0, sd) = interp[ch];
-            Floor {
-                mean,
+    scale: f64,
+}
+
+impl Interpolated<'_> {
+    /// Channel `ch`'s floor for the data's measure `value`, from its counterpart's
+    /// measures formed once, twice and three times `m` (module docs) and, when the
+    /// data carry σ, `draw(k, gain, σ)`: the measure of draw `k` of the counterpart
+    /// formed once, its interpolation scaled by `gain`, with the noise of σ (the
+    /// channel's part of the draw's stream, [`Interpolated::noise_start`]).
+    fn channel(
+        &self,
+        ch: usize,
+        value: f64,
+        m: [f64; 3],
+        draw: impl Fn(usize, f64, &[f64]) -> f64 + Sync,
+    ) -> Floor {
+        let tiny = 1e-12 * self.scale;
+        let (m0, sd) = extrapolate(m[0], m[1], m[2], tiny);
+        let sigma = self.t.channel_sigma(ch).filter(|_| self.draws > 0);
+        let Some(sig) = sigma else {
+            let p = m0 + Z95 * sd;
+            return Floor {
+                mean: m0,
                 p95: p,
-                consistent: at_most(value[ch], p, scale),
+                consistent: at_most(value, p, self.scale),
                 interpolation: m0,
                 interpolation_sigma: sd,
-            }
-        })
-        .collect())
+            };
+        };
+        let runs: Vec<f64> = (0..self.draws)
+            .into_par_iter()
+            .map(|k| {
+                // A draw's stream: one normal a channel for the gains, then the noise
+                // of every value in the table's order.
+                let z = rng_at(k, self.stream, ch).next_normal();
+                let gain = if m[0] > tiny {
+                    (m0 + sd * z).max(0.0) / m[0]
+                } else {
+                    1.0
+                };
+                draw(k, gain, sig)
+            })
+            .collect();
+        let (mean, p) = mean_p95(&runs);
+        Floor {
+            mean,
+            p95: p,
+            consistent: at_most(value, p, self.scale),
+            interpolation: m0,
+            interpolation_sigma: sd,
+        }
+    }
+
+    /// Where channel `ch`'s noise starts in a draw's stream, in normals.
+    fn noise_start(&self, ch: usize) -> usize {
+        self.t.channels.len() + ch * self.t.grid.len()
+    }
+
+    /// Draw `k` of channel `ch`'s counterpart whose value at node i is `base(i)`,
+    /// scaled by `gain`, with noise of σ `sig`: one channel's values, formed in order.
+    fn formed(
+        &self,
+        k: usize,
+        ch: usize,
+        gain: f64,
+        sig: &[f64],
+        base: impl Fn(usize) -> f64,
+    ) -> Vec<f64> {
+        let mut g = rng_at(k, self.stream, self.noise_start(ch));
+        (0..self.t.grid.len())
+            .map(|i| gain * base(i) + sig[i] * g.next_normal())
+            .collect()
+    }
 }
 
 /// P_r's counterpart: each node averaged with its reciprocal value where that lies
@@ -344,20 +377,12 @@ pub fn floors(
         Some(_) => separability_floor(t, report, ks, draws.min(MAX_SVD_DRAWS)),
         None => Ok(None),
     };
-    // A large table's two floors that form counterpart tables of its size (P_r's and
-    // P_i's) one after the other, each beside a light one: all four side by side held
-    // both counterparts at once (a 5° × 2.5° table: 522 MB at two threads, 364 MB
-    // this way, 342 MB on one thread).
-    let ((reciprocity, isotropy), (energy, separability)) = if t.values.len() >= LARGE {
-        let (r, e) = rayon::join(reciprocity, energy);
-        let (i, s) = rayon::join(isotropy, separability);
-        ((r, i), (e, s))
-    } else {
-        rayon::join(
-            || rayon::join(reciprocity, isotropy),
-            || rayon::join(energy, separability),
-        )
-    };
+    // No floor forms a counterpart table of the whole table's size (each forms at
+    // most one channel's values a draw in flight), so all four run side by side.
+    let ((reciprocity, isotropy), (energy, separability)) = rayon::join(
+        || rayon::join(reciprocity, isotropy),
+        || rayon::join(energy, separability),
+    );
     Ok(Floors {
         draws,
         seed: SEED,
@@ -368,37 +393,152 @@ pub fn floors(
     })
 }
 
-/// Values at which a table's floors are formed one after the other (8 MB of them).
-const LARGE: usize = 1 << 20;
-
 /// P_r's floor per channel for a table whose P_r is `value` (module docs), with
 /// `draws` noise draws when the table carries σ (0: the interpolation alone).
+///
+/// Channel by channel. On a paired grid the counterpart formed once, twice and three
+/// times over is read where the measure reads it (two, four, eight lookups a value),
+/// never stored; else each is formed for one channel. A noise draw forms one
+/// channel's values at a time.
 pub fn reciprocity_floor(
     t: &Table,
     value: &[f64],
     draws: usize,
 ) -> Result<Vec<Floor>, ProcessError> {
-    interpolated_floor(
+    let g = &t.grid;
+    let n = g.len();
+    let rec = Reciprocals::new(g);
+    let ctx = Interpolated {
         t,
-        value,
         draws,
-        1,
-        &|x| Ok(reciprocal_counterpart(x)),
-        &|x| Ok(measure::reciprocity(x).0),
-    )
+        stream: 1,
+        scale: scale_of(&t.values),
+    };
+    let measure = |x: &(dyn Fn(usize) -> f64 + Sync)| measure::reciprocity_by(g, &rec, x).0;
+    let floors = (0..t.channels.len())
+        .map(|ch| {
+            let v = t.channel(ch);
+            let draw_of = |k: usize, gain: f64, sig: &[f64], s1: &(dyn Fn(usize) -> f64 + Sync)| {
+                let x = ctx.formed(k, ch, gain, sig, s1);
+                measure(&|i| x[i])
+            };
+            match rec.map() {
+                Some(m) => {
+                    // (f + f∘r)/2, as `reciprocal_counterpart` forms it.
+                    let s1 = |i: usize| 0.5 * (v[i] + v[m[i]]);
+                    let s2 = |i: usize| 0.5 * (s1(i) + s1(m[i]));
+                    let s3 = |i: usize| 0.5 * (s2(i) + s2(m[i]));
+                    let levels = [measure(&s1), measure(&s2), measure(&s3)];
+                    ctx.channel(ch, value[ch], levels, |k, gain, sig| {
+                        draw_of(k, gain, sig, &s1)
+                    })
+                }
+                None => {
+                    let sym = |x: &[f64]| -> Vec<f64> {
+                        (0..n)
+                            .into_par_iter()
+                            .map(|i| match rec.value(g, x, i) {
+                                Some(r) => 0.5 * (x[i] + r),
+                                None => x[i],
+                            })
+                            .collect()
+                    };
+                    let s1 = sym(v);
+                    let m1 = measure(&|i| s1[i]);
+                    let (m2, m3) = {
+                        let s2 = sym(&s1);
+                        let s3 = sym(&s2);
+                        (measure(&|i| s2[i]), measure(&|i| s3[i]))
+                    };
+                    ctx.channel(ch, value[ch], [m1, m2, m3], |k, gain, sig| {
+                        draw_of(k, gain, sig, &|i| s1[i])
+                    })
+                }
+            }
+        })
+        .collect();
+    Ok(floors)
 }
 
 /// P_i's floor per channel for a 4D table whose P_i is `value` (module docs), with
 /// `draws` noise draws when the table carries σ (0: the interpolation alone).
+///
+/// Channel by channel. Where both azimuth axes are the same full turn the
+/// counterpart is a lookup in μ_i, formed and measured through μ_i alone (a table
+/// the size of one incident azimuth's), its noise draws node by node from their
+/// place in the stream; else each counterpart is formed for one channel.
 pub fn isotropy_floor(t: &Table, value: &[f64], draws: usize) -> Result<Vec<Floor>, ProcessError> {
-    interpolated_floor(
+    let g = &t.grid;
+    let n = g.len();
+    let scale = scale_of(&t.values);
+    if g.isotropic {
+        // Its own counterpart: every measure 0.
+        return Ok(value
+            .iter()
+            .map(|v| Floor {
+                mean: 0.0,
+                p95: 0.0,
+                consistent: at_most(*v, 0.0, scale),
+                interpolation: 0.0,
+                interpolation_sigma: 0.0,
+            })
+            .collect());
+    }
+    let ctx = Interpolated {
         t,
-        value,
         draws,
-        2,
-        &isotropic_counterpart,
-        &measure::isotropy,
-    )
+        stream: 2,
+        scale,
+    };
+    let mg = measure::mean_grid(g);
+    let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
+    let np = g.phi_o.n;
+    // The node of μ_i at node k: φo − φi is node (c − a) mod n of μ_i's φ+ axis
+    // (`isotropic_counterpart`).
+    let at = |k: usize| {
+        let [a, b, c, d] = g.unindex(k);
+        mg.index(0, b, (c + np - a) % np, d)
+    };
+    let floors = (0..t.channels.len())
+        .map(|ch| {
+            let v = t.channel(ch);
+            let (mu1, _) = measure::isotropy_by(g, |k| v[k]);
+            if same_phi {
+                let (mu2, m1) = measure::isotropy_by(g, |k| mu1[at(k)]);
+                let (mu3, m2) = measure::isotropy_by(g, |k| mu2[at(k)]);
+                let (_, m3) = measure::isotropy_by(g, |k| mu3[at(k)]);
+                let start = ctx.noise_start(ch);
+                ctx.channel(ch, value[ch], [m1, m2, m3], |k, gain, sig| {
+                    // Each node is read once: its noise drawn where it lies in the stream.
+                    let x = |i: usize| {
+                        gain * mu1[at(i)] + sig[i] * rng_at(k, ctx.stream, start + i).next_normal()
+                    };
+                    measure::isotropy_by(g, x).1
+                })
+            } else {
+                let eval = |mu: &[f64]| -> Vec<f64> {
+                    (0..n)
+                        .into_par_iter()
+                        .map(|i| interpolate(&mg, mu, g.angles(i)))
+                        .collect()
+                };
+                let s1 = eval(&mu1);
+                let (mu2, m1) = measure::isotropy_by(g, |k| s1[k]);
+                let (m2, m3) = {
+                    let s2 = eval(&mu2);
+                    let (mu3, m2) = measure::isotropy_by(g, |k| s2[k]);
+                    drop(s2);
+                    let s3 = eval(&mu3);
+                    (m2, measure::isotropy_by(g, |k| s3[k]).1)
+                };
+                ctx.channel(ch, value[ch], [m1, m2, m3], |k, gain, sig| {
+                    let x = ctx.formed(k, ch, gain, sig, |i| s1[i]);
+                    measure::isotropy_by(g, |i| x[i]).1
+                })
+            }
+        })
+        .collect();
+    Ok(floors)
 }
 
 /// P_ec of albedos `[channel][row]` at τ.
@@ -500,6 +640,61 @@ fn energy_floor(
                 vec![run(None)?]
             }
         }
+        None if e.method == EnergyMethod::Sum => {
+            let g = &t.grid;
+            let (n, p, q) = (g.len(), g.n_in(), g.n_out());
+            let w = measure::out_weights(g);
+            scale = (0..nc)
+                .into_par_iter()
+                .map(|ch| {
+                    let v = t.channel(ch);
+                    (0..p)
+                        .map(|row| {
+                            let f = factor(ch, row);
+                            v[row * q..(row + 1) * q]
+                                .iter()
+                                .fold(0.0f64, |a, x| a.max((x * f).abs()))
+                        })
+                        .fold(0.0f64, f64::max)
+                })
+                .reduce(|| 0.0, f64::max);
+            // Row `row`'s albedo of the scaled values, with draw `k`'s noise: each
+            // row on its own, its noise drawn from its place in the stream (the
+            // values' order), so no table of the draw is formed.
+            let albedo = |ch: usize, row: usize, k: Option<usize>| -> f64 {
+                let f = factor(ch, row);
+                let at = row * q..(row + 1) * q;
+                let v = &t.channel(ch)[at.clone()];
+                match (k, &t.sigma) {
+                    (Some(k), Some(sig)) => {
+                        let s = &sig[ch * n..(ch + 1) * n][at];
+                        let mut g = rng_at(k, 3, ch * n + row * q);
+                        v.iter()
+                            .zip(s)
+                            .zip(&w)
+                            .map(|((x, s), w)| (x * f + s * g.next_normal()) * w)
+                            .sum()
+                    }
+                    _ => v.iter().zip(&w).map(|(x, w)| (x * f) * w).sum(),
+                }
+            };
+            let run = |k: Option<usize>| -> Vec<f64> {
+                let a: Vec<Vec<f64>> = (0..nc)
+                    .map(|ch| {
+                        (0..p)
+                            .into_par_iter()
+                            .map(|row| albedo(ch, row, k))
+                            .collect()
+                    })
+                    .collect();
+                p_ec(&a, TAU)
+            };
+            if t.sigma.is_some() && draws > 0 {
+                (0..draws).into_par_iter().map(|k| run(Some(k))).collect()
+            } else {
+                vec![run(None)]
+            }
+        }
         None => {
             let (n, q) = (t.grid.len(), t.grid.n_out());
             let mut c = t.clone();
@@ -512,7 +707,6 @@ fn energy_floor(
                 }
             }
             scale = scale_of(&c.values);
-            let method = e.method;
             let run = |k: Option<usize>| -> Result<Vec<f64>, ProcessError> {
                 let d = match (k, &c.sigma) {
                     (Some(k), Some(sig)) => {
@@ -521,15 +715,10 @@ fn energy_floor(
                     }
                     _ => c.clone(),
                 };
-                let a = match method {
-                    EnergyMethod::Sum => measure::albedos(&d),
-                    EnergyMethod::Triangulated => {
-                        let rows = hemisphere::albedos_of_table_with(&d, false)?;
-                        (0..nc)
-                            .map(|ch| rows.iter().map(|r| r.albedo[ch]).collect())
-                            .collect()
-                    }
-                };
+                let rows = hemisphere::albedos_of_table_with(&d, false)?;
+                let a: Vec<Vec<f64>> = (0..nc)
+                    .map(|ch| rows.iter().map(|r| r.albedo[ch]).collect())
+                    .collect();
                 Ok(p_ec(&a, TAU))
             };
             if c.sigma.is_some() && draws > 0 {
@@ -566,11 +755,17 @@ fn separability_floor(
     ks: &[usize],
     draws: usize,
 ) -> Result<Option<Vec<KFloors>>, ProcessError> {
-    let full = measure::full_form(t)?;
-    let (p, q) = (full.grid.n_in(), full.grid.n_out());
+    // A's shape in the 4D form, before that form is made (a copy of the table).
+    let g = &t.grid;
+    let (p, q) = if g.isotropic {
+        (g.phi_o.n * g.theta_i.n, g.phi_o.n * g.theta_o.n)
+    } else {
+        (g.n_in(), g.n_out())
+    };
     if p.min(q) >= crate::svd::MIN_TRUNCATED {
         return Ok(None);
     }
+    let full = measure::full_form(t)?;
     let Some(sep) = &report.separability else {
         return Ok(None);
     };

@@ -9,7 +9,7 @@ use faer::{Mat, MatRef};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::grid::interpolate;
+use crate::grid::{interpolate, interpolate_by};
 use crate::{Axis, Grid, ProcessError, Samples, Table, svd};
 
 /// Whether the reciprocal angles of a node lie inside the table's axes, so that the
@@ -55,15 +55,26 @@ impl Reciprocals {
         Reciprocals { map: Some(map) }
     }
 
+    /// The reciprocal node of each node when the grid pairs (looked up), else none.
+    pub(crate) fn map(&self) -> Option<&[usize]> {
+        self.map.as_deref()
+    }
+
     /// The reciprocal of node `i` in `values` (one channel); none when it lies
     /// outside the table.
     pub(crate) fn value(&self, g: &Grid, values: &[f64], i: usize) -> Option<f64> {
+        self.value_by(g, |k| values[k], i)
+    }
+
+    /// [`Reciprocals::value`] of the values `x(node)` gives.
+    #[inline]
+    pub(crate) fn value_by(&self, g: &Grid, x: impl Fn(usize) -> f64, i: usize) -> Option<f64> {
         match &self.map {
-            Some(m) => Some(values[m[i]]),
+            Some(m) => Some(x(m[i])),
             None => {
                 let [pi, ti, po, to] = g.angles(i);
                 reciprocal_inside(g, [pi, ti, po, to])
-                    .then(|| interpolate(g, values, [po, to, pi, ti]))
+                    .then(|| interpolate_by(g, x, [po, to, pi, ti]))
             }
         }
     }
@@ -77,44 +88,54 @@ const SUM_BLOCK: usize = 1 << 14;
 /// reciprocal, with the factor 2 for each pair counted twice. Nodes whose reciprocal
 /// lies outside the table are left out of both sums; the count used is returned.
 pub fn reciprocity(t: &Table) -> (Vec<f64>, usize) {
-    let g = &t.grid;
-    let n = g.len();
-    let rec = Reciprocals::new(g);
+    let rec = Reciprocals::new(&t.grid);
     let mut used = 0;
     let out = (0..t.channels.len())
         .map(|ch| {
             let v = t.channel(ch);
-            // Fixed blocks of nodes summed on rayon, their sums added in order: the
-            // same bits on any number of threads.
-            let blocks: Vec<(f64, usize)> = (0..n)
-                .step_by(SUM_BLOCK)
-                .collect::<Vec<_>>()
-                .into_par_iter()
-                .map(|start| {
-                    let (mut sum, mut count) = (0.0, 0usize);
-                    for i in start..(start + SUM_BLOCK).min(n) {
-                        if let Some(r) = rec.value(g, v, i) {
-                            sum += (v[i] - r).powi(2);
-                            count += 1;
-                        }
-                    }
-                    (sum, count)
-                })
-                .collect();
-            let (mut sum, mut count) = (0.0, 0usize);
-            for (s, c) in blocks {
-                sum += s;
-                count += c;
-            }
+            let (p_r, count) = reciprocity_by(&t.grid, &rec, |k| v[k]);
             used = count;
-            if count == 0 {
-                0.0
-            } else {
-                (sum / (2.0 * count as f64)).sqrt()
-            }
+            p_r
         })
         .collect();
     (out, used)
+}
+
+/// P_r of one channel whose value at node k is `x(k)`, and the nodes it counts
+/// ([`reciprocity`]): the floors measure their counterparts this way without storing
+/// them.
+pub(crate) fn reciprocity_by(
+    g: &Grid,
+    rec: &Reciprocals,
+    x: impl Fn(usize) -> f64 + Sync,
+) -> (f64, usize) {
+    let n = g.len();
+    // Fixed blocks of nodes summed on rayon, their sums added in order: the same
+    // bits on any number of threads.
+    let blocks: Vec<(f64, usize)> = (0..n.div_ceil(SUM_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for i in b * SUM_BLOCK..((b + 1) * SUM_BLOCK).min(n) {
+                if let Some(r) = rec.value_by(g, &x, i) {
+                    sum += (x(i) - r).powi(2);
+                    count += 1;
+                }
+            }
+            (sum, count)
+        })
+        .collect();
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (s, c) in blocks {
+        sum += s;
+        count += c;
+    }
+    let p_r = if count == 0 {
+        0.0
+    } else {
+        (sum / (2.0 * count as f64)).sqrt()
+    };
+    (p_r, count)
 }
 
 /// How the directional albedos of the energy measure were formed.
@@ -191,7 +212,9 @@ pub(crate) fn albedos(t: &Table) -> Vec<Vec<f64>> {
     (0..t.channels.len())
         .map(|ch| {
             let v = t.channel(ch);
+            // Each row on its own: the same bits on any number of threads.
             (0..p)
+                .into_par_iter()
                 .map(|r| {
                     v[r * q..(r + 1) * q]
                         .iter()
@@ -367,6 +390,7 @@ pub fn sum_quadrature(t: &Table) -> Vec<Vec<f64>> {
         .map(|ch| {
             let v = t.channel(ch);
             (0..p)
+                .into_par_iter()
                 .map(|r| {
                     let row = &v[r * q..(r + 1) * q];
                     let at = |c: usize, d: usize| row[c * nt + d];
@@ -536,65 +560,19 @@ pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), Pr
     if g.isotropic {
         return Ok((t.clone(), vec![0.0; t.channels.len()]));
     }
-    let plus = Axis::new(g.phi_o.start - g.phi_i.start, g.phi_o.step, g.phi_o.n);
-    let mg = Grid::isotropic(g.theta_i, plus, g.theta_o);
+    let mg = mean_grid(g);
     let m = mg.len();
     let nc = t.channels.len();
-    let na = g.phi_i.n;
     let use_sigma = weighted && t.sigma.as_ref().is_some_and(|s| s.iter().all(|x| *x > 0.0));
     let mut mu = vec![0.0; m * nc];
     let mut mu_sigma = use_sigma.then(|| vec![0.0; m * nc]);
     let mut p_i = vec![0.0; nc];
-    // Both azimuth axes the same full turn: φ+ = φo − φi stays on the nodes.
-    let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
     for ch in 0..nc {
         let v = t.channel(ch);
-        let s = t.channel_sigma(ch);
-        // Each node of the mean on rayon, its spread added in node order below: the
-        // same bits as a serial loop, on any number of threads.
-        let per_node: Vec<(f64, f64, f64)> = (0..m)
-            .into_par_iter()
-            .map_init(
-                || (vec![0.0; na], vec![0.0; na]),
-                |(vals, sig), j| {
-                    let [_, ti, pp, to] = mg.angles(j);
-                    let [_, b, c, d] = mg.unindex(j);
-                    for a in 0..na {
-                        if same_phi {
-                            // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
-                            let k = g.index(a, b, (a + c) % g.phi_o.n, d);
-                            vals[a] = v[k];
-                            if let Some(s) = s {
-                                sig[a] = s[k];
-                            }
-                            continue;
-                        }
-                        let pi = g.phi_i.node(a);
-                        vals[a] = interpolate(g, v, [pi, ti, pi + pp, to]);
-                        if let Some(s) = s {
-                            sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
-                        }
-                    }
-                    let mean = vals.iter().sum::<f64>() / na as f64;
-                    let spread =
-                        (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
-                    if use_sigma {
-                        let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
-                        let wm = vals
-                            .iter()
-                            .zip(sig.iter())
-                            .map(|(x, s)| x / (s * s))
-                            .sum::<f64>()
-                            / sw;
-                        (wm, sw.sqrt().recip(), spread)
-                    } else {
-                        (mean, 0.0, spread)
-                    }
-                },
-            )
-            .collect();
+        let s = t.channel_sigma(ch).filter(|_| use_sigma);
         let mut total = 0.0;
-        for (j, (mean, sd, spread)) in per_node.into_iter().enumerate() {
+        for (j, (mean, sd, spread)) in isotropic_nodes(g, &mg, |k| v[k], s).into_iter().enumerate()
+        {
             total += spread;
             mu[ch * m + j] = mean;
             if let Some(ms) = mu_sigma.as_mut() {
@@ -605,6 +583,87 @@ pub fn isotropic_mean(t: &Table, weighted: bool) -> Result<(Table, Vec<f64>), Pr
     }
     let table = Table::new(t.channels.clone(), mg, mu, mu_sigma)?;
     Ok((table, p_i))
+}
+
+/// The grid of μ_i (Eq. 4.8) of a 4D grid: (θi, φ+, θo), φ+ the outgoing azimuth
+/// steps.
+pub(crate) fn mean_grid(g: &Grid) -> Grid {
+    let plus = Axis::new(g.phi_o.start - g.phi_i.start, g.phi_o.step, g.phi_o.n);
+    Grid::isotropic(g.theta_i, plus, g.theta_o)
+}
+
+/// μ_i of one channel of a 4D grid `g` whose value at node k is `x(k)`, on
+/// [`mean_grid`], and its P_i (Eq. 4.10, unweighted): the floors measure their
+/// counterparts this way without storing them.
+pub(crate) fn isotropy_by(g: &Grid, x: impl Fn(usize) -> f64 + Sync) -> (Vec<f64>, f64) {
+    let mg = mean_grid(g);
+    let nodes = isotropic_nodes(g, &mg, x, None);
+    let mut total = 0.0;
+    let mu = nodes
+        .iter()
+        .map(|(mean, _, spread)| {
+            total += spread;
+            *mean
+        })
+        .collect();
+    (mu, total / mg.len() as f64)
+}
+
+/// Each node of μ_i (Eq. 4.8) on `mg` of one channel whose value at node k of `g` is
+/// `v(k)`: (the mean, its σ, the spread σ_i of Eq. 4.9). With `sigma`, the mean
+/// weights each value by its inverse variance and carries its σ; else it is the plain
+/// mean and its σ 0. Nodes on rayon, each on its own: the same bits on any number of
+/// threads.
+fn isotropic_nodes(
+    g: &Grid,
+    mg: &Grid,
+    v: impl Fn(usize) -> f64 + Sync,
+    sigma: Option<&[f64]>,
+) -> Vec<(f64, f64, f64)> {
+    let na = g.phi_i.n;
+    // Both azimuth axes the same full turn: φ+ = φo − φi stays on the nodes.
+    let same_phi = g.phi_i.same_as(&g.phi_o) && g.phi_o.is_periodic();
+    (0..mg.len())
+        .into_par_iter()
+        .map_init(
+            || (vec![0.0; na], vec![0.0; na]),
+            |(vals, sig), j| {
+                let [_, ti, pp, to] = mg.angles(j);
+                let [_, b, c, d] = mg.unindex(j);
+                for a in 0..na {
+                    if same_phi {
+                        // φi + φ+ is node a + c of the shared azimuth axis: a lookup.
+                        let k = g.index(a, b, (a + c) % g.phi_o.n, d);
+                        vals[a] = v(k);
+                        if let Some(s) = sigma {
+                            sig[a] = s[k];
+                        }
+                        continue;
+                    }
+                    let pi = g.phi_i.node(a);
+                    vals[a] = interpolate_by(g, &v, [pi, ti, pi + pp, to]);
+                    if let Some(s) = sigma {
+                        sig[a] = interpolate(g, s, [pi, ti, pi + pp, to]);
+                    }
+                }
+                let mean = vals.iter().sum::<f64>() / na as f64;
+                let spread =
+                    (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / na as f64).sqrt();
+                if sigma.is_some() {
+                    let sw: f64 = sig.iter().map(|s| s.powi(-2)).sum();
+                    let wm = vals
+                        .iter()
+                        .zip(sig.iter())
+                        .map(|(x, s)| x / (s * s))
+                        .sum::<f64>()
+                        / sw;
+                    (wm, sw.sqrt().recip(), spread)
+                } else {
+                    (mean, 0.0, spread)
+                }
+            },
+        )
+        .collect()
 }
 
 /// P_i, DeYoung Eq. 4.8–4.10, per channel (0 for a table in the isotropic form).

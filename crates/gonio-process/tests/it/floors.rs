@@ -267,17 +267,24 @@ fn energy_and_separability_floors() {
 #[test]
 fn floors_are_the_same_on_any_number_of_threads() {
     let (_, m) = materials().swap_remove(0);
-    let t = noisy(&m, grid_4d(), 9, |_| 1.0);
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool")
-            .install(|| measure::report(&t, &[1, 2], 2).expect("report"))
-    };
-    let (one, two) = (run(1), run(2));
-    assert!(one.floor.is_some());
-    assert_eq!(one, two);
+    // One channel, and RGB with σ (each draw's noise drawn block by block) on a
+    // paired and an interpolated grid.
+    for t in [
+        noisy(&m, grid_4d(), 9, |_| 1.0),
+        rgb(grid_4d(), 9),
+        rgb(Grid::hemisphere(6, 12), 9),
+    ] {
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool")
+                .install(|| measure::report(&t, &[1, 2], 2).expect("report"))
+        };
+        let (one, two) = (run(1), run(2));
+        assert!(one.floor.as_ref().is_some_and(|f| f.draws > 0));
+        assert_eq!(one, two);
+    }
 }
 
 /// P_i's counterpart on a grid whose azimuth axes are the same full turn (φo − φi on
@@ -315,5 +322,87 @@ fn the_isotropic_counterpart_is_mu_at_each_node() {
                 "{name}"
             );
         }
+    }
+}
+
+/// An RGB table with σ: three materials' noisy tables as its channels.
+fn rgb(g: Grid, seed: u64) -> Table {
+    let ms = materials();
+    let parts: Vec<Table> = (0..3)
+        .map(|k| {
+            noisy(&ms[k].1, g, seed + k as u64, |[pi, ti, ..]| {
+                1.0 + 0.2 * (pi + ti).cos()
+            })
+        })
+        .collect();
+    let values = parts
+        .iter()
+        .flat_map(|t| t.values.iter().copied())
+        .collect();
+    let sigma = parts
+        .iter()
+        .flat_map(|t| t.sigma.iter().flatten().copied())
+        .collect();
+    Table::new(gonio_core::Channels::Rgb, g, values, Some(sigma)).expect("rgb")
+}
+
+/// FNV-1a over the bits of every number of the floors.
+fn fingerprint(f: &floor::Floors) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325_u64;
+    let mut eat = |x: f64| {
+        for b in x.to_bits().to_le_bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    let all = f
+        .reciprocity
+        .iter()
+        .chain(&f.energy)
+        .chain(f.isotropy.iter().flatten())
+        .chain(f.separability.iter().flatten().flatten().map(|(_, x)| x));
+    for x in all {
+        eat(x.mean);
+        eat(x.p95);
+        eat(x.interpolation);
+        eat(x.interpolation_sigma);
+        eat(f64::from(u8::from(x.consistent)));
+    }
+    h
+}
+
+/// The floors measured channel by channel, their counterparts read node by node and
+/// each draw's noise from its place in the stream (issue 40), are the very numbers
+/// of the counterparts formed whole and the draws' one stream: these fingerprints
+/// are those of that earlier code (7defbeb), on a paired grid, a grid whose azimuth
+/// axes agree but whose polar ones do not (P_r interpolated, P_i looked up), one
+/// whose azimuths differ (both interpolated) and an isotropic one.
+#[test]
+fn the_floors_are_those_of_the_counterparts_formed_whole() {
+    let same_phi = Grid::full(
+        Axis::full_turn(12),
+        Axis::from_deg(5.0, 15.0, 6),
+        Axis::full_turn(12),
+        Axis::from_deg(0.0, 10.0, 9),
+    );
+    let iso = Grid::hemisphere_isotropic(9, 24);
+    let cases = [
+        ("paired", Grid::hemisphere(6, 12), 0xad63_a134_b9e4_2011_u64),
+        ("same azimuths", same_phi, 0x1c63_6142_cf1d_eab2),
+        ("4D", grid_4d(), 0x35c1_a2f7_c4dc_81dd),
+        ("isotropic", iso, 0x4c8f_ba22_2dc9_680f),
+    ];
+    let got: Vec<(&str, u64, u64)> = cases
+        .iter()
+        .map(|&(name, g, want)| {
+            let t = rgb(g, 11);
+            let r = measure::report(&t, &[1, 2], 2).expect("report");
+            let f = r.floor.as_ref().expect("floors");
+            assert!(f.draws > 0, "{name}");
+            println!("{name}: {:#018x} {f:?}", fingerprint(f));
+            (name, fingerprint(f), want)
+        })
+        .collect();
+    for (name, got, want) in got {
+        assert_eq!(got, want, "{name}: {got:#018x}");
     }
 }
