@@ -67,11 +67,7 @@
 //!   input is the present signal from then on, so each output is the cascade's exact
 //!   step response y(t) = u + (y₀ − u)·e^(−a)·Σ_{j<N} a^j/j!, a = (t − t₀)/T, from
 //!   t₀ = the call's time, or the instant the stages stopped when the engine gives it
-//!   ([`LockIn::restart_from_since`]: the controllers' READY). The interval from
-//!   READY to the call is the read-back of the moved axes' positions, so the first
-//!   step of a resumed session (which reads and commands every axis) is read a few
-//!   exchanges further into its transient than the uninterrupted run read it: the
-//!   one departure from "the same bytes", in this mode only. What this leaves out:
+//!   ([`LockIn::restart_from_since`]: the controllers' READY). What this leaves out:
 //!   the light swept during the move (the filters' real path through it), and
 //!   the difference between a reading's mean and the filters' state at its end (noise,
 //!   or a residue of the previous transient averaged in). It is exact when the filters
