@@ -66,9 +66,8 @@
 //!   reading's mean X and Y (zero for a run's first reading, a dark output), and the
 //!   input is the present signal from then on, so each output is the cascade's exact
 //!   step response y(t) = u + (y₀ − u)·e^(−a)·Σ_{j<N} a^j/j!, a = (t − t₀)/T, from
-//!   t₀ = the call's time, or the instant the stages stopped when the engine gives it
-//!   ([`LockIn::restart_from_since`]: the controllers' READY). What this leaves out:
-//!   the light swept during the move (the filters' real path through it), and
+//!   t₀ = the call's time. What this leaves out: the light swept during the move (the
+//!   filters' real path through it), the time between the move's end and the call, and
 //!   the difference between a reading's mean and the filters' state at its end (noise,
 //!   or a residue of the previous transient averaged in). It is exact when the filters
 //!   had settled on the previous reading and the move is short against T; after a move

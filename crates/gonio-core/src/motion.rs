@@ -100,12 +100,6 @@ pub struct AxisExchanges {
     pub poll_s: f64,
     /// After the move: the position read back, s.
     pub after_s: f64,
-    /// The session keeps the position it read back after a move (an SMC100 chain's):
-    /// the next move reads none before it (`before_s` not paid), and an axis whose
-    /// target is where the last move left it is neither commanded nor polled. A
-    /// session's first move (after start-up or homing) reads and commands every axis,
-    /// a few exchanges more than this model counts.
-    pub holds: bool,
 }
 
 /// The serial exchanges of a move of every stage, by axis, in the order the stages'
@@ -137,15 +131,13 @@ impl MoveExchanges {
             .axes
             .iter()
             .zip(motion_s.iter().copied().chain(std::iter::repeat(0.0)))
-            .filter(|(a, d)| a.line == line && !(a.holds && *d == 0.0))
+            .filter(|(a, _)| a.line == line)
             .collect();
         let mut t = 0.0;
         // When each stage stops.
         let mut ends = Vec::with_capacity(on.len());
         for &(a, d) in &on {
-            if !a.holds {
-                t += a.before_s;
-            }
+            t += a.before_s;
             if d > 0.0 {
                 t += a.estimate_s;
             }
@@ -201,7 +193,6 @@ mod tests {
             status_s: 0.010,
             poll_s: 0.050,
             after_s: 0.010,
-            holds: false,
         }
     }
 

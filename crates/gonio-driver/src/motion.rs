@@ -61,9 +61,6 @@ pub trait MotionDevice: Send + std::fmt::Debug {
     fn stopped_at(&self) -> Option<Duration> {
         None
     }
-    /// Forgets what the line kept of where its last moves left the stages (nothing
-    /// where the family keeps nothing): the next move asks the controllers.
-    fn forget_positions(&mut self) {}
     /// Stops every stage on the line.
     fn stop_all(&mut self) -> Result<(), MotionError>;
     /// Resets the named axis' controller where the family can, and homes it.
@@ -143,9 +140,6 @@ impl<T: Transport + 'static, C: Clock + 'static> MotionDevice for Smc100Chain<T,
     }
     fn stopped_at(&self) -> Option<Duration> {
         Smc100Chain::stopped_at(self)
-    }
-    fn forget_positions(&mut self) {
-        Smc100Chain::forget_positions(self);
     }
     fn stop_all(&mut self) -> Result<(), MotionError> {
         Smc100Chain::stop_all(self)
@@ -512,14 +506,6 @@ impl<C: Clock + Clone> Motion<C> {
     /// new point's. `None` before the first move and after a failed one.
     pub fn stopped_at(&self) -> Option<Duration> {
         self.stopped
-    }
-
-    /// Forgets what every line kept of where its last moves left the stages: the next
-    /// move reads every position and commands every axis.
-    pub fn forget_positions(&mut self) {
-        for l in &mut self.lines {
-            l.forget_positions();
-        }
     }
 
     /// Refuses the whole move if any target is outside its axis' limits, before any

@@ -132,12 +132,6 @@ impl<T: Transport, C: Clock> Smc100Chain<T, C> {
         self.session.stopped_at()
     }
 
-    /// Forgets where the last moves left the stages: the next move reads every
-    /// position and commands every axis.
-    pub fn forget_positions(&mut self) {
-        self.session.forget_held();
-    }
-
     /// The axes, in configuration order.
     pub fn axes(&self) -> &[AxisConfig] {
         self.session.axes()

@@ -896,34 +896,6 @@ fn a_point_from_the_previous_reading_follows_the_cascade_step_response() {
     assert_eq!(send(&mut l, t0 + 2.0 * tc, "OUTP? 1"), "-0.00231488\r");
 }
 
-/// A point begun at the stages' stop, 0.7 T before the call: the outputs are the
-/// step response from that instant, not from the call (the hand-worked value of the
-/// test above, 2 T after the stop, read 1.3 T after the call).
-#[test]
-fn a_point_begun_at_the_stop_reads_the_step_response_from_the_stop() {
-    let (stop, tc) = (2.0, 0.1);
-    let (x0, y0) = (-0.004, 0.012);
-    let call = stop + 0.7 * tc;
-    let mut l = at_30_degrees(3);
-    l.restart_from_since(stop, call, 5, Some([x0, y0]));
-    assert_eq!(send(&mut l, stop + 2.0 * tc, "OUTP? 1"), "-0.00231488\r");
-    let mut l = at_30_degrees(3);
-    l.restart_from_since(stop, call, 5, Some([x0, y0]));
-    for a in [0.7, 1.0, 2.5, 6.3] {
-        let (x, y) = snap_xy(&mut l, stop + a * tc);
-        let what = format!("24dB/oct at {a} T after the stop");
-        assert_six_digits(x, step_response(x0, U30.0, a, 4), &format!("X {what}"));
-        assert_six_digits(y, step_response(y0, U30.1, a, 4), &format!("Y {what}"));
-    }
-    // Begun at the call itself, it is `restart_from`.
-    let (mut a, mut b) = (at_30_degrees(3), at_30_degrees(3));
-    a.restart_from_since(call, call, 5, Some([x0, y0]));
-    b.restart_from(call, 5, Some([x0, y0]));
-    for t in [call, call + 0.05, call + 0.4] {
-        assert_eq!(send(&mut a, t, "SNAP? 1,2"), send(&mut b, t, "SNAP? 1,2"));
-    }
-}
-
 #[test]
 fn the_first_point_of_a_run_starts_from_a_dark_output() {
     let (t0, tc) = (1.0, 0.1);

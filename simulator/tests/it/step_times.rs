@@ -47,13 +47,9 @@ fn start_up_moves_and_readings_take_what_the_planner_says() {
         "took {took} s, planned {planned} s"
     );
 
-    // Moves: short and long, one axis and all four, and one that goes nowhere; each
-    // after a move, as a run's are (a session's first move reads and commands every
-    // axis, which the model leaves out).
+    // Moves: short and long, one axis and all four, and one that goes nowhere.
     let axes = mech.axes.clone();
     let mut at = [0.0; 4];
-    let home: Vec<(&str, f64)> = axes.iter().map(String::as_str).zip(at).collect();
-    g.motion.move_to(&home).expect("moves");
     for to in [
         [10.0, -20.0, 0.0, 0.0],
         [10.0, -20.0, 0.0, 0.0],

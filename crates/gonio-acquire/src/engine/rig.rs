@@ -718,8 +718,7 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
             Disposition::Skip => Ok(StepOutcome::Skip(m)),
             Disposition::Again => {
                 // Survived the driver's own retries: measure the step again, within
-                // the engine's attempts, from what the controllers say.
-                self.gonio.motion.forget_positions();
+                // the engine's attempts.
                 self.fault(Some(id), &m, true)?;
                 Ok(StepOutcome::Again(m))
             }

@@ -440,22 +440,12 @@ fn late_replies_are_retried_and_the_run_completes() {
     let s = run_session(engine_on(store, &sim, hooks));
     assert_eq!(s.report.outcome, Outcome::Complete);
     let retried = assert_retries_logged(&s.store);
-    // Every step that moves a stage retried its motion queries (one whose stages stay
-    // where the last move left them sends none).
+    // Every moving step retried its motion queries.
     let readings = s.store.readings().expect("readings");
-    let (mut last, mut moved) = (None, 0);
     for r in readings.iter().filter(|r| r.commanded.is_some()) {
-        if r.commanded != last {
-            assert!(r.retries > 0, "step {}", r.step_id);
-            moved += 1;
-        }
-        last = r.commanded;
+        assert!(r.retries > 0, "step {}", r.step_id);
     }
-    // Each moving axis' `PT`, `TE`, `TS` and read-back `TP` at least: every one late.
-    assert!(
-        moved >= 10 && retried >= 3 * moved,
-        "{retried} over {moved} moves"
-    );
+    assert!(retried > 100, "{retried}");
     assert_each_step_once(&s.store);
     assert_agrees_with_model(&s.store, &[]);
 }

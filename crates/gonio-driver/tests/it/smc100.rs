@@ -147,57 +147,6 @@ fn concurrent_absolute_moves() {
     finish(c, &h);
 }
 
-/// A move after a move: the positions read back stand for `TP`, and an axis already
-/// at its set-point is left alone (nothing sent, its position the one read back).
-/// The move's end is the status reply that found the last stage READY, before the
-/// positions are read back. After anything else (a stop) the positions are read
-/// again.
-#[test]
-fn a_move_after_a_move_reads_no_position_and_leaves_a_held_axis_alone() {
-    let (mut c, h, clock) = chain(vec![axis("source", 1), axis("detector", 2)]);
-    h.exchange("1TP\r\n", "1TP0\r\n")
-        .exchange("1PT10\r\n", "1PT2.25\r\n")
-        .send("1PA10\r\n")
-        .exchange("1TE\r\n", "1TE@\r\n")
-        .exchange("2TP\r\n", "2TP0\r\n")
-        .send("2PA0\r\n")
-        .exchange("2TE\r\n", "2TE@\r\n")
-        .exchange("1TS\r\n", "1TS000028\r\n")
-        .exchange("2TS\r\n", "2TS000033\r\n")
-        .exchange("1TS\r\n", "1TS000033\r\n")
-        .exchange("1TP\r\n", "1TP10.0004\r\n")
-        .exchange("2TP\r\n", "2TP0\r\n");
-    assert_eq!(c.stopped_at(), None);
-    let p = c
-        .move_to(&[("source", 10.0), ("detector", 0.0)])
-        .expect("moves");
-    assert_eq!(p, vec![10.0004, 0.0]);
-    // Two rounds of polls, 50 ms apart: READY seen at 100 ms.
-    assert_eq!(c.stopped_at(), Some(Duration::from_millis(100)));
-    assert!(clock.now() >= Duration::from_millis(100));
-
-    h.exchange("2PT5\r\n", "2PT1.5\r\n")
-        .send("2PA-5\r\n")
-        .exchange("2TE\r\n", "2TE@\r\n")
-        .exchange("2TS\r\n", "2TS000033\r\n")
-        .exchange("2TP\r\n", "2TP-5.0002\r\n");
-    let p = c
-        .move_to(&[("source", 10.0), ("detector", -5.0)])
-        .expect("moves");
-    assert_eq!(p, vec![10.0004, -5.0002]);
-
-    h.send("ST\r\n");
-    c.stop_all().expect("stops");
-    h.exchange("1TP\r\n", "1TP10\r\n")
-        .exchange("1PT2\r\n", "1PT0.75\r\n")
-        .send("1PA12\r\n")
-        .exchange("1TE\r\n", "1TE@\r\n")
-        .exchange("1TS\r\n", "1TS000033\r\n")
-        .exchange("1TP\r\n", "1TP12\r\n");
-    assert_eq!(c.move_to(&[("source", 12.0)]).expect("moves"), vec![12.0]);
-    finish(c, &h);
-}
-
 /// Soft limits are enforced before any byte goes out, for every target of a request.
 #[test]
 fn soft_limits_refuse_before_sending() {

@@ -63,6 +63,5 @@ pub fn move_exchanges(stage: StageKind, line: usize, poll: Duration) -> AxisExch
         status_s: status_s(stage),
         poll_s: poll.as_secs_f64(),
         after_s: 0.0,
-        holds: false,
     }
 }

@@ -64,9 +64,7 @@ fn position_s(address: u8, baud: u32) -> f64 {
 
 /// An axis' part in a move of the chain on serial line `line` (the session's
 /// `Motion`): `TP`; for a move that goes somewhere, `PT`; `PA`, whose arrival starts
-/// the stage; `TE`; then, every `poll`, `TS` until READY; `TP` at the end. After a
-/// move the session holds the positions it read back (`holds`): no `TP` before, and
-/// nothing for an axis whose target is unchanged.
+/// the stage; `TE`; then, every `poll`, `TS` until READY; `TP` at the end.
 pub fn move_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration) -> AxisExchanges {
     let a = axis.address;
     AxisExchanges {
@@ -83,7 +81,6 @@ pub fn move_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration)
         status_s: status_s(a, baud),
         poll_s: poll.as_secs_f64(),
         after_s: position_s(a, baud),
-        holds: true,
     }
 }
 
@@ -107,7 +104,6 @@ pub fn home_exchanges(axis: &AxisConfig, line: usize, baud: u32, poll: Duration)
             + axis
                 .acceleration
                 .map_or(0.0, |v| set(Command::SetAcceleration(v))),
-        holds: false,
     }
 }
 

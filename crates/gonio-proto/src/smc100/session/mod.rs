@@ -58,9 +58,6 @@ pub struct Smc100Session {
     /// When the last move was seen to have ended: the arrival of the status reply
     /// that found its last stage READY (`None` until a move ends).
     stopped: Option<Duration>,
-    /// Per axis, the set-point of the last move that ended at it and the position read
-    /// back then; cleared by anything else that may move a stage or reset a controller.
-    held: Vec<Option<(f64, f64)>>,
 }
 
 impl Smc100Session {
@@ -91,7 +88,6 @@ impl Smc100Session {
             }
         }
         Ok(Smc100Session {
-            held: vec![None; axes.len()],
             axes,
             policy,
             retried: 0,
@@ -115,13 +111,6 @@ impl Smc100Session {
         self.retried
     }
 
-    /// Forgets where the last moves left the stages: the next move reads each
-    /// position (`TP`) before it and commands every axis (after a fault elsewhere, a
-    /// step measured again starts from what the controllers say).
-    pub fn forget_held(&mut self) {
-        self.held.fill(None);
-    }
-
     /// When the last move (`start_move`, `start_move_by`) was seen to have ended: the
     /// arrival of the status reply that found its last stage READY, before the
     /// positions are read back. Every stage has stopped by then, so what depends on
@@ -133,7 +122,6 @@ impl Smc100Session {
 
     /// Reads every controller's version, stage name and state (`VE`, `ID?`, `TS`).
     pub fn start_identify(&mut self, now: Duration) -> Task<'_, Vec<ControllerInfo>, MotionError> {
-        self.forget_held();
         Task::run("smc100.identify", now, self, Self::identify)
     }
 
@@ -168,13 +156,11 @@ impl Smc100Session {
     /// broadcast could not be sent. Every stage gets its stop; the first failure is
     /// returned.
     pub fn start_stop_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
-        self.forget_held();
         Task::run("smc100.stop_all", now, self, Self::stop_all)
     }
 
     /// Stops one stage (`ST`, then `TE`).
     pub fn start_stop(&mut self, name: &str, now: Duration) -> Task<'_, (), MotionError> {
-        self.forget_held();
         self.on_axis("smc100.stop", name, now, async |s, link, i| {
             s.command(link, i, Command::Stop).await
         })
@@ -185,7 +171,6 @@ impl Smc100Session {
     /// configured velocity and acceleration. Home searches run concurrently; the wait
     /// between status polls is an abort point.
     pub fn start_home(&mut self, names: &[&str], now: Duration) -> Task<'_, (), MotionError> {
-        self.forget_held();
         let names: Vec<String> = names.iter().map(|n| n.to_string()).collect();
         motion::task(self, "smc100.home", now, async move |s, link| {
             s.home(link, &names, false).await
@@ -194,7 +179,6 @@ impl Smc100Session {
 
     /// Homes every axis.
     pub fn start_home_all(&mut self, now: Duration) -> Task<'_, (), MotionError> {
-        self.forget_held();
         let names: Vec<String> = self.axes.iter().map(|a| a.name.clone()).collect();
         let refs: Vec<&str> = names.iter().map(String::as_str).collect();
         self.start_home(&refs, now)
@@ -204,7 +188,6 @@ impl Smc100Session {
     /// (power-up takes under 5 s; 10 s are allowed), and homes it: the recovery after
     /// [`AxisError::ControllerReset`] or a fault that only a reset clears.
     pub fn start_reset_and_home(&mut self, name: &str, now: Duration) -> Task<'_, (), MotionError> {
-        self.forget_held();
         let names = vec![name.to_string()];
         motion::task(self, "smc100.reset_and_home", now, async move |s, link| {
             s.home(link, &names, true).await
@@ -236,7 +219,6 @@ impl Smc100Session {
         delta: f64,
         now: Duration,
     ) -> Task<'_, f64, MotionError> {
-        self.forget_held();
         let name = name.to_string();
         motion::task(self, "smc100.move_by", now, async move |s, link| {
             s.move_by(link, &name, delta).await
@@ -278,7 +260,6 @@ impl Smc100Session {
         changes: &[(Param, f64)],
         now: Duration,
     ) -> Task<'_, (), MotionError> {
-        self.forget_held();
         let changes = changes.to_vec();
         self.on_axis("smc100.configure", name, now, async move |s, link, i| {
             s.configure(link, i, &changes).await

@@ -245,27 +245,9 @@ impl Smc100Session {
     }
 
     /// Absolute moves to `targets`, all checked against the limits before any byte;
-    /// for each axis in turn its position (`TP`; the one read back after the last move
-    /// when that move ended here and nothing else ran since), the controller's
-    /// estimate of the move (`PT`) and the move (`PA`, checked with `TE`); then the
-    /// wait. An axis whose last move ended at this same set-point, with nothing run
-    /// since, is left alone: the controller holds it there (closed loop), so it is
-    /// neither commanded nor polled, and its position is the one read back then.
+    /// for each axis in turn its position (`TP`), the controller's estimate of the
+    /// move (`PT`) and the move (`PA`, checked with `TE`); then the wait.
     pub(super) async fn move_to(
-        &mut self,
-        link: &Link,
-        targets: &[(String, f64)],
-    ) -> Result<Vec<f64>, Halt> {
-        let r = self.move_holding(link, targets).await;
-        if r.is_err() {
-            // After a fault every stage is stopped wherever it is.
-            self.held.fill(None);
-        }
-        r
-    }
-
-    /// [`move_to`](Self::move_to)'s moves, the set-points held recorded.
-    async fn move_holding(
         &mut self,
         link: &Link,
         targets: &[(String, f64)],
@@ -277,17 +259,9 @@ impl Smc100Session {
             moves.push((i, *target));
         }
         let mut allow = Duration::ZERO;
-        let mut commanded = Vec::new();
         for &(i, target) in &moves {
-            let from = match self.held[i] {
-                Some((set, _)) if set == target => continue,
-                Some((_, at)) => at,
-                None => {
-                    let tp = Command::TellPosition;
-                    self.read_number(link, i, tp).await.map_err(stop(i))?
-                }
-            };
-            self.held[i] = None;
+            let tp = Command::TellPosition;
+            let from = self.read_number(link, i, tp).await.map_err(stop(i))?;
             let distance = (target - from).abs();
             let estimate = if distance > 1e-6 {
                 self.estimate(link, i, distance).await?
@@ -298,17 +272,9 @@ impl Smc100Session {
             self.command(link, i, Command::MoveAbsolute(target))
                 .await
                 .map_err(stop(i))?;
-            commanded.push((i, target));
             debug!(axis = %self.axes[i].name, target, "smc100: move started");
         }
-        let ended = self.await_moves(link, commanded.clone(), allow).await?;
-        for (&(i, target), &at) in commanded.iter().zip(&ended) {
-            self.held[i] = Some((target, at));
-        }
-        Ok(moves
-            .iter()
-            .map(|&(i, _)| self.held[i].map_or(f64::NAN, |(_, at)| at))
-            .collect())
+        self.await_moves(link, moves, allow).await
     }
 
     /// A move of `name` by `delta` from its set-point (`TH`), the target checked
