@@ -72,7 +72,12 @@ pub trait Bench: Send {
     /// [`at_step`](Self::at_step), the stages having stopped at `since` (no later than
     /// now, on the instrument's clock): the light has been the point's from then on,
     /// so a simulator starts the transient there.
-    fn at_step_since(&mut self, step_id: i64, previous: Option<[f64; 2]>, since: std::time::Duration) {
+    fn at_step_since(
+        &mut self,
+        step_id: i64,
+        previous: Option<[f64; 2]>,
+        since: std::time::Duration,
+    ) {
         let _ = since;
         self.at_step(step_id, previous);
     }
