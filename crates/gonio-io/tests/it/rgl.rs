@@ -211,6 +211,18 @@ fn bad_options_are_refused() {
         let e = RglBsdf::from_brdf(&m, &opts, "", &|_, _| true).expect_err("refused");
         assert_eq!(e.format, Some(Format::Rgl));
     }
+    // Each within its bound, too many values together for an anisotropic material.
+    let ward = model(
+        "kind = \"ward\"\nchannels = [\"value\"]\nrho_s = [0.15]\nalpha_x = [0.1]\n\
+         alpha_y = [0.25]\n",
+    );
+    let opts = RglOptions {
+        azimuths: 64,
+        vndf: 512,
+        ..RglOptions::default()
+    };
+    let e = RglBsdf::from_brdf(&ward, &opts, "", &|_, _| true).expect_err("refused");
+    assert!(e.message.contains("more than the 67108864"), "{e}");
 }
 
 #[test]

@@ -53,6 +53,10 @@ use super::{Format, FormatError};
 use tensor::{Field, Values};
 use warp::Warp2D;
 
+/// The most values (VNDF and slices, over every incidence) a file is written with:
+/// 64 Mi, 256 MB of `f32` (the database's files have about 0.2 Mi).
+const MAX_VALUES: usize = 1 << 26;
+
 /// Rec. 709 luminance weights of linear R, G, B.
 const LUMA: [f64; 3] = [0.212_671, 0.715_160, 0.072_169];
 
@@ -386,15 +390,17 @@ impl RglBsdf {
         valid: &(dyn Fn(Dir, Dir) -> bool + Sync),
     ) -> Result<RglBsdf, FormatError> {
         let bad = |m: String| FormatError::whole(Some(Format::Rgl), None, m);
-        for (name, v, min) in [
-            ("incidences", opts.incidences, 2),
-            ("slice", opts.slice, 2),
-            ("vndf", opts.vndf, 2),
-            ("ndf", opts.ndf, 2),
-            ("azimuths", opts.azimuths, 2),
+        // Each bound well past the database's resolutions; together they keep the
+        // file (and the warps built over it) within MAX_VALUES values.
+        for (name, v, max) in [
+            ("incidences", opts.incidences, 90),
+            ("slice", opts.slice, 256),
+            ("vndf", opts.vndf, 512),
+            ("ndf", opts.ndf, 512),
+            ("azimuths", opts.azimuths, 64),
         ] {
-            if v < min || v > 1024 {
-                return Err(bad(format!("{name}: {v} nodes; 2 to 1024 are written")));
+            if !(2..=max).contains(&v) {
+                return Err(bad(format!("{name}: {v} nodes; 2 to {max} are written")));
             }
         }
         if !(opts.theta_max_deg > 0.0 && opts.theta_max_deg < 90.0) {
@@ -427,6 +433,14 @@ impl RglBsdf {
         let isotropic = is_isotropic(brdf);
         let np = if isotropic { 1 } else { opts.azimuths };
         let nt = opts.incidences;
+        let values = np * nt * (opts.vndf.pow(2) + (nch + 2) * opts.slice.pow(2));
+        if values > MAX_VALUES {
+            return Err(bad(format!(
+                "{nt} incidences × {np} azimuths of {}² VNDF and {}² slices: {values} \
+                 values, more than the {MAX_VALUES} a file is written with",
+                opts.vndf, opts.slice
+            )));
+        }
         let phi_i: Vec<f64> = if isotropic {
             vec![0.0]
         } else {
