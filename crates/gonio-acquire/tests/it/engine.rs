@@ -132,8 +132,11 @@ fn run_watched(
     RunStore,
     Vec<gonio_acquire::Event>,
 ) {
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
+    // One thread: the watcher runs only where the engine awaits, so where a request
+    // lands among the steps does not depend on how the machine schedules threads
+    // (on two threads a loaded machine let the engine commit two steps past a
+    // pause asked for at the third).
+    let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .expect("runtime");
