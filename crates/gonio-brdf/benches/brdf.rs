@@ -29,24 +29,7 @@ fn model(text: &str) -> Model {
 }
 
 /// Table 1's three lobes in each of R, G and B (the cost does not depend on the values).
-const LAFORTUNE_RGB3: &str = r#"
-kind = "lafortune"
-channels = ["R", "G", "B"]
-[diffuse]
-rho = [0.3094, 0.39667, 0.70837]
-[[lobes]]
-cx = [0.870567, 0.857255, 0.670982]
-cz = [0.803624, 0.774290, 0.586674]
-n  = [21.820103, 18.597755, 7.472717]
-[[lobes]]
-cx = [-0.451218, -0.406681, -0.41]
-cz = [0.023907, 0.017601, 0.018]
-n  = [2.774989, 2.581280, 2.58]
-[[lobes]]
-cx = [-1.031545, -1.029225, -1.03]
-cz = [0.706734, 0.696065, 0.70]
-n  = [66.899274, 63.767356, 63.8]
-"#;
+const LAFORTUNE_RGB3: &str = include_str!("../../../config/models/lafortune-table1-rgb.toml");
 
 /// The same lobes written as full Eq. 3 matrices: the general path, as a baseline for
 /// the diagonal (Eq. 4) fast path.

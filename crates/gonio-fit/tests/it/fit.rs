@@ -546,24 +546,7 @@ fn a_lambertian_fit_has_no_lobes_to_search() {
 }
 
 /// Table 1 with slightly different values in R, G and B (the bench's model).
-const RGB: &str = r#"
-kind = "lafortune"
-channels = ["R", "G", "B"]
-[diffuse]
-rho = [0.3094, 0.39667, 0.70837]
-[[lobes]]
-cx = [0.870567, 0.857255, 0.670982]
-cz = [0.803624, 0.774290, 0.586674]
-n  = [21.820103, 18.597755, 7.472717]
-[[lobes]]
-cx = [-0.451218, -0.406681, -0.41]
-cz = [0.023907, 0.017601, 0.018]
-n  = [2.774989, 2.581280, 2.58]
-[[lobes]]
-cx = [-1.031545, -1.029225, -1.03]
-cz = [0.706734, 0.696065, 0.70]
-n  = [66.899274, 63.767356, 63.8]
-"#;
+const RGB: &str = include_str!("../../../../config/models/lafortune-table1-rgb.toml");
 
 /// The samples' columns: θi, φi, θo, φo, values by channel, σ by channel.
 type Cols = ([Vec<f64>; 4], Vec<Vec<f64>>, Vec<Vec<f64>>);

@@ -8,16 +8,7 @@ use gonio_process::file::{self, Columns, Content, Meta};
 use gonio_process::{Axis, Grid, Samples, Table, measure};
 use proptest::prelude::*;
 
-const PAINT: &str = r#"
-kind = "lafortune"
-channels = ["R", "G", "B"]
-[diffuse]
-rho = [0.3094, 0.39667, 0.70837]
-[[lobes]]
-cx = [-0.870567, -0.857255, -0.670982]
-cz = [0.803624, 0.774290, 0.586674]
-n  = [21.820103, 18.597755, 7.472717]
-"#;
+use crate::RGB_PAINT as PAINT;
 
 /// The paint on a full grid of `n_phi` azimuths × `n_theta` polar bands each side,
 /// with an uncertainty of 1% + 1e-4 when `sigma`.

@@ -13,16 +13,7 @@ fn model(text: &str) -> Model {
     Model::from_toml(text, None).expect("model")
 }
 
-const LAFORTUNE: &str = r#"
-kind = "lafortune"
-channels = ["R", "G", "B"]
-[diffuse]
-rho = [0.3094, 0.39667, 0.70837]
-[[lobes]]
-cx = [-0.870567, -0.857255, -0.670982]
-cz = [0.803624, 0.774290, 0.586674]
-n  = [21.820103, 18.597755, 7.472717]
-"#;
+use crate::RGB_PAINT as LAFORTUNE;
 
 const PHONG_SHADING: &str = r#"
 kind = "phong"
