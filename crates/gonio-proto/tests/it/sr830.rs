@@ -27,7 +27,7 @@ fn tc(i: u8) -> TimeConstant {
 
 /// One host line: the parser reads it as `commands`, and `encode_line` writes exactly
 /// `line` + `\n` back from them.
-fn host_line(line: &str, commands: &[Command]) {
+pub(crate) fn host_line(line: &str, commands: &[Command]) {
     let parsed: Vec<Command> = sr830::parse_line(line.as_bytes())
         .into_iter()
         .collect::<Result<_, _>>()

@@ -3,6 +3,7 @@
 //! the line stream, and property tests: every point survives encode → decode, and a
 //! stream cut anywhere frames the same.
 
+use crate::sr830::host_line;
 use gonio_proto::Framer;
 use gonio_proto::sr830::buffer::{self, decode_trcb, decode_trcl};
 use gonio_proto::sr830::{
@@ -13,18 +14,6 @@ use proptest::prelude::*;
 
 fn range(ch: u8, j: u16, k: u16) -> TraceRange {
     TraceRange::new(TraceChannel::from_code(ch).expect("channel"), j, k).expect("range")
-}
-
-/// One host line as the parser reads it and the encoder writes it.
-fn host_line(line: &str, commands: &[Command]) {
-    let parsed: Vec<Command> = sr830::parse_line(line.as_bytes())
-        .into_iter()
-        .collect::<Result<_, _>>()
-        .unwrap_or_else(|e| panic!("{line:?}: {e}"));
-    assert_eq!(parsed, commands, "{line:?}");
-    let mut out = Vec::new();
-    sr830::encode_line(commands, &mut out);
-    assert_eq!(out, format!("{line}\n").as_bytes());
 }
 
 #[test]
