@@ -2,7 +2,10 @@
 //! sample, reduced, against the sample's own BRDF, with the simulator's noise and
 //! effects switched on and off one at a time.
 //!
-//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [buffer] [budget] [percentiles]`
+//! `cargo run -p gonio-reduce --profile ci --example truth -- PLAN.toml paint|ct|MODEL.toml SEED [quiet] [integrate] [transient] [buffer] [budget] [dump] [percentiles]`
+//!
+//! `dump` prints each reading: R, r_std, n, time constant, flags and the instrument
+//! time since the one before.
 //!
 //! `budget` prints where the instrument's time went: motion and reading per step
 //! (the engine's `step timing` events) and the lines sent on each line, by command
@@ -101,6 +104,22 @@ fn main() {
     );
     if let Some(b) = &budget {
         b.print(&readings);
+    }
+    if args.iter().any(|a| a == "dump") {
+        let mut prev = 0.0;
+        for r in &readings {
+            println!(
+                "reading {} R {:.4e} s {:.4e} n {} T {} flags {:#x} took {:.3} s",
+                r.step_id,
+                r.r_mean,
+                r.r_std,
+                r.n,
+                r.time_constant_s,
+                r.flags,
+                r.physical_s - prev
+            );
+            prev = r.physical_s;
+        }
     }
     if args.iter().any(|a| a == "cal") {
         print_calibration_readings(&store);

@@ -144,6 +144,11 @@ impl Pool {
         } else {
             f64::from(r.n - 1) / f64::from(self.n_ref - 1)
         };
+        // A fitted reading's residuals have n − 1 − order degrees of freedom.
+        let dof = match fitted_order(r) {
+            Some(p) => dof * f64::from(r.n.saturating_sub(1 + p).max(1)) / f64::from(r.n - 1),
+            None => dof,
+        };
         if let Some(k) = ratio {
             self.spans_time_constants |= k != 1.0;
             self.one_count &= r.n == self.n_ref && r.n >= 3;
@@ -182,7 +187,11 @@ fn point(r: &ReadingRecord, dark: bool, gap_s: f64, detector: Detector) -> Optio
     } else if dark {
         Some((0.0, rayleigh_variance(r)))
     } else if r.r_mean > 3.0 * r.r_std && r.r_std > 0.0 {
-        let (_, b) = variance_factors(r.n, rho(r, gap_s));
+        // A fitted reading's r_std is already the snapshot σ (whitened residuals).
+        let b = match fitted_order(r) {
+            Some(_) => 1.0,
+            None => variance_factors(r.n, rho(r, gap_s)).1,
+        };
         Some((r.r_mean, r.r_std * r.r_std / b))
     } else {
         None
@@ -304,13 +313,32 @@ impl Noise {
             // says of the floor, not the two degrees of freedom of its own R².
             Some((l, k)) => l.a * k,
             _ if dark => rayleigh_variance(r),
+            _ if fitted_order(r).is_some() => r.r_std * r.r_std,
             _ => {
                 let (_, b) = variance_factors(r.n, rho(r, self.gap_s));
                 r.r_std * r.r_std / b
             }
         };
+        if let Some(c) = fitted_order(r).and_then(|p| self.fitted_variance(r, p)) {
+            return (var.max(0.0) * c).sqrt();
+        }
         let (a, _) = variance_factors(r.n, rho(r, self.gap_s));
         (var.max(0.0) * a / f64::from(r.n.max(1))).sqrt()
+    }
+
+    /// A fitted reading's Var(û) for unit snapshot variance: the transient fit's
+    /// covariance over its `n` snapshots, taken one gap apart as for a window
+    /// (`gonio_proto::sr830::target::fitted_value_variance`; the model is invariant
+    /// under a shift of the time origin, so where the first one fell does not
+    /// matter). `None` without a time constant.
+    fn fitted_variance(&self, r: &ReadingRecord, order: u32) -> Option<f64> {
+        let gap_s = sample_interval_s(r).unwrap_or(self.gap_s);
+        (r.time_constant_s > 0.0).then_some(())?;
+        gonio_proto::sr830::target::fitted_value_variance(
+            r.n as usize,
+            gap_s.max(0.0) / r.time_constant_s,
+            order as usize,
+        )
     }
 
     /// A DC reading's σ of the mean, s/√n: its n samples are independent
@@ -332,9 +360,10 @@ impl Noise {
 /// The snapshots' correlation ρ = e^−(T + gap)/T, or e^−gap/T for a reading taken to
 /// a target (`flags::TARGETED`), whose snapshots follow one another without a pause;
 /// a reading through the SR830's buffer (`flags::BUFFER_RATE`) has its samples one
-/// sample period apart instead of `gap_s`.
+/// sample period apart instead of `gap_s`, and one by snapshots that recorded their
+/// measured interval (`flags::SNAP_INTERVAL`) that interval.
 fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
-    let gap_s = flags::buffer_interval_s(r.flags).unwrap_or(gap_s);
+    let gap_s = sample_interval_s(r).unwrap_or(gap_s);
     if r.time_constant_s > 0.0 {
         let pause = if r.flags & flags::TARGETED != 0 {
             0.0
@@ -345,6 +374,18 @@ fn rho(r: &ReadingRecord, gap_s: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// The interval a targeted reading's samples were taken at, when its flags hold it:
+/// the buffer's sample period, or the snapshots' measured mean interval.
+fn sample_interval_s(r: &ReadingRecord) -> Option<f64> {
+    flags::buffer_interval_s(r.flags).or_else(|| flags::snap_interval_s(r.flags))
+}
+
+/// The transient terms of a reading fitted through its filter's transient
+/// (`flags::FITTED`): one per 6 dB/oct of its slope.
+fn fitted_order(r: &ReadingRecord) -> Option<u32> {
+    (r.flags & flags::FITTED != 0).then(|| u32::from(r.slope_db / 6).clamp(1, 4))
 }
 
 /// Half the mean R² of a reading's snapshots, (r̄² + s²(n − 1)/n)/2: for a reading
@@ -535,6 +576,65 @@ mod tests {
         assert!(few.lines.is_empty());
         let own = (r.r_std * r.r_std / variance_factors(10, rho(r, gap)).1 * af / 10.0).sqrt();
         assert_eq!(few.sigma_mean(r, false), own);
+    }
+
+    /// A targeted reading that recorded its snapshots' measured interval correlates
+    /// over that interval, not the nominal gap; a file without it keeps the gap.
+    #[test]
+    fn a_measured_snapshot_interval_replaces_the_nominal_gap() {
+        let r = ReadingRecord {
+            time_constant_s: 0.03,
+            flags: flags::TARGETED | flags::snap_interval(0.039),
+            ..reading()
+        };
+        assert_eq!(flags::snap_interval_s(r.flags), Some(390.0 * 1e-4));
+        assert_eq!(rho(&r, 0.0425), (-(390.0 * 1e-4) / 0.03f64).exp());
+        let old = ReadingRecord {
+            flags: flags::TARGETED,
+            ..r
+        };
+        assert_eq!(rho(&old, 0.0425), (-0.0425f64 / 0.03).exp());
+        // Out of the bits' range: none recorded.
+        assert_eq!(flags::snap_interval(0.5), 0);
+        assert_eq!(flags::snap_interval(f64::NAN), 0);
+        assert!(!flags::questioned(r.flags | flags::FITTED));
+    }
+
+    /// A reading fitted through its transient: its r_std is the snapshot σ itself
+    /// (no correlation factor), its σ of the value the fit's covariance over its n
+    /// snapshots at the measured interval, which is larger than a window mean's of
+    /// as many snapshots (the four coefficients take their share) and smaller than
+    /// a window's of the snapshots left after a settling of 13 T.
+    #[test]
+    fn a_fitted_reading_s_sigma_is_the_fit_s() {
+        let (t, dt, n) = (0.03, 0.039, 17u32);
+        let r = ReadingRecord {
+            r_mean: 3e-4,
+            r_std: 6e-8,
+            n,
+            time_constant_s: t,
+            slope_db: 24,
+            flags: flags::TARGETED | flags::FITTED | flags::snap_interval(dt),
+            ..reading()
+        };
+        let noise = Noise::fit(&[(&r, false)], 0.0425, Detector::LockIn);
+        assert!(noise.lines.is_empty());
+        let c = gonio_proto::sr830::target::fitted_value_variance(17, dt / t, 4).expect("fit");
+        let got = noise.sigma_mean(&r, false);
+        assert!((got / (6e-8 * c.sqrt()) - 1.0).abs() < 1e-12, "{got}");
+        let rho = (-dt / t).exp();
+        let window = |m: u32| 6e-8 * (variance_factors(m, rho).0 / f64::from(m)).sqrt();
+        assert!(
+            got > window(n) && got < window(n - 10),
+            "{got} {} {}",
+            window(n),
+            window(n - 10)
+        );
+        // Its point for the pooled law is r_std² as it stands.
+        assert_eq!(
+            point(&r, false, 0.0425, Detector::LockIn),
+            Some((3e-4, 6e-8 * 6e-8))
+        );
     }
 
     /// A DC reading's σ of its mean is s/√n, its samples independent.

@@ -146,9 +146,39 @@ pub mod flags {
     /// sample rate's `SRAT` index plus one (1 … 14), its samples 1/rate apart rather
     /// than one exchange; 0 for a reading by snapshots.
     pub const BUFFER_RATE: u32 = 0xF << 12;
+    /// A targeted reading whose values are the settled values fitted through the
+    /// filter's transient from all `n` of its snapshots (`gonio_proto`'s
+    /// `sr830::target`), `r_std` the snapshot σ its whitened residuals estimate,
+    /// rather than a settled window's means and scatter. The reduction's σ of the
+    /// value follows (generalised least squares, not a mean).
+    pub const FITTED: u32 = 1 << 16;
+    /// Bits 17–28: a targeted reading by snapshots holds their mean interval, as the
+    /// session's clock measured it, in units of 0.1 ms (1 … 4095, so up to 409.5 ms);
+    /// 0 where it is not known (a file written before, a single snapshot, a reading
+    /// through the buffer). The reduction's snapshot correlation follows it rather
+    /// than the nominal exchange time.
+    pub const SNAP_INTERVAL: u32 = 0xFFF << 17;
     /// Bits that say how a reading was taken, not that anything is wrong with it: a
     /// reading carrying only these is not "flagged".
-    pub const HOW_READ: u32 = TARGETED | BUFFER_RATE;
+    pub const HOW_READ: u32 = TARGETED | BUFFER_RATE | FITTED | SNAP_INTERVAL;
+
+    /// The [`SNAP_INTERVAL`] bits of snapshots `interval_s` apart (to the nearest
+    /// 0.1 ms); none for an interval that is not finite, under 0.05 ms or over 409.5 ms.
+    pub fn snap_interval(interval_s: f64) -> u32 {
+        let units = (interval_s * 1e4).round();
+        if (1.0..=4095.0).contains(&units) {
+            (units as u32) << 17
+        } else {
+            0
+        }
+    }
+
+    /// The seconds between a targeted reading's snapshots, when `bits` holds a
+    /// [`SNAP_INTERVAL`].
+    pub fn snap_interval_s(bits: u32) -> Option<f64> {
+        let units = (bits & SNAP_INTERVAL) >> 17;
+        (units > 0).then(|| f64::from(units) * 1e-4)
+    }
 
     /// The [`BUFFER_RATE`] bits of a reading through the buffer at `SRAT srat`
     /// (0 … 13; anything else, the triggered rate included, sets none).
@@ -176,7 +206,7 @@ pub mod flags {
     }
 
     /// Every bit with its name, in bit order.
-    pub const NAMES: [(u32, &str); 8] = [
+    pub const NAMES: [(u32, &str); 9] = [
         (INPUT_OVERLOAD, "input overload"),
         (FILTER_OVERLOAD, "filter overload"),
         (OUTPUT_OVERLOAD, "output overload"),
@@ -185,6 +215,7 @@ pub mod flags {
         (OVERFILLED, "overfilled"),
         (CAPPED, "capped"),
         (TARGETED, "targeted"),
+        (FITTED, "fitted"),
     ];
 
     /// The names of the bits set in `bits`, joined by ", " (empty for none).
@@ -213,9 +244,26 @@ mod tests {
             assert_eq!(acc & b, 0, "bit {b:#x} named twice");
             acc | b
         });
-        assert_eq!(all, 0b1111_0000_1111);
+        assert_eq!(all, 0b1_0000_1111_0000_1111);
         assert_eq!(flags::CAPPED, 1024);
         assert_eq!(flags::TARGETED, 2048);
+        assert_eq!(flags::FITTED, 1 << 16);
+        // The fields of how a reading was taken do not overlap one another or a name.
+        let fields = [flags::BUFFER_RATE, flags::SNAP_INTERVAL];
+        assert_eq!(fields[0] & fields[1], 0);
+        assert!(fields.iter().all(|f| f & all == 0));
+        // A snapshot interval: 39 ms is 390 units of 0.1 ms, read back exactly.
+        let s = flags::TARGETED | flags::FITTED | flags::snap_interval(0.039);
+        assert!(!flags::questioned(s));
+        assert_eq!(flags::snap_interval_s(s), Some(390.0 * 1e-4));
+        assert_eq!(
+            flags::snap_interval_s(flags::snap_interval(0.4095)),
+            Some(4095.0 * 1e-4)
+        );
+        assert_eq!(flags::snap_interval(0.41), 0);
+        assert_eq!(flags::snap_interval(0.00004), 0);
+        assert_eq!(flags::snap_interval_s(flags::TARGETED), None);
+        assert_eq!(flags::text(flags::FITTED), "fitted");
         // A buffered reading at 64 Hz (SRAT 10) is not flagged; its samples 1/64 s apart.
         let b = flags::TARGETED | flags::buffered(10);
         assert!(!flags::questioned(b));

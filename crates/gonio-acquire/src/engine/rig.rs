@@ -566,8 +566,15 @@ impl<C: Clock + Clone, B: Bench> Rig<C, B> {
         if targeted && r.lockin().is_some() {
             bits |= flags::TARGETED;
         }
-        if let Some(rate) = r.lockin().and_then(|l| l.sample_rate) {
-            bits |= flags::buffered(rate.index());
+        if let Some(l) = r.lockin().filter(|_| targeted) {
+            if l.fitted {
+                bits |= flags::FITTED;
+            }
+            match (l.sample_rate, l.snapshot_interval_s) {
+                (Some(rate), _) => bits |= flags::buffered(rate.index()),
+                (None, Some(s)) => bits |= flags::snap_interval(s),
+                (None, None) => {}
+            }
         }
         ReadingRecord {
             step_id: s.id,

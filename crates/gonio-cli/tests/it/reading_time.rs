@@ -99,15 +99,16 @@ fn plan_check_estimates_a_targeted_run_within_five_percent() {
     // With the plan's default four dark readings.
     assert_eq!(r["readings"], 639);
     // Against the run itself (seed 11): the estimate's total within 5 % (its readings
-    // settle from the step a move makes, which the simulator's default filters,
-    // settled at each point, skip: the run is about 4 % shorter).
+    // start from the step a move makes, which the simulator's default filters,
+    // settled at each point, skip; read through the transient by its fit, a reading
+    // takes about as long either way: the estimate is 1 % short).
     let out = dir.join("run.gonio");
     let run: serde_json::Value =
         serde_json::from_slice(&acquire(&plan, &out, None, "11").stdout).expect("JSON");
     let physical = run["physical_s"].as_f64().expect("physical_s");
     let ratio = total / physical;
     assert!(
-        (1.0..1.05).contains(&ratio),
+        (0.95..1.05).contains(&ratio),
         "estimate {total} vs run {physical}"
     );
     // Every reading is a targeted one.

@@ -71,6 +71,14 @@ pub struct Reading {
     /// A targeted reading reached its time cap before its target precision: kept, at
     /// the precision it reached.
     pub capped: bool,
+    /// A targeted reading whose values are the settled values fitted through the
+    /// filter's transient from all `n` snapshots (`r_std` the residuals' snapshot σ),
+    /// not a window's means.
+    pub fitted: bool,
+    /// A targeted reading by snapshots: their mean interval, s, as the session's clock
+    /// measured it (the spacing their correlation follows); `None` for one snapshot
+    /// or a fixed reading.
+    pub snapshot_interval_s: Option<f64>,
     /// Read through the data buffer at this rate (its samples 1/rate apart), rather
     /// than by `SNAP?`: the spacing the samples' correlation follows.
     pub sample_rate: Option<super::SampleRate>,

@@ -21,13 +21,19 @@
 //! (yₖ − ρₖ yₖ₋₁)/√(1 − ρₖ²), ρₖ = e^(−(τₖ − τₖ₋₁)). Its variance per snapshot is
 //! d(R)²·ENBW with d² = floor² + shot²·R, white densities ([`NoiseDensity`]).
 //!
-//! **The rule** ([`Sequential`]). The reading is the mean of a window of the latest
-//! snapshots: the one whose mean is least noisy while the fitted transient's share
-//! of that mean, plus twice its standard deviation, stays below
-//! [`TRANSIENT_FRACTION`] of the target. Snapshots are added until the standard
-//! deviation of the window's mean — from the exact sum of the correlations of its
-//! snapshots, not σ/√n — meets the target. Early snapshots, which carry the
-//! transient, join the window once it is long enough to dilute it.
+//! **The rule** ([`Sequential`]). The reading is the least noisy of two estimates of
+//! the settled value. One is the mean of a window of the latest snapshots: the one
+//! whose mean is least noisy while the fitted transient's share of that mean, plus
+//! twice its standard deviation, stays below [`TRANSIENT_FRACTION`] of the target;
+//! its standard deviation is the exact sum of its snapshots' correlations, not
+//! σ/√n. The other, with a noise law, is the fit's u itself: the generalised
+//! least-squares estimate from every snapshot, the transient's included, unbiased
+//! under the model whatever the step, its variance the fit's covariance times the
+//! law's (Gauss–Markov). Snapshots are added until the chosen estimate meets the
+//! target. The window waits out the transient (about 13 T at 24 dB/oct for a step of
+//! a quarter of the value read to 1e-4); the fit reads through it, paying only the
+//! four coefficients' share of the information, so a reading limited by settling
+//! takes about half as long.
 
 use gonio_core::rng::SplitMix64;
 
@@ -197,6 +203,37 @@ pub fn fit_transient(taus: &[f64], values: &[f64], order: usize) -> Option<Trans
     }
 }
 
+/// The variance of the settled value [`fit_transient`] fits to `n` snapshots
+/// `spacing` time constants apart, for unit snapshot variance: the precision of a
+/// fitted reading, given only its count and spacing (the model is invariant under
+/// a shift of the time origin). `None` when the fit does not keep every term (the
+/// rule then reads no fitted value) or is not determined; `n` is bounded by
+/// [`MAX_FITTED`].
+pub fn fitted_value_variance(n: usize, spacing: f64, order: usize) -> Option<f64> {
+    if n > MAX_FITTED || !(spacing.is_finite() && spacing > 0.0) {
+        return None;
+    }
+    let order = order.min(MAX_PARAMS - 1);
+    let taus: Vec<f64> = (1..=n).map(|i| spacing * i as f64).collect();
+    fit_transient(&taus, &vec![0.0; n], order)
+        .filter(|f| f.coefficients.len() == order)
+        .map(|f| f.value_variance())
+}
+
+/// The 99.9 % quantile of χ² with `dof` degrees of freedom, by Wilson and
+/// Hilferty's cube-root normal approximation (1931; within 3 % from one degree of
+/// freedom on: 11.16 for the exact 10.83 at one, 29.76 for 29.59 at ten).
+fn chi2_quantile_999(dof: usize) -> f64 {
+    const Z: f64 = 3.090_232; // the normal's 99.9 % quantile
+    let k = dof.max(1) as f64;
+    let c = 2.0 / (9.0 * k);
+    k * (1.0 - c + Z * c.sqrt()).powi(3)
+}
+
+/// Most snapshots a fitted reading holds: refits stop at [`MAX_REFITS`], after
+/// which the window decides.
+pub const MAX_FITTED: usize = MAX_REFITS;
+
 /// One whitened design row and its value.
 fn whitened_rows<'a>(
     taus: &'a [f64],
@@ -319,8 +356,11 @@ struct Snap {
 /// What [`Sequential::assess`] found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Assessment {
-    /// The averaged window's first snapshot, once the transient allows one.
+    /// The averaged window's first snapshot, once the transient allows one (0 when
+    /// the fitted value is chosen: every snapshot counts).
     pub window_start: Option<usize>,
+    /// The fitted settled value is the reading, not a window's mean.
+    pub fitted: bool,
     /// The standard deviation of the window's mean R, V (infinite before a window).
     pub sigma_mean: f64,
     /// The target for the window's mean, V.
@@ -344,6 +384,20 @@ pub struct WindowMean {
     pub n: usize,
     /// Time constants from the change to the window's first snapshot.
     pub settle_tc: f64,
+    /// The means are the transient fit's settled values (X, Y and R each fitted),
+    /// and `r_std` the snapshot σ its whitened residuals estimate.
+    pub fitted: bool,
+    /// The mean interval between the averaged snapshots, in time constants (`None`
+    /// for one snapshot).
+    pub interval_tc: Option<f64>,
+}
+
+/// The mean interval of snapshots at `taus`, `None` for fewer than two.
+fn mean_interval(taus: impl ExactSizeIterator<Item = f64> + Clone) -> Option<f64> {
+    let n = taus.len();
+    let first = taus.clone().next()?;
+    let last = taus.last()?;
+    (n > 1).then(|| (last - first) / (n - 1) as f64)
 }
 
 /// Refits stop after this many snapshots, a bound on the rule's cost (each fit is
@@ -361,7 +415,11 @@ pub struct Sequential {
     order: usize,
     snaps: Vec<Snap>,
     fit: Option<TransientFit>,
+    /// Snapshots `fit` was made from.
+    fit_len: usize,
     start: Option<usize>,
+    /// The last assessment chose the fitted value.
+    fitted: bool,
     /// A change long enough ago that no step can still show (see [`Self::new`]).
     settled_before: bool,
 }
@@ -377,7 +435,9 @@ impl Sequential {
             order,
             snaps: Vec::new(),
             fit: None,
+            fit_len: 0,
             start: None,
+            fitted: false,
             settled_before: step_residual(order, first_tau) < 1e-15,
         }
     }
@@ -395,6 +455,11 @@ impl Sequential {
     /// The window's first snapshot at the last assessment.
     pub fn window_start(&self) -> Option<usize> {
         self.start
+    }
+
+    /// The last assessment chose the fitted settled value.
+    pub fn fitted(&self) -> bool {
+        self.fitted
     }
 
     /// A snapshot (X, Y) at `tau` time constants after the change.
@@ -418,10 +483,24 @@ impl Sequential {
         noise: Option<&dyn Fn(f64) -> f64>,
     ) -> Assessment {
         let best = self.best_window(target, noise);
+        let fitted = self.fitted_sigma(target, noise);
+        self.fitted = fitted.is_some_and(|(f, _)| best.is_none_or(|(_, w)| f < w));
+        if let (true, Some((sigma, value))) = (self.fitted, fitted) {
+            self.start = Some(0);
+            let goal = target.sigma(value);
+            return Assessment {
+                window_start: Some(0),
+                fitted: true,
+                sigma_mean: sigma,
+                target: goal,
+                done: sigma <= goal,
+            };
+        }
         self.start = best.map(|(s, _)| s);
         let Some((s, sigma)) = best else {
             return Assessment {
                 window_start: None,
+                fitted: false,
                 sigma_mean: f64::INFINITY,
                 target: f64::INFINITY,
                 done: false,
@@ -432,10 +511,39 @@ impl Sequential {
         let goal = target.sigma(mean);
         Assessment {
             window_start: Some(s),
+            fitted: false,
             sigma_mean: sigma,
             target: goal,
             done: sigma <= goal && n >= target.min_samples.max(1),
         }
+    }
+
+    /// The standard deviation of the fitted settled value and the value, when the
+    /// fit is of every snapshot and kept every transient term, a noise law gives the
+    /// snapshot variance, and there are at least `min_samples` snapshots and one
+    /// degree of freedom (so that the residuals say something of the snapshots'
+    /// scatter): Var(û) = σ²·(XᵀV⁻¹X)⁻¹₀₀. A fit that dropped terms is not used: over
+    /// a short stretch of the transient the dropped terms are represented by the
+    /// kept ones and the constant, so its û would carry part of them.
+    fn fitted_sigma(
+        &self,
+        target: &ReadTarget,
+        noise: Option<&dyn Fn(f64) -> f64>,
+    ) -> Option<(f64, f64)> {
+        let (f, law) = (self.fit.as_ref()?, noise?);
+        let k = self.snaps.len();
+        let full = f.coefficients.len() == self.order;
+        if self.fit_len != k || !full || f.dof < 1 || k < target.min_samples.max(1) {
+            return None;
+        }
+        let var = law(f.value).max(0.0);
+        // Residuals beyond the law's 99.9 % say the model does not hold (the light
+        // was not constant, the snapshots' times are off): no fitted value.
+        if f.rss > var * chi2_quantile_999(f.dof) {
+            return None;
+        }
+        let sigma = (var * f.value_variance()).sqrt();
+        sigma.is_finite().then_some((sigma, f.value))
     }
 
     /// The transient refitted (up to [`MAX_REFITS`]), then the window's first snapshot
@@ -454,6 +562,7 @@ impl Sequential {
             let rs: Vec<f64> = self.snaps.iter().map(|s| s.r).collect();
             if let Some(f) = fit_transient(&taus, &rs, self.order) {
                 self.fit = Some(f);
+                self.fit_len = k;
             }
         }
         if !self.settled_before && self.fit.is_none() {
@@ -528,11 +637,17 @@ impl Sequential {
         best
     }
 
-    /// The window's means, or, when no window could be chosen (a capped reading),
-    /// the later half of the snapshots.
+    /// The window's means, or the fitted values when the last assessment chose them,
+    /// or, when no window could be chosen (a capped reading), the later half of the
+    /// snapshots.
     pub fn result(&mut self) -> Option<WindowMean> {
         if self.snaps.is_empty() {
             return None;
+        }
+        if self.fitted
+            && let Some(w) = self.fitted_result()
+        {
+            return Some(w);
         }
         let start = self.start.unwrap_or(self.snaps.len() / 2);
         let w = &self.snaps[start..];
@@ -551,6 +666,29 @@ impl Sequential {
             y_mean: w.iter().map(|s| s.y).sum::<f64>() / nf,
             n,
             settle_tc: w[0].tau,
+            fitted: false,
+            interval_tc: mean_interval(w.iter().map(|s| s.tau)),
+        })
+    }
+
+    /// The settled X, Y and R fitted from every snapshot (one design: the fits of X
+    /// and Y keep the terms R's kept), `r_std` the residuals' snapshot σ.
+    fn fitted_result(&self) -> Option<WindowMean> {
+        let f = self.fit.as_ref()?;
+        let taus: Vec<f64> = self.snaps.iter().map(|s| s.tau).collect();
+        let of = |v: fn(&Snap) -> f64| {
+            let vs: Vec<f64> = self.snaps.iter().map(v).collect();
+            fit_transient(&taus, &vs, f.coefficients.len()).map(|g| g.value)
+        };
+        Some(WindowMean {
+            r_mean: f.value,
+            r_std: f.residual_variance().unwrap_or(0.0).sqrt(),
+            x_mean: of(|s| s.x)?,
+            y_mean: of(|s| s.y)?,
+            n: self.snaps.len(),
+            settle_tc: self.snaps[0].tau,
+            fitted: true,
+            interval_tc: mean_interval(taus.iter().copied()),
         })
     }
 }

@@ -188,6 +188,8 @@ fn without_a_law_the_window_scatter_decides_from_five_snapshots() {
 
 #[test]
 fn a_noiseless_step_opens_the_window_where_the_analytic_transient_allows() {
+    // Without a noise law the fitted value is not read (its variance needs the law),
+    // so the window alone decides, from its own scatter, from five snapshots on.
     let (u, y0) = (1.0, 3.0);
     let target = ReadTarget {
         sigma_relative: 1e-4,
@@ -195,7 +197,6 @@ fn a_noiseless_step_opens_the_window_where_the_analytic_transient_allows() {
         max_s: 1e9,
         min_samples: 1,
     };
-    let law = |_: f64| 1e-30;
     let mut seq = Sequential::new(4, 2.0);
     let allowed = TRANSIENT_FRACTION * target.sigma(u);
     let mut tau = 2.0;
@@ -203,33 +204,72 @@ fn a_noiseless_step_opens_the_window_where_the_analytic_transient_allows() {
     while seq.window_start().is_none() {
         seq.push(tau, u + (y0 - u) * step_residual(4, tau), 0.0);
         taus.push(tau);
-        seq.assess(&target, Some(&law));
+        seq.assess(&target, None);
         tau += 0.5;
         assert!(tau < 100.0);
     }
+    assert!(!seq.fitted());
     // The window's mean holds no more of the analytic transient than allowed, and
-    // one snapshot more at its start would hold too much.
+    // it opened as soon as a window of five could: one snapshot earlier, the five
+    // latest held too much.
     let start = seq.window_start().expect("window");
-    let share = |from: usize| {
-        let w = &taus[from..];
+    let share = |w: &[f64]| {
         w.iter()
             .map(|t| (y0 - u) * step_residual(4, *t))
             .sum::<f64>()
             / w.len() as f64
     };
     assert!(
-        share(start) <= allowed * (1.0 + 1e-6),
+        share(&taus[start..]) <= allowed * (1.0 + 1e-6),
         "{} > {allowed}",
-        share(start)
+        share(&taus[start..])
     );
+    let k = taus.len();
+    assert!(k - start >= 5);
     assert!(
-        start == 0 || share(start - 1) > allowed,
+        share(&taus[k - 6..k - 1]) > allowed,
         "window at τ {}",
         taus[start]
     );
-    // A step of 2 within 2e-5 on average: the last snapshot is past 18 T at 24 dB/oct.
-    let last = taus[taus.len() - 1];
-    assert!((18.0..19.5).contains(&last), "{last}");
+    // A step of 2 within 2e-5 on average: the window opens past 18 T at 24 dB/oct.
+    let last = taus[k - 1];
+    assert!((18.0..21.5).contains(&last), "{last}");
+}
+
+#[test]
+fn a_noiseless_step_is_read_through_its_transient() {
+    // With a noise law the fit's settled value is read once it has one degree of
+    // freedom (four coefficients, the value, one more snapshot): six snapshots, from
+    // any stage states, however far from settled.
+    let target = ReadTarget {
+        sigma_relative: 1e-4,
+        sigma_absolute: 0.0,
+        max_s: 1e9,
+        min_samples: 1,
+    };
+    // Stage states stay positive, as a positive light leaves them, so R = X.
+    for (u, z0) in [(1.0, [2.0, 0.0, 0.0, 0.0]), (0.3, [0.2, 0.5, 1.0, 0.05])] {
+        let mut seq = Sequential::new(4, 0.5);
+        let mut tau = 0.5;
+        let mut taken = 0;
+        loop {
+            seq.push(tau, cascade(u, &z0, tau), 0.0);
+            taken += 1;
+            if seq.assess(&target, Some(&|_| 1e-30)).done {
+                break;
+            }
+            tau += 0.7;
+            assert!(taken < 100);
+        }
+        assert_eq!(taken, 6);
+        assert!(seq.fitted());
+        let w = seq.result().expect("a reading");
+        assert!(w.fitted && w.n == 6);
+        assert!((w.r_mean - u).abs() < 1e-9 * u, "{} vs {u}", w.r_mean);
+        // The residuals of an exact model are rounding.
+        assert!(w.r_std < 1e-9 * u, "{}", w.r_std);
+        assert!((w.interval_tc.expect("interval") - 0.7).abs() < 1e-12);
+    }
 }
 
 #[test]
@@ -302,17 +342,23 @@ fn the_estimate_is_what_the_rule_takes_on_noise_of_the_law() {
         // Averaging is the window; settling what came before it.
         assert!(e.settle_s >= 0.0 && e.averaging_s >= 0.0);
     }
-    // Dimmer is longer; a bright signal takes what its transient takes: a step of a
-    // quarter of 0.5 V to within 0.2 of 5e-5 V, 15.4 T at 24 dB/oct, give or take a
-    // few snapshots.
+    // Dimmer is longer; a bright signal is read through its transient: the fit's
+    // six snapshots (its value, four coefficients and a degree of freedom), where
+    // waiting the step of a quarter of 0.5 V out to within 0.2 of 5e-5 V would take
+    // 15.4 T at 24 dB/oct.
     let tc = TimeConstant::new(7).expect("30 ms");
     let dim = estimate(1e-4, 2.5e-5, &target(), &noise(), FilterSlope::Db24, tc, ex);
     let mid = estimate(1e-3, 2.5e-4, &target(), &noise(), FilterSlope::Db24, tc, ex);
     let bright = estimate(0.5, 0.125, &target(), &noise(), FilterSlope::Db24, tc, ex);
     assert!(dim.total_s() > mid.total_s() && mid.total_s() >= bright.total_s());
+    assert!(
+        (bright.total_s() - 6.0 * ex).abs() < 1e-9,
+        "{}",
+        bright.total_s()
+    );
     let settle = FilterSlope::Db24.settle_factor_for(0.2 * 5e-5 / 0.125) * 0.03;
     assert!(
-        (bright.total_s() - settle).abs() < 4.0 * ex,
+        bright.total_s() < 0.5 * settle,
         "{} vs {settle}",
         bright.total_s()
     );
@@ -344,7 +390,9 @@ fn the_time_constant_is_the_fastest_for_the_signal() {
             assert!(best.total_s() <= e.total_s(), "{expected}: {tc}");
         }
     }
-    // A bright signal takes the shortest: settling is all its time.
+    // A bright signal takes six snapshots: at 30 ms the fit's five parameters and
+    // a degree of freedom read through its transient; at 10 ms (3.75 T apart) four
+    // snapshots wait it out and a window of two reads it. Longer ones take longer.
     let bright = choose_time_constant(
         0.1,
         &target(),
@@ -354,7 +402,12 @@ fn the_time_constant_is_the_fastest_for_the_signal() {
         0.0375,
     )
     .expect("choice");
-    assert_eq!(bright.time_constant, choices[0]);
+    assert!(
+        (bright.total_s() - 6.0 * 0.0375).abs() < 1e-9,
+        "{}",
+        bright.total_s()
+    );
+    assert!(bright.time_constant <= choices[1]);
 }
 
 #[test]

@@ -151,6 +151,8 @@ impl Sr830Session {
             y_mean: number::mean_std(&ys).0,
             n: self.config.samples,
             settle_tc: 0.0,
+            fitted: false,
+            interval_tc: None,
         };
         Ok(Some(self.reading(Some(w), status, 0, false)))
     }
@@ -251,6 +253,10 @@ impl Sr830Session {
             flags: ReadingFlags::from_status(status),
             autorange_steps: steps,
             capped,
+            fitted: w.is_some_and(|w| w.fitted),
+            snapshot_interval_s: w
+                .and_then(|w| w.interval_tc)
+                .map(|i| i * self.time_constant.seconds()),
             sample_rate: None,
         }
     }
@@ -387,12 +393,21 @@ impl Sr830Session {
             link.sleep(first).await;
         }
         loop {
+            // The lock-in takes the values when the query's line has arrived: a fixed
+            // time after it is sent (its length is fixed), which the model absorbs,
+            // where the reply's arrival varies with its digits and signs by a few ms
+            // — at 30 ms a few percent of T, on a transient's slope far more than
+            // the noise.
+            let (sent, retried) = (link.now(), self.core.retried);
             let Some((x, y)) = self.snap(link, reconnects).await? else {
                 return Ok(End::Interrupted);
             };
-            let tau = (link.now().saturating_sub(t0)).as_secs_f64() / tc_s;
+            let tau = (sent.saturating_sub(t0)).as_secs_f64() / tc_s;
             let fs = self.sensitivity.volts();
-            if [x, y, x.hypot(y)].iter().any(|v| v.abs() >= CLIP * fs) {
+            if self.core.retried != retried {
+                // Sent again: when its values were taken is not known.
+                trace!(tau, "sr830: snapshot after a re-send, not used");
+            } else if [x, y, x.hypot(y)].iter().any(|v| v.abs() >= CLIP * fs) {
                 if t.seq.window_start().is_some() || tau >= CLIP_SETTLED_TC || t.after_range {
                     if let Some(next) = ranging::overload_range(self.sensitivity) {
                         debug!(tau, x, y, "sr830: output clipped after the transient");
