@@ -644,10 +644,12 @@ impl Sequential {
         if self.snaps.is_empty() {
             return None;
         }
-        if self.fitted
-            && let Some(w) = self.fitted_result()
-        {
-            return Some(w);
+        if self.fitted {
+            if let Some(w) = self.fitted_result() {
+                return Some(w);
+            }
+            // No window was chosen beside it: as for a capped reading.
+            self.start = None;
         }
         let start = self.start.unwrap_or(self.snaps.len() / 2);
         let w = &self.snaps[start..];
@@ -671,20 +673,20 @@ impl Sequential {
         })
     }
 
-    /// The settled X, Y and R fitted from every snapshot (one design: the fits of X
-    /// and Y keep the terms R's kept), `r_std` the residuals' snapshot σ.
+    /// The settled X, Y and R fitted from every snapshot (one design, every term
+    /// kept), `r_std` the residuals' snapshot σ; `None` if a fit does not keep them.
     fn fitted_result(&self) -> Option<WindowMean> {
-        let f = self.fit.as_ref()?;
         let taus: Vec<f64> = self.snaps.iter().map(|s| s.tau).collect();
         let of = |v: fn(&Snap) -> f64| {
             let vs: Vec<f64> = self.snaps.iter().map(v).collect();
-            fit_transient(&taus, &vs, f.coefficients.len()).map(|g| g.value)
+            fit_transient(&taus, &vs, self.order).filter(|g| g.coefficients.len() == self.order)
         };
+        let r = of(|s| s.r)?;
         Some(WindowMean {
-            r_mean: f.value,
-            r_std: f.residual_variance().unwrap_or(0.0).sqrt(),
-            x_mean: of(|s| s.x)?,
-            y_mean: of(|s| s.y)?,
+            r_mean: r.value,
+            r_std: r.residual_variance().unwrap_or(0.0).sqrt(),
+            x_mean: of(|s| s.x)?.value,
+            y_mean: of(|s| s.y)?.value,
             n: self.snaps.len(),
             settle_tc: self.snaps[0].tau,
             fitted: true,
