@@ -458,3 +458,43 @@ fn a_targeted_reading_jumps_to_the_range_that_fits() {
     // 3 mV from 1 mV: three ranges up to 10 mV, which holds it.
     assert_eq!(targeted_changes(v(17), 3e-3, 0.0, 0.1), (1, v(20)));
 }
+
+proptest::proptest! {
+    /// Whatever the snapshots (any finite values at increasing times, any spacing,
+    /// with or without a noise law), the rule assesses without panicking and a
+    /// reading it ends with is finite; a fitted one holds every snapshot and one
+    /// residual degree of freedom at least.
+    #[test]
+    fn the_rule_takes_any_snapshots(
+        start in 0.0f64..70.0,
+        gaps in proptest::collection::vec(1e-3f64..5.0, 1..60),
+        values in proptest::collection::vec(-1e3f64..1e3, 60),
+        order in 1usize..=4,
+        law in proptest::option::of(1e-20f64..1.0),
+    ) {
+        let target = ReadTarget {
+            sigma_relative: 1e-3,
+            sigma_absolute: 1e-9,
+            max_s: 1e9,
+            min_samples: 2,
+        };
+        let mut seq = Sequential::new(order, start);
+        let mut tau = start;
+        for (gap, v) in gaps.iter().zip(&values) {
+            tau += gap;
+            seq.push(tau, *v, 0.5 * v);
+            let f = law.map(|l| move |_: f64| l);
+            let a = seq.assess(&target, f.as_ref().map(|f| f as &dyn Fn(f64) -> f64));
+            proptest::prop_assert!(!a.sigma_mean.is_nan());
+            if a.fitted {
+                proptest::prop_assert!(law.is_some() && seq.len() >= order + 2);
+            }
+        }
+        let w = seq.result().expect("snapshots were taken");
+        proptest::prop_assert!(w.r_mean.is_finite() && w.x_mean.is_finite() && w.y_mean.is_finite());
+        proptest::prop_assert!(w.r_std.is_finite() && w.n >= 1 && w.n <= seq.len());
+        if w.fitted {
+            proptest::prop_assert_eq!(w.n, seq.len());
+        }
+    }
+}
