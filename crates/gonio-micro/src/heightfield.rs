@@ -237,6 +237,20 @@ impl HeightField {
         ]
     }
 
+    /// [`HeightField::corners`] of cell `(i, j)` with the indices of the next node
+    /// along x and y already wrapped (`i1`, `j1`).
+    #[inline(always)]
+    pub(crate) fn corners_wrapped(&self, i: usize, i1: usize, j: usize, j1: usize) -> [f64; 4] {
+        let r0 = j * self.nx;
+        let r1 = j1 * self.nx;
+        [
+            self.heights[r0 + i],
+            self.heights[r0 + i1],
+            self.heights[r1 + i],
+            self.heights[r1 + i1],
+        ]
+    }
+
     /// The height differences `(a, b)` across triangle `tri` of cell `(i, j)` along its
     /// local `u` and `v`: the triangle is `h = h00 + a·u + b·v`.
     #[inline]

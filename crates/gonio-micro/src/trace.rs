@@ -86,6 +86,9 @@ struct Level {
     /// a mask), else `None`.
     mask_x: Option<i64>,
     mask_y: Option<i64>,
+    /// The masks as plain integers (0 when there is none), for `FAST`.
+    and_x: i64,
+    and_y: i64,
     /// Highest corner of each block, raised by a hair (see `Tracer::new`) and
     /// rounded up to `f32` (half the bytes for the cache: the lookups are what a
     /// traversal waits for), row-major.
@@ -105,8 +108,15 @@ impl Level {
         }
     }
 
+    /// The maximum of block `(bx, by)`, wrapped onto the patch; `FAST` when the
+    /// counts are powers of two (`Tracer::fast`).
     #[inline(always)]
-    fn max_at(&self, bx: i64, by: i64) -> f64 {
+    fn max_at<const FAST: bool>(&self, bx: i64, by: i64) -> f64 {
+        if FAST {
+            let i = (bx & self.and_x) as usize;
+            let j = (by & self.and_y) as usize;
+            return f64::from(self.max[j * self.nbx + i]);
+        }
         let i = match self.mask_x {
             Some(m) => (bx & m) as usize,
             None => bx.rem_euclid(self.nbx as i64) as usize,
@@ -116,6 +126,24 @@ impl Level {
             None => by.rem_euclid(self.nby as i64) as usize,
         };
         f64::from(self.max[j * self.nbx + i])
+    }
+
+    /// `x / wx` (by the exact inverse when `FAST`).
+    #[inline(always)]
+    fn quot_x<const FAST: bool>(&self, x: f64) -> f64 {
+        match self.inv_wx {
+            Some(inv) if FAST => x * inv,
+            _ => x / self.wx,
+        }
+    }
+
+    /// `y / wy` (by the exact inverse when `FAST`).
+    #[inline(always)]
+    fn quot_y<const FAST: bool>(&self, y: f64) -> f64 {
+        match self.inv_wy {
+            Some(inv) if FAST => y * inv,
+            _ => y / self.wy,
+        }
     }
 }
 
@@ -129,6 +157,18 @@ pub struct Tracer {
     /// `1/dx`, `1/dy`.
     inv_dx: f64,
     inv_dy: f64,
+    /// Every level's block counts are powers of two and its widths have exact
+    /// inverses: the traversal wraps by masks and divides by multiplications.
+    fast: bool,
+}
+
+/// Where a search runs (see [`Tracer::plan`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Plan {
+    t0: f64,
+    t1: f64,
+    horizon: bool,
+    start: usize,
 }
 
 /// What every cell test of one ray shares, worked out once a ray.
@@ -142,6 +182,8 @@ struct Pre {
     /// The direction in cell units: `d.x/dx`, `d.y/dy`.
     du: f64,
     dv: f64,
+    /// The ray's `skip` triangle, or a triangle number no cell has.
+    skip: (i64, i64, u8),
 }
 
 /// `floor(p / size)`, but the lower block when `p` lies on a boundary and the ray
@@ -176,6 +218,24 @@ pub(crate) fn floor(x: f64) -> f64 {
         if t > x { t - 1.0 } else { t }
     } else {
         x
+    }
+}
+
+/// The least `l ≥ 0` with `4·2^l ≥ cells` (finite, not negative), from the
+/// exponent of `cells/4` rather than a loop over levels.
+#[inline]
+fn start_level(cells: f64) -> usize {
+    if cells <= 4.0 {
+        return 0;
+    }
+    // `cells/4` is exact and at least 1: its exponent, one more unless it is a
+    // power of two.
+    let bits = (0.25 * cells).to_bits();
+    let e = ((bits >> 52) & 0x7ff) as usize - 1023;
+    if bits & ((1u64 << 52) - 1) == 0 {
+        e
+    } else {
+        e + 1
     }
 }
 
@@ -234,6 +294,16 @@ impl Tracer {
             nby,
             mask_x: nbx.is_power_of_two().then_some(nbx as i64 - 1),
             mask_y: nby.is_power_of_two().then_some(nby as i64 - 1),
+            and_x: if nbx.is_power_of_two() {
+                nbx as i64 - 1
+            } else {
+                0
+            },
+            and_y: if nby.is_power_of_two() {
+                nby as i64 - 1
+            } else {
+                0
+            },
             max,
         };
         let mut levels = vec![level(1, 1, nx, ny, max)];
@@ -258,7 +328,11 @@ impl Tracer {
             levels.push(next);
         }
         let (lx, ly) = hf.period();
+        let fast = levels.iter().all(|l| {
+            l.mask_x.is_some() && l.mask_y.is_some() && l.inv_wx.is_some() && l.inv_wy.is_some()
+        });
         Tracer {
+            fast,
             // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
             horizon: (16.0 * (lx + ly))
                 .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
@@ -326,30 +400,53 @@ impl Tracer {
     /// [`Tracer::first_hit`], or why there is none: `Err(true)` when the search
     /// was cut off at the horizon (the `span`'s flag, without working it out again).
     pub(crate) fn first_hit_or_horizon(&self, ray: &Ray, method: Method) -> Result<Hit, bool> {
-        let (t0, t1, horizon) = self.span(ray).ok_or(false)?;
-        let hit = match method {
-            Method::MaxMip => {
-                // Start at the level whose blocks are as wide as the ray's horizontal
-                // travel, not at the top: most rays meet the surface within a few
-                // cells, and descending ten levels would cost more than it saves.
-                let (d, span) = (ray.d, t1 - t0);
-                let cells = (d.x.abs() * span * self.inv_dx).max(d.y.abs() * span * self.inv_dy);
-                let top = self.levels.len() - 1;
-                let start = if cells.is_finite() {
-                    let mut l = 0;
-                    while l < top && ((4usize << l) as f64) < cells {
-                        l += 1;
-                    }
-                    l
-                } else {
-                    top
-                };
-                self.traverse(ray, t0, t1, start, top)
+        self.first_hit_planned(ray, self.plan(ray, method), method)
+    }
+
+    /// Where `method` searches along `ray`: its span and the max-mip level it
+    /// starts at; `None` when it cannot meet the surface. A function of the ray's
+    /// height, direction and `t_min` alone, so rays that share them (a table's
+    /// primary rays) share their plan.
+    pub(crate) fn plan(&self, ray: &Ray, method: Method) -> Option<Plan> {
+        let (t0, t1, horizon) = self.span(ray)?;
+        let top = self.levels.len() - 1;
+        let start = if method == Method::MaxMip {
+            // Start at the level whose blocks are as wide as the ray's horizontal
+            // travel, not at the top: most rays meet the surface within a few
+            // cells, and descending ten levels would cost more than it saves.
+            let (d, span) = (ray.d, t1 - t0);
+            let cells = (d.x.abs() * span * self.inv_dx).max(d.y.abs() * span * self.inv_dy);
+            if cells.is_finite() {
+                start_level(cells).min(top)
+            } else {
+                top
             }
-            Method::Grid => self.traverse(ray, t0, t1, 0, 0),
-            Method::BruteForce => self.brute(ray, t0, t1),
+        } else {
+            0
         };
-        hit.ok_or(horizon)
+        Some(Plan {
+            t0,
+            t1,
+            horizon,
+            start,
+        })
+    }
+
+    /// [`Tracer::first_hit_or_horizon`] with the ray's [`Tracer::plan`].
+    #[inline]
+    pub(crate) fn first_hit_planned(
+        &self,
+        ray: &Ray,
+        plan: Option<Plan>,
+        method: Method,
+    ) -> Result<Hit, bool> {
+        let p = plan.ok_or(false)?;
+        let hit = match method {
+            Method::MaxMip => self.traverse(ray, p.t0, p.t1, p.start, self.levels.len() - 1),
+            Method::Grid => self.traverse(ray, p.t0, p.t1, 0, 0),
+            Method::BruteForce => self.brute(ray, p.t0, p.t1),
+        };
+        hit.ok_or(p.horizon)
     }
 
     fn pre(&self, ray: &Ray) -> Pre {
@@ -361,11 +458,31 @@ impl Tracer {
             inv_y: 1.0 / d.y,
             du: d.x * self.inv_dx,
             dv: d.y * self.inv_dy,
+            skip: ray.skip.unwrap_or((0, 0, u8::MAX)),
         }
     }
 
-    /// The hierarchical DDA, starting at level `start` and climbing up to `top`.
+    /// The hierarchical DDA, starting at level `start` and climbing up to `top`:
+    /// with masks and multiplications when every level allows them (`FAST`, the
+    /// power-of-two patches), else with remainders and divisions. Both make the
+    /// same decisions from the same numbers.
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
+        if self.fast {
+            self.traverse_in::<true>(ray, t0, t1, start, top)
+        } else {
+            self.traverse_in::<false>(ray, t0, t1, start, top)
+        }
+    }
+
+    #[inline(always)]
+    fn traverse_in<const FAST: bool>(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        start: usize,
+        top: usize,
+    ) -> Option<Hit> {
         let pre = self.pre(ray);
         let (o, d) = (ray.o, ray.d);
         let sx: i64 = if d.x > 0.0 {
@@ -384,13 +501,22 @@ impl Tracer {
         };
         // The boundary ahead of block b is that of block b + 1 when moving up.
         let (ax, ay) = (i64::from(sx > 0), i64::from(sy > 0));
+        let (neg_x, neg_y) = (d.x < 0.0, d.y < 0.0);
+        let levels = &self.levels[..=top];
         let mut l = start;
         let mut t = t0;
-        let p = o + d * t;
-        let mut bx = coord(p.x, d.x, self.levels[l].wx, self.levels[l].inv_wx);
-        let mut by = coord(p.y, d.y, self.levels[l].wy, self.levels[l].inv_wy);
+        // The ray's height at `t`, carried from step to step (the same bits as
+        // computing it again).
+        let mut z = o.z + d.z * t;
+        let (mut bx, mut by) = {
+            let lev = &levels[l];
+            (
+                coord(o.x + d.x * t, d.x, lev.wx, lev.inv_wx),
+                coord(o.y + d.y * t, d.y, lev.wy, lev.inv_wy),
+            )
+        };
         loop {
-            let lev = &self.levels[l];
+            let lev = &levels[l];
             let tx = if sx != 0 {
                 ((bx + ax) as f64 * lev.wx - o.x) * pre.inv_x
             } else {
@@ -402,21 +528,29 @@ impl Tracer {
                 f64::INFINITY
             };
             let t_out = tx.min(ty).min(t1);
-            let zmin = (o.z + d.z * t).min(o.z + d.z * t_out);
-            if zmin <= lev.max_at(bx, by) {
+            let z_out = o.z + d.z * t_out;
+            // Both heights are finite (so is every `t`): a plain comparison.
+            let zmin = if z_out < z { z_out } else { z };
+            if zmin <= lev.max_at::<FAST>(bx, by) {
                 if l == 0 {
-                    if let Some(h) = self.cell_hit(ray, &pre, bx, by, t0, t1) {
+                    if let Some(h) = self.cell_hit::<FAST>(&pre, bx, by, t0, t1) {
                         return Some(h);
                     }
                 } else {
+                    // Into the child the ray is in at `t`: the upper one when `t`'s
+                    // point lies past the middle boundary, or on it moving up (what
+                    // `coord` clamped to the two children gives, without a floor).
                     l -= 1;
-                    let child = &self.levels[l];
-                    let p = o + d * t;
-                    if child.bx < lev.bx {
-                        bx = coord(p.x, d.x, child.wx, child.inv_wx).clamp(2 * bx, 2 * bx + 1);
+                    let child = &levels[l];
+                    if child.up_x != 0 {
+                        let u = child.quot_x::<FAST>(o.x + d.x * t);
+                        let m = (2 * bx + 1) as f64;
+                        bx = 2 * bx + i64::from(if neg_x { u > m } else { u >= m });
                     }
-                    if child.by < lev.by {
-                        by = coord(p.y, d.y, child.wy, child.inv_wy).clamp(2 * by, 2 * by + 1);
+                    if child.up_y != 0 {
+                        let u = child.quot_y::<FAST>(o.y + d.y * t);
+                        let m = (2 * by + 1) as f64;
+                        by = 2 * by + i64::from(if neg_y { u > m } else { u >= m });
                     }
                     continue;
                 }
@@ -432,6 +566,7 @@ impl Tracer {
                 by += sy;
             }
             t = t_out;
+            z = z_out;
             if l < top {
                 // Climb when the step left the parent block, unless the ray is already
                 // below the new parent's highest corner: then the parent could not be
@@ -439,8 +574,7 @@ impl Tracer {
                 // lower still further on), and climbing would only descend again.
                 let (ux, uy) = (lev.up_x, lev.up_y);
                 let (px, py) = (bx >> ux, by >> uy);
-                if (px != obx >> ux || py != oby >> uy)
-                    && o.z + d.z * t > self.levels[l + 1].max_at(px, py)
+                if (px != obx >> ux || py != oby >> uy) && z > levels[l + 1].max_at::<FAST>(px, py)
                 {
                     l += 1;
                     bx = px;
@@ -464,7 +598,8 @@ impl Tracer {
             for kx in cx0.div_euclid(nx)..=cx1.div_euclid(nx) {
                 for j in 0..ny {
                     for i in 0..nx {
-                        if let Some(h) = self.cell_hit(ray, &pre, kx * nx + i, ky * ny + j, t0, t1)
+                        if let Some(h) =
+                            self.cell_hit::<false>(&pre, kx * nx + i, ky * ny + j, t0, t1)
                             && best.is_none_or(|b| h.t < b.t)
                         {
                             best = Some(h);
@@ -477,9 +612,16 @@ impl Tracer {
     }
 
     /// The first hit in unwrapped cell `(ix, iy)` within `[t0, t1]` (see the module
-    /// docs).
+    /// docs). `FAST` wraps by masks (`Tracer::fast`); the arithmetic is the same.
     #[inline]
-    fn cell_hit(&self, ray: &Ray, pre: &Pre, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
+    fn cell_hit<const FAST: bool>(
+        &self,
+        pre: &Pre,
+        ix: i64,
+        iy: i64,
+        t0: f64,
+        t1: f64,
+    ) -> Option<Hit> {
         let hf = &self.hf;
         let (o, d) = (pre.o, pre.d);
         let (dx, dy) = (hf.dx(), hf.dy());
@@ -508,51 +650,47 @@ impl Tracer {
         if lo > hi {
             return None;
         }
-        let i = Level::wrap(ix, hf.nx());
-        let j = Level::wrap(iy, hf.ny());
-        let c = hf.corners(i, j);
+        let c = if FAST {
+            let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
+            let (i, j) = (ix as usize & mx, iy as usize & my);
+            hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
+        } else {
+            hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
+        };
         let (ou, du) = ((o.x - x0) * self.inv_dx, pre.du);
         let (ov, dv) = ((o.y - y0) * self.inv_dy, pre.dv);
         // The diagonal u = v: w(t) = u − v.
         let (w0, dw) = (ou - ov, du - dv);
         let tri_at = |t: f64| -> u8 { if w0 + dw * t >= 0.0 { 0 } else { 1 } };
-        let mut pieces = [(lo, hi, 0u8), (hi, hi, 0u8)];
-        let mut np = 1;
-        if dw != 0.0 {
-            let td = -w0 / dw;
-            if td > lo && td < hi {
-                pieces[0] = (lo, td, tri_at(0.5 * (lo + td)));
-                pieces[1] = (td, hi, tri_at(0.5 * (td + hi)));
-                np = 2;
-            }
-        }
-        if np == 1 {
-            pieces[0].2 = tri_at(0.5 * (lo + hi));
-        }
-        for &(ta, tb, tri) in &pieces[..np] {
-            if ray.skip == Some((ix, iy, tri)) {
-                continue;
+        // The piece `[ta, tb]` over triangle `tri`.
+        let piece = |ta: f64, tb: f64, tri: u8| -> Option<Hit> {
+            if ix == pre.skip.0 && iy == pre.skip.1 && tri == pre.skip.2 {
+                return None;
             }
             let (a, b) = HeightField::tri_slopes(c, tri);
             let g0 = o.z - c[0] - a * ou - b * ov;
             let k = d.z - a * du - b * dv;
-            let ga = g0 + k * ta;
-            if ga <= 0.0 {
-                return Some(Hit {
-                    t: ta,
-                    cell: [ix, iy],
-                    tri,
-                });
-            }
-            if g0 + k * tb <= 0.0 {
-                return Some(Hit {
-                    t: (-g0 / k).clamp(ta, tb),
-                    cell: [ix, iy],
-                    tri,
-                });
+            let t = if g0 + k * ta <= 0.0 {
+                ta
+            } else if g0 + k * tb <= 0.0 {
+                (-g0 / k).clamp(ta, tb)
+            } else {
+                return None;
+            };
+            Some(Hit {
+                t,
+                cell: [ix, iy],
+                tri,
+            })
+        };
+        if dw != 0.0 {
+            let td = -w0 / dw;
+            if td > lo && td < hi {
+                return piece(lo, td, tri_at(0.5 * (lo + td)))
+                    .or_else(|| piece(td, hi, tri_at(0.5 * (td + hi))));
             }
         }
-        None
+        piece(lo, hi, tri_at(0.5 * (lo + hi)))
     }
 
     /// The unit normal of the triangle of a hit.
@@ -605,5 +743,29 @@ mod tests {
             ..ray
         };
         assert!(tr.first_hit(&up, Method::MaxMip).is_none());
+    }
+
+    /// The start level from the exponent is the loop's: the least `l` with
+    /// `4·2^l ≥ cells`.
+    #[test]
+    fn start_level_is_the_least_wide_enough() {
+        let by_loop = |cells: f64| {
+            let mut l = 0;
+            while ((4usize << l) as f64) < cells {
+                l += 1;
+            }
+            l
+        };
+        for cells in [
+            0.0, 1e-300, 0.5, 3.999, 4.0, 4.000001, 7.9, 8.0, 8.5, 1e6, 1e15,
+        ] {
+            assert_eq!(start_level(cells), by_loop(cells), "{cells}");
+        }
+        for k in 2..50 {
+            let p = (1u64 << k) as f64;
+            for c in [p, p.next_up(), p.next_down()] {
+                assert_eq!(start_level(c), by_loop(c), "{c}");
+            }
+        }
     }
 }

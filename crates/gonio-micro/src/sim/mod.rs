@@ -40,7 +40,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::material::{Scratch, uniform};
-use crate::trace::{Method, Ray, Tracer, floor};
+use crate::trace::{Method, Plan, Ray, Tracer, floor};
 use crate::{MicroError, Sample};
 use rays::{KeyRng, Rect, SegmentOrder};
 
@@ -367,13 +367,28 @@ impl Simulation {
         out
     }
 
+    /// The plan of the first search of every path from the plane `z = h_max`
+    /// towards `−wi_s` (they share it: [`Tracer::plan`]).
+    fn primary_plan(&self, wi_s: Vec3) -> Option<Plan> {
+        let ray = Ray {
+            o: Vec3::new(0.0, 0.0, self.tracer.surface().max_height()),
+            d: -wi_s,
+            t_min: 0.0,
+            skip: None,
+        };
+        self.tracer.plan(&ray, self.opts.method)
+    }
+
     /// Traces one path from `o` (a [`Simulation::start`]) towards `−wi_s` (surface
-    /// frame). `w` starts at 1 and ends as the energy carried out; returns how it
-    /// ended, its bounces and last direction.
+    /// frame), whose first search is `plan0` when given (the
+    /// [`Simulation::primary_plan`] of `wi_s`). `w` starts at 1 and ends as the
+    /// energy carried out; returns how it ended, its bounces and last direction.
+    #[allow(clippy::too_many_arguments)]
     fn path(
         &self,
         o: Vec3,
         wi_s: Vec3,
+        plan0: Option<Option<Plan>>,
         rng: &mut KeyRng,
         w: &mut [f64],
         scratch: &mut Scratch,
@@ -387,6 +402,7 @@ impl Simulation {
         let mut ray_skip = None;
         let mut t_min = 0.0;
         let mut bounces = 0u32;
+        let mut plan0 = plan0;
         loop {
             let ray = Ray {
                 o,
@@ -394,7 +410,11 @@ impl Simulation {
                 t_min,
                 skip: ray_skip,
             };
-            let h = match self.tracer.first_hit_or_horizon(&ray, self.opts.method) {
+            let plan = match plan0.take() {
+                Some(p) => p,
+                None => self.tracer.plan(&ray, self.opts.method),
+            };
+            let h = match self.tracer.first_hit_planned(&ray, plan, self.opts.method) {
                 Ok(h) => h,
                 Err(cut_off) => {
                     let end = if cut_off {
@@ -510,8 +530,10 @@ impl Simulation {
                 let mut w = vec![0.0; nc];
                 let mut scratch = Scratch::new(nc);
                 let mut out = (Vec::new(), Vec::new(), Vec::new(), TraceStats::default());
+                let plan0 = self.primary_plan(wi_s);
                 for (o, mut rng) in self.block_rays(seed, PURPOSE_TRACE, 0, n_rays, b) {
-                    let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
+                    let (end, k, d) =
+                        self.path(o, wi_s, Some(plan0), &mut rng, &mut w, &mut scratch);
                     self.count(&mut out.3, end, k, &w);
                     if end == End::Exit {
                         out.0.push(self.to_sample(d));

@@ -80,8 +80,14 @@ impl Simulation {
                     let z = 1.0 - uniform(&mut rng);
                     let phi = TAU * uniform(&mut rng);
                     let wi = Dir::from_angles(z.acos(), phi);
-                    let (end, order, d) =
-                        self.path(o, self.to_surface(wi.vec()), &mut rng, &mut w, &mut scratch);
+                    let (end, order, d) = self.path(
+                        o,
+                        self.to_surface(wi.vec()),
+                        None,
+                        &mut rng,
+                        &mut w,
+                        &mut scratch,
+                    );
                     self.count(&mut st, end, order, &w);
                     if end != End::Exit {
                         continue;

@@ -288,17 +288,21 @@ impl Simulation {
                 (o, rng, turn, self.to_surface(wi_r.vec()))
             })
             .collect();
+        // Without turns every primary ray has the same direction, so the same plan.
+        let plan0 = (!grid.isotropic).then(|| self.primary_plan(self.to_surface(wi.vec())));
         for (o, mut rng, turn, wi_s) in rays {
-            let (end, k, d) = self.path(o, wi_s, &mut rng, &mut w, &mut scratch);
+            let (end, k, d) = self.path(o, wi_s, plan0, &mut rng, &mut w, &mut scratch);
             self.count(&mut acc.stats, end, k, &w);
             if end != End::Exit {
                 continue;
             }
             let wo = self.to_sample(d);
             let slot = (k.min(3)) as usize; // 1, 2, 3+
-            let cell = job
-                .cells
-                .locate(wo.z, wo.phi() - if grid.isotropic { turn } else { 0.0 });
+            let cell = if grid.isotropic {
+                job.cells.locate(wo.z, wo.phi() - turn)
+            } else {
+                job.cells.locate_dir(wo.vec())
+            };
             acc.add(slot, cell, &w);
         }
         acc
@@ -606,6 +610,40 @@ struct OutCells {
     cos_bounds: Vec<(f64, f64)>,
     /// `Ω_proj` of each outgoing node, index `c·nθ + d`.
     omega: Vec<f64>,
+    /// The polar cell at the lower end of each of `HINTS` equal steps of `cos θ`
+    /// over `[0, 1]`: where [`OutCells::polar`]'s search starts.
+    cos_hint: Vec<u32>,
+    /// For a periodic azimuth axis of at least 4 nodes: the unit vectors of the
+    /// cells' azimuth bounds, and where [`OutCells::azimuth_of`]'s search starts.
+    phi_bounds: Option<PhiBounds>,
+}
+
+/// Steps of the lookup tables that start the cells' searches: small enough that a
+/// step spans at most a few degrees, so the search moves by a cell at most.
+const HINTS: usize = 512;
+
+/// The azimuth bounds of a periodic axis as vectors, to find a direction's cell
+/// without its angle.
+struct PhiBounds {
+    /// `(cos β, sin β)` of the upper bound `β_c = start + (c + ½)·step` of cell `c`.
+    upper: Vec<(f64, f64)>,
+    /// The cell of the lower end of each of `HINTS` equal steps of the
+    /// pseudo-angle ([`pseudo_angle`], over `[0, 4)`).
+    hint: Vec<u32>,
+}
+
+/// A cheap angle-like number of `(x, y)`, increasing with the azimuth over
+/// `[0, 2π)` from 0 to 4 (the position along the unit diamond), without a
+/// trigonometric call. Not 0 when both are.
+#[inline]
+fn pseudo_angle(x: f64, y: f64) -> f64 {
+    let r = y / (x.abs() + y.abs());
+    // 2 − r left of the y axis, 4 + r below the x axis on its right, r above:
+    // without branches (the quadrant of a random exit is a coin toss).
+    let (left, below) = (x < 0.0, y < 0.0);
+    let offset = [0.0, 4.0, 2.0, 2.0][2 * usize::from(left) + usize::from(below)];
+    let sign = 1.0 - 2.0 * f64::from(u8::from(left));
+    offset + sign * r
 }
 
 impl OutCells {
@@ -631,41 +669,144 @@ impl OutCells {
                 omega.push(dphi * (hi.sin().powi(2) - lo.sin().powi(2)) / 2.0);
             }
         }
-        OutCells {
+        let cos_bounds: Vec<(f64, f64)> =
+            bounds.iter().map(|(lo, hi)| (lo.cos(), hi.cos())).collect();
+        let cos_hint = (0..HINTS)
+            .map(|b| {
+                let c = b as f64 / HINTS as f64;
+                cos_bounds.partition_point(|&(_, c_hi)| c_hi > c) as u32
+            })
+            .collect();
+        let mut cells = OutCells {
             phi: *phi,
-            cos_bounds: bounds.iter().map(|(lo, hi)| (lo.cos(), hi.cos())).collect(),
+            cos_bounds,
             omega,
+            cos_hint,
+            phi_bounds: None,
+        };
+        if phi.is_periodic() && phi.n >= 4 {
+            let upper = (0..phi.n)
+                .map(|c| {
+                    let (s, co) = (phi.start + (c as f64 + 0.5) * phi.step).sin_cos();
+                    (co, s)
+                })
+                .collect();
+            // Each step's lower end, as a direction: the pseudo-angle's inverse.
+            let hint = (0..HINTS)
+                .map(|b| {
+                    let p = 4.0 * b as f64 / HINTS as f64;
+                    let (q, r) = (floor(p), p - floor(p));
+                    let (x, y) = match q as u32 {
+                        0 => (1.0 - r, r),
+                        1 => (-r, 1.0 - r),
+                        2 => (r - 1.0, -r),
+                        _ => (r, r - 1.0),
+                    };
+                    let phi_b = {
+                        let a = y.atan2(x);
+                        if a < 0.0 { a + TAU } else { a }
+                    };
+                    cells.azimuth(phi_b).unwrap_or(0) as u32
+                })
+                .collect();
+            cells.phi_bounds = Some(PhiBounds { upper, hint });
         }
+        cells
     }
 
-    /// The outgoing node whose cell holds the direction of polar cosine `cos_theta`
-    /// and azimuth `phi`, if any. The polar cell is found among the bounds' cosines
-    /// (a binary search, not an `acos`: one `atan2` fewer an exit).
-    fn locate(&self, cos_theta: f64, phi: f64) -> Option<usize> {
-        // The cells' upper bounds do not decrease, so their cosines do not increase.
-        let d = self
-            .cos_bounds
-            .partition_point(|&(_, c_hi)| c_hi > cos_theta);
+    /// The polar cell of `cos_theta`, if any: the first whose upper bound's cosine
+    /// is at or below it (a search started from the lookup table, so one or two
+    /// comparisons; the same answer as a binary search).
+    #[inline]
+    fn polar(&self, cos_theta: f64) -> Option<usize> {
+        let n = self.cos_bounds.len();
+        let b = ((cos_theta * HINTS as f64) as usize).min(HINTS - 1);
+        let mut d = self.cos_hint[b] as usize;
+        // The cells' upper bounds do not decrease, so their cosines do not increase:
+        // `c_hi > cos θ` holds for a prefix of the cells, which ends at `d`.
+        while d < n && self.cos_bounds[d].1 > cos_theta {
+            d += 1;
+        }
+        while d > 0 && self.cos_bounds[d - 1].1 <= cos_theta {
+            d -= 1;
+        }
         let &(c_lo, _) = self.cos_bounds.get(d)?;
         if cos_theta.is_nan() || cos_theta > c_lo || self.omega[d] <= 0.0 {
             return None;
         }
-        let c = if self.phi.n == 1 {
-            0
+        Some(d)
+    }
+
+    /// The azimuth cell of `phi` (radians), if any.
+    fn azimuth(&self, phi: f64) -> Option<usize> {
+        if self.phi.n == 1 {
+            Some(0)
         } else if self.phi.is_periodic() {
             let k = floor((phi - self.phi.start) / self.phi.step + 0.5);
-            k.rem_euclid(self.phi.n as f64) as usize % self.phi.n
+            Some(k.rem_euclid(self.phi.n as f64) as usize % self.phi.n)
         } else {
-            let mut found = None;
             for p in [phi, phi - TAU, phi + TAU] {
                 let k = floor((p - self.phi.start) / self.phi.step + 0.5);
                 if k >= 0.0 && k < self.phi.n as f64 {
-                    found = Some(k as usize);
-                    break;
+                    return Some(k as usize);
                 }
             }
-            found?
+            None
+        }
+    }
+
+    /// The azimuth cell of the direction `(x, y)`: without its angle when the
+    /// bounds are vectors (cell `c` holds the directions from bound `c − 1`, on
+    /// it, to bound `c`, counter-clockwise: the cells of [`OutCells::azimuth`],
+    /// up to the rounding of the bounds).
+    #[inline]
+    fn azimuth_of(&self, x: f64, y: f64) -> Option<usize> {
+        // The angle's way (`Dir::phi`): straight up, not a number, or bounds that
+        // are not vectors.
+        let by_angle = || {
+            let a = y.atan2(x);
+            self.azimuth(if a < 0.0 { a + TAU } else { a })
         };
+        let p = pseudo_angle(x, y);
+        let Some(pb) = self.phi_bounds.as_ref().filter(|_| p >= 0.0) else {
+            return by_angle();
+        };
+        let n = pb.upper.len();
+        let b = ((p * (HINTS as f64 / 4.0)) as usize).min(HINTS - 1);
+        let mut c = pb.hint[b] as usize;
+        // At or past bound c (counter-clockwise, within half a turn): the next
+        // cell. Before bound c − 1: the previous. A step of the table spans a few
+        // degrees, a cell (at least 4 a turn) many, so one move at most; the
+        // bound on the moves keeps it finite whatever the rounding.
+        let past = |c: usize| {
+            let (bc, bs) = pb.upper[c];
+            bc * y - bs * x >= 0.0
+        };
+        for _ in 0..n {
+            if past(c) {
+                c = if c + 1 == n { 0 } else { c + 1 };
+            } else if !past(if c == 0 { n - 1 } else { c - 1 }) {
+                c = if c == 0 { n - 1 } else { c - 1 };
+            } else {
+                break;
+            }
+        }
+        Some(c)
+    }
+
+    /// The outgoing node whose cell holds the direction of polar cosine `cos_theta`
+    /// and azimuth `phi`, if any.
+    fn locate(&self, cos_theta: f64, phi: f64) -> Option<usize> {
+        let d = self.polar(cos_theta)?;
+        let c = self.azimuth(phi)?;
+        Some(c * self.cos_bounds.len() + d)
+    }
+
+    /// [`OutCells::locate`] of the unit direction `wo`, without an angle.
+    #[inline]
+    fn locate_dir(&self, wo: Vec3) -> Option<usize> {
+        let d = self.polar(wo.z)?;
+        let c = self.azimuth_of(wo.x, wo.y)?;
         Some(c * self.cos_bounds.len() + d)
     }
 }
@@ -689,5 +830,44 @@ mod tests {
         assert_eq!(cells.locate(86f64.to_radians().cos(), 1.0), None);
         assert_eq!(cells.locate(84f64.to_radians().cos(), 1.0), Some(8));
         assert_eq!(cells.locate(4f64.to_radians().cos(), 1.0), Some(0));
+    }
+
+    /// Without angles, the cells of directions are those of their angles: on
+    /// random directions and on directions a hair either side of every bound.
+    #[test]
+    fn cells_of_directions_are_those_of_their_angles() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for (phi, theta) in [
+            (Axis::full_turn(24), Axis::from_deg(0.0, 10.0, 9)),
+            (Axis::from_deg(7.5, 15.0, 24), Axis::polar_midpoints(9)),
+            (Axis::full_turn(5), Axis::from_deg(0.0, 3.6, 26)),
+            (Axis::from_deg(0.0, 30.0, 3), Axis::single(0.5)),
+            (Axis::single(0.0), Axis::from_deg(0.0, 10.0, 9)),
+        ] {
+            let cells = OutCells::new(&phi, &theta);
+            let check = |v: Vec3| {
+                let d = Dir::from_unit(v);
+                assert_eq!(
+                    cells.locate_dir(v),
+                    cells.locate(d.z, d.phi()),
+                    "{phi:?} {theta:?} {v:?}"
+                );
+            };
+            for _ in 0..20_000 {
+                let z: f64 = rng.random();
+                let a = TAU * rng.random::<f64>();
+                let s = (1.0 - z * z).sqrt();
+                check(Vec3::new(s * a.cos(), s * a.sin(), z));
+            }
+            for c in 0..phi.n {
+                for eps in [-1e-9, 1e-9] {
+                    let a = phi.start + (c as f64 + 0.5) * phi.step + eps;
+                    check(Vec3::new(0.6 * a.cos(), 0.6 * a.sin(), 0.8));
+                }
+            }
+            check(Vec3::new(0.0, 0.0, 1.0));
+            check(Vec3::new(1.0, 0.0, 0.0));
+        }
     }
 }
