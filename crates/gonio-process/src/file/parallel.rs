@@ -1,9 +1,10 @@
 //! The table and sample CSV read as columns, in parallel: any tool's file.
 //!
-//! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes, cuts each block
-//! at line boundaries into chunks of about [`CHUNK`] bytes, and parses the chunks on
-//! rayon, each into its own short columns, which are copied to their places in the
-//! whole file's columns (known from the chunks' lengths), on rayon as well. The
+//! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes (the first a
+//! sixteenth of that), cuts each block at line boundaries into chunks of about
+//! [`CHUNK`] bytes, and parses the chunks on rayon, each into its own short columns,
+//! which are copied to their places in the whole file's columns (known from the
+//! chunks' lengths), on rayon as well. The
 //! blocks and chunks depend on the bytes alone, never on the number of threads, and a
 //! number's parse does not depend on its neighbours: the columns, and any error
 //! (the first in file order), are the same on any number of threads.
@@ -533,12 +534,15 @@ pub fn read_columns_in<R: Read>(
     };
     let mut buf: Vec<u8> = Vec::with_capacity(block.min(len as usize + 1).min(BLOCK) + 1);
     let mut eof = false;
-    // Reads up to `block` bytes more (to `block` when short of it).
-    let mut fill = |buf: &mut Vec<u8>, eof: &mut bool| -> Result<(), FileError> {
-        let want = if buf.len() < block {
-            block - buf.len()
+    // The first block is a sixteenth of the others, so that the parse starts (on
+    // rayon) while the calling thread would still be reading a whole one.
+    let first = (block / 16).max(1);
+    // Reads up to `size` bytes more (to `size` when short of it).
+    let mut fill = |buf: &mut Vec<u8>, eof: &mut bool, size: usize| -> Result<(), FileError> {
+        let want = if buf.len() < size {
+            size - buf.len()
         } else {
-            block
+            size
         };
         let got = std::io::Read::take(&mut r, want as u64)
             .read_to_end(buf)
@@ -547,7 +551,7 @@ pub fn read_columns_in<R: Read>(
         Ok(())
     };
     let h = loop {
-        fill(&mut buf, &mut eof)?;
+        fill(&mut buf, &mut eof, first)?;
         if let Some(h) = head(&buf, eof, path)? {
             break h;
         }
@@ -560,9 +564,14 @@ pub fn read_columns_in<R: Read>(
     let mut skipped = Vec::new();
     let mut line = h.line;
     let mut rows = 0usize;
+    // The buffer the next block is read into: the last block's, whose pages are
+    // already the process's (a fresh one a block costs the reading thread a page
+    // fault every 4 KiB, beside the parse).
+    let mut spare: Vec<u8> = Vec::new();
+    let mut size = first;
     loop {
-        if !eof && buf.len() < block {
-            fill(&mut buf, &mut eof)?;
+        if !eof && buf.len() < size {
+            fill(&mut buf, &mut eof, size)?;
         }
         // Whole lines only, but for the file's last.
         let end = if eof {
@@ -574,7 +583,7 @@ pub fn read_columns_in<R: Read>(
                     return Err(at(line + 1, None, format!("longer than {MAX_LINE} bytes")));
                 }
                 None => {
-                    fill(&mut buf, &mut eof)?;
+                    fill(&mut buf, &mut eof, size)?;
                     continue;
                 }
             }
@@ -582,7 +591,10 @@ pub fn read_columns_in<R: Read>(
         // This block's whole lines are parsed (on rayon, from a scoped thread) while
         // this thread reads the next block behind the rest of its last line: the
         // same reads, so the same blocks, as one after the other.
-        let mut next: Vec<u8> = Vec::with_capacity(buf.capacity());
+        size = block;
+        let mut next = std::mem::take(&mut spare);
+        next.clear();
+        next.reserve(buf.capacity());
         next.extend_from_slice(&buf[end..]);
         let (parsed, read) = std::thread::scope(|s| {
             let parse = s.spawn(|| {
@@ -594,7 +606,7 @@ pub fn read_columns_in<R: Read>(
             let read = if eof {
                 Ok(())
             } else {
-                fill(&mut next, &mut eof)
+                fill(&mut next, &mut eof, block)
             };
             (parse.join(), read)
         });
@@ -652,7 +664,7 @@ pub fn read_columns_in<R: Read>(
             .for_each(|(to, from)| to.copy_from_slice(from));
         // A read's error after this block's own (the order of one after the other).
         read?;
-        buf = next;
+        spare = std::mem::replace(&mut buf, next);
         if eof && buf.is_empty() {
             break;
         }
@@ -794,15 +806,16 @@ impl Columns {
     /// the first row (in file order) off the grid is an error.
     fn nodes_on(&self, g: &Grid, path: Option<&Path>) -> Result<Vec<u32>, FileError> {
         let [ti, pi, to, po] = &self.angles;
-        let runs: Vec<Result<Vec<u32>, OffGrid>> = (0..self.rows())
-            .step_by(ROW_CHUNK)
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|start| {
-                let end = (start + ROW_CHUNK).min(self.rows());
+        // Each fixed run of rows writes its nodes in place (on rayon); the first run
+        // (in file order) with a row off the grid names it.
+        let mut idx = vec![0u32; self.rows()];
+        let runs: Vec<Result<(), OffGrid>> = idx
+            .par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .map(|(b, out)| {
+                let start = b * ROW_CHUNK;
                 let mut cache = [(f64::NAN, 0usize); 4];
-                let mut out = Vec::with_capacity(end - start);
-                for r in start..end {
+                for (o, r) in out.iter_mut().zip(start..) {
                     let (a, c) = if g.isotropic {
                         (0.0, po[r] - pi[r])
                     } else {
@@ -823,25 +836,19 @@ impl Columns {
                         node(2, &g.phi_o, c, "phi_o")?,
                         node(3, &g.theta_o, to[r], "theta_o")?,
                     );
-                    out.push(i as u32);
+                    *o = i as u32;
                 }
-                Ok(out)
+                Ok(())
             })
             .collect();
-        let mut idx = Vec::with_capacity(self.rows());
-        for run in runs {
-            match run {
-                Ok(v) => idx.extend_from_slice(&v),
-                Err((r, name, x)) => {
-                    return Err(FileError::at_line(
-                        KIND,
-                        path,
-                        self.line_of(r),
-                        Some(name),
-                        format!("{x} is not a node of the grid"),
-                    ));
-                }
-            }
+        if let Some(Err((r, name, x))) = runs.into_iter().find(Result::is_err) {
+            return Err(FileError::at_line(
+                KIND,
+                path,
+                self.line_of(r),
+                Some(name),
+                format!("{x} is not a node of the grid"),
+            ));
         }
         Ok(idx)
     }
@@ -870,14 +877,16 @@ impl Columns {
                 // One channel in grid order: the column is the table's array.
                 return cols.into_iter().next().unwrap_or_default();
             }
-            let mut out = Vec::with_capacity(n * cols.len());
-            for c in cols {
+            // Zeroed by the allocator (fresh pages, touched first by the copies, on
+            // rayon); each column freed once copied, so that at most one column is
+            // held twice.
+            let mut out = vec![0.0; n * cols.len()];
+            for (c, dst) in cols.into_iter().zip(out.chunks_mut(n.max(1))) {
                 if in_order {
-                    out.extend_from_slice(&c);
+                    dst.par_chunks_mut(ROW_CHUNK)
+                        .zip(c.par_chunks(ROW_CHUNK))
+                        .for_each(|(d, s)| d.copy_from_slice(s));
                 } else {
-                    let start = out.len();
-                    out.resize(start + n, 0.0);
-                    let dst = &mut out[start..];
                     for (r, i) in idx.iter().enumerate() {
                         dst[*i as usize] = c[r];
                     }
@@ -892,8 +901,9 @@ impl Columns {
             angles,
             ..
         } = self;
-        // The angles are the grid's now: freed before the table is gathered.
-        drop(angles);
+        // The angles are the grid's now: freed before the table is gathered, side by
+        // side (each free unmaps a column's pages).
+        angles.into_par_iter().for_each(drop);
         let values = gather(values);
         let sigma = sigma.map(gather);
         Table::new(roles.channels, g, values, sigma)
@@ -965,26 +975,25 @@ impl Columns {
         if grid.len() != rows {
             return None;
         }
-        let idx: Vec<u32> = starts
-            .par_iter()
-            .flat_map_iter(|&s| {
-                let keys = &keys;
-                let grid = &grid;
-                (s..(s + ROW_CHUNK).min(rows)).map(move |r| {
+        // Each row's node, written in place on rayon.
+        let mut idx = vec![0u32; rows];
+        idx.par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .for_each(|(b, out)| {
+                for (o, r) in out.iter_mut().zip(b * ROW_CHUNK..) {
                     let k = key(r);
                     let at = |a: usize| keys[a].binary_search(&k[a]).unwrap_or(0);
-                    grid.index(at(0), at(1), at(2), at(3)) as u32
-                })
-            })
-            .collect();
+                    *o = grid.index(at(0), at(1), at(2), at(3)) as u32;
+                }
+            });
         // Each node once: whether any is repeated does not depend on the order the
-        // rows are marked in, so they are marked on rayon.
-        let seen: Vec<std::sync::atomic::AtomicBool> = (0..rows)
-            .map(|_| std::sync::atomic::AtomicBool::new(false))
-            .collect();
-        let repeat = idx
-            .par_iter()
-            .any(|i| seen[*i as usize].swap(true, std::sync::atomic::Ordering::Relaxed));
+        // rows are marked in, so they are marked on rayon, a bit a node.
+        use std::sync::atomic::{AtomicU64, Ordering};
+        let seen: Vec<AtomicU64> = (0..rows.div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+        let repeat = idx.par_iter().any(|&i| {
+            let bit = 1u64 << (i % 64);
+            seen[i as usize / 64].fetch_or(bit, Ordering::Relaxed) & bit != 0
+        });
         (!repeat).then_some((grid, idx))
     }
 }
