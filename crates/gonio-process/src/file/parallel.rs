@@ -683,6 +683,9 @@ pub fn read_columns_in<R: Read>(
     if rows == 0 {
         return Err(FileError::whole(KIND, path, "no data rows"));
     }
+    // The read buffers are freed on rayon, beside what follows (unmapping them is
+    // a pass over their pages).
+    rayon::spawn(move || drop((buf, spare, parsed)));
     cols.iter_mut().for_each(|c| c.truncate(rows));
     let nc = roles.values.len();
     let mut it = cols.into_iter();
@@ -974,9 +977,15 @@ impl Columns {
             angles,
             ..
         } = self;
-        // The angles are the grid's now: freed before the table is gathered, side by
-        // side (each free unmaps a column's pages).
-        angles.into_par_iter().for_each(drop);
+        // The angles are the grid's now. A single column in grid order is the table
+        // as it is: the angles are freed on rayon beside what follows. Else they are
+        // freed, side by side, before the table is gathered (each free unmaps a
+        // column's pages).
+        if in_order && values.len() == 1 && sigma.is_none() {
+            rayon::spawn(move || drop(angles));
+        } else {
+            angles.into_par_iter().for_each(drop);
+        }
         let values = gather(values);
         let sigma = sigma.map(gather);
         Table::new(roles.channels, g, values, sigma)
