@@ -503,6 +503,32 @@ impl Dataset {
         Ok(self.tabulate(step, path)?.table)
     }
 
+    /// [`Dataset::tabulate`] of data no longer needed: a table used as it is moves
+    /// into the result instead of being copied (a large table's copy is a serial
+    /// pass over all its values and as much memory again).
+    pub fn into_tabulated(
+        self,
+        step: Option<GridStep>,
+        path: &Path,
+    ) -> Result<Tabulated, DatasetError> {
+        match self {
+            Dataset::Table(t) if step.is_none() && !hemisphere::half_turn(&t.grid) => {
+                let symmetry = if t.grid.isotropic {
+                    Symmetry::Isotropic
+                } else {
+                    Symmetry::None
+                };
+                Ok(Tabulated {
+                    table: t,
+                    symmetry,
+                    fill: None,
+                    measured: None,
+                })
+            }
+            d => d.tabulate(step, path),
+        }
+    }
+
     /// [`Dataset::to_table`], with what was assumed and done on the way: the
     /// symmetry, the nodes of the data's own grid that were interpolated, and the
     /// (unfolded) samples of measured data, which the energy measure integrates

@@ -74,7 +74,7 @@ pub(crate) fn compute(a: &CheckArgs, given: Option<Dataset>) -> CliResult<Checke
         return Err(CliError::Input("--k: every k must be at least 1".into()));
     }
     let data = super::open_data(path, &a.reduction, given)?;
-    let tab = data.tabulate(a.grid.grid, path)?;
+    let tab = data.into_tabulated(a.grid.grid, path)?;
     let ks = if ks.is_empty() { vec![1] } else { ks.to_vec() };
     let report = measure::report_with(&tab.table, tab.measured.as_ref(), &ks, 5)
         .map_err(|e| CliError::process(path, e))?;

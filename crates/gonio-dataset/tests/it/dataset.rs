@@ -246,3 +246,29 @@ fn an_input_that_is_not_a_regular_file_is_refused_unread() {
         );
     }
 }
+
+#[test]
+fn a_table_moved_into_its_tabulated_form_is_the_one_tabulate_copies() {
+    let (model, _) = paint();
+    let p = Path::new("t.csv");
+    let half = Grid::isotropic(
+        gonio_process::Axis::polar_midpoints(3),
+        gonio_process::Axis::from_deg(15.0, 30.0, 6),
+        gonio_process::Axis::polar_midpoints(3),
+    );
+    assert!(gonio_process::hemisphere::half_turn(&half));
+    let step = GridStep::new(30.0, 60.0).expect("step");
+    for (g, step) in [
+        (Grid::hemisphere(3, 8), None),
+        (Grid::hemisphere_isotropic(3, 8), None),
+        (half, None),
+        (Grid::hemisphere(3, 8), Some(step)),
+    ] {
+        let d = Dataset::Table(Table::from_brdf(&model, g).expect("table"));
+        let copied = d.tabulate(step, p).expect("tabulated");
+        let moved = d.into_tabulated(step, p).expect("moved");
+        assert_eq!(moved.table, copied.table);
+        assert_eq!(moved.symmetry, copied.symmetry);
+        assert_eq!(format!("{moved:?}"), format!("{copied:?}"));
+    }
+}

@@ -1,11 +1,12 @@
 //! The table and sample CSV read as columns, in parallel: any tool's file.
 //!
-//! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes, cuts each block
-//! at line boundaries into chunks of about [`CHUNK`] bytes, and parses the chunks on
-//! rayon, each into its own short columns, which are copied to their places in the
-//! whole file's columns (known from the chunks' lengths), on rayon as well. The
-//! blocks and chunks depend on the bytes alone, never on the number of threads, and a
-//! number's parse does not depend on its neighbours: the columns, and any error
+//! [`read_columns`] streams the bytes in blocks of [`BLOCK`] bytes (the first a
+//! sixteenth of that, each next twice the last), cuts each block at line
+//! boundaries into chunks of about [`CHUNK`] bytes, and parses the chunks on rayon,
+//! each into its own short columns, which are copied to their places in the whole
+//! file's columns (known from the chunks' lengths), on rayon as well. The blocks and
+//! chunks depend on the bytes alone, never on the number of threads, and a number's
+//! parse does not depend on its neighbours: the columns, and any error
 //! (the first in file order), are the same on any number of threads.
 //!
 //! The header may come from another tool: the columns in any order, the angles as
@@ -272,7 +273,9 @@ pub struct Columns {
     skipped: Vec<usize>,
 }
 
-/// A chunk's rows as parsed: numbers by slot, flags, and the first error.
+/// A chunk's rows as parsed: numbers by slot, flags, and the first error. Its
+/// buffers serve the chunk at the same place in the next block.
+#[derive(Default)]
 struct Parsed {
     slots: Vec<Vec<f64>>,
     flags: Vec<u32>,
@@ -298,21 +301,25 @@ fn number(f: &[u8]) -> Option<f64> {
         .filter(|x| x.is_finite())
 }
 
-/// Parses the lines of one chunk (whole lines, the last maybe unterminated).
-fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
+/// Parses the lines of one chunk (whole lines, the last maybe unterminated) into
+/// `out`, whose buffers are reused.
+fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize], out: &mut Parsed) {
     let width = roles.names.len();
     let nc = roles.values.len();
     // At most a row a line: the chunk's columns are allocated once.
     let guess = text.iter().filter(|b| **b == b'\n').count() + 1;
-    let mut out = Parsed {
-        slots: (0..slots.len())
-            .map(|_| Vec::with_capacity(guess))
-            .collect(),
-        flags: Vec::with_capacity(if roles.flags.is_some() { guess } else { 0 }),
-        lines: 0,
-        skipped: Vec::new(),
-        error: None,
-    };
+    out.slots.resize_with(slots.len(), Vec::new);
+    for c in &mut out.slots {
+        c.clear();
+        c.reserve(guess);
+    }
+    out.flags.clear();
+    if roles.flags.is_some() {
+        out.flags.reserve(guess);
+    }
+    out.lines = 0;
+    out.skipped.clear();
+    out.error = None;
     let mut fields: Vec<(usize, usize)> = Vec::with_capacity(width);
     // The angles repeat from row to row: a field equal to the last row's keeps its value.
     let mut last: [(&[u8], f64); 4] = [(&[][..], 0.0); 4];
@@ -320,7 +327,7 @@ fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
         out.lines += 1;
         if line.len() > MAX_LINE {
             out.error = Some((k, None, format!("longer than {MAX_LINE} bytes")));
-            return out;
+            return;
         }
         let l = trim(line);
         if l.is_empty() || l[0] == b'#' {
@@ -342,7 +349,7 @@ fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
                 None,
                 format!("{} fields, the header has {width}", fields.len()),
             ));
-            return out;
+            return;
         }
         let field = |j: usize| trim(&l[fields[j].0..fields[j].1]);
         let bad = |j: usize| {
@@ -358,26 +365,26 @@ fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
                         Some(v) => (*text, *x) = (f, v),
                         None => {
                             out.error = Some(bad(j));
-                            return out;
+                            return;
                         }
                     }
                 }
                 let x = *x;
                 if slot % 2 == 0 && !(0.0..=90.0).contains(&x) {
                     out.error = Some((k, Some(j), format!("θ must lie in [0, 90], got {x}")));
-                    return out;
+                    return;
                 }
                 x
             } else {
                 match number(f) {
                     Some(v) if slot >= 4 + nc && v < 0.0 => {
                         out.error = Some((k, Some(j), "uncertainty is negative".into()));
-                        return out;
+                        return;
                     }
                     Some(v) => v,
                     None => {
                         out.error = Some(bad(j));
-                        return out;
+                        return;
                     }
                 }
             };
@@ -393,12 +400,11 @@ fn parse_chunk(text: &[u8], roles: &Roles, slots: &[usize]) -> Parsed {
                 None => {
                     let f = String::from_utf8_lossy(f).into_owned();
                     out.error = Some((k, Some(j), format!("not a whole number: {f:?}")));
-                    return out;
+                    return;
                 }
             }
         }
     }
-    out
 }
 
 /// Cuts `text` into chunks of about `size` bytes, each ending at a line end (the
@@ -533,12 +539,16 @@ pub fn read_columns_in<R: Read>(
     };
     let mut buf: Vec<u8> = Vec::with_capacity(block.min(len as usize + 1).min(BLOCK) + 1);
     let mut eof = false;
-    // Reads up to `block` bytes more (to `block` when short of it).
-    let mut fill = |buf: &mut Vec<u8>, eof: &mut bool| -> Result<(), FileError> {
-        let want = if buf.len() < block {
-            block - buf.len()
+    // The first block is a sixteenth of `block`, and each next one twice the last up
+    // to `block`: the parse starts (on rayon) while the calling thread would still
+    // be reading a whole block, and each read is hidden behind the parse before it.
+    let first = (block / 16).max(1);
+    // Reads up to `size` bytes more (to `size` when short of it).
+    let mut fill = |buf: &mut Vec<u8>, eof: &mut bool, size: usize| -> Result<(), FileError> {
+        let want = if buf.len() < size {
+            size - buf.len()
         } else {
-            block
+            size
         };
         let got = std::io::Read::take(&mut r, want as u64)
             .read_to_end(buf)
@@ -547,7 +557,7 @@ pub fn read_columns_in<R: Read>(
         Ok(())
     };
     let h = loop {
-        fill(&mut buf, &mut eof)?;
+        fill(&mut buf, &mut eof, first)?;
         if let Some(h) = head(&buf, eof, path)? {
             break h;
         }
@@ -560,9 +570,15 @@ pub fn read_columns_in<R: Read>(
     let mut skipped = Vec::new();
     let mut line = h.line;
     let mut rows = 0usize;
+    // The buffer the next block is read into: the last block's, whose pages are
+    // already the process's (a fresh one a block costs the reading thread a page
+    // fault every 4 KiB, beside the parse).
+    let mut spare: Vec<u8> = Vec::new();
+    let mut parsed: Vec<Parsed> = Vec::new();
+    let mut size = first;
     loop {
-        if !eof && buf.len() < block {
-            fill(&mut buf, &mut eof)?;
+        if !eof && buf.len() < size {
+            fill(&mut buf, &mut eof, size)?;
         }
         // Whole lines only, but for the file's last.
         let end = if eof {
@@ -574,7 +590,7 @@ pub fn read_columns_in<R: Read>(
                     return Err(at(line + 1, None, format!("longer than {MAX_LINE} bytes")));
                 }
                 None => {
-                    fill(&mut buf, &mut eof)?;
+                    fill(&mut buf, &mut eof, size)?;
                     continue;
                 }
             }
@@ -582,23 +598,30 @@ pub fn read_columns_in<R: Read>(
         // This block's whole lines are parsed (on rayon, from a scoped thread) while
         // this thread reads the next block behind the rest of its last line: the
         // same reads, so the same blocks, as one after the other.
-        let mut next: Vec<u8> = Vec::with_capacity(buf.capacity());
+        size = (2 * size).min(block);
+        let mut next = std::mem::take(&mut spare);
+        next.clear();
+        next.reserve(buf.capacity());
         next.extend_from_slice(&buf[end..]);
-        let (parsed, read) = std::thread::scope(|s| {
+        let pieces = chunks(&buf[..end], chunk);
+        // The last block's chunk buffers parse this one's (their pages are the
+        // process's already: fresh ones a block page-fault anew).
+        parsed.resize_with(pieces.len(), Parsed::default);
+        let (done, read) = std::thread::scope(|s| {
             let parse = s.spawn(|| {
-                chunks(&buf[..end], chunk)
+                pieces
                     .par_iter()
-                    .map(|c| parse_chunk(c, &roles, &slots))
-                    .collect::<Vec<Parsed>>()
+                    .zip(parsed.par_iter_mut())
+                    .for_each(|(c, p)| parse_chunk(c, &roles, &slots, p))
             });
             let read = if eof {
                 Ok(())
             } else {
-                fill(&mut next, &mut eof)
+                fill(&mut next, &mut eof, size)
             };
             (parse.join(), read)
         });
-        let parsed = parsed.unwrap_or_else(|e| std::panic::resume_unwind(e));
+        done.unwrap_or_else(|e| std::panic::resume_unwind(e));
         if rows == 0 && !parsed.is_empty() {
             // Columns for the whole file from the first block's density, zeroed by
             // the allocator (fresh pages: touched first by the copies below, on
@@ -652,7 +675,7 @@ pub fn read_columns_in<R: Read>(
             .for_each(|(to, from)| to.copy_from_slice(from));
         // A read's error after this block's own (the order of one after the other).
         read?;
-        buf = next;
+        spare = std::mem::replace(&mut buf, next);
         if eof && buf.is_empty() {
             break;
         }
@@ -660,6 +683,9 @@ pub fn read_columns_in<R: Read>(
     if rows == 0 {
         return Err(FileError::whole(KIND, path, "no data rows"));
     }
+    // The read buffers are freed on rayon, beside what follows (unmapping them is
+    // a pass over their pages).
+    rayon::spawn(move || drop((buf, spare, parsed)));
     cols.iter_mut().for_each(|c| c.truncate(rows));
     let nc = roles.values.len();
     let mut it = cols.into_iter();
@@ -678,6 +704,37 @@ pub fn read_columns_in<R: Read>(
         header_line: h.line,
         skipped,
     })
+}
+
+/// A small direct-mapped memo of a function of one or two angles (keyed by their
+/// bits): rows repeat and cycle through few angles, so that most rows find their
+/// axis keys here rather than forming them anew. Exact: a miss forms the value.
+struct Memo<V> {
+    slots: Vec<Option<(u64, u64, V)>>,
+}
+
+impl<V: Clone> Default for Memo<V> {
+    fn default() -> Self {
+        Memo {
+            slots: vec![None; 256],
+        }
+    }
+}
+
+impl<V: Clone> Memo<V> {
+    /// The value kept for `(x, y)`, else `f()`'s, kept.
+    fn get_or(&mut self, (x, y): (f64, f64), f: impl FnOnce() -> V) -> V {
+        let (x, y) = (x.to_bits(), y.to_bits());
+        let h = ((x ^ y.rotate_left(29)).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 56) as usize;
+        match &self.slots[h] {
+            Some((a, b, v)) if *a == x && *b == y => v.clone(),
+            _ => {
+                let v = f();
+                self.slots[h] = Some((x, y, v.clone()));
+                v
+            }
+        }
+    }
 }
 
 /// A row off a grid: its index, the axis and the angle.
@@ -773,7 +830,7 @@ impl Columns {
         }
         let Some((gline, g)) = this.grid else {
             return match this.recognise() {
-                Some((g, idx)) => this.place(g, &idx, path),
+                Some((g, idx)) => this.place(g, idx.as_deref(), path),
                 None => Ok(Content::Samples(this.to_samples())),
             };
         };
@@ -787,51 +844,60 @@ impl Columns {
             });
         }
         let idx = this.nodes_on(&g, path)?;
-        this.place(g, &idx, path)
+        this.place(g, idx.as_deref(), path)
     }
 
     /// The node of each row on a given grid, in parallel over fixed runs of rows;
-    /// the first row (in file order) off the grid is an error.
-    fn nodes_on(&self, g: &Grid, path: Option<&Path>) -> Result<Vec<u32>, FileError> {
+    /// none when every row is at its own index (the rows in the grid's order: no
+    /// index is formed then). The first row (in file order) off the grid is an error.
+    fn nodes_on(&self, g: &Grid, path: Option<&Path>) -> Result<Option<Vec<u32>>, FileError> {
         let [ti, pi, to, po] = &self.angles;
-        let runs: Vec<Result<Vec<u32>, OffGrid>> = (0..self.rows())
-            .step_by(ROW_CHUNK)
-            .collect::<Vec<_>>()
+        let rows = self.rows();
+        // Rows `start..end`'s nodes, each given to `put`; the first off the grid
+        // ends the run.
+        let run = |start: usize, end: usize, put: &mut dyn FnMut(usize, u32)| {
+            let mut cache = [(f64::NAN, 0usize); 4];
+            for r in start..end {
+                let (a, c) = if g.isotropic {
+                    (0.0, po[r] - pi[r])
+                } else {
+                    (pi[r], po[r])
+                };
+                let mut node = |slot: usize, ax: &Axis, x: f64, name: &'static str| {
+                    let (lx, li) = &mut cache[slot];
+                    if *lx == x {
+                        return Ok(*li);
+                    }
+                    let i = ax.node_at(x.to_radians()).ok_or((r, name, x))?;
+                    (*lx, *li) = (x, i);
+                    Ok(i)
+                };
+                let i = g.index(
+                    node(0, &g.phi_i, a, "phi_i")?,
+                    node(1, &g.theta_i, ti[r], "theta_i")?,
+                    node(2, &g.phi_o, c, "phi_o")?,
+                    node(3, &g.theta_o, to[r], "theta_o")?,
+                );
+                put(r, i as u32);
+            }
+            Ok::<(), OffGrid>(())
+        };
+        // First whether every row is on the grid, and at its own index.
+        let runs: Vec<Result<bool, OffGrid>> = (0..rows.div_ceil(ROW_CHUNK))
             .into_par_iter()
-            .map(|start| {
-                let end = (start + ROW_CHUNK).min(self.rows());
-                let mut cache = [(f64::NAN, 0usize); 4];
-                let mut out = Vec::with_capacity(end - start);
-                for r in start..end {
-                    let (a, c) = if g.isotropic {
-                        (0.0, po[r] - pi[r])
-                    } else {
-                        (pi[r], po[r])
-                    };
-                    let mut node = |slot: usize, ax: &Axis, x: f64, name: &'static str| {
-                        let (lx, li) = &mut cache[slot];
-                        if *lx == x {
-                            return Ok(*li);
-                        }
-                        let i = ax.node_at(x.to_radians()).ok_or((r, name, x))?;
-                        (*lx, *li) = (x, i);
-                        Ok(i)
-                    };
-                    let i = g.index(
-                        node(0, &g.phi_i, a, "phi_i")?,
-                        node(1, &g.theta_i, ti[r], "theta_i")?,
-                        node(2, &g.phi_o, c, "phi_o")?,
-                        node(3, &g.theta_o, to[r], "theta_o")?,
-                    );
-                    out.push(i as u32);
-                }
-                Ok(out)
+            .map(|b| {
+                let mut in_order = true;
+                let start = b * ROW_CHUNK;
+                run(start, (start + ROW_CHUNK).min(rows), &mut |r, i| {
+                    in_order &= i as usize == r;
+                })?;
+                Ok(in_order)
             })
             .collect();
-        let mut idx = Vec::with_capacity(self.rows());
-        for run in runs {
-            match run {
-                Ok(v) => idx.extend_from_slice(&v),
+        let mut in_order = true;
+        for x in runs {
+            match x {
+                Ok(o) => in_order &= o,
                 Err((r, name, x)) => {
                     return Err(FileError::at_line(
                         KIND,
@@ -843,15 +909,32 @@ impl Columns {
                 }
             }
         }
-        Ok(idx)
+        if in_order {
+            return Ok(None);
+        }
+        // Each fixed run of rows writes its nodes in place, on rayon (every row is
+        // on the grid: the pass above found none off it).
+        let mut idx = vec![0u32; rows];
+        idx.par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .for_each(|(b, out)| {
+                let start = b * ROW_CHUNK;
+                let _ = run(start, start + out.len(), &mut |r, i| out[r - start] = i);
+            });
+        Ok(Some(idx))
     }
 
     /// The table of rows placed at their nodes `idx` (each node once, else an error
-    /// at the repeat's line).
-    fn place(self, g: Grid, idx: &[u32], path: Option<&Path>) -> Result<Content, FileError> {
+    /// at the repeat's line; none: each row at its own index).
+    fn place(
+        self,
+        g: Grid,
+        idx: Option<&[u32]>,
+        path: Option<&Path>,
+    ) -> Result<Content, FileError> {
         let n = g.len();
-        let in_order = idx.par_iter().enumerate().all(|(r, i)| *i as usize == r);
-        if !in_order {
+        let in_order = idx.is_none();
+        if let Some(idx) = idx {
             let mut seen = vec![false; n];
             for (r, i) in idx.iter().enumerate() {
                 if std::mem::replace(&mut seen[*i as usize], true) {
@@ -870,14 +953,16 @@ impl Columns {
                 // One channel in grid order: the column is the table's array.
                 return cols.into_iter().next().unwrap_or_default();
             }
-            let mut out = Vec::with_capacity(n * cols.len());
-            for c in cols {
+            // Zeroed by the allocator (fresh pages, touched first by the copies, on
+            // rayon); each column freed once copied, so that at most one column is
+            // held twice.
+            let mut out = vec![0.0; n * cols.len()];
+            for (c, dst) in cols.into_iter().zip(out.chunks_mut(n.max(1))) {
                 if in_order {
-                    out.extend_from_slice(&c);
-                } else {
-                    let start = out.len();
-                    out.resize(start + n, 0.0);
-                    let dst = &mut out[start..];
+                    dst.par_chunks_mut(ROW_CHUNK)
+                        .zip(c.par_chunks(ROW_CHUNK))
+                        .for_each(|(d, s)| d.copy_from_slice(s));
+                } else if let Some(idx) = idx {
                     for (r, i) in idx.iter().enumerate() {
                         dst[*i as usize] = c[r];
                     }
@@ -892,8 +977,15 @@ impl Columns {
             angles,
             ..
         } = self;
-        // The angles are the grid's now: freed before the table is gathered.
-        drop(angles);
+        // The angles are the grid's now. A single column in grid order is the table
+        // as it is: the angles are freed on rayon beside what follows. Else they are
+        // freed, side by side, before the table is gathered (each free unmaps a
+        // column's pages).
+        if in_order && values.len() == 1 && sigma.is_none() {
+            rayon::spawn(move || drop(angles));
+        } else {
+            angles.into_par_iter().for_each(drop);
+        }
         let values = gather(values);
         let sigma = sigma.map(gather);
         Table::new(roles.channels, g, values, sigma)
@@ -901,10 +993,11 @@ impl Columns {
             .map_err(|e| FileError::whole(KIND, path, e.to_string()))
     }
 
-    /// The grid the rows form without a given one, and each row's node, when their
-    /// angles make a complete uniform grid with each node once: the grid
-    /// `Samples::to_table` recognises. None otherwise (repeats, gaps, uneven steps).
-    fn recognise(&self) -> Option<(Grid, Vec<u32>)> {
+    /// The grid the rows form without a given one, and each row's node (none when
+    /// every row is at its own index), when their angles make a complete uniform
+    /// grid with each node once: the grid `Samples::to_table` recognises. None
+    /// otherwise (repeats, gaps, uneven steps).
+    fn recognise(&self) -> Option<(Grid, Option<Vec<u32>>)> {
         let rows = self.rows();
         let iso = self.isotropic;
         if self
@@ -915,29 +1008,40 @@ impl Columns {
         {
             return None;
         }
-        // Each row's keys (φi, θi, φo, θo) as `Samples::to_table` makes them.
-        let key = |r: usize| -> [i64; 4] {
-            let [ti, pi, to, po] = [0, 1, 2, 3].map(|k| self.angles[k][r]);
-            let (a, c) = if iso {
-                (0, wrap(po - pi))
-            } else {
-                (wrap(pi), wrap(po))
-            };
-            [a, q(ti), c, q(to)]
+        // Axis a's key of a row (φi, θi, φo, θo as `Samples::to_table` makes them)
+        // is a function of one or two of its angles, `inputs(r, a)`.
+        let inputs = |r: usize, a: usize| -> (f64, f64) {
+            let at = |k: usize| self.angles[k][r];
+            match (a, iso) {
+                (0, true) => (0.0, 0.0),
+                (0, false) => (at(1), 0.0),
+                (1, _) => (at(0), 0.0),
+                (2, true) => (at(3), at(1)),
+                (2, false) => (at(3), 0.0),
+                _ => (at(2), 0.0),
+            }
+        };
+        let key_of = |a: usize, (x, y): (f64, f64)| -> i64 {
+            match (a, iso) {
+                (0, true) => 0,
+                (0, false) | (2, false) => wrap(x),
+                (2, true) => wrap(x - y),
+                _ => q(x),
+            }
         };
         let starts: Vec<usize> = (0..rows).step_by(ROW_CHUNK).collect();
         let sets: Vec<[std::collections::BTreeSet<i64>; 4]> = starts
             .par_iter()
             .map(|&s| {
                 let mut sets: [std::collections::BTreeSet<i64>; 4] = Default::default();
-                let mut last = [i64::MIN; 4];
+                // The angles met in this run: a key is formed and kept once for each.
+                let mut memo: [Memo<()>; 4] = Default::default();
                 for r in s..(s + ROW_CHUNK).min(rows) {
-                    let k = key(r);
-                    for a in 0..4 {
-                        if k[a] != last[a] {
-                            sets[a].insert(k[a]);
-                            last[a] = k[a];
-                        }
+                    for (a, set) in sets.iter_mut().enumerate() {
+                        let xy = inputs(r, a);
+                        memo[a].get_or(xy, || {
+                            set.insert(key_of(a, xy));
+                        });
                     }
                 }
                 sets
@@ -965,26 +1069,41 @@ impl Columns {
         if grid.len() != rows {
             return None;
         }
-        let idx: Vec<u32> = starts
-            .par_iter()
-            .flat_map_iter(|&s| {
-                let keys = &keys;
-                let grid = &grid;
-                (s..(s + ROW_CHUNK).min(rows)).map(move |r| {
-                    let k = key(r);
-                    let at = |a: usize| keys[a].binary_search(&k[a]).unwrap_or(0);
-                    grid.index(at(0), at(1), at(2), at(3)) as u32
-                })
-            })
-            .collect();
+        // Row r's node, each axis's node index kept for the angles met.
+        let node = |memo: &mut [Memo<usize>; 4], r: usize| {
+            let mut at = |a: usize| {
+                let xy = inputs(r, a);
+                memo[a].get_or(xy, || keys[a].binary_search(&key_of(a, xy)).unwrap_or(0))
+            };
+            grid.index(at(0), at(1), at(2), at(3))
+        };
+        // Rows in the grid's order are each node once, with no index to form.
+        if (0..rows)
+            .into_par_iter()
+            .with_min_len(ROW_CHUNK)
+            .map_init(<[Memo<usize>; 4]>::default, |m, r| node(m, r) == r)
+            .all(|x| x)
+        {
+            return Some((grid, None));
+        }
+        // Each row's node, written in place on rayon.
+        let mut idx = vec![0u32; rows];
+        idx.par_chunks_mut(ROW_CHUNK)
+            .enumerate()
+            .for_each(|(b, out)| {
+                let mut memo = Default::default();
+                for (o, r) in out.iter_mut().zip(b * ROW_CHUNK..) {
+                    *o = node(&mut memo, r) as u32;
+                }
+            });
         // Each node once: whether any is repeated does not depend on the order the
-        // rows are marked in, so they are marked on rayon.
-        let seen: Vec<std::sync::atomic::AtomicBool> = (0..rows)
-            .map(|_| std::sync::atomic::AtomicBool::new(false))
-            .collect();
-        let repeat = idx
-            .par_iter()
-            .any(|i| seen[*i as usize].swap(true, std::sync::atomic::Ordering::Relaxed));
-        (!repeat).then_some((grid, idx))
+        // rows are marked in, so they are marked on rayon, a bit a node.
+        use std::sync::atomic::{AtomicU64, Ordering};
+        let seen: Vec<AtomicU64> = (0..rows.div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+        let repeat = idx.par_iter().any(|&i| {
+            let bit = 1u64 << (i % 64);
+            seen[i as usize / 64].fetch_or(bit, Ordering::Relaxed) & bit != 0
+        });
+        (!repeat).then_some((grid, Some(idx)))
     }
 }

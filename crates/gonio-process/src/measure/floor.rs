@@ -364,25 +364,66 @@ pub fn floors(
     let draws = if t.sigma.is_some() { draws } else { 0 };
     // The four floors are independent: formed side by side, each the same numbers
     // on any number of threads.
-    let reciprocity = || reciprocity_floor(t, &report.reciprocity, draws);
-    let isotropy = || {
-        if t.grid.isotropic {
-            Ok(None)
-        } else {
-            isotropy_floor(t, &report.isotropy, draws).map(Some)
-        }
-    };
-    let energy = || energy_floor(t, measured, report, draws);
-    let separability = || match &report.separability {
-        Some(_) => separability_floor(t, report, ks, draws.min(MAX_SVD_DRAWS)),
-        None => Ok(None),
-    };
-    // No floor forms a counterpart table of the whole table's size (each forms at
-    // most one channel's values a draw in flight), so all four run side by side.
-    let ((reciprocity, isotropy), (energy, separability)) = rayon::join(
-        || rayon::join(reciprocity, isotropy),
-        || rayon::join(energy, separability),
+    let (three, separability) = rayon::join(
+        || {
+            three_floors(
+                t,
+                measured,
+                &report.reciprocity,
+                &report.energy,
+                &report.isotropy,
+                draws,
+            )
+        },
+        || separability_floor(t, report.separability.as_deref(), ks, draws),
     );
+    assemble(draws, three, separability)
+}
+
+/// The floors of P_r, P_ec and P_i (each the same numbers on any number of
+/// threads), side by side, given their measures.
+pub(crate) type Three = (
+    Result<Vec<Floor>, ProcessError>,
+    Result<Vec<Floor>, ProcessError>,
+    Result<Option<Vec<Floor>>, ProcessError>,
+);
+
+/// [`floors`]' floors of P_r, P_ec and P_i, side by side, from the measures
+/// `reciprocity`, `energy` and `isotropy`; `draws` is 0 without σ.
+pub(crate) fn three_floors(
+    t: &Table,
+    measured: Option<&Samples>,
+    reciprocity: &[f64],
+    energy: &measure::Energy,
+    isotropy: &[f64],
+    draws: usize,
+) -> Three {
+    // No floor forms a counterpart table of the whole table's size (each forms at
+    // most one channel's values a draw in flight), so all run side by side.
+    let ((reciprocity, isotropy), energy) = rayon::join(
+        || {
+            rayon::join(
+                || reciprocity_floor(t, reciprocity, draws),
+                || {
+                    if t.grid.isotropic {
+                        Ok(None)
+                    } else {
+                        isotropy_floor(t, isotropy, draws).map(Some)
+                    }
+                },
+            )
+        },
+        || energy_floor(t, measured, energy, draws),
+    );
+    (reciprocity, energy, isotropy)
+}
+
+/// The four floors as one, the first error (P_r, P_ec, P_i, P_s) if any.
+pub(crate) fn assemble(
+    draws: usize,
+    (reciprocity, energy, isotropy): Three,
+    separability: Result<Option<Vec<KFloors>>, ProcessError>,
+) -> Result<Floors, ProcessError> {
     Ok(Floors {
         draws,
         seed: SEED,
@@ -554,11 +595,10 @@ fn p_ec(albedo: &[Vec<f64>], tau: f64) -> Vec<f64> {
 fn energy_floor(
     t: &Table,
     measured: Option<&Samples>,
-    report: &Report,
+    e: &measure::Energy,
     draws: usize,
 ) -> Result<Vec<Floor>, ProcessError> {
     const TAU: f64 = 1.0;
-    let e = &report.energy;
     let nc = t.channels.len();
     let factor = |ch: usize, row: usize| {
         let a = e.albedo[ch][row];
@@ -748,13 +788,18 @@ fn energy_floor(
 
 /// P_s^(k)'s floor: A^(k) (Eq. 4.19) of the table's 4D form plus the data's noise
 /// (drawn on the table's own nodes, then expanded as the table is), through the same
-/// measure; none when A is too large for a full SVD a draw.
-fn separability_floor(
+/// measure; none when A is too large for a full SVD a draw, or P_s (`sep`) was not
+/// measured. `draws` is 0 without σ, and at most [`MAX_SVD_DRAWS`] are drawn.
+pub(crate) fn separability_floor(
     t: &Table,
-    report: &Report,
+    sep: Option<&[measure::Separability]>,
     ks: &[usize],
     draws: usize,
 ) -> Result<Option<Vec<KFloors>>, ProcessError> {
+    let Some(sep) = sep else {
+        return Ok(None);
+    };
+    let draws = draws.min(MAX_SVD_DRAWS);
     // A's shape in the 4D form, before that form is made (a copy of the table).
     let g = &t.grid;
     let (p, q) = if g.isotropic {
@@ -766,9 +811,6 @@ fn separability_floor(
         return Ok(None);
     }
     let full = measure::full_form(t)?;
-    let Some(sep) = &report.separability else {
-        return Ok(None);
-    };
     let nc = t.channels.len();
     let n = full.grid.len();
     let mut out = Vec::with_capacity(nc);
@@ -781,11 +823,12 @@ fn separability_floor(
             let k = k.min(s.len());
             // A^(k) in the table's value order: rows (φi, θi), columns (φo, θo).
             let mut ak = vec![0.0; n];
-            for r in 0..p {
-                for c in 0..q {
-                    ak[r * q + c] = (0..k).map(|m| u[(r, m)] * s[m] * v[(c, m)]).sum();
+            // Each value on its own: rows on rayon, the same bits.
+            ak.par_chunks_mut(q).enumerate().for_each(|(r, row)| {
+                for (c, x) in row.iter_mut().enumerate() {
+                    *x = (0..k).map(|m| u[(r, m)] * s[m] * v[(c, m)]).sum();
                 }
-            }
+            });
             let counterpart = Table::new(Channels::Single, full.grid, ak, None)?;
             let measure_of = |x: &Table| -> Result<f64, ProcessError> {
                 Ok(measure::separability(x, &[k])?[0].p_s[0].1)

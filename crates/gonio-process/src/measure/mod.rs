@@ -40,7 +40,9 @@ impl Reciprocals {
         if !g.is_paired() {
             return Reciprocals { map: None };
         }
+        // Each node's on its own, on rayon: one pass over the table's nodes.
         let map = (0..g.len())
+            .into_par_iter()
             .map(|i| {
                 let [a, b, c, d] = g.unindex(i);
                 if g.isotropic {
@@ -778,27 +780,53 @@ pub fn report_with(
     ks: &[usize],
     worst: usize,
 ) -> Result<Report, ProcessError> {
-    // The measures are independent of each other: computed side by side, each the
-    // same numbers on any number of threads.
-    let (((reciprocity, reciprocity_nodes), energy), (isotropy, separability)) = rayon::join(
+    let draws = floor::draws_for(t.values.len());
+    let floor_draws = if t.sigma.is_some() { draws } else { 0 };
+    // The measures are independent of each other, and each floor needs only its own
+    // measure: P_s and its floor (whose SVDs run mostly on one thread) beside the
+    // other three measures and then their floors, each the same numbers on any
+    // number of threads.
+    let ((reciprocity, energy, isotropy, three), (separability, sep_floor)) = rayon::join(
         || {
-            rayon::join(
-                || reciprocity(t),
-                || match measured {
-                    Some(s) => energy_scattered(s, 1.0, worst),
-                    None => {
-                        let sum = energy(t, 1.0, worst);
-                        Ok(if sum.coverage >= 0.999 {
-                            sum
-                        } else {
-                            energy_triangulated(t, 1.0, worst).unwrap_or(sum)
-                        })
-                    }
+            let (((reciprocity, reciprocity_nodes), energy), isotropy) = rayon::join(
+                || {
+                    rayon::join(
+                        || reciprocity(t),
+                        || match measured {
+                            Some(s) => energy_scattered(s, 1.0, worst),
+                            None => {
+                                let sum = energy(t, 1.0, worst);
+                                Ok(if sum.coverage >= 0.999 {
+                                    sum
+                                } else {
+                                    energy_triangulated(t, 1.0, worst).unwrap_or(sum)
+                                })
+                            }
+                        },
+                    )
                 },
-            )
+                || isotropy(t),
+            );
+            let three = match (&energy, &isotropy) {
+                (Ok(e), Ok(i)) => Some(floor::three_floors(
+                    t,
+                    measured,
+                    &reciprocity,
+                    e,
+                    i,
+                    floor_draws,
+                )),
+                _ => None,
+            };
+            ((reciprocity, reciprocity_nodes), energy, isotropy, three)
         },
-        || rayon::join(|| isotropy(t), || separability(t, ks).ok()),
+        || {
+            let separability = separability(t, ks).ok();
+            let floor = floor::separability_floor(t, separability.as_deref(), ks, floor_draws);
+            (separability, floor)
+        },
     );
+    let (reciprocity, reciprocity_nodes) = reciprocity;
     let mut report = Report {
         channels: t.channels.names(),
         nodes: t.grid.len(),
@@ -810,13 +838,14 @@ pub fn report_with(
         separability,
         floor: None,
     };
-    let draws = floor::draws_for(t.values.len());
-    report.floor = match floor::floors(t, measured, &report, ks, draws) {
-        Ok(f) => Some(f),
-        Err(e) => {
+    // `three` is formed whenever the measures above were.
+    report.floor = match three.map(|three| floor::assemble(floor_draws, three, sep_floor)) {
+        Some(Ok(f)) => Some(f),
+        Some(Err(e)) => {
             tracing::warn!(error = %e, "the measures' floors could not be formed");
             None
         }
+        None => None,
     };
     Ok(report)
 }

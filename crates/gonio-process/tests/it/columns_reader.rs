@@ -139,6 +139,17 @@ fn another_tools_table_is_gonios_own_bit_for_bit() {
         ),
         &as_samples,
     );
+    // And on the sidecar's grid: each row placed at its node.
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines[1..].reverse();
+    assert_same(
+        &table_of(
+            columns(&lines.join("\n"))
+                .into_content(Some(&meta), None)
+                .expect("reversed, sidecar"),
+        ),
+        &t,
+    );
     // The sidecar's grid against the recognised one: the same axes.
     assert_eq!(with_sidecar.grid, as_samples.grid);
 }
