@@ -230,8 +230,8 @@ fn chi2_quantile_999(dof: usize) -> f64 {
     k * (1.0 - c + Z * c.sqrt()).powi(3)
 }
 
-/// Most snapshots a fitted reading holds: refits stop at [`MAX_REFITS`], after
-/// which the window decides.
+/// Most snapshots a fitted reading holds: the rule stops refitting the transient
+/// after this many (a bound on its cost), and the window decides from there.
 pub const MAX_FITTED: usize = MAX_REFITS;
 
 /// One whitened design row and its value.
