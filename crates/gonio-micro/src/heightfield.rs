@@ -227,14 +227,7 @@ impl HeightField {
     pub(crate) fn corners(&self, i: usize, j: usize) -> [f64; 4] {
         let i1 = if i + 1 == self.nx { 0 } else { i + 1 };
         let j1 = if j + 1 == self.ny { 0 } else { j + 1 };
-        let r0 = j * self.nx;
-        let r1 = j1 * self.nx;
-        [
-            self.heights[r0 + i],
-            self.heights[r0 + i1],
-            self.heights[r1 + i],
-            self.heights[r1 + i1],
-        ]
+        self.corners_wrapped(i, i1, j, j1)
     }
 
     /// [`HeightField::corners`] of cell `(i, j)` with the indices of the next node
