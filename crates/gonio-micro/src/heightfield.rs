@@ -20,6 +20,35 @@ use rayon::prelude::*;
 
 use crate::MicroError;
 
+/// A divisor with its reciprocal where that is exact (a normal power of two whose
+/// inverse is normal): `x / d` is then one multiplication with the division's very
+/// bits (both round the same real `x·2⁻ᵏ` once), off the division's latency.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Divisor {
+    d: f64,
+    inv: Option<f64>,
+}
+
+impl Divisor {
+    pub(crate) fn new(d: f64) -> Divisor {
+        let inv = 1.0 / d;
+        let exact = d.is_normal() && inv.is_normal() && d.to_bits() & ((1u64 << 52) - 1) == 0;
+        Divisor {
+            d,
+            inv: exact.then_some(inv),
+        }
+    }
+
+    /// `x / d`.
+    #[inline]
+    pub(crate) fn div(self, x: f64) -> f64 {
+        match self.inv {
+            Some(inv) => x * inv,
+            None => x / self.d,
+        }
+    }
+}
+
 /// A periodic height field of two triangles a cell, with a material id a triangle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeightField {
@@ -27,6 +56,9 @@ pub struct HeightField {
     ny: usize,
     dx: f64,
     dy: f64,
+    /// `dx` and `dy` as divisors (the normals divide by them at every hit).
+    div_x: Divisor,
+    div_y: Divisor,
     heights: Vec<f64>,
     materials: Option<Vec<u8>>,
     h_min: f64,
@@ -148,6 +180,8 @@ impl HeightField {
             ny,
             dx,
             dy,
+            div_x: Divisor::new(dx),
+            div_y: Divisor::new(dy),
             heights,
             materials: None,
             h_min,
@@ -264,7 +298,7 @@ impl HeightField {
         let i = if i < self.nx { i } else { i % self.nx };
         let j = if j < self.ny { j } else { j % self.ny };
         let (a, b) = Self::tri_slopes(self.corners(i, j), tri);
-        let n = Vec3::new(-a / self.dx, -b / self.dy, 1.0);
+        let n = Vec3::new(self.div_x.div(-a), self.div_y.div(-b), 1.0);
         n / n.norm()
     }
 

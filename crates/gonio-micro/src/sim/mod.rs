@@ -39,6 +39,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
+use crate::heightfield::Divisor;
 use crate::material::{Scratch, uniform};
 use crate::trace::{Method, Plan, Ray, Tracer, floor};
 use crate::{MicroError, Sample};
@@ -281,6 +282,8 @@ pub struct Simulation {
     sample: Sample,
     opts: SimOptions,
     eps: f64,
+    /// The patch's periods as divisors (a path folds its origin back at every bounce).
+    period: (Divisor, Divisor),
     cancel: Option<Arc<AtomicBool>>,
 }
 
@@ -298,11 +301,14 @@ impl Simulation {
         )?;
         let tracer = Tracer::new(sample.surface.clone());
         let eps = 1e-9 * sample.surface.dx().min(sample.surface.dy());
+        let (lx, ly) = sample.surface.period();
+        let period = (Divisor::new(lx), Divisor::new(ly));
         Ok(Simulation {
             tracer,
             sample,
             opts,
             eps,
+            period,
             cancel: None,
         })
     }
@@ -447,8 +453,8 @@ impl Simulation {
                 return (End::Leaked, bounces, d);
             };
             d = nd;
-            let kx = floor(p.x / lx);
-            let ky = floor(p.y / ly);
+            let kx = floor(self.period.0.div(p.x));
+            let ky = floor(self.period.1.div(p.y));
             o = Vec3::new(p.x - kx * lx, p.y - ky * ly, p.z);
             ray_skip = Some((
                 h.cell[0] - kx as i64 * nx,
