@@ -57,6 +57,7 @@
 //!   exact; the Gaussian surface is scaled to exactly the RMS height asked for.
 
 mod error;
+mod escape;
 pub mod heightfield;
 pub mod material;
 pub mod sim;

@@ -171,6 +171,13 @@ pub(crate) struct Plan {
     start: usize,
 }
 
+impl Plan {
+    /// Whether the search is cut off at the horizon ([`Tracer::span`]'s flag).
+    pub(crate) fn horizon(&self) -> bool {
+        self.horizon
+    }
+}
+
 /// What every cell test of one ray shares, worked out once a ray.
 #[derive(Clone, Copy, Debug)]
 struct Pre {

@@ -39,6 +39,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
+use crate::escape::{self, Escape};
 use crate::heightfield::Divisor;
 use crate::material::{Scratch, uniform};
 use crate::trace::{Method, Plan, Ray, Tracer, floor};
@@ -284,6 +285,8 @@ pub struct Simulation {
     eps: f64,
     /// The patch's periods as divisors (a path folds its origin back at every bounce).
     period: (Divisor, Divisor),
+    /// Which rays leaving a facet certainly escape (no search needed).
+    escape: Escape,
     cancel: Option<Arc<AtomicBool>>,
 }
 
@@ -303,12 +306,14 @@ impl Simulation {
         let eps = 1e-9 * sample.surface.dx().min(sample.surface.dy());
         let (lx, ly) = sample.surface.period();
         let period = (Divisor::new(lx), Divisor::new(ly));
+        let escape = Escape::new(&sample.surface);
         Ok(Simulation {
             tracer,
             sample,
             opts,
             eps,
             period,
+            escape,
             cancel: None,
         })
     }
@@ -409,6 +414,8 @@ impl Simulation {
         let mut t_min = 0.0;
         let mut bounces = 0u32;
         let mut plan0 = plan0;
+        // The escape bound of the cell the ray leaves (none for the first search).
+        let mut leaving: Option<f64> = None;
         loop {
             let ray = Ray {
                 o,
@@ -420,6 +427,14 @@ impl Simulation {
                 Some(p) => p,
                 None => self.tracer.plan(&ray, self.opts.method),
             };
+            // A ray leaving a facet more steeply than anything around can rise
+            // escapes: the search would find nothing (module `escape`).
+            if let (Some(b2), Some(p)) = (leaving, plan)
+                && !p.horizon()
+                && escape::clears(b2, d)
+            {
+                return (End::Exit, bounces, d);
+            }
             let h = match self.tracer.first_hit_planned(&ray, plan, self.opts.method) {
                 Ok(h) => h,
                 Err(cut_off) => {
@@ -437,6 +452,8 @@ impl Simulation {
                 return (End::Capped, bounces, d);
             }
             bounces += 1;
+            // Read now, so that the load overlaps the shading below.
+            leaving = Some(self.escape.slope2(h.cell[0], h.cell[1]));
             let n = self.tracer.hit_normal(&h);
             if d.dot(n) >= 0.0 {
                 return (End::Leaked, bounces, d);
