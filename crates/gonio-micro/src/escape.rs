@@ -62,15 +62,15 @@ fn level(q: u8) -> f64 {
     }
 }
 
-/// The least code whose value is at least `b2`.
-fn encode(b2: f64) -> u8 {
+/// The least code whose value (`values[q]`, [`level`]'s) is at least `b2`.
+fn encode(b2: f64, values: &[f64]) -> u8 {
     let guess = ((b2.log2() * STEPS).ceil() + 128.0).clamp(0.0, f64::from(NEVER));
     // `log2` may round either way: settle on the least code at or above `b2`.
     let mut q = guess as u8;
-    while q < NEVER && level(q) < b2 {
+    while q < NEVER && values[usize::from(q)] < b2 {
         q += 1;
     }
-    while q > 0 && level(q - 1) >= b2 {
+    while q > 0 && values[usize::from(q - 1)] >= b2 {
         q -= 1;
     }
     q
@@ -146,19 +146,20 @@ impl Escape {
         }
         let h_max = hf.max_height();
         let tail = (RINGS - 1) as f64 * delta;
+        let value: Vec<f64> = (0..=NEVER).map(level).collect();
         let code = bound
             .par_iter()
             .zip(&low)
             .map(|(b, z)| {
                 let b = b.max((h_max - z) / tail) * (1.0 + 1e-6) + 1e-9;
-                encode(b * b)
+                encode(b * b, &value)
             })
             .collect();
         Escape {
             nx,
             ny,
             code,
-            value: (0..=NEVER).map(level).collect(),
+            value,
         }
     }
 
@@ -193,6 +194,7 @@ mod tests {
 
     #[test]
     fn codes_round_up_by_less_than_a_step() {
+        let values: Vec<f64> = (0..=NEVER).map(level).collect();
         for b2 in [
             1e-12,
             2f64.powi(-8),
@@ -205,14 +207,14 @@ mod tests {
             239.0,
             1e6,
         ] {
-            let q = encode(b2);
+            let q = encode(b2, &values);
             assert!(level(q) >= b2, "{b2}: code {q}");
             if q > 0 && q < NEVER {
                 assert!(level(q - 1) < b2, "{b2}: code {q} is not the least");
             }
         }
-        assert_eq!(encode(1e6), NEVER);
-        assert_eq!(encode(1.0), 128);
+        assert_eq!(encode(1e6, &values), NEVER);
+        assert_eq!(encode(1.0, &values), 128);
     }
 
     /// Every ray the bound clears finds no hit in an exact search, on rough and
