@@ -39,7 +39,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use crate::escape::{self, Escape};
+use crate::escape::Escape;
 use crate::heightfield::Divisor;
 use crate::material::{Scratch, uniform};
 use crate::trace::{Method, Plan, Ray, Tracer, floor};
@@ -415,7 +415,7 @@ impl Simulation {
         let mut bounces = 0u32;
         let mut plan0 = plan0;
         // The escape bound of the cell the ray leaves (none for the first search).
-        let mut leaving: Option<f64> = None;
+        let mut leaving: Option<[u8; 4]> = None;
         loop {
             let ray = Ray {
                 o,
@@ -429,9 +429,9 @@ impl Simulation {
             };
             // A ray leaving a facet more steeply than anything around can rise
             // escapes: the search would find nothing (module `escape`).
-            if let (Some(b2), Some(p)) = (leaving, plan)
+            if let (Some(codes), Some(p)) = (leaving, plan)
                 && !p.horizon()
-                && escape::clears(b2, d)
+                && self.escape.clears(codes, d)
             {
                 return (End::Exit, bounces, d);
             }
@@ -453,7 +453,7 @@ impl Simulation {
             }
             bounces += 1;
             // Read now, so that the load overlaps the shading below.
-            leaving = Some(self.escape.slope2(h.cell[0], h.cell[1]));
+            leaving = Some(self.escape.codes(h.cell[0], h.cell[1]));
             let n = self.tracer.hit_normal(&h);
             if d.dot(n) >= 0.0 {
                 return (End::Leaked, bounces, d);
