@@ -369,9 +369,11 @@ impl Simulation {
             },
         };
         let base = (seg * SEGMENT_RAYS) as u64;
+        // Every ray's key starts with these three words: chained once.
+        let prefix = KeyRng::new(&[seed, purpose, inc as u64]);
         let mut out = Vec::with_capacity(end - first);
         order.visit(first as u64..end as u64, &mut |k, leaf| {
-            let mut rng = KeyRng::new(&[seed, purpose, inc as u64, base + k]);
+            let mut rng = prefix.then(&[base + k]);
             let (x, y) = leaf.at(uniform(&mut rng), uniform(&mut rng));
             out.push((Vec3::new(x, y, hf.max_height()), rng));
         });

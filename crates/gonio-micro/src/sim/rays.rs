@@ -58,7 +58,19 @@ impl KeyRng {
     /// at each step, so keys that differ in one word start different streams.
     #[inline]
     pub(crate) fn new(key: &[u64]) -> KeyRng {
-        let mut h: u64 = 0x6a09_e667_f3bc_c909; // √2's fraction, an arbitrary start
+        KeyRng::START.then(key)
+    }
+
+    /// The chain before any word.
+    const START: KeyRng = KeyRng {
+        state: 0x6a09_e667_f3bc_c909, // √2's fraction, an arbitrary start
+    };
+
+    /// The stream of this stream's key followed by `key` (`KeyRng::new(&[a, b])`
+    /// is `KeyRng::new(&[a]).then(&[b])`): a shared prefix is chained once.
+    #[inline]
+    pub(crate) fn then(&self, key: &[u64]) -> KeyRng {
+        let mut h = self.state;
         for &k in key {
             h = mix64(h.wrapping_add(GAMMA) ^ k);
         }
@@ -195,6 +207,16 @@ impl SegmentOrder {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_chained_prefix_is_the_whole_key() {
+        let (a, b) = (
+            KeyRng::new(&[7, 1, 3, 99]),
+            KeyRng::new(&[7, 1, 3]).then(&[99]),
+        );
+        assert_eq!(a.state, b.state);
+        assert_ne!(a.state, KeyRng::new(&[7, 1, 3, 98]).state);
+    }
 
     fn order(n: u64) -> SegmentOrder {
         SegmentOrder {
