@@ -147,6 +147,28 @@ impl Level {
     }
 }
 
+/// One level as the power-of-two traversal ([`Tracer::traverse_fast`]) reads it:
+/// plain numbers only, no `Option` to test in the loop, and a row found by a shift.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FastLevel {
+    /// Block widths along x and y.
+    wx: f64,
+    wy: f64,
+    /// `1/wx` and `1/wy` (exact: the widths are powers of two).
+    inv_wx: f64,
+    inv_wy: f64,
+    /// `nbx − 1` and `nby − 1` (the counts are powers of two).
+    mask_x: i64,
+    mask_y: i64,
+    /// `log2 nbx`: a row starts at `by << shift`.
+    shift: u32,
+    /// As `Level::up_x`, `Level::up_y`.
+    up_x: u32,
+    up_y: u32,
+    /// Where the level's maxima start in `Tracer::maxima`.
+    off: usize,
+}
+
 /// A height field with its max-mip hierarchy, ready to intersect rays.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tracer {
@@ -160,6 +182,13 @@ pub struct Tracer {
     /// Every level's block counts are powers of two and its widths have exact
     /// inverses: the traversal wraps by masks and divides by multiplications.
     fast: bool,
+    /// When `fast`, the levels for [`Tracer::traverse_fast`], bottom up, and one more
+    /// above the top: a parent whose single maximum is +∞, so that the top level's
+    /// climb test fails without a test of the level.
+    fast_levels: Vec<FastLevel>,
+    /// When `fast`, every level's maxima (as `Level::max`) one after the other, and
+    /// the +∞ of the level above the top.
+    maxima: Vec<f32>,
 }
 
 /// Where a search runs (see [`Tracer::plan`]).
@@ -331,8 +360,41 @@ impl Tracer {
         let fast = levels.iter().all(|l| {
             l.mask_x.is_some() && l.mask_y.is_some() && l.inv_wx.is_some() && l.inv_wy.is_some()
         });
+        let mut fast_levels = Vec::new();
+        let mut maxima = Vec::new();
+        if fast {
+            for l in &levels {
+                fast_levels.push(FastLevel {
+                    wx: l.wx,
+                    wy: l.wy,
+                    inv_wx: l.inv_wx.unwrap_or(f64::NAN),
+                    inv_wy: l.inv_wy.unwrap_or(f64::NAN),
+                    mask_x: l.and_x,
+                    mask_y: l.and_y,
+                    shift: l.nbx.trailing_zeros(),
+                    up_x: l.up_x,
+                    up_y: l.up_y,
+                    off: maxima.len(),
+                });
+                maxima.extend_from_slice(&l.max);
+            }
+            if let Some(&top) = fast_levels.last() {
+                fast_levels.push(FastLevel {
+                    mask_x: 0,
+                    mask_y: 0,
+                    shift: 0,
+                    up_x: 0,
+                    up_y: 0,
+                    off: maxima.len(),
+                    ..top
+                });
+                maxima.push(f32::INFINITY);
+            }
+        }
         Tracer {
             fast,
+            fast_levels,
+            maxima,
             // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
             horizon: (16.0 * (lx + ly))
                 .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
@@ -467,10 +529,108 @@ impl Tracer {
     /// power-of-two patches), else with remainders and divisions. Both make the
     /// same decisions from the same numbers.
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
-        if self.fast {
+        if self.fast && top + 1 == self.levels.len() {
+            self.traverse_fast(ray, t0, t1, start)
+        } else if self.fast {
             self.traverse_in::<true>(ray, t0, t1, start, top)
         } else {
             self.traverse_in::<false>(ray, t0, t1, start, top)
+        }
+    }
+
+    /// The hierarchical DDA of [`Tracer::traverse_in`] up to the top level, for the
+    /// power-of-two patches (`fast`): the same decisions from the same numbers, read
+    /// from [`FastLevel`]s and one flat array of maxima.
+    fn traverse_fast(&self, ray: &Ray, t0: f64, t1: f64, start: usize) -> Option<Hit> {
+        let pre = self.pre(ray);
+        let (o, d) = (ray.o, ray.d);
+        let levels = &self.fast_levels[..];
+        let maxima = &self.maxima[..];
+        let sign = |v: f64| -> i64 {
+            if v > 0.0 {
+                1
+            } else if v < 0.0 {
+                -1
+            } else {
+                0
+            }
+        };
+        let (sx, sy) = (sign(d.x), sign(d.y));
+        // The boundary ahead of block b is that of block b + 1 when moving up.
+        let (ax, ay) = (i64::from(sx > 0), i64::from(sy > 0));
+        let (neg_x, neg_y) = (d.x < 0.0, d.y < 0.0);
+        // The parameter of a boundary is `(b·w − ex)·kx`: along an axis the ray does
+        // not move on, (finite + ∞)·∞ = +∞ for every block, without a test a step.
+        let (ex, kx) = if sx != 0 {
+            (o.x, pre.inv_x)
+        } else {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        };
+        let (ey, ky) = if sy != 0 {
+            (o.y, pre.inv_y)
+        } else {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        };
+        let at = |lev: &FastLevel, bx: i64, by: i64| -> f64 {
+            let i = (bx & lev.mask_x) as usize;
+            let j = (by & lev.mask_y) as usize;
+            f64::from(maxima[lev.off + (j << lev.shift) + i])
+        };
+        let mut l = start;
+        let mut t = t0;
+        let mut z = o.z + d.z * t;
+        let (mut bx, mut by) = {
+            let lev = &levels[l];
+            (
+                coord(o.x + d.x * t, d.x, lev.wx, Some(lev.inv_wx)),
+                coord(o.y + d.y * t, d.y, lev.wy, Some(lev.inv_wy)),
+            )
+        };
+        loop {
+            let lev = &levels[l];
+            let tx = ((bx + ax) as f64 * lev.wx - ex) * kx;
+            let ty = ((by + ay) as f64 * lev.wy - ey) * ky;
+            // No NaN anywhere: plain comparisons rather than `f64::min`'s.
+            let t_xy = if ty < tx { ty } else { tx };
+            let t_out = if t1 < t_xy { t1 } else { t_xy };
+            let z_out = o.z + d.z * t_out;
+            let zmin = if z_out < z { z_out } else { z };
+            if zmin <= at(lev, bx, by) {
+                if l == 0 {
+                    if let Some(h) = self.cell_hit::<true>(&pre, bx, by, t0, t1) {
+                        return Some(h);
+                    }
+                } else {
+                    l -= 1;
+                    let c = &levels[l];
+                    let u = (o.x + d.x * t) * c.inv_wx;
+                    let m = (2 * bx + 1) as f64;
+                    let hx = i64::from(if neg_x { u > m } else { u >= m });
+                    bx = (bx << c.up_x) + (hx & i64::from(c.up_x));
+                    let u = (o.y + d.y * t) * c.inv_wy;
+                    let m = (2 * by + 1) as f64;
+                    let hy = i64::from(if neg_y { u > m } else { u >= m });
+                    by = (by << c.up_y) + (hy & i64::from(c.up_y));
+                    continue;
+                }
+            }
+            if t_out >= t1 {
+                return None;
+            }
+            let (obx, oby) = (bx, by);
+            bx += if tx <= ty { sx } else { 0 };
+            by += if ty <= tx { sy } else { 0 };
+            t = t_out;
+            z = z_out;
+            let (ux, uy) = (lev.up_x, lev.up_y);
+            if ((bx ^ obx) >> ux) | ((by ^ oby) >> uy) != 0 {
+                let (px, py) = (bx >> ux, by >> uy);
+                if z > at(&levels[l + 1], px, py) {
+                    l += 1;
+                    bx = px;
+                    by = py;
+                }
+            }
         }
     }
 
