@@ -186,9 +186,13 @@ pub struct Tracer {
     /// above the top: a parent whose single maximum is +∞, so that the top level's
     /// climb test fails without a test of the level.
     fast_levels: Vec<FastLevel>,
-    /// When `fast`, every level's maxima (as `Level::max`) one after the other, and
-    /// the +∞ of the level above the top.
+    /// When `fast`, the maxima (as `Level::max`) of every level but the first, one
+    /// after the other, and the +∞ of the level above the top. Level 0's are worked
+    /// out from the cell's corners, which its cell test reads anyway: a ray then
+    /// waits for one array rather than two that no cache holds.
     maxima: Vec<f32>,
+    /// What every maximum is raised by (see `Tracer::new`).
+    hair: f64,
 }
 
 /// Where a search runs (see [`Tracer::plan`]).
@@ -376,7 +380,9 @@ impl Tracer {
                     up_y: l.up_y,
                     off: maxima.len(),
                 });
-                maxima.extend_from_slice(&l.max);
+                if l.bx * l.by > 1 {
+                    maxima.extend_from_slice(&l.max);
+                }
             }
             if let Some(&top) = fast_levels.last() {
                 fast_levels.push(FastLevel {
@@ -395,6 +401,7 @@ impl Tracer {
             fast,
             fast_levels,
             maxima,
+            hair,
             // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
             horizon: (16.0 * (lx + ly))
                 .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
@@ -547,6 +554,8 @@ impl Tracer {
         let (o, d) = (ray.o, ray.d);
         let levels = &self.fast_levels[..];
         let maxima = &self.maxima[..];
+        let hf = &self.hf;
+        let (mask_x, mask_y) = (hf.nx() - 1, hf.ny() - 1);
         let sign = |v: f64| -> i64 {
             if v > 0.0 {
                 1
@@ -596,12 +605,16 @@ impl Tracer {
             let t_out = if t1 < t_xy { t1 } else { t_xy };
             let z_out = o.z + d.z * t_out;
             let zmin = if z_out < z { z_out } else { z };
-            if zmin <= at(lev, bx, by) {
-                if l == 0 {
-                    if let Some(h) = self.cell_hit::<true>(&pre, bx, by, t0, t1) {
-                        return Some(h);
-                    }
-                } else {
+            if l == 0 {
+                let (i, j) = (bx as usize & mask_x, by as usize & mask_y);
+                let c = hf.corners_wrapped(i, (i + 1) & mask_x, j, (j + 1) & mask_y);
+                if zmin <= c[0].max(c[1]).max(c[2].max(c[3])) + self.hair
+                    && let Some(h) = self.cell_hit_with(&pre, bx, by, t0, t1, || c)
+                {
+                    return Some(h);
+                }
+            } else if zmin <= at(lev, bx, by) {
+                {
                     l -= 1;
                     let c = &levels[l];
                     let u = (o.x + d.x * t) * c.inv_wx;
@@ -784,6 +797,30 @@ impl Tracer {
         t1: f64,
     ) -> Option<Hit> {
         let hf = &self.hf;
+        self.cell_hit_with(pre, ix, iy, t0, t1, || {
+            if FAST {
+                let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
+                let (i, j) = (ix as usize & mx, iy as usize & my);
+                hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
+            } else {
+                hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
+            }
+        })
+    }
+
+    /// [`Tracer::cell_hit`] with the cell's corners from `corners`, asked for once
+    /// the ray is known to cross the cell within `[t0, t1]`.
+    #[inline(always)]
+    fn cell_hit_with(
+        &self,
+        pre: &Pre,
+        ix: i64,
+        iy: i64,
+        t0: f64,
+        t1: f64,
+        corners: impl FnOnce() -> [f64; 4],
+    ) -> Option<Hit> {
+        let hf = &self.hf;
         let (o, d) = (pre.o, pre.d);
         let (dx, dy) = (hf.dx(), hf.dy());
         let x0 = ix as f64 * dx;
@@ -811,13 +848,7 @@ impl Tracer {
         if lo > hi {
             return None;
         }
-        let c = if FAST {
-            let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
-            let (i, j) = (ix as usize & mx, iy as usize & my);
-            hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
-        } else {
-            hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
-        };
+        let c = corners();
         let (ou, du) = ((o.x - x0) * self.inv_dx, pre.du);
         let (ov, dv) = ((o.y - y0) * self.inv_dy, pre.dv);
         // The diagonal u = v: w(t) = u − v.
@@ -844,14 +875,23 @@ impl Tracer {
                 tri,
             })
         };
+        // One piece, or two when the diagonal cuts the range: one call of `piece`,
+        // which is then inlined.
+        let mut pieces = [(lo, hi), (hi, hi)];
+        let mut n = 1;
         if dw != 0.0 {
             let td = -w0 / dw;
             if td > lo && td < hi {
-                return piece(lo, td, tri_at(0.5 * (lo + td)))
-                    .or_else(|| piece(td, hi, tri_at(0.5 * (td + hi))));
+                pieces = [(lo, td), (td, hi)];
+                n = 2;
             }
         }
-        piece(lo, hi, tri_at(0.5 * (lo + hi)))
+        for &(ta, tb) in &pieces[..n] {
+            if let Some(h) = piece(ta, tb, tri_at(0.5 * (ta + tb))) {
+                return Some(h);
+            }
+        }
+        None
     }
 
     /// The unit normal of the triangle of a hit.
