@@ -293,9 +293,20 @@ fn slab(o: f64, d: f64, inv: f64, a: f64, b: f64, lo: &mut f64, hi: &mut f64) ->
     }
     let (t0, t1) = ((a - o) * inv, (b - o) * inv);
     let (t0, t1) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
-    *lo = lo.max(t0);
-    *hi = hi.min(t1);
+    // Plain comparisons: `lo` and `hi` are never NaN, and a NaN bound (a ray along
+    // the slab's face) leaves them as `f64::max` and `f64::min` would, without
+    // their NaN tests.
+    *lo = if t0 > *lo { t0 } else { *lo };
+    *hi = if t1 < *hi { t1 } else { *hi };
     true
+}
+
+/// The highest of a cell's corners (finite heights: plain comparisons).
+#[inline(always)]
+fn highest(c: [f64; 4]) -> f64 {
+    let a = if c[1] > c[0] { c[1] } else { c[0] };
+    let b = if c[3] > c[2] { c[3] } else { c[2] };
+    if b > a { b } else { a }
 }
 
 impl Tracer {
@@ -608,7 +619,7 @@ impl Tracer {
             if l == 0 {
                 let (i, j) = (bx as usize & mask_x, by as usize & mask_y);
                 let c = hf.corners_wrapped(i, (i + 1) & mask_x, j, (j + 1) & mask_y);
-                if zmin <= c[0].max(c[1]).max(c[2].max(c[3])) + self.hair
+                if zmin <= highest(c) + self.hair
                     && let Some(h) = self.cell_hit_with(&pre, bx, by, t0, t1, || c)
                 {
                     return Some(h);
