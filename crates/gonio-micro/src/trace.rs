@@ -548,7 +548,17 @@ impl Tracer {
     /// same decisions from the same numbers.
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
         if self.fast && top + 1 == self.levels.len() {
-            self.traverse_fast(ray, t0, t1, start)
+            // One loop a quadrant of directions: the signs are constants, and fewer
+            // values compete for registers. A ray along an axis takes the general
+            // path (the same hit: see `traverse_fast`).
+            let d = ray.d;
+            match (d.x > 0.0, d.x < 0.0, d.y > 0.0, d.y < 0.0) {
+                (true, _, true, _) => self.traverse_fast::<true, true>(ray, t0, t1, start),
+                (true, _, _, true) => self.traverse_fast::<true, false>(ray, t0, t1, start),
+                (_, true, true, _) => self.traverse_fast::<false, true>(ray, t0, t1, start),
+                (_, true, _, true) => self.traverse_fast::<false, false>(ray, t0, t1, start),
+                _ => self.traverse_in::<false>(ray, t0, t1, start, top),
+            }
         } else {
             // The flat grid (a benchmark and a test oracle): the general path makes
             // the same decisions, and the fast cell test keeps one caller to be
@@ -560,38 +570,25 @@ impl Tracer {
     /// The hierarchical DDA of [`Tracer::traverse_in`] up to the top level, for the
     /// power-of-two patches (`fast`): the same decisions from the same numbers, read
     /// from [`FastLevel`]s and one flat array of maxima.
-    fn traverse_fast(&self, ray: &Ray, t0: f64, t1: f64, start: usize) -> Option<Hit> {
+    #[inline(always)]
+    fn traverse_fast<const PX: bool, const PY: bool>(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        start: usize,
+    ) -> Option<Hit> {
         let pre = self.pre(ray);
         let (o, d) = (ray.o, ray.d);
         let levels = &self.fast_levels[..];
         let maxima = &self.maxima[..];
         let hf = &self.hf;
         let (mask_x, mask_y) = (hf.nx() - 1, hf.ny() - 1);
-        let sign = |v: f64| -> i64 {
-            if v > 0.0 {
-                1
-            } else if v < 0.0 {
-                -1
-            } else {
-                0
-            }
-        };
-        let (sx, sy) = (sign(d.x), sign(d.y));
+        let (sx, sy): (i64, i64) = (if PX { 1 } else { -1 }, if PY { 1 } else { -1 });
         // The boundary ahead of block b is that of block b + 1 when moving up.
-        let (ax, ay) = (i64::from(sx > 0), i64::from(sy > 0));
-        let (neg_x, neg_y) = (d.x < 0.0, d.y < 0.0);
-        // The parameter of a boundary is `(b·w − ex)·kx`: along an axis the ray does
-        // not move on, (finite + ∞)·∞ = +∞ for every block, without a test a step.
-        let (ex, kx) = if sx != 0 {
-            (o.x, pre.inv_x)
-        } else {
-            (f64::NEG_INFINITY, f64::INFINITY)
-        };
-        let (ey, ky) = if sy != 0 {
-            (o.y, pre.inv_y)
-        } else {
-            (f64::NEG_INFINITY, f64::INFINITY)
-        };
+        let (ax, ay) = (i64::from(PX), i64::from(PY));
+        let (neg_x, neg_y) = (!PX, !PY);
+        let (ex, kx, ey, ky) = (o.x, pre.inv_x, o.y, pre.inv_y);
         let at = |lev: &FastLevel, bx: i64, by: i64| -> f64 {
             let i = (bx & lev.mask_x) as usize;
             let j = (by & lev.mask_y) as usize;
