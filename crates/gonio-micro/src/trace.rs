@@ -604,10 +604,17 @@ impl Tracer {
                 coord(o.y + d.y * t, d.y, lev.wy, Some(lev.inv_wy)),
             )
         };
+        // The boundaries ahead, `(b + a)·w`, carried as floats (exact: integers
+        // times powers of two): a step's parameter then waits for a subtraction and
+        // a multiplication, not a conversion from the integers first.
+        let (mut fx, mut fy) = {
+            let lev = &levels[l];
+            ((bx + ax) as f64 * lev.wx, (by + ay) as f64 * lev.wy)
+        };
         loop {
             let lev = &levels[l];
-            let tx = ((bx + ax) as f64 * lev.wx - ex) * kx;
-            let ty = ((by + ay) as f64 * lev.wy - ey) * ky;
+            let tx = (fx - ex) * kx;
+            let ty = (fy - ey) * ky;
             // No NaN anywhere: plain comparisons rather than `f64::min`'s.
             let t_xy = if ty < tx { ty } else { tx };
             let t_out = if t1 < t_xy { t1 } else { t_xy };
@@ -633,6 +640,8 @@ impl Tracer {
                     let m = (2 * by + 1) as f64;
                     let hy = i64::from(if neg_y { u > m } else { u >= m });
                     by = (by << c.up_y) + (hy & i64::from(c.up_y));
+                    fx = (bx + ax) as f64 * c.wx;
+                    fy = (by + ay) as f64 * c.wy;
                     continue;
                 }
             }
@@ -640,17 +649,26 @@ impl Tracer {
                 return None;
             }
             let (obx, oby) = (bx, by);
-            bx += if tx <= ty { sx } else { 0 };
-            by += if ty <= tx { sy } else { 0 };
+            if tx <= ty {
+                bx += sx;
+                fx += sx as f64 * lev.wx;
+            }
+            if ty <= tx {
+                by += sy;
+                fy += sy as f64 * lev.wy;
+            }
             t = t_out;
             z = z_out;
             let (ux, uy) = (lev.up_x, lev.up_y);
             if ((bx ^ obx) >> ux) | ((by ^ oby) >> uy) != 0 {
                 let (px, py) = (bx >> ux, by >> uy);
-                if z > at(&levels[l + 1], px, py) {
+                let p = &levels[l + 1];
+                if z > at(p, px, py) {
                     l += 1;
                     bx = px;
                     by = py;
+                    fx = (bx + ax) as f64 * p.wx;
+                    fy = (by + ay) as f64 * p.wy;
                 }
             }
         }
