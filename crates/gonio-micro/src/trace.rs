@@ -309,6 +309,41 @@ fn highest(c: [f64; 4]) -> f64 {
     if b > a { b } else { a }
 }
 
+/// The first hit of the piece `[ta, tb]` of a ray's range in cell `(ix, iy)` over
+/// triangle `tri`, the cell's corners `c`, `(ou, ov)` the ray's origin in the cell's
+/// units (see `Tracer::cell_hit`). A function rather than a closure, so that it is
+/// inlined into every copy of the fast loop.
+#[inline(always)]
+fn piece(
+    pre: &Pre,
+    c: [f64; 4],
+    (ix, iy): (i64, i64),
+    (ou, ov): (f64, f64),
+    ta: f64,
+    tb: f64,
+    tri: u8,
+) -> Option<Hit> {
+    let (o, d, du, dv) = (pre.o, pre.d, pre.du, pre.dv);
+    if ix == pre.skip.0 && iy == pre.skip.1 && tri == pre.skip.2 {
+        return None;
+    }
+    let (a, b) = HeightField::tri_slopes(c, tri);
+    let g0 = o.z - c[0] - a * ou - b * ov;
+    let k = d.z - a * du - b * dv;
+    let t = if g0 + k * ta <= 0.0 {
+        ta
+    } else if g0 + k * tb <= 0.0 {
+        (-g0 / k).clamp(ta, tb)
+    } else {
+        return None;
+    };
+    Some(Hit {
+        t,
+        cell: [ix, iy],
+        tri,
+    })
+}
+
 impl Tracer {
     /// Builds the max-mip hierarchy of `hf`.
     pub fn new(hf: HeightField) -> Tracer {
@@ -880,29 +915,7 @@ impl Tracer {
         // The diagonal u = v: w(t) = u − v.
         let (w0, dw) = (ou - ov, du - dv);
         let tri_at = |t: f64| -> u8 { if w0 + dw * t >= 0.0 { 0 } else { 1 } };
-        // The piece `[ta, tb]` over triangle `tri`.
-        let piece = |ta: f64, tb: f64, tri: u8| -> Option<Hit> {
-            if ix == pre.skip.0 && iy == pre.skip.1 && tri == pre.skip.2 {
-                return None;
-            }
-            let (a, b) = HeightField::tri_slopes(c, tri);
-            let g0 = o.z - c[0] - a * ou - b * ov;
-            let k = d.z - a * du - b * dv;
-            let t = if g0 + k * ta <= 0.0 {
-                ta
-            } else if g0 + k * tb <= 0.0 {
-                (-g0 / k).clamp(ta, tb)
-            } else {
-                return None;
-            };
-            Some(Hit {
-                t,
-                cell: [ix, iy],
-                tri,
-            })
-        };
-        // One piece, or two when the diagonal cuts the range: one call of `piece`,
-        // which is then inlined.
+        // One piece, or two when the diagonal cuts the range.
         let mut pieces = [(lo, hi), (hi, hi)];
         let mut n = 1;
         if dw != 0.0 {
@@ -913,7 +926,8 @@ impl Tracer {
             }
         }
         for &(ta, tb) in &pieces[..n] {
-            if let Some(h) = piece(ta, tb, tri_at(0.5 * (ta + tb))) {
+            let tri = tri_at(0.5 * (ta + tb));
+            if let Some(h) = piece(pre, c, (ix, iy), (ou, ov), ta, tb, tri) {
                 return Some(h);
             }
         }
