@@ -622,8 +622,6 @@ impl Tracer {
         let (sx, sy): (i64, i64) = (if PX { 1 } else { -1 }, if PY { 1 } else { -1 });
         // The boundary ahead of block b is that of block b + 1 when moving up.
         let (ax, ay) = (i64::from(PX), i64::from(PY));
-        let (neg_x, neg_y) = (!PX, !PY);
-        let (ex, kx, ey, ky) = (o.x, pre.inv_x, o.y, pre.inv_y);
         let at = |lev: &FastLevel, bx: i64, by: i64| -> f64 {
             let i = (bx & lev.mask_x) as usize;
             let j = (by & lev.mask_y) as usize;
@@ -648,8 +646,8 @@ impl Tracer {
         };
         loop {
             let lev = &levels[l];
-            let tx = (fx - ex) * kx;
-            let ty = (fy - ey) * ky;
+            let tx = (fx - o.x) * pre.inv_x;
+            let ty = (fy - o.y) * pre.inv_y;
             // No NaN anywhere: plain comparisons rather than `f64::min`'s.
             let t_xy = if ty < tx { ty } else { tx };
             let t_out = if t1 < t_xy { t1 } else { t_xy };
@@ -664,21 +662,29 @@ impl Tracer {
                     return Some(h);
                 }
             } else if zmin <= at(lev, bx, by) {
-                {
-                    l -= 1;
-                    let c = &levels[l];
-                    let u = (o.x + d.x * t) * c.inv_wx;
-                    let m = (2 * bx + 1) as f64;
-                    let hx = i64::from(if neg_x { u > m } else { u >= m });
-                    bx = (bx << c.up_x) + (hx & i64::from(c.up_x));
-                    let u = (o.y + d.y * t) * c.inv_wy;
-                    let m = (2 * by + 1) as f64;
-                    let hy = i64::from(if neg_y { u > m } else { u >= m });
-                    by = (by << c.up_y) + (hy & i64::from(c.up_y));
-                    fx = (bx + ax) as f64 * c.wx;
-                    fy = (by + ay) as f64 * c.wy;
-                    continue;
+                // Into the child the ray is in at `t` (as `traverse_in`: the upper one
+                // when `t`'s point lies past the middle boundary, or on it moving up),
+                // the middle boundary found from the one ahead rather than from the
+                // integers: `(2b + 1)·w` is one child's width behind it moving up, ahead
+                // of it moving down, and comparing the point with it is comparing the
+                // point's quotient with `2b + 1` (the widths are powers of two).
+                l -= 1;
+                let c = &levels[l];
+                if c.up_x != 0 {
+                    let x = o.x + d.x * t;
+                    let mid = if PX { fx - c.wx } else { fx + c.wx };
+                    let upper = if PX { x >= mid } else { x > mid };
+                    bx = 2 * bx + i64::from(upper);
+                    fx = if PX == upper { fx } else { mid };
                 }
+                if c.up_y != 0 {
+                    let y = o.y + d.y * t;
+                    let mid = if PY { fy - c.wy } else { fy + c.wy };
+                    let upper = if PY { y >= mid } else { y > mid };
+                    by = 2 * by + i64::from(upper);
+                    fy = if PY == upper { fy } else { mid };
+                }
+                continue;
             }
             if t_out >= t1 {
                 return None;
@@ -984,6 +990,88 @@ mod tests {
             ..ray
         };
         assert!(tr.first_hit(&up, Method::MaxMip).is_none());
+    }
+
+    /// The power-of-two loops ([`Tracer::traverse_fast`]) find the general
+    /// traversal's hit, to the bit, on a patch whose levels merge 2 × 2 and then
+    /// 2 × 1: rays from above and from within the height range (as bounced rays,
+    /// with `t_min` and a skipped triangle), in every quadrant, along the axes and
+    /// through cell corners.
+    #[test]
+    fn fast_loops_find_the_general_hit() {
+        use crate::GaussianParams;
+        let hf = HeightField::gaussian(&GaussianParams {
+            nx: 32,
+            ny: 8,
+            spacing: 0.5,
+            rms_height: 0.6,
+            correlation_length: 1.5,
+            seed: 5,
+        })
+        .expect("gaussian");
+        let tr = Tracer::new(hf);
+        assert!(tr.fast);
+        let (h0, h1) = (tr.hf.min_height(), tr.hf.max_height());
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = move || {
+            // splitmix64
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut x = state;
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((x ^ (x >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut n) = (0, 0);
+        for k in 0..20_000 {
+            let from_above = k % 2 == 0;
+            // Every eighth ray starts on a node and moves along an axis or a diagonal.
+            let grid = k % 8 == 1;
+            let mut o = Vec3::new(
+                (uniform() * 3.0 - 1.0) * 16.0,
+                (uniform() * 3.0 - 1.0) * 4.0,
+                if from_above {
+                    h1 + uniform()
+                } else {
+                    h0 + (h1 - h0) * uniform()
+                },
+            );
+            let phi = if grid {
+                o.x = (o.x * 2.0).round() * 0.5;
+                o.y = (o.y * 2.0).round() * 0.5;
+                std::f64::consts::FRAC_PI_4 * (uniform() * 8.0).floor()
+            } else {
+                std::f64::consts::TAU * uniform()
+            };
+            let z = uniform() * 2.0 - 1.0;
+            let z = if from_above { -z.abs().max(1e-3) } else { z };
+            let s = (1.0 - z * z).sqrt();
+            let d = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+            let ray = Ray {
+                o,
+                d,
+                t_min: if from_above { 0.0 } else { 1e-9 },
+                skip: (!from_above).then(|| {
+                    let (i, j) = ((o.x / 0.5).floor() as i64, (o.y / 0.5).floor() as i64);
+                    (i, j, (k / 2 % 2) as u8)
+                }),
+            };
+            let Some(p) = tr.plan(&ray, Method::MaxMip) else {
+                continue;
+            };
+            let top = tr.levels() - 1;
+            for start in [p.start, 0, top] {
+                let fast = tr.traverse(&ray, p.t0, p.t1, start, top);
+                let general = tr.traverse_in::<false>(&ray, p.t0, p.t1, start, top);
+                assert_eq!(
+                    fast.map(|h| (h.cell, h.tri, h.t.to_bits())),
+                    general.map(|h| (h.cell, h.tri, h.t.to_bits())),
+                    "ray {k} from level {start}: {ray:?}"
+                );
+                hits += usize::from(fast.is_some());
+                n += 1;
+            }
+        }
+        assert!(hits > n / 2, "{hits} hits of {n}");
     }
 
     /// The start level from the exponent is the loop's: the least `l` with
