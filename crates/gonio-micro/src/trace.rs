@@ -577,10 +577,11 @@ impl Tracer {
         }
     }
 
-    /// The hierarchical DDA, starting at level `start` and climbing up to `top`:
-    /// with masks and multiplications when every level allows them (`FAST`, the
-    /// power-of-two patches), else with remainders and divisions. Both make the
-    /// same decisions from the same numbers.
+    /// The hierarchical DDA, starting at level `start` and climbing up to `top`: on
+    /// the power-of-two patches (`fast`), up to the top level, one of the loops of
+    /// [`Tracer::traverse_fast`]; else [`Tracer::traverse_in`], with remainders and
+    /// divisions. Both visit the blocks in the ray's order and skip only blocks the
+    /// ray passes above, so they find the same hit (the cell test decides it).
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
         if self.fast && top + 1 == self.levels.len() {
             // One loop a quadrant of directions: the signs are constants, and fewer
@@ -595,16 +596,19 @@ impl Tracer {
                 _ => self.traverse_in::<false>(ray, t0, t1, start, top),
             }
         } else {
-            // The flat grid (a benchmark and a test oracle): the general path makes
-            // the same decisions, and the fast cell test keeps one caller to be
-            // inlined into.
+            // The flat grid (a benchmark and a test oracle), and the other patches:
+            // the general path, so that the fast cell test has the fast loops alone
+            // as callers and is inlined into them.
             self.traverse_in::<false>(ray, t0, t1, start, top)
         }
     }
 
     /// The hierarchical DDA of [`Tracer::traverse_in`] up to the top level, for the
-    /// power-of-two patches (`fast`): the same decisions from the same numbers, read
-    /// from [`FastLevel`]s and one flat array of maxima.
+    /// power-of-two patches (`fast`) and a ray moving towards `+x` when `PX` (else
+    /// `−x`) and `+y` when `PY`, read from [`FastLevel`]s and one flat array of
+    /// maxima. It makes `traverse_in`'s decisions from the same numbers, but at
+    /// level 0: there the bound is the cell's highest corner plus the hair in `f64`,
+    /// a hair tighter than the `f32` one and still a bound (the hit is the same).
     #[inline(always)]
     fn traverse_fast<const PX: bool, const PY: bool>(
         &self,
@@ -715,6 +719,9 @@ impl Tracer {
         }
     }
 
+    /// The general hierarchical DDA (module docs). `FAST` wraps by masks and
+    /// divides by multiplications; the power-of-two patches now take
+    /// [`Tracer::traverse_fast`] instead, and only `FAST = false` is called.
     #[inline(always)]
     fn traverse_in<const FAST: bool>(
         &self,
