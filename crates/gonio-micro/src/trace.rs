@@ -147,6 +147,28 @@ impl Level {
     }
 }
 
+/// One level as the power-of-two traversal ([`Tracer::traverse_fast`]) reads it:
+/// plain numbers only, no `Option` to test in the loop, and a row found by a shift.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FastLevel {
+    /// Block widths along x and y.
+    wx: f64,
+    wy: f64,
+    /// `1/wx` and `1/wy` (exact: the widths are powers of two).
+    inv_wx: f64,
+    inv_wy: f64,
+    /// `nbx − 1` and `nby − 1` (the counts are powers of two).
+    mask_x: i64,
+    mask_y: i64,
+    /// `log2 nbx`: a row starts at `by << shift`.
+    shift: u32,
+    /// As `Level::up_x`, `Level::up_y`.
+    up_x: u32,
+    up_y: u32,
+    /// Where the level's maxima start in `Tracer::maxima`.
+    off: usize,
+}
+
 /// A height field with its max-mip hierarchy, ready to intersect rays.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tracer {
@@ -160,6 +182,17 @@ pub struct Tracer {
     /// Every level's block counts are powers of two and its widths have exact
     /// inverses: the traversal wraps by masks and divides by multiplications.
     fast: bool,
+    /// When `fast`, the levels for [`Tracer::traverse_fast`], bottom up, and one more
+    /// above the top: a parent whose single maximum is +∞, so that the top level's
+    /// climb test fails without a test of the level.
+    fast_levels: Vec<FastLevel>,
+    /// When `fast`, the maxima (as `Level::max`) of every level but the first, one
+    /// after the other, and the +∞ of the level above the top. Level 0's are worked
+    /// out from the cell's corners, which its cell test reads anyway: a ray then
+    /// waits for one array rather than two that no cache holds.
+    maxima: Vec<f32>,
+    /// What every maximum is raised by (see `Tracer::new`).
+    hair: f64,
 }
 
 /// Where a search runs (see [`Tracer::plan`]).
@@ -267,9 +300,55 @@ fn slab(o: f64, d: f64, inv: f64, a: f64, b: f64, lo: &mut f64, hi: &mut f64) ->
     }
     let (t0, t1) = ((a - o) * inv, (b - o) * inv);
     let (t0, t1) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
-    *lo = lo.max(t0);
-    *hi = hi.min(t1);
+    // Plain comparisons: `lo` and `hi` are never NaN, and a NaN bound (a ray along
+    // the slab's face) leaves them as `f64::max` and `f64::min` would, without
+    // their NaN tests.
+    *lo = if t0 > *lo { t0 } else { *lo };
+    *hi = if t1 < *hi { t1 } else { *hi };
     true
+}
+
+/// The highest of a cell's corners (finite heights: plain comparisons).
+#[inline(always)]
+fn highest(c: [f64; 4]) -> f64 {
+    let a = if c[1] > c[0] { c[1] } else { c[0] };
+    let b = if c[3] > c[2] { c[3] } else { c[2] };
+    if b > a { b } else { a }
+}
+
+/// The first hit of the piece `[ta, tb]` of a ray's range in cell `(ix, iy)` over
+/// triangle `tri`, the cell's corners `c`, `(ou, ov)` the ray's origin in the cell's
+/// units (see `Tracer::cell_hit`). A function rather than a closure, so that it is
+/// inlined into every copy of the fast loop.
+#[inline(always)]
+fn piece(
+    pre: &Pre,
+    c: [f64; 4],
+    (ix, iy): (i64, i64),
+    (ou, ov): (f64, f64),
+    ta: f64,
+    tb: f64,
+    tri: u8,
+) -> Option<Hit> {
+    let (o, d, du, dv) = (pre.o, pre.d, pre.du, pre.dv);
+    if ix == pre.skip.0 && iy == pre.skip.1 && tri == pre.skip.2 {
+        return None;
+    }
+    let (a, b) = HeightField::tri_slopes(c, tri);
+    let g0 = o.z - c[0] - a * ou - b * ov;
+    let k = d.z - a * du - b * dv;
+    let t = if g0 + k * ta <= 0.0 {
+        ta
+    } else if g0 + k * tb <= 0.0 {
+        (-g0 / k).clamp(ta, tb)
+    } else {
+        return None;
+    };
+    Some(Hit {
+        t,
+        cell: [ix, iy],
+        tri,
+    })
 }
 
 impl Tracer {
@@ -338,8 +417,44 @@ impl Tracer {
         let fast = levels.iter().all(|l| {
             l.mask_x.is_some() && l.mask_y.is_some() && l.inv_wx.is_some() && l.inv_wy.is_some()
         });
+        let mut fast_levels = Vec::new();
+        let mut maxima = Vec::new();
+        if fast {
+            for l in &levels {
+                fast_levels.push(FastLevel {
+                    wx: l.wx,
+                    wy: l.wy,
+                    inv_wx: l.inv_wx.unwrap_or(f64::NAN),
+                    inv_wy: l.inv_wy.unwrap_or(f64::NAN),
+                    mask_x: l.and_x,
+                    mask_y: l.and_y,
+                    shift: l.nbx.trailing_zeros(),
+                    up_x: l.up_x,
+                    up_y: l.up_y,
+                    off: maxima.len(),
+                });
+                if l.bx * l.by > 1 {
+                    maxima.extend_from_slice(&l.max);
+                }
+            }
+            if let Some(&top) = fast_levels.last() {
+                fast_levels.push(FastLevel {
+                    mask_x: 0,
+                    mask_y: 0,
+                    shift: 0,
+                    up_x: 0,
+                    up_y: 0,
+                    off: maxima.len(),
+                    ..top
+                });
+                maxima.push(f32::INFINITY);
+            }
+        }
         Tracer {
             fast,
+            fast_levels,
+            maxima,
+            hair,
             // Long enough for any ray steeper than ~1e-4 rad to cross the height range.
             horizon: (16.0 * (lx + ly))
                 .max(1e4 * (hf.max_height() - hf.min_height() + hf.dx() + hf.dy())),
@@ -469,18 +584,151 @@ impl Tracer {
         }
     }
 
-    /// The hierarchical DDA, starting at level `start` and climbing up to `top`:
-    /// with masks and multiplications when every level allows them (`FAST`, the
-    /// power-of-two patches), else with remainders and divisions. Both make the
-    /// same decisions from the same numbers.
+    /// The hierarchical DDA, starting at level `start` and climbing up to `top`: on
+    /// the power-of-two patches (`fast`), up to the top level, one of the loops of
+    /// [`Tracer::traverse_fast`]; else [`Tracer::traverse_in`], with remainders and
+    /// divisions. Both visit the blocks in the ray's order and skip only blocks the
+    /// ray passes above, so they find the same hit (the cell test decides it).
     fn traverse(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
-        if self.fast {
-            self.traverse_in::<true>(ray, t0, t1, start, top)
+        if self.fast && top + 1 == self.levels.len() {
+            // One loop a quadrant of directions: the signs are constants, and fewer
+            // values compete for registers. A ray along an axis takes the general
+            // path (the same hit: see `traverse_fast`).
+            let d = ray.d;
+            match (d.x > 0.0, d.x < 0.0, d.y > 0.0, d.y < 0.0) {
+                (true, _, true, _) => self.traverse_fast::<true, true>(ray, t0, t1, start),
+                (true, _, _, true) => self.traverse_fast::<true, false>(ray, t0, t1, start),
+                (_, true, true, _) => self.traverse_fast::<false, true>(ray, t0, t1, start),
+                (_, true, _, true) => self.traverse_fast::<false, false>(ray, t0, t1, start),
+                _ => self.traverse_in::<false>(ray, t0, t1, start, top),
+            }
         } else {
+            // The flat grid (a benchmark and a test oracle), and the other patches:
+            // the general path, so that the fast cell test has the fast loops alone
+            // as callers and is inlined into them.
             self.traverse_in::<false>(ray, t0, t1, start, top)
         }
     }
 
+    /// The hierarchical DDA of [`Tracer::traverse_in`] up to the top level, for the
+    /// power-of-two patches (`fast`) and a ray moving towards `+x` when `PX` (else
+    /// `−x`) and `+y` when `PY`, read from [`FastLevel`]s and one flat array of
+    /// maxima. It makes `traverse_in`'s decisions from the same numbers, but at
+    /// level 0: there the bound is the cell's highest corner plus the hair in `f64`,
+    /// a hair tighter than the `f32` one and still a bound (the hit is the same).
+    #[inline(always)]
+    fn traverse_fast<const PX: bool, const PY: bool>(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        start: usize,
+    ) -> Option<Hit> {
+        let pre = self.pre(ray);
+        let (o, d) = (ray.o, ray.d);
+        let levels = &self.fast_levels[..];
+        let maxima = &self.maxima[..];
+        let hf = &self.hf;
+        let (mask_x, mask_y) = (hf.nx() - 1, hf.ny() - 1);
+        let (sx, sy): (i64, i64) = (if PX { 1 } else { -1 }, if PY { 1 } else { -1 });
+        // The boundary ahead of block b is that of block b + 1 when moving up.
+        let (ax, ay) = (i64::from(PX), i64::from(PY));
+        let at = |lev: &FastLevel, bx: i64, by: i64| -> f64 {
+            let i = (bx & lev.mask_x) as usize;
+            let j = (by & lev.mask_y) as usize;
+            f64::from(maxima[lev.off + (j << lev.shift) + i])
+        };
+        let mut l = start;
+        let mut t = t0;
+        let mut z = o.z + d.z * t;
+        let (mut bx, mut by) = {
+            let lev = &levels[l];
+            (
+                coord(o.x + d.x * t, d.x, lev.wx, Some(lev.inv_wx)),
+                coord(o.y + d.y * t, d.y, lev.wy, Some(lev.inv_wy)),
+            )
+        };
+        // The boundaries ahead, `(b + a)·w`, carried as floats (exact: integers
+        // times powers of two): a step's parameter then waits for a subtraction and
+        // a multiplication, not a conversion from the integers first.
+        let (mut fx, mut fy) = {
+            let lev = &levels[l];
+            ((bx + ax) as f64 * lev.wx, (by + ay) as f64 * lev.wy)
+        };
+        loop {
+            let lev = &levels[l];
+            let tx = (fx - o.x) * pre.inv_x;
+            let ty = (fy - o.y) * pre.inv_y;
+            // No NaN anywhere: plain comparisons rather than `f64::min`'s.
+            let t_xy = if ty < tx { ty } else { tx };
+            let t_out = if t1 < t_xy { t1 } else { t_xy };
+            let z_out = o.z + d.z * t_out;
+            let zmin = if z_out < z { z_out } else { z };
+            if l == 0 {
+                let (i, j) = (bx as usize & mask_x, by as usize & mask_y);
+                let c = hf.corners_wrapped(i, (i + 1) & mask_x, j, (j + 1) & mask_y);
+                if zmin <= highest(c) + self.hair
+                    && let Some(h) = self.cell_hit_with(&pre, bx, by, t0, t1, || c)
+                {
+                    return Some(h);
+                }
+            } else if zmin <= at(lev, bx, by) {
+                // Into the child the ray is in at `t` (as `traverse_in`: the upper one
+                // when `t`'s point lies past the middle boundary, or on it moving up),
+                // the middle boundary found from the one ahead rather than from the
+                // integers: `(2b + 1)·w` is one child's width behind it moving up, ahead
+                // of it moving down, and comparing the point with it is comparing the
+                // point's quotient with `2b + 1` (the widths are powers of two).
+                l -= 1;
+                let c = &levels[l];
+                if c.up_x != 0 {
+                    let x = o.x + d.x * t;
+                    let mid = if PX { fx - c.wx } else { fx + c.wx };
+                    let upper = if PX { x >= mid } else { x > mid };
+                    bx = 2 * bx + i64::from(upper);
+                    fx = if PX == upper { fx } else { mid };
+                }
+                if c.up_y != 0 {
+                    let y = o.y + d.y * t;
+                    let mid = if PY { fy - c.wy } else { fy + c.wy };
+                    let upper = if PY { y >= mid } else { y > mid };
+                    by = 2 * by + i64::from(upper);
+                    fy = if PY == upper { fy } else { mid };
+                }
+                continue;
+            }
+            if t_out >= t1 {
+                return None;
+            }
+            let (obx, oby) = (bx, by);
+            if tx <= ty {
+                bx += sx;
+                fx += sx as f64 * lev.wx;
+            }
+            if ty <= tx {
+                by += sy;
+                fy += sy as f64 * lev.wy;
+            }
+            t = t_out;
+            z = z_out;
+            let (ux, uy) = (lev.up_x, lev.up_y);
+            if ((bx ^ obx) >> ux) | ((by ^ oby) >> uy) != 0 {
+                let (px, py) = (bx >> ux, by >> uy);
+                let p = &levels[l + 1];
+                if z > at(p, px, py) {
+                    l += 1;
+                    bx = px;
+                    by = py;
+                    fx = (bx + ax) as f64 * p.wx;
+                    fy = (by + ay) as f64 * p.wy;
+                }
+            }
+        }
+    }
+
+    /// The general hierarchical DDA (module docs). `FAST` wraps by masks and
+    /// divides by multiplications; the power-of-two patches now take
+    /// [`Tracer::traverse_fast`] instead, and only `FAST = false` is called.
     #[inline(always)]
     fn traverse_in<const FAST: bool>(
         &self,
@@ -630,6 +878,30 @@ impl Tracer {
         t1: f64,
     ) -> Option<Hit> {
         let hf = &self.hf;
+        self.cell_hit_with(pre, ix, iy, t0, t1, || {
+            if FAST {
+                let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
+                let (i, j) = (ix as usize & mx, iy as usize & my);
+                hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
+            } else {
+                hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
+            }
+        })
+    }
+
+    /// [`Tracer::cell_hit`] with the cell's corners from `corners`, asked for once
+    /// the ray is known to cross the cell within `[t0, t1]`.
+    #[inline(always)]
+    fn cell_hit_with(
+        &self,
+        pre: &Pre,
+        ix: i64,
+        iy: i64,
+        t0: f64,
+        t1: f64,
+        corners: impl FnOnce() -> [f64; 4],
+    ) -> Option<Hit> {
+        let hf = &self.hf;
         let (o, d) = (pre.o, pre.d);
         let (dx, dy) = (hf.dx(), hf.dy());
         let x0 = ix as f64 * dx;
@@ -657,47 +929,29 @@ impl Tracer {
         if lo > hi {
             return None;
         }
-        let c = if FAST {
-            let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
-            let (i, j) = (ix as usize & mx, iy as usize & my);
-            hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
-        } else {
-            hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
-        };
+        let c = corners();
         let (ou, du) = ((o.x - x0) * self.inv_dx, pre.du);
         let (ov, dv) = ((o.y - y0) * self.inv_dy, pre.dv);
         // The diagonal u = v: w(t) = u − v.
         let (w0, dw) = (ou - ov, du - dv);
         let tri_at = |t: f64| -> u8 { if w0 + dw * t >= 0.0 { 0 } else { 1 } };
-        // The piece `[ta, tb]` over triangle `tri`.
-        let piece = |ta: f64, tb: f64, tri: u8| -> Option<Hit> {
-            if ix == pre.skip.0 && iy == pre.skip.1 && tri == pre.skip.2 {
-                return None;
-            }
-            let (a, b) = HeightField::tri_slopes(c, tri);
-            let g0 = o.z - c[0] - a * ou - b * ov;
-            let k = d.z - a * du - b * dv;
-            let t = if g0 + k * ta <= 0.0 {
-                ta
-            } else if g0 + k * tb <= 0.0 {
-                (-g0 / k).clamp(ta, tb)
-            } else {
-                return None;
-            };
-            Some(Hit {
-                t,
-                cell: [ix, iy],
-                tri,
-            })
-        };
+        // One piece, or two when the diagonal cuts the range.
+        let mut pieces = [(lo, hi), (hi, hi)];
+        let mut n = 1;
         if dw != 0.0 {
             let td = -w0 / dw;
             if td > lo && td < hi {
-                return piece(lo, td, tri_at(0.5 * (lo + td)))
-                    .or_else(|| piece(td, hi, tri_at(0.5 * (td + hi))));
+                pieces = [(lo, td), (td, hi)];
+                n = 2;
             }
         }
-        piece(lo, hi, tri_at(0.5 * (lo + hi)))
+        for &(ta, tb) in &pieces[..n] {
+            let tri = tri_at(0.5 * (ta + tb));
+            if let Some(h) = piece(pre, c, (ix, iy), (ou, ov), ta, tb, tri) {
+                return Some(h);
+            }
+        }
+        None
     }
 
     /// The unit normal of the triangle of a hit.
@@ -750,6 +1004,88 @@ mod tests {
             ..ray
         };
         assert!(tr.first_hit(&up, Method::MaxMip).is_none());
+    }
+
+    /// The power-of-two loops ([`Tracer::traverse_fast`]) find the general
+    /// traversal's hit, to the bit, on a patch whose levels merge 2 × 2 and then
+    /// 2 × 1: rays from above and from within the height range (as bounced rays,
+    /// with `t_min` and a skipped triangle), in every quadrant, along the axes and
+    /// through cell corners.
+    #[test]
+    fn fast_loops_find_the_general_hit() {
+        use crate::GaussianParams;
+        let hf = HeightField::gaussian(&GaussianParams {
+            nx: 32,
+            ny: 8,
+            spacing: 0.5,
+            rms_height: 0.6,
+            correlation_length: 1.5,
+            seed: 5,
+        })
+        .expect("gaussian");
+        let tr = Tracer::new(hf);
+        assert!(tr.fast);
+        let (h0, h1) = (tr.hf.min_height(), tr.hf.max_height());
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = move || {
+            // splitmix64
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut x = state;
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((x ^ (x >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut hits, mut n) = (0, 0);
+        for k in 0..20_000 {
+            let from_above = k % 2 == 0;
+            // Every eighth ray starts on a node and moves along an axis or a diagonal.
+            let grid = k % 8 == 1;
+            let mut o = Vec3::new(
+                (uniform() * 3.0 - 1.0) * 16.0,
+                (uniform() * 3.0 - 1.0) * 4.0,
+                if from_above {
+                    h1 + uniform()
+                } else {
+                    h0 + (h1 - h0) * uniform()
+                },
+            );
+            let phi = if grid {
+                o.x = (o.x * 2.0).round() * 0.5;
+                o.y = (o.y * 2.0).round() * 0.5;
+                std::f64::consts::FRAC_PI_4 * (uniform() * 8.0).floor()
+            } else {
+                std::f64::consts::TAU * uniform()
+            };
+            let z = uniform() * 2.0 - 1.0;
+            let z = if from_above { -z.abs().max(1e-3) } else { z };
+            let s = (1.0 - z * z).sqrt();
+            let d = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+            let ray = Ray {
+                o,
+                d,
+                t_min: if from_above { 0.0 } else { 1e-9 },
+                skip: (!from_above).then(|| {
+                    let (i, j) = ((o.x / 0.5).floor() as i64, (o.y / 0.5).floor() as i64);
+                    (i, j, (k / 2 % 2) as u8)
+                }),
+            };
+            let Some(p) = tr.plan(&ray, Method::MaxMip) else {
+                continue;
+            };
+            let top = tr.levels() - 1;
+            for start in [p.start, 0, top] {
+                let fast = tr.traverse(&ray, p.t0, p.t1, start, top);
+                let general = tr.traverse_in::<false>(&ray, p.t0, p.t1, start, top);
+                assert_eq!(
+                    fast.map(|h| (h.cell, h.tri, h.t.to_bits())),
+                    general.map(|h| (h.cell, h.tri, h.t.to_bits())),
+                    "ray {k} from level {start}: {ray:?}"
+                );
+                hits += usize::from(fast.is_some());
+                n += 1;
+            }
+        }
+        assert!(hits > n / 2, "{hits} hits of {n}");
     }
 
     /// The start level from the exponent is the loop's: the least `l` with
