@@ -86,9 +86,6 @@ struct Level {
     /// a mask), else `None`.
     mask_x: Option<i64>,
     mask_y: Option<i64>,
-    /// The masks as plain integers (0 when there is none), for `FAST`.
-    and_x: i64,
-    and_y: i64,
     /// Highest corner of each block, raised by a hair (see `Tracer::new`) and
     /// rounded up to `f32` (half the bytes for the cache: the lookups are what a
     /// traversal waits for), row-major.
@@ -108,15 +105,9 @@ impl Level {
         }
     }
 
-    /// The maximum of block `(bx, by)`, wrapped onto the patch; `FAST` when the
-    /// counts are powers of two (`Tracer::fast`).
+    /// The maximum of block `(bx, by)`, wrapped onto the patch.
     #[inline(always)]
-    fn max_at<const FAST: bool>(&self, bx: i64, by: i64) -> f64 {
-        if FAST {
-            let i = (bx & self.and_x) as usize;
-            let j = (by & self.and_y) as usize;
-            return f64::from(self.max[j * self.nbx + i]);
-        }
+    fn max_at(&self, bx: i64, by: i64) -> f64 {
         let i = match self.mask_x {
             Some(m) => (bx & m) as usize,
             None => bx.rem_euclid(self.nbx as i64) as usize,
@@ -126,24 +117,6 @@ impl Level {
             None => by.rem_euclid(self.nby as i64) as usize,
         };
         f64::from(self.max[j * self.nbx + i])
-    }
-
-    /// `x / wx` (by the exact inverse when `FAST`).
-    #[inline(always)]
-    fn quot_x<const FAST: bool>(&self, x: f64) -> f64 {
-        match self.inv_wx {
-            Some(inv) if FAST => x * inv,
-            _ => x / self.wx,
-        }
-    }
-
-    /// `y / wy` (by the exact inverse when `FAST`).
-    #[inline(always)]
-    fn quot_y<const FAST: bool>(&self, y: f64) -> f64 {
-        match self.inv_wy {
-            Some(inv) if FAST => y * inv,
-            _ => y / self.wy,
-        }
     }
 }
 
@@ -380,16 +353,6 @@ impl Tracer {
             nby,
             mask_x: nbx.is_power_of_two().then_some(nbx as i64 - 1),
             mask_y: nby.is_power_of_two().then_some(nby as i64 - 1),
-            and_x: if nbx.is_power_of_two() {
-                nbx as i64 - 1
-            } else {
-                0
-            },
-            and_y: if nby.is_power_of_two() {
-                nby as i64 - 1
-            } else {
-                0
-            },
             max,
         };
         let mut levels = vec![level(1, 1, nx, ny, max)];
@@ -426,8 +389,8 @@ impl Tracer {
                     wy: l.wy,
                     inv_wx: l.inv_wx.unwrap_or(f64::NAN),
                     inv_wy: l.inv_wy.unwrap_or(f64::NAN),
-                    mask_x: l.and_x,
-                    mask_y: l.and_y,
+                    mask_x: l.mask_x.unwrap_or(0),
+                    mask_y: l.mask_y.unwrap_or(0),
                     shift: l.nbx.trailing_zeros(),
                     up_x: l.up_x,
                     up_y: l.up_y,
@@ -600,13 +563,13 @@ impl Tracer {
                 (true, _, _, true) => self.traverse_fast::<true, false>(ray, t0, t1, start),
                 (_, true, true, _) => self.traverse_fast::<false, true>(ray, t0, t1, start),
                 (_, true, _, true) => self.traverse_fast::<false, false>(ray, t0, t1, start),
-                _ => self.traverse_in::<false>(ray, t0, t1, start, top),
+                _ => self.traverse_in(ray, t0, t1, start, top),
             }
         } else {
             // The flat grid (a benchmark and a test oracle), and the other patches:
             // the general path, so that the fast cell test has the fast loops alone
             // as callers and is inlined into them.
-            self.traverse_in::<false>(ray, t0, t1, start, top)
+            self.traverse_in(ray, t0, t1, start, top)
         }
     }
 
@@ -726,18 +689,10 @@ impl Tracer {
         }
     }
 
-    /// The general hierarchical DDA (module docs). `FAST` wraps by masks and
-    /// divides by multiplications; the power-of-two patches now take
-    /// [`Tracer::traverse_fast`] instead, and only `FAST = false` is called.
+    /// The general hierarchical DDA (module docs), with remainders and divisions;
+    /// the power-of-two patches take [`Tracer::traverse_fast`].
     #[inline(always)]
-    fn traverse_in<const FAST: bool>(
-        &self,
-        ray: &Ray,
-        t0: f64,
-        t1: f64,
-        start: usize,
-        top: usize,
-    ) -> Option<Hit> {
+    fn traverse_in(&self, ray: &Ray, t0: f64, t1: f64, start: usize, top: usize) -> Option<Hit> {
         let pre = self.pre(ray);
         let (o, d) = (ray.o, ray.d);
         let sx: i64 = if d.x > 0.0 {
@@ -786,9 +741,9 @@ impl Tracer {
             let z_out = o.z + d.z * t_out;
             // Both heights are finite (so is every `t`): a plain comparison.
             let zmin = if z_out < z { z_out } else { z };
-            if zmin <= lev.max_at::<FAST>(bx, by) {
+            if zmin <= lev.max_at(bx, by) {
                 if l == 0 {
-                    if let Some(h) = self.cell_hit::<FAST>(&pre, bx, by, t0, t1) {
+                    if let Some(h) = self.cell_hit(&pre, bx, by, t0, t1) {
                         return Some(h);
                     }
                 } else {
@@ -798,12 +753,12 @@ impl Tracer {
                     l -= 1;
                     let child = &levels[l];
                     if child.up_x != 0 {
-                        let u = child.quot_x::<FAST>(o.x + d.x * t);
+                        let u = (o.x + d.x * t) / child.wx;
                         let m = (2 * bx + 1) as f64;
                         bx = 2 * bx + i64::from(if neg_x { u > m } else { u >= m });
                     }
                     if child.up_y != 0 {
-                        let u = child.quot_y::<FAST>(o.y + d.y * t);
+                        let u = (o.y + d.y * t) / child.wy;
                         let m = (2 * by + 1) as f64;
                         by = 2 * by + i64::from(if neg_y { u > m } else { u >= m });
                     }
@@ -829,8 +784,7 @@ impl Tracer {
                 // lower still further on), and climbing would only descend again.
                 let (ux, uy) = (lev.up_x, lev.up_y);
                 let (px, py) = (bx >> ux, by >> uy);
-                if (px != obx >> ux || py != oby >> uy) && z > levels[l + 1].max_at::<FAST>(px, py)
-                {
+                if (px != obx >> ux || py != oby >> uy) && z > levels[l + 1].max_at(px, py) {
                     l += 1;
                     bx = px;
                     by = py;
@@ -853,8 +807,7 @@ impl Tracer {
             for kx in cx0.div_euclid(nx)..=cx1.div_euclid(nx) {
                 for j in 0..ny {
                     for i in 0..nx {
-                        if let Some(h) =
-                            self.cell_hit::<false>(&pre, kx * nx + i, ky * ny + j, t0, t1)
+                        if let Some(h) = self.cell_hit(&pre, kx * nx + i, ky * ny + j, t0, t1)
                             && best.is_none_or(|b| h.t < b.t)
                         {
                             best = Some(h);
@@ -867,25 +820,12 @@ impl Tracer {
     }
 
     /// The first hit in unwrapped cell `(ix, iy)` within `[t0, t1]` (see the module
-    /// docs). `FAST` wraps by masks (`Tracer::fast`); the arithmetic is the same.
+    /// docs).
     #[inline]
-    fn cell_hit<const FAST: bool>(
-        &self,
-        pre: &Pre,
-        ix: i64,
-        iy: i64,
-        t0: f64,
-        t1: f64,
-    ) -> Option<Hit> {
+    fn cell_hit(&self, pre: &Pre, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
         let hf = &self.hf;
         self.cell_hit_with(pre, ix, iy, t0, t1, || {
-            if FAST {
-                let (mx, my) = (hf.nx() - 1, hf.ny() - 1);
-                let (i, j) = (ix as usize & mx, iy as usize & my);
-                hf.corners_wrapped(i, (i + 1) & mx, j, (j + 1) & my)
-            } else {
-                hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
-            }
+            hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
         })
     }
 
@@ -1075,7 +1015,7 @@ mod tests {
             let top = tr.levels() - 1;
             for start in [p.start, 0, top] {
                 let fast = tr.traverse(&ray, p.t0, p.t1, start, top);
-                let general = tr.traverse_in::<false>(&ray, p.t0, p.t1, start, top);
+                let general = tr.traverse_in(&ray, p.t0, p.t1, start, top);
                 assert_eq!(
                     fast.map(|h| (h.cell, h.tri, h.t.to_bits())),
                     general.map(|h| (h.cell, h.tri, h.t.to_bits())),
