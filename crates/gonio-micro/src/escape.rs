@@ -71,10 +71,23 @@ fn level(q: u8) -> f64 {
     }
 }
 
-/// The least code whose value (`values[q]`, [`level`]'s) is at least `b`.
+/// The least code whose value (`values[q]`, [`level`]'s, ascending) is at least `b`.
 fn encode(b: f64, values: &[f64]) -> u8 {
-    let guess = ((b.log2() * STEPS).ceil() + 128.0).clamp(0.0, f64::from(NEVER));
-    // `log2` may round either way: settle on the least code at or above `b`.
+    // From the exponent and the mantissa's linear part (log2(1 + f) ≈ f, off by
+    // under 0.09, so at most two codes), then settled on the least code at or
+    // above `b`: no logarithm a cell and quadrant. A NaN bound never clears.
+    let guess = if b.is_nan() {
+        f64::from(NEVER)
+    } else if b.is_normal() && b > 0.0 {
+        let bits = b.to_bits();
+        let e = ((bits >> 52) & 0x7ff) as f64 - 1023.0;
+        let f = (bits & ((1u64 << 52) - 1)) as f64 / (1u64 << 52) as f64;
+        ((e + f) * STEPS + 128.0).clamp(0.0, f64::from(NEVER))
+    } else if b > 0.0 {
+        f64::from(NEVER)
+    } else {
+        0.0
+    };
     let mut q = guess as u8;
     while q < NEVER && values[usize::from(q)] < b {
         q += 1;
@@ -266,6 +279,8 @@ mod tests {
             }
         }
         assert_eq!(encode(1e6, &values), NEVER);
+        assert_eq!(encode(f64::NAN, &values), NEVER);
+        assert_eq!(encode(0.0, &values), 0);
         assert_eq!(encode(1.0, &values), 128);
     }
 
