@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use gonio_core::Vec3;
 
 use crate::HeightField;
+use crate::heightfield::wrap;
 
 /// Rings bounded one by one (`2 ≤ k < RINGS`); beyond, the highest node.
 const RINGS: usize = 10;
@@ -230,15 +231,6 @@ impl Escape {
     /// load overlaps the shading.
     #[inline]
     pub(crate) fn codes(&self, i: i64, j: i64) -> [u8; 4] {
-        // A mask on the usual power-of-two patches: a remainder would cost more
-        // than the search it saves.
-        let wrap = |k: i64, n: usize| {
-            if n.is_power_of_two() {
-                (k & (n as i64 - 1)) as usize
-            } else {
-                k.rem_euclid(n as i64) as usize
-            }
-        };
         self.code[wrap(j, self.ny) * self.nx + wrap(i, self.nx)]
     }
 

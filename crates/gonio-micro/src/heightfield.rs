@@ -29,13 +29,30 @@ pub(crate) struct Divisor {
     inv: Option<f64>,
 }
 
+/// `1/x` when it is exact: `x` a normal power of two whose inverse is normal too.
+pub(crate) fn exact_inverse(x: f64) -> Option<f64> {
+    let inv = 1.0 / x;
+    (x.is_normal() && inv.is_normal() && x.to_bits() & ((1u64 << 52) - 1) == 0).then_some(inv)
+}
+
+/// Index `k` of an unwrapped lattice wrapped onto `0..n`: a mask for power-of-two
+/// counts (the usual patches; a remainder on every lookup showed in the profile).
+#[inline]
+pub(crate) fn wrap(k: i64, n: usize) -> usize {
+    if n.is_power_of_two() {
+        (k & (n as i64 - 1)) as usize
+    } else if (0..n as i64).contains(&k) {
+        k as usize
+    } else {
+        k.rem_euclid(n as i64) as usize
+    }
+}
+
 impl Divisor {
     pub(crate) fn new(d: f64) -> Divisor {
-        let inv = 1.0 / d;
-        let exact = d.is_normal() && inv.is_normal() && d.to_bits() & ((1u64 << 52) - 1) == 0;
         Divisor {
             d,
-            inv: exact.then_some(inv),
+            inv: exact_inverse(d),
         }
     }
 

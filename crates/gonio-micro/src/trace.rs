@@ -26,6 +26,7 @@
 use gonio_core::Vec3;
 
 use crate::HeightField;
+use crate::heightfield::{exact_inverse, wrap};
 
 /// How [`Tracer::first_hit`] searches for the first hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,18 +94,6 @@ struct Level {
 }
 
 impl Level {
-    /// Block coordinates wrapped onto the patch: a mask for power-of-two counts.
-    #[inline]
-    fn wrap(k: i64, n: usize) -> usize {
-        if n.is_power_of_two() {
-            (k & (n as i64 - 1)) as usize
-        } else if (0..n as i64).contains(&k) {
-            k as usize
-        } else {
-            k.rem_euclid(n as i64) as usize
-        }
-    }
-
     /// The maximum of block `(bx, by)`, wrapped onto the patch.
     #[inline(always)]
     fn max_at(&self, bx: i64, by: i64) -> f64 {
@@ -250,12 +239,6 @@ fn start_level(cells: f64) -> usize {
     } else {
         e + 1
     }
-}
-
-/// `1/x` when it is exact: `x` a normal power of two whose inverse is normal too.
-fn exact_inverse(x: f64) -> Option<f64> {
-    let inv = 1.0 / x;
-    (x.is_normal() && inv.is_normal() && x.to_bits() & ((1u64 << 52) - 1) == 0).then_some(inv)
 }
 
 /// The least `f32` at or above `x` (a height bound stays a bound).
@@ -825,7 +808,7 @@ impl Tracer {
     fn cell_hit(&self, pre: &Pre, ix: i64, iy: i64, t0: f64, t1: f64) -> Option<Hit> {
         let hf = &self.hf;
         self.cell_hit_with(pre, ix, iy, t0, t1, || {
-            hf.corners(Level::wrap(ix, hf.nx()), Level::wrap(iy, hf.ny()))
+            hf.corners(wrap(ix, hf.nx()), wrap(iy, hf.ny()))
         })
     }
 
@@ -910,10 +893,7 @@ impl Tracer {
 
     #[inline]
     fn wrap_cell(&self, c: [i64; 2]) -> (usize, usize) {
-        (
-            Level::wrap(c[0], self.hf.nx()),
-            Level::wrap(c[1], self.hf.ny()),
-        )
+        (wrap(c[0], self.hf.nx()), wrap(c[1], self.hf.ny()))
     }
 }
 
